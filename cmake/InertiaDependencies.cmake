@@ -1,0 +1,25 @@
+# Every dependency is a Debian 12 package; inertia.sh installs them (list in cmake/debian-packages.txt).
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+find_package(tomlplusplus 3.3 REQUIRED)
+find_package(CLI11 REQUIRED)
+find_package(fmt REQUIRED)
+find_package(nlohmann_json 3.10 REQUIRED)
+find_package(Boost 1.74 REQUIRED)          # header-only parts: Math (Student's t), Lockfree (benchmark peer)
+find_package(Threads REQUIRED)
+find_package(GTest REQUIRED)
+find_package(benchmark REQUIRED)
+find_package(Java 17 COMPONENTS Development REQUIRED)
+include(UseJava)
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(GPIODCXX REQUIRED IMPORTED_TARGET libgpiodcxx)
+pkg_check_modules(MODBUS REQUIRED IMPORTED_TARGET libmodbus)
+pkg_check_modules(SYSTEMD REQUIRED IMPORTED_TARGET libsystemd)
+
+# lcm.pc requires glib although the headers do not; locate the library directly.
+find_path(LCM_INCLUDE_DIR lcm/lcm-cpp.hpp REQUIRED)
+find_library(LCM_LIBRARY lcm REQUIRED)
+find_program(LCM_GEN lcm-gen REQUIRED)
+find_file(LCM_JAR lcm.jar PATHS /usr/share/java REQUIRED)
+add_library(lcm::lcm UNKNOWN IMPORTED)
+set_target_properties(lcm::lcm PROPERTIES IMPORTED_LOCATION ${LCM_LIBRARY}
+                                          INTERFACE_INCLUDE_DIRECTORIES ${LCM_INCLUDE_DIR})

@@ -1,0 +1,37 @@
+#pragma once
+// Truth model of a pendulous accelerometer: the paper's equation 12, section 3.1.
+//   y = K_i (K_b + a_i + K_s sign(a_i) + K_a |a_i| + K_oq a_i|a_i| + K_ip a_i a_p + K_io a_i a_o
+//            + K_po a_p a_o + K_ii(s) a_i^2 + K_pp(s) a_p^2 + K_oo(s) a_o^2 + e_N + e_B + e_K)
+// with a_S = R_OA(alpha_o) R_PA(alpha_p) a_C, accelerations in g (as the paper's table 1), and
+// K_jj(s) = K_jj s / (s + b_jj) first-order high-pass filters.
+#include <Eigen/Dense>
+#include <cstdint>
+
+namespace inertia::sim {
+
+struct AccelerometerParams {
+  double k_i = 0.86;              // scale factor, output unit per g
+  double k_b = 4e-3;              // bias, g
+  double k_s = 0.0;               // sign(a_i) coefficient (asymmetry), g
+  double k_a = 0.0;               // |a_i| coefficient (rectification), dimensionless
+  double k_oq = 0.0;              // a_i |a_i| coefficient (odd quadratic), 1/g
+  double k_ip = 1e-3;             // a_i a_p cross-coupling, 1/g
+  double k_io = 1e-3;             // a_i a_o cross-coupling, 1/g
+  double k_po = 1e-3;             // a_p a_o cross-coupling, 1/g
+  double k_ii = 60e-6;            // high-pass gain of a_i^2, 1/g
+  double k_pp = 60e-6;            // high-pass gain of a_p^2, 1/g
+  double k_oo = 60e-6;            // high-pass gain of a_o^2, 1/g
+  double b_ii_rad_s = 500.0;      // high-pass corner of K_ii(s), rad/s (table 1 "bK")
+  double b_pp_rad_s = 500.0;
+  double b_oo_rad_s = 500.0;
+  double alpha_p_rad = 1.4e-3;    // sensor misalignment about PA
+  double alpha_o_rad = 1.4e-3;    // sensor misalignment about OA
+  double white_sd_g = 1e-4;       // N: standard deviation per sample of the white component, g
+  double pink_sd_g = 1.5e-3;      // B: standard deviation per sample of the pink (1/f) component, g
+  double brown_sd_g = 0.0;        // K: standard deviation of the brown (1/f^2) component after 1 s, g
+  double pink_min_hz = 0.01;      // lower edge of the 1/f band (the band's upper edge is Nyquist)
+  double bias_tc_g_per_degc = 0.0;   // optional: bias temperature coefficient, g/degC (on T = temp - t_ref)
+  double scale_tc_per_degc = 0.0;    // optional: relative scale-factor temperature coefficient, 1/degC
+};
+
+}  // namespace inertia::sim

@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# inertia quick start. Each command installs missing Debian packages, configures and builds first.
+#   ./inertia.sh demo   characterize a sensor on the built-in simulated bench (config/sim-paper.toml)
+#   ./inertia.sh test   run the whole test suite (what CI runs)
+#   ./inertia.sh build  only install, configure and build
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+build_dir="${INERTIA_BUILD_DIR:-$here/build}"
+jobs="$(nproc 2>/dev/null || echo 2)"
+
+as_root() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
+
+install_missing_packages() {
+  local wanted missing=()
+  mapfile -t wanted < <(grep -v '^\s*#' "$here/cmake/debian-packages.txt" | grep -v '^\s*$')
+  for pkg in "${wanted[@]}"; do
+    dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q 'install ok installed' || missing+=("$pkg")
+  done
+  if [ "${#missing[@]}" -gt 0 ]; then
+    echo "inertia: installing ${missing[*]}" >&2
+    as_root apt-get update -qq
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+  fi
+}
+
+# LCM refuses to start without a multicast route; on a fresh machine or container loopback may lack one.
+ensure_multicast_route() {
+  if ! ip route show 224.0.0.0/4 2>/dev/null | grep -q . && ! ip route show default 2>/dev/null | grep -q .; then
+    echo "inertia: adding a multicast route on loopback for LCM (ip route add 224.0.0.0/4 dev lo)" >&2
+    as_root ip link set lo multicast on || true
+    as_root ip route add 224.0.0.0/4 dev lo || true
+  fi
+}
+
+configure_and_build() {
+  install_missing_packages
+  cmake -S "$here" -B "$build_dir" -G Ninja ${INERTIA_CMAKE_ARGS:-} >/dev/null
+  cmake --build "$build_dir" -j "$jobs"
+}
+
+case "${1:-}" in
+  demo)
+    configure_and_build
+    out="${2:-$here/out/sim-paper}"
+    "$build_dir/bin/inertia-analyze" simulate --bench "$here/config/sim-paper.toml" --out "$out"
+    ;;
+  test)
+    configure_and_build
+    ensure_multicast_route
+    ctest --test-dir "$build_dir" --output-on-failure -j "$jobs" --timeout 600
+    ;;
+  build)
+    configure_and_build
+    ;;
+  *)
+    sed -n '2,5p' "$0" >&2
+    exit 2
+    ;;
+esac
