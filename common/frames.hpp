@@ -4,8 +4,6 @@
 // written in F_A. Frames: F_E external (table/shaker), F_C sensor case (IRA, XRA, YRA),
 // F_S sensor (i input, p pendulous, o output).
 #include <Eigen/Dense>
-#include <algorithm>
-#include <cmath>
 
 namespace inertia::frames {
 
@@ -14,33 +12,19 @@ using Dcm = Eigen::Matrix3d;
 /// DCM of a frame obtained by rotating the reference frame by `angle_rad` about `axis`
 /// (right-hand rule; axis in reference coordinates, need not be unit length).
 /// It maps reference coordinates into the rotated frame: v_rotated = frame_rotation(...) * v_ref.
-inline Dcm frame_rotation(const Eigen::Vector3d& axis, double angle_rad) {
-  const double n = axis.norm();
-  if (n == 0.0 || angle_rad == 0.0) return Dcm::Identity();
-  // The active rotation R moves vectors; the rotated frame's axes are the columns of R written in
-  // the reference frame, so the DCM (rows = new axes) is R^T.
-  return Eigen::AngleAxisd(angle_rad, axis / n).toRotationMatrix().transpose();
-}
+Dcm frame_rotation(const Eigen::Vector3d& axis, double angle_rad);
 
 /// The paper's R_PA(alpha_p), R_OA(alpha_o): frame rotations about the second and third axis.
 inline Dcm about_second_axis(double angle_rad) { return frame_rotation(Eigen::Vector3d::UnitY(), angle_rad); }
 inline Dcm about_third_axis(double angle_rad) { return frame_rotation(Eigen::Vector3d::UnitZ(), angle_rad); }
 
 /// Angle between two DCMs (the rotation angle of a^T b), in radians.
-inline double angle_between(const Dcm& a, const Dcm& b) {
-  const double c = std::clamp(((a.transpose() * b).trace() - 1.0) / 2.0, -1.0, 1.0);
-  return std::acos(c);
-}
+double angle_between(const Dcm& a, const Dcm& b);
 
 /// Angle between two axes (unit or not), in radians.
-inline double axis_angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
-}
+double axis_angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 
 /// True when m is a proper rotation (orthonormal, det +1) to within `tol`.
-inline bool is_rotation(const Dcm& m, double tol = 1e-9) {
-  return (m * m.transpose() - Dcm::Identity()).cwiseAbs().maxCoeff() < tol &&
-         std::abs(m.determinant() - 1.0) < tol;
-}
+bool is_rotation(const Dcm& m, double tol = 1e-9);
 
 }  // namespace inertia::frames

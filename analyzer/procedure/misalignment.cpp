@@ -1,0 +1,35 @@
+#include "analyzer/procedure/misalignment.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace inertia::procedure {
+
+frames::Dcm misalignment_from_sensitivities(const Eigen::Vector3d& theta, const frames::Dcm& m_ec_nominal) {
+  const double theta_i = theta.norm();                                  // step 1
+  if (!std::isfinite(theta_i) || theta_i == 0.0) {
+    throw std::invalid_argument("misalignment: the F_E sensitivities theta_x, theta_y, theta_z are zero or not finite");
+  }
+  const Eigen::Vector3d n_i = theta / theta_i;                          // steps 2-5
+  const Eigen::Vector3d n_ira = m_ec_nominal.row(0).transpose();        // step 6
+  const Eigen::Vector3d n_r = n_ira.cross(n_i);                         // step 7
+  const double delta = std::atan2(n_r.norm(), n_ira.dot(n_i));          // step 8 (acos, robust near 0)
+  // Steps 9-11: R(n_R, delta) is a frame rotation (DCM); its transpose turns vectors, carrying
+  // IRA onto n_i, and carries XRA and YRA along with it.
+  const frames::Dcm turn = frames::frame_rotation(n_r, delta).transpose();
+  frames::Dcm m_es;
+  m_es.row(0) = n_i.transpose();                                        // step 12
+  m_es.row(1) = (turn * m_ec_nominal.row(1).transpose()).transpose();
+  m_es.row(2) = (turn * m_ec_nominal.row(2).transpose()).transpose();
+  return m_es;
+}
+
+double input_axis_error(const frames::Dcm& m_es_true, const frames::Dcm& m_es_estimated) {
+  return frames::axis_angle_between(m_es_true.row(0).transpose(), m_es_estimated.row(0).transpose());
+}
+
+double full_dcm_error(const frames::Dcm& m_es_true, const frames::Dcm& m_es_estimated) {
+  return frames::angle_between(m_es_true, m_es_estimated);
+}
+
+}  // namespace inertia::procedure
