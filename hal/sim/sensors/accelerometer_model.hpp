@@ -4,8 +4,14 @@
 //            + K_po a_p a_o + K_ii(s) a_i^2 + K_pp(s) a_p^2 + K_oo(s) a_o^2 + e_N + e_B + e_K)
 // with a_S = R_OA(alpha_o) R_PA(alpha_p) a_C, accelerations in g (as the paper's table 1), and
 // K_jj(s) = K_jj s / (s + b_jj) first-order high-pass filters.
+// Our extension (not in the paper, zero by default): temperature coefficients of bias and scale,
+//   y = K_i (1 + scale_tc T) (K_b + bias_tc T + a_i + ... + e_K),   T = temp - t_ref.
 #include <Eigen/Dense>
 #include <cstdint>
+
+#include "hal/sim/sensors/discrete_filter.hpp"
+#include "hal/sim/sensors/gaussian_source.hpp"
+#include "hal/sim/sensors/pink_noise.hpp"
 
 namespace inertia::sim {
 
@@ -32,6 +38,38 @@ struct AccelerometerParams {
   double pink_min_hz = 0.01;      // lower edge of the 1/f band (the band's upper edge is Nyquist)
   double bias_tc_g_per_degc = 0.0;   // optional: bias temperature coefficient, g/degC (on T = temp - t_ref)
   double scale_tc_per_degc = 0.0;    // optional: relative scale-factor temperature coefficient, 1/degC
+};
+
+class AccelerometerModel {
+ public:
+  /// Throws std::invalid_argument naming the field when a parameter is out of range
+  /// (sample rate <= 0, a high-pass corner outside (0, pi * sample_rate_hz) while its gain is
+  /// non-zero, a negative noise level, pink_min_hz outside (0, Nyquist)). Not real-time.
+  AccelerometerModel(const AccelerometerParams& p, double sample_rate_hz, std::uint64_t seed);
+
+  /// One sample. a_case: specific force in the case frame F_C, m/s^2; temp_delta_c = temp - t_ref
+  /// (degC). Returns y in the output unit. Call once per sample, in time order; the first call
+  /// also settles the high-pass filters at that input (the sensor sat under it before the record
+  /// began). Real-time safe: no allocation, no lock.
+  double step(const Eigen::Vector3d& a_case, double temp_delta_c) noexcept;
+
+  /// M_C^S = R_OA(alpha_o) R_PA(alpha_p) (frame rotations, common/frames.hpp).
+  [[nodiscard]] Eigen::Matrix3d m_cs() const { return m_cs_; }
+  [[nodiscard]] const AccelerometerParams& params() const noexcept { return p_; }
+  [[nodiscard]] double sample_rate_hz() const noexcept { return sample_rate_hz_; }
+
+ private:
+  AccelerometerParams p_;
+  double sample_rate_hz_;
+  Eigen::Matrix3d m_cs_;
+  Eigen::Matrix3d m_cs_per_g_;      // M_C^S / g0: m/s^2 in the case frame -> g in the sensor frame
+  DiscreteFilter<1> hp_i_, hp_p_, hp_o_;
+  GaussianSource white_;
+  PinkNoise pink_;
+  GaussianSource brown_draws_;
+  double brown_step_sd_g_;          // brown_sd_g / sqrt(sample_rate_hz): sd of one random-walk step
+  double brown_g_ = 0.0;            // e_K, the random walk, starts at 0 with the record
+  bool first_ = true;
 };
 
 }  // namespace inertia::sim
