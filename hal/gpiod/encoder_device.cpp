@@ -1,0 +1,260 @@
+#include "hal/gpiod/encoder_device.hpp"
+
+#include <fcntl.h>
+#include <glob.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <utility>
+
+namespace inertia::hal::gpiod {
+namespace {
+
+constexpr const char* kConsumer = "inertia-daqd";
+
+std::int64_t to_ns(const timespec& ts) noexcept {
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+bool any_gpiochip() {
+  glob_t g{};
+  const bool found = ::glob("/dev/gpiochip*", 0, nullptr, &g) == 0 && g.gl_pathc > 0;
+  ::globfree(&g);
+  return found;
+}
+
+}  // namespace
+
+bool QuadratureConfig::is_valid(std::string* why) const {
+  auto fail = [&](const std::string& what) {
+    if (why) *why = "encoder '" + name + "': " + what;
+    return false;
+  };
+  if (name.empty()) return fail("empty name");
+  if (line_a == line_b) return fail("line_a and line_b are the same line");
+  if (line_marker >= 0 && (static_cast<unsigned>(line_marker) == line_a || static_cast<unsigned>(line_marker) == line_b))
+    return fail("line_marker repeats an A/B line");
+  if (line_trigger >= 0 && (static_cast<unsigned>(line_trigger) == line_a ||
+                            static_cast<unsigned>(line_trigger) == line_b || line_trigger == line_marker))
+    return fail("line_trigger repeats another line");
+  if (!std::isfinite(resolution) || resolution <= 0.0) return fail("resolution must be positive (SI per count)");
+  if (min_edge_interval_ns < 0 || simultaneous_ns < 0) return fail("intervals must not be negative");
+  return true;
+}
+
+// --- libgpiod v1 source ---------------------------------------------------------------------
+
+std::unique_ptr<GpiodEdgeSource> GpiodEdgeSource::open(const QuadratureConfig& config, std::string* why) {
+  if (!config.is_valid(why)) return nullptr;
+  gpiod_chip* chip = ::gpiod_chip_open_lookup(config.chip.c_str());
+  if (chip == nullptr) {
+    if (why) {
+      *why = "cannot open GPIO chip '" + config.chip + "': " + std::strerror(errno);
+      if (!any_gpiochip()) *why += " (no /dev/gpiochip* on this machine: the kernel has no GPIO support)";
+    }
+    return nullptr;
+  }
+  std::unique_ptr<GpiodEdgeSource> source(new GpiodEdgeSource(chip));
+  const int offsets[kEdgeLineCount] = {static_cast<int>(config.line_a), static_cast<int>(config.line_b),
+                                       config.line_marker, config.line_trigger};
+  const int flags = config.active_low ? GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW : 0;
+  for (std::size_t i = 0; i < kEdgeLineCount; ++i) {
+    if (offsets[i] < 0) continue;
+    gpiod_line* line = ::gpiod_chip_get_line(chip, static_cast<unsigned>(offsets[i]));
+    if (line == nullptr || ::gpiod_line_request_both_edges_events_flags(line, kConsumer, flags) != 0) {
+      if (why) *why = "GPIO chip '" + config.chip + "' line " + std::to_string(offsets[i]) +
+                      ": cannot request both-edge events: " + std::strerror(errno);
+      return nullptr;
+    }
+    source->lines_[i] = line;
+  }
+  return source;
+}
+
+GpiodEdgeSource::~GpiodEdgeSource() { ::gpiod_chip_close(chip_); }
+
+int GpiodEdgeSource::event_fd(EdgeLine line) const noexcept {
+  gpiod_line* l = lines_[static_cast<std::size_t>(line)];
+  return l == nullptr ? -1 : ::gpiod_line_event_get_fd(l);
+}
+
+bool GpiodEdgeSource::level(EdgeLine line) const noexcept {
+  gpiod_line* l = lines_[static_cast<std::size_t>(line)];
+  return l != nullptr && ::gpiod_line_get_value(l) == 1;
+}
+
+// --- device ---------------------------------------------------------------------------------
+
+std::unique_ptr<GpiodEncoderDevice> GpiodEncoderDevice::open(const QuadratureConfig& config, std::string* why) {
+  auto source = GpiodEdgeSource::open(config, why);
+  if (!source) return nullptr;
+  return from_source(std::move(source), config, why);
+}
+
+std::unique_ptr<GpiodEncoderDevice> GpiodEncoderDevice::from_source(std::unique_ptr<EdgeSource> source,
+                                                                    const QuadratureConfig& config,
+                                                                    std::string* why) {
+  if (!config.is_valid(why)) return nullptr;
+  if (!source || source->event_fd(EdgeLine::A) < 0 || source->event_fd(EdgeLine::B) < 0) {
+    if (why) *why = "encoder '" + config.name + "': the edge source has no A/B event descriptors";
+    return nullptr;
+  }
+  return std::unique_ptr<GpiodEncoderDevice>(new GpiodEncoderDevice(std::move(source), config));
+}
+
+GpiodEncoderDevice::GpiodEncoderDevice(std::unique_ptr<EdgeSource> source, QuadratureConfig config)
+    : source_(std::move(source)),
+      config_(std::move(config)),
+      decoder_(config_.min_edge_interval_ns, config_.simultaneous_ns) {
+  channels_ = {config_.name + ".count", config_.name + ".position"};
+  if (source_->event_fd(EdgeLine::Marker) >= 0) {
+    marker_channel_ = static_cast<int>(channels_.size());
+    channels_.push_back(config_.name + ".marker");
+  }
+  if (source_->event_fd(EdgeLine::Trigger) >= 0) {
+    trigger_channel_ = static_cast<int>(channels_.size());
+    channels_.push_back(config_.name + ".trigger");
+  }
+}
+
+Step GpiodEncoderDevice::configure() {
+  for (std::size_t i = 0; i < kEdgeLineCount; ++i) {
+    const int fd = source_->event_fd(static_cast<EdgeLine>(i));
+    if (fd < 0) continue;
+    const int flags = ::fcntl(fd, F_GETFL);
+    if (flags < 0 || ::fcntl(fd, F_SETFL, flags | O_NONBLOCK) != 0)
+      return fail(Step::Fatal, std::string("fcntl(O_NONBLOCK) on a line event descriptor: ") + std::strerror(errno));
+  }
+  decoder_.reset(source_->level(EdgeLine::A), source_->level(EdgeLine::B), 0);
+  configured_ = true;
+  return ok();
+}
+
+void GpiodEncoderDevice::discard_pending() noexcept {
+  for (std::size_t i = 0; i < kEdgeLineCount; ++i) {
+    buffers_[i] = LineBuffer{};
+    const int fd = source_->event_fd(static_cast<EdgeLine>(i));
+    if (fd < 0) continue;
+    for (int k = 0; k < 10000 && ::gpiod_line_event_read_fd_multiple(fd, buffers_[i].events.data(),
+                                                                      kEventsPerRead) > 0; ++k) {
+    }
+    buffers_[i] = LineBuffer{};
+  }
+}
+
+Step GpiodEncoderDevice::activate() {
+  if (!configured_) return fail(Step::Fatal, "activate() before configure()");
+  discard_pending();
+  decoder_.reset(source_->level(EdgeLine::A), source_->level(EdgeLine::B), decoder_.count());
+  ++health_.resyncs;
+  active_ = true;
+  return ok();
+}
+
+Step GpiodEncoderDevice::deactivate() {
+  active_ = false;
+  return ok();
+}
+
+EncoderStatus GpiodEncoderDevice::status() const noexcept {
+  EncoderStatus s;
+  s.quadrature = decoder_.counters();
+  s.markers = markers_;
+  s.triggers = triggers_;
+  s.count = decoder_.count();
+  return s;
+}
+
+bool GpiodEncoderDevice::push(std::uint32_t channel, std::int64_t t_ns, double value, SampleSink& sink) noexcept {
+  if (sink.push(channel, t_ns, value, true)) {
+    ++health_.samples;
+    return true;
+  }
+  ++health_.sink_drops;
+  return false;
+}
+
+std::size_t GpiodEncoderDevice::handle(EdgeLine line, const gpiod_line_event& event, SampleSink& sink) noexcept {
+  const std::int64_t t_ns = to_ns(event.ts);
+  const bool rising = event.event_type == GPIOD_LINE_EVENT_RISING_EDGE;
+  std::size_t pushed = 0;
+  switch (line) {
+    case EdgeLine::A:
+    case EdgeLine::B: {
+      const std::int64_t before = decoder_.count();
+      decoder_.on_edge(line, rising, t_ns);
+      if (decoder_.count() != before) {
+        pushed += push(kCountChannel, t_ns, static_cast<double>(decoder_.count()), sink);
+        pushed += push(kPositionChannel, t_ns, position(), sink);
+      }
+      break;
+    }
+    case EdgeLine::Marker:
+      if (rising) {
+        ++markers_;
+        pushed += push(static_cast<std::uint32_t>(marker_channel_), t_ns, position(), sink);
+      }
+      break;
+    case EdgeLine::Trigger:
+      ++triggers_;
+      pushed += push(static_cast<std::uint32_t>(trigger_channel_), t_ns, rising ? 1.0 : 0.0, sink);
+      break;
+  }
+  return pushed;
+}
+
+std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
+  if (!active_) return 0;
+  const std::int64_t t_start = monotonic_now_ns();
+  std::size_t pushed = 0;
+  for (std::size_t round = 0; round < kMaxRoundsPerRead; ++round) {
+    bool read_any = false;
+    for (std::size_t i = 0; i < kEdgeLineCount; ++i) {
+      LineBuffer& buf = buffers_[i];
+      const int fd = source_->event_fd(static_cast<EdgeLine>(i));
+      if (fd < 0 || buf.head < buf.size) continue;
+      const int n = ::gpiod_line_event_read_fd_multiple(fd, buf.events.data(), kEventsPerRead);
+      buf.head = 0;
+      buf.size = n > 0 ? static_cast<std::size_t>(n) : 0;
+      buf.more = buf.size == kEventsPerRead;
+      if (n > 0) read_any = true;
+      if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+        // EIO: fewer bytes than one record (libgpiod's check); anything else is the descriptor.
+        if (errno == EIO) ++health_.malformed;
+        else ++health_.io_errors;
+      }
+    }
+    // A full batch may hide later events of that line; nothing beyond its last one is safe yet.
+    std::int64_t horizon = std::numeric_limits<std::int64_t>::max();
+    for (const LineBuffer& buf : buffers_)
+      if (buf.more && buf.head < buf.size) horizon = std::min(horizon, to_ns(buf.events[buf.size - 1].ts));
+    bool handled_any = false;
+    for (;;) {
+      std::size_t best = kEdgeLineCount;
+      std::int64_t best_t = horizon;
+      for (std::size_t i = 0; i < kEdgeLineCount; ++i) {
+        const LineBuffer& buf = buffers_[i];
+        if (buf.head >= buf.size) continue;
+        const std::int64_t t = to_ns(buf.events[buf.head].ts);
+        if (t <= best_t && (best == kEdgeLineCount || t < best_t)) {
+          best = i;
+          best_t = t;
+        }
+      }
+      if (best == kEdgeLineCount) break;
+      LineBuffer& buf = buffers_[best];
+      pushed += handle(static_cast<EdgeLine>(best), buf.events[buf.head], sink);
+      ++buf.head;
+      handled_any = true;
+      if (buf.head == buf.size && buf.more) break;  // refill it before going past its horizon
+    }
+    if (!read_any && !handled_any) break;
+  }
+  const double us = static_cast<double>(monotonic_now_ns() - t_start) * 1e-3;
+  if (us > health_.read_time_max_us) health_.read_time_max_us = us;
+  return pushed;
+}
+
+}  // namespace inertia::hal::gpiod

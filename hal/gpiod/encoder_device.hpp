@@ -1,0 +1,133 @@
+#pragma once
+// Quadrature encoder device: both-edge events of lines A and B (plus optional marker and
+// trigger lines) decoded x4 into count and position samples.
+//
+// Events come through an EdgeSource: a descriptor per line that yields the kernel's
+// struct gpioevent_data records (gpio uAPI v1). The device reads every descriptor with
+// gpiod_line_event_read_fd_multiple(), so production (GpiodEdgeSource: libgpiod line requests)
+// and tests (pipes fed with gpioevent_data, hal/wire_sim/encoder_wire.hpp) share the whole
+// decoding path; only the line request differs.
+#include <gpiod.h>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hal/device.hpp"
+#include "hal/gpiod/quadrature_decoder.hpp"
+
+namespace inertia::hal::gpiod {
+
+struct QuadratureConfig {
+  std::string name = "encoder";          // channels "<name>.count", ".position", ".marker", ".trigger"
+  std::string chip = "gpiochip0";        // gpiod_chip_open_lookup(): name, path, label or number
+  unsigned line_a = 0;
+  unsigned line_b = 1;
+  int line_marker = -1;                  // index/reference mark; -1: none
+  int line_trigger = -1;                 // external trigger input; -1: none
+  bool active_low = false;
+  double resolution = 1e-6;              // SI per x4 count: m/count (linear) or rad/count (rotary)
+  std::int64_t min_edge_interval_ns = 0; // shorter pulses on one line are glitches (0: off)
+  std::int64_t simultaneous_ns = 0;      // A and B edges this close count as a skipped state
+  bool is_valid(std::string* why) const;
+};
+
+/// Where edge events come from. Thread: configure/activate on the control thread; event_fd()
+/// is then read by the sampling thread.
+class EdgeSource {
+ public:
+  virtual ~EdgeSource() = default;
+  /// Descriptor yielding gpioevent_data records for `line`, or -1 when the line is not used.
+  [[nodiscard]] virtual int event_fd(EdgeLine line) const noexcept = 0;
+  /// Present level of `line` (seeds the decoder). Non-RT.
+  [[nodiscard]] virtual bool level(EdgeLine line) const noexcept = 0;
+};
+
+/// libgpiod v1: one both-edge event request per line on one chip. Non-RT.
+class GpiodEdgeSource final : public EdgeSource {
+ public:
+  /// nullptr with the reason when the chip or a line cannot be opened (on a machine without
+  /// /dev/gpiochip*: "cannot open GPIO chip 'gpiochip0': No such file or directory ...").
+  static std::unique_ptr<GpiodEdgeSource> open(const QuadratureConfig& config, std::string* why);
+  ~GpiodEdgeSource() override;
+  [[nodiscard]] int event_fd(EdgeLine line) const noexcept override;
+  [[nodiscard]] bool level(EdgeLine line) const noexcept override;
+
+ private:
+  explicit GpiodEdgeSource(gpiod_chip* chip) : chip_(chip) {}
+  gpiod_chip* chip_;                      // owned; closing it releases the lines
+  std::array<gpiod_line*, kEdgeLineCount> lines_{};
+};
+
+struct EncoderStatus {
+  QuadratureCounters quadrature;
+  std::uint64_t markers = 0;              // marker rising edges
+  std::uint64_t triggers = 0;             // trigger edges (both)
+  std::int64_t count = 0;
+};
+
+class GpiodEncoderDevice final : public Device {
+ public:
+  static constexpr std::size_t kEventsPerRead = 16;   // the kernel's per-line FIFO (libgpiod's cap)
+  static constexpr std::size_t kMaxRoundsPerRead = 8;
+
+  /// Production: opens the chip and requests the lines. nullptr with the reason otherwise.
+  static std::unique_ptr<GpiodEncoderDevice> open(const QuadratureConfig& config, std::string* why);
+  /// Any edge source (tests, simulator). nullptr with the reason when config is invalid or the
+  /// source lacks the A/B descriptors.
+  static std::unique_ptr<GpiodEncoderDevice> from_source(std::unique_ptr<EdgeSource> source,
+                                                         const QuadratureConfig& config, std::string* why);
+
+  [[nodiscard]] std::string_view name() const noexcept override { return config_.name; }
+  [[nodiscard]] std::span<const std::string> channel_names() const noexcept override { return channels_; }
+  /// Non-RT: descriptors non-blocking; decoder seeded from the present levels.
+  Step configure() override;
+  /// Non-RT: discards queued events and re-seeds the decoder from the present levels (edges
+  /// while inactive are not tracked; counted as a resync, the count is kept).
+  Step activate() override;
+  /// Thread: sampling thread. Real-time: no allocation, no lock, non-blocking reads of at most
+  /// kEventsPerRead events per line per round, kMaxRoundsPerRead rounds. Events of all lines
+  /// are merged in timestamp order; an event later than the last one of a line whose batch was
+  /// full waits for that line's next batch, so A/B order is kept across descriptors.
+  /// Pushes count and position after each edge that changed the count, a marker sample
+  /// (value: position at the marker's rising edge) and a trigger sample (value: new level).
+  std::size_t read_into(SampleSink& sink) noexcept override;
+  Step deactivate() override;
+  [[nodiscard]] int wait_fd() const noexcept override { return source_->event_fd(EdgeLine::A); }
+
+  [[nodiscard]] EncoderStatus status() const noexcept;
+  [[nodiscard]] double position() const noexcept { return static_cast<double>(decoder_.count()) * config_.resolution; }
+
+  static constexpr std::uint32_t kCountChannel = 0;
+  static constexpr std::uint32_t kPositionChannel = 1;
+  /// Channel of the marker / trigger samples, or -1 when the line is not configured.
+  [[nodiscard]] int marker_channel() const noexcept { return marker_channel_; }
+  [[nodiscard]] int trigger_channel() const noexcept { return trigger_channel_; }
+
+ private:
+  GpiodEncoderDevice(std::unique_ptr<EdgeSource> source, QuadratureConfig config);
+  std::size_t handle(EdgeLine line, const gpiod_line_event& event, SampleSink& sink) noexcept;
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, SampleSink& sink) noexcept;
+  void discard_pending() noexcept;
+
+  struct LineBuffer {
+    std::array<gpiod_line_event, kEventsPerRead> events{};
+    std::size_t head = 0, size = 0;
+    bool more = false;  // the last read was full: more may be waiting in the descriptor
+  };
+
+  std::unique_ptr<EdgeSource> source_;
+  QuadratureConfig config_;
+  QuadratureDecoder decoder_;
+  std::vector<std::string> channels_;
+  int marker_channel_ = -1;
+  int trigger_channel_ = -1;
+  bool configured_ = false;
+  bool active_ = false;
+  std::array<LineBuffer, kEdgeLineCount> buffers_{};
+  std::uint64_t markers_ = 0, triggers_ = 0;
+};
+
+}  // namespace inertia::hal::gpiod

@@ -1,0 +1,306 @@
+#include "hal/socketcan/can_device.hpp"
+
+#include <fcntl.h>
+#include <linux/can.h>
+#include <linux/can/error.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <sys/socket.h>
+
+#include <cerrno>
+#include <cstring>
+#include <utility>
+
+namespace inertia::hal::socketcan {
+namespace {
+
+static_assert(sizeof(can_frame) == CAN_MTU && CAN_MTU == 16);
+static_assert(sizeof(canfd_frame) == CANFD_MTU && CANFD_MTU == 72);
+
+std::string errno_text(const char* what, int err) { return std::string(what) + ": " + std::strerror(err); }
+
+std::int64_t clock_ns(clockid_t clock) noexcept {
+  timespec ts{};
+  ::clock_gettime(clock, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+}  // namespace
+
+const char* to_string(BusState state) noexcept {
+  switch (state) {
+    case BusState::ErrorActive: return "error-active";
+    case BusState::ErrorWarning: return "error-warning";
+    case BusState::ErrorPassive: return "error-passive";
+    case BusState::BusOff: return "bus-off";
+  }
+  return "?";
+}
+
+bool CanDeviceConfig::is_valid(std::string* why) const {
+  if (name.empty()) {
+    if (why) *why = "CAN device: empty name";
+    return false;
+  }
+  if (max_records_per_read < 1 || max_records_per_read > CanDevice::kMaxRecordsPerReadLimit) {
+    if (why) *why = "CAN device '" + name + "': max_records_per_read " + std::to_string(max_records_per_read) +
+                    " is outside 1.." + std::to_string(CanDevice::kMaxRecordsPerReadLimit);
+    return false;
+  }
+  std::string inner;
+  if (!map.is_valid(&inner)) {
+    if (why) *why = "CAN device '" + name + "': " + inner;
+    return false;
+  }
+  return true;
+}
+
+std::unique_ptr<CanDevice> CanDevice::open_interface(const CanDeviceConfig& config, std::string* why) {
+  if (!config.is_valid(why)) return nullptr;
+  UniqueFd fd(::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW));
+  if (!fd.valid()) {
+    const int err = errno;
+    if (why) {
+      *why = errno_text("socket(PF_CAN, SOCK_RAW, CAN_RAW)", err);
+      if (err == EAFNOSUPPORT) *why += ": this kernel has no SocketCAN (CONFIG_CAN), so '" + config.interface +
+                                        "' cannot be opened";
+    }
+    return nullptr;
+  }
+  const unsigned index = ::if_nametoindex(config.interface.c_str());
+  if (index == 0) {
+    if (why) *why = errno_text(("CAN interface '" + config.interface + "'").c_str(), errno);
+    return nullptr;
+  }
+  sockaddr_can addr{};
+  addr.can_family = AF_CAN;
+  addr.can_ifindex = static_cast<int>(index);
+  if (::bind(fd.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+    if (why) *why = errno_text(("bind to CAN interface '" + config.interface + "'").c_str(), errno);
+    return nullptr;
+  }
+  return from_fd(std::move(fd), config, why);
+}
+
+std::unique_ptr<CanDevice> CanDevice::from_fd(UniqueFd fd, const CanDeviceConfig& config, std::string* why) {
+  if (!config.is_valid(why)) return nullptr;
+  int type = 0;
+  int domain = 0;
+  socklen_t len = sizeof type;
+  if (::getsockopt(fd.get(), SOL_SOCKET, SO_TYPE, &type, &len) != 0) {
+    if (why) *why = errno_text("CAN device: descriptor is not a record socket (SO_TYPE)", errno);
+    return nullptr;
+  }
+  len = sizeof domain;
+  if (::getsockopt(fd.get(), SOL_SOCKET, SO_DOMAIN, &domain, &len) != 0) domain = AF_UNSPEC;
+  if (type != SOCK_RAW && type != SOCK_SEQPACKET && type != SOCK_DGRAM) {
+    if (why) *why = "CAN device: the descriptor is a stream socket; CAN records need record boundaries "
+                    "(CAN_RAW, SOCK_SEQPACKET or SOCK_DGRAM)";
+    return nullptr;
+  }
+  return std::unique_ptr<CanDevice>(new CanDevice(std::move(fd), config, domain == AF_CAN));
+}
+
+CanDevice::CanDevice(UniqueFd fd, CanDeviceConfig config, bool is_can_socket)
+    : fd_(std::move(fd)), config_(std::move(config)), is_can_socket_(is_can_socket), map_(config_.map) {
+  channels_.reserve(config_.map.signals.size());
+  for (const CanSignal& s : config_.map.signals) channels_.push_back(config_.name + "." + s.name);
+}
+
+Step CanDevice::configure() {
+  const int flags = ::fcntl(fd_.get(), F_GETFL);
+  if (flags < 0 || ::fcntl(fd_.get(), F_SETFL, flags | O_NONBLOCK) != 0)
+    return fail(Step::Fatal, errno_text("fcntl(O_NONBLOCK)", errno));
+  const int on = 1;
+  // Without the stamp the device still works: frames get CLOCK_MONOTONIC at reception.
+  (void)::setsockopt(fd_.get(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
+  if (is_can_socket_) {
+    if (::setsockopt(fd_.get(), SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) != 0)
+      return fail(Step::Fatal, errno_text("setsockopt(CAN_RAW_FD_FRAMES)", errno));
+    std::vector<can_filter> filters;
+    for (std::uint32_t key : map_.keys()) {
+      const bool eff = (key & CAN_EFF_FLAG) != 0;
+      // RTR in the mask: only data frames pass; the EFF flag keeps 0x123 and 0x00000123 apart.
+      filters.push_back(can_filter{key, CAN_EFF_FLAG | CAN_RTR_FLAG | (eff ? CAN_EFF_MASK : CAN_SFF_MASK)});
+    }
+    if (::setsockopt(fd_.get(), SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
+                     static_cast<socklen_t>(filters.size() * sizeof(can_filter))) != 0)
+      return fail(Step::Fatal, errno_text("setsockopt(CAN_RAW_FILTER)", errno));
+    // Bus errors (CAN_ERR_BUSERROR, CAN_ERR_PROT) may flood; state changes are what we track.
+    const can_err_mask_t mask = CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_BUSOFF | CAN_ERR_RESTARTED | CAN_ERR_CNT;
+    if (::setsockopt(fd_.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &mask, sizeof mask) != 0)
+      return fail(Step::Fatal, errno_text("setsockopt(CAN_RAW_ERR_FILTER)", errno));
+  }
+  configured_ = true;
+  return ok();
+}
+
+bool CanDevice::drain() noexcept {
+  // Bounded so a peer that writes forever cannot hold the control thread here.
+  for (int i = 0; i < 100000; ++i) {
+    const ssize_t n = ::recv(fd_.get(), record_.data(), record_.size(), MSG_DONTWAIT);
+    if (n > 0) continue;
+    if (n < 0 && errno == EINTR) continue;
+    return true;
+  }
+  return false;
+}
+
+Step CanDevice::activate() {
+  if (!configured_) return fail(Step::Fatal, "activate() before configure()");
+  drain();
+  active_ = true;
+  return ok();
+}
+
+Step CanDevice::deactivate() {
+  active_ = false;
+  return ok();
+}
+
+std::size_t CanDevice::read_into(SampleSink& sink) noexcept {
+  if (!active_) return 0;
+  const std::int64_t t_start = monotonic_now_ns();
+  // SCM_TIMESTAMPNS is CLOCK_REALTIME; one offset per call maps it to CLOCK_MONOTONIC (a clock
+  // step between the frame and this call shifts the stamp by the step, as any software stamp).
+  const std::int64_t realtime_minus_mono = clock_ns(CLOCK_REALTIME) - t_start;
+  std::size_t pushed = 0;
+  for (std::size_t i = 0; i < config_.max_records_per_read; ++i) {
+    iovec iov{record_.data(), record_.size()};
+    msghdr msg{};
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control_.data();
+    msg.msg_controllen = control_.size();
+    const ssize_t n = ::recvmsg(fd_.get(), &msg, MSG_DONTWAIT);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      if (errno != EAGAIN && errno != EWOULDBLOCK) ++health_.io_errors;
+      break;
+    }
+    if (n == 0) {
+      // A CAN_RAW socket never reads 0; a socketpair does once the peer is gone.
+      status_.peer_closed = true;
+      break;
+    }
+    std::int64_t t_ns = 0;
+    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+      if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS &&
+          c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
+        timespec ts{};
+        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+        t_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec - realtime_minus_mono;
+        ++status_.kernel_timestamps;
+      }
+    }
+    if (t_ns == 0) t_ns = monotonic_now_ns();
+    if ((msg.msg_flags & MSG_TRUNC) != 0) {
+      ++health_.malformed;
+      continue;
+    }
+    pushed += handle_record(record_.data(), static_cast<std::size_t>(n), t_ns, sink);
+  }
+  const double us = static_cast<double>(monotonic_now_ns() - t_start) * 1e-3;
+  if (us > health_.read_time_max_us) health_.read_time_max_us = us;
+  return pushed;
+}
+
+std::size_t CanDevice::handle_record(const std::uint8_t* bytes, std::size_t size, std::int64_t t_ns,
+                                     SampleSink& sink) noexcept {
+  // Classic and FD records share the layout of their first 8 bytes (id, len); the size tells
+  // them apart (kernel doc networking/can.rst 4.1.5).
+  std::uint32_t can_id = 0;
+  std::size_t len = 0;
+  const std::uint8_t* data = nullptr;
+  if (size == CAN_MTU) {
+    const auto* f = reinterpret_cast<const can_frame*>(bytes);
+    can_id = f->can_id;
+    len = f->len;
+    data = f->data;
+    if (len > CAN_MAX_DLEN) {
+      ++health_.malformed;
+      return 0;
+    }
+    ++status_.classic_frames;
+  } else if (size == CANFD_MTU) {
+    const auto* f = reinterpret_cast<const canfd_frame*>(bytes);
+    can_id = f->can_id;
+    len = f->len;
+    data = f->data;
+    if (len > CANFD_MAX_DLEN) {
+      ++health_.malformed;
+      return 0;
+    }
+    ++status_.fd_frames;
+  } else {
+    ++health_.malformed;
+    return 0;
+  }
+  if ((can_id & CAN_ERR_FLAG) != 0) {
+    handle_error_frame(can_id, data, len);
+    return 0;
+  }
+  if ((can_id & CAN_RTR_FLAG) != 0) {
+    ++status_.remote_frames;
+    return 0;
+  }
+  const bool eff = (can_id & CAN_EFF_FLAG) != 0;
+  const auto entries = map_.find(frame_key(can_id & (eff ? CAN_EFF_MASK : CAN_SFF_MASK), eff));
+  if (entries.empty()) {
+    ++status_.unknown_ids;
+    return 0;
+  }
+  const std::span<const std::uint8_t> payload(data, len);
+  std::size_t pushed = 0;
+  for (const CompiledFrameMap::Entry& e : entries) {
+    bool valid = true;
+    double value = 0.0;
+    if (bytes_needed(e.signal) > len) {
+      ++health_.decode_errors;  // the frame is shorter than the map says: push the gap, marked
+      valid = false;
+    } else {
+      value = to_value(extract_raw(payload, e.signal), e.signal);
+    }
+    if (sink.push(e.channel, t_ns, value, valid)) {
+      ++health_.samples;
+      ++pushed;
+    } else {
+      ++health_.sink_drops;
+    }
+  }
+  return pushed;
+}
+
+void CanDevice::handle_error_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len) noexcept {
+  ++status_.error_frames;
+  const std::uint32_t cls = can_id & CAN_ERR_MASK;
+  if ((cls & CAN_ERR_CRTL) != 0 && len > 1) {
+    const std::uint8_t crtl = data[1];
+    if ((crtl & (CAN_ERR_CRTL_RX_OVERFLOW | CAN_ERR_CRTL_TX_OVERFLOW)) != 0) ++status_.controller_overflows;
+    if (status_.bus_state != BusState::BusOff) {
+      if ((crtl & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE)) != 0)
+        status_.bus_state = BusState::ErrorPassive;
+      else if ((crtl & (CAN_ERR_CRTL_RX_WARNING | CAN_ERR_CRTL_TX_WARNING)) != 0)
+        status_.bus_state = BusState::ErrorWarning;
+      else if ((crtl & CAN_ERR_CRTL_ACTIVE) != 0)
+        status_.bus_state = BusState::ErrorActive;
+    }
+  }
+  if ((cls & (CAN_ERR_PROT | CAN_ERR_BUSERROR | CAN_ERR_ACK)) != 0) ++status_.protocol_errors;
+  if ((cls & CAN_ERR_CNT) != 0 && len > 7) {
+    status_.tx_error_count = data[6];
+    status_.rx_error_count = data[7];
+  }
+  if ((cls & CAN_ERR_BUSOFF) != 0) {
+    if (status_.bus_state != BusState::BusOff) ++status_.bus_off_events;
+    status_.bus_state = BusState::BusOff;
+  }
+  // The controller leaves bus-off only by a restart (manual or restart-ms); the kernel then
+  // sends CAN_ERR_RESTARTED.
+  if ((cls & CAN_ERR_RESTARTED) != 0) {
+    ++status_.restarts;
+    status_.bus_state = BusState::ErrorActive;
+  }
+}
+
+}  // namespace inertia::hal::socketcan

@@ -1,0 +1,100 @@
+#pragma once
+// A device that decodes CAN frames into samples by a signal map (design.md: CAN-attached ADC
+// modules, kernel receive timestamps). It reads from ANY descriptor that carries one
+// struct can_frame (16 bytes) or struct canfd_frame (72 bytes) per record: in production a
+// CAN_RAW socket; in tests and the simulator one end of a socketpair(AF_UNIX, SOCK_SEQPACKET).
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hal/device.hpp"
+#include "hal/socketcan/frame_map.hpp"
+#include "hal/unique_fd.hpp"
+
+namespace inertia::hal::socketcan {
+
+struct CanDeviceConfig {
+  std::string name = "can";               // device name; channels are "<name>.<signal>"
+  std::string interface = "can0";         // for open_interface()
+  CanFrameMap map;
+  std::size_t max_records_per_read = 64;  // bound on the work of one read_into() call
+  bool is_valid(std::string* why) const;
+};
+
+/// Controller state from error frames (linux/can/error.h; kernel doc networking/can.rst 3.4).
+enum class BusState { ErrorActive, ErrorWarning, ErrorPassive, BusOff };
+
+/// CAN-specific health, beside DeviceHealth. Thread: the sampling thread.
+struct CanStatus {
+  BusState bus_state = BusState::ErrorActive;
+  std::uint64_t classic_frames = 0, fd_frames = 0;
+  std::uint64_t unknown_ids = 0;          // data frames whose id is not in the map (ignored)
+  std::uint64_t remote_frames = 0;        // RTR frames (ignored)
+  std::uint64_t error_frames = 0;
+  std::uint64_t bus_off_events = 0, restarts = 0;
+  std::uint64_t controller_overflows = 0; // CAN_ERR_CRTL_{RX,TX}_OVERFLOW
+  std::uint64_t protocol_errors = 0;      // CAN_ERR_PROT / CAN_ERR_BUSERROR / CAN_ERR_ACK
+  std::uint8_t tx_error_count = 0, rx_error_count = 0;  // from CAN_ERR_CNT error frames
+  std::uint64_t kernel_timestamps = 0;    // frames stamped from the SCM_TIMESTAMPNS cmsg
+  bool peer_closed = false;               // a stream end (socketpair peer gone; never on CAN_RAW)
+};
+
+const char* to_string(BusState state) noexcept;
+
+class CanDevice final : public Device {
+ public:
+  static constexpr std::size_t kMaxRecordsPerReadLimit = 1024;
+
+  /// Opens a CAN_RAW socket on config.interface. nullptr with the reason when that is impossible,
+  /// e.g. on a kernel without SocketCAN ("socket(PF_CAN, SOCK_RAW, CAN_RAW): Address family not
+  /// supported by protocol: this kernel has no SocketCAN (CONFIG_CAN)"). Non-RT.
+  static std::unique_ptr<CanDevice> open_interface(const CanDeviceConfig& config, std::string* why);
+  /// Takes ownership of a descriptor carrying can_frame/canfd_frame records: a CAN_RAW socket or
+  /// a SOCK_SEQPACKET/SOCK_DGRAM socket (record boundaries kept). Stream sockets and non-sockets
+  /// are refused, since record boundaries would be lost. Non-RT.
+  static std::unique_ptr<CanDevice> from_fd(UniqueFd fd, const CanDeviceConfig& config, std::string* why);
+
+  [[nodiscard]] std::string_view name() const noexcept override { return config_.name; }
+  [[nodiscard]] std::span<const std::string> channel_names() const noexcept override { return channels_; }
+
+  /// Non-RT. Makes the descriptor non-blocking and turns on SO_TIMESTAMPNS; on a CAN_RAW socket
+  /// also CAN_RAW_FD_FRAMES, receive filters from the map's ids and the error-frame mask.
+  Step configure() override;
+  /// Non-RT. Discards records queued before activation.
+  Step activate() override;
+  /// Thread: sampling thread. Real-time: recvmsg(MSG_DONTWAIT) into member buffers, no
+  /// allocation, no lock; at most config.max_records_per_read records per call.
+  /// Timestamps: the SCM_TIMESTAMPNS cmsg (CLOCK_REALTIME, software rx stamp) mapped to
+  /// CLOCK_MONOTONIC with the realtime-monotonic offset read once per call; without the cmsg,
+  /// CLOCK_MONOTONIC at reception.
+  std::size_t read_into(SampleSink& sink) noexcept override;
+  Step deactivate() override;
+  [[nodiscard]] int wait_fd() const noexcept override { return fd_.get(); }
+
+  [[nodiscard]] const CanStatus& status() const noexcept { return status_; }
+
+ private:
+  CanDevice(UniqueFd fd, CanDeviceConfig config, bool is_can_socket);
+  std::size_t handle_record(const std::uint8_t* bytes, std::size_t size, std::int64_t t_ns,
+                            SampleSink& sink) noexcept;
+  void handle_error_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len) noexcept;
+  bool drain() noexcept;
+
+  UniqueFd fd_;
+  CanDeviceConfig config_;
+  bool is_can_socket_ = false;
+  bool configured_ = false;
+  bool active_ = false;
+  CompiledFrameMap map_;
+  std::vector<std::string> channels_;
+  CanStatus status_;
+  // One record plus one byte, so an oversized record shows up as a size (MSG_TRUNC covers
+  // SEQPACKET; the extra byte covers descriptors that do not report it).
+  alignas(8) std::array<std::uint8_t, 73> record_{};
+  alignas(8) std::array<std::uint8_t, 128> control_{};
+};
+
+}  // namespace inertia::hal::socketcan

@@ -1,0 +1,348 @@
+// CanDevice through socketpair(AF_UNIX, SOCK_SEQPACKET): the real recvmsg path with real
+// can_frame/canfd_frame bytes (daq.md §4: this kernel has no AF_CAN).
+#include <fcntl.h>
+#include <linux/can.h>
+#include <linux/can/error.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "hal/socketcan/can_device.hpp"
+
+namespace inertia::hal::socketcan {
+namespace {
+
+struct Sample {
+  std::uint32_t channel;
+  std::int64_t t_ns;
+  double value;
+  bool valid;
+};
+
+class RecordingSink final : public SampleSink {
+ public:
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
+    if (refuse) return false;
+    samples.push_back({channel, t_ns, value, valid});
+    return true;
+  }
+  std::vector<Sample> samples;
+  bool refuse = false;
+};
+
+// The documented bit numbering, written bit by bit (independent of frame_map.cpp's byte loop).
+void reference_put(std::uint8_t* payload, const CanSignal& s, std::uint64_t raw) {
+  for (int k = 0; k < s.bit_length; ++k) {
+    const bool bit = ((raw >> k) & 1u) != 0;
+    std::size_t byte = 0;
+    int bit_in_byte = 0;
+    if (s.byte_order == ByteOrder::LittleEndian) {
+      const std::size_t p = 8u * s.byte_offset + s.bit_offset + static_cast<std::size_t>(k);
+      byte = p / 8;
+      bit_in_byte = static_cast<int>(p % 8);
+    } else {
+      const std::size_t q = s.bit_offset + static_cast<std::size_t>(s.bit_length - 1 - k);
+      byte = s.byte_offset + q / 8;
+      bit_in_byte = 7 - static_cast<int>(q % 8);
+    }
+    if (bit) payload[byte] |= static_cast<std::uint8_t>(1u << bit_in_byte);
+    else payload[byte] &= static_cast<std::uint8_t>(~(1u << bit_in_byte));
+  }
+}
+
+class CanPair : public ::testing::Test {
+ protected:
+  void open(CanFrameMap map, std::size_t max_records = 64) {
+    int sv[2];
+    ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+    writer_ = UniqueFd(sv[0]);
+    CanDeviceConfig config;
+    config.name = "adc";
+    config.map = std::move(map);
+    config.max_records_per_read = max_records;
+    std::string why;
+    device_ = CanDevice::from_fd(UniqueFd(sv[1]), config, &why);
+    ASSERT_NE(device_, nullptr) << why;
+    ASSERT_EQ(device_->configure(), Step::Ok) << device_->last_error();
+    ASSERT_EQ(device_->activate(), Step::Ok);
+  }
+  void send_bytes(const void* bytes, std::size_t size) {
+    ASSERT_EQ(::send(writer_.get(), bytes, size, 0), static_cast<ssize_t>(size));
+  }
+  void send_classic(std::uint32_t can_id, std::initializer_list<std::uint8_t> data) {
+    can_frame f{};
+    f.can_id = can_id;
+    f.len = static_cast<std::uint8_t>(data.size());
+    std::copy(data.begin(), data.end(), f.data);
+    send_bytes(&f, sizeof f);
+  }
+  void send_error(std::uint32_t cls, std::uint8_t crtl = 0) {
+    can_frame f{};
+    f.can_id = CAN_ERR_FLAG | cls;
+    f.len = CAN_ERR_DLC;
+    f.data[1] = crtl;
+    send_bytes(&f, sizeof f);
+  }
+  UniqueFd writer_;
+  std::unique_ptr<CanDevice> device_;
+  RecordingSink sink_;
+};
+
+CanSignal sig(std::string name, std::uint32_t id, std::uint8_t byte, std::uint8_t bit, std::uint8_t len,
+              ByteOrder order, bool is_signed, double scale = 1.0, double offset = 0.0, bool ext = false) {
+  return CanSignal{std::move(name), id, ext, byte, bit, len, order, is_signed, scale, offset};
+}
+
+TEST(FrameMap, DecodesEveryLayoutAsTheDocumentedBitNumberingSays) {
+  std::mt19937_64 rng(11);
+  for (int trial = 0; trial < 20000; ++trial) {
+    CanSignal s;
+    s.bit_length = static_cast<std::uint8_t>(1 + rng() % 64);
+    s.bit_offset = static_cast<std::uint8_t>(rng() % 8);
+    s.byte_order = (rng() & 1) ? ByteOrder::BigEndian : ByteOrder::LittleEndian;
+    const std::size_t span = (s.bit_offset + s.bit_length + 7u) / 8u;
+    s.byte_offset = static_cast<std::uint8_t>(rng() % (64 - span + 1));
+    const std::uint64_t raw = s.bit_length == 64 ? rng() : rng() & ((std::uint64_t{1} << s.bit_length) - 1);
+    std::uint8_t expected[64];
+    std::uint8_t written[64];
+    for (std::size_t i = 0; i < 64; ++i) expected[i] = written[i] = static_cast<std::uint8_t>(rng());
+    reference_put(expected, s, raw);
+    insert_raw(written, s, raw);
+    ASSERT_EQ(std::memcmp(expected, written, 64), 0) << "trial " << trial;
+    ASSERT_EQ(extract_raw(expected, s), raw) << "trial " << trial << " len " << int(s.bit_length)
+                                             << " bit " << int(s.bit_offset);
+  }
+}
+
+TEST(FrameMap, SignExtendsAndScales) {
+  CanSignal s = sig("x", 1, 0, 0, 12, ByteOrder::LittleEndian, true, 0.5, 10.0);
+  EXPECT_DOUBLE_EQ(to_value(0xFFB, s), 0.5 * -5 + 10.0);
+  EXPECT_DOUBLE_EQ(to_value(0x7FF, s), 0.5 * 2047 + 10.0);
+  s.is_signed = false;
+  EXPECT_DOUBLE_EQ(to_value(0xFFB, s), 0.5 * 4091 + 10.0);
+  s.is_signed = true;
+  s.bit_length = 64;
+  EXPECT_DOUBLE_EQ(to_value(~std::uint64_t{0}, s), 0.5 * -1 + 10.0);
+}
+
+TEST(FrameMap, ValidationNamesTheSignal) {
+  CanFrameMap map{{sig("ok", 0x10, 0, 0, 16, ByteOrder::LittleEndian, false),
+                   sig("wide", 0x10, 60, 0, 64, ByteOrder::LittleEndian, false)}};
+  std::string why;
+  EXPECT_FALSE(map.is_valid(&why));
+  EXPECT_NE(why.find("wide"), std::string::npos) << why;
+  map.signals[1] = sig("zero", 0x10, 0, 0, 0, ByteOrder::LittleEndian, false);
+  EXPECT_FALSE(map.is_valid(&why));
+  EXPECT_NE(why.find("1..64"), std::string::npos) << why;
+  map.signals[1] = sig("big_id", 0x800, 0, 0, 8, ByteOrder::LittleEndian, false);
+  EXPECT_FALSE(map.is_valid(&why));
+  map.signals[1].extended = true;
+  EXPECT_TRUE(map.is_valid(&why)) << why;
+}
+
+TEST_F(CanPair, DecodesClassicFrameWithHandWrittenBytes) {
+  open(CanFrameMap{{sig("u16", 0x123, 0, 0, 16, ByteOrder::LittleEndian, false),
+                    sig("s12", 0x123, 2, 4, 12, ByteOrder::LittleEndian, true, 0.25),
+                    sig("be_s16", 0x123, 4, 0, 16, ByteOrder::BigEndian, true),
+                    sig("be_u10", 0x123, 6, 3, 10, ByteOrder::BigEndian, false, 1.0, -1.0)}});
+  // u16 = 0x1234; s12 = -5 (0xFFB << 4 in a LE word); be_s16 = -300 (0xFED4);
+  // be_u10 = 0x2A5: MSB at bit 4 of byte 6 (DBC Motorola start bit 52): 0x15, 0x28.
+  send_classic(0x123, {0x34, 0x12, 0xB0, 0xFF, 0xFE, 0xD4, 0x15, 0x28});
+  EXPECT_EQ(device_->read_into(sink_), 4u);
+  ASSERT_EQ(sink_.samples.size(), 4u);
+  EXPECT_EQ(sink_.samples[0].channel, 0u);
+  EXPECT_DOUBLE_EQ(sink_.samples[0].value, 0x1234);
+  EXPECT_DOUBLE_EQ(sink_.samples[1].value, -5 * 0.25);
+  EXPECT_DOUBLE_EQ(sink_.samples[2].value, -300);
+  EXPECT_DOUBLE_EQ(sink_.samples[3].value, 0x2A5 - 1.0);
+  for (const Sample& s : sink_.samples) EXPECT_TRUE(s.valid);
+  EXPECT_EQ(device_->status().classic_frames, 1u);
+  EXPECT_EQ(device_->health().samples, 4u);
+  EXPECT_EQ(device_->channel_names()[3], "adc.be_u10");
+}
+
+TEST_F(CanPair, DecodesFdFrameWithExtendedIdAnd64BitSignals) {
+  const std::uint32_t id = 0x18DAF110;
+  CanSignal le64 = sig("le64", id, 8, 0, 64, ByteOrder::LittleEndian, false, 1.0, 0.0, true);
+  CanSignal be64 = sig("be64", id, 20, 3, 64, ByteOrder::BigEndian, true, 1.0, 0.0, true);
+  CanSignal tail = sig("tail", id, 63, 0, 8, ByteOrder::LittleEndian, false, 1.0, 0.0, true);
+  open(CanFrameMap{{le64, be64, tail}});
+  canfd_frame f{};
+  f.can_id = id | CAN_EFF_FLAG;
+  f.len = 64;
+  f.flags = CANFD_BRS;
+  const std::uint64_t a = 0xF123456789ABCDEFull;
+  const std::int64_t b = -1234567890123LL;
+  reference_put(f.data, le64, a);
+  reference_put(f.data, be64, static_cast<std::uint64_t>(b));
+  f.data[63] = 0x5A;
+  send_bytes(&f, sizeof f);
+  // The same id as a standard frame is another frame (0x110 after masking would be a bug).
+  send_classic(id & CAN_SFF_MASK, {1, 2, 3, 4, 5, 6, 7, 8});
+  EXPECT_EQ(device_->read_into(sink_), 3u);
+  ASSERT_EQ(sink_.samples.size(), 3u);
+  EXPECT_DOUBLE_EQ(sink_.samples[0].value, static_cast<double>(a));
+  EXPECT_DOUBLE_EQ(sink_.samples[1].value, static_cast<double>(b));
+  EXPECT_DOUBLE_EQ(sink_.samples[2].value, 0x5A);
+  EXPECT_EQ(device_->status().fd_frames, 1u);
+  EXPECT_EQ(device_->status().classic_frames, 1u);
+  EXPECT_EQ(device_->status().unknown_ids, 1u);
+}
+
+TEST_F(CanPair, UnknownIdsAndRemoteFramesAreCountedNotDecoded) {
+  open(CanFrameMap{{sig("v", 0x200, 0, 0, 8, ByteOrder::LittleEndian, false)}});
+  send_classic(0x201, {1});
+  send_classic(0x200 | CAN_RTR_FLAG, {});
+  send_classic(0x200 | CAN_EFF_FLAG, {7});
+  send_classic(0x200, {9});
+  EXPECT_EQ(device_->read_into(sink_), 1u);
+  ASSERT_EQ(sink_.samples.size(), 1u);
+  EXPECT_DOUBLE_EQ(sink_.samples[0].value, 9);
+  EXPECT_EQ(device_->status().unknown_ids, 2u);
+  EXPECT_EQ(device_->status().remote_frames, 1u);
+}
+
+TEST_F(CanPair, ShortFrameForAKnownIdGivesAnInvalidSample) {
+  open(CanFrameMap{{sig("lo", 0x300, 0, 0, 8, ByteOrder::LittleEndian, false),
+                    sig("hi", 0x300, 2, 0, 16, ByteOrder::LittleEndian, false)}});
+  send_classic(0x300, {42, 0});
+  EXPECT_EQ(device_->read_into(sink_), 2u);
+  ASSERT_EQ(sink_.samples.size(), 2u);
+  EXPECT_TRUE(sink_.samples[0].valid);
+  EXPECT_DOUBLE_EQ(sink_.samples[0].value, 42);
+  EXPECT_FALSE(sink_.samples[1].valid);
+  EXPECT_EQ(device_->health().decode_errors, 1u);
+}
+
+TEST_F(CanPair, ErrorFramesDriveBusStateAndRestartRecovers) {
+  open(CanFrameMap{{sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, false)}});
+  send_error(CAN_ERR_CRTL, CAN_ERR_CRTL_TX_WARNING);
+  device_->read_into(sink_);
+  EXPECT_EQ(device_->status().bus_state, BusState::ErrorWarning);
+  send_error(CAN_ERR_CRTL, CAN_ERR_CRTL_TX_PASSIVE | CAN_ERR_CRTL_RX_OVERFLOW);
+  device_->read_into(sink_);
+  EXPECT_EQ(device_->status().bus_state, BusState::ErrorPassive);
+  EXPECT_EQ(device_->status().controller_overflows, 1u);
+  send_error(CAN_ERR_BUSOFF);
+  send_error(CAN_ERR_BUSOFF);                        // repeated: one bus-off event
+  send_error(CAN_ERR_CRTL, CAN_ERR_CRTL_ACTIVE);     // does not end bus-off by itself
+  device_->read_into(sink_);
+  EXPECT_EQ(device_->status().bus_state, BusState::BusOff);
+  EXPECT_EQ(device_->status().bus_off_events, 1u);
+  send_error(CAN_ERR_RESTARTED);
+  send_classic(0x10, {3});
+  EXPECT_EQ(device_->read_into(sink_), 1u);
+  EXPECT_EQ(device_->status().bus_state, BusState::ErrorActive);
+  EXPECT_EQ(device_->status().restarts, 1u);
+  EXPECT_EQ(device_->status().error_frames, 6u);
+  EXPECT_EQ(sink_.samples.size(), 1u);               // error frames never become samples
+  send_error(CAN_ERR_BUSOFF);
+  device_->read_into(sink_);
+  EXPECT_EQ(device_->status().bus_off_events, 2u);
+}
+
+TEST_F(CanPair, FragmentsAndBadLengthsAreMalformedAndDecodingContinues) {
+  open(CanFrameMap{{sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, false)}});
+  const std::uint8_t fragment[10] = {0x10, 0, 0, 0, 1, 0, 0, 0, 5, 0};
+  send_bytes(fragment, sizeof fragment);
+  can_frame bad{};
+  bad.can_id = 0x10;
+  bad.len = 9;  // classic payload is at most 8
+  send_bytes(&bad, sizeof bad);
+  std::uint8_t oversized[80] = {};
+  send_bytes(oversized, sizeof oversized);
+  send_classic(0x10, {77});
+  EXPECT_EQ(device_->read_into(sink_), 1u);
+  EXPECT_EQ(device_->health().malformed, 3u);
+  ASSERT_EQ(sink_.samples.size(), 1u);
+  EXPECT_DOUBLE_EQ(sink_.samples[0].value, 77);
+}
+
+TEST_F(CanPair, TimestampsComeFromSoTimestampnsOnMonotonicClock) {
+  open(CanFrameMap{{sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, false)}});
+  const std::int64_t before = monotonic_now_ns();
+  send_classic(0x10, {1});
+  ::usleep(20000);
+  send_classic(0x10, {2});
+  const std::int64_t sent = monotonic_now_ns();
+  ::usleep(50000);  // the stamps are reception times, not the time of read_into()
+  EXPECT_EQ(device_->read_into(sink_), 2u);
+  ASSERT_EQ(sink_.samples.size(), 2u);
+  EXPECT_EQ(device_->status().kernel_timestamps, 2u);
+  // Slack of 5 ms for the realtime->monotonic mapping; far below the 50 ms wait.
+  constexpr std::int64_t kSlack = 5'000'000;
+  EXPECT_GE(sink_.samples[0].t_ns, before - kSlack);
+  EXPECT_LE(sink_.samples[1].t_ns, sent + kSlack);
+  EXPECT_GE(sink_.samples[1].t_ns - sink_.samples[0].t_ns, 15'000'000);
+}
+
+TEST_F(CanPair, ReadIsBoundedAndNeverBlocks) {
+  open(CanFrameMap{{sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, false)}}, 16);
+  EXPECT_EQ(device_->read_into(sink_), 0u);  // nothing pending: returns at once
+  for (int i = 0; i < 40; ++i) send_classic(0x10, {static_cast<std::uint8_t>(i)});
+  EXPECT_EQ(device_->read_into(sink_), 16u);
+  EXPECT_EQ(device_->read_into(sink_), 16u);
+  EXPECT_EQ(device_->read_into(sink_), 8u);
+  EXPECT_EQ(device_->read_into(sink_), 0u);
+  for (int i = 0; i < 40; ++i) EXPECT_DOUBLE_EQ(sink_.samples[static_cast<std::size_t>(i)].value, i);
+}
+
+TEST_F(CanPair, LifecycleDiscardsStaleFramesAndCountsSinkDrops) {
+  open(CanFrameMap{{sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, false)}});
+  ASSERT_EQ(device_->deactivate(), Step::Ok);
+  send_classic(0x10, {1});
+  EXPECT_EQ(device_->read_into(sink_), 0u);  // inactive
+  ASSERT_EQ(device_->activate(), Step::Ok);  // discards the frame queued while inactive
+  EXPECT_EQ(device_->read_into(sink_), 0u);
+  sink_.refuse = true;
+  send_classic(0x10, {2});
+  EXPECT_EQ(device_->read_into(sink_), 0u);
+  EXPECT_EQ(device_->health().sink_drops, 1u);
+  writer_.reset();
+  device_->read_into(sink_);
+  EXPECT_TRUE(device_->status().peer_closed);
+}
+
+TEST(CanDeviceOpen, InterfaceOpenFailsWithAReason) {
+  CanDeviceConfig config;
+  config.interface = "nosuchcan9";
+  config.map.signals.push_back(sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, false));
+  std::string why;
+  EXPECT_EQ(CanDevice::open_interface(config, &why), nullptr);
+  const int probe = ::socket(PF_CAN, SOCK_RAW, 1 /*CAN_RAW*/);
+  if (probe < 0) {
+    EXPECT_NE(why.find("no SocketCAN"), std::string::npos) << why;  // this machine (daq.md §4)
+  } else {
+    ::close(probe);
+    EXPECT_NE(why.find("nosuchcan9"), std::string::npos) << why;   // a kernel with CAN
+  }
+}
+
+TEST(CanDeviceOpen, RefusesDescriptorsWithoutRecordBoundaries) {
+  CanDeviceConfig config;
+  config.map.signals.push_back(sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, false));
+  int p[2];
+  ASSERT_EQ(::pipe(p), 0);
+  UniqueFd keep(p[1]);
+  std::string why;
+  EXPECT_EQ(CanDevice::from_fd(UniqueFd(p[0]), config, &why), nullptr);
+  EXPECT_FALSE(why.empty());
+  int sv[2];
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_STREAM, 0, sv), 0);
+  UniqueFd other(sv[1]);
+  EXPECT_EQ(CanDevice::from_fd(UniqueFd(sv[0]), config, &why), nullptr);
+  EXPECT_NE(why.find("stream"), std::string::npos) << why;
+  config.map.signals.clear();
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+  UniqueFd other2(sv[1]);
+  EXPECT_EQ(CanDevice::from_fd(UniqueFd(sv[0]), config, &why), nullptr);
+  EXPECT_NE(why.find("no signals"), std::string::npos) << why;
+}
+
+}  // namespace
+}  // namespace inertia::hal::socketcan
