@@ -4,8 +4,10 @@
 #include <Eigen/Dense>
 #include <cstdint>
 #include <filesystem>
+#include <iosfwd>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/frames.hpp"
@@ -36,21 +38,48 @@ struct CaseData {
 };
 
 struct Dataset {
+  std::filesystem::path dir;                          // where read_dataset found it; empty if built in memory
   SensorKind sensor = SensorKind::Accelerometer;
   std::string output_unit;
   double t_ref = 25.0;                                // degC; model variable T = temp - t_ref
   std::vector<CaseData> cases;
 };
 
-/// Reads dataset.toml and every case CSV in `dir`. Throws InputError naming file, line and column
-/// for a missing required column, a non-number, a NaN, a non-uniform time column or a bad
-/// dataset.toml. Unknown columns are ignored with a warning on stderr.
-Dataset read_dataset(const std::filesystem::path& dir);
+/// Relative tolerance on each time step: |t[k+1] - t[k] - period| <= kTimeJitterTolerance * period,
+/// with period = (t[N-1] - t[0]) / (N - 1). Loose enough for times printed with full precision at
+/// several minutes and 10 kHz (rounding there is ~1e-9 of the period), tight enough to catch a
+/// dropped or repeated sample.
+inline constexpr double kTimeJitterTolerance = 1e-6;
 
-/// Writes dataset.toml and one CSV per case into `dir` (created if needed), full double precision.
+/// Tolerance on |M M^T - I| and |det M - 1| for m_ec: a matrix typed with six or more digits
+/// passes, a matrix that is not a rotation (a sign error, a transposed row) does not.
+inline constexpr double kRotationTolerance = 1e-6;
+
+/// Reads dataset.toml and every case CSV in `dir`. Throws InputError naming file, line and column
+/// (1-based field index; the message also names the column) for a missing required column, a
+/// non-number, a NaN or infinity, a non-uniform or non-increasing time column, a partial
+/// w_x/w_y/w_z set, a file without data rows or a bad dataset.toml (including an m_ec that is not a
+/// rotation). Unknown columns are ignored with one warning line per column on `warnings`.
+/// Thread: any; reads files only. Speed: the CSV is read into one buffer and parsed with
+/// std::from_chars (see tests/bench/regressors_benchmark.cpp for the figure).
+Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings);
+Dataset read_dataset(const std::filesystem::path& dir);   // warnings go to std::cerr
+
+/// Reads one case CSV into `out` (t, a_e, w_e, temp, y, phase, sample_period_s); the other fields
+/// of `out` are left as they are. `file` is the path used for reading and in error messages.
+void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings);
+
+/// Writes dataset.toml and one CSV per case into `dir` (created if needed). Numbers are written
+/// with std::to_chars' shortest round-trip form, so read_dataset gives back the same doubles and
+/// the same data always gives the same bytes. Columns: t,a_x,a_y,a_z[,w_x,w_y,w_z][,temp],y[,phase].
+/// Phase labels are written as given; a label holding a comma, quote or line break cannot be
+/// written into this CSV dialect and throws InputError. Also throws InputError when a case's
+/// columns differ in length, and std::filesystem::filesystem_error / std::runtime_error on I/O.
 void write_dataset(const std::filesystem::path& dir, const Dataset& data);
 
-const char* to_string(SensorKind kind);
-const char* to_string(CaseKind kind);
+const char* to_string(SensorKind kind);   // "accelerometer", "gyroscope" (the dataset.toml spelling)
+const char* to_string(CaseKind kind);     // "rotation_table", "shaker", "thermal", "static"
+std::optional<SensorKind> sensor_kind_from_string(std::string_view text);
+std::optional<CaseKind> case_kind_from_string(std::string_view text);
 
 }  // namespace inertia::dataset

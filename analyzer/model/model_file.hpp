@@ -1,0 +1,62 @@
+#pragma once
+// The model file (design.md, "Model file"): written by characterize, read by diagnose and
+// simulate.
+//
+//   sensor = "accelerometer"                  # or "gyroscope"
+//   m_cs = [[...], [...], [...]]              # M_C^S, sensor misalignment relative to the case
+//   [terms]                                   # term -> coefficient, output unit per SI input unit
+//   "1" = 3.44e-3
+//   "a_i" = 0.0877
+//   [std]                                     # optional: term -> standard deviation of the coefficient
+//   "a_i" = 2.1e-6
+//   [noise]                                   # optional
+//   white_sd = 1.0e-4
+//
+// Term keys are written in canonical form (analyzer/ident/term.hpp) and read in any spelling the
+// grammar accepts. Other top-level keys are ignored, so later versions can add information.
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "analyzer/ident/term.hpp"
+#include "common/dataset/dataset.hpp"
+#include "common/frames.hpp"
+
+namespace inertia::model {
+
+struct ModelTerm {
+  ident::Term term;
+  double coefficient = 0.0;
+  std::optional<double> std;   // standard deviation of the coefficient, when known
+};
+
+struct ModelFile {
+  dataset::SensorKind sensor = dataset::SensorKind::Accelerometer;
+  frames::Dcm m_cs = frames::Dcm::Identity();
+  std::vector<ModelTerm> terms;     // in file order
+  std::optional<double> white_sd;   // [noise] white_sd, output unit
+
+  /// The coefficient of `term`, or nullopt when the model does not hold it.
+  [[nodiscard]] std::optional<double> coefficient(const ident::Term& term) const;
+};
+
+/// Reads and validates a model file. Throws InputError naming file, line and column for a TOML
+/// syntax error, a missing or mistyped key, an m_cs that is not a rotation (tolerance
+/// dataset::kRotationTolerance), a term the grammar rejects (the message holds the grammar's
+/// reason), a term given twice in two spellings, a non-finite coefficient, or a [std] entry for a
+/// term that [terms] lacks.
+ModelFile read_model(const std::filesystem::path& file);
+
+/// The same from text; `source_name` is used in error messages.
+ModelFile parse_model(std::string_view text, const std::string& source_name);
+
+/// The file's text: canonical term names, numbers in shortest round-trip form (so read(write(m))
+/// == m bit for bit), terms in the order given. Throws InputError for a non-finite number.
+std::string format_model(const ModelFile& model);
+
+/// Writes format_model(model) to `file`. Throws std::system_error on I/O failure.
+void write_model(const std::filesystem::path& file, const ModelFile& model);
+
+}  // namespace inertia::model

@@ -1,0 +1,566 @@
+// Dataset folder I/O (design.md, "Dataset folder"). The CSVs are large (10 kHz for minutes, a few
+// million rows), so a case file is read into one buffer and parsed in place with std::from_chars;
+// nothing allocates per field. Numbers are written with std::to_chars' shortest round-trip form,
+// which makes read(write(x)) == x bit for bit and the bytes a function of the data alone.
+#include "common/dataset/dataset.hpp"
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <memory>
+#include <system_error>
+#include <toml++/toml.h>
+
+#include <fmt/format.h>
+
+#include "common/input_error.hpp"
+
+namespace inertia::dataset {
+
+const char* to_string(SensorKind kind) {
+  switch (kind) {
+    case SensorKind::Accelerometer: return "accelerometer";
+    case SensorKind::Gyroscope: return "gyroscope";
+  }
+  return "?";
+}
+
+const char* to_string(CaseKind kind) {
+  switch (kind) {
+    case CaseKind::RotationTable: return "rotation_table";
+    case CaseKind::Shaker: return "shaker";
+    case CaseKind::Thermal: return "thermal";
+    case CaseKind::Static: return "static";
+  }
+  return "?";
+}
+
+std::optional<SensorKind> sensor_kind_from_string(std::string_view text) {
+  for (SensorKind k : {SensorKind::Accelerometer, SensorKind::Gyroscope}) {
+    if (text == to_string(k)) return k;
+  }
+  return std::nullopt;
+}
+
+std::optional<CaseKind> case_kind_from_string(std::string_view text) {
+  for (CaseKind k : {CaseKind::RotationTable, CaseKind::Shaker, CaseKind::Thermal, CaseKind::Static}) {
+    if (text == to_string(k)) return k;
+  }
+  return std::nullopt;
+}
+
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Reading one case CSV
+
+enum class Column : std::uint8_t { T, Ax, Ay, Az, Wx, Wy, Wz, Temp, Y, Phase, Unknown };
+constexpr std::array<std::string_view, 10> kColumnNames = {"t",   "a_x", "a_y",  "a_z", "w_x",
+                                                           "w_y", "w_z", "temp", "y",   "phase"};
+
+Column column_from_name(std::string_view name) {
+  for (std::size_t i = 0; i < kColumnNames.size(); ++i) {
+    if (name == kColumnNames[i]) return static_cast<Column>(i);
+  }
+  return Column::Unknown;
+}
+
+bool is_blank(char c) { return c == ' ' || c == '\t'; }
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && is_blank(s.front())) s.remove_prefix(1);
+  while (!s.empty() && (is_blank(s.back()) || s.back() == '\r')) s.remove_suffix(1);
+  return s;
+}
+
+std::string read_whole_file(const std::filesystem::path& file) {
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.c_str(), "rb"), &std::fclose);
+  if (!f) {
+    throw InputError(SourcePosition{file.string(), 0, 0},
+                     fmt::format("cannot open for reading: {}", std::strerror(errno)));
+  }
+  std::string buf;
+  std::array<char, 1 << 16> chunk;
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(file, ec);
+  if (!ec) buf.reserve(static_cast<std::size_t>(size));
+  std::size_t got = 0;
+  while ((got = std::fread(chunk.data(), 1, chunk.size(), f.get())) > 0) buf.append(chunk.data(), got);
+  if (std::ferror(f.get())) {
+    throw InputError(SourcePosition{file.string(), 0, 0}, "read error");
+  }
+  return buf;
+}
+
+// One field's text, for error messages: up to the next comma or the end of the line.
+std::string_view field_text(const char* p, const char* eol) {
+  const char* q = static_cast<const char*>(std::memchr(p, ',', static_cast<std::size_t>(eol - p)));
+  return trim(std::string_view(p, static_cast<std::size_t>((q ? q : eol) - p)));
+}
+
+}  // namespace
+
+void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings) {
+  const std::string name = file.string();
+  const std::string buf = read_whole_file(file);
+  const char* p = buf.data();
+  const char* const end = buf.data() + buf.size();
+  if (buf.size() >= 3 && std::memcmp(p, "\xEF\xBB\xBF", 3) == 0) p += 3;  // UTF-8 BOM from spreadsheets
+
+  const auto next_eol = [&](const char* from) {
+    const char* q = static_cast<const char*>(std::memchr(from, '\n', static_cast<std::size_t>(end - from)));
+    return q ? q : end;
+  };
+
+  // Header.
+  const char* header_end = next_eol(p);
+  const std::string_view header = trim(std::string_view(p, static_cast<std::size_t>(header_end - p)));
+  if (header.empty()) {
+    throw InputError(SourcePosition{name, 1, 0},
+                     "empty file or empty header row: expected a header such as 't,a_x,a_y,a_z,y'");
+  }
+  std::vector<Column> columns;
+  std::vector<std::string> column_names;
+  std::array<std::size_t, kColumnNames.size()> where{};  // 1-based field index of each known column, 0 if absent
+  for (std::size_t start = 0;;) {
+    const std::size_t comma = header.find(',', start);
+    const std::string_view field =
+        trim(header.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
+    const std::size_t index = columns.size() + 1;
+    if (field.empty()) {
+      throw InputError(SourcePosition{name, 1, index}, fmt::format("empty column name in field {}", index));
+    }
+    const Column c = column_from_name(field);
+    if (c == Column::Unknown) {
+      warnings << fmt::format("{}:1:{}: warning: unknown column '{}' ignored\n", name, index, field);
+    } else if (where[static_cast<std::size_t>(c)] != 0) {
+      throw InputError(SourcePosition{name, 1, index},
+                       fmt::format("duplicate column '{}' (also field {})", field,
+                                   where[static_cast<std::size_t>(c)]));
+    } else {
+      where[static_cast<std::size_t>(c)] = index;
+    }
+    columns.push_back(c);
+    column_names.emplace_back(field);
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  const auto has = [&](Column c) { return where[static_cast<std::size_t>(c)] != 0; };
+  for (Column c : {Column::T, Column::Ax, Column::Ay, Column::Az, Column::Y}) {
+    if (!has(c)) {
+      throw InputError(SourcePosition{name, 1, 0},
+                       fmt::format("missing required column '{}' (header: '{}'; required: t, a_x, a_y, a_z, y)",
+                                   kColumnNames[static_cast<std::size_t>(c)], header));
+    }
+  }
+  const int rate_columns = int{has(Column::Wx)} + int{has(Column::Wy)} + int{has(Column::Wz)};
+  if (rate_columns != 0 && rate_columns != 3) {
+    std::string present, missing;
+    std::size_t first = 0;
+    for (Column c : {Column::Wx, Column::Wy, Column::Wz}) {
+      std::string& list = has(c) ? present : missing;
+      if (!list.empty()) list += ", ";
+      list += kColumnNames[static_cast<std::size_t>(c)];
+      if (has(c) && first == 0) first = where[static_cast<std::size_t>(c)];
+    }
+    throw InputError(SourcePosition{name, 1, first},
+                     fmt::format("column '{}' present but {} missing: rate columns w_x, w_y, w_z come as all three or none",
+                                 present, missing));
+  }
+
+  // Size the outputs from the number of line breaks: one pass of memchr, then no reallocation.
+  const char* body = header_end == end ? end : header_end + 1;
+  Eigen::Index rows = 0;
+  for (const char* q = body; q < end;) {
+    const char* e = next_eol(q);
+    ++rows;
+    q = e == end ? end : e + 1;
+  }
+  out.t.resize(rows);
+  out.a_e.resize(rows, 3);
+  out.y.resize(rows);
+  if (rate_columns == 3) out.w_e.emplace(rows, 3); else out.w_e.reset();
+  if (has(Column::Temp)) out.temp.emplace(rows); else out.temp.reset();
+  out.phase_names.clear();
+  out.phase.clear();
+  if (has(Column::Phase)) out.phase.resize(static_cast<std::size_t>(rows));
+
+  std::vector<double*> dest(columns.size(), nullptr);
+  for (std::size_t i = 0; i < columns.size(); ++i) {
+    switch (columns[i]) {
+      case Column::T: dest[i] = out.t.data(); break;
+      case Column::Ax: dest[i] = out.a_e.col(0).data(); break;
+      case Column::Ay: dest[i] = out.a_e.col(1).data(); break;
+      case Column::Az: dest[i] = out.a_e.col(2).data(); break;
+      case Column::Wx: dest[i] = out.w_e->col(0).data(); break;
+      case Column::Wy: dest[i] = out.w_e->col(1).data(); break;
+      case Column::Wz: dest[i] = out.w_e->col(2).data(); break;
+      case Column::Temp: dest[i] = out.temp->data(); break;
+      case Column::Y: dest[i] = out.y.data(); break;
+      case Column::Phase: case Column::Unknown: break;
+    }
+  }
+  std::size_t last_phase = 0;
+
+  // Rows. A row is line `row + 2`; blank lines are allowed only at the end of the file so that
+  // this mapping (used in every error message) stays exact.
+  Eigen::Index row = 0;
+  std::size_t line = 1;
+  for (const char* q = body; q < end;) {
+    const char* eol = next_eol(q);
+    const char* next = eol == end ? end : eol + 1;
+    ++line;
+    const char* le = eol;
+    if (le > q && le[-1] == '\r') --le;
+    if (trim(std::string_view(q, static_cast<std::size_t>(le - q))).empty()) {
+      for (const char* r = next; r < end; ++r) {
+        if (!is_blank(*r) && *r != '\r' && *r != '\n') {
+          throw InputError(SourcePosition{name, line, 0}, "empty line inside the data");
+        }
+      }
+      break;
+    }
+    const char* f = q;
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      const SourcePosition here{name, line, c + 1};
+      if (c > 0) {
+        if (f >= le || *f != ',') {
+          throw InputError(here, fmt::format("row has {} fields, the header has {}: column '{}' is missing",
+                                             c, columns.size(), column_names[c]));
+        }
+        ++f;
+      }
+      if (double* d = dest[c]) {
+        while (f < le && is_blank(*f)) ++f;
+        const char* start = f;
+        if (f < le && *f == '+') ++f;  // from_chars refuses a leading '+', other writers emit it
+        double v = 0.0;
+        const auto [ptr, ec] = std::from_chars(f, le, v);
+        const char* after = ptr;
+        while (after < le && is_blank(*after)) ++after;
+        if (ec == std::errc::result_out_of_range) {
+          throw InputError(here, fmt::format("number out of range in column '{}': '{}'", column_names[c],
+                                             field_text(start, le)));
+        }
+        if (ec != std::errc() || ptr == f || (after < le && *after != ',')) {
+          throw InputError(here, fmt::format("not a number in column '{}': '{}'", column_names[c],
+                                             field_text(start, le)));
+        }
+        if (!std::isfinite(v)) {
+          throw InputError(here, fmt::format("{} in column '{}': every value must be finite", field_text(start, le),
+                                             column_names[c]));
+        }
+        d[row] = v;
+        f = after;
+      } else {
+        const char* comma = static_cast<const char*>(std::memchr(f, ',', static_cast<std::size_t>(le - f)));
+        const char* field_end = comma ? comma : le;
+        if (columns[c] == Column::Phase) {
+          const std::string_view label(f, static_cast<std::size_t>(field_end - f));
+          if (last_phase >= out.phase_names.size() || out.phase_names[last_phase] != label) {
+            const auto it = std::find(out.phase_names.begin(), out.phase_names.end(), label);
+            if (it == out.phase_names.end()) {
+              if (out.phase_names.size() > 0xFFFF) {
+                throw InputError(here, "more than 65536 distinct phase labels");
+              }
+              out.phase_names.emplace_back(label);
+              last_phase = out.phase_names.size() - 1;
+            } else {
+              last_phase = static_cast<std::size_t>(it - out.phase_names.begin());
+            }
+          }
+          out.phase[static_cast<std::size_t>(row)] = static_cast<std::uint16_t>(last_phase);
+        }
+        f = field_end;
+      }
+    }
+    if (f < le) {
+      throw InputError(SourcePosition{name, line, columns.size() + 1},
+                       fmt::format("row has more fields than the header's {}", columns.size()));
+    }
+    ++row;
+    q = next;
+  }
+
+  if (row < rows) {  // trailing blank lines were counted
+    out.t.conservativeResize(row);
+    out.a_e.conservativeResize(row, 3);
+    out.y.conservativeResize(row);
+    if (out.w_e) out.w_e->conservativeResize(row, 3);
+    if (out.temp) out.temp->conservativeResize(row);
+    if (!out.phase.empty()) out.phase.resize(static_cast<std::size_t>(row));
+  }
+  const std::size_t t_col = where[static_cast<std::size_t>(Column::T)];
+  if (row < 2) {
+    throw InputError(SourcePosition{name, row == 0 ? 1u : 2u, 0},
+                     fmt::format("{} data row{}: at least two rows are needed to define the sample period",
+                                 row == 0 ? "no" : "only one", row == 1 ? "" : "s"));
+  }
+  const double period = (out.t[row - 1] - out.t[0]) / static_cast<double>(row - 1);
+  if (!(period > 0.0)) {
+    throw InputError(SourcePosition{name, 2 + static_cast<std::size_t>(row - 1), t_col},
+                     "time column 't' does not increase (last time <= first time)");
+  }
+  const double tolerance = kTimeJitterTolerance * period;
+  for (Eigen::Index k = 0; k + 1 < row; ++k) {
+    const double step = out.t[k + 1] - out.t[k];
+    if (std::abs(step - period) > tolerance) {
+      throw InputError(SourcePosition{name, 3 + static_cast<std::size_t>(k), t_col},
+                       fmt::format("non-uniform time column 't': step {} s from the previous row differs from the "
+                                   "mean period {} s by more than the relative jitter tolerance {}",
+                                   step, period, kTimeJitterTolerance));
+    }
+  }
+  out.sample_period_s = period;
+}
+
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// dataset.toml
+
+SourcePosition position_of(const toml::node& node, const std::string& file) {
+  const auto& b = node.source().begin;
+  return SourcePosition{file, b.line, b.column};
+}
+
+const toml::node& require(const toml::table& table, std::string_view key, const std::string& file,
+                          const std::string& context) {
+  const toml::node* node = table.get(key);
+  if (node == nullptr) {
+    throw InputError(position_of(table, file), fmt::format("missing key '{}'{}", key, context));
+  }
+  return *node;
+}
+
+const char* type_name(const toml::node& node) {
+  switch (node.type()) {
+    case toml::node_type::string: return "a string";
+    case toml::node_type::integer: return "an integer";
+    case toml::node_type::floating_point: return "a float";
+    case toml::node_type::boolean: return "a boolean";
+    case toml::node_type::array: return "an array";
+    case toml::node_type::table: return "a table";
+    default: return "a date or time";
+  }
+}
+
+std::string require_string(const toml::table& table, std::string_view key, const std::string& file,
+                           const std::string& context = {}) {
+  const toml::node& node = require(table, key, file, context);
+  if (const auto v = node.value<std::string>(); v && node.is_string()) return *v;
+  throw InputError(position_of(node, file), fmt::format("'{}' must be a string, got {}", key, type_name(node)));
+}
+
+double to_finite_double(const toml::node& node, const std::string& file, std::string_view what) {
+  if (node.is_number()) {
+    if (const auto v = node.value<double>(); v && std::isfinite(*v)) return *v;
+  }
+  throw InputError(position_of(node, file), fmt::format("{} must be a finite number", what));
+}
+
+frames::Dcm read_matrix3(const toml::node& node, const std::string& file, std::string_view key) {
+  const toml::array* rows = node.as_array();
+  const auto bad = [&](const toml::node& at) {
+    return InputError(position_of(at, file), fmt::format("'{}' must be a 3x3 array of numbers, [[..], [..], [..]]", key));
+  };
+  if (rows == nullptr || rows->size() != 3) throw bad(node);
+  frames::Dcm m;
+  for (int r = 0; r < 3; ++r) {
+    const toml::array* row = (*rows)[static_cast<std::size_t>(r)].as_array();
+    if (row == nullptr || row->size() != 3) throw bad((*rows)[static_cast<std::size_t>(r)]);
+    for (int c = 0; c < 3; ++c) {
+      m(r, c) = to_finite_double((*row)[static_cast<std::size_t>(c)], file, fmt::format("'{}' entry", key));
+    }
+  }
+  return m;
+}
+
+// TOML basic string with the escapes the spec requires.
+std::string toml_quote(std::string_view s) {
+  std::string out = "\"";
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (ch == '"' || ch == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (c < 0x20 || c == 0x7F) {
+      out += fmt::format("\\u{:04X}", static_cast<unsigned>(c));
+    } else {
+      out += ch;
+    }
+  }
+  return out + '"';
+}
+
+void append_double(std::string& out, double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+// A TOML float: the shortest round-trip digits, with ".0" added when they would read as an integer.
+std::string toml_float(double v) {
+  std::string s;
+  append_double(s, v);
+  if (s.find_first_of(".eEn") == std::string::npos) s += ".0";
+  return s;
+}
+
+void write_file(const std::filesystem::path& file, const std::string& bytes) {
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.c_str(), "wb"), &std::fclose);
+  if (!f) {
+    throw std::system_error(errno, std::generic_category(), "cannot open " + file.string() + " for writing");
+  }
+  if (std::fwrite(bytes.data(), 1, bytes.size(), f.get()) != bytes.size() || std::fflush(f.get()) != 0) {
+    throw std::system_error(errno, std::generic_category(), "cannot write " + file.string());
+  }
+}
+
+}  // namespace
+
+Dataset read_dataset(const std::filesystem::path& dir) { return read_dataset(dir, std::cerr); }
+
+Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
+  const std::filesystem::path toml_path = dir / "dataset.toml";
+  const std::string file = toml_path.string();
+  toml::table root;
+  try {
+    root = toml::parse_file(file);
+  } catch (const toml::parse_error& e) {
+    const auto& b = e.source().begin;
+    throw InputError(SourcePosition{file, b.line, b.column}, std::string(e.description()));
+  }
+
+  Dataset data;
+  data.dir = dir;
+  {
+    const std::string sensor = require_string(root, "sensor", file);
+    const auto kind = sensor_kind_from_string(sensor);
+    if (!kind) {
+      throw InputError(position_of(*root.get("sensor"), file),
+                       fmt::format("sensor = \"{}\" is not one of \"accelerometer\", \"gyroscope\"", sensor));
+    }
+    data.sensor = *kind;
+  }
+  data.output_unit = require_string(root, "output_unit", file);
+  data.t_ref = to_finite_double(require(root, "t_ref", file, ""), file, "'t_ref'");
+
+  const toml::node& cases_node = require(root, "case", file, " (expected one or more [[case]] tables)");
+  const toml::array* cases = cases_node.as_array();
+  if (cases == nullptr || cases->empty() || !cases->is_array_of_tables()) {
+    throw InputError(position_of(cases_node, file), "'case' must be one or more [[case]] tables");
+  }
+  for (const toml::node& node : *cases) {
+    const toml::table& table = *node.as_table();
+    CaseData c;
+    const std::string where = fmt::format(" in [[case]] at line {}", table.source().begin.line);
+    c.name = require_string(table, "name", file, where);
+    for (const CaseData& other : data.cases) {
+      if (other.name == c.name) {
+        throw InputError(position_of(*table.get("name"), file), fmt::format("duplicate case name '{}'", c.name));
+      }
+    }
+    const std::string kind = require_string(table, "kind", file, where);
+    const auto case_kind = case_kind_from_string(kind);
+    if (!case_kind) {
+      throw InputError(position_of(*table.get("kind"), file),
+                       fmt::format("kind = \"{}\" is not one of rotation_table, shaker, thermal, static", kind));
+    }
+    c.kind = *case_kind;
+    c.file = require_string(table, "file", file, where);
+    const toml::node& m_node = require(table, "m_ec", file, where);
+    c.m_ec = read_matrix3(m_node, file, "m_ec");
+    if (!frames::is_rotation(c.m_ec, kRotationTolerance)) {
+      const double orth = (c.m_ec * c.m_ec.transpose() - frames::Dcm::Identity()).cwiseAbs().maxCoeff();
+      throw InputError(position_of(m_node, file),
+                       fmt::format("m_ec of case '{}' is not a rotation: max |M M^T - I| = {:.3g}, det = {:.9g} "
+                                   "(tolerance {}); its rows must be the case axes IRA, XRA, YRA written in F_E",
+                                   c.name, orth, c.m_ec.determinant(), kRotationTolerance));
+    }
+    const std::filesystem::path csv = dir / c.file;
+    if (!std::filesystem::is_regular_file(csv)) {
+      throw InputError(position_of(*table.get("file"), file),
+                       fmt::format("case '{}': file '{}' not found", c.name, csv.string()));
+    }
+    read_case_csv(csv, c, warnings);
+    data.cases.push_back(std::move(c));
+  }
+  return data;
+}
+
+void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
+  std::string toml_text;
+  toml_text += "sensor = " + toml_quote(to_string(data.sensor)) + "\n";
+  toml_text += "output_unit = " + toml_quote(data.output_unit) + "\n";
+  toml_text += "t_ref = " + toml_float(data.t_ref) + "\n";
+
+  std::vector<std::string> files;
+  for (const CaseData& c : data.cases) {
+    const Eigen::Index n = c.size();
+    const auto bad = [&](const std::string& why) {
+      return InputError(fmt::format("cannot write case '{}': {}", c.name, why));
+    };
+    if (c.a_e.rows() != n || c.y.size() != n || (c.w_e && c.w_e->rows() != n) || (c.temp && c.temp->size() != n) ||
+        (!c.phase.empty() && c.phase.size() != static_cast<std::size_t>(n))) {
+      throw bad("columns differ in length");
+    }
+    for (const std::string& label : c.phase_names) {
+      if (label.find_first_of(",\"\r\n") != std::string::npos) {
+        throw bad(fmt::format("phase label '{}' holds a comma, quote or line break", label));
+      }
+    }
+    for (std::uint16_t p : c.phase) {
+      if (p >= c.phase_names.size()) throw bad("phase index beyond phase_names");
+    }
+    files.push_back(c.file.empty() ? c.name + ".csv" : c.file);
+
+    toml_text += "\n[[case]]\n";
+    toml_text += "name = " + toml_quote(c.name) + "\n";
+    toml_text += "kind = " + toml_quote(to_string(c.kind)) + "\n";
+    toml_text += "file = " + toml_quote(files.back()) + "\n";
+    toml_text += "m_ec = [";
+    for (int r = 0; r < 3; ++r) {
+      toml_text += r == 0 ? "[" : ", [";
+      for (int col = 0; col < 3; ++col) toml_text += (col == 0 ? "" : ", ") + toml_float(c.m_ec(r, col));
+      toml_text += "]";
+    }
+    toml_text += "]\n";
+  }
+
+  std::filesystem::create_directories(dir);
+  write_file(dir / "dataset.toml", toml_text);
+
+  for (std::size_t i = 0; i < data.cases.size(); ++i) {
+    const CaseData& c = data.cases[i];
+    std::string csv = "t,a_x,a_y,a_z";
+    if (c.w_e) csv += ",w_x,w_y,w_z";
+    if (c.temp) csv += ",temp";
+    csv += ",y";
+    if (!c.phase.empty()) csv += ",phase";
+    csv += '\n';
+    csv.reserve(csv.size() + static_cast<std::size_t>(c.size()) * 200);
+    for (Eigen::Index k = 0; k < c.size(); ++k) {
+      append_double(csv, c.t[k]);
+      for (int a = 0; a < 3; ++a) { csv += ','; append_double(csv, c.a_e(k, a)); }
+      if (c.w_e) {
+        for (int a = 0; a < 3; ++a) { csv += ','; append_double(csv, (*c.w_e)(k, a)); }
+      }
+      if (c.temp) { csv += ','; append_double(csv, (*c.temp)[k]); }
+      csv += ',';
+      append_double(csv, c.y[k]);
+      if (!c.phase.empty()) {
+        csv += ',';
+        csv += c.phase_names[c.phase[static_cast<std::size_t>(k)]];
+      }
+      csv += '\n';
+    }
+    write_file(dir / files[i], csv);
+  }
+}
+
+}  // namespace inertia::dataset
