@@ -1,0 +1,51 @@
+#include "common/lcm/sample_block_layout.hpp"
+
+namespace inertia {
+
+namespace {
+std::size_t valid_bytes_for(std::int32_t num_samples) {
+  return (static_cast<std::size_t>(num_samples) + 7) / 8;
+}
+}  // namespace
+
+void shape_sample_block(sample_block_t& block, std::int32_t num_channels, std::int32_t num_samples) {
+  const auto channels = static_cast<std::size_t>(num_channels);
+  const auto samples = static_cast<std::size_t>(num_samples);
+  block.num_channels = num_channels;
+  block.num_samples = num_samples;
+  block.valid_bytes = static_cast<std::int32_t>(valid_bytes_for(num_samples));
+  block.channel_ids.resize(channels);
+  block.channel_names.resize(channels);
+  block.units.resize(channels);
+  block.channel_seq.resize(channels);
+  block.values.assign(channels, std::vector<double>(samples, 0.0));
+  block.valid.assign(channels, std::vector<std::uint8_t>(valid_bytes_for(num_samples), 0));
+}
+
+std::size_t udp_payload_size(const sample_block_t& block, std::string_view channel) {
+  return channel.size() + 1 + static_cast<std::size_t>(block.getEncodedSize());
+}
+
+std::int32_t max_samples_per_block(const sample_block_t& header, std::string_view channel) {
+  if (header.num_channels <= 0) return 0;
+  sample_block_t empty = header;
+  empty.num_samples = 0;
+  empty.valid_bytes = 0;
+  empty.values.assign(static_cast<std::size_t>(header.num_channels), {});
+  empty.valid.assign(static_cast<std::size_t>(header.num_channels), {});
+  const std::size_t fixed = udp_payload_size(empty, channel);
+  if (fixed >= kLcmShortMessageMaxSize) return 0;
+
+  // Each sample adds one double per channel; each started group of 8 samples one validity
+  // byte per channel. Start from the bound without the bitmap and step down until it fits.
+  const auto channels = static_cast<std::size_t>(header.num_channels);
+  const std::size_t per_sample = channels * sizeof(double);
+  std::size_t n = (kLcmShortMessageMaxSize - fixed) / per_sample;
+  while (n > 0 && fixed + n * per_sample + channels * valid_bytes_for(static_cast<std::int32_t>(n)) >=
+                      kLcmShortMessageMaxSize) {
+    --n;
+  }
+  return static_cast<std::int32_t>(n);
+}
+
+}  // namespace inertia
