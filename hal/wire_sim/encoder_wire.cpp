@@ -1,0 +1,79 @@
+#include "hal/wire_sim/encoder_wire.hpp"
+
+#include <fcntl.h>
+#include <linux/gpio.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace inertia::hal::wire_sim {
+namespace {
+
+static_assert(sizeof(gpioevent_data) == 16);
+
+class PipeEdgeSource final : public gpiod::EdgeSource {
+ public:
+  PipeEdgeSource(std::shared_ptr<const std::array<std::atomic<bool>, gpiod::kEdgeLineCount>> level,
+                 std::array<int, gpiod::kEdgeLineCount> fds, std::shared_ptr<void> keep)
+      : level_(std::move(level)), fds_(fds), keep_(std::move(keep)) {}
+  [[nodiscard]] int event_fd(gpiod::EdgeLine line) const noexcept override {
+    return fds_[static_cast<std::size_t>(line)];
+  }
+  [[nodiscard]] bool level(gpiod::EdgeLine line) const noexcept override {
+    return (*level_)[static_cast<std::size_t>(line)].load();
+  }
+
+ private:
+  std::shared_ptr<const std::array<std::atomic<bool>, gpiod::kEdgeLineCount>> level_;
+  std::array<int, gpiod::kEdgeLineCount> fds_;
+  std::shared_ptr<void> keep_;  // owns the read ends
+};
+
+}  // namespace
+
+std::unique_ptr<EncoderWire> EncoderWire::create(const Lines& lines, std::string* why) {
+  std::unique_ptr<EncoderWire> wire(new EncoderWire());
+  wire->shared_ = std::make_shared<Shared>();
+  const bool used[gpiod::kEdgeLineCount] = {true, true, lines.marker, lines.trigger};
+  for (std::size_t i = 0; i < gpiod::kEdgeLineCount; ++i) {
+    if (!used[i]) continue;
+    int p[2];
+    if (::pipe2(p, O_CLOEXEC | O_NONBLOCK) != 0) {
+      if (why) *why = std::string("pipe2: ") + std::strerror(errno);
+      return nullptr;
+    }
+    wire->shared_->read_end[i] = UniqueFd(p[0]);
+    wire->write_end_[i] = UniqueFd(p[1]);
+  }
+  wire->shared_->level[0] = lines.a0;
+  wire->shared_->level[1] = lines.b0;
+  return wire;
+}
+
+std::unique_ptr<gpiod::EdgeSource> EncoderWire::take_source() {
+  if (taken_) return nullptr;
+  taken_ = true;
+  std::array<int, gpiod::kEdgeLineCount> fds{};
+  for (std::size_t i = 0; i < gpiod::kEdgeLineCount; ++i) fds[i] = shared_->read_end[i].get();
+  auto level = std::shared_ptr<const std::array<std::atomic<bool>, gpiod::kEdgeLineCount>>(shared_, &shared_->level);
+  return std::make_unique<PipeEdgeSource>(std::move(level), fds, shared_);
+}
+
+bool EncoderWire::write(const gpiod::EdgeEvent& event) {
+  gpioevent_data record{};
+  record.timestamp = static_cast<__u64>(event.t_ns);
+  record.id = event.rising ? GPIOEVENT_EVENT_RISING_EDGE : GPIOEVENT_EVENT_FALLING_EDGE;
+  if (!write_raw(event.line, &record, sizeof record)) return false;
+  shared_->level[static_cast<std::size_t>(event.line)] = event.rising;
+  return true;
+}
+
+bool EncoderWire::write_raw(gpiod::EdgeLine line, const void* bytes, std::size_t size) {
+  const int fd = write_end_[static_cast<std::size_t>(line)].get();
+  if (fd < 0) return false;
+  // Writes up to PIPE_BUF are atomic, so a record is never split between reads.
+  return ::write(fd, bytes, size) == static_cast<ssize_t>(size);
+}
+
+}  // namespace inertia::hal::wire_sim

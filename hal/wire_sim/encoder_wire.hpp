@@ -1,0 +1,45 @@
+#pragma once
+// The encoder's wire as this machine allows it (no GPIO chips, daq.md §2): one pipe per line
+// carrying the kernel's struct gpioevent_data records (16 bytes, <linux/gpio.h>), which is
+// exactly what libgpiod's gpiod_line_event_read_fd_multiple() reads from a line event fd.
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "hal/gpiod/encoder_device.hpp"
+#include "hal/unique_fd.hpp"
+
+namespace inertia::hal::wire_sim {
+
+/// Writer side. Thread: one writer thread (the simulator or a test).
+class EncoderWire {
+ public:
+  struct Lines {
+    bool marker = false, trigger = false;
+    bool a0 = false, b0 = false;        // levels at the start
+  };
+  /// The edge source for GpiodEncoderDevice::from_source() and the writer, or nullptr + why.
+  static std::unique_ptr<EncoderWire> create(const Lines& lines, std::string* why);
+
+  /// Hands out the read side (once). It reports the levels last written here.
+  std::unique_ptr<gpiod::EdgeSource> take_source();
+
+  /// Writes one record; false when the pipe is full (EAGAIN) or the line does not exist.
+  bool write(const gpiod::EdgeEvent& event);
+  /// Raw bytes on a line's pipe (partial records for fault tests).
+  bool write_raw(gpiod::EdgeLine line, const void* bytes, std::size_t size);
+
+ private:
+  EncoderWire() = default;
+  struct Shared {
+    std::array<std::atomic<bool>, gpiod::kEdgeLineCount> level{};
+    std::array<UniqueFd, gpiod::kEdgeLineCount> read_end;
+  };
+  std::shared_ptr<Shared> shared_;
+  std::array<UniqueFd, gpiod::kEdgeLineCount> write_end_;
+  bool taken_ = false;
+};
+
+}  // namespace inertia::hal::wire_sim

@@ -1,0 +1,252 @@
+// Quadrature decoding: the decoder alone, then GpiodEncoderDevice reading gpioevent_data records
+// from pipes through libgpiod's own gpiod_line_event_read_fd_multiple().
+#include <sys/stat.h>
+
+#include <cmath>
+#include <map>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/units.hpp"
+#include "hal/gpiod/encoder_device.hpp"
+#include "hal/wire_sim/encoder_wire.hpp"
+#include "hal/wire_sim/quadrature_generator.hpp"
+
+namespace inertia::hal::gpiod {
+namespace {
+
+using wire_sim::EncoderWire;
+using wire_sim::QuadratureFaults;
+using wire_sim::QuadratureTrace;
+
+struct Sample {
+  std::uint32_t channel;
+  std::int64_t t_ns;
+  double value;
+};
+
+class RecordingSink final : public SampleSink {
+ public:
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
+    EXPECT_TRUE(valid);
+    samples.push_back({channel, t_ns, value});
+    return true;
+  }
+  std::vector<Sample> samples;
+};
+
+TEST(QuadratureDecoder, CountsX4BothDirections) {
+  QuadratureDecoder d;
+  d.reset(false, false);
+  // Forward: A leads B.
+  EXPECT_EQ(d.on_edge(EdgeLine::A, true, 10), QuadratureDecoder::Outcome::Step);
+  d.on_edge(EdgeLine::B, true, 20);
+  d.on_edge(EdgeLine::A, false, 30);
+  d.on_edge(EdgeLine::B, false, 40);
+  EXPECT_EQ(d.count(), 4);
+  // Reverse: B leads A.
+  d.on_edge(EdgeLine::B, true, 50);
+  EXPECT_EQ(d.count(), 3);
+  d.on_edge(EdgeLine::A, true, 60);
+  d.on_edge(EdgeLine::B, false, 70);
+  d.on_edge(EdgeLine::A, false, 80);
+  d.on_edge(EdgeLine::B, true, 90);
+  EXPECT_EQ(d.count(), -1);
+  EXPECT_EQ(d.counters().glitches, 0u);
+  EXPECT_EQ(d.counters().illegal_transitions, 0u);
+}
+
+TEST(QuadratureDecoder, GlitchesAndSkippedStates) {
+  QuadratureDecoder d(/*min_edge_interval_ns=*/1000);
+  d.reset(false, false);
+  d.on_edge(EdgeLine::A, true, 10'000);                                                    // +1
+  EXPECT_EQ(d.on_edge(EdgeLine::A, true, 20'000), QuadratureDecoder::Outcome::Glitch);     // no level change
+  EXPECT_EQ(d.count(), 1);
+  d.on_edge(EdgeLine::B, true, 30'000);                                                    // +1 -> 2
+  EXPECT_EQ(d.on_edge(EdgeLine::B, false, 30'400), QuadratureDecoder::Outcome::Glitch);    // pulse: withdrawn
+  EXPECT_EQ(d.count(), 1);
+  EXPECT_FALSE(d.level(EdgeLine::B));
+  d.on_edge(EdgeLine::B, true, 30'800);                                                    // bounce settles: +1
+  EXPECT_EQ(d.count(), 2);
+  d.on_edge(EdgeLine::A, false, 50'000);                                                   // +1 -> 3
+  EXPECT_EQ(d.on_edge(EdgeLine::B, false, 50'000), QuadratureDecoder::Outcome::Illegal);   // same stamp
+  EXPECT_EQ(d.count(), 2);  // state 2 -> 0 skipped 3: neither step counts
+  EXPECT_EQ(d.counters().glitches, 2u);
+  EXPECT_EQ(d.counters().illegal_transitions, 1u);
+  d.on_edge(EdgeLine::A, true, 60'000);
+  EXPECT_EQ(d.count(), 3);
+}
+
+struct EncoderRig {
+  explicit EncoderRig(const QuadratureTrace& trace, QuadratureConfig config = {}, bool marker = false,
+                      bool trigger = false) {
+    std::string why;
+    wire = EncoderWire::create({marker, trigger, trace.a0, trace.b0}, &why);
+    EXPECT_NE(wire, nullptr) << why;
+    config.resolution = kResolution;
+    device = GpiodEncoderDevice::from_source(wire->take_source(), config, &why);
+    EXPECT_NE(device, nullptr) << why;
+    EXPECT_EQ(device->configure(), Step::Ok);
+    EXPECT_EQ(device->activate(), Step::Ok);
+    start = trace.start_count;
+  }
+  // Writes the trace in chunks (a pipe holds 4096 records) and reads after each chunk, so
+  // batches of 16 per line and the cross-line merge are exercised.
+  void run(const QuadratureTrace& trace, std::size_t chunk) {
+    for (std::size_t i = 0; i < trace.edges.size(); i += chunk) {
+      for (std::size_t k = i; k < std::min(trace.edges.size(), i + chunk); ++k)
+        ASSERT_TRUE(wire->write(trace.edges[k].event));
+      device->read_into(sink);
+    }
+    for (int k = 0; k < 4; ++k) device->read_into(sink);
+  }
+  static constexpr double kResolution = 1e-6;  // 1 um per x4 count
+  std::unique_ptr<EncoderWire> wire;
+  std::unique_ptr<GpiodEncoderDevice> device;
+  RecordingSink sink;
+  std::int64_t start = 0;
+};
+
+// Shaker-like motion: 0.5 mm amplitude at 3 Hz plus an offset, so the trace starts mid-count.
+double shaker_x(double t) { return 0.5e-3 * std::sin(2 * kPi * 3.0 * t) + 0.3e-6; }
+
+void expect_count_at_every_motion_edge(const QuadratureTrace& trace, const RecordingSink& sink, std::int64_t start) {
+  std::map<std::int64_t, std::int64_t> expected;  // stamp -> count (motion edges have unique stamps)
+  for (const auto& e : trace.edges)
+    if (!e.injected) expected[e.event.t_ns] = e.expected_count - start;
+  std::size_t matched = 0;
+  for (const Sample& s : sink.samples) {
+    if (s.channel != GpiodEncoderDevice::kCountChannel) continue;
+    const auto it = expected.find(s.t_ns);
+    if (it == expected.end()) continue;  // a glitch pulse's own samples
+    ASSERT_EQ(static_cast<std::int64_t>(s.value), it->second) << "at t_ns " << s.t_ns;
+    ++matched;
+  }
+  EXPECT_EQ(matched, expected.size());
+}
+
+TEST(GpiodEncoderDevice, SinusoidDecodesToQuantizedTruthAtEveryEdge) {
+  const QuadratureTrace trace = wire_sim::generate_quadrature(shaker_x, EncoderRig::kResolution, 0.0, 0.5, 2e-6,
+                                                              1'000'000'000);
+  ASSERT_GT(trace.edges.size(), 2500u);
+  EncoderRig rig(trace);
+  rig.run(trace, 100);
+  expect_count_at_every_motion_edge(trace, rig.sink, rig.start);
+  const auto status = rig.device->status();
+  EXPECT_EQ(status.quadrature.edges, trace.edges.size());
+  EXPECT_EQ(status.quadrature.glitches, 0u);
+  EXPECT_EQ(status.quadrature.illegal_transitions, 0u);
+  EXPECT_EQ(status.count, trace.edges.back().expected_count - trace.start_count);
+  // Position samples are count * resolution.
+  const Sample& last = rig.sink.samples.back();
+  EXPECT_EQ(last.channel, GpiodEncoderDevice::kPositionChannel);
+  EXPECT_NEAR(last.value, static_cast<double>(status.count) * EncoderRig::kResolution, 1e-15);
+  EXPECT_EQ(rig.device->health().malformed + rig.device->health().io_errors, 0u);
+}
+
+TEST(GpiodEncoderDevice, ReversalAtACountBoundary) {
+  // Dithering across one boundary, then a slow reversal: +1 -1 +1 ... then down several counts.
+  auto x = [](double t) {
+    return t < 0.01 ? 3e-6 + 0.4e-6 * std::sin(2 * kPi * 1000 * t) - 0.1e-6 : 3e-6 - 500e-6 * (t - 0.01);
+  };
+  const QuadratureTrace trace = wire_sim::generate_quadrature(x, EncoderRig::kResolution, 0.0, 0.02, 1e-6, 5'000);
+  EncoderRig rig(trace);
+  rig.run(trace, 7);
+  expect_count_at_every_motion_edge(trace, rig.sink, rig.start);
+  EXPECT_EQ(rig.device->status().count, trace.edges.back().expected_count - trace.start_count);
+  EXPECT_LT(rig.device->status().count, -3);
+}
+
+TEST(GpiodEncoderDevice, InjectedGlitchesAreCountedExactlyAndDoNotMoveTheCount) {
+  QuadratureFaults faults;
+  faults.pulse_every = 37;
+  faults.pulse_width_ns = 400;
+  faults.pulse_clearance_ns = 6'000;
+  faults.duplicate_every = 53;
+  const QuadratureTrace trace = wire_sim::generate_quadrature(shaker_x, EncoderRig::kResolution, 0.0, 0.34, 2e-6,
+                                                              1'000'000'000, faults);
+  ASSERT_GT(trace.pulses, 40u);
+  ASSERT_GT(trace.duplicates, 30u);
+  QuadratureConfig config;
+  config.min_edge_interval_ns = 2'000;
+  EncoderRig rig(trace, config);
+  rig.run(trace, 64);
+  expect_count_at_every_motion_edge(trace, rig.sink, rig.start);
+  const auto status = rig.device->status();
+  EXPECT_EQ(status.quadrature.glitches, trace.pulses + trace.duplicates);
+  EXPECT_EQ(status.quadrature.illegal_transitions, 0u);
+}
+
+TEST(GpiodEncoderDevice, SkippedStatesAreIllegalTransitions) {
+  QuadratureFaults faults;
+  faults.skip_every = 101;
+  const QuadratureTrace trace = wire_sim::generate_quadrature(shaker_x, EncoderRig::kResolution, 0.0, 0.34, 2e-6,
+                                                              1'000'000'000, faults);
+  ASSERT_GT(trace.skips, 15u);
+  EncoderRig rig(trace);
+  rig.run(trace, 100);
+  const auto status = rig.device->status();
+  EXPECT_EQ(status.quadrature.illegal_transitions, trace.skips);
+  EXPECT_EQ(status.quadrature.glitches, 0u);
+  EXPECT_EQ(status.count, trace.edges.back().expected_count - trace.start_count);
+}
+
+TEST(GpiodEncoderDevice, MarkerAndTriggerEdgesBecomeTimestampedSamples) {
+  const QuadratureTrace trace =
+      wire_sim::generate_quadrature([](double t) { return 20e-6 * t; }, EncoderRig::kResolution, 0.0, 1.0, 1e-4, 0);
+  ASSERT_EQ(trace.edges.size(), 20u);
+  EncoderRig rig(trace, {}, /*marker=*/true, /*trigger=*/true);
+  ASSERT_GE(rig.device->marker_channel(), 0);
+  ASSERT_GE(rig.device->trigger_channel(), 0);
+  for (std::size_t i = 0; i < 10; ++i) ASSERT_TRUE(rig.wire->write(trace.edges[i].event));
+  const std::int64_t t_mark = trace.edges[9].event.t_ns + 1000;
+  ASSERT_TRUE(rig.wire->write({EdgeLine::Marker, true, t_mark}));
+  ASSERT_TRUE(rig.wire->write({EdgeLine::Marker, false, t_mark + 500}));
+  ASSERT_TRUE(rig.wire->write({EdgeLine::Trigger, true, t_mark + 700}));
+  for (std::size_t i = 10; i < 20; ++i) ASSERT_TRUE(rig.wire->write(trace.edges[i].event));
+  rig.device->read_into(rig.sink);
+  std::vector<Sample> marks, trigs;
+  for (const Sample& s : rig.sink.samples) {
+    if (s.channel == static_cast<std::uint32_t>(rig.device->marker_channel())) marks.push_back(s);
+    if (s.channel == static_cast<std::uint32_t>(rig.device->trigger_channel())) trigs.push_back(s);
+  }
+  ASSERT_EQ(marks.size(), 1u);  // rising edge only
+  EXPECT_EQ(marks[0].t_ns, t_mark);
+  EXPECT_NEAR(marks[0].value, static_cast<double>(trace.edges[9].expected_count - trace.start_count) * 1e-6, 1e-15);
+  ASSERT_EQ(trigs.size(), 1u);
+  EXPECT_EQ(trigs[0].value, 1.0);
+  EXPECT_EQ(rig.device->status().markers, 1u);
+  EXPECT_EQ(rig.device->status().count, 20);
+}
+
+TEST(GpiodEncoderDevice, PartialRecordIsMalformed) {
+  const QuadratureTrace trace =
+      wire_sim::generate_quadrature([](double t) { return 4e-6 * t; }, EncoderRig::kResolution, 0.0, 1.0, 1e-3, 0);
+  EncoderRig rig(trace);
+  const std::uint8_t half[8] = {};
+  ASSERT_TRUE(rig.wire->write_raw(EdgeLine::A, half, sizeof half));
+  rig.device->read_into(rig.sink);  // libgpiod: fewer bytes than one record -> EIO
+  EXPECT_GE(rig.device->health().malformed, 1u);
+  EXPECT_TRUE(rig.sink.samples.empty());
+}
+
+TEST(GpiodEncoderDevice, OpeningAChipFailsWithAReasonWhenThereIsNone) {
+  QuadratureConfig config;
+  config.chip = "gpiochip0";
+  std::string why;
+  auto device = GpiodEncoderDevice::open(config, &why);
+  struct stat st{};
+  if (::stat("/dev/gpiochip0", &st) != 0) {
+    EXPECT_EQ(device, nullptr);
+    EXPECT_NE(why.find("cannot open GPIO chip 'gpiochip0'"), std::string::npos) << why;
+  } else {
+    EXPECT_TRUE(device != nullptr || !why.empty());  // a target with GPIO: either works or says why
+  }
+  config.line_b = config.line_a;
+  EXPECT_EQ(GpiodEncoderDevice::open(config, &why), nullptr);
+  EXPECT_NE(why.find("same line"), std::string::npos) << why;
+}
+
+}  // namespace
+}  // namespace inertia::hal::gpiod
