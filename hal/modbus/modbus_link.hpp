@@ -1,0 +1,85 @@
+#pragma once
+// Modbus TCP client link: one owning wrapper of libmodbus' modbus_t (style §10) that reconnects
+// by itself. Recovery is ours, not libmodbus': MODBUS_ERROR_RECOVERY_LINK makes 3.1.x loop
+// "until successful" inside a call (libmodbus issues #39, #199, #618; daq.md §3), so the mode
+// stays NONE and a dropped link is closed, then reconnected on a later call after an
+// exponential, capped back-off. Calls never wait for the back-off: they fail at once (ENOTCONN).
+// Thread: one thread (the daemon's Modbus thread; libmodbus contexts are not thread-safe).
+// Not real-time: every call may block up to the response timeout. Never in a sampling thread.
+#include <modbus/modbus.h>
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+
+#include "hal/modbus/register_map.hpp"
+
+namespace inertia::hal::modbus {
+
+struct ModbusConfig {
+  std::string name = "modbus";        // device name; values are "<name>.<register>"
+  std::string host = "127.0.0.1";     // IPv4 literal (modbus_new_tcp)
+  int port = 502;
+  int unit_id = 1;
+  double response_timeout_s = 0.5;    // also bounds connect()
+  double reconnect_initial_s = 0.5;   // first back-off after the link drops
+  double reconnect_max_s = 8.0;       // back-off doubles up to this
+  int timeouts_before_reconnect = 3;  // consecutive timeouts that mean the link is dead
+  bool writes_enabled = false;        // setpoint writes are off unless the bench config says so
+  RegisterMap map;
+  bool is_valid(std::string* why) const;
+};
+
+struct ModbusHealth {
+  std::uint64_t requests = 0, errors = 0;
+  std::uint64_t timeouts = 0;         // ETIMEDOUT
+  std::uint64_t exceptions = 0;       // the device answered with a Modbus exception (EMBX*)
+  std::uint64_t protocol_errors = 0;  // bad data, bad transaction id, too many data ...
+  std::uint64_t disconnects = 0;      // link dropped by us after a connection-level error
+  std::uint64_t reconnect_attempts = 0, reconnects = 0;
+  int last_errno = 0;
+  std::string last_error;             // modbus_strerror(last_errno)
+};
+
+class ModbusLink {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  /// Opens the TCP connection; nullptr with the reason ("modbus 127.0.0.1:1502: connect:
+  /// Connection refused") when it cannot.
+  static std::unique_ptr<ModbusLink> connect(const ModbusConfig& config, std::string* why);
+  ~ModbusLink();
+  ModbusLink(const ModbusLink&) = delete;
+  ModbusLink& operator=(const ModbusLink&) = delete;
+
+  /// FC3/FC4 into out (at most 125 words). Count read, or -1 with errno (ENOTCONN while the
+  /// link is down and the back-off has not elapsed).
+  [[nodiscard]] int read_registers(RegisterKind kind, int address, std::span<std::uint16_t> out);
+  /// FC6 (one word) or FC16. Count written, or -1 with errno.
+  [[nodiscard]] int write_registers(int address, std::span<const std::uint16_t> words);
+
+  [[nodiscard]] bool connected() const noexcept { return connected_; }
+  [[nodiscard]] const ModbusHealth& health() const noexcept { return health_; }
+  /// Back-off before the next reconnect attempt (grows while attempts fail).
+  [[nodiscard]] Clock::duration backoff() const noexcept { return backoff_; }
+
+ private:
+  ModbusLink(modbus_t* ctx, const ModbusConfig& config);
+  template <class Call>
+  int call(Call&& request);
+  bool try_reconnect();
+  void drop_link();
+  void record_error(int err);
+
+  modbus_t* ctx_;
+  Clock::duration initial_backoff_, max_backoff_, backoff_;
+  Clock::time_point next_attempt_{};
+  int timeouts_before_reconnect_;
+  int consecutive_timeouts_ = 0;
+  bool connected_ = true;
+  ModbusHealth health_;
+};
+
+}  // namespace inertia::hal::modbus

@@ -1,0 +1,87 @@
+#pragma once
+// Simulated bench controllers behind one Modbus TCP server (design.md: thermal controller of the
+// temperature-controlled fixture, rotation-table controller, shaker controller status), with
+// the register map a client uses for them (bench_controller_register_map()).
+//
+// Holding registers (setpoints, writable)          Input registers (measurements)
+//   0x1000 temperature_setpoint int16  0.01 degC     0x2000 temperature      int16   0.01 degC
+//   0x1001 table_rate_setpoint  float32 ABCD rad/s   0x2001 peltier_power    int16   0.1 W
+//   0x1003 shaker_enable        uint16  0/1          0x2002 table_angle      float32 CDAB rad
+//                                                    0x2004 table_rate       float32 BADC rad/s
+//                                                    0x2006 shaker_status    uint16  bits
+//                                                    0x2007 shaker_frequency uint32 DCBA 0.001 Hz
+//                                                    0x2009 table_turns      int32  ABCD
+// The words are composed here byte by byte from the documented order, independently of
+// hal/modbus/register_map.cpp, so the client's decoding is checked against a second reading of
+// the same convention. (libmodbus 3.1.6's modbus_set_float_abcd() is not used: on this machine
+// it writes 0x4049 0x0FDB (pi) as 0x4940 0xDB0F, and its get_float_abcd() does not invert it.)
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "hal/modbus/register_map.hpp"
+#include "hal/wire_sim/modbus_tcp_server.hpp"
+
+namespace inertia::hal::wire_sim {
+
+struct BenchControllerState {
+  bool frozen = false;                  // physics paused: registers hold exactly what was set
+  // Thermal fixture: first-order plant, Peltier power proportional to the error, saturated.
+  double temperature_degC = 23.0;
+  double temperature_setpoint_degC = 23.0;
+  double peltier_power_w = 0.0;
+  double thermal_time_constant_s = 5.0;
+  double peltier_gain_w_per_k = 4.0, peltier_max_w = 60.0;
+  // Rotation table: the rate follows its setpoint at a bounded acceleration.
+  double table_angle_rad = 0.0;
+  double table_rate_rad_s = 0.0;
+  double table_rate_setpoint_rad_s = 0.0;
+  double table_max_accel_rad_s2 = 2.0;
+  std::int32_t table_turns = 0;
+  // Shaker controller status.
+  bool shaker_enable = false;
+  std::uint16_t shaker_status = 0;      // bit0 running, bit1 fault, bit2 over-travel
+  double shaker_frequency_hz = 0.0;
+};
+
+namespace bench_registers {
+inline constexpr int kHoldingStart = 0x1000, kHoldingCount = 8;
+inline constexpr int kInputStart = 0x2000, kInputCount = 16;
+inline constexpr int kTemperatureSetpoint = 0x1000, kTableRateSetpoint = 0x1001, kShakerEnable = 0x1003;
+inline constexpr int kTemperature = 0x2000, kPeltierPower = 0x2001, kTableAngle = 0x2002, kTableRate = 0x2004,
+                     kShakerStatus = 0x2006, kShakerFrequency = 0x2007, kTableTurns = 0x2009;
+}  // namespace bench_registers
+
+/// The client-side map of the simulated controllers (limits: setpoint 10..60 degC, table rate
+/// +-3.5 rad/s); the bench template's [modbus] section describes the same device.
+modbus::RegisterMap bench_controller_register_map();
+
+class BenchControllerServer {
+ public:
+  /// port 0: a free port. nullptr with the reason on failure.
+  static std::unique_ptr<BenchControllerServer> start(int port, std::string* why,
+                                                      const BenchControllerState& initial = {});
+  [[nodiscard]] int port() const noexcept { return server_->port(); }
+  /// The server goes away (connections closed) / comes back on the same port; state is kept.
+  void stop() { server_->stop(); }
+  bool restart(std::string* why) { return server_->restart(why); }
+  void set_silent(bool silent) noexcept { server_->set_silent(silent); }
+  /// The hook: change the simulated state (e.g. inject a shaker fault). Thread: any.
+  void update(const std::function<void(BenchControllerState&)>& change);
+  [[nodiscard]] BenchControllerState state();
+  [[nodiscard]] ModbusTcpServer& server() noexcept { return *server_; }
+
+ private:
+  BenchControllerServer() = default;
+  void tick(modbus_mapping_t& registers, double dt_s);  // server thread, register lock held
+  static void publish(const BenchControllerState& s, modbus_mapping_t& registers, bool setpoints);
+
+  std::mutex state_mutex_;             // taken inside the register lock, never the other way
+  BenchControllerState state_;
+  bool published_ = false;             // guarded by the register lock
+  std::unique_ptr<ModbusTcpServer> server_;
+};
+
+}  // namespace inertia::hal::wire_sim

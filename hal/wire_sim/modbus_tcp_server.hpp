@@ -1,0 +1,73 @@
+#pragma once
+// A real Modbus TCP server on loopback (libmodbus: modbus_tcp_listen, modbus_receive,
+// modbus_reply against a modbus_mapping_t) in its own thread, so the client code under test
+// talks to it over a real socket. Several clients at once (poll loop, as libmodbus'
+// bandwidth-server-many-up example). Faults: stop()/restart() (server gone and back on the same
+// port) and silence (requests read, never answered -> client timeouts).
+#include <modbus/modbus.h>
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "hal/unique_fd.hpp"
+
+namespace inertia::hal::wire_sim {
+
+struct ModbusServerOptions {
+  std::string host = "127.0.0.1";
+  int port = 0;                       // 0: the kernel picks a free port (see port())
+  int holding_start = 0, holding_count = 16;
+  int input_start = 0, input_count = 16;
+  int tick_ms = 20;                   // period of the tick hook (device physics)
+};
+
+class ModbusTcpServer {
+ public:
+  /// Called every tick_ms in the server thread with the register lock held; dt_s since last.
+  using Tick = std::function<void(modbus_mapping_t& registers, double dt_s)>;
+
+  /// Listens and starts the thread; nullptr with the reason on failure.
+  static std::unique_ptr<ModbusTcpServer> start(const ModbusServerOptions& options, Tick tick, std::string* why);
+  ~ModbusTcpServer();
+  ModbusTcpServer(const ModbusTcpServer&) = delete;
+  ModbusTcpServer& operator=(const ModbusTcpServer&) = delete;
+
+  /// Closes the listening socket and every connection and joins the thread (returns within one
+  /// poll wake-up). Registers are kept. Thread: any except the server thread.
+  void stop();
+  /// Listens again on the same port (SO_REUSEADDR) with the same registers.
+  bool restart(std::string* why);
+  [[nodiscard]] bool running() const noexcept { return thread_.joinable(); }
+  [[nodiscard]] int port() const noexcept { return port_; }
+
+  /// Runs f on the registers with the lock held (the hook to set or read values). Thread: any.
+  void with_registers(const std::function<void(modbus_mapping_t&)>& f);
+  /// While silent the server reads requests but answers none.
+  void set_silent(bool silent) noexcept { silent_ = silent; }
+  [[nodiscard]] std::uint64_t requests_served() const noexcept { return served_.load(); }
+
+ private:
+  ModbusTcpServer(const ModbusServerOptions& options, Tick tick, modbus_mapping_t* mapping);
+  bool listen(std::string* why);
+  void run();
+
+  ModbusServerOptions options_;
+  Tick tick_;
+  modbus_mapping_t* mapping_;         // owned
+  std::mutex mutex_;                  // guards mapping_
+  modbus_t* ctx_ = nullptr;           // owned; used by the server thread only while it runs
+  UniqueFd listen_fd_;
+  UniqueFd wake_read_, wake_write_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> silent_{false};
+  std::atomic<std::uint64_t> served_{0};
+  int port_ = 0;
+};
+
+}  // namespace inertia::hal::wire_sim
