@@ -1,0 +1,414 @@
+#include "common/config/bench_config.hpp"
+
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include "common/config/toml_reader.hpp"
+#include "common/units.hpp"
+
+namespace inertia::config {
+
+namespace {
+
+constexpr double kDefaultAlphaDeg = 25.0;   // the paper's suggestion for Fig. 2 (section 2.3)
+
+AxisAngle read_axis_angle(const TableReader& parent, std::string_view key) {
+  AxisAngle out;
+  const auto t = parent.optional_table(key);
+  if (!t) return out;
+  out.axis = t->nonzero_vec3("axis");
+  out.angle_rad = deg_to_rad(t->number("angle_deg"));
+  t->finish();
+  return out;
+}
+
+std::uint64_t read_seed(const TableReader& t, std::string_view key, std::uint64_t fallback) {
+  return static_cast<std::uint64_t>(
+      t.integer_in(key, static_cast<std::int64_t>(fallback), 0, std::numeric_limits<std::int64_t>::max()));
+}
+
+void read_thermal(const TableReader& t, ThermalController& th) {
+  th.ambient_c = t.number_in("ambient_c", th.ambient_c, -100.0, 200.0);
+  th.initial_c = t.number_in("initial_c", th.initial_c, -100.0, 200.0);
+  th.tau_s = t.positive_or("tau_s", th.tau_s);
+  th.heat_rate_max_c_per_s = t.positive_or("heat_rate_max_c_per_s", th.heat_rate_max_c_per_s);
+  th.kp_per_c = t.number_in("kp_per_c", th.kp_per_c, 0.0, 1e6);
+  th.ki_per_c_s = t.number_in("ki_per_c_s", th.ki_per_c_s, 0.0, 1e6);
+  th.sensor_noise_sd_c = t.number_in("sensor_noise_sd_c", th.sensor_noise_sd_c, 0.0, 100.0);
+  th.channel = t.string_or("channel", "");
+  t.finish();
+}
+
+MonitorAccelerometer read_monitor(const TableReader& t, bool named) {
+  MonitorAccelerometer m;
+  m.name = named ? t.string("name") : t.string_or("name", "control");
+  m.axis = t.has("axis") ? t.nonzero_vec3("axis").normalized() : Eigen::Vector3d::UnitX();
+  m.bias_mps2 = g_to_mps2(t.number_or("bias_g", 0.0));
+  m.scale_error = t.number_in("scale_error", 0.0, -0.5, 0.5);
+  m.misalignment = read_axis_angle(t, "misalignment");
+  m.noise_sd_mps2 = g_to_mps2(t.number_in("noise_sd_g", 0.0, 0.0, 1e3));
+  m.channel = t.string_or("channel", "");
+  t.finish();
+  return m;
+}
+
+Encoder read_encoder(const TableReader& t, std::string_view resolution_key) {
+  Encoder e;
+  e.present = true;
+  e.resolution = t.positive(resolution_key);
+  e.channel = t.string_or("channel", "");
+  t.finish();
+  return e;
+}
+
+std::vector<TruthValue> read_truth(const TableReader& t) {
+  std::vector<TruthValue> out;
+  for (const auto& [key, node] : t.entries()) {
+    TruthValue v;
+    v.name = key;
+    v.where = position_of(*node, t.file());
+    if (const toml::array* a = node->as_array()) {
+      v.is_array = true;
+      for (const toml::node& e : *a) {
+        const auto d = e.value<double>();
+        if (!d) t.fail(e, t.key_name(key) + " must hold numbers only");
+        v.values.push_back(*d);
+      }
+    } else if (const auto d = node->value<double>(); d && !node->is_boolean()) {
+      v.values.push_back(*d);
+    } else {
+      t.fail(*node, t.key_name(key) + " must be a number or an array of numbers");
+    }
+    out.push_back(std::move(v));
+  }
+  return out;
+}
+
+SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64_t bench_seed) {
+  SensorUnderTest s;
+  s.where = t.where();
+  s.name = t.string("name");
+  if (s.name.empty() || s.name.find_first_of("/\\ ") != std::string::npos) {
+    t.fail_key("name", "must be a non-empty name without '/', '\\' or spaces (it names a folder)");
+  }
+  s.type = t.choice("type", {"accelerometer", "gyroscope"}) == 0 ? SensorType::Accelerometer
+                                                                   : SensorType::Gyroscope;
+  s.output_unit = t.string_or("output_unit", s.output_unit);
+  s.slot = t.string_or("slot", "");
+  s.position_m = t.vec3_or("position_m", Eigen::Vector3d::Zero());
+  // Each sensor gets its own stream so adding a sensor does not change the others' noise.
+  s.seed = read_seed(t, "seed", bench_seed * 1000003u + 17u * (index + 1));
+  s.channel = t.string_or("channel", "");
+  s.case_misalignment = read_axis_angle(t, "case_misalignment");
+  if (const auto truth = t.optional_table("truth")) s.truth = read_truth(*truth);
+  t.finish();
+  return s;
+}
+
+CanDevice read_can_device(const TableReader& t) {
+  CanDevice d;
+  d.name = t.string("name");
+  d.interface = t.string_or("interface", d.interface);
+  d.sample_rate_hz = t.number_in("sample_rate_hz", 0.0, 0.0, 1e6);
+  for (const TableReader& s : t.tables("signal")) {
+    CanSignal c;
+    c.name = s.string("name");
+    c.extended_id = s.boolean_or("extended", false);
+    c.can_id = static_cast<std::uint32_t>(s.integer_in("id", -1, 0, c.extended_id ? 0x1FFFFFFF : 0x7FF));
+    c.byte_offset = static_cast<unsigned>(s.integer_in("byte_offset", 0, 0, 7));
+    c.bit_length = static_cast<unsigned>(s.integer_in("bit_length", 16, 1, 64));
+    if (c.byte_offset * 8 + c.bit_length > 64) {
+      s.fail_key("bit_length", "byte_offset*8 + bit_length exceeds the 8-byte CAN payload");
+    }
+    c.byte_order = s.choice_or("byte_order", {"little", "big"}, 0) == 0 ? ByteOrder::LittleEndian
+                                                                         : ByteOrder::BigEndian;
+    c.is_signed = s.boolean_or("signed", true);
+    c.scale = s.number_or("scale", 1.0);
+    c.offset = s.number_or("offset", 0.0);
+    c.unit = s.string_or("unit", "");
+    s.finish();
+    d.signals.push_back(std::move(c));
+  }
+  t.finish();
+  return d;
+}
+
+GpiodEncoder read_gpiod_encoder(const TableReader& t) {
+  GpiodEncoder e;
+  e.name = t.string("name");
+  e.chip = t.string_or("chip", e.chip);
+  e.line_a = static_cast<unsigned>(t.integer_in("line_a", -1, 0, 1023));
+  e.line_b = static_cast<unsigned>(t.integer_in("line_b", -1, 0, 1023));
+  if (e.line_a == e.line_b) t.fail_key("line_b", "must differ from line_a");
+  e.rotary = t.choice("kind", {"linear", "rotary"}) == 1;
+  e.resolution = t.positive("resolution");
+  t.finish();
+  return e;
+}
+
+ModbusDevice read_modbus_device(const TableReader& t) {
+  ModbusDevice d;
+  d.name = t.string("name");
+  d.role = static_cast<ControllerRole>(t.choice("role", {"thermal", "table", "shaker"}));
+  d.host = t.string_or("host", d.host);
+  d.port = static_cast<int>(t.integer_in("port", d.port, 1, 65535));
+  d.unit_id = static_cast<int>(t.integer_in("unit_id", d.unit_id, 0, 255));
+  d.poll_interval_ms = static_cast<int>(t.integer_in("poll_interval_ms", d.poll_interval_ms, 1, 60000));
+  std::set<std::string> names;
+  for (const TableReader& r : t.tables("register")) {
+    ModbusRegister reg;
+    reg.name = r.string("name");
+    reg.address = static_cast<int>(r.integer_in("address", -1, 0, 65535));
+    reg.type = static_cast<RegisterType>(r.choice_or("type", {"u16", "i16", "u32", "i32", "f32"}, 0));
+    reg.scale = r.number_or("scale", 1.0);
+    reg.offset = r.number_or("offset", 0.0);
+    reg.unit = r.string_or("unit", "");
+    r.finish();
+    if (!names.insert(reg.name).second) r.fail_key("name", "duplicate register name '" + reg.name + "'");
+    d.registers.push_back(std::move(reg));
+  }
+  if (const auto sp = t.optional_table("setpoint")) {
+    d.setpoint.enabled = sp->boolean_or("enabled", false);
+    d.setpoint.register_name = sp->string("register");
+    if (names.count(d.setpoint.register_name) == 0) {
+      sp->fail_key("register", "'" + d.setpoint.register_name + "' is not a register of " + d.name);
+    }
+    d.setpoint.min = sp->number("min");
+    d.setpoint.max = sp->number("max");
+    if (!(d.setpoint.min < d.setpoint.max)) sp->fail_key("max", "must be greater than min");
+    sp->finish();
+  }
+  t.finish();
+  return d;
+}
+
+// Which phases make physical sense on which facility.
+bool phase_allowed(CaseKind c, PhaseKind p) {
+  if (p == PhaseKind::Dwell || p == PhaseKind::ThermalStep) return true;
+  switch (c) {
+    case CaseKind::RotationTable: return p == PhaseKind::Rotation;
+    case CaseKind::Shaker: return p == PhaseKind::Sine || p == PhaseKind::Random || p == PhaseKind::Shock;
+    case CaseKind::Thermal:
+    case CaseKind::Static: return false;
+  }
+  return false;
+}
+
+Phase read_phase(const TableReader& t, CaseKind case_kind, double sample_rate_hz) {
+  Phase p;
+  p.where = t.where();
+  p.kind = static_cast<PhaseKind>(
+      t.choice("kind", {"dwell", "rotation", "sine", "random", "shock", "thermal_step"}));
+  if (!phase_allowed(case_kind, p.kind)) {
+    t.fail_key("kind", std::string("a ") + to_string(p.kind) + " phase cannot run in a " +
+                           to_string(case_kind) + " case");
+  }
+  p.duration_s = t.positive("duration_s");
+  const double nyquist = sample_rate_hz / 2.0;
+  switch (p.kind) {
+    case PhaseKind::Dwell: break;
+    case PhaseKind::Rotation:
+      p.axis = t.nonzero_vec3("axis").normalized();
+      if (t.has("rate_deg_s") == t.has("angle_deg")) {
+        t.fail_here("a rotation needs exactly one of rate_deg_s or angle_deg");
+      }
+      if (t.has("rate_deg_s")) p.rate_rad_s = deg_to_rad(t.number("rate_deg_s"));
+      if (t.has("angle_deg")) p.angle_rad = deg_to_rad(t.number("angle_deg"));
+      break;
+    case PhaseKind::Sine:
+      p.frequency_hz = t.positive("frequency_hz");
+      if (p.frequency_hz >= nyquist) t.fail_key("frequency_hz", "must be below the Nyquist frequency");
+      p.amplitude_mps2 = g_to_mps2(t.positive("amplitude_g"));
+      p.ramp_cycles = t.number_in("ramp_cycles", p.ramp_cycles, 0.0, 1e6);
+      if (2.0 * p.ramp_cycles / p.frequency_hz > p.duration_s) {
+        t.fail_key("ramp_cycles", "the two ramps are longer than duration_s");
+      }
+      break;
+    case PhaseKind::Random:
+      p.f1_hz = t.positive("f1_hz");
+      p.f2_hz = t.positive("f2_hz");
+      if (!(p.f1_hz < p.f2_hz)) t.fail_key("f2_hz", "must be greater than f1_hz");
+      if (p.f2_hz >= nyquist) t.fail_key("f2_hz", "must be below the Nyquist frequency");
+      p.rms_mps2 = g_to_mps2(t.positive("grms"));
+      p.ramp_s = t.number_in("ramp_s", p.ramp_s, 0.0, 1e6);
+      if (2.0 * p.ramp_s >= p.duration_s) t.fail_key("ramp_s", "the two tapers are longer than duration_s");
+      if (p.f1_hz * p.duration_s < 2.0) {
+        t.fail_key("f1_hz", "the phase must span at least two periods of f1_hz");
+      }
+      break;
+    case PhaseKind::Shock:
+      p.peak_mps2 = g_to_mps2(t.number("peak_g"));
+      if (p.peak_mps2 == 0.0) t.fail_key("peak_g", "must not be 0");
+      p.pulse_s = t.positive("pulse_s");
+      p.compensation = t.number_in("compensation", p.compensation, 1.0, 1e3);
+      if (p.pulse_s * (1.0 + 2.0 * p.compensation) > p.duration_s) {
+        t.fail_key("pulse_s", "pulse plus compensating pulses (pulse_s*(1 + 2*compensation)) exceed duration_s");
+      }
+      if (p.pulse_s * sample_rate_hz < 4.0) t.fail_key("pulse_s", "needs at least 4 samples");
+      break;
+    case PhaseKind::ThermalStep:
+      if (!t.has("setpoint_c")) t.fail_here("missing key 'setpoint_c' (expected a number)");
+      p.setpoint_c = t.number_in("setpoint_c", 0.0, -100.0, 200.0);
+      break;
+  }
+  t.finish();
+  return p;
+}
+
+TestCase read_case(const TableReader& t, double alpha_rad, double sample_rate_hz) {
+  TestCase c;
+  c.where = t.where();
+  c.name = t.string("name");
+  if (c.name.empty() || c.name.find_first_of("/\\ ") != std::string::npos) {
+    t.fail_key("name", "must be a non-empty name without '/', '\\' or spaces (it names a file)");
+  }
+  c.kind = static_cast<CaseKind>(t.choice("kind", {"rotation_table", "shaker", "thermal", "static"}));
+  if (t.has("orientation") == t.has("m_ec")) {
+    t.fail_here("a case needs exactly one of orientation (\"IA\", \"PA\", \"OA\": Fig. 2 slot) or m_ec");
+  }
+  if (t.has("orientation")) {
+    c.orientation = static_cast<Orientation>(t.choice("orientation", {"IA", "PA", "OA"}));
+    c.m_ec = slot_orientation(*c.orientation, alpha_rad);
+  } else {
+    c.m_ec = t.mat3("m_ec");
+    if (!frames::is_rotation(c.m_ec, 1e-6)) t.fail_key("m_ec", "must be a rotation (orthonormal, det +1)");
+  }
+  c.fixture_misalignment = read_axis_angle(t, "fixture_misalignment");
+  c.case_misalignment = read_axis_angle(t, "case_misalignment");
+  c.start_attitude = read_axis_angle(t, "start_attitude");
+  if (c.kind != CaseKind::RotationTable && t.has("start_attitude")) {
+    t.fail_key("start_attitude", "only a rotation_table case has a table attitude");
+  }
+  for (const TableReader& p : t.tables("phase")) c.phases.push_back(read_phase(p, c.kind, sample_rate_hz));
+  if (c.phases.empty()) t.fail_here("a case needs at least one [[case.phase]]");
+  t.finish();
+  return c;
+}
+
+void read_cases(const TableReader& root, BenchConfig& cfg, std::set<std::string>& names, int depth) {
+  for (const TableReader& c : root.tables("case")) {
+    TestCase tc = read_case(c, cfg.alpha_rad, cfg.sample_rate_hz);
+    if (!names.insert(tc.name).second) c.fail_key("name", "duplicate case name '" + tc.name + "'");
+    cfg.cases.push_back(std::move(tc));
+  }
+  if (!root.has("include")) return;
+  const toml::node* inc = root.node("include");
+  const toml::array* list = inc->as_array();
+  if (list == nullptr) root.fail(*inc, "include must be an array of file names");
+  if (depth > 4) root.fail(*inc, "include nested too deeply (a cycle?)");
+  const std::filesystem::path base = std::filesystem::path(root.file()).parent_path();
+  for (const toml::node& e : *list) {
+    const auto name = e.value_exact<std::string>();
+    if (!name) root.fail(e, "include must list file names (strings)");
+    const std::filesystem::path path = base / *name;
+    if (!std::filesystem::exists(path)) root.fail(e, "included file '" + path.string() + "' not found");
+    const toml::table sub = parse_toml_file(path);
+    // An included file holds a test plan only: [[case]] tables and further includes.
+    const TableReader reader(sub, "", path.string());
+    read_cases(reader, cfg, names, depth + 1);
+    reader.finish();
+  }
+}
+
+}  // namespace
+
+frames::Dcm slot_orientation(Orientation orientation, double alpha_rad) {
+  const double c = std::cos(alpha_rad), s = std::sin(alpha_rad);
+  const int k = static_cast<int>(orientation);
+  frames::Dcm m;
+  m.row(k) << c, s, 0.0;
+  m.row((k + 1) % 3) << 0.0, 0.0, 1.0;
+  m.row((k + 2) % 3) << s, -c, 0.0;   // = row k x row k+1: right-handed (det +1)
+  return m;
+}
+
+BenchConfig load_bench_config(const std::filesystem::path& path) {
+  const toml::table root_table = parse_toml_file(path);
+  const TableReader root(root_table, "", path.string());
+  BenchConfig cfg;
+  cfg.file = path;
+
+  const TableReader bench = root.table("bench");
+  cfg.name = bench.string("name");
+  cfg.simulated = bench.choice_or("backend", {"sim", "real"}, 0) == 0;
+  cfg.sample_rate_hz = bench.positive("sample_rate_hz");
+  cfg.t_ref_c = bench.number_in("t_ref_c", cfg.t_ref_c, -100.0, 200.0);
+  cfg.seed = read_seed(bench, "seed", cfg.seed);
+  bench.finish();
+
+  cfg.alpha_rad = deg_to_rad(kDefaultAlphaDeg);
+  if (const auto fixture = root.optional_table("fixture")) {
+    const double alpha_deg = fixture->number_in("alpha_deg", kDefaultAlphaDeg, 0.0, 90.0);
+    if (alpha_deg == 0.0 || alpha_deg == 90.0) {
+      fixture->fail_key("alpha_deg", "must be strictly between 0 and 90 (section 2.3: alpha != 0)");
+    }
+    cfg.alpha_rad = deg_to_rad(alpha_deg);
+    if (const auto th = fixture->optional_table("thermal")) read_thermal(*th, cfg.thermal);
+    fixture->finish();
+  }
+
+  std::set<std::string> names;
+  const std::vector<TableReader> sensors = root.tables("sensor");
+  for (std::size_t i = 0; i < sensors.size(); ++i) {
+    cfg.sensors.push_back(read_sensor(sensors[i], i, cfg.seed));
+    if (!names.insert(cfg.sensors.back().name).second) {
+      sensors[i].fail_key("name", "duplicate sensor name '" + cfg.sensors.back().name + "'");
+    }
+  }
+  if (cfg.simulated && cfg.sensors.empty()) root.fail_here("a simulated bench needs at least one [[sensor]]");
+
+  for (const TableReader& m : root.tables("monitor")) cfg.monitors.push_back(read_monitor(m, true));
+  if (const auto c = root.optional_table("control_accelerometer")) cfg.control_accelerometer = read_monitor(*c, false);
+  if (const auto e = root.optional_table("linear_encoder")) cfg.linear_encoder = read_encoder(*e, "resolution_m");
+  if (const auto e = root.optional_table("table_encoder")) cfg.table_encoder = read_encoder(*e, "resolution_rad");
+
+  for (const TableReader& d : root.tables("can_device")) cfg.can_devices.push_back(read_can_device(d));
+  for (const TableReader& d : root.tables("gpiod_encoder")) cfg.gpiod_encoders.push_back(read_gpiod_encoder(d));
+  for (const TableReader& d : root.tables("modbus_device")) cfg.modbus_devices.push_back(read_modbus_device(d));
+
+  std::set<std::string> case_names;
+  read_cases(root, cfg, case_names, 0);
+  if (cfg.simulated && cfg.cases.empty()) root.fail_here("a simulated bench needs a test plan ([[case]] tables)");
+  root.finish();
+  return cfg;
+}
+
+const char* to_string(CaseKind kind) {
+  switch (kind) {
+    case CaseKind::RotationTable: return "rotation_table";
+    case CaseKind::Shaker: return "shaker";
+    case CaseKind::Thermal: return "thermal";
+    case CaseKind::Static: return "static";
+  }
+  return "?";
+}
+
+const char* to_string(PhaseKind kind) {
+  switch (kind) {
+    case PhaseKind::Dwell: return "dwell";
+    case PhaseKind::Rotation: return "rotation";
+    case PhaseKind::Sine: return "sine";
+    case PhaseKind::Random: return "random";
+    case PhaseKind::Shock: return "shock";
+    case PhaseKind::ThermalStep: return "thermal_step";
+  }
+  return "?";
+}
+
+const char* to_string(SensorType type) {
+  return type == SensorType::Accelerometer ? "accelerometer" : "gyroscope";
+}
+
+const char* to_string(Orientation orientation) {
+  switch (orientation) {
+    case Orientation::IA: return "IA";
+    case Orientation::PA: return "PA";
+    case Orientation::OA: return "OA";
+  }
+  return "?";
+}
+
+}  // namespace inertia::config

@@ -1,0 +1,247 @@
+#pragma once
+// A bench file: the devices and channels of a bench (real or simulated), the sensors under test
+// with their truth parameters (simulator only), the references (monitoring accelerometers, the
+// shaker's control accelerometer, encoders, thermal controller), seeds, and a test plan.
+//
+// File layout (every shipped config/*.toml repeats this summary in its header comment):
+//   [bench]                    name, backend ("sim" | "real"), sample_rate_hz, t_ref_c, seed
+//   [fixture]                  alpha_deg (Fig. 2 slot angle), thermal controller in [fixture.thermal]
+//   [[sensor]]                 sensors under test: name, type, output_unit, slot, position_m, seed,
+//                              channel, optional case_misalignment; [sensor.truth] = the fields of
+//                              AccelerometerParams / FogParams under the same names (sim only)
+//   [[monitor]]                single-axis monitoring accelerometers (section 2.3 skewed layout)
+//   [control_accelerometer]    the shaker's control accelerometer (vibration axis)
+//   [linear_encoder] [table_encoder]
+//   [[can_device]] [[gpiod_encoder]] [[modbus_device]]   real-bench wiring (the simulator ignores it)
+//   [[case]]                   the test plan, in order: name, kind, mounting, misalignments, and
+//                              [[case.phase]] tables, each with a `kind` (dwell, rotation, sine,
+//                              random, shock, thermal_step). `include = ["plan.toml"]` at the top
+//                              level appends the [[case]] tables of other files (paths relative to
+//                              the including file), so one bench can run several plans.
+// Units: as the paper's tables, accelerations in config are in g and angles in degrees (suffix
+// _g, _deg); everything is converted to SI here, at the edge (design.md, "Units and frames").
+// Unknown keys are errors: a typo must not silently fall back to a default.
+#include <Eigen/Dense>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/frames.hpp"
+#include "common/input_error.hpp"
+
+namespace inertia::config {
+
+/// A small rotation given as axis and angle (frame rotation, see frames::frame_rotation).
+struct AxisAngle {
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+  double angle_rad = 0.0;
+  [[nodiscard]] frames::Dcm dcm() const { return frames::frame_rotation(axis, angle_rad); }
+};
+
+/// One truth parameter of a simulated sensor: a number or an array of numbers, kept by name with
+/// its position so that the simulator (which owns the parameter structs; common may not include
+/// hal/) can reject an unknown name at the right line and column.
+struct TruthValue {
+  std::string name;
+  std::vector<double> values;   // one element for a scalar
+  bool is_array = false;
+  SourcePosition where;
+};
+
+enum class SensorType { Accelerometer, Gyroscope };
+
+struct SensorUnderTest {
+  std::string name;
+  SensorType type = SensorType::Accelerometer;
+  std::string output_unit = "mA";
+  std::string slot;                                  // fixture slot name (informational)
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();   // in F_E, from the rotation axis/table centre
+  std::uint64_t seed = 0;                            // 0: derived from [bench] seed and the sensor index
+  std::string channel;                               // "<device>.<signal>" on a real bench
+  AxisAngle case_misalignment;                       // slot fit, in case coordinates, composed with the case's
+  std::vector<TruthValue> truth;                     // [sensor.truth]
+  SourcePosition where;
+};
+
+/// Single-axis monitoring accelerometer (references of section 2.3). Output in m/s^2:
+/// m = (1 + scale_error) * n_true . a_E + bias + white noise, n_true = misalignment applied to axis.
+struct MonitorAccelerometer {
+  std::string name;
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();   // nominal sensitive axis in F_E (unit)
+  double bias_mps2 = 0.0;
+  double scale_error = 0.0;
+  AxisAngle misalignment;
+  double noise_sd_mps2 = 0.0;
+  std::string channel;
+};
+
+struct Encoder {
+  bool present = false;
+  double resolution = 0.0;          // m per count (linear) or rad per count (table)
+  std::string channel;
+};
+
+/// Fixture temperature: first-order plant dT/dt = (T_amb - T)/tau + heat_rate_max * u, with the
+/// Peltier drive u in [-1, 1] from a PI controller on the setpoint (exact zero-order-hold steps).
+struct ThermalController {
+  double ambient_c = 25.0;
+  double initial_c = 25.0;          // fixture temperature and setpoint when the plan starts
+  double tau_s = 600.0;             // passive time constant of the fixture
+  double heat_rate_max_c_per_s = 0.5;   // dT/dt from the Peltier at full drive, u = 1
+  double kp_per_c = 0.5;            // drive per degC of error
+  double ki_per_c_s = 0.005;        // drive per degC*s of integrated error
+  double sensor_noise_sd_c = 0.0;   // the controller's temperature sensor (reference channel)
+  std::string channel;
+};
+
+// ---- real-bench devices (parsed for inertia-daqd; the simulator ignores them) ----
+enum class ByteOrder { LittleEndian, BigEndian };
+
+struct CanSignal {
+  std::string name;
+  std::uint32_t can_id = 0;
+  bool extended_id = false;
+  unsigned byte_offset = 0;
+  unsigned bit_length = 16;
+  ByteOrder byte_order = ByteOrder::LittleEndian;
+  bool is_signed = true;
+  double scale = 1.0;               // physical = raw * scale + offset
+  double offset = 0.0;
+  std::string unit;
+};
+
+struct CanDevice {
+  std::string name;
+  std::string interface = "can0";
+  double sample_rate_hz = 0.0;      // expected frame rate, for health
+  std::vector<CanSignal> signals;
+};
+
+struct GpiodEncoder {
+  std::string name;
+  std::string chip = "gpiochip0";
+  unsigned line_a = 0;
+  unsigned line_b = 0;
+  double resolution = 0.0;          // m or rad per count (quadrature counts, 4 per line period)
+  bool rotary = false;              // false: linear (m), true: rotary (rad)
+};
+
+enum class RegisterType { U16, I16, U32, I32, F32 };
+
+struct ModbusRegister {
+  std::string name;
+  int address = 0;
+  RegisterType type = RegisterType::U16;
+  double scale = 1.0;
+  double offset = 0.0;
+  std::string unit;
+};
+
+struct ModbusSetpoint {
+  bool enabled = false;             // writes are off unless enabled (design.md)
+  std::string register_name;        // one of the device's registers
+  double min = 0.0;                 // writes are clamped to [min, max]
+  double max = 0.0;
+};
+
+enum class ControllerRole { Thermal, Table, Shaker };
+
+struct ModbusDevice {
+  std::string name;
+  ControllerRole role = ControllerRole::Thermal;
+  std::string host = "127.0.0.1";
+  int port = 502;
+  int unit_id = 1;
+  int poll_interval_ms = 100;
+  std::vector<ModbusRegister> registers;
+  ModbusSetpoint setpoint;
+};
+
+// ---- test plan ----
+enum class CaseKind { RotationTable, Shaker, Thermal, Static };
+enum class PhaseKind { Dwell, Rotation, Sine, Random, Shock, ThermalStep };
+enum class Orientation { IA, PA, OA };
+
+struct Phase {
+  PhaseKind kind = PhaseKind::Dwell;
+  double duration_s = 0.0;
+  // rotation: about `axis` (F_E) either at constant rate_rad_s, or through angle_rad with a smooth
+  // (raised-cosine) rate profile; exactly one of rate/angle is set.
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+  std::optional<double> rate_rad_s;
+  std::optional<double> angle_rad;
+  // sine: a = amplitude sin(2 pi f t) on the plateau, raised-cosine ramps of ramp_cycles cycles.
+  double frequency_hz = 0.0;
+  double amplitude_mps2 = 0.0;
+  double ramp_cycles = 1.0;
+  // random: flat acceleration PSD between f1 and f2 at rms_mps2; raised-cosine tapers of ramp_s.
+  double f1_hz = 0.0;
+  double f2_hz = 0.0;
+  double rms_mps2 = 0.0;
+  double ramp_s = 0.05;
+  // shock: half-sine of peak_mps2 over pulse_s, centred in the phase, with pre and post
+  // compensating half-sines (compensation times longer, opposite sign) so velocity and
+  // displacement return to zero.
+  double peak_mps2 = 0.0;
+  double pulse_s = 0.0;
+  double compensation = 8.0;
+  // thermal_step: new controller setpoint, held for duration_s.
+  double setpoint_c = 0.0;
+  SourcePosition where;
+};
+
+struct TestCase {
+  std::string name;
+  CaseKind kind = CaseKind::Static;
+  frames::Dcm m_ec = frames::Dcm::Identity();       // nominal M_E^C
+  std::optional<Orientation> orientation;           // set when m_ec came from a Fig. 2 slot
+  AxisAngle fixture_misalignment;                   // F_E -> true fixture frame, axis in F_E
+  AxisAngle case_misalignment;                      // nominal -> true case frame, axis in F_C
+  AxisAngle start_attitude;                         // rotation_table: table top relative to the lab (z up)
+  std::vector<Phase> phases;
+  SourcePosition where;
+};
+
+struct BenchConfig {
+  std::filesystem::path file;
+  std::string name;
+  bool simulated = true;            // backend = "sim"
+  double sample_rate_hz = 1000.0;
+  double t_ref_c = 25.0;
+  std::uint64_t seed = 1;
+  double alpha_rad = 0.0;           // Fig. 2 slot angle (default 25 deg)
+  std::vector<SensorUnderTest> sensors;
+  std::vector<MonitorAccelerometer> monitors;
+  std::optional<MonitorAccelerometer> control_accelerometer;
+  Encoder linear_encoder;
+  Encoder table_encoder;
+  ThermalController thermal;
+  std::vector<CanDevice> can_devices;
+  std::vector<GpiodEncoder> gpiod_encoders;
+  std::vector<ModbusDevice> modbus_devices;
+  std::vector<TestCase> cases;
+};
+
+/// Nominal M_E^C of a Fig. 2 slot orientation (section 2.3). Orientation k (IA = 0, PA = 1,
+/// OA = 2) puts case axis k at `alpha_rad` from the vibration axis x_E, towards +y_E; case axis
+/// k+1 (mod 3) along z_E (up); case axis k+2 = k-1 horizontal, at 90 deg - alpha from x_E:
+///   IA: IRA, YRA share the vibration (XRA up)    PA: XRA, IRA share it (YRA up)
+///   OA: YRA, XRA share it (IRA up, carrying 1 g: the paper's section 3.2 remark on the third
+///   configuration, "exciting PA and OA", where a vertical shaker would leave IA near zero).
+/// Over the three orientations every pair of case axes shares the vibration once, so a_i a_p,
+/// a_p a_o and a_o a_i are all excited.
+frames::Dcm slot_orientation(Orientation orientation, double alpha_rad);
+
+/// Parses and validates a bench file. Throws InputError with file:line:column and what was
+/// expected for TOML syntax errors, wrong types, missing or unknown keys, values out of range and
+/// unknown phase kinds. Not real-time: allocates, reads files.
+BenchConfig load_bench_config(const std::filesystem::path& path);
+
+const char* to_string(CaseKind kind);
+const char* to_string(PhaseKind kind);
+const char* to_string(SensorType type);
+const char* to_string(Orientation orientation);
+
+}  // namespace inertia::config

@@ -1,0 +1,202 @@
+#include "hal/sim/simulate.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+
+#include <fstream>
+#include <iterator>
+#include <ostream>
+#include <stdexcept>
+#include <string>
+
+#include "common/dataset/dataset.hpp"
+#include "common/input_error.hpp"
+#include "common/units.hpp"
+#include "hal/sim/sensor_truth.hpp"
+
+namespace inertia::sim {
+
+namespace {
+
+dataset::CaseKind to_dataset(config::CaseKind kind) {
+  switch (kind) {
+    case config::CaseKind::RotationTable: return dataset::CaseKind::RotationTable;
+    case config::CaseKind::Shaker: return dataset::CaseKind::Shaker;
+    case config::CaseKind::Thermal: return dataset::CaseKind::Thermal;
+    case config::CaseKind::Static: return dataset::CaseKind::Static;
+  }
+  return dataset::CaseKind::Static;
+}
+
+std::filesystem::path sensor_dir(const config::BenchConfig& bench, std::size_t s, const std::filesystem::path& out) {
+  return bench.sensors.size() == 1 ? out : out / bench.sensors[s].name;
+}
+
+toml::table axis_angle_table(const config::AxisAngle& a) {
+  const Eigen::Vector3d u = a.axis.normalized();
+  return toml::table{{"axis", toml::array{u.x(), u.y(), u.z()}}, {"angle_deg", rad_to_deg(a.angle_rad)}};
+}
+
+void write_truth(const config::BenchConfig& bench, const BenchSimulation& sim, std::size_t s,
+                 const std::filesystem::path& file) {
+  const config::SensorUnderTest& sensor = bench.sensors[s];
+  toml::table root;
+  root.insert_or_assign("sensor", sensor.type == config::SensorType::Accelerometer ? "accelerometer" : "gyroscope");
+  root.insert_or_assign("name", sensor.name);
+  root.insert_or_assign("output_unit", sensor.output_unit);
+  root.insert_or_assign("bench", bench.name);
+  root.insert_or_assign("seed", static_cast<std::int64_t>(sensor.seed));
+  root.insert_or_assign("t_ref", bench.t_ref_c);
+  const frames::Dcm m_cs = sim.cases.empty() ? frames::Dcm::Identity() : sim.cases.front().sensors[s].m_cs;
+  root.insert_or_assign("m_cs", to_toml(m_cs));
+  toml::table notes, noise;
+  if (const auto* acc = std::get_if<AccelerometerParams>(&sim.params[s])) {
+    root.insert_or_assign("terms", model_terms(*acc, &notes));
+    root.insert_or_assign("params", to_toml(*acc));
+    // Output-unit noise levels: the model multiplies every input-referred term by K_i.
+    noise.insert_or_assign("white_sd", std::abs(acc->k_i) * acc->white_sd_g);
+    noise.insert_or_assign("pink_sd", std::abs(acc->k_i) * acc->pink_sd_g);
+    noise.insert_or_assign("brown_sd", std::abs(acc->k_i) * acc->brown_sd_g);
+  } else {
+    const FogParams& fog = std::get<FogParams>(sim.params[s]);
+    root.insert_or_assign("terms", model_terms(fog, &notes));
+    root.insert_or_assign("params", to_toml(fog));
+    noise.insert_or_assign("white_sd", fog.noise_sd_rad_s / fog.s0);
+  }
+  root.insert_or_assign("term_notes", std::move(notes));
+  root.insert_or_assign("noise", std::move(noise));
+  toml::array cases;
+  for (std::size_t c = 0; c < bench.cases.size(); ++c) {
+    const config::TestCase& tc = bench.cases[c];
+    const SensorCase& sc = sim.cases[c].sensors[s];
+    const frames::Dcm m_es = sc.m_cs * sc.mounting.true_m_ec;
+    toml::table t{{"name", tc.name},
+                  {"kind", config::to_string(tc.kind)},
+                  {"m_ec_nominal", to_toml(sc.mounting.nominal_m_ec)},
+                  {"m_ec_true", to_toml(sc.mounting.true_m_ec)},
+                  {"m_es_true", to_toml(m_es)},
+                  {"fixture_misalignment", axis_angle_table(tc.fixture_misalignment)},
+                  {"case_misalignment", axis_angle_table(tc.case_misalignment)},
+                  {"slot_case_misalignment", axis_angle_table(sensor.case_misalignment)},
+                  {"case_misalignment_total_deg",
+                   rad_to_deg(frames::angle_between(sc.mounting.nominal_m_ec, sc.mounting.true_m_ec))},
+                  {"sensor_misalignment_total_deg",
+                   rad_to_deg(frames::angle_between(sc.mounting.nominal_m_ec, m_es))}};
+    if (tc.orientation) t.insert_or_assign("orientation", config::to_string(*tc.orientation));
+    cases.push_back(std::move(t));
+  }
+  root.insert_or_assign("case", std::move(cases));
+  std::ofstream os(file);
+  os << "# Truth of a simulated bench (inertia-analyze simulate). [terms]: model-file form of design.md,\n"
+        "# coefficients in output unit per SI input unit (from g with g0 = 9.80665 m/s^2).\n"
+     << toml::toml_formatter(root, toml::toml_formatter::default_flags & ~toml::format_flags::allow_literal_strings)
+     << '\n';
+  if (!os) throw std::runtime_error("cannot write " + file.string());
+}
+
+void write_references(const config::BenchConfig& bench, const SimulatedCase& sc, const std::filesystem::path& file) {
+  const CaseReferences& r = sc.references;
+  std::string out;
+  out.reserve(sc.motion.size() * 24 * (3 + bench.monitors.size()));
+  auto it = std::back_inserter(out);
+  fmt::format_to(it, "t");
+  for (const auto& m : bench.monitors) fmt::format_to(it, ",{}", m.name);
+  if (r.control.size() > 0) fmt::format_to(it, ",control");
+  if (!r.linear_counts.empty()) fmt::format_to(it, ",linear_counts");
+  if (!r.table_counts.empty()) fmt::format_to(it, ",table_counts");
+  fmt::format_to(it, ",temp_measured\n");
+  for (std::size_t k = 0; k < sc.motion.size(); ++k) {
+    const auto i = static_cast<Eigen::Index>(k);
+    fmt::format_to(it, "{}", sc.motion.t[i]);
+    for (Eigen::Index j = 0; j < r.monitors.cols(); ++j) fmt::format_to(it, ",{}", r.monitors(i, j));
+    if (r.control.size() > 0) fmt::format_to(it, ",{}", r.control[i]);
+    if (!r.linear_counts.empty()) fmt::format_to(it, ",{}", r.linear_counts[k]);
+    if (!r.table_counts.empty()) fmt::format_to(it, ",{}", r.table_counts[k]);
+    fmt::format_to(it, ",{}\n", r.temp_measured_c[i]);
+  }
+  std::ofstream os(file, std::ios::binary);
+  os.write(out.data(), static_cast<std::streamsize>(out.size()));
+  if (!os) throw std::runtime_error("cannot write " + file.string());
+}
+
+}  // namespace
+
+void write_simulation(const config::BenchConfig& bench, const BenchSimulation& sim, const std::filesystem::path& out) {
+  std::filesystem::create_directories(out);
+  for (std::size_t s = 0; s < bench.sensors.size(); ++s) {
+    const config::SensorUnderTest& sensor = bench.sensors[s];
+    dataset::Dataset ds;
+    ds.sensor = sensor.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
+                                                                 : dataset::SensorKind::Gyroscope;
+    ds.output_unit = sensor.output_unit;
+    ds.t_ref = bench.t_ref_c;
+    for (std::size_t c = 0; c < bench.cases.size(); ++c) {
+      const config::TestCase& tc = bench.cases[c];
+      const SimulatedCase& sc = sim.cases[c];
+      dataset::CaseData cd;
+      cd.name = tc.name;
+      cd.kind = to_dataset(tc.kind);
+      cd.file = tc.name + ".csv";
+      cd.m_ec = tc.m_ec;   // nominal: the analyzer must not see the misalignments
+      cd.sample_period_s = 1.0 / bench.sample_rate_hz;
+      cd.t = sc.motion.t;
+      cd.a_e = sc.sensors[s].f_e;
+      cd.w_e = sc.motion.w_e;
+      cd.temp = sc.motion.temp_c;
+      cd.y = sc.sensors[s].y;
+      cd.phase_names = sc.motion.phase_names;
+      cd.phase = sc.motion.phase;
+      ds.cases.push_back(std::move(cd));
+    }
+    const std::filesystem::path dir = sensor_dir(bench, s, out);
+    dataset::write_dataset(dir, ds);
+    write_truth(bench, sim, s, dir / "truth.toml");
+  }
+  std::filesystem::create_directories(out / "references");
+  for (std::size_t c = 0; c < bench.cases.size(); ++c) {
+    write_references(bench, sim.cases[c], out / "references" / (bench.cases[c].name + ".csv"));
+  }
+}
+
+void print_summary(const config::BenchConfig& bench, const BenchSimulation& sim, std::ostream& os) {
+  fmt::print(os, "bench {} ({}): {} sensor(s), {} case(s), {} Hz\n", bench.name, bench.file.string(),
+             bench.sensors.size(), bench.cases.size(), bench.sample_rate_hz);
+  for (std::size_t c = 0; c < bench.cases.size(); ++c) {
+    const config::TestCase& tc = bench.cases[c];
+    const CaseMotion& m = sim.cases[c].motion;
+    fmt::print(os, "case {}: kind {}, {} samples, {:.3f} s\n", tc.name, config::to_string(tc.kind), m.size(),
+               static_cast<double>(m.size()) / bench.sample_rate_hz);
+    std::string phases;
+    for (const PhaseSpan& span : m.spans) {
+      phases += fmt::format("{}{} {:.3g} s", phases.empty() ? "" : ", ", phase_label(span.kind),
+                            static_cast<double>(span.end - span.begin) / bench.sample_rate_hz);
+    }
+    fmt::print(os, "  phases: {}\n", phases);
+    if (m.size() == 0) continue;
+    const char* axes[] = {"a_x", "a_y", "a_z"};
+    for (int a = 0; a < 3; ++a) {
+      fmt::print(os, "  {} [{:+.4f}, {:+.4f}] g\n", axes[a], mps2_to_g(m.f_e.col(a).minCoeff()),
+                 mps2_to_g(m.f_e.col(a).maxCoeff()));
+    }
+    fmt::print(os, "  temp [{:.3f}, {:.3f}] degC\n", m.temp_c.minCoeff(), m.temp_c.maxCoeff());
+    for (std::size_t s = 0; s < bench.sensors.size(); ++s) {
+      const Eigen::VectorXd& y = sim.cases[c].sensors[s].y;
+      fmt::print(os, "  y[{}] [{:.6g}, {:.6g}] {}\n", bench.sensors[s].name, y.minCoeff(), y.maxCoeff(),
+                 bench.sensors[s].output_unit);
+    }
+  }
+}
+
+int run_simulate(const std::filesystem::path& bench_path, const std::filesystem::path& out, std::ostream& summary) {
+  const config::BenchConfig bench = config::load_bench_config(bench_path);
+  if (!bench.simulated) {
+    throw InputError(SourcePosition{bench_path.string(), 0, 0},
+                     "bench.backend is \"real\": simulate needs a simulated bench (backend = \"sim\")");
+  }
+  const BenchSimulation sim = simulate_bench(bench);
+  write_simulation(bench, sim, out);
+  print_summary(bench, sim, summary);
+  return kExitOk;
+}
+
+}  // namespace inertia::sim

@@ -1,0 +1,26 @@
+#pragma once
+// `inertia-analyze simulate --bench CONFIG --out DIR`: runs the bench file's test plan through the
+// simulated bench and writes a dataset folder (design.md, "Dataset folder") per sensor under test:
+// with one [[sensor]], OUT itself; with several, OUT/<sensor-name>/. Each dataset folder also gets
+// truth.toml: the truth parameters ([params]), the equivalent model terms in the model-file form
+// (sensor, m_cs, [terms], [noise]) and per case the true orientation chain ([[case]]).
+// The reference instruments of every case go to OUT/references/<case>.csv.
+#include <filesystem>
+#include <iosfwd>
+
+#include "common/config/bench_config.hpp"
+#include "hal/sim/bench_simulation.hpp"
+
+namespace inertia::sim {
+
+/// Loads, simulates, writes and prints a summary. Returns kExitOk; bad input throws InputError
+/// (the caller maps it to exit status 2).
+int run_simulate(const std::filesystem::path& bench, const std::filesystem::path& out, std::ostream& summary);
+
+/// Writes the dataset folders, truth files and reference CSVs of a finished simulation.
+void write_simulation(const config::BenchConfig& bench, const BenchSimulation& sim, const std::filesystem::path& out);
+
+/// One block per case: kind, samples, duration, phases, ranges of f_E (in g) and of each output.
+void print_summary(const config::BenchConfig& bench, const BenchSimulation& sim, std::ostream& os);
+
+}  // namespace inertia::sim
