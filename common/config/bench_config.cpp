@@ -116,22 +116,25 @@ CanDevice read_can_device(const TableReader& t) {
   for (const TableReader& s : t.tables("signal")) {
     CanSignal c;
     c.name = s.string("name");
-    c.extended_id = s.boolean_or("extended", false);
-    c.can_id = static_cast<std::uint32_t>(s.integer_in("id", -1, 0, c.extended_id ? 0x1FFFFFFF : 0x7FF));
-    c.byte_offset = static_cast<unsigned>(s.integer_in("byte_offset", 0, 0, 7));
+    c.extended = s.boolean_or("extended", false);
+    c.id = static_cast<std::uint32_t>(s.integer_in("id", -1, 0, c.extended ? 0x1FFFFFFF : 0x7FF));
+    c.byte_offset = static_cast<unsigned>(s.integer_in("byte_offset", 0, 0, 63));
+    c.bit_offset = static_cast<unsigned>(s.integer_in("bit_offset", 0, 0, 7));
     c.bit_length = static_cast<unsigned>(s.integer_in("bit_length", 16, 1, 64));
-    if (c.byte_offset * 8 + c.bit_length > 64) {
-      s.fail_key("bit_length", "byte_offset*8 + bit_length exceeds the 8-byte CAN payload");
+    if (c.byte_offset * 8 + c.bit_offset + c.bit_length > 64 * 8) {
+      s.fail_key("bit_length", "the signal runs past a 64-byte payload");
     }
     c.byte_order = s.choice_or("byte_order", {"little", "big"}, 0) == 0 ? ByteOrder::LittleEndian
                                                                          : ByteOrder::BigEndian;
-    c.is_signed = s.boolean_or("signed", true);
+    c.is_signed = s.boolean_or("signed", false);
     c.scale = s.number_or("scale", 1.0);
+    if (c.scale == 0.0) s.fail_key("scale", "must not be 0");
     c.offset = s.number_or("offset", 0.0);
     c.unit = s.string_or("unit", "");
     s.finish();
     d.signals.push_back(std::move(c));
   }
+  if (d.signals.empty()) t.fail_here("a CAN device needs at least one [[can_device.signal]]");
   t.finish();
   return d;
 }
@@ -140,9 +143,12 @@ GpiodEncoder read_gpiod_encoder(const TableReader& t) {
   GpiodEncoder e;
   e.name = t.string("name");
   e.chip = t.string_or("chip", e.chip);
-  e.line_a = static_cast<unsigned>(t.integer_in("line_a", -1, 0, 1023));
-  e.line_b = static_cast<unsigned>(t.integer_in("line_b", -1, 0, 1023));
+  e.line_a = static_cast<int>(t.integer_in("line_a", -1, 0, 1023));
+  e.line_b = static_cast<int>(t.integer_in("line_b", -1, 0, 1023));
   if (e.line_a == e.line_b) t.fail_key("line_b", "must differ from line_a");
+  e.line_marker = static_cast<int>(t.integer_in("line_marker", -1, -1, 1023));
+  e.line_trigger = static_cast<int>(t.integer_in("line_trigger", -1, -1, 1023));
+  e.active_low = t.boolean_or("active_low", false);
   e.rotary = t.choice("kind", {"linear", "rotary"}) == 1;
   e.resolution = t.positive("resolution");
   t.finish();
@@ -157,29 +163,37 @@ ModbusDevice read_modbus_device(const TableReader& t) {
   d.port = static_cast<int>(t.integer_in("port", d.port, 1, 65535));
   d.unit_id = static_cast<int>(t.integer_in("unit_id", d.unit_id, 0, 255));
   d.poll_interval_ms = static_cast<int>(t.integer_in("poll_interval_ms", d.poll_interval_ms, 1, 60000));
+  d.response_timeout_s = t.positive_or("response_timeout_s", d.response_timeout_s);
+  d.reconnect_initial_s = t.positive_or("reconnect_initial_s", d.reconnect_initial_s);
+  d.reconnect_max_s = t.positive_or("reconnect_max_s", d.reconnect_max_s);
+  d.timeouts_before_reconnect =
+      static_cast<int>(t.integer_in("timeouts_before_reconnect", d.timeouts_before_reconnect, 1, 1000));
+  d.writes_enabled = t.boolean_or("writes_enabled", false);
   std::set<std::string> names;
   for (const TableReader& r : t.tables("register")) {
     ModbusRegister reg;
     reg.name = r.string("name");
     reg.address = static_cast<int>(r.integer_in("address", -1, 0, 65535));
+    reg.kind = r.choice_or("kind", {"holding", "input"}, 0) == 0 ? RegisterKind::Holding : RegisterKind::Input;
     reg.type = static_cast<RegisterType>(r.choice_or("type", {"u16", "i16", "u32", "i32", "f32"}, 0));
+    reg.order = static_cast<WordOrder>(r.choice_or("word_order", {"ABCD", "CDAB", "BADC", "DCBA"}, 0));
     reg.scale = r.number_or("scale", 1.0);
+    if (reg.scale == 0.0) r.fail_key("scale", "must not be 0");
     reg.offset = r.number_or("offset", 0.0);
     reg.unit = r.string_or("unit", "");
+    reg.writable = r.boolean_or("writable", false);
+    if (reg.writable) {
+      if (reg.kind == RegisterKind::Input) r.fail_key("writable", "an input register cannot be written");
+      // A setpoint without limits is refused: every write is clamped to [min, max].
+      reg.min = r.number("min");
+      reg.max = r.number("max");
+      if (!(reg.min < reg.max)) r.fail_key("max", "must be greater than min");
+    } else if (r.has("min") || r.has("max")) {
+      r.fail_key(r.has("min") ? "min" : "max", "limits apply to writable registers only");
+    }
     r.finish();
     if (!names.insert(reg.name).second) r.fail_key("name", "duplicate register name '" + reg.name + "'");
     d.registers.push_back(std::move(reg));
-  }
-  if (const auto sp = t.optional_table("setpoint")) {
-    d.setpoint.enabled = sp->boolean_or("enabled", false);
-    d.setpoint.register_name = sp->string("register");
-    if (names.count(d.setpoint.register_name) == 0) {
-      sp->fail_key("register", "'" + d.setpoint.register_name + "' is not a register of " + d.name);
-    }
-    d.setpoint.min = sp->number("min");
-    d.setpoint.max = sp->number("max");
-    if (!(d.setpoint.min < d.setpoint.max)) sp->fail_key("max", "must be greater than min");
-    sp->finish();
   }
   t.finish();
   return d;

@@ -97,52 +97,59 @@ struct ThermalController {
 };
 
 // ---- real-bench devices (parsed for inertia-daqd; the simulator ignores them) ----
+// Field names and meanings follow the HAL's plain structs (hal/socketcan/frame_map.hpp,
+// hal/modbus/register_map.hpp and modbus_link.hpp, hal/gpiod/encoder_device.hpp), so the daemon
+// copies them across one to one; common/ cannot include hal/ (dependencies point one way).
 enum class ByteOrder { LittleEndian, BigEndian };
 
 struct CanSignal {
-  std::string name;
-  std::uint32_t can_id = 0;
-  bool extended_id = false;
-  unsigned byte_offset = 0;
-  unsigned bit_length = 16;
+  std::string name;                 // channel name within the device
+  std::uint32_t id = 0;             // 11-bit (standard) or 29-bit (extended) identifier
+  bool extended = false;
+  unsigned byte_offset = 0;         // 0..63 (CAN FD payloads up to 64 bytes)
+  unsigned bit_offset = 0;          // 0..7, as hal/socketcan/frame_map.hpp numbers bits
+  unsigned bit_length = 16;         // 1..64
   ByteOrder byte_order = ByteOrder::LittleEndian;
-  bool is_signed = true;
-  double scale = 1.0;               // physical = raw * scale + offset
+  bool is_signed = false;
+  double scale = 1.0;               // SI per count: value = scale * raw + offset
   double offset = 0.0;
-  std::string unit;
+  std::string unit;                 // informational
 };
 
 struct CanDevice {
   std::string name;
   std::string interface = "can0";
-  double sample_rate_hz = 0.0;      // expected frame rate, for health
+  double sample_rate_hz = 0.0;      // expected frame rate, for health (0: not checked)
   std::vector<CanSignal> signals;
 };
 
 struct GpiodEncoder {
   std::string name;
   std::string chip = "gpiochip0";
-  unsigned line_a = 0;
-  unsigned line_b = 0;
-  double resolution = 0.0;          // m or rad per count (quadrature counts, 4 per line period)
-  bool rotary = false;              // false: linear (m), true: rotary (rad)
+  int line_a = 0;
+  int line_b = 0;
+  int line_marker = -1;             // index mark; -1: none
+  int line_trigger = -1;            // external trigger input; -1: none
+  bool active_low = false;
+  double resolution = 1e-6;         // SI per x4 count: m (linear) or rad (rotary)
+  bool rotary = false;
 };
 
+enum class RegisterKind { Holding, Input };
 enum class RegisterType { U16, I16, U32, I32, F32 };
+enum class WordOrder { ABCD, CDAB, BADC, DCBA };
 
 struct ModbusRegister {
   std::string name;
   int address = 0;
+  RegisterKind kind = RegisterKind::Holding;
   RegisterType type = RegisterType::U16;
-  double scale = 1.0;
+  WordOrder order = WordOrder::ABCD;
+  double scale = 1.0;               // value (SI) = scale * raw + offset
   double offset = 0.0;
   std::string unit;
-};
-
-struct ModbusSetpoint {
-  bool enabled = false;             // writes are off unless enabled (design.md)
-  std::string register_name;        // one of the device's registers
-  double min = 0.0;                 // writes are clamped to [min, max]
+  bool writable = false;            // a setpoint: needs min/max and the device's writes_enabled
+  double min = 0.0;                 // write limits (clamped), SI; set when writable
   double max = 0.0;
 };
 
@@ -155,8 +162,12 @@ struct ModbusDevice {
   int port = 502;
   int unit_id = 1;
   int poll_interval_ms = 100;
+  double response_timeout_s = 0.5;
+  double reconnect_initial_s = 0.5;
+  double reconnect_max_s = 8.0;
+  int timeouts_before_reconnect = 3;
+  bool writes_enabled = false;      // setpoint writes are off unless enabled (design.md)
   std::vector<ModbusRegister> registers;
-  ModbusSetpoint setpoint;
 };
 
 // ---- test plan ----
