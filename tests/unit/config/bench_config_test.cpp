@@ -1,0 +1,275 @@
+// Bench file loader: every shipped config loads; every kind of bad file names file:line:column
+// and what was expected; Fig. 2 slot orientations against independently built rotations.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "common/config/bench_config.hpp"
+#include "common/input_error.hpp"
+#include "common/units.hpp"
+
+namespace {
+
+using inertia::InputError;
+using namespace inertia::config;
+namespace fs = std::filesystem;
+
+const fs::path kConfigDir = fs::path(INERTIA_SOURCE_DIR) / "config";
+
+// A minimal valid bench; tests splice faults into it.
+const char* const kMinimal = R"([bench]
+name = "t"
+sample_rate_hz = 1000.0
+
+[[sensor]]
+name = "acc"
+type = "accelerometer"
+
+[[case]]
+name = "c1"
+kind = "shaker"
+orientation = "IA"
+[[case.phase]]
+kind = "sine"
+frequency_hz = 10.0
+amplitude_g = 1.0
+duration_s = 1.0
+)";
+
+class TempFiles : public ::testing::Test {
+ protected:
+  fs::path write(const std::string& name, const std::string& text) {
+    const fs::path dir = fs::temp_directory_path() /
+                         ("inertia_config_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+                          "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir);
+    const fs::path p = dir / name;
+    std::ofstream(p) << text;
+    return p;
+  }
+  // Loads `text` and returns the InputError it must raise.
+  InputError error_of(const std::string& text, fs::path* file = nullptr) {
+    const fs::path p = write("bench.toml", text);
+    if (file != nullptr) *file = p;
+    try {
+      (void)load_bench_config(p);
+    } catch (const InputError& e) {
+      return e;
+    }
+    ADD_FAILURE() << "no InputError for:\n" << text;
+    return InputError("none");
+  }
+};
+
+std::string replace(std::string s, const std::string& from, const std::string& to) {
+  const auto at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return s.replace(at, from.size(), to);
+}
+
+TEST(ShippedConfigs, AllFiveLoad) {
+  const char* names[] = {"sim-paper.toml", "sim-shaker.toml", "sim-rotation-table.toml", "sim-thermal.toml",
+                         "bench-template.toml"};
+  for (const char* n : names) {
+    SCOPED_TRACE(n);
+    BenchConfig b;
+    ASSERT_NO_THROW(b = load_bench_config(kConfigDir / n));
+    EXPECT_FALSE(b.cases.empty());
+    EXPECT_FALSE(b.sensors.empty());
+  }
+  std::size_t toml_files = 0;
+  for (const auto& e : fs::directory_iterator(kConfigDir)) {
+    if (e.path().extension() != ".toml") continue;
+    ++toml_files;
+    SCOPED_TRACE(e.path().string());
+    EXPECT_NO_THROW((void)load_bench_config(e.path()));
+  }
+  EXPECT_GE(toml_files, 5u);
+}
+
+TEST(ShippedConfigs, PaperExperimentIsSection3) {
+  const BenchConfig b = load_bench_config(kConfigDir / "sim-paper.toml");
+  EXPECT_TRUE(b.simulated);
+  EXPECT_DOUBLE_EQ(b.sample_rate_hz, 10000.0);
+  EXPECT_NEAR(b.alpha_rad, inertia::deg_to_rad(25.0), 1e-15);
+  ASSERT_EQ(b.sensors.size(), 1u);
+  ASSERT_EQ(b.cases.size(), 4u);
+  const TestCase& table = b.cases[0];
+  EXPECT_EQ(table.kind, CaseKind::RotationTable);
+  EXPECT_NEAR(table.case_misalignment.angle_rad, inertia::deg_to_rad(2.0), 1e-15);
+  int rotations = 0;
+  for (const Phase& p : table.phases) rotations += p.kind == PhaseKind::Rotation;
+  EXPECT_EQ(rotations, 4);   // one about each case axis and one about [1,1,1]
+  const Orientation expected[] = {Orientation::IA, Orientation::PA, Orientation::OA};
+  for (int i = 0; i < 3; ++i) {
+    const TestCase& c = b.cases[static_cast<std::size_t>(i + 1)];
+    EXPECT_EQ(c.kind, CaseKind::Shaker);
+    ASSERT_TRUE(c.orientation.has_value());
+    EXPECT_EQ(*c.orientation, expected[i]);
+    ASSERT_EQ(c.phases.size(), 3u);
+    EXPECT_EQ(c.phases[0].kind, PhaseKind::Dwell);
+    EXPECT_DOUBLE_EQ(c.phases[0].duration_s, 1.0);
+    EXPECT_EQ(c.phases[1].kind, PhaseKind::Sine);
+    EXPECT_DOUBLE_EQ(c.phases[1].frequency_hz, 10.0);
+    EXPECT_DOUBLE_EQ(c.phases[1].amplitude_mps2, 30.0 * inertia::kStandardGravity);
+    EXPECT_EQ(c.phases[2].kind, PhaseKind::Random);
+    EXPECT_DOUBLE_EQ(c.phases[2].rms_mps2, 17.0 * inertia::kStandardGravity);
+    EXPECT_DOUBLE_EQ(c.phases[2].duration_s, 1.5);
+    EXPECT_TRUE(c.case_misalignment.axis.normalized().isApprox(Eigen::Vector3d(1, 1, 1).normalized()));
+  }
+}
+
+TEST(ShippedConfigs, TemplateKeepsRealBenchWiring) {
+  const BenchConfig b = load_bench_config(kConfigDir / "bench-template.toml");
+  EXPECT_FALSE(b.simulated);
+  ASSERT_EQ(b.can_devices.size(), 2u);
+  EXPECT_EQ(b.can_devices[0].signals[1].byte_offset, 3u);
+  EXPECT_EQ(b.can_devices[1].signals[0].id, 0x18FF1001u);
+  EXPECT_TRUE(b.can_devices[1].signals[0].extended);
+  EXPECT_EQ(b.can_devices[1].signals[0].byte_order, ByteOrder::BigEndian);
+  ASSERT_EQ(b.gpiod_encoders.size(), 2u);
+  EXPECT_TRUE(b.gpiod_encoders[1].rotary);
+  ASSERT_EQ(b.modbus_devices.size(), 3u);
+  EXPECT_FALSE(b.modbus_devices[0].writes_enabled);   // off by default
+  const ModbusRegister& sp = b.modbus_devices[0].registers[1];
+  EXPECT_TRUE(sp.writable);
+  EXPECT_DOUBLE_EQ(sp.min, 0.0);
+  EXPECT_DOUBLE_EQ(sp.max, 60.0);
+}
+
+// Fig. 2 orientations built independently: IA = F_E turned by alpha about z_E, then by +90 deg
+// about the new IRA (XRA comes up); PA and OA are the same with the case axes relabelled
+// cyclically (IRA->XRA->YRA), which a permutation of rows expresses.
+TEST(SlotOrientation, MatchesComposedRotationsAndAlphaToVibrationAxis) {
+  const double alpha = inertia::deg_to_rad(25.0);
+  const Eigen::Matrix3d ia = inertia::frames::frame_rotation(Eigen::Vector3d::UnitX(), inertia::kPi / 2) *
+                             inertia::frames::frame_rotation(Eigen::Vector3d::UnitZ(), alpha);
+  Eigen::Matrix3d cycle;   // row r of the result = row (r - 1) of the input: IRA->XRA->YRA
+  cycle << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  const Eigen::Matrix3d expected[] = {ia, cycle * ia, cycle * cycle * ia};
+  const Orientation o[] = {Orientation::IA, Orientation::PA, Orientation::OA};
+  for (int k = 0; k < 3; ++k) {
+    SCOPED_TRACE(k);
+    const Eigen::Matrix3d m = slot_orientation(o[k], alpha);
+    EXPECT_TRUE(inertia::frames::is_rotation(m, 1e-12));
+    EXPECT_LT((m - expected[k]).cwiseAbs().maxCoeff(), 1e-15);
+    // Rows are the case axes in F_E: axis k at alpha from the vibration axis x_E, axis k+1 up.
+    const Eigen::Vector3d axis_k = m.row(k).transpose();
+    EXPECT_NEAR(inertia::frames::axis_angle_between(axis_k, Eigen::Vector3d::UnitX()), alpha, 1e-14);
+    EXPECT_NEAR(m(( k + 1) % 3, 2), 1.0, 1e-15);
+  }
+  // The OA orientation puts IRA up (the paper's third configuration excites PA and OA).
+  EXPECT_NEAR(slot_orientation(Orientation::OA, alpha)(0, 2), 1.0, 1e-15);
+}
+
+TEST_F(TempFiles, MinimalLoadsWithDefaults) {
+  const BenchConfig b = load_bench_config(write("bench.toml", kMinimal));
+  EXPECT_NEAR(b.alpha_rad, inertia::deg_to_rad(25.0), 1e-15);
+  EXPECT_EQ(b.seed, 1u);
+  ASSERT_EQ(b.cases.size(), 1u);
+  EXPECT_DOUBLE_EQ(b.cases[0].phases[0].ramp_cycles, 1.0);
+  EXPECT_NE(b.sensors[0].seed, 0u);
+}
+
+TEST_F(TempFiles, SyntaxErrorNamesFileLineColumn) {
+  fs::path file;
+  const InputError e = error_of(replace(kMinimal, "sample_rate_hz = 1000.0", "sample_rate_hz = = 1000.0"), &file);
+  EXPECT_EQ(e.where().file, file.string());
+  EXPECT_EQ(e.where().line, 3u);
+  EXPECT_EQ(e.where().column, 18u);   // the second '='
+  EXPECT_NE(std::string(e.what()).find("TOML syntax error"), std::string::npos) << e.what();
+  EXPECT_EQ(std::string(e.what()).rfind(file.string() + ":3:18: ", 0), 0u) << e.what();
+}
+
+TEST_F(TempFiles, WrongTypePointsAtTheValue) {
+  const InputError e = error_of(replace(kMinimal, "sample_rate_hz = 1000.0", "sample_rate_hz = \"fast\""));
+  EXPECT_EQ(e.where().line, 3u);
+  EXPECT_EQ(e.where().column, 18u);
+  EXPECT_NE(std::string(e.what()).find("bench.sample_rate_hz must be a number, got string"), std::string::npos)
+      << e.what();
+}
+
+TEST_F(TempFiles, UnknownKeyIsAnError) {
+  const InputError e = error_of(replace(kMinimal, "duration_s = 1.0", "duration_s = 1.0\nfrequncy_hz = 5.0"));
+  EXPECT_EQ(e.where().line, 18u);   // the misspelt key, after duration_s on line 17
+  EXPECT_EQ(e.where().column, 1u);
+  EXPECT_NE(std::string(e.what()).find("unknown key 'case[0].phase[0].frequncy_hz'"), std::string::npos) << e.what();
+}
+
+TEST_F(TempFiles, MissingKeyPointsAtItsTable) {
+  const InputError e = error_of(replace(kMinimal, "amplitude_g = 1.0\n", ""));
+  EXPECT_EQ(e.where().line, 13u);   // the [[case.phase]] header
+  EXPECT_NE(std::string(e.what()).find("missing key 'amplitude_g'"), std::string::npos) << e.what();
+}
+
+TEST_F(TempFiles, BadPhaseKindListsTheKinds) {
+  const InputError e = error_of(replace(kMinimal, "kind = \"sine\"", "kind = \"vibrate\""));
+  EXPECT_EQ(e.where().line, 14u);
+  EXPECT_EQ(e.where().column, 8u);
+  const std::string what = e.what();
+  EXPECT_NE(what.find("\"vibrate\" is not one of: dwell, rotation, sine, random, shock, thermal_step"),
+            std::string::npos)
+      << what;
+}
+
+TEST_F(TempFiles, OutOfRangeAndMisplacedValues) {
+  {
+    const InputError e = error_of(std::string(kMinimal) + "\n[fixture]\nalpha_deg = 95.0\n");
+    EXPECT_EQ(e.where().line, 20u);
+    EXPECT_NE(std::string(e.what()).find("fixture.alpha_deg = 95 is outside [0, 90]"), std::string::npos) << e.what();
+  }
+  {
+    const InputError e = error_of(replace(kMinimal, "frequency_hz = 10.0", "frequency_hz = 600.0"));
+    EXPECT_EQ(e.where().line, 15u);
+    EXPECT_NE(std::string(e.what()).find("Nyquist"), std::string::npos) << e.what();
+  }
+  {
+    const InputError e = error_of(replace(kMinimal, "kind = \"sine\"\nfrequency_hz = 10.0\namplitude_g = 1.0",
+                                          "kind = \"rotation\"\naxis = [1, 0, 0]\nrate_deg_s = 10.0"));
+    EXPECT_EQ(e.where().line, 14u);
+    EXPECT_NE(std::string(e.what()).find("a rotation phase cannot run in a shaker case"), std::string::npos)
+        << e.what();
+  }
+  {
+    const InputError e = error_of(replace(kMinimal, "orientation = \"IA\"", "m_ec = [[1, 0, 0], [0, 1, 0], [0, 1, 1]]"));
+    EXPECT_EQ(e.where().line, 12u);
+    EXPECT_NE(std::string(e.what()).find("must be a rotation"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(TempFiles, IncludedPlanAppendsCasesAndReportsItsOwnFile) {
+  const fs::path plan = write("plan.toml", R"([[case]]
+name = "c2"
+kind = "static"
+orientation = "PA"
+[[case.phase]]
+kind = "dwell"
+duration_s = 2.0
+)");
+  const BenchConfig b = load_bench_config(write("bench.toml", "include = [\"plan.toml\"]\n" + std::string(kMinimal)));
+  ASSERT_EQ(b.cases.size(), 2u);
+  EXPECT_EQ(b.cases[1].name, "c2");
+  EXPECT_EQ(b.cases[1].orientation, Orientation::PA);
+
+  write("plan.toml", "[[case]]\nname = \"c2\"\nkind = \"static\"\norientation = \"PA\"\n[[case.phase]]\nkind = \"dwel\"\nduration_s = 2.0\n");
+  fs::path file;
+  const InputError e = error_of("include = [\"plan.toml\"]\n" + std::string(kMinimal), &file);
+  EXPECT_EQ(e.where().file, plan.string());
+  EXPECT_EQ(e.where().line, 6u);
+  EXPECT_EQ(e.where().column, 8u);
+}
+
+TEST_F(TempFiles, MissingFile) {
+  try {
+    (void)load_bench_config("/nonexistent/bench.toml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, "/nonexistent/bench.toml");
+    EXPECT_NE(std::string(e.what()).find("not found"), std::string::npos);
+  }
+}
+
+}  // namespace
