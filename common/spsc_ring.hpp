@@ -34,7 +34,8 @@ class SpscRing {
 
  public:
   // 128 rather than 64: x86's adjacent-line prefetcher pulls cache lines in pairs, so two
-  // indices 64 bytes apart still ping-pong (the reason folly and rigtorp pad to 128 on x86).
+  // indices 64 bytes apart still ping-pong (why folly sets its destructive interference size
+  // to 128 on x86-64).
   // A fixed constant, not std::hardware_destructive_interference_size, whose value GCC warns
   // may change between compiler versions (-Winterference-size) and so must not shape a layout.
   static constexpr std::size_t kFalseSharingRange = 128;
