@@ -95,7 +95,13 @@ class GpiodEncoderDevice final : public Device {
   /// (value: position at the marker's rising edge) and a trigger sample (value: new level).
   std::size_t read_into(SampleSink& sink) noexcept override;
   Step deactivate() override;
+  /// Line A's descriptor. Each line has its own (one request per line in libgpiod v1): a poll
+  /// loop that waits for edges should wait on all of event_fds().
   [[nodiscard]] int wait_fd() const noexcept override { return source_->event_fd(EdgeLine::A); }
+  [[nodiscard]] std::array<int, kEdgeLineCount> event_fds() const noexcept {
+    return {source_->event_fd(EdgeLine::A), source_->event_fd(EdgeLine::B), source_->event_fd(EdgeLine::Marker),
+            source_->event_fd(EdgeLine::Trigger)};
+  }
 
   [[nodiscard]] EncoderStatus status() const noexcept;
   [[nodiscard]] double position() const noexcept { return static_cast<double>(decoder_.count()) * config_.resolution; }

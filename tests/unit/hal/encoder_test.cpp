@@ -158,6 +158,20 @@ TEST(GpiodEncoderDevice, ReversalAtACountBoundary) {
   EXPECT_LT(rig.device->status().count, -3);
 }
 
+TEST(GpiodEncoderDevice, ManyEdgesOnOneLineKeepTheirOrderAgainstTheOtherLine) {
+  // 50 ms of dithering across one A boundary (100 A edges, no B edge), then steady motion: the
+  // A descriptor holds far more than one 16-event batch of events older than everything on B,
+  // so B's events must wait until A's backlog is decoded.
+  auto x = [](double t) {
+    return t < 0.05 ? 3e-6 + 0.4e-6 * std::sin(2 * kPi * 1000 * t) - 0.1e-6 : 3e-6 + 400e-6 * (t - 0.05);
+  };
+  const QuadratureTrace trace = wire_sim::generate_quadrature(x, EncoderRig::kResolution, 0.0, 0.1, 1e-6, 5'000);
+  EncoderRig rig(trace);
+  rig.run(trace, 400);
+  expect_count_at_every_motion_edge(trace, rig.sink, rig.start);
+  EXPECT_EQ(rig.device->status().count, trace.edges.back().expected_count - trace.start_count);
+}
+
 TEST(GpiodEncoderDevice, InjectedGlitchesAreCountedExactlyAndDoNotMoveTheCount) {
   QuadratureFaults faults;
   faults.pulse_every = 37;
