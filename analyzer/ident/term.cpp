@@ -88,7 +88,14 @@ Term Term::from_factors(std::vector<Factor> factors) {
       term.factors_.push_back(Factor{base.variable, base.lag, FactorFunction::Abs, 1});
     }
   }
-  std::sort(term.factors_.begin(), term.factors_.end());
+  // The unlagged output goes first: y*T, y*w_i read as the output-multiplied (rational) terms
+  // they are, as design.md spells them; everything else follows the variable order.
+  std::sort(term.factors_.begin(), term.factors_.end(), [](const Factor& a, const Factor& b) {
+    const bool a_first = a.variable == Variable::Y && a.lag == 0;
+    const bool b_first = b.variable == Variable::Y && b.lag == 0;
+    if (a_first != b_first) return a_first;
+    return a < b;
+  });
   const bool only_current_y = !term.factors_.empty() && std::all_of(term.factors_.begin(), term.factors_.end(), [](const Factor& f) {
     return f.variable == Variable::Y && f.lag == 0;
   });
@@ -115,9 +122,11 @@ bool Term::is_output_multiplied() const {
 bool Term::is_noise_term() const { return uses(Variable::E); }
 
 std::vector<Variable> Term::variables() const {
+  std::array<bool, kVariableCount> used{};
+  for (const Factor& f : factors_) used[static_cast<std::size_t>(f.variable)] = true;
   std::vector<Variable> v;
-  for (const Factor& f : factors_) {
-    if (v.empty() || v.back() != f.variable) v.push_back(f.variable);  // factors are sorted by variable
+  for (int i = 0; i < kVariableCount; ++i) {
+    if (used[static_cast<std::size_t>(i)]) v.push_back(static_cast<Variable>(i));
   }
   return v;
 }

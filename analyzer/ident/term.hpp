@@ -19,8 +19,9 @@
 //                 paper's eqs. 2 and 4; only lagged (e[k-1] is c_1 v(k-1), the MA part). Its
 //                 values are supplied by the estimator (extended least squares), not the dataset.
 //
-// Canonical form (to_string): factors sorted by variable (order above), then by lag (current
-// sample first), then plain < abs < sign; equal factors merged into powers; a lagged plain
+// Canonical form (to_string): the unlagged output y first when present (design.md spells the
+// output-multiplied terms y*T, y*w_i), then factors sorted by variable (order above), then by lag
+// (current sample first), then plain < abs < sign; equal factors merged into powers; a lagged plain
 // factor prints its power before the lag (`a_o^2[k-1]` = a_o[k-1]^2); abs and sign print the lag
 // inside the parentheses (`abs(a_i[k-1])`). The factors of one variable at one lag are reduced
 // with the exact identities x = |x| sign(x), sign(x)^2 = 1 (x != 0), to one of: x^m,
@@ -54,7 +55,7 @@ struct Factor {
   FactorFunction function = FactorFunction::Plain;
   int power = 1;               // >= 1
 
-  /// The canonical order: variable, lag, function, then power.
+  /// Variable, lag, function, then power (the canonical order apart from the y-first rule).
   friend auto operator<=>(const Factor&, const Factor&) = default;
   friend bool operator==(const Factor&, const Factor&) = default;
 };

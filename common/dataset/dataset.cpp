@@ -332,7 +332,10 @@ const toml::node& require(const toml::table& table, std::string_view key, const 
                           const std::string& context) {
   const toml::node* node = table.get(key);
   if (node == nullptr) {
-    throw InputError(position_of(table, file), fmt::format("missing key '{}'{}", key, context));
+    // A [[case]] table points at its header line; the root table has no useful position.
+    const SourcePosition where = table.is_inline() || context.empty() ? SourcePosition{file, 0, 0}
+                                                                      : position_of(table, file);
+    throw InputError(where, fmt::format("missing key '{}'{}", key, context));
   }
   return *node;
 }
@@ -450,7 +453,10 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
   data.output_unit = require_string(root, "output_unit", file);
   data.t_ref = to_finite_double(require(root, "t_ref", file, ""), file, "'t_ref'");
 
-  const toml::node& cases_node = require(root, "case", file, " (expected one or more [[case]] tables)");
+  if (root.get("case") == nullptr) {
+    throw InputError(SourcePosition{file, 0, 0}, "no [[case]] table: a dataset has one or more cases");
+  }
+  const toml::node& cases_node = *root.get("case");
   const toml::array* cases = cases_node.as_array();
   if (cases == nullptr || cases->empty() || !cases->is_array_of_tables()) {
     throw InputError(position_of(cases_node, file), "'case' must be one or more [[case]] tables");
@@ -473,6 +479,13 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
     }
     c.kind = *case_kind;
     c.file = require_string(table, "file", file, where);
+    if (const toml::node* mounting = table.get("mounting")) {
+      const auto label = mounting->value<std::string>();
+      if (!label || label->empty()) {
+        throw InputError(position_of(*mounting, file), fmt::format("mounting of case '{}' must be a non-empty string", c.name));
+      }
+      c.mounting = *label;
+    }
     const toml::node& m_node = require(table, "m_ec", file, where);
     c.m_ec = read_matrix3(m_node, file, "m_ec");
     if (!frames::is_rotation(c.m_ec, kRotationTolerance)) {
@@ -523,6 +536,7 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
     toml_text += "name = " + toml_quote(c.name) + "\n";
     toml_text += "kind = " + toml_quote(to_string(c.kind)) + "\n";
     toml_text += "file = " + toml_quote(files.back()) + "\n";
+    if (!c.mounting.empty()) toml_text += "mounting = " + toml_quote(c.mounting) + "\n";
     toml_text += "m_ec = [";
     for (int r = 0; r < 3; ++r) {
       toml_text += r == 0 ? "[" : ", [";

@@ -1,0 +1,97 @@
+// Speed of the two bulk paths of an identification run:
+//  - BM_BuildRegression: Phi for N = 1e6 samples x 60 terms (the order-4 eq. 2 candidate set cut
+//    to 60 terms: squares, products, abs/sign, lags, y lags), the size algorithm 2 starts from.
+//  - BM_ReadDataset: one case CSV of 1e6 rows x 9 columns (t, a, w, temp, y) as the daemon's
+//    10 kHz recordings produce, parsed by read_dataset. Items = rows.
+// Run: build/bench/bench_regressors [--benchmark_filter=...]
+#include <benchmark/benchmark.h>
+
+#include <filesystem>
+#include <random>
+#include <sstream>
+
+#include "analyzer/ident/candidates.hpp"
+#include "analyzer/ident/regressors.hpp"
+#include "common/dataset/dataset.hpp"
+
+namespace {
+
+using namespace inertia;
+
+constexpr Eigen::Index kSamples = 1'000'000;
+constexpr std::size_t kTerms = 60;
+
+ident::SignalSet random_signals(Eigen::Index n) {
+  std::mt19937_64 rng(1);
+  std::normal_distribution<double> normal(0.0, 9.81);
+  ident::SignalSet s(n);
+  for (ident::Variable v : {ident::Variable::Ai, ident::Variable::Ap, ident::Variable::Ao, ident::Variable::Ax,
+                            ident::Variable::Ay, ident::Variable::Az, ident::Variable::Y}) {
+    Eigen::VectorXd x(n);
+    for (Eigen::Index k = 0; k < n; ++k) x[k] = normal(rng);
+    s.set(v, std::move(x));
+  }
+  return s;
+}
+
+void BM_BuildRegression(benchmark::State& state) {
+  const ident::SignalSet signals = random_signals(kSamples);
+  ident::CandidateOptions options;
+  options.r = 4;
+  std::vector<ident::Term> terms =
+      ident::candidate_terms(dataset::SensorKind::Accelerometer, ident::ModelFrame::ExternalAndSensor, options);
+  terms.resize(kTerms);
+  for (auto _ : state) {
+    ident::Regression r = ident::build_regression(terms, signals);
+    benchmark::DoNotOptimize(r.phi.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["terms"] = static_cast<double>(terms.size());
+  state.SetItemsProcessed(state.iterations() * kSamples);
+}
+BENCHMARK(BM_BuildRegression)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+std::filesystem::path make_dataset(Eigen::Index rows) {
+  const auto dir = std::filesystem::temp_directory_path() / "inertia-bench-dataset";
+  std::mt19937_64 rng(2);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  dataset::Dataset d;
+  dataset::CaseData c;
+  c.name = "shaker-random";
+  c.kind = dataset::CaseKind::Shaker;
+  c.file = "shaker-random.csv";
+  c.t.resize(rows);
+  c.a_e.resize(rows, 3);
+  c.w_e.emplace(rows, 3);
+  c.temp.emplace(rows);
+  c.y.resize(rows);
+  for (Eigen::Index k = 0; k < rows; ++k) {
+    c.t[k] = static_cast<double>(k) * 1e-4;
+    for (int a = 0; a < 3; ++a) {
+      c.a_e(k, a) = 9.81 * normal(rng);
+      (*c.w_e)(k, a) = 0.01 * normal(rng);
+    }
+    (*c.temp)[k] = 25.0 + normal(rng);
+    c.y[k] = 0.08 * normal(rng);
+  }
+  d.cases.push_back(std::move(c));
+  dataset::write_dataset(dir, d);
+  return dir;
+}
+
+void BM_ReadDataset(benchmark::State& state) {
+  const Eigen::Index rows = state.range(0);
+  const std::filesystem::path dir = make_dataset(rows);
+  const auto bytes = std::filesystem::file_size(dir / "shaker-random.csv");
+  std::ostringstream warnings;
+  for (auto _ : state) {
+    dataset::Dataset d = dataset::read_dataset(dir, warnings);
+    benchmark::DoNotOptimize(d.cases[0].y.data());
+  }
+  state.SetItemsProcessed(state.iterations() * rows);
+  state.SetBytesProcessed(state.iterations() * static_cast<std::int64_t>(bytes));
+  std::filesystem::remove_all(dir);
+}
+BENCHMARK(BM_ReadDataset)->Arg(kSamples)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace

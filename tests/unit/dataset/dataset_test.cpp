@@ -1,0 +1,291 @@
+// Dataset folder contract (design.md, "Dataset folder"): round trip, deterministic bytes, and a
+// file:line:column for every kind of bad CSV or dataset.toml.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "common/dataset/dataset.hpp"
+#include "common/input_error.hpp"
+
+namespace inertia::dataset {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::path(INERTIA_BINARY_DIR) / "test-data" / "dataset" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string slurp(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void spit(const fs::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+}
+
+constexpr const char* kToml = R"(sensor = "accelerometer"
+output_unit = "mA"
+t_ref = 25.0
+[[case]]
+name = "c1"
+kind = "shaker"
+file = "c1.csv"
+m_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+)";
+
+// A folder with kToml and `csv` as c1.csv; returns the folder.
+fs::path folder_with_csv(const std::string& name, const std::string& csv) {
+  const fs::path dir = fresh_dir(name);
+  spit(dir / "dataset.toml", kToml);
+  spit(dir / "c1.csv", csv);
+  return dir;
+}
+
+// Reads and returns the InputError; fails the test when nothing is thrown.
+InputError read_error(const fs::path& dir) {
+  std::ostringstream warnings;
+  try {
+    read_dataset(dir, warnings);
+  } catch (const InputError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "read_dataset(" << dir << ") did not throw";
+  return InputError("none");
+}
+
+Dataset sample_dataset() {
+  std::mt19937_64 rng(42);
+  std::normal_distribution<double> normal(0.0, 3.0);
+  Dataset d;
+  d.sensor = SensorKind::Gyroscope;
+  d.output_unit = "deg/h \"raw\"";
+  d.t_ref = 23.456789012345678;
+  CaseData full;
+  full.name = "shaker-ia";
+  full.kind = CaseKind::Shaker;
+  full.file = "shaker-ia.csv";
+  full.m_ec = frames::frame_rotation(Eigen::Vector3d(0.3, -1.0, 0.2), 0.7);
+  const Eigen::Index n = 500;
+  full.t.resize(n);
+  full.a_e.resize(n, 3);
+  full.w_e.emplace(n, 3);
+  full.temp.emplace(n);
+  full.y.resize(n);
+  full.phase_names = {"static", "sine 80 Hz", "random"};
+  for (Eigen::Index k = 0; k < n; ++k) {
+    full.t[k] = 1.25 + static_cast<double>(k) * 1e-4;
+    for (int a = 0; a < 3; ++a) {
+      full.a_e(k, a) = normal(rng);
+      (*full.w_e)(k, a) = normal(rng) * 1e-3;
+    }
+    (*full.temp)[k] = 20.0 + normal(rng);
+    full.y[k] = normal(rng) * 1e-7;   // small numbers need all 17 digits too
+    full.phase.push_back(static_cast<std::uint16_t>((k / 100) % 3));
+  }
+  full.a_e(3, 1) = -0.0;
+  full.y[4] = 1e-300;
+  CaseData minimal;
+  minimal.name = "table";
+  minimal.kind = CaseKind::RotationTable;
+  minimal.file = "table.csv";
+  minimal.t = Eigen::VectorXd::LinSpaced(4, 0.0, 0.3);
+  minimal.a_e = Matrix3Columns::Random(4, 3);
+  minimal.y = Eigen::VectorXd::Random(4);
+  d.cases = {full, minimal};
+  return d;
+}
+
+TEST(Dataset, RoundTripIsExactAndBytesAreDeterministic) {
+  const Dataset d = sample_dataset();
+  const fs::path a = fresh_dir("roundtrip-a");
+  const fs::path b = fresh_dir("roundtrip-b");
+  write_dataset(a, d);
+  std::ostringstream warnings;
+  const Dataset r = read_dataset(a, warnings);
+  EXPECT_EQ(warnings.str(), "");
+  EXPECT_EQ(r.sensor, d.sensor);
+  EXPECT_EQ(r.output_unit, d.output_unit);
+  EXPECT_EQ(r.t_ref, d.t_ref);
+  ASSERT_EQ(r.cases.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    const CaseData& x = d.cases[i];
+    const CaseData& y = r.cases[i];
+    EXPECT_EQ(y.name, x.name);
+    EXPECT_EQ(y.kind, x.kind);
+    EXPECT_EQ(y.file, x.file);
+    EXPECT_EQ(y.m_ec, x.m_ec);   // bitwise: shortest round-trip digits
+    EXPECT_EQ(y.t, x.t);
+    EXPECT_EQ(y.a_e, x.a_e);
+    EXPECT_EQ(y.y, x.y);
+    EXPECT_EQ(y.w_e.has_value(), x.w_e.has_value());
+    if (x.w_e) {
+      EXPECT_EQ(*y.w_e, *x.w_e);
+    }
+    EXPECT_EQ(y.temp.has_value(), x.temp.has_value());
+    if (x.temp) {
+      EXPECT_EQ(*y.temp, *x.temp);
+    }
+    EXPECT_EQ(y.phase_names, x.phase_names);
+    EXPECT_EQ(y.phase, x.phase);
+  }
+  EXPECT_TRUE(std::signbit(r.cases[0].a_e(3, 1)));
+  EXPECT_NEAR(r.cases[0].sample_period_s, 1e-4, 1e-15);
+  EXPECT_NEAR(r.cases[1].sample_period_s, 0.1, 1e-15);
+
+  write_dataset(b, r);
+  for (const char* file : {"dataset.toml", "shaker-ia.csv", "table.csv"}) {
+    EXPECT_EQ(slurp(a / file), slurp(b / file)) << file;
+  }
+  EXPECT_EQ(slurp(a / "shaker-ia.csv").substr(0, 40), "t,a_x,a_y,a_z,w_x,w_y,w_z,temp,y,phase\n1");
+}
+
+TEST(Dataset, AnyColumnOrderCrlfAndUnknownColumnsWarnOncePerColumn) {
+  const fs::path dir = folder_with_csv("order", "y, a_z,foo,t,a_y,a_x,bar\r\n"
+                                                "1,2,x,0.0,3,4,?\r\n"
+                                                "5,6,y,0.5,7,+8,?\r\n"
+                                                "9,10,z,1.0,11,12,?\r\n");
+  std::ostringstream warnings;
+  const Dataset d = read_dataset(dir, warnings);
+  const CaseData& c = d.cases.at(0);
+  ASSERT_EQ(c.size(), 3);
+  EXPECT_EQ(c.y, Eigen::Vector3d(1, 5, 9));
+  EXPECT_EQ(c.a_e.col(2), Eigen::Vector3d(2, 6, 10));
+  EXPECT_EQ(c.a_e.col(1), Eigen::Vector3d(3, 7, 11));
+  EXPECT_EQ(c.a_e.col(0), Eigen::Vector3d(4, 8, 12));
+  EXPECT_DOUBLE_EQ(c.sample_period_s, 0.5);
+  EXPECT_FALSE(c.w_e.has_value());
+  EXPECT_FALSE(c.temp.has_value());
+  EXPECT_TRUE(c.phase.empty());
+  const std::string w = warnings.str();
+  EXPECT_NE(w.find("c1.csv:1:3: warning: unknown column 'foo'"), std::string::npos) << w;
+  EXPECT_NE(w.find("c1.csv:1:7: warning: unknown column 'bar'"), std::string::npos) << w;
+  EXPECT_EQ(std::count(w.begin(), w.end(), '\n'), 2) << w;
+}
+
+struct BadCsv {
+  const char* name;
+  const char* csv;
+  std::size_t line;
+  std::size_t column;
+  const char* message_part;   // must appear in what()
+};
+
+class BadCsvTest : public ::testing::TestWithParam<BadCsv> {};
+
+TEST_P(BadCsvTest, NamesFileLineAndColumn) {
+  const BadCsv& bad = GetParam();
+  const fs::path dir = folder_with_csv(bad.name, bad.csv);
+  const InputError e = read_error(dir);
+  EXPECT_EQ(e.where().file, (dir / "c1.csv").string());
+  EXPECT_EQ(e.where().line, bad.line) << e.what();
+  EXPECT_EQ(e.where().column, bad.column) << e.what();
+  EXPECT_NE(std::string(e.what()).find(bad.message_part), std::string::npos) << e.what();
+  EXPECT_NE(std::string(e.what()).find("c1.csv:"), std::string::npos) << e.what();
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Dataset, BadCsvTest,
+    ::testing::Values(
+        BadCsv{"missing_column", "t,a_x,a_z,y\n0,1,2,3\n1,1,2,3\n", 1, 0, "missing required column 'a_y'"},
+        BadCsv{"missing_y", "a_x,a_y,a_z,t\n0,1,2,3\n1,1,2,4\n", 1, 0, "'y'"},
+        BadCsv{"non_number", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,abc,4\n", 3, 4, "not a number in column 'a_z': 'abc'"},
+        BadCsv{"trailing_garbage", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,3,4x\n", 3, 5, "column 'y': '4x'"},
+        BadCsv{"empty_field", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,,3,4\n", 3, 3, "column 'a_y'"},
+        BadCsv{"nan", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,3,4\n0.2,1,2,3,nan\n", 4, 5, "nan in column 'y'"},
+        BadCsv{"inf", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,-inf,2,3,4\n", 3, 2, "-inf in column 'a_x'"},
+        BadCsv{"out_of_range", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1e999,2,3,4\n", 3, 2, "out of range"},
+        BadCsv{"non_uniform_t", "a_x,t,a_y,a_z,y\n1,0,2,3,4\n1,0.1,2,3,4\n1,0.2,2,3,4\n1,0.35,2,3,4\n1,0.4,2,3,4\n",
+               5, 2, "non-uniform time column 't'"},
+        BadCsv{"decreasing_t", "t,a_x,a_y,a_z,y\n1,1,2,3,4\n0,1,2,3,4\n", 3, 1, "does not increase"},
+        BadCsv{"w_partial", "t,a_x,a_y,a_z,w_x,w_z,y\n0,1,2,3,4,5,6\n", 1, 5, "w_x, w_z' present but w_y missing"},
+        BadCsv{"too_few_fields", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,3\n", 3, 5, "column 'y' is missing"},
+        BadCsv{"too_many_fields", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,3,4,5\n", 3, 6, "more fields"},
+        BadCsv{"empty_file", "", 1, 0, "empty file"},
+        BadCsv{"header_only", "t,a_x,a_y,a_z,y\n", 1, 0, "no data rows"},
+        BadCsv{"blank_line_inside", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n\n0.2,1,2,3,4\n", 3, 0, "empty line"},
+        BadCsv{"duplicate_column", "t,a_x,a_y,a_z,y,a_x\n0,1,2,3,4,5\n", 1, 6, "duplicate column 'a_x'"}),
+    [](const ::testing::TestParamInfo<BadCsv>& info) { return std::string(info.param.name); });
+
+TEST(Dataset, TrailingBlankLinesAreAllowed) {
+  const fs::path dir = folder_with_csv("trailing", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,3,5\n\n\n");
+  std::ostringstream warnings;
+  EXPECT_EQ(read_dataset(dir, warnings).cases.at(0).size(), 2);
+}
+
+TEST(Dataset, PhaseLabelsKeepOrderOfFirstAppearance) {
+  const fs::path dir = folder_with_csv("phase", "t,a_x,a_y,a_z,y,phase\n0,1,2,3,4,sine\n1,1,2,3,4,static\n"
+                                                "2,1,2,3,4,sine\n3,1,2,3,4,\n");
+  std::ostringstream warnings;
+  const CaseData c = read_dataset(dir, warnings).cases.at(0);
+  EXPECT_EQ(c.phase_names, (std::vector<std::string>{"sine", "static", ""}));
+  EXPECT_EQ(c.phase, (std::vector<std::uint16_t>{0, 1, 0, 2}));
+}
+
+TEST(Dataset, MecThatIsNotARotationIsRejectedAtItsLine) {
+  const std::string csv = "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,3,4\n";
+  for (const char* m : {"[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]",      // reflection, det -1
+                        "[[1.001, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]",     // not orthonormal
+                        "[[0.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]"}) {   // repeated row
+    const fs::path dir = folder_with_csv("bad_mec", csv);
+    std::string toml = kToml;
+    toml.replace(toml.find("m_ec = ") + 7, std::string::npos, std::string(m) + "\n");
+    spit(dir / "dataset.toml", toml);
+    const InputError e = read_error(dir);
+    EXPECT_EQ(e.where().file, (dir / "dataset.toml").string());
+    EXPECT_EQ(e.where().line, 8u) << e.what();
+    EXPECT_EQ(e.where().column, 8u) << e.what();
+    EXPECT_NE(std::string(e.what()).find("not a rotation"), std::string::npos) << e.what();
+  }
+  // Six typed digits of a real rotation pass (tolerance 1e-6).
+  const fs::path dir = folder_with_csv("good_mec", csv);
+  std::string toml = kToml;
+  toml.replace(toml.find("m_ec = ") + 7, std::string::npos,
+               "[[0.866025, 0.5, 0.0], [-0.5, 0.866025, 0.0], [0.0, 0.0, 1.0]]\n");
+  spit(dir / "dataset.toml", toml);
+  std::ostringstream warnings;
+  EXPECT_NO_THROW(read_dataset(dir, warnings));
+}
+
+TEST(Dataset, BadTomlNamesTheKey) {
+  const std::string csv = "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,3,4\n";
+  struct Case {
+    std::string from, to;
+    std::size_t line;
+    const char* part;
+  };
+  for (const Case& c : {Case{"\"accelerometer\"", "\"magnetometer\"", 1, "magnetometer"},
+                        Case{"kind = \"shaker\"", "kind = \"centrifuge\"", 6, "centrifuge"},
+                        Case{"t_ref = 25.0", "t_ref = \"hot\"", 3, "t_ref"},
+                        Case{"file = \"c1.csv\"", "file = \"nope.csv\"", 7, "not found"},
+                        Case{"output_unit = \"mA\"\n", "", 0, "missing key 'output_unit'"},
+                        Case{"[[case]]", "[[case]", 4, ""}}) {
+    const fs::path dir = folder_with_csv("bad_toml", csv);
+    std::string toml = kToml;
+    toml.replace(toml.find(c.from), c.from.size(), c.to);
+    spit(dir / "dataset.toml", toml);
+    const InputError e = read_error(dir);
+    EXPECT_EQ(e.where().line, c.line) << e.what();
+    EXPECT_NE(std::string(e.what()).find(c.part), std::string::npos) << e.what();
+  }
+}
+
+TEST(Dataset, WriteRejectsLabelsThatWouldBreakTheCsv) {
+  Dataset d = sample_dataset();
+  d.cases[0].phase_names[1] = "sine, 80 Hz";
+  EXPECT_THROW(write_dataset(fresh_dir("bad_label"), d), InputError);
+}
+
+}  // namespace
+}  // namespace inertia::dataset

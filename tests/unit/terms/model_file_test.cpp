@@ -1,0 +1,130 @@
+// Model file contract (design.md, "Model file"; analyzer/model/model_file.hpp).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+
+#include "analyzer/model/model_file.hpp"
+#include "common/input_error.hpp"
+
+namespace inertia::model {
+namespace {
+
+using ident::parse_term;
+
+ModelFile sample_model() {
+  ModelFile m;
+  m.sensor = dataset::SensorKind::Accelerometer;
+  m.m_cs = frames::about_third_axis(1.4e-3) * frames::about_second_axis(-1.4e-3);
+  // Not in canonical order on purpose: the file keeps the order it is given.
+  m.terms = {{parse_term("a_i"), 0.0877, 2.5e-6},
+             {parse_term("1"), 3.44e-3, std::nullopt},
+             {parse_term("a_p*a_i"), -1.0 / 3.0, 1e-9},
+             {parse_term("a_o[k-1]^2"), 6e-5, std::nullopt},
+             {parse_term("y[k-1]"), 0.5, std::nullopt}};
+  m.white_sd = 1.0e-4;
+  return m;
+}
+
+InputError parse_error(const std::string& text) {
+  try {
+    (void)parse_model(text, "model.toml");
+  } catch (const InputError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "accepted:\n" << text;
+  return InputError("none");
+}
+
+TEST(ModelFile, RoundTripIsExactAndKeepsOrder) {
+  const ModelFile m = sample_model();
+  const std::filesystem::path dir = std::filesystem::path(INERTIA_BINARY_DIR) / "test-data" / "model";
+  std::filesystem::create_directories(dir);
+  write_model(dir / "model.toml", m);
+  const ModelFile r = read_model(dir / "model.toml");
+  EXPECT_EQ(r.sensor, m.sensor);
+  EXPECT_EQ(r.m_cs, m.m_cs);   // bitwise
+  ASSERT_EQ(r.terms.size(), m.terms.size());
+  for (std::size_t i = 0; i < m.terms.size(); ++i) {
+    EXPECT_EQ(r.terms[i].term, m.terms[i].term) << i;
+    EXPECT_EQ(r.terms[i].coefficient, m.terms[i].coefficient) << i;
+    EXPECT_EQ(r.terms[i].std, m.terms[i].std) << i;
+  }
+  EXPECT_EQ(r.white_sd, m.white_sd);
+  EXPECT_EQ(format_model(r), format_model(m));
+  EXPECT_EQ(r.coefficient(parse_term("a_i*a_p")), -1.0 / 3.0);
+  EXPECT_FALSE(r.coefficient(parse_term("a_i^2")).has_value());
+
+  const std::string text = format_model(m);
+  EXPECT_NE(text.find("[terms]\n\"a_i\" = 0.0877\n\"1\" = 0.00344\n\"a_i*a_p\" = "), std::string::npos) << text;
+  EXPECT_NE(text.find("\"a_o^2[k-1]\" = 6e-05\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("[noise]\nwhite_sd = 1e-04\n"), std::string::npos) << text;
+}
+
+TEST(ModelFile, ReadsTheDesignExampleWithIntegersAndWithoutOptionalTables) {
+  const ModelFile m = parse_model(R"(sensor = "gyroscope"
+m_cs = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+[terms]
+"1" = 3.44e-3
+"w_i" = 1
+"w_i * y" = -2e-7
+)",
+                                  "example.toml");
+  EXPECT_EQ(m.sensor, dataset::SensorKind::Gyroscope);
+  EXPECT_EQ(m.m_cs, frames::Dcm::Identity());
+  ASSERT_EQ(m.terms.size(), 3u);
+  EXPECT_EQ(m.terms[2].term.to_string(), "y*w_i");
+  EXPECT_EQ(m.terms[1].coefficient, 1.0);
+  EXPECT_FALSE(m.white_sd.has_value());
+  EXPECT_FALSE(m.terms[0].std.has_value());
+}
+
+TEST(ModelFile, UnknownTermIsNamedWithItsLine) {
+  const InputError e = parse_error(R"(sensor = "accelerometer"
+m_cs = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+[terms]
+"1" = 3.44e-3
+"a_q" = 0.0877
+)");
+  EXPECT_EQ(e.where().file, "model.toml");
+  EXPECT_EQ(e.where().line, 5u);
+  EXPECT_NE(std::string(e.what()).find("unknown variable 'a_q'"), std::string::npos) << e.what();
+  EXPECT_NE(std::string(e.what()).find("model.toml:5:"), std::string::npos) << e.what();
+}
+
+TEST(ModelFile, OtherErrorsNameTheirLine) {
+  const std::string head = "sensor = \"accelerometer\"\nm_cs = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n";
+  struct Bad {
+    std::string text;
+    std::size_t line;
+    const char* part;
+  };
+  for (const Bad& b : {Bad{head + "[terms]\n\"a_i*a_p\" = 1.0\n\"a_p*a_i\" = 2.0\n", 5, "same term"},
+                       Bad{head + "[terms]\n\"y\" = 1.0\n", 4, "y(k) cannot explain itself"},
+                       Bad{head + "[terms]\n\"a_i\" = \"big\"\n", 4, "finite number"},
+                       Bad{head + "[terms]\n\"a_i\" = nan\n", 4, "finite number"},
+                       Bad{head + "[terms]\n\"a_i\" = 1.0\n[std]\n\"a_p\" = 1.0\n", 6, "not in [terms]"},
+                       Bad{head + "[terms]\n\"a_i\" = 1.0\n[std]\n\"a_i\" = -1.0\n", 6, "negative"},
+                       Bad{"sensor = \"accelerometer\"\nm_cs = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]\n"
+                           "[terms]\n\"a_i\" = 1.0\n",
+                           2, "not a rotation"},
+                       Bad{"sensor = \"barometer\"\n", 1, "accelerometer"},
+                       Bad{head + "[terms]\n", 0, "empty [terms]"},
+                       Bad{head + "[terms\n", 3, ""}}) {
+    const InputError e = parse_error(b.text);
+    EXPECT_EQ(e.where().line, b.line) << e.what();
+    EXPECT_NE(std::string(e.what()).find(b.part), std::string::npos) << e.what();
+  }
+}
+
+TEST(ModelFile, WriteRefusesNonFiniteNumbers) {
+  ModelFile m = sample_model();
+  m.terms[0].coefficient = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW((void)format_model(m), InputError);
+}
+
+}  // namespace
+}  // namespace inertia::model
