@@ -179,15 +179,15 @@ struct Phase {
   PhaseKind kind = PhaseKind::Dwell;
   double duration_s = 0.0;
   // rotation: about `axis` (F_E) either at constant rate_rad_s, or through angle_rad with a smooth
-  // (raised-cosine) rate profile; exactly one of rate/angle is set.
+  // (1 - cos) rate profile; exactly one of rate/angle is set.
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
   std::optional<double> rate_rad_s;
   std::optional<double> angle_rad;
-  // sine: a = amplitude sin(2 pi f t) on the plateau, raised-cosine ramps of ramp_cycles cycles.
+  // sine: a = amplitude sin(2 pi f t) on the plateau, smooth (C2) ramps of ramp_cycles cycles.
   double frequency_hz = 0.0;
   double amplitude_mps2 = 0.0;
   double ramp_cycles = 1.0;
-  // random: flat acceleration PSD between f1 and f2 at rms_mps2; raised-cosine tapers of ramp_s.
+  // random: flat acceleration PSD between f1 and f2 at rms_mps2; smooth (C2) tapers of ramp_s.
   double f1_hz = 0.0;
   double f2_hz = 0.0;
   double rms_mps2 = 0.0;

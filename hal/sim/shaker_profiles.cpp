@@ -1,6 +1,7 @@
 #include "hal/sim/shaker_profiles.hpp"
 
 #include <unsupported/Eigen/FFT>
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <vector>
@@ -12,14 +13,18 @@ namespace inertia::sim {
 
 WindowValue ramp_window(double t, double length, double ramp) {
   if (ramp <= 0.0) return {1.0, 0.0, 0.0};
-  const double k = kPi / ramp;
-  if (t < ramp) {
-    const double u = std::max(t, 0.0);
-    return {0.5 * (1.0 - std::cos(k * u)), 0.5 * k * std::sin(k * u), 0.5 * k * k * std::cos(k * u)};
-  }
+  // w(u) = u - sin(2 pi u) / (2 pi) on u = (time into the ramp) / ramp: w' and w'' vanish at
+  // both ends, so the window is C2 and the acceleration a = (w s)'' has no step at the ramp
+  // edges (a raised cosine would leave a step of w'' there).
+  const double k = 2.0 * kPi / ramp;
+  auto up = [&](double u_s) -> WindowValue {
+    const double u = std::clamp(u_s, 0.0, ramp);
+    return {u / ramp - std::sin(k * u) / (2.0 * kPi), (1.0 - std::cos(k * u)) / ramp, k * std::sin(k * u) / ramp};
+  };
+  if (t < ramp) return up(t);
   if (t > length - ramp) {
-    const double u = std::max(length - t, 0.0);   // time to the end; d/dt = -d/du
-    return {0.5 * (1.0 - std::cos(k * u)), -0.5 * k * std::sin(k * u), 0.5 * k * k * std::cos(k * u)};
+    const WindowValue w = up(length - t);   // time to the end; d/dt = -d/du
+    return {w.w, -w.dw, w.ddw};
   }
   return {1.0, 0.0, 0.0};
 }
