@@ -6,8 +6,12 @@
 // see e.g. Kasdin, Proc. IEEE 83(5), 1995, section on rational approximations). We place
 // kSectionsPerDecade poles per decade from pink_min_hz up to Nyquist; below pink_min_hz the
 // spectrum is flat, which keeps the variance finite. The gain is set so that the standard
-// deviation per sample is exactly the requested one (computed from the stationary covariance,
-// not measured), and the state starts stationary (stationary_state.hpp).
+// deviation per sample of the whole component (the flat part below pink_min_hz included, ~5% of
+// the variance for 0.01 Hz .. 5 kHz) is exactly the requested one (computed from the stationary
+// covariance, not measured), and the state starts stationary (stationary_state.hpp).
+// Measured shape (Welch, 2^22 samples): log-log slope -0.98 .. -1.01 from 10 pink_min_hz up to
+// fs/4; the matched pole-zero mapping flattens the top octave below Nyquist (slope ~ -0.86
+// between fs/20 and 0.45 fs), where a 1/f band edge has to bend anyway.
 #include <array>
 #include <cstdint>
 
