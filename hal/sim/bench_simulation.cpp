@@ -44,9 +44,9 @@ SensorCase simulate_sensor(const config::BenchConfig& bench, const SensorParams&
                                          motion.dw_e.row(k).transpose(), sensor.position_m)
                            .transpose();
     }
-  } else {
-    out.f_e = motion.f_e;
   }
+  // No copy for a sensor at the origin: at 10 kHz the arrays are tens of MB per case.
+  const Columns3& f_e = out.reference(motion);
   out.y.resize(n);
   const std::uint64_t seed =
       derive_seed(sensor.seed, {static_cast<std::uint64_t>(Stream::Sensor), case_index});
@@ -56,14 +56,14 @@ SensorCase simulate_sensor(const config::BenchConfig& bench, const SensorParams&
     AccelerometerModel model(*acc, fs, seed);
     out.m_cs = model.m_cs();
     for (Eigen::Index k = 0; k < n; ++k) {
-      const Eigen::Vector3d a_c = m_ec * out.f_e.row(k).transpose();
+      const Eigen::Vector3d a_c = m_ec * f_e.row(k).transpose();
       out.y[k] = model.step(a_c, motion.temp_c[k] - bench.t_ref_c);
     }
   } else {
     FogModel model(std::get<FogParams>(params), fs, seed);
     out.m_cs = model.m_cs();
     for (Eigen::Index k = 0; k < n; ++k) {
-      const Eigen::Vector3d a_c = m_ec * out.f_e.row(k).transpose();
+      const Eigen::Vector3d a_c = m_ec * f_e.row(k).transpose();
       const Eigen::Vector3d w_c = m_ec * motion.w_e.row(k).transpose();
       out.y[k] = model.step(w_c, a_c, motion.temp_c[k] - bench.t_ref_c);
     }

@@ -22,8 +22,14 @@ std::vector<SensorParams> sensor_params(const config::BenchConfig& bench);
 struct SensorCase {
   MountingTruth mounting;
   frames::Dcm m_cs;           // M_C^S of the truth model
-  Columns3 f_e;               // specific force at the sensor's position, F_E, m/s^2
+  Columns3 f_e;               // specific force at the sensor's position, F_E, m/s^2; empty when
+                              // the sensor sits at the fixture origin (then it is the case's f_e)
   Eigen::VectorXd y;          // sensor output, output unit
+
+  /// The reference specific force this sensor saw.
+  [[nodiscard]] const Columns3& reference(const CaseMotion& motion) const {
+    return f_e.size() > 0 ? f_e : motion.f_e;
+  }
 };
 
 struct SimulatedCase {

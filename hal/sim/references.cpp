@@ -1,5 +1,7 @@
 #include "hal/sim/references.hpp"
 
+#include <vector>
+
 namespace inertia::sim {
 
 SingleAxisAccelerometer::SingleAxisAccelerometer(const config::MonitorAccelerometer& params, std::uint64_t seed)
@@ -12,11 +14,15 @@ CaseReferences simulate_references(const config::BenchConfig& bench, std::size_t
   const auto nm = static_cast<Eigen::Index>(bench.monitors.size());
   CaseReferences r;
   r.monitors.resize(n, nm);
+  std::vector<SingleAxisAccelerometer> monitors;
   for (Eigen::Index j = 0; j < nm; ++j) {
-    SingleAxisAccelerometer acc(
-        bench.monitors[static_cast<std::size_t>(j)],
-        derive_seed(bench.seed, {static_cast<std::uint64_t>(Stream::Monitor), case_index, static_cast<std::uint64_t>(j)}));
-    for (Eigen::Index k = 0; k < n; ++k) r.monitors(k, j) = acc.measure(motion.f_e.row(k).transpose());
+    monitors.emplace_back(bench.monitors[static_cast<std::size_t>(j)],
+                          derive_seed(bench.seed, {static_cast<std::uint64_t>(Stream::Monitor), case_index,
+                                                   static_cast<std::uint64_t>(j)}));
+  }
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const Eigen::Vector3d f = motion.f_e.row(k).transpose();
+    for (Eigen::Index j = 0; j < nm; ++j) r.monitors(k, j) = monitors[static_cast<std::size_t>(j)].measure(f);
   }
   if (bench.control_accelerometer) {
     SingleAxisAccelerometer acc(*bench.control_accelerometer,

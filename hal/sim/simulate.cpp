@@ -140,7 +140,7 @@ void write_simulation(const config::BenchConfig& bench, const BenchSimulation& s
       cd.m_ec = tc.m_ec;   // nominal: the analyzer must not see the misalignments
       cd.sample_period_s = 1.0 / bench.sample_rate_hz;
       cd.t = sc.motion.t;
-      cd.a_e = sc.sensors[s].f_e;
+      cd.a_e = sc.sensors[s].reference(sc.motion);
       cd.w_e = sc.motion.w_e;
       cd.temp = sc.motion.temp_c;
       cd.y = sc.sensors[s].y;

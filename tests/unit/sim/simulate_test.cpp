@@ -175,10 +175,10 @@ TEST(Simulate, OrientationChainEndToEndThroughANoiselessSensor) {
     const SensorCase& sc = sim.cases[c].sensors[0];
     double worst = 0.0;
     for (Eigen::Index k = 0; k < sc.y.size(); ++k) {
-      const double a_i = m_true[c].row(0).dot(sc.f_e.row(k));
+      const double a_i = m_true[c].row(0).dot(sc.reference(sim.cases[c].motion).row(k));
       worst = std::max(worst, std::abs(sc.y[k] - 0.86 * (4e-3 + a_i / kStandardGravity)));
     }
-    EXPECT_LT(worst, 1e-12 * (1.0 + sc.f_e.cwiseAbs().maxCoeff()));
+    EXPECT_LT(worst, 1e-12 * (1.0 + sc.reference(sim.cases[c].motion).cwiseAbs().maxCoeff()));
   }
 }
 
