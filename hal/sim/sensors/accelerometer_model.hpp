@@ -6,6 +6,13 @@
 // K_jj(s) = K_jj s / (s + b_jj) first-order high-pass filters.
 // Our extension (not in the paper, zero by default): temperature coefficients of bias and scale,
 //   y = K_i (1 + scale_tc T) (K_b + bias_tc T + a_i + ... + e_K),   T = temp - t_ref.
+// Discretisation (details in the .cpp): each K_jj(s) by the bilinear transform prewarped at b_jj,
+//   h(k) = p h(k-1) + g (a_j^2(k) - a_j^2(k-1)),  p = (c - b)/(c + b),  g = K_jj c/(c + b),
+//   c = b / tan(b / (2 fs)),
+// an order-1 ARX recurrence, so lagged terms (y[k-1], a_j^2[k-1]) represent it exactly.
+// Noise: e_N white; e_B pink (pink_noise.hpp), stationary from the first sample; e_K a random
+// walk starting at 0 at the first sample, each step of sd brown_sd_g / sqrt(fs). Each component
+// has its own random stream derived from the seed. sign(0) = 0.
 #include <Eigen/Dense>
 #include <cstdint>
 
