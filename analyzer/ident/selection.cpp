@@ -1,0 +1,181 @@
+#include "analyzer/ident/selection.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace inertia::ident {
+namespace {
+
+// One regression problem with its sufficient statistics, so that every subset fit costs O(p^3)
+// plus one O(N p) residual pass, and no copy of the data.
+class FitContext {
+ public:
+  FitContext(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
+             const std::vector<std::string>& labels, const OutputMultiplied& rational,
+             const UlsOptions& options)
+      : phi_(phi), y_(y), labels_(labels), rational_(rational), options_(options) {
+    if (static_cast<Index>(labels.size()) != phi.cols())
+      throw std::invalid_argument("selection: " + std::to_string(labels.size()) + " labels for " +
+                                  std::to_string(phi.cols()) + " columns");
+    if (y.size() != phi.rows()) throw std::invalid_argument("selection: y and Phi differ in length");
+    factors_ = denominator_factors(phi, y, rational, labels);
+    if (options.noise_lags == 0) stats_ = UlsStatistics::from_data(phi, y, rational.columns, factors_);
+  }
+
+  UlsResult fit(const std::vector<Index>& columns) const {
+    if (options_.noise_lags > 0)
+      return uls_batch(phi_, y_, labels_, rational_, options_, columns);
+    std::vector<std::string> names;
+    for (Index c : columns) names.push_back(labels_[static_cast<std::size_t>(c)]);
+    const UlsSolution sol = solve_uls(stats_.subset(columns), names, options_);
+    return finish_uls(phi_, y_, labels_, columns, rational_, factors_, sol, options_);
+  }
+
+  [[nodiscard]] Index samples() const { return phi_.rows(); }
+  [[nodiscard]] Index terms() const { return phi_.cols(); }
+  [[nodiscard]] const std::vector<std::string>& labels() const { return labels_; }
+
+ private:
+  Eigen::Ref<const Eigen::MatrixXd> phi_;
+  Eigen::Ref<const Eigen::VectorXd> y_;
+  const std::vector<std::string>& labels_;
+  const OutputMultiplied& rational_;
+  const UlsOptions& options_;
+  Eigen::MatrixXd factors_;
+  UlsStatistics stats_;
+};
+
+// Steps 9-12 on `columns` of `context`.
+void prune_and_score(const FitContext& context, std::vector<Index> columns,
+                     const SelectionOptions& options, double threshold, CandidateModel& model) {
+  UlsResult fit = context.fit(columns);
+  for (;;) {
+    const ParameterTTest tt =
+        parameter_t_test(fit.process_theta(), fit.std_dev.head(fit.process_terms), context.samples());
+    model.t_test = tt;
+    if (tt.p_value.size() == 0) break;
+    Eigen::Index worst = 0;
+    const double worst_p = tt.p_value.maxCoeff(&worst);
+    if (!(worst_p > threshold)) break;  // NaN p-values (dof <= 0) stop pruning too
+    std::vector<Index> keep;
+    for (Eigen::Index i = 0; i < tt.p_value.size(); ++i) {
+      const bool drop = options.one_at_a_time ? i == worst : tt.p_value[i] > threshold;
+      if (drop) {
+        model.removed.push_back(context.labels()[static_cast<std::size_t>(columns[static_cast<std::size_t>(i)])]);
+      } else {
+        keep.push_back(columns[static_cast<std::size_t>(i)]);
+      }
+    }
+    columns = std::move(keep);
+    fit = context.fit(columns);  // step 10
+  }
+  model.columns = columns;
+  model.residual_mean = residual_mean_test(fit.residuals);                         // step 12
+  model.aic = aic(fit.residuals, static_cast<Index>(fit.theta.size()));            // step 11
+  model.fit = std::move(fit);
+  model.ok = true;
+}
+
+}  // namespace
+
+bool SelectionOptions::is_valid(std::string* why) const {
+  auto fail = [why](const std::string& s) {
+    if (why != nullptr) *why = s;
+    return false;
+  };
+  if (!(alpha > 0.0 && alpha < 1.0)) return fail("alpha = " + std::to_string(alpha) + " is outside (0, 1)");
+  if (max_terms == 0 || max_terms < -1) return fail("max_terms must be -1 or >= 1");
+  return uls.is_valid(why);
+}
+
+SelectionResult select_model(const SelectionProblem& problem, const SelectionOptions& options,
+                             FitHook* hook) {
+  std::string why;
+  if (!options.is_valid(&why)) throw std::invalid_argument("selection options: " + why);
+  const FitContext base(problem.phi, problem.y, problem.labels, problem.rational, options.uls);
+  SelectionResult out;
+  out.ranking = problem.ranking;
+  if (out.ranking.empty()) out.ranking = err_rank(problem.phi, problem.y, options.err).order;
+  for (Index c : out.ranking)
+    if (c < 0 || c >= base.terms()) throw std::invalid_argument("selection: ranking index out of range");
+  const std::size_t count =
+      options.max_terms < 0 ? out.ranking.size()
+                            : std::min(out.ranking.size(), static_cast<std::size_t>(options.max_terms));
+
+  // Bonferroni over the search space: the j-th ranked term is the best of the candidates left,
+  // so its own p-value is optimistic; alpha / (number of candidates) bounds the family-wise rate
+  // of keeping any spurious term by alpha.
+  const double threshold =
+      options.multiplicity == Multiplicity::Bonferroni
+          ? options.alpha / static_cast<double>(std::max<std::size_t>(out.ranking.size(), 1))
+          : options.alpha;
+  StageProblem stage;
+  Index scored_samples = -1;
+  for (std::size_t j = 1; j <= count; ++j) {
+    CandidateModel model;
+    model.ranked_terms = j;
+    try {
+      const std::vector<Index> ranked(out.ranking.begin(), out.ranking.begin() + static_cast<std::ptrdiff_t>(j));
+      if (hook != nullptr) {
+        const UlsResult ranked_fit = base.fit(ranked);  // step 5
+        model.transformed = hook->transform(j, ranked_fit, stage);
+      }
+      if (model.transformed) {
+        const FitContext staged(stage.phi, stage.y, stage.labels, stage.rational, options.uls);
+        std::vector<Index> all(static_cast<std::size_t>(staged.terms()));
+        for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<Index>(i);
+        if (scored_samples >= 0 && staged.samples() != scored_samples)
+          throw std::invalid_argument("selection: hook returned " + std::to_string(staged.samples()) +
+                                      " samples, earlier models had " + std::to_string(scored_samples) +
+                                      " (AIC needs the same N)");
+        scored_samples = staged.samples();
+        prune_and_score(staged, std::move(all), options, threshold, model);
+      } else {
+        if (scored_samples >= 0 && base.samples() != scored_samples)
+          throw std::invalid_argument("selection: models scored on different sample counts");
+        scored_samples = base.samples();
+        prune_and_score(base, ranked, options, threshold, model);
+      }
+    } catch (const IdentifiabilityError& e) {
+      model.ok = false;
+      model.failure = e.what();
+    } catch (const std::runtime_error& e) {
+      model.ok = false;
+      model.failure = e.what();
+    }
+    out.candidates.push_back(std::move(model));
+  }
+
+  // Step 14: relative likelihood and fitness over the models that could be fitted.
+  Eigen::VectorXd aics(static_cast<Eigen::Index>(out.candidates.size()));
+  for (std::size_t i = 0; i < out.candidates.size(); ++i)
+    aics[static_cast<Eigen::Index>(i)] =
+        out.candidates[i].ok ? out.candidates[i].aic : std::numeric_limits<double>::quiet_NaN();
+  const Eigen::VectorXd p_aic = relative_likelihood(aics);
+  bool any = false;
+  for (std::size_t i = 0; i < out.candidates.size(); ++i) {
+    CandidateModel& m = out.candidates[i];
+    if (!m.ok) continue;
+    m.p_aic = p_aic[static_cast<Eigen::Index>(i)];
+    m.fitness = fitness(m.residual_mean.p_value, m.p_aic);
+    if (!any) {
+      out.best = i;
+      any = true;
+      continue;
+    }
+    const CandidateModel& b = out.candidates[out.best];
+    // Step 15; ties (e.g. several j pruned to the same model) go to the smaller model.
+    if (m.fitness > b.fitness * (1.0 + 1e-12) ||
+        (m.fitness >= b.fitness * (1.0 - 1e-12) && m.fit.theta.size() < b.fit.theta.size()))
+      out.best = i;
+  }
+  if (!any) {
+    throw std::runtime_error("selection: no candidate model could be fitted" +
+                             (out.candidates.empty() ? std::string() : ": " + out.candidates.front().failure));
+  }
+  return out;
+}
+
+}  // namespace inertia::ident

@@ -1,0 +1,446 @@
+#include "analyzer/ident/uls_batch.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+
+namespace inertia::ident {
+namespace {
+
+// Copies the lower triangle onto the upper one (after a SYRK rankUpdate), element by element so
+// no aliasing question arises.
+void mirror_lower(Eigen::MatrixXd& m) {
+  for (Eigen::Index j = 1; j < m.cols(); ++j)
+    for (Eigen::Index i = 0; i < j; ++i) m(i, j) = m(j, i);
+}
+
+std::string format_double(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+
+// Position of `column` in rational.columns, or -1.
+Index factor_index(const OutputMultiplied& rational, Index column) {
+  const auto it = std::find(rational.columns.begin(), rational.columns.end(), column);
+  return it == rational.columns.end() ? -1 : static_cast<Index>(it - rational.columns.begin());
+}
+
+// Rows per block in the data passes that build p x p products, so the temporaries stay small
+// (a few MB) whatever N is.
+constexpr Index kBlockRows = 4096;
+
+}  // namespace
+
+bool UlsOptions::is_valid(std::string* why) const {
+  auto fail = [why](const std::string& s) {
+    if (why != nullptr) *why = s;
+    return false;
+  };
+  if (noise_lags < 0) return fail("noise_lags = " + std::to_string(noise_lags) + " is negative");
+  if (max_iterations < 1) return fail("max_iterations must be >= 1");
+  if (max_noise_iterations < 1) return fail("max_noise_iterations must be >= 1");
+  if (!(tolerance > 0.0)) return fail("tolerance must be > 0");
+  if (!(max_correction > 0.0 && max_correction < 1.0))
+    return fail("max_correction = " + format_double(max_correction) + " is outside (0, 1)");
+  if (!(min_rcond > 0.0 && min_rcond < 1.0))
+    return fail("min_rcond = " + format_double(min_rcond) + " is outside (0, 1)");
+  if (!(null_vector_share > 0.0 && null_vector_share <= 1.0))
+    return fail("null_vector_share is outside (0, 1]");
+  return true;
+}
+
+UlsStatistics UlsStatistics::from_data(const Eigen::Ref<const Eigen::MatrixXd>& phi,
+                                       const Eigen::Ref<const Eigen::VectorXd>& y,
+                                       std::span<const Index> output_multiplied_columns,
+                                       const Eigen::Ref<const Eigen::MatrixXd>& factors) {
+  const Index n = phi.rows();
+  const Index p = phi.cols();
+  UlsStatistics s;
+  s.samples = n;
+  // SYRK (half the flops of a GEMM): the only O(N p^2) work of a polynomial fit.
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(p, p);
+  g.selfadjointView<Eigen::Lower>().rankUpdate(phi.transpose());
+  mirror_lower(g);
+  Eigen::VectorXd sign = Eigen::VectorXd::Ones(p);
+  for (Index c : output_multiplied_columns) sign[c] = -1.0;
+  s.scale = (g.diagonal() / static_cast<double>(std::max<Index>(n, 1))).cwiseSqrt();
+  const Eigen::VectorXd inv =
+      (s.scale.array() > 0.0).select(sign.array() / s.scale.array(), sign.array()).matrix();
+  s.gram = inv.asDiagonal() * g * inv.asDiagonal();
+  s.cross = inv.asDiagonal() * (phi.transpose() * y);
+  s.yy = y.squaredNorm();
+  s.s11 = static_cast<double>(n);
+  // Denominator positions ascending; factors follow output_multiplied_columns' order.
+  std::vector<std::pair<Index, Index>> den;  // (position, factor column)
+  for (std::size_t t = 0; t < output_multiplied_columns.size(); ++t)
+    den.emplace_back(output_multiplied_columns[t], static_cast<Index>(t));
+  std::sort(den.begin(), den.end());
+  const Index q = static_cast<Index>(den.size());
+  Eigen::MatrixXd f(n, q);
+  Eigen::VectorXd fscale(q);
+  for (Index a = 0; a < q; ++a) {
+    s.denominator.push_back(den[a].first);
+    f.col(a) = factors.col(den[a].second);
+    const double sc = s.scale[den[a].first];
+    fscale[a] = sc > 0.0 ? 1.0 / sc : 1.0;
+  }
+  s.den_gram = fscale.asDiagonal() * (f.transpose() * f) * fscale.asDiagonal();
+  s.den_sum = fscale.asDiagonal() * f.colwise().sum().transpose();
+  return s;
+}
+
+UlsStatistics UlsStatistics::subset(std::span<const Index> positions) const {
+  UlsStatistics s;
+  const Index m = static_cast<Index>(positions.size());
+  s.samples = samples;
+  s.yy = yy;
+  s.s11 = s11;
+  s.scale.resize(m);
+  s.gram.resize(m, m);
+  s.cross.resize(m);
+  std::vector<Index> old_den;
+  for (Index i = 0; i < m; ++i) {
+    const Index pi = positions[i];
+    s.scale[i] = scale[pi];
+    s.cross[i] = cross[pi];
+    for (Index j = 0; j < m; ++j) s.gram(i, j) = gram(pi, positions[j]);
+    const auto it = std::find(denominator.begin(), denominator.end(), pi);
+    if (it != denominator.end()) {
+      s.denominator.push_back(i);
+      old_den.push_back(static_cast<Index>(it - denominator.begin()));
+    }
+  }
+  const Index q = static_cast<Index>(old_den.size());
+  s.den_gram.resize(q, q);
+  s.den_sum.resize(q);
+  for (Index a = 0; a < q; ++a) {
+    s.den_sum[a] = den_sum[old_den[a]];
+    for (Index b = 0; b < q; ++b) s.den_gram(a, b) = den_gram(old_den[a], old_den[b]);
+  }
+  return s;
+}
+
+UlsSolution solve_uls(const UlsStatistics& stats, const std::vector<std::string>& labels,
+                      const UlsOptions& options) {
+  const Index p = stats.terms();
+  const double n = static_cast<double>(stats.samples);
+  UlsSolution out;
+  out.theta = Eigen::VectorXd::Zero(p);
+  if (p == 0) {
+    out.sigma2 = stats.yy / std::max(n, 1.0);
+    out.condition_number = 1.0;
+    out.converged = true;
+    return out;
+  }
+  auto label = [&labels](Index j) {
+    return j < static_cast<Index>(labels.size()) ? labels[j] : "column " + std::to_string(j);
+  };
+  for (Index j = 0; j < p; ++j) {
+    if (!(stats.scale[j] > 0.0)) {
+      throw IdentifiabilityError("unidentifiable term set: '" + label(j) + "' is identically zero",
+                                 {label(j)}, 0.0);
+    }
+  }
+  // Unit-diagonal correlation-like matrix: its eigenvalues measure collinearity directly.
+  const Eigen::MatrixXd unit = stats.gram / n;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(unit);
+  const Eigen::VectorXd& lambda = eig.eigenvalues();
+  const double lmax = lambda[p - 1];
+  const double rcond = lmax > 0.0 ? std::max(lambda[0], 0.0) / lmax : 0.0;
+  out.condition_number = rcond > 0.0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
+  if (!(rcond >= options.min_rcond)) {
+    // Name every column that carries weight in a null-space direction (there may be several).
+    std::vector<bool> involved(static_cast<std::size_t>(p), false);
+    std::string vectors;
+    for (Index k = 0; k < p && !(lambda[k] > options.min_rcond * lmax); ++k) {
+      const Eigen::VectorXd v = eig.eigenvectors().col(k);
+      const double vmax = v.cwiseAbs().maxCoeff();
+      std::string combo;
+      for (Index j = 0; j < p; ++j) {
+        if (std::abs(v[j]) >= options.null_vector_share * vmax) {
+          involved[static_cast<std::size_t>(j)] = true;
+          combo += (combo.empty() ? "" : " + ") + format_double(v[j]) + "*(" + label(j) + ")";
+        }
+      }
+      vectors += (vectors.empty() ? "" : "; ") + combo + " ~ 0";
+    }
+    std::vector<std::string> names;
+    std::string list;
+    for (Index j = 0; j < p; ++j) {
+      if (involved[static_cast<std::size_t>(j)]) {
+        names.push_back(label(j));
+        list += (list.empty() ? "" : ", ") + label(j);
+      }
+    }
+    throw IdentifiabilityError("unidentifiable term set: {" + list +
+                                   "} are linearly dependent (reciprocal condition " +
+                                   format_double(rcond) + " < " + format_double(options.min_rcond) +
+                                   " of the RMS-scaled Phi'Phi; scaled null vector " + vectors + ")",
+                               std::move(names), rcond);
+  }
+  // R_s^-1 from the eigen-decomposition (already computed, and well conditioned past the check).
+  const Eigen::MatrixXd r_inv = eig.eigenvectors() * lambda.cwiseInverse().asDiagonal() *
+                                eig.eigenvectors().transpose() / n;
+  Eigen::VectorXd theta = r_inv * stats.cross;
+  const Eigen::VectorXd inv_scale = stats.scale.cwiseInverse();
+  out.gram_inverse = inv_scale.asDiagonal() * r_inv * inv_scale.asDiagonal();
+
+  const std::vector<Index>& den = stats.denominator;
+  const Index q = static_cast<Index>(den.size());
+  auto zeta_energy = [&stats](const Eigen::VectorXd& th) {
+    return std::max(stats.yy - 2.0 * th.dot(stats.cross) + th.dot(stats.gram * th), 0.0);
+  };
+  if (q == 0) {
+    // Polynomial model: Psi = 0, the correction vanishes and ULS is LS (b == 1, sum b^2 = N).
+    out.sigma2 = zeta_energy(theta) / stats.s11;
+    out.iterations = 1;
+    out.converged = true;
+    out.corrected_inverse = out.gram_inverse;
+    out.theta = inv_scale.cwiseProduct(theta);
+    return out;
+  }
+  // PD guard (notes §3 step 3): only the q x q block of R^-1 D matters.
+  Eigen::MatrixXd r_inv_bb(q, q);
+  for (Index a = 0; a < q; ++a)
+    for (Index b = 0; b < q; ++b) r_inv_bb(a, b) = r_inv(den[a], den[b]);
+  const Eigen::EigenSolver<Eigen::MatrixXd> guard(r_inv_bb * stats.den_gram, false);
+  const double rho = guard.eigenvalues().real().maxCoeff();
+  const double sigma2_max =
+      rho > 0.0 ? options.max_correction / rho : std::numeric_limits<double>::infinity();
+
+  Eigen::MatrixXd m(p, p);
+  Eigen::VectorXd rhs(p);
+  Eigen::VectorXd theta_b(q);
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(p);
+  double sigma2 = 0.0;
+  for (int it = 1; it <= options.max_iterations; ++it) {
+    for (Index a = 0; a < q; ++a) theta_b[a] = theta[den[a]];
+    const double b_energy =
+        stats.s11 + 2.0 * theta_b.dot(stats.den_sum) + theta_b.dot(stats.den_gram * theta_b);
+    double sigma2_new = b_energy > 0.0 ? zeta_energy(theta) / b_energy : 0.0;
+    sigma2_new = std::clamp(sigma2_new, 0.0, sigma2_max);
+    m = stats.gram;
+    rhs = stats.cross;
+    for (Index a = 0; a < q; ++a) {
+      rhs[den[a]] += sigma2_new * stats.den_sum[a];
+      for (Index b = 0; b < q; ++b) m(den[a], den[b]) -= sigma2_new * stats.den_gram(a, b);
+    }
+    ldlt.compute(m);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0.0).all()) {
+      throw std::runtime_error("ULS: corrected normal matrix R - sigma^2 Psi is not positive "
+                               "definite at sigma^2 = " + format_double(sigma2_new));
+    }
+    const Eigen::VectorXd theta_new = ldlt.solve(rhs);
+    const bool small_step = (theta_new - theta).norm() <= options.tolerance * theta_new.norm();
+    const bool small_sigma = std::abs(sigma2_new - sigma2) <= options.tolerance * sigma2_new;
+    theta = theta_new;
+    sigma2 = sigma2_new;
+    out.iterations = it;
+    if (small_step && small_sigma) {
+      out.converged = true;
+      break;
+    }
+  }
+  out.sigma2 = sigma2;
+  const Eigen::MatrixXd m_inv = ldlt.solve(Eigen::MatrixXd::Identity(p, p));
+  out.corrected_inverse = inv_scale.asDiagonal() * m_inv * inv_scale.asDiagonal();
+  out.theta = inv_scale.cwiseProduct(theta);
+  return out;
+}
+
+Eigen::MatrixXd denominator_factors(const Eigen::Ref<const Eigen::MatrixXd>& phi,
+                                    const Eigen::Ref<const Eigen::VectorXd>& y,
+                                    const OutputMultiplied& rational,
+                                    const std::vector<std::string>& labels) {
+  const Index n = phi.rows();
+  const Index q = static_cast<Index>(rational.columns.size());
+  for (Index c : rational.columns) {
+    if (c < 0 || c >= phi.cols())
+      throw std::invalid_argument("output-multiplied column " + std::to_string(c) +
+                                  " is outside the regression matrix");
+  }
+  if (rational.factors.size() > 0) {
+    if (rational.factors.rows() != n || rational.factors.cols() != q)
+      throw std::invalid_argument("output-multiplied factors must be N x q (" + std::to_string(n) +
+                                  " x " + std::to_string(q) + ")");
+    return rational.factors;
+  }
+  Eigen::MatrixXd f(n, q);
+  for (Index t = 0; t < q; ++t) {
+    const Index c = rational.columns[static_cast<std::size_t>(t)];
+    for (Index k = 0; k < n; ++k) {
+      if (y[k] == 0.0) {
+        const std::string name =
+            c < static_cast<Index>(labels.size()) ? labels[c] : "column " + std::to_string(c);
+        throw std::invalid_argument("cannot recover the factor of output-multiplied term '" + name +
+                                    "' at sample " + std::to_string(k) +
+                                    " (y = 0); pass OutputMultiplied::factors");
+      }
+      f(k, t) = phi(k, c) / y[k];
+    }
+  }
+  return f;
+}
+
+UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
+                     const Eigen::Ref<const Eigen::VectorXd>& y,
+                     const std::vector<std::string>& labels, std::span<const Index> columns,
+                     const OutputMultiplied& rational,
+                     const Eigen::Ref<const Eigen::MatrixXd>& factors, const UlsSolution& solution,
+                     const UlsOptions& options) {
+  const Index n = phi.rows();
+  const Index p = static_cast<Index>(columns.size());
+  UlsResult out;
+  out.process_terms = p;
+  out.theta = solution.theta;
+  out.sigma2 = solution.sigma2;
+  out.iterations = solution.iterations;
+  out.converged = solution.converged;
+  out.condition_number = solution.condition_number;
+  for (Index c : columns) out.labels.push_back(labels[static_cast<std::size_t>(c)]);
+
+  // a(k), b(k) and zeta(k) = y b - a, column by column (no copy of the columns).
+  Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
+  Eigen::VectorXd b = Eigen::VectorXd::Ones(n);
+  Eigen::VectorXd lin = Eigen::VectorXd::Zero(n);  // sum theta_j phi_lin,j
+  std::vector<Index> fidx(static_cast<std::size_t>(p), -1);
+  for (Index j = 0; j < p; ++j) {
+    const Index c = columns[j];
+    fidx[static_cast<std::size_t>(j)] = factor_index(rational, c);
+    const double th = solution.theta[j];
+    if (fidx[static_cast<std::size_t>(j)] < 0) {
+      a.noalias() += th * phi.col(c);
+      lin.noalias() += th * phi.col(c);
+    } else {
+      b.noalias() += th * factors.col(fidx[static_cast<std::size_t>(j)]);
+      lin.noalias() -= th * phi.col(c);
+    }
+  }
+  out.residuals = y - a.cwiseQuotient(b);
+  const Eigen::VectorXd zeta = y - lin;
+  const double dof = static_cast<double>(std::max<Index>(n - p, 1));
+  out.residual_variance = out.residuals.squaredNorm() / dof;
+  const bool rational_fit =
+      std::any_of(fidx.begin(), fidx.end(), [](Index f) { return f >= 0; });
+  CovarianceKind kind = options.covariance;
+  if (kind == CovarianceKind::Auto)
+    kind = rational_fit ? CovarianceKind::Sandwich : CovarianceKind::Classical;
+  out.covariance_kind = kind;
+  if (kind == CovarianceKind::Classical) {
+    // The linear-form residual zeta is what the regression leaves; for b == 1 it equals eps.
+    out.covariance = (zeta.squaredNorm() / dof) * solution.gram_inverse;
+  } else {
+    // notes §6.1: g_k = phi_lin(k) zeta(k) + sigma^2 [0; p_b(k) b(k)],  S = sum g g'.
+    Eigen::MatrixXd s = Eigen::MatrixXd::Zero(p, p);
+    Eigen::MatrixXd g(std::min(kBlockRows, n), p);
+    for (Index k0 = 0; k0 < n; k0 += kBlockRows) {
+      const Index rows = std::min(kBlockRows, n - k0);
+      for (Index j = 0; j < p; ++j) {
+        const Index c = columns[j];
+        const Index f = fidx[static_cast<std::size_t>(j)];
+        if (f < 0) {
+          g.col(j).head(rows) = phi.col(c).segment(k0, rows).cwiseProduct(zeta.segment(k0, rows));
+        } else {
+          g.col(j).head(rows) =
+              -phi.col(c).segment(k0, rows).cwiseProduct(zeta.segment(k0, rows)) +
+              solution.sigma2 *
+                  factors.col(f).segment(k0, rows).cwiseProduct(b.segment(k0, rows));
+        }
+      }
+      s.selfadjointView<Eigen::Lower>().rankUpdate(g.topRows(rows).transpose());
+    }
+    mirror_lower(s);
+    out.covariance = solution.corrected_inverse * s * solution.corrected_inverse;
+  }
+  out.std_dev = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  return out;
+}
+
+UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
+                    const Eigen::Ref<const Eigen::VectorXd>& y,
+                    const std::vector<std::string>& labels, const OutputMultiplied& rational,
+                    const UlsOptions& options, std::span<const Index> columns) {
+  std::string why;
+  if (!options.is_valid(&why)) throw std::invalid_argument("ULS options: " + why);
+  if (static_cast<Index>(labels.size()) != phi.cols())
+    throw std::invalid_argument("ULS: " + std::to_string(labels.size()) + " labels for " +
+                                std::to_string(phi.cols()) + " columns");
+  if (y.size() != phi.rows())
+    throw std::invalid_argument("ULS: y has " + std::to_string(y.size()) + " samples, Phi " +
+                                std::to_string(phi.rows()) + " rows");
+  std::vector<Index> cols(columns.begin(), columns.end());
+  if (cols.empty()) {
+    cols.resize(static_cast<std::size_t>(phi.cols()));
+    std::iota(cols.begin(), cols.end(), Index{0});
+  }
+  const Index p = static_cast<Index>(cols.size());
+  const Index n_e = options.noise_lags;
+  if (phi.rows() <= p + n_e)
+    throw std::invalid_argument("ULS: " + std::to_string(phi.rows()) + " samples for " +
+                                std::to_string(p + n_e) + " parameters");
+  const Eigen::MatrixXd all_factors = denominator_factors(phi, y, rational, labels);
+
+  // Work on a compact copy [Phi(:, cols), E]: the ELS passes rebuild E in place.
+  const Index n = phi.rows();
+  Eigen::MatrixXd x(n, p + n_e);
+  std::vector<std::string> xlabels;
+  OutputMultiplied xr;
+  std::vector<Index> xden_cols;  // columns of all_factors in xr order
+  for (Index j = 0; j < p; ++j) {
+    const Index c = cols[static_cast<std::size_t>(j)];
+    if (c < 0 || c >= phi.cols()) throw std::invalid_argument("ULS: column index out of range");
+    x.col(j) = phi.col(c);
+    xlabels.push_back(labels[static_cast<std::size_t>(c)]);
+    const Index f = factor_index(rational, c);
+    if (f >= 0) {
+      xr.columns.push_back(j);
+      xden_cols.push_back(f);
+    }
+  }
+  Eigen::MatrixXd xf(n, static_cast<Index>(xden_cols.size()));
+  for (Index t = 0; t < xf.cols(); ++t) xf.col(t) = all_factors.col(xden_cols[static_cast<std::size_t>(t)]);
+  for (Index i = 1; i <= n_e; ++i) xlabels.push_back("e[k-" + std::to_string(i) + "]");
+  std::vector<Index> xcols(static_cast<std::size_t>(p));
+  std::iota(xcols.begin(), xcols.end(), Index{0});
+
+  // Process-only fit first: it gives the residuals the noise columns are built from.
+  UlsStatistics stats =
+      UlsStatistics::from_data(x.leftCols(p), y, xr.columns, xf);
+  UlsSolution sol = solve_uls(stats, xlabels, options);
+  UlsResult res = finish_uls(x.leftCols(p), y, xlabels, xcols, xr, xf, sol, options);
+  if (n_e == 0) return res;
+
+  // ELS (notes §3 step 5): rebuild e[k-i] from the current residuals and refit until stable.
+  xcols.resize(static_cast<std::size_t>(p + n_e));
+  std::iota(xcols.begin(), xcols.end(), Index{0});
+  Eigen::VectorXd previous = Eigen::VectorXd::Zero(p + n_e);
+  previous.head(p) = res.theta;
+  int total_iterations = res.iterations;
+  bool converged = false;
+  int pass = 0;
+  for (pass = 1; pass <= options.max_noise_iterations; ++pass) {
+    for (Index i = 1; i <= n_e; ++i) {
+      x.col(p + i - 1).head(std::min(i, n)).setZero();  // residuals before the record: 0
+      if (n > i) x.col(p + i - 1).tail(n - i) = res.residuals.head(n - i);
+    }
+    stats = UlsStatistics::from_data(x, y, xr.columns, xf);
+    sol = solve_uls(stats, xlabels, options);
+    res = finish_uls(x, y, xlabels, xcols, xr, xf, sol, options);
+    total_iterations += sol.iterations;
+    const bool small = (res.theta - previous).norm() <= options.tolerance * res.theta.norm();
+    previous = res.theta;
+    if (small && sol.converged) {
+      converged = true;
+      break;
+    }
+  }
+  res.process_terms = p;
+  res.iterations = total_iterations;
+  res.noise_iterations = std::min(pass, options.max_noise_iterations);
+  res.converged = converged;
+  return res;
+}
+
+}  // namespace inertia::ident
