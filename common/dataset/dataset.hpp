@@ -25,6 +25,10 @@ struct CaseData {
   CaseKind kind = CaseKind::Static;
   std::string file;                                   // CSV file name, relative to the dataset folder
   frames::Dcm m_ec = frames::Dcm::Identity();         // nominal M_E^C (rows: IRA, XRA, YRA in F_E)
+  // Optional (extension of the design's dataset.toml): cases with the same label share one sensor
+  // mounting, so one unknown case misalignment (e.g. the three shaker orientations of the paper's
+  // Fig. 2: the fixture is remounted, the sensor is not). Empty: a mounting of its own.
+  std::string mounting;
   double sample_period_s = 0.0;                       // from the uniform `t` column
   Eigen::VectorXd t;                                  // s
   Matrix3Columns a_e;                                 // reference specific force in F_E, m/s^2

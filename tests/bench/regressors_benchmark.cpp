@@ -1,6 +1,7 @@
 // Speed of the two bulk paths of an identification run:
 //  - BM_BuildRegression: Phi for N = 1e6 samples x 60 terms (the order-4 eq. 2 candidate set cut
 //    to 60 terms: squares, products, abs/sign, lags, y lags), the size algorithm 2 starts from.
+//  - BM_FillRegressors: the same into a Phi allocated once (no page faults): the compute cost.
 //  - BM_ReadDataset: one case CSV of 1e6 rows x 9 columns (t, a, w, temp, y) as the daemon's
 //    10 kHz recordings produce, parsed by read_dataset. Items = rows.
 // Run: build/bench/bench_regressors [--benchmark_filter=...]
@@ -50,6 +51,26 @@ void BM_BuildRegression(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * kSamples);
 }
 BENCHMARK(BM_BuildRegression)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The same columns into a Phi allocated once: the compute cost without the kernel's first-touch
+// of ~480 MB of fresh pages that every build_regression call pays.
+void BM_FillRegressors(benchmark::State& state) {
+  const ident::SignalSet signals = random_signals(kSamples);
+  ident::CandidateOptions options;
+  options.r = 4;
+  std::vector<ident::Term> terms =
+      ident::candidate_terms(dataset::SensorKind::Accelerometer, ident::ModelFrame::ExternalAndSensor, options);
+  terms.resize(kTerms);
+  const Eigen::Index first_row = ident::first_usable_row(terms);
+  Eigen::MatrixXd phi = Eigen::MatrixXd::Zero(kSamples - first_row, static_cast<Eigen::Index>(terms.size()));
+  for (auto _ : state) {
+    ident::fill_regressors(terms, signals, first_row, phi);
+    benchmark::DoNotOptimize(phi.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(state.iterations() * kSamples);
+}
+BENCHMARK(BM_FillRegressors)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 std::filesystem::path make_dataset(Eigen::Index rows) {
   const auto dir = std::filesystem::temp_directory_path() / "inertia-bench-dataset";

@@ -77,6 +77,7 @@ Dataset sample_dataset() {
   full.kind = CaseKind::Shaker;
   full.file = "shaker-ia.csv";
   full.m_ec = frames::frame_rotation(Eigen::Vector3d(0.3, -1.0, 0.2), 0.7);
+  full.mounting = "shaker fixture";
   const Eigen::Index n = 500;
   full.t.resize(n);
   full.a_e.resize(n, 3);
@@ -125,6 +126,7 @@ TEST(Dataset, RoundTripIsExactAndBytesAreDeterministic) {
     EXPECT_EQ(y.name, x.name);
     EXPECT_EQ(y.kind, x.kind);
     EXPECT_EQ(y.file, x.file);
+    EXPECT_EQ(y.mounting, x.mounting);
     EXPECT_EQ(y.m_ec, x.m_ec);   // bitwise: shortest round-trip digits
     EXPECT_EQ(y.t, x.t);
     EXPECT_EQ(y.a_e, x.a_e);
