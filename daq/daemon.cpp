@@ -1,0 +1,322 @@
+#include "daq/daemon.hpp"
+
+#include <signal.h>
+#include <sys/mman.h>
+#include <systemd/sd-daemon.h>
+#include <time.h>
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <lcm/lcm-cpp.hpp>
+#include <sstream>
+
+#include "common/config/bench_config.hpp"
+#include "common/input_error.hpp"
+#include "daq/log_writer.hpp"
+#include "daq/publisher.hpp"
+#include "daq/real_bench.hpp"
+#include "hal/device.hpp"
+
+namespace inertia::daq {
+namespace {
+
+double to_number(const std::string& option, const std::string& text) {
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used == text.size()) return v;
+  } catch (const std::exception&) {
+  }
+  throw InputError("option " + option + ": '" + text + "' is not a number");
+}
+
+// "AT+DUR" -> (AT, DUR)
+std::pair<double, double> at_for(const std::string& option, const std::string& text) {
+  const auto plus = text.find('+');
+  if (plus == std::string::npos) throw InputError("option --fault " + option + ": expected AT+DURATION, got '" + text + "'");
+  return {to_number("--fault " + option, text.substr(0, plus)), to_number("--fault " + option, text.substr(plus + 1))};
+}
+
+void parse_fault(const std::string& spec, DaemonOptions& o) {
+  const auto at = spec.find('@');
+  const std::string kind = spec.substr(0, at);
+  const std::string arg = at == std::string::npos ? std::string() : spec.substr(at + 1);
+  if (kind == "bus-off") {
+    std::tie(o.faults.bus_off_at_s, o.faults.bus_off_s) = at_for(kind, arg);
+  } else if (kind == "modbus-gone") {
+    std::tie(o.faults.modbus_gone_at_s, o.faults.modbus_gone_s) = at_for(kind, arg);
+  } else if (kind == "log-stall") {
+    const auto [a, ms] = at_for(kind, arg);
+    o.log_stall_after_s = a;
+    o.log_stall_ms = static_cast<int>(ms);
+  } else if (kind == "encoder-glitch") {
+    o.faults.glitch_every = static_cast<std::size_t>(to_number("--fault encoder-glitch", arg));
+  } else {
+    throw InputError("option --fault: unknown fault '" + kind +
+                     "' (known: bus-off@AT+S, modbus-gone@AT+S, log-stall@AT+MS, encoder-glitch@N)");
+  }
+}
+
+volatile sig_atomic_t g_unused = 0;
+
+}  // namespace
+
+const char* usage() {
+  return "usage: inertia-daqd --config FILE [--duration S] [--log DIR] [options]\n"
+         "  --config FILE        bench file (config/*.toml)\n"
+         "  --duration S         stop after S seconds (simulated seconds on a sim bench; default: the\n"
+         "                       plan once on a sim bench, until SIGTERM on a real one)\n"
+         "  --log DIR            durable event log (LCM log format) in DIR; SIGHUP starts a new file\n"
+         "  --fast               sim bench: as fast as possible instead of paced in real time\n"
+         "  --lcm-url URL        LCM provider (default: $LCM_DEFAULT_URL or LCM's default)\n"
+         "  --block-ms MS        sample block length (default 10)\n"
+         "  --rotate-mb MB       start a new log file past MB megabytes (default 256)\n"
+         "  --log-queue N        messages buffered for the log writer (default 512)\n"
+         "  --ring N             samples buffered per device (default 131072)\n"
+         "  --fifo-priority P    SCHED_FIFO priority of the sampling threads (default: off)\n"
+         "  --cpu N              pin the sampling threads to CPU N\n"
+         "  --mlock              mlockall(MCL_CURRENT | MCL_FUTURE)\n"
+         "  --fault SPEC         sim bench fault: bus-off@AT+S, modbus-gone@AT+S, log-stall@AT+MS,\n"
+         "                       encoder-glitch@N (times in simulated seconds)\n";
+}
+
+DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
+  DaemonOptions o;
+  *help = false;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    auto value = [&]() -> const std::string& {
+      if (i + 1 >= args.size()) throw InputError("option " + a + " needs a value");
+      return args[++i];
+    };
+    if (a == "--help" || a == "-h") *help = true;
+    else if (a == "--config") o.config = value();
+    else if (a == "--duration") o.duration_s = to_number(a, value());
+    else if (a == "--log") o.log_dir = value();
+    else if (a == "--lcm-url") o.lcm_url = value();
+    else if (a == "--fast") o.fast = true;
+    else if (a == "--block-ms") o.block_ms = to_number(a, value());
+    else if (a == "--rotate-mb") o.rotate_mb = to_number(a, value());
+    else if (a == "--log-queue") o.log_queue = static_cast<std::size_t>(to_number(a, value()));
+    else if (a == "--ring") o.ring = static_cast<std::size_t>(to_number(a, value()));
+    else if (a == "--fifo-priority") o.fifo_priority = static_cast<int>(to_number(a, value()));
+    else if (a == "--cpu") o.cpu = static_cast<int>(to_number(a, value()));
+    else if (a == "--mlock") o.mlock = true;
+    else if (a == "--fault") parse_fault(value(), o);
+    else throw InputError("unknown option '" + a + "'\n" + usage());
+  }
+  if (*help) return o;
+  if (o.config.empty()) throw InputError(std::string("--config FILE is required\n") + usage());
+  if (o.duration_s < 0) throw InputError("option --duration: must be >= 0");
+  if (o.block_ms <= 0) throw InputError("option --block-ms: must be > 0");
+  if (o.rotate_mb <= 0) throw InputError("option --rotate-mb: must be > 0");
+  if (o.log_queue < 4) throw InputError("option --log-queue: must be >= 4");
+  if (o.ring < 1024) throw InputError("option --ring: must be >= 1024");
+  return o;
+}
+
+bool has_multicast_route() {
+  std::ifstream in("/proc/net/route");
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::istringstream ss(line);
+    std::string iface, dest, gateway, flags, refcnt, use, metric, mask;
+    if (!(ss >> iface >> dest >> gateway >> flags >> refcnt >> use >> metric >> mask)) continue;
+    // Little-endian hex: 224.0.0.0 is 000000E0. A route covers it when (224.0.0.0 & mask) == dest.
+    const auto d = static_cast<std::uint32_t>(std::stoul(dest, nullptr, 16));
+    const auto m = static_cast<std::uint32_t>(std::stoul(mask, nullptr, 16));
+    if ((0x000000E0u & m) == d) return true;
+  }
+  return false;
+}
+
+int run_daemon(const DaemonOptions& o) {
+  const config::BenchConfig bench = config::load_bench_config(o.config);  // InputError -> exit 2
+
+  // Signals are taken synchronously by the supervisor: block them before any thread starts so
+  // every thread inherits the mask.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGHUP);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  ::signal(SIGPIPE, SIG_IGN);
+  (void)g_unused;
+
+  if (o.mlock && ::mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
+    std::cerr << "inertia-daqd: warning: mlockall: " << std::strerror(errno) << " (needs CAP_IPC_LOCK or LimitMEMLOCK); running without it\n";
+
+  // LCM self-check: udpm needs a multicast route even on one host (daq.md section 1).
+  const std::string url = !o.lcm_url.empty() ? o.lcm_url : (std::getenv("LCM_DEFAULT_URL") ? std::getenv("LCM_DEFAULT_URL") : "");
+  const bool udpm = url.empty() || url.rfind("udpm://", 0) == 0;
+  if (udpm && !has_multicast_route()) {
+    std::cerr << "inertia-daqd: LCM needs a multicast route and this host has none (no 224.0.0.0/4 and no default route).\n"
+                 "  fix: ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo\n";
+    return kExitFailure;
+  }
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    std::cerr << "inertia-daqd: LCM failed to start on '" << (url.empty() ? "default" : url)
+              << "'; if it reports no multicast route: ip route add 224.0.0.0/4 dev lo\n";
+    return kExitFailure;
+  }
+
+  // Devices.
+  std::unique_ptr<SimBench> sim;
+  std::vector<std::unique_ptr<Sampler>> samplers;
+  std::string why;
+  if (bench.simulated) {
+    SimOptions so;
+    so.fast = o.fast;
+    so.duration_s = o.duration_s;
+    so.faults = o.faults;
+    sim = SimBench::create(bench, so, o.ring, &why);
+    if (!sim) {
+      std::cerr << "inertia-daqd: simulated bench " << bench.name << ": " << why << "\n";
+      return kExitFailure;
+    }
+    samplers = sim->take_samplers();
+  } else {
+    samplers = open_real_bench(bench, o.ring, &why);
+    if (samplers.empty()) {
+      std::cerr << "inertia-daqd: " << why << "\n";
+      return kExitBadInput;
+    }
+  }
+  for (auto& s : samplers) {
+    if (!s->bring_up(&why)) {
+      std::cerr << "inertia-daqd: " << why << "\n";
+      return kExitBadInput;
+    }
+  }
+
+  // Log writer.
+  std::unique_ptr<LogWriter> log;
+  if (!o.log_dir.empty()) {
+    LogWriterOptions lo;
+    lo.dir = o.log_dir;
+    lo.base_name = bench.name;
+    lo.rotate_bytes = static_cast<std::uint64_t>(o.rotate_mb * 1024 * 1024);
+    lo.queue_slots = o.log_queue;
+    lo.stall_after_s = o.log_stall_after_s;
+    lo.stall_ms = o.log_stall_ms;
+    log = std::make_unique<LogWriter>(lo);
+    if (!log->open(&why)) {
+      std::cerr << "inertia-daqd: " << why << "\n";
+      return kExitBadInput;
+    }
+  } else {
+    std::cerr << "inertia-daqd: warning: no --log DIR: nothing is recorded durably (live LCM only)\n";
+  }
+
+  // Publisher.
+  std::vector<std::shared_ptr<DeviceSlot>> slots;
+  for (auto& s : samplers) {
+    // Samplers own their slot through a shared_ptr; hand the publisher the same objects.
+    slots.push_back(std::shared_ptr<DeviceSlot>(std::shared_ptr<DeviceSlot>{}, &s->slot()));
+  }
+  PublisherOptions po;
+  po.block_s = o.block_ms * 1e-3;
+  timespec wall{}, mono{};
+  ::clock_gettime(CLOCK_REALTIME, &wall);
+  ::clock_gettime(CLOCK_MONOTONIC, &mono);
+  po.mono_to_wall_ns = (static_cast<std::int64_t>(wall.tv_sec) - mono.tv_sec) * 1'000'000'000LL + (wall.tv_nsec - mono.tv_nsec);
+  po.sim_t0_ns = hal::monotonic_now_ns() + 20'000'000;  // 20 ms for the threads to start
+  if (sim) po.describe_mark = [&sim](const PlanMark& m, plan_event_t& e) { sim->describe(m, e); };
+  const bool log_off = !log;
+  po.daemon_faults = [log_off] { return log_off ? std::vector<std::string>{"log-off"} : std::vector<std::string>{}; };
+  Publisher publisher(lcm, log.get(), slots, po);
+  if (!publisher.configure(&why)) {
+    std::cerr << "inertia-daqd: " << why << "\n";
+    return kExitBadInput;
+  }
+
+  if (log) log->start();
+  publisher.start();
+  const RealtimeOptions rt{o.fifo_priority, o.cpu};
+  for (auto& s : samplers) s->start(rt);
+  if (sim) sim->start(po.sim_t0_ns, &publisher.plan_marks());
+
+  std::ostringstream ready;
+  ready << "READY=1\nSTATUS=sampling " << samplers.size() << " devices of bench " << bench.name
+        << (bench.simulated ? (o.fast ? " (simulated, fast)" : " (simulated, paced)") : "");
+  sd_notify(0, ready.str().c_str());
+  std::cerr << "inertia-daqd: " << ready.str().substr(15) << "; log "
+            << (log ? log->current_path() : std::string("off")) << "\n";
+
+  // Supervisor.
+  std::uint64_t watchdog_usec = 0;
+  const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0;
+  const std::int64_t watchdog_ns = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
+  std::vector<std::uint64_t> beats(samplers.size(), 0);
+  std::int64_t last_ping = hal::monotonic_now_ns(), last_status = last_ping;
+  const std::int64_t start = last_ping;
+  bool stalled_reported = false;
+  int exit_signal = 0;
+  for (;;) {
+    timespec timeout{0, 100'000'000};
+    const int sig = sigtimedwait(&signals, nullptr, &timeout);
+    if (sig == SIGHUP) {
+      if (log) log->request_rotate();
+      sd_notify(0, "STATUS=rotating the event log (SIGHUP)");
+    } else if (sig == SIGTERM || sig == SIGINT) {
+      exit_signal = sig;
+      break;
+    }
+    const std::int64_t now = hal::monotonic_now_ns();
+    if (sim ? sim->finished() : (o.duration_s > 0 && now - start >= static_cast<std::int64_t>(o.duration_s * 1e9))) break;
+    if (watchdog && now - last_ping >= watchdog_ns) {
+      bool alive = true;
+      for (std::size_t i = 0; i < samplers.size(); ++i) {
+        const std::uint64_t b = samplers[i]->slot().heartbeat.load(std::memory_order_relaxed);
+        if (b == beats[i]) {
+          alive = false;
+          if (!stalled_reported) std::cerr << "inertia-daqd: sampling thread of " << samplers[i]->slot().name << " is not moving; withholding WATCHDOG=1\n";
+          stalled_reported = true;
+        }
+        beats[i] = b;
+      }
+      if (alive) sd_notify(0, "WATCHDOG=1");
+      last_ping = now;
+    }
+    if (now - last_status >= 1'000'000'000) {
+      std::uint64_t samples = 0, drops = 0;
+      for (auto& s : samplers) {
+        samples += s->slot().samples.load(std::memory_order_relaxed);
+        drops += s->slot().ring_drops.load(std::memory_order_relaxed);
+      }
+      std::ostringstream st;
+      st << "STATUS=" << samples << " samples, " << drops << " ring drops, " << publisher.messages() << " messages"
+         << (log ? ", log lost " + std::to_string(log->messages_lost()) : std::string(", log off"));
+      sd_notify(0, st.str().c_str());
+      last_status = now;
+    }
+  }
+
+  // Graceful stop: nothing that was sampled is lost. The simulator stops writing, each sampler
+  // drains its wire into its ring, the publisher drains the rings, the writer drains its queue.
+  sd_notify(0, "STOPPING=1\nSTATUS=stopping: flushing rings and log");
+  if (sim) sim->stop();
+  for (auto& s : samplers) s->stop();
+  publisher.stop();
+  if (log) log->stop();
+
+  std::cerr << "inertia-daqd: stopped" << (exit_signal ? (exit_signal == SIGTERM ? " (SIGTERM)" : " (SIGINT)") : "") << "\n";
+  for (auto& s : samplers) {
+    const DeviceSlot& d = s->slot();
+    std::cerr << "  " << d.name << ": samples " << d.samples.load() << ", blocks " << d.blocks << ", ring drops "
+              << d.ring_drops.load() << ", misaligned " << d.misaligned << ", ring high-water " << d.ring_high_water
+              << "/" << d.ring.capacity() << ", decode errors " << d.decode_errors.load() << "\n";
+  }
+  std::cerr << "  lcm: messages " << publisher.messages() << ", publish failures " << publisher.publish_failures() << "\n";
+  if (log)
+    std::cerr << "  log: messages " << log->messages_written() << ", lost " << log->messages_lost() << ", bytes "
+              << log->bytes_written() << ", files " << log->files().size() << ", queue high-water "
+              << log->queue_high_water() << ", fsync max " << log->fsync_max_ms() << " ms\n";
+  return kExitOk;
+}
+
+}  // namespace inertia::daq

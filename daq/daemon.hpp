@@ -1,0 +1,45 @@
+#pragma once
+// inertia-daqd: command line, start-up checks, the thread layout and the service protocol.
+//
+// Threads: one sampling thread per device (sampler.hpp), the simulator's driver on simulated
+// benches (sim_bench.hpp), the publisher (publisher.hpp), the log writer (log_writer.hpp), and
+// the main thread as supervisor: signals (SIGTERM/SIGINT stop, SIGHUP rotates the log),
+// sd_notify READY/STATUS/WATCHDOG/STOPPING. WATCHDOG=1 is sent only when every sampling thread's
+// heartbeat moved since the previous ping, so a hung sampler gets the daemon restarted.
+#include <string>
+#include <vector>
+
+#include "daq/sim_bench.hpp"
+
+namespace inertia::daq {
+
+struct DaemonOptions {
+  std::string config;
+  double duration_s = 0.0;      // <= 0: until SIGTERM (real) / the plan once (sim); sim: simulated seconds
+  std::string log_dir;          // empty: no durable log (a warning, and "log-off" on INERTIA_STATUS)
+  std::string lcm_url;          // empty: LCM_DEFAULT_URL or LCM's default
+  bool fast = false;
+  double block_ms = 10.0;
+  double rotate_mb = 256.0;
+  std::size_t log_queue = 512;
+  std::size_t ring = 1 << 17;
+  int fifo_priority = 0;
+  int cpu = -1;
+  bool mlock = false;
+  double log_stall_after_s = -1.0;
+  int log_stall_ms = 0;
+  SimFaults faults;
+};
+
+/// Parses argv. Throws InputError naming the option on bad input. `help` set for --help.
+DaemonOptions parse_options(const std::vector<std::string>& args, bool* help);
+const char* usage();
+
+/// Whether the routing table has a route for 224.0.0.0/4 (or a default route), read from
+/// /proc/net/route; LCM's udpm provider cannot start without one.
+bool has_multicast_route();
+
+/// Runs the daemon; returns the exit status (0 ok, 1 failure, 2 bad input).
+int run_daemon(const DaemonOptions& options);
+
+}  // namespace inertia::daq

@@ -1,0 +1,76 @@
+#pragma once
+// What a sampling thread and the publisher share for one device: the SPSC ring of samples and
+// the device's health counters, published as relaxed atomics so that the status thread can read
+// them without a lock (DeviceHealth itself is plain data owned by the sampling thread).
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/spsc_ring.hpp"
+
+namespace inertia::daq {
+
+/// One sample of one channel in a device's ring. Trivially copyable (SpscRing requirement).
+struct RingSample {
+  std::int64_t t_ns = 0;        // CLOCK_MONOTONIC
+  double value = 0.0;
+  std::uint32_t channel = 0;    // index into DeviceSlot::channels
+  std::uint32_t valid = 0;      // 1 valid, 0 invalid
+};
+
+/// Faults a device can report (bits), published as short kebab-case codes in device_status_t.
+enum FaultBit : std::uint32_t {
+  kFaultBusOff = 1u << 0,
+  kFaultBusPassive = 1u << 1,
+  kFaultModbusGone = 1u << 2,
+  kFaultPeerClosed = 1u << 3,
+  kFaultGlitches = 1u << 4,
+  kFaultMisaligned = 1u << 5,
+  kFaultInvalidSamples = 1u << 6,
+};
+std::vector<std::string> fault_names(std::uint32_t bits);
+
+/// Lifecycle states as in device_status_t.
+enum class SlotState : std::int8_t { Unconfigured = 0, Inactive = 1, Active = 2, Finalized = 3, Failed = 4 };
+
+struct ChannelInfo {
+  std::string name;   // short name within the device, e.g. "acc-a", "count"
+  std::string unit;   // SI unit of the values
+  std::int32_t id = 0;
+};
+
+/// Thread: built on the control thread before any thread starts; afterwards the sampling thread
+/// pushes and stores counters, the publisher pops and loads them.
+struct DeviceSlot {
+  DeviceSlot(std::string device_name, std::vector<ChannelInfo> channel_info, double rate_hz, std::size_t ring_capacity)
+      : name(std::move(device_name)), channels(std::move(channel_info)), nominal_rate_hz(rate_hz), ring(ring_capacity) {}
+
+  const std::string name;                  // device name from the bench config
+  const std::vector<ChannelInfo> channels;
+  const double nominal_rate_hz;            // samples per second per channel
+  bool sim_time_base = false;              // block times from the simulated clock (see publisher)
+  int time_index_channel = -1;             // with sim_time_base: a channel holding the sample number
+  SpscRing<RingSample> ring;
+
+  // Written by the sampling thread (relaxed: counters, read for status only).
+  std::atomic<std::uint64_t> samples{0};
+  std::atomic<std::uint64_t> ring_drops{0};
+  std::atomic<std::uint64_t> decode_errors{0};
+  std::atomic<std::uint64_t> resyncs{0};
+  std::atomic<std::uint64_t> invalid_samples{0};
+  std::atomic<std::uint64_t> glitches{0};
+  std::atomic<std::uint64_t> read_time_max_ns{0};
+  std::atomic<std::uint32_t> faults{0};
+  std::atomic<std::uint64_t> heartbeat{0};  // +1 per loop: the supervisor's proof of life
+  std::atomic<std::int8_t> state{static_cast<std::int8_t>(SlotState::Unconfigured)};
+  std::atomic<bool> finished{false};        // the sampling thread drained and left
+
+  // Written by the publisher only.
+  std::uint64_t blocks = 0;
+  std::uint64_t misaligned = 0;             // samples a channel got ahead of its siblings by > buffer
+  std::uint32_t ring_high_water = 0;
+};
+
+}  // namespace inertia::daq

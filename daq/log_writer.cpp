@@ -1,0 +1,187 @@
+#include "daq/log_writer.hpp"
+
+#include <time.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <system_error>
+
+#include "hal/device.hpp"
+
+namespace inertia::daq {
+
+LogWriter::LogWriter(LogWriterOptions options)
+    : options_(std::move(options)),
+      pool_(options_.queue_slots),
+      free_(options_.queue_slots),
+      full_(options_.queue_slots) {
+  // Every slot starts free. Touch the pool now so page faults happen here, not in a stall.
+  for (std::uint32_t i = 0; i < pool_.size(); ++i) {
+    std::memset(&pool_[i], 0, sizeof(Slot));
+    (void)free_.try_push(i);
+  }
+}
+
+LogWriter::~LogWriter() {
+  stop();
+  close_file();
+}
+
+bool LogWriter::open(std::string* why) {
+  std::error_code ec;
+  std::filesystem::create_directories(options_.dir, ec);
+  if (ec) {
+    if (why) *why = "log directory " + options_.dir.string() + ": " + ec.message();
+    return false;
+  }
+  char buf[32];
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  ::localtime_r(&now, &tm);
+  std::strftime(buf, sizeof buf, "%Y%m%d-%H%M%S", &tm);
+  stamp_ = buf;
+  return open_next(why);
+}
+
+bool LogWriter::open_next(std::string* why) {
+  char name[64];
+  std::snprintf(name, sizeof name, "-%s-%03d.lcmlog", stamp_.c_str(), file_index_++);
+  const std::filesystem::path path = options_.dir / (options_.base_name + name);
+  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "w");
+  if (log == nullptr) {
+    if (why) *why = "log file " + path.string() + ": " + std::strerror(errno);
+    return false;
+  }
+  log_ = log;
+  file_bytes_ = 0;
+  std::lock_guard lock(path_mutex_);
+  files_.push_back(path);
+  return true;
+}
+
+void LogWriter::close_file() noexcept {
+  if (log_ == nullptr) return;
+  sync();
+  lcm_eventlog_destroy(log_);
+  log_ = nullptr;
+}
+
+void LogWriter::sync() noexcept {
+  if (log_ == nullptr) return;
+  const std::int64_t t0 = hal::monotonic_now_ns();
+  if (std::fflush(log_->f) != 0 || ::fsync(::fileno(log_->f)) != 0) write_errors_.fetch_add(1, std::memory_order_relaxed);
+  const auto us = static_cast<std::uint64_t>((hal::monotonic_now_ns() - t0) / 1000);
+  fsync_last_us_.store(us, std::memory_order_relaxed);
+  if (us > fsync_max_us_.load(std::memory_order_relaxed)) fsync_max_us_.store(us, std::memory_order_relaxed);
+}
+
+std::string LogWriter::current_path() const {
+  std::lock_guard lock(path_mutex_);
+  return files_.empty() ? std::string() : files_.back().string();
+}
+
+std::vector<std::filesystem::path> LogWriter::files() const {
+  std::lock_guard lock(path_mutex_);
+  return files_;
+}
+
+void LogWriter::start() {
+  thread_ = std::thread([this] { run(); });
+}
+
+void LogWriter::stop() {
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+}
+
+bool LogWriter::enqueue(std::string_view channel, const void* data, std::size_t size, std::int64_t utime) noexcept {
+  std::uint32_t* index = free_.front();
+  if (index == nullptr || channel.size() >= kMaxChannel || size > kMaxData) {
+    lost_.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  const std::uint32_t i = *index;
+  free_.pop();
+  Slot& slot = pool_[i];
+  slot.utime = utime;
+  slot.channel_len = static_cast<std::uint32_t>(channel.size());
+  std::memcpy(slot.channel, channel.data(), channel.size());
+  slot.channel[channel.size()] = '\0';
+  slot.data_len = static_cast<std::uint32_t>(size);
+  std::memcpy(slot.data, data, size);
+  (void)full_.try_push(i);  // cannot fail: as many indices as slots circulate
+  const std::size_t depth = full_.size_approx();
+  if (depth > queue_high_water_.load(std::memory_order_relaxed)) queue_high_water_.store(depth, std::memory_order_relaxed);
+  return true;
+}
+
+void LogWriter::run() noexcept {
+  const std::int64_t start_ns = hal::monotonic_now_ns();
+  std::int64_t last_sync_ns = start_ns;
+  bool stalled_once = false;
+  for (;;) {
+    const bool stopping = stop_.load(std::memory_order_acquire);
+    if (options_.stall_after_s >= 0.0 && !stalled_once &&
+        hal::monotonic_now_ns() - start_ns >= static_cast<std::int64_t>(options_.stall_after_s * 1e9)) {
+      // Injected disk stall: the writer is stuck as in a write() to a dead disk.
+      stalled_once = true;
+      in_write_.store(true, std::memory_order_relaxed);
+      std::this_thread::sleep_for(std::chrono::milliseconds(options_.stall_ms));
+      in_write_.store(false, std::memory_order_relaxed);
+    }
+    if (rotate_requested_.exchange(false, std::memory_order_relaxed) ||
+        (log_ != nullptr && file_bytes_ >= options_.rotate_bytes)) {
+      close_file();
+      std::string why;
+      if (open_next(&why)) {
+        rotations_.fetch_add(1, std::memory_order_relaxed);
+      } else {
+        write_errors_.fetch_add(1, std::memory_order_relaxed);
+      }
+    }
+    std::size_t done = 0;
+    while (std::uint32_t* index = full_.front()) {
+      Slot& slot = pool_[*index];
+      if (log_ != nullptr) {
+        lcm_eventlog_event_t event{};
+        event.timestamp = slot.utime;
+        event.channellen = static_cast<std::int32_t>(slot.channel_len);
+        event.datalen = static_cast<std::int32_t>(slot.data_len);
+        event.channel = slot.channel;
+        event.data = slot.data;
+        in_write_.store(true, std::memory_order_relaxed);
+        const int rc = lcm_eventlog_write_event(log_, &event);
+        in_write_.store(false, std::memory_order_relaxed);
+        if (rc == 0) {
+          written_.fetch_add(1, std::memory_order_relaxed);
+          const std::uint64_t n = 28u + slot.channel_len + slot.data_len;  // header + channel + data
+          file_bytes_ += n;
+          bytes_.fetch_add(n, std::memory_order_relaxed);
+        } else {
+          write_errors_.fetch_add(1, std::memory_order_relaxed);
+          lost_.fetch_add(1, std::memory_order_relaxed);
+        }
+      } else {
+        lost_.fetch_add(1, std::memory_order_relaxed);
+      }
+      const std::uint32_t i = *index;
+      full_.pop();
+      (void)free_.try_push(i);
+      if (++done >= 64) break;  // look at rotation/sync requests between batches
+    }
+    const std::int64_t now = hal::monotonic_now_ns();
+    if (now - last_sync_ns >= static_cast<std::int64_t>(options_.fsync_interval_ms) * 1'000'000) {
+      sync();
+      last_sync_ns = now;
+    }
+    if (done == 0) {
+      if (stopping) break;  // queue empty after stop: the publisher has finished, all written
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+  }
+  sync();
+}
+
+}  // namespace inertia::daq

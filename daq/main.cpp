@@ -1,0 +1,26 @@
+// inertia-daqd --config FILE [--duration S] [--log DIR] [options]: see daemon.hpp.
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "common/input_error.hpp"
+#include "daq/daemon.hpp"
+
+int main(int argc, char** argv) {
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  try {
+    bool help = false;
+    const auto options = inertia::daq::parse_options(args, &help);
+    if (help) {
+      std::cout << inertia::daq::usage();
+      return inertia::kExitOk;
+    }
+    return inertia::daq::run_daemon(options);
+  } catch (const inertia::InputError& e) {
+    std::cerr << "inertia-daqd: " << e.what() << "\n";
+    return inertia::kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "inertia-daqd: " << e.what() << "\n";
+    return inertia::kExitFailure;
+  }
+}

@@ -1,0 +1,254 @@
+#include "daq/publisher.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+#include "common/lcm/sample_block_layout.hpp"
+#include "hal/device.hpp"
+
+namespace inertia::daq {
+
+std::string raw_channel(const std::string& device) {
+  std::string out = "INERTIA_RAW_";
+  for (char c : device) {
+    const char u = (c >= 'a' && c <= 'z') ? static_cast<char>(c - 'a' + 'A') : c;
+    out += ((u >= 'A' && u <= 'Z') || (u >= '0' && u <= '9') || u == '_') ? u : '_';
+  }
+  return out;
+}
+
+Publisher::Publisher(lcm::LCM& lcm, LogWriter* log, std::vector<std::shared_ptr<DeviceSlot>> slots,
+                     PublisherOptions options)
+    : lcm_(lcm), log_(log), options_(std::move(options)) {
+  for (auto& s : slots) {
+    Packer p;
+    p.slot = std::move(s);
+    packers_.push_back(std::move(p));
+  }
+}
+
+Publisher::~Publisher() { stop(); }
+
+bool Publisher::configure(std::string* why) {
+  std::size_t largest = 0;
+  for (Packer& p : packers_) {
+    DeviceSlot& slot = *p.slot;
+    const auto nch = static_cast<std::int32_t>(slot.channels.size());
+    p.channel = raw_channel(slot.name);
+    p.block.device = slot.name;
+    shape_sample_block(p.block, nch, 1);
+    for (std::int32_t c = 0; c < nch; ++c) {
+      p.block.channel_ids[static_cast<std::size_t>(c)] = slot.channels[static_cast<std::size_t>(c)].id;
+      p.block.channel_names[static_cast<std::size_t>(c)] = slot.channels[static_cast<std::size_t>(c)].name;
+      p.block.units[static_cast<std::size_t>(c)] = slot.channels[static_cast<std::size_t>(c)].unit;
+    }
+    p.block.sample_period_s = slot.nominal_rate_hz > 0 ? 1.0 / slot.nominal_rate_hz : 0.0;
+    const std::int32_t max_len = max_samples_per_block(p.block, p.channel);
+    if (max_len < 1) {
+      if (why) *why = "device " + slot.name + ": not even one sample fits an LCM datagram";
+      return false;
+    }
+    const auto wanted = static_cast<std::int32_t>(std::lround(options_.block_s * slot.nominal_rate_hz));
+    p.block_len = std::clamp(wanted, 1, max_len);
+    shape_sample_block(p.block, nch, p.block_len);
+    // Four blocks of slack per channel: channels of one device arrive interleaved, never far apart.
+    p.capacity = static_cast<std::size_t>(p.block_len) * 4;
+    p.values.assign(static_cast<std::size_t>(nch), std::vector<double>(p.capacity));
+    p.valid.assign(static_cast<std::size_t>(nch), std::vector<std::uint8_t>(p.capacity));
+    p.t_first.assign(p.capacity, 0);
+    p.fill.assign(static_cast<std::size_t>(nch), 0);
+    p.channel_seq.assign(static_cast<std::size_t>(nch), 0);
+    largest = std::max(largest, static_cast<std::size_t>(p.block.getEncodedSize()));
+  }
+  buffer_.resize(std::max<std::size_t>(largest, 1 << 16) * 2);
+  return true;
+}
+
+void Publisher::start() {
+  start_ns_ = hal::monotonic_now_ns();
+  thread_ = std::thread([this] { run(); });
+}
+
+void Publisher::stop() {
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+}
+
+void Publisher::send(const std::string& channel, const void* data, std::size_t size) noexcept {
+  if (lcm_.publish(channel, data, static_cast<unsigned>(size)) != 0) failures_.fetch_add(1, std::memory_order_relaxed);
+  messages_.fetch_add(1, std::memory_order_relaxed);
+  if (log_ != nullptr) {
+    const std::int64_t utime = (hal::monotonic_now_ns() + options_.mono_to_wall_ns) / 1000;
+    (void)log_->enqueue(channel, data, size, utime);  // a full queue is counted by the writer
+  }
+}
+
+void Publisher::emit(Packer& p, std::int32_t n) noexcept {
+  DeviceSlot& slot = *p.slot;
+  const auto nch = static_cast<std::int32_t>(slot.channels.size());
+  if (p.block.num_samples != n) shape_sample_block(p.block, nch, n);  // only for a last, partial block
+  for (std::int32_t c = 0; c < nch; ++c) {
+    const auto cc = static_cast<std::size_t>(c);
+    std::memcpy(p.block.values[cc].data(), p.values[cc].data(), sizeof(double) * static_cast<std::size_t>(n));
+    std::fill(p.block.valid[cc].begin(), p.block.valid[cc].end(), std::uint8_t{0});
+    for (std::int32_t s = 0; s < n; ++s)
+      if (p.valid[cc][static_cast<std::size_t>(s)] != 0) set_sample_valid(p.block, c, s, true);
+    p.block.channel_seq[cc] = p.channel_seq[cc];
+    p.channel_seq[cc] += n;
+    // Shift what is left (at most three blocks) to the front.
+    const std::size_t rest = p.fill[cc] - static_cast<std::size_t>(n);
+    std::memmove(p.values[cc].data(), p.values[cc].data() + n, sizeof(double) * rest);
+    std::memmove(p.valid[cc].data(), p.valid[cc].data() + n, rest);
+    if (c == 0) {
+      p.block.t0_mono_ns = p.t_first[0];
+      std::memmove(p.t_first.data(), p.t_first.data() + n, sizeof(std::int64_t) * rest);
+    }
+    p.fill[cc] = rest;
+  }
+  if (slot.sim_time_base && slot.nominal_rate_hz > 0) {
+    // Simulated benches: sample k of the run is at sim_t0 + k / rate whether the simulator ran
+    // paced or as fast as possible, so both modes log the same times.
+    // A device that carries the sample number (the sim's CAN frame counter) is timed by it, so a
+    // gap (bus-off) shows as a jump of time and sample_index, not as shifted samples.
+    const double index = slot.time_index_channel >= 0
+                             ? p.block.values[static_cast<std::size_t>(slot.time_index_channel)][0]
+                             : static_cast<double>(p.block.channel_seq[0]);
+    p.block.t0_mono_ns = options_.sim_t0_ns + std::llround(index * 1e9 / slot.nominal_rate_hz);
+  }
+  p.block.t0_utime = (p.block.t0_mono_ns + options_.mono_to_wall_ns) / 1000;
+  p.block.seq = p.seq++;
+  const int size = p.block.getEncodedSize();
+  if (static_cast<std::size_t>(size) > buffer_.size()) buffer_.resize(static_cast<std::size_t>(size));
+  if (p.block.encode(buffer_.data(), 0, size) == size) send(p.channel, buffer_.data(), static_cast<std::size_t>(size));
+  ++slot.blocks;
+  if (p.block.num_samples != p.block_len) shape_sample_block(p.block, nch, p.block_len);
+}
+
+std::size_t Publisher::drain(Packer& p) noexcept {
+  DeviceSlot& slot = *p.slot;
+  const std::size_t occupancy = slot.ring.size_approx();
+  if (occupancy > slot.ring_high_water) slot.ring_high_water = static_cast<std::uint32_t>(occupancy);
+  std::size_t n = 0;
+  while (RingSample* s = slot.ring.front()) {
+    const std::size_t c = s->channel;
+    if (c < p.fill.size()) {
+      std::size_t& f = p.fill[c];
+      if (f < p.capacity) {
+        p.values[c][f] = s->value;
+        p.valid[c][f] = static_cast<std::uint8_t>(s->valid);
+        if (c == 0) p.t_first[f] = s->t_ns;
+        ++f;
+        if (f >= static_cast<std::size_t>(p.block_len) &&
+            *std::min_element(p.fill.begin(), p.fill.end()) >= static_cast<std::size_t>(p.block_len))
+          emit(p, p.block_len);
+      } else {
+        ++slot.misaligned;
+        slot.faults.fetch_or(kFaultMisaligned, std::memory_order_relaxed);
+      }
+    }
+    slot.ring.pop();
+    ++n;
+  }
+  return n;
+}
+
+void Publisher::publish_marks() {
+  while (PlanMark* m = marks_.front()) {
+    plan_event_t ev{};
+    ev.mono_ns = m->t_ns;
+    ev.utime = (m->t_ns + options_.mono_to_wall_ns) / 1000;
+    ev.mark = m->mark;
+    ev.phase_index = m->phase_index;
+    ev.start_mono_ns = m->start_ns;
+    ev.end_mono_ns = m->end_ns;
+    ev.num_setpoints = 0;
+    if (options_.describe_mark) options_.describe_mark(*m, ev);
+    ev.num_setpoints = static_cast<std::int32_t>(ev.setpoint_names.size());
+    marks_.pop();
+    const int size = ev.getEncodedSize();
+    std::vector<std::uint8_t> buf(static_cast<std::size_t>(size));
+    if (ev.encode(buf.data(), 0, size) == size) send("INERTIA_EVENT", buf.data(), buf.size());
+  }
+}
+
+void Publisher::publish_status(double dt_s) {
+  daq_status_t st{};
+  const std::int64_t now = hal::monotonic_now_ns();
+  st.mono_ns = now;
+  st.utime = (now + options_.mono_to_wall_ns) / 1000;
+  st.uptime_s = static_cast<double>(now - start_ns_) * 1e-9;
+  for (Packer& p : packers_) {
+    DeviceSlot& s = *p.slot;
+    device_status_t d{};
+    d.device = s.name;
+    d.state = s.state.load(std::memory_order_relaxed);
+    const std::uint64_t samples = s.samples.load(std::memory_order_relaxed);
+    const double nch = static_cast<double>(std::max<std::size_t>(1, s.channels.size()));
+    d.sample_rate_hz = dt_s > 0 ? static_cast<double>(samples - p.status_samples) / nch / dt_s : 0.0;
+    p.status_samples = samples;
+    d.nominal_rate_hz = s.nominal_rate_hz;
+    d.samples = static_cast<std::int64_t>(samples);
+    d.blocks = static_cast<std::int64_t>(s.blocks);
+    d.ring_drops = static_cast<std::int64_t>(s.ring_drops.load(std::memory_order_relaxed) + s.misaligned);
+    d.ring_high_water = static_cast<std::int32_t>(s.ring_high_water);
+    d.ring_capacity = static_cast<std::int32_t>(s.ring.capacity());
+    d.decode_errors = static_cast<std::int64_t>(s.decode_errors.load(std::memory_order_relaxed));
+    d.resyncs = static_cast<std::int64_t>(s.resyncs.load(std::memory_order_relaxed));
+    d.read_time_max_us = static_cast<double>(s.read_time_max_ns.exchange(0, std::memory_order_relaxed)) * 1e-3;
+    d.faults = fault_names(s.faults.load(std::memory_order_relaxed));
+    d.num_faults = static_cast<std::int32_t>(d.faults.size());
+    st.devices.push_back(std::move(d));
+  }
+  st.num_devices = static_cast<std::int32_t>(st.devices.size());
+  st.lcm_messages = static_cast<std::int64_t>(messages_.load(std::memory_order_relaxed));
+  st.lcm_publish_failures = static_cast<std::int64_t>(failures_.load(std::memory_order_relaxed));
+  if (log_ != nullptr) {
+    st.log_path = log_->current_path();
+    st.log_bytes = static_cast<std::int64_t>(log_->bytes_written());
+    st.log_rotations = static_cast<std::int32_t>(log_->rotations());
+    st.log_write_errors = static_cast<std::int64_t>(log_->write_errors());
+    st.log_fsync_last_ms = log_->fsync_last_ms();
+    st.log_fsync_max_ms = log_->fsync_max_ms();
+    if (log_->messages_lost() > 0) st.faults.emplace_back("log-lost:" + std::to_string(log_->messages_lost()));
+    if (log_->stalled()) st.faults.emplace_back("disk-slow");
+    if (log_->write_errors() > 0) st.faults.emplace_back("log-write");
+  }
+  if (failures_.load(std::memory_order_relaxed) > 0) st.faults.emplace_back("lcm-publish");
+  if (options_.daemon_faults)
+    for (auto& f : options_.daemon_faults()) st.faults.push_back(std::move(f));
+  st.num_faults = static_cast<std::int32_t>(st.faults.size());
+  const int size = st.getEncodedSize();
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(size));
+  if (st.encode(buf.data(), 0, size) == size) send("INERTIA_STATUS", buf.data(), buf.size());
+}
+
+void Publisher::run() noexcept {
+  std::int64_t last_status = hal::monotonic_now_ns();
+  const auto period_ns = static_cast<std::int64_t>(options_.status_period_s * 1e9);
+  for (;;) {
+    const bool stopping = stop_.load(std::memory_order_acquire);
+    std::size_t n = 0;
+    publish_marks();
+    for (Packer& p : packers_) n += drain(p);
+    const std::int64_t now = hal::monotonic_now_ns();
+    if (now - last_status >= period_ns) {
+      publish_status(static_cast<double>(now - last_status) * 1e-9);
+      last_status = now;
+    }
+    if (stopping && n == 0) break;
+    if (n == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  // Samplers have finished: send what is left as a last, shorter block per device.
+  for (Packer& p : packers_) {
+    const std::size_t least = *std::min_element(p.fill.begin(), p.fill.end());
+    if (least > 0) emit(p, static_cast<std::int32_t>(least));
+    const std::size_t most = *std::max_element(p.fill.begin(), p.fill.end());
+    if (most > 0) p.slot->misaligned += most;  // channels left unequal: counted, not hidden
+  }
+  publish_marks();
+  publish_status(static_cast<double>(hal::monotonic_now_ns() - last_status) * 1e-9);
+}
+
+}  // namespace inertia::daq

@@ -1,0 +1,108 @@
+#pragma once
+// The publisher thread: drains every device's ring, packs sample_block_t blocks (fixed length,
+// per-channel sequence numbers, validity bitmap) onto INERTIA_RAW_<DEVICE>, test-plan markers
+// onto INERTIA_EVENT and health onto INERTIA_STATUS at 1 Hz, and hands every message it sends to
+// the log writer's queue (the same bytes, so the log is exactly what went on the wire).
+//
+// Thread: start()/stop() on the control thread; everything else on the publisher thread.
+// Not real-time itself, but it allocates nothing per block after start (blocks are shaped once
+// and encoded into one reused buffer); the status message allocates once a second.
+#include <lcm/lcm-cpp.hpp>
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/spsc_ring.hpp"
+#include "daq/device_slot.hpp"
+#include "daq/log_writer.hpp"
+#include "inertia/daq_status_t.hpp"
+#include "inertia/plan_event_t.hpp"
+#include "inertia/sample_block_t.hpp"
+
+namespace inertia::daq {
+
+/// A test-plan marker from the simulator (or a plan runner). Trivially copyable for the ring.
+struct PlanMark {
+  std::int64_t t_ns = 0;          // CLOCK_MONOTONIC (simulated time base)
+  std::int64_t start_ns = 0, end_ns = 0;
+  std::int32_t case_index = 0;
+  std::int32_t phase_index = 0;
+  std::int8_t mark = 0;           // plan_event_t::MARK_*
+};
+
+struct PublisherOptions {
+  double block_s = 0.01;                 // block length in time; samples = round(block_s * rate), >= 1
+  double status_period_s = 1.0;
+  std::int64_t sim_t0_ns = 0;            // simulated time origin for slots with sim_time_base
+  std::int64_t mono_to_wall_ns = 0;      // wall - monotonic, once at start (t0_utime)
+  /// Fills case/phase names and setpoints of a marker. Publisher thread.
+  std::function<void(const PlanMark&, plan_event_t&)> describe_mark;
+  /// Daemon-wide faults for the status (e.g. "lcm-no-route"). Publisher thread.
+  std::function<std::vector<std::string>()> daemon_faults;
+};
+
+/// The LCM channel of a device's blocks: INERTIA_RAW_ + the name in upper case, with every
+/// character outside [A-Z0-9_] turned into '_' ("acc-a" -> INERTIA_RAW_ACC_A).
+std::string raw_channel(const std::string& device);
+
+class Publisher {
+ public:
+  Publisher(lcm::LCM& lcm, LogWriter* log, std::vector<std::shared_ptr<DeviceSlot>> slots, PublisherOptions options);
+  ~Publisher();
+  Publisher(const Publisher&) = delete;
+  Publisher& operator=(const Publisher&) = delete;
+
+  /// Shapes blocks; false + why when a device's block cannot fit one datagram. Control thread.
+  bool configure(std::string* why);
+  void start();
+  /// Drains the rings (call after every sampler has finished), sends partial last blocks and a
+  /// final status, then joins. Control thread.
+  void stop();
+
+  /// Producer side for plan markers (one producer thread: the simulator).
+  [[nodiscard]] SpscRing<PlanMark>& plan_marks() noexcept { return marks_; }
+
+  [[nodiscard]] std::uint64_t messages() const noexcept { return messages_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t publish_failures() const noexcept { return failures_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::int32_t block_samples(std::size_t device) const { return packers_.at(device).block_len; }
+
+ private:
+  struct Packer {
+    std::shared_ptr<DeviceSlot> slot;
+    std::string channel;
+    std::int32_t block_len = 1;
+    std::size_t capacity = 0;
+    std::vector<std::vector<double>> values;
+    std::vector<std::vector<std::uint8_t>> valid;
+    std::vector<std::int64_t> t_first;   // channel 0's timestamps
+    std::vector<std::size_t> fill;
+    sample_block_t block;
+    std::int64_t seq = 0;
+    std::vector<std::int64_t> channel_seq;
+    std::uint64_t status_samples = 0;    // for the measured rate
+  };
+  void run() noexcept;
+  std::size_t drain(Packer& p) noexcept;
+  void emit(Packer& p, std::int32_t n) noexcept;
+  void publish_status(double dt_s);
+  void publish_marks();
+  void send(const std::string& channel, const void* data, std::size_t size) noexcept;
+
+  lcm::LCM& lcm_;
+  LogWriter* log_;
+  PublisherOptions options_;
+  std::vector<Packer> packers_;
+  SpscRing<PlanMark> marks_{1024};
+  std::vector<std::uint8_t> buffer_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<std::uint64_t> messages_{0}, failures_{0};
+  std::int64_t start_ns_ = 0;
+};
+
+}  // namespace inertia::daq

@@ -1,0 +1,256 @@
+#include "daq/sampler.hpp"
+
+#include <poll.h>
+#include <pthread.h>
+#include <sched.h>
+#include <time.h>
+
+#include <cerrno>
+#include <cstring>
+#include <iostream>
+
+namespace inertia::daq {
+namespace {
+
+/// The ring writer every device pushes into. Real-time: try_push only; a full ring is a
+/// counted drop (style.md section 8), never a wait.
+class RingSink final : public hal::SampleSink {
+ public:
+  explicit RingSink(DeviceSlot& slot) : slot_(slot) {}
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
+    if (!valid) slot_.invalid_samples.fetch_add(1, std::memory_order_relaxed);
+    if (!slot_.ring.try_push(RingSample{t_ns, value, channel, valid ? 1u : 0u})) {
+      slot_.ring_drops.fetch_add(1, std::memory_order_relaxed);
+      return false;
+    }
+    slot_.samples.fetch_add(1, std::memory_order_relaxed);
+    return true;
+  }
+
+ private:
+  DeviceSlot& slot_;
+};
+
+/// Encoder on the sample clock: latches count and position from every edge and pushes one row
+/// (count, position) at each trigger edge, stamped with the trigger's kernel time. The device
+/// merges all lines in timestamp order, so the row holds every edge before the trigger.
+class TriggerRowSink final : public hal::SampleSink {
+ public:
+  TriggerRowSink(hal::SampleSink& inner, int trigger_channel) : inner_(inner), trigger_(trigger_channel) {}
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
+    if (channel == hal::gpiod::GpiodEncoderDevice::kCountChannel) {
+      count_ = value;
+      return true;
+    }
+    if (channel == hal::gpiod::GpiodEncoderDevice::kPositionChannel) {
+      position_ = value;
+      return true;
+    }
+    if (static_cast<int>(channel) != trigger_) return true;  // marker: counted by the device
+    const bool a = inner_.push(0, t_ns, count_, valid);
+    const bool b = inner_.push(1, t_ns, position_, valid);
+    return a && b;
+  }
+
+ private:
+  hal::SampleSink& inner_;
+  int trigger_;
+  double count_ = 0.0, position_ = 0.0;
+};
+
+void store_max(std::atomic<std::uint64_t>& target, std::uint64_t value) noexcept {
+  std::uint64_t seen = target.load(std::memory_order_relaxed);
+  while (value > seen && !target.compare_exchange_weak(seen, value, std::memory_order_relaxed)) {
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> fault_names(std::uint32_t bits) {
+  static constexpr std::pair<std::uint32_t, const char*> kNames[] = {
+      {kFaultBusOff, "bus-off"},        {kFaultBusPassive, "bus-passive"},   {kFaultModbusGone, "modbus-gone"},
+      {kFaultPeerClosed, "peer-closed"}, {kFaultGlitches, "encoder-glitch"}, {kFaultMisaligned, "misaligned"},
+      {kFaultInvalidSamples, "invalid-samples"}};
+  std::vector<std::string> out;
+  for (const auto& [bit, name] : kNames)
+    if ((bits & bit) != 0) out.emplace_back(name);
+  return out;
+}
+
+bool apply_realtime(const RealtimeOptions& rt, std::string* why) {
+  bool ok = true;
+  if (rt.cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(rt.cpu, &set);
+    if (const int rc = pthread_setaffinity_np(pthread_self(), sizeof set, &set); rc != 0) {
+      if (why) *why += std::string("affinity to CPU ") + std::to_string(rt.cpu) + ": " + std::strerror(rc) + "; ";
+      ok = false;
+    }
+  }
+  if (rt.fifo_priority > 0) {
+    sched_param param{};
+    param.sched_priority = rt.fifo_priority;
+    if (const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param); rc != 0) {
+      if (why) *why += std::string("SCHED_FIFO ") + std::to_string(rt.fifo_priority) + ": " + std::strerror(rc) + "; ";
+      ok = false;
+    }
+  }
+  return ok;
+}
+
+DeviceSampler::DeviceSampler(std::unique_ptr<hal::Device> device, std::vector<int> wait_fds,
+                             std::shared_ptr<DeviceSlot> slot, bool trigger_rows)
+    : device_(std::move(device)), wait_fds_(std::move(wait_fds)), slot_(std::move(slot)), trigger_rows_(trigger_rows) {}
+
+bool DeviceSampler::bring_up(std::string* why) {
+  auto set = [this](SlotState st) { slot_->state.store(static_cast<std::int8_t>(st), std::memory_order_relaxed); };
+  if (device_->configure() != hal::Step::Ok) {
+    set(SlotState::Failed);
+    if (why) *why = "device " + slot_->name + ": configure: " + device_->last_error();
+    return false;
+  }
+  set(SlotState::Inactive);
+  if (device_->activate() != hal::Step::Ok) {
+    set(SlotState::Failed);
+    if (why) *why = "device " + slot_->name + ": activate: " + device_->last_error();
+    return false;
+  }
+  set(SlotState::Active);
+  return true;
+}
+
+void DeviceSampler::start(const RealtimeOptions& rt) {
+  thread_ = std::thread([this, rt] { run(rt); });
+}
+
+void DeviceSampler::stop() {
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+}
+
+void DeviceSampler::mirror_health() noexcept {
+  const hal::DeviceHealth& h = device_->health();
+  slot_->decode_errors.store(h.decode_errors + h.malformed, std::memory_order_relaxed);
+  slot_->resyncs.store(h.resyncs, std::memory_order_relaxed);
+  store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(h.read_time_max_us * 1e3));
+  std::uint32_t faults = slot_->faults.load(std::memory_order_relaxed) &
+                         ~(kFaultBusOff | kFaultBusPassive | kFaultPeerClosed | kFaultGlitches);
+  if (auto* can = dynamic_cast<hal::socketcan::CanDevice*>(device_.get())) {
+    const auto& s = can->status();
+    if (s.bus_state == hal::socketcan::BusState::BusOff) faults |= kFaultBusOff;
+    if (s.bus_state == hal::socketcan::BusState::ErrorPassive) faults |= kFaultBusPassive;
+    if (s.peer_closed) faults |= kFaultPeerClosed;
+  } else if (auto* enc = dynamic_cast<hal::gpiod::GpiodEncoderDevice*>(device_.get())) {
+    const auto s = enc->status();
+    const std::uint64_t glitches = s.quadrature.glitches + s.quadrature.illegal_transitions;
+    if (glitches > slot_->glitches.load(std::memory_order_relaxed)) faults |= kFaultGlitches;
+    slot_->glitches.store(glitches, std::memory_order_relaxed);
+  }
+  slot_->faults.store(faults, std::memory_order_relaxed);
+}
+
+void DeviceSampler::run(RealtimeOptions rt) noexcept {
+  std::string why;
+  if ((rt.fifo_priority > 0 || rt.cpu >= 0) && !apply_realtime(rt, &why))
+    std::cerr << "inertia-daqd: warning: " << slot_->name << ": " << why << "running without it\n";
+  RingSink ring_sink(*slot_);
+  auto* encoder = dynamic_cast<hal::gpiod::GpiodEncoderDevice*>(device_.get());
+  TriggerRowSink row_sink(ring_sink, encoder != nullptr ? encoder->trigger_channel() : -1);
+  hal::SampleSink& sink = trigger_rows_ ? static_cast<hal::SampleSink&>(row_sink) : ring_sink;
+
+  pollfd fds[hal::gpiod::kEdgeLineCount]{};
+  nfds_t nfds = 0;
+  for (int fd : wait_fds_)
+    if (fd >= 0 && nfds < hal::gpiod::kEdgeLineCount) fds[nfds++] = pollfd{fd, POLLIN, 0};
+  // A peer that closed its end keeps the descriptor readable (EOF) forever: stop polling it
+  // once it is reported, and fall back to the idle wait.
+  std::uint64_t loops = 0;
+  for (;;) {
+    const bool stopping = stop_.load(std::memory_order_acquire);
+    // Drain: read_into is bounded per call, so loop until nothing is pending.
+    std::size_t got = 0;
+    for (int i = 0; i < 64; ++i) {
+      const std::size_t n = device_->read_into(sink);
+      got += n;
+      if (n == 0) break;
+    }
+    if (++loops % 16 == 0 || got == 0) mirror_health();
+    slot_->heartbeat.fetch_add(1, std::memory_order_relaxed);
+    if (stopping && got == 0) break;  // stop requested and nothing left: every sample is in the ring
+    if (got != 0) continue;
+    const bool peer_gone = (slot_->faults.load(std::memory_order_relaxed) & kFaultPeerClosed) != 0;
+    if (nfds > 0 && !peer_gone) {
+      (void)::poll(fds, nfds, kIdleWaitMs);
+    } else {
+      timespec ts{0, kIdleWaitMs * 1'000'000L};
+      ::nanosleep(&ts, nullptr);
+    }
+  }
+  mirror_health();
+  slot_->finished.store(true, std::memory_order_release);
+}
+
+ModbusSampler::ModbusSampler(std::unique_ptr<hal::modbus::ModbusController> controller, int poll_interval_ms,
+                             std::shared_ptr<DeviceSlot> slot)
+    : controller_(std::move(controller)), poll_interval_ms_(poll_interval_ms), slot_(std::move(slot)) {}
+
+bool ModbusSampler::bring_up(std::string*) {
+  // ModbusController::connect() already connected (or the device was refused at creation).
+  slot_->state.store(static_cast<std::int8_t>(SlotState::Active), std::memory_order_relaxed);
+  return true;
+}
+
+void ModbusSampler::start(const RealtimeOptions&) {
+  thread_ = std::thread([this] { run(); });
+}
+
+void ModbusSampler::stop() {
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+}
+
+void ModbusSampler::run() noexcept {
+  RingSink sink(*slot_);
+  timespec next{};
+  ::clock_gettime(CLOCK_MONOTONIC, &next);
+  while (!stop_.load(std::memory_order_acquire)) {
+    const std::int64_t t0 = hal::monotonic_now_ns();
+    const auto values = controller_->poll();
+    const std::int64_t t1 = hal::monotonic_now_ns();
+    store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(t1 - t0));
+    bool any_valid = false;
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      any_valid = any_valid || values[i].valid;
+      // One row per poll, all stamped with the poll's start so the row stays aligned.
+      (void)sink.push(static_cast<std::uint32_t>(i), t0, values[i].valid ? values[i].value : 0.0, values[i].valid);
+    }
+    const auto& h = controller_->link().health();
+    slot_->decode_errors.store(h.protocol_errors + h.exceptions, std::memory_order_relaxed);
+    slot_->resyncs.store(h.reconnects, std::memory_order_relaxed);
+    std::uint32_t faults = slot_->faults.load(std::memory_order_relaxed) & ~kFaultModbusGone;
+    if (!any_valid || !controller_->link().connected()) faults |= kFaultModbusGone;
+    slot_->faults.store(faults, std::memory_order_relaxed);
+    slot_->heartbeat.fetch_add(1, std::memory_order_relaxed);
+    // Absolute schedule; after an overrun (a request timing out) restart from now, no burst.
+    next.tv_nsec += static_cast<long>(poll_interval_ms_) * 1'000'000L;
+    while (next.tv_nsec >= 1'000'000'000L) {
+      next.tv_nsec -= 1'000'000'000L;
+      ++next.tv_sec;
+    }
+    timespec now{};
+    ::clock_gettime(CLOCK_MONOTONIC, &now);
+    if (now.tv_sec > next.tv_sec || (now.tv_sec == next.tv_sec && now.tv_nsec > next.tv_nsec)) next = now;
+    // Sleep in slices so stop() is seen within 20 ms.
+    for (;;) {
+      ::clock_gettime(CLOCK_MONOTONIC, &now);
+      const std::int64_t left = (next.tv_sec - now.tv_sec) * 1'000'000'000LL + (next.tv_nsec - now.tv_nsec);
+      if (left <= 0 || stop_.load(std::memory_order_acquire)) break;
+      timespec slice{0, static_cast<long>(std::min<std::int64_t>(left, 20'000'000))};
+      ::nanosleep(&slice, nullptr);
+    }
+  }
+  slot_->finished.store(true, std::memory_order_release);
+}
+
+}  // namespace inertia::daq

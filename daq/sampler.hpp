@@ -1,0 +1,95 @@
+#pragma once
+// One sampling thread per device (design.md): waits for input on the device's descriptors,
+// calls Device::read_into() with a sink that writes the device's SPSC ring, and mirrors the
+// device's health into the slot's atomics.
+//
+// Thread: start()/stop() on the control thread; the loop runs on its own thread.
+// Real-time: the loop allocates nothing, takes no lock, and blocks only in poll() waiting for
+// input (bounded by kIdleWaitMs so the heartbeat keeps moving); read_into() never blocks.
+// Optional SCHED_FIFO and CPU affinity are applied by the thread itself (warning on failure).
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "daq/device_slot.hpp"
+#include "hal/device.hpp"
+#include "hal/gpiod/encoder_device.hpp"
+#include "hal/modbus/modbus_controller.hpp"
+#include "hal/socketcan/can_device.hpp"
+
+namespace inertia::daq {
+
+struct RealtimeOptions {
+  int fifo_priority = 0;   // 0: SCHED_OTHER
+  int cpu = -1;            // -1: no affinity
+};
+
+class Sampler {
+ public:
+  virtual ~Sampler() = default;
+  /// Lifecycle (style.md section 4): configure, then activate. False + why naming the device
+  /// (the slot's state says Failed). Control thread, before start().
+  virtual bool bring_up(std::string* why) = 0;
+  virtual void start(const RealtimeOptions& rt) = 0;
+  /// Asks the loop to finish: it drains what is pending (read_into until 0), then leaves. Joins.
+  virtual void stop() = 0;
+  [[nodiscard]] virtual DeviceSlot& slot() noexcept = 0;
+};
+
+/// CAN bus or encoder: an event-driven device with descriptors to poll.
+class DeviceSampler final : public Sampler {
+ public:
+  static constexpr int kIdleWaitMs = 20;
+  /// For an encoder with a trigger line: `trigger_rows` turns each trigger edge into one row
+  /// (count, position latched at that edge) so the encoder is sampled on the bench's sample
+  /// clock; without it every edge would be a sample at an irregular time.
+  DeviceSampler(std::unique_ptr<hal::Device> device, std::vector<int> wait_fds, std::shared_ptr<DeviceSlot> slot,
+                bool trigger_rows);
+  ~DeviceSampler() override { stop(); }
+  bool bring_up(std::string* why) override;
+  void start(const RealtimeOptions& rt) override;
+  void stop() override;
+  [[nodiscard]] DeviceSlot& slot() noexcept override { return *slot_; }
+  [[nodiscard]] hal::Device& device() noexcept { return *device_; }
+
+ private:
+  void run(RealtimeOptions rt) noexcept;
+  void mirror_health() noexcept;
+
+  std::unique_ptr<hal::Device> device_;
+  std::vector<int> wait_fds_;
+  std::shared_ptr<DeviceSlot> slot_;
+  bool trigger_rows_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+/// A Modbus controller polled at its interval. Thread: its own, NOT real-time (each request may
+/// block up to the response timeout; daq.md section 3 says never in a sampling thread of a
+/// fast device, so it has a thread of its own and a ring like every device).
+class ModbusSampler final : public Sampler {
+ public:
+  ModbusSampler(std::unique_ptr<hal::modbus::ModbusController> controller, int poll_interval_ms,
+                std::shared_ptr<DeviceSlot> slot);
+  ~ModbusSampler() override { stop(); }
+  bool bring_up(std::string* why) override;
+  void start(const RealtimeOptions& rt) override;
+  void stop() override;
+  [[nodiscard]] DeviceSlot& slot() noexcept override { return *slot_; }
+
+ private:
+  void run() noexcept;
+  std::unique_ptr<hal::modbus::ModbusController> controller_;
+  int poll_interval_ms_;
+  std::shared_ptr<DeviceSlot> slot_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+/// SCHED_FIFO at `priority` and/or affinity for the calling thread; false + why when refused.
+bool apply_realtime(const RealtimeOptions& rt, std::string* why);
+
+}  // namespace inertia::daq

@@ -1,0 +1,426 @@
+#include "daq/sim_bench.hpp"
+
+#include <linux/can.h>
+#include <linux/can/error.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "hal/sim/bench_motion.hpp"
+
+namespace inertia::daq {
+namespace {
+
+namespace gp = hal::gpiod;
+
+constexpr std::size_t kSignalsPerFrame = 16;  // int32 signals in a 64-byte CAN FD payload
+
+int mod4(std::int64_t v) { return static_cast<int>(((v % 4) + 4) % 4); }
+void levels_of_state(int s, bool& a, bool& b) {
+  a = (s == 1 || s == 2);
+  b = (s == 2 || s == 3);
+}
+
+void sleep_until_ns(std::int64_t t_ns) {
+  timespec ts{static_cast<time_t>(t_ns / 1'000'000'000), static_cast<long>(t_ns % 1'000'000'000)};
+  while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+}  // namespace
+
+SimBench::SimBench(const config::BenchConfig& bench, SimOptions options)
+    : bench_(bench), options_(std::move(options)), rate_hz_(bench.sample_rate_hz) {}
+
+SimBench::~SimBench() {
+  stop();
+  // The samplers may still hold devices reading our wires; the daemon stops them first.
+}
+
+std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, const SimOptions& options,
+                                           std::size_t ring_capacity, std::string* why) {
+  std::unique_ptr<SimBench> s(new SimBench(bench, options));
+  s->sim_ = sim::simulate_bench(bench);  // throws InputError for bad truth parameters
+  s->case_begin_.push_back(0);
+  for (const auto& c : s->sim_.cases) s->case_begin_.push_back(s->case_begin_.back() + c.motion.size());
+  if (s->plan_samples() == 0) {
+    if (why) *why = bench.file.string() + ": the test plan has no samples (no [[case]] with phases)";
+    return nullptr;
+  }
+  s->run_samples_ = options.duration_s > 0
+                        ? static_cast<std::size_t>(std::llround(options.duration_s * s->rate_hz_))
+                        : s->plan_samples();
+  std::int32_t next_id = 1;
+
+  // --- CAN: every accelerometer channel on one bus ---
+  for (std::size_t i = 0; i < bench.sensors.size(); ++i)
+    s->can_channels_.push_back({bench.sensors[i].name, bench.sensors[i].output_unit, 0, i});
+  for (std::size_t i = 0; i < bench.monitors.size(); ++i)
+    s->can_channels_.push_back({bench.monitors[i].name, "m/s^2", 1, i});
+  if (bench.control_accelerometer) s->can_channels_.push_back({"control", "m/s^2", 2, 0});
+  {
+    hal::socketcan::CanDeviceConfig cfg;
+    cfg.name = "accel";
+    std::vector<ChannelInfo> info;
+    const std::size_t n = s->can_channels_.size();
+    for (std::size_t i = 0; i <= n; ++i) {  // the last signal: sample_index
+      hal::socketcan::CanSignal sig;
+      sig.name = i < n ? s->can_channels_[i].name : "sample_index";
+      sig.id = kSimCanBaseId + static_cast<std::uint32_t>(i / kSignalsPerFrame);
+      sig.byte_offset = static_cast<std::uint8_t>(4 * (i % kSignalsPerFrame));
+      sig.bit_length = 32;
+      sig.is_signed = i < n;
+      sig.scale = i < n ? kSimCanScale : 1.0;
+      cfg.map.signals.push_back(sig);
+      info.push_back({sig.name, i < n ? s->can_channels_[i].unit : "1", next_id++});
+    }
+    cfg.max_records_per_read = 256;
+    int sv[2];
+    if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) != 0) {
+      if (why) *why = std::string("socketpair: ") + std::strerror(errno);
+      return nullptr;
+    }
+    const int buf = 4 << 20;  // slack for scheduling hiccups of the reader in paced mode
+    (void)::setsockopt(sv[0], SOL_SOCKET, SO_SNDBUF, &buf, sizeof buf);
+    (void)::setsockopt(sv[1], SOL_SOCKET, SO_RCVBUF, &buf, sizeof buf);
+    s->can_wire_ = hal::UniqueFd(sv[0]);
+    auto device = hal::socketcan::CanDevice::from_fd(hal::UniqueFd(sv[1]), cfg, why);
+    if (!device) return nullptr;
+    const int fd = device->wait_fd();
+    auto slot = std::make_shared<DeviceSlot>("accel", std::move(info), s->rate_hz_, ring_capacity);
+    slot->sim_time_base = true;
+    slot->time_index_channel = static_cast<int>(n);
+    s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::vector<int>{fd}, slot, false));
+  }
+
+  // --- encoders: quadrature + sample-clock trigger through pipes ---
+  auto add_encoder = [&](const config::Encoder& enc, bool table, const char* name) -> bool {
+    if (!enc.present) return true;
+    EncoderSim e;
+    e.resolution = enc.resolution;
+    e.table = table;
+    const double x0 = table ? s->sim_.cases[0].motion.table_angle_rad[0] : s->sim_.cases[0].motion.shaker_x_m[0];
+    e.count = static_cast<std::int64_t>(std::floor(x0 / e.resolution));
+    hal::wire_sim::EncoderWire::Lines lines;
+    lines.trigger = true;
+    levels_of_state(mod4(e.count), lines.a0, lines.b0);
+    e.wire = hal::wire_sim::EncoderWire::create(lines, why);
+    if (!e.wire) return false;
+    gp::QuadratureConfig qc;
+    qc.name = name;
+    qc.line_a = 0;
+    qc.line_b = 1;
+    qc.line_trigger = 3;
+    qc.resolution = enc.resolution;
+    auto device = gp::GpiodEncoderDevice::from_source(e.wire->take_source(), qc, why);
+    if (!device) return false;
+    std::vector<int> fds;
+    for (int fd : device->event_fds())
+      if (fd >= 0) fds.push_back(fd);
+    std::vector<ChannelInfo> info{{"count", "1", next_id}, {"position", table ? "rad" : "m", next_id + 1}};
+    next_id += 2;
+    auto slot = std::make_shared<DeviceSlot>(name, std::move(info), s->rate_hz_, ring_capacity);
+    slot->sim_time_base = true;
+    s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::move(fds), slot, true));
+    s->encoders_.push_back(std::move(e));
+    return true;
+  };
+  if (!add_encoder(bench.linear_encoder, false, "linear_encoder")) return nullptr;
+  if (!add_encoder(bench.table_encoder, true, "table_encoder")) return nullptr;
+
+  // --- bench controllers over Modbus TCP on loopback ---
+  hal::wire_sim::BenchControllerState initial;
+  initial.frozen = true;  // the bench simulation drives the registers, not the server's own physics
+  initial.temperature_degC = bench.thermal.initial_c;
+  initial.temperature_setpoint_degC = bench.thermal.initial_c;
+  s->controllers_ = hal::wire_sim::BenchControllerServer::start(0, why, initial);
+  if (!s->controllers_) return nullptr;
+  hal::modbus::ModbusConfig mc;
+  mc.name = "controller";
+  mc.host = "127.0.0.1";
+  mc.port = s->controllers_->port();
+  mc.response_timeout_s = 0.2;
+  mc.reconnect_initial_s = 0.2;
+  mc.reconnect_max_s = 1.0;
+  mc.timeouts_before_reconnect = 2;
+  mc.map = hal::wire_sim::bench_controller_register_map();
+  auto controller = hal::modbus::ModbusController::connect(mc, why);
+  if (!controller) return nullptr;
+  std::vector<ChannelInfo> info;
+  for (const auto& r : mc.map.registers) {
+    std::string unit = "1";
+    if (r.name.find("temperature") != std::string::npos) unit = "degC";
+    else if (r.name.find("rate") != std::string::npos) unit = "rad/s";
+    else if (r.name.find("angle") != std::string::npos) unit = "rad";
+    else if (r.name.find("power") != std::string::npos) unit = "W";
+    else if (r.name.find("frequency") != std::string::npos) unit = "Hz";
+    info.push_back({r.name, unit, next_id++});
+  }
+  auto slot = std::make_shared<DeviceSlot>("controller", std::move(info), 1000.0 / options.modbus_poll_ms, ring_capacity);
+  s->samplers_.push_back(std::make_unique<ModbusSampler>(std::move(controller), options.modbus_poll_ms, slot));
+  return s;
+}
+
+void SimBench::start(std::int64_t t0_ns, SpscRing<PlanMark>* marks) {
+  t0_ns_ = t0_ns;
+  marks_ = marks;
+  thread_ = std::thread([this] { run(); });
+}
+
+void SimBench::stop() {
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+  if (controllers_) controllers_->stop();
+}
+
+double SimBench::can_value(const CanChannel& ch, std::size_t c, std::size_t k) const {
+  const auto& sc = sim_.cases[c];
+  const auto kk = static_cast<Eigen::Index>(k);
+  switch (ch.kind) {
+    case 0: return sc.sensors[ch.index].y[kk];
+    case 1: return sc.references.monitors(kk, static_cast<Eigen::Index>(ch.index));
+    default: return sc.references.control[kk];
+  }
+}
+
+double SimBench::position(const EncoderSim& e, std::size_t c, std::size_t k) const {
+  const auto& m = sim_.cases[c].motion;
+  const auto kk = static_cast<Eigen::Index>(k);
+  return e.offset + (e.table ? m.table_angle_rad[kk] : m.shaker_x_m[kk]);
+}
+
+bool SimBench::write_edge(EncoderSim& e, gp::EdgeLine line, bool rising, std::int64_t t_ns) {
+  // The pipe is non-blocking: a full pipe means the reader is behind; wait for it (the sim is
+  // the bench, it cannot drop edges), but never past stop().
+  while (!e.wire->write(gp::EdgeEvent{line, rising, t_ns})) {
+    if (stop_.load(std::memory_order_relaxed)) return false;
+    timespec ts{0, 20'000};
+    ::nanosleep(&ts, nullptr);
+  }
+  return true;
+}
+
+void SimBench::write_can_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd) {
+  if (fd) {
+    canfd_frame f{};
+    f.can_id = can_id;
+    f.len = static_cast<std::uint8_t>(len);
+    std::memcpy(f.data, data, len);
+    while (::write(can_wire_.get(), &f, sizeof f) < 0 && errno == EINTR) {
+    }
+  } else {
+    can_frame f{};
+    f.can_id = can_id;
+    f.len = static_cast<std::uint8_t>(len);
+    std::memcpy(f.data, data, len);
+    while (::write(can_wire_.get(), &f, sizeof f) < 0 && errno == EINTR) {
+    }
+  }
+}
+
+void SimBench::update_controllers(std::size_t c, std::size_t k) {
+  const auto& sc = sim_.cases[c];
+  const auto& m = sc.motion;
+  const auto kk = static_cast<Eigen::Index>(k);
+  const auto& tc = bench_.cases[c];
+  double frequency = 0.0;
+  bool shaking = false;
+  for (std::size_t i = 0; i < m.spans.size(); ++i) {
+    if (k >= m.spans[i].begin && k < m.spans[i].end) {
+      const auto kind = m.spans[i].kind;
+      shaking = kind == config::PhaseKind::Sine || kind == config::PhaseKind::Random || kind == config::PhaseKind::Shock;
+      if (kind == config::PhaseKind::Sine && i < tc.phases.size()) frequency = tc.phases[i].frequency_hz;
+    }
+  }
+  const double temp = sc.references.temp_measured_c.size() > kk ? sc.references.temp_measured_c[kk] : m.temp_c[kk];
+  const double angle = m.table_angle_rad[kk];
+  const double rate = m.w_e.row(kk).norm();
+  controllers_->update([&](hal::wire_sim::BenchControllerState& s) {
+    s.temperature_degC = temp;
+    constexpr double kTwoPi = 6.283185307179586;
+    s.table_turns = static_cast<std::int32_t>(std::floor(angle / kTwoPi));
+    s.table_angle_rad = angle - kTwoPi * s.table_turns;
+    s.table_rate_rad_s = rate;
+    s.shaker_status = shaking ? 1 : 0;
+    s.shaker_frequency_hz = frequency;
+  });
+}
+
+void SimBench::run() noexcept {
+  const double period_ns = 1e9 / rate_hz_;
+  const std::size_t batch = std::max<std::size_t>(1, static_cast<std::size_t>(rate_hz_ / 1000.0));  // 1 ms
+  const std::size_t ctrl_every = std::max<std::size_t>(1, static_cast<std::size_t>(rate_hz_ / 100.0));  // 10 ms
+  const std::size_t nch = can_channels_.size();
+  const std::size_t frames = nch / kSignalsPerFrame + 1;  // + sample_index
+  std::vector<std::uint8_t> payload(frames * 64);
+  const std::size_t plan = plan_samples();
+  bool bus_off = false, modbus_gone = false;
+  auto time_of = [&](std::size_t n) { return t0_ns_ + static_cast<std::int64_t>(std::llround(n * period_ns)); };
+  auto mark = [&](std::int64_t t, std::size_t c, std::int32_t phase, std::int8_t what, std::int64_t b, std::int64_t e) {
+    if (marks_) (void)marks_->try_push(PlanMark{t, b, e, static_cast<std::int32_t>(c), phase, what});
+  };
+
+  for (std::size_t n = 0; n < run_samples_ && !stop_.load(std::memory_order_relaxed); ++n) {
+    const std::size_t pn = n % plan;
+    std::size_t c = 0;
+    while (pn >= case_begin_[c + 1]) ++c;
+    const std::size_t k = pn - case_begin_[c];
+    const std::size_t case_len = case_begin_[c + 1] - case_begin_[c];
+    const std::int64_t t_n = time_of(n);
+    if (!options_.fast && n % batch == 0) sleep_until_ns(t_n);
+
+    // Plan markers at the sample they refer to.
+    const auto& spans = sim_.cases[c].motion.spans;
+    const std::size_t case_first = n - k;
+    if (k == 0) {
+      mark(t_n, c, -1, plan_event_t::MARK_CASE_START, t_n, time_of(case_first + case_len));
+      // Encoders continue where the previous case (or plan pass) left them.
+      for (auto& e : encoders_) {
+        const auto& m = sim_.cases[c].motion;
+        const double x_start = e.table ? m.table_angle_rad[0] : m.shaker_x_m[0];
+        const double x_prev = n == 0 ? x_start : e.offset;  // offset holds the last position (below)
+        e.offset = x_prev - x_start;
+      }
+    }
+    for (std::size_t i = 0; i < spans.size(); ++i)
+      if (spans[i].begin == k)
+        mark(t_n, c, static_cast<std::int32_t>(i), plan_event_t::MARK_PHASE_START, t_n,
+             time_of(case_first + spans[i].end));
+
+    // Faults (simulated time).
+    const double t_s = static_cast<double>(n) / rate_hz_;
+    const auto& f = options_.faults;
+    if (f.bus_off_at_s >= 0) {
+      const bool want = t_s >= f.bus_off_at_s && t_s < f.bus_off_at_s + f.bus_off_s;
+      if (want != bus_off) {
+        std::uint8_t err[8]{};
+        if (want) {
+          write_can_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, err, 8, false);
+        } else {
+          err[1] = CAN_ERR_CRTL_ACTIVE;
+          write_can_frame(CAN_ERR_FLAG | CAN_ERR_RESTARTED | CAN_ERR_CRTL, err, 8, false);
+        }
+        bus_off = want;
+      }
+    }
+    if (f.modbus_gone_at_s >= 0 && controllers_) {
+      const bool want = t_s >= f.modbus_gone_at_s && t_s < f.modbus_gone_at_s + f.modbus_gone_s;
+      if (want != modbus_gone) {
+        if (want) {
+          controllers_->stop();
+        } else {
+          std::string why;
+          (void)controllers_->restart(&why);
+        }
+        modbus_gone = want;
+      }
+    }
+
+    // CAN: one FD frame per 16 channels, sample_index last. Nothing goes out while bus-off.
+    if (!bus_off) {
+      std::fill(payload.begin(), payload.end(), std::uint8_t{0});
+      for (std::size_t i = 0; i <= nch; ++i) {
+        std::int64_t raw;
+        if (i < nch) {
+          raw = std::llround(can_value(can_channels_[i], c, k) / kSimCanScale);
+          raw = std::clamp<std::int64_t>(raw, std::numeric_limits<std::int32_t>::min(),
+                                         std::numeric_limits<std::int32_t>::max());
+        } else {
+          raw = static_cast<std::int64_t>(n & 0xffffffffu);
+        }
+        const auto u = static_cast<std::uint32_t>(raw);
+        std::uint8_t* p = payload.data() + 64 * (i / kSignalsPerFrame) + 4 * (i % kSignalsPerFrame);
+        p[0] = static_cast<std::uint8_t>(u);
+        p[1] = static_cast<std::uint8_t>(u >> 8);
+        p[2] = static_cast<std::uint8_t>(u >> 16);
+        p[3] = static_cast<std::uint8_t>(u >> 24);
+      }
+      for (std::size_t g = 0; g < frames; ++g)
+        write_can_frame(kSimCanBaseId + static_cast<std::uint32_t>(g), payload.data() + 64 * g, 64, true);
+    }
+
+    // Encoders: the edges since the previous sample, then the sample clock's trigger edge.
+    for (auto& e : encoders_) {
+      const double x = position(e, c, k);
+      const auto target = static_cast<std::int64_t>(std::floor(x / e.resolution));
+      const std::int64_t steps = target - e.count;
+      const std::int64_t m = steps < 0 ? -steps : steps;
+      const std::int64_t t_prev = n == 0 ? t_n - static_cast<std::int64_t>(period_ns) : time_of(n - 1);
+      for (std::int64_t j = 0; j < m; ++j) {
+        const int s = mod4(e.count);
+        gp::EdgeLine line;
+        bool rising;
+        if (steps > 0) {  // forward: 0->1 A up, 1->2 B up, 2->3 A down, 3->0 B down
+          line = (s == 0 || s == 2) ? gp::EdgeLine::A : gp::EdgeLine::B;
+          rising = s <= 1;
+          ++e.count;
+        } else {          // backward: 1->0 A down, 2->1 B down, 3->2 A up, 0->3 B up
+          line = (s == 1 || s == 3) ? gp::EdgeLine::A : gp::EdgeLine::B;
+          rising = s == 3 || s == 0;
+          --e.count;
+        }
+        const std::int64_t t_edge = t_prev + (t_n - t_prev) * (j + 1) / (m + 1);
+        if (!write_edge(e, line, rising, t_edge)) break;
+        if (f.glitch_every > 0 && ++e.edges % f.glitch_every == 0)
+          (void)write_edge(e, line, rising, t_edge);  // the same edge again: no level change, a glitch
+      }
+      e.trigger_level = !e.trigger_level;
+      (void)write_edge(e, gp::EdgeLine::Trigger, e.trigger_level, t_n);
+    }
+    if (k == case_len - 1)
+      for (auto& e : encoders_) e.offset = position(e, c, k);  // continuity into the next case
+
+    if (controllers_ && !modbus_gone && n % ctrl_every == 0) update_controllers(c, k);
+
+    for (std::size_t i = 0; i < spans.size(); ++i)
+      if (spans[i].end == k + 1)
+        mark(t_n, c, static_cast<std::int32_t>(i), plan_event_t::MARK_PHASE_END, time_of(case_first + spans[i].begin),
+             t_n);
+    if (k == case_len - 1) mark(t_n, c, -1, plan_event_t::MARK_CASE_END, time_of(case_first), t_n);
+    written_.store(n + 1, std::memory_order_relaxed);
+  }
+  finished_.store(true, std::memory_order_release);
+}
+
+void SimBench::describe(const PlanMark& mark, plan_event_t& ev) const {
+  if (mark.case_index < 0 || static_cast<std::size_t>(mark.case_index) >= bench_.cases.size()) return;
+  const auto& tc = bench_.cases[static_cast<std::size_t>(mark.case_index)];
+  ev.case_name = tc.name;
+  ev.kind = config::to_string(tc.kind);
+  if (mark.phase_index < 0 || static_cast<std::size_t>(mark.phase_index) >= tc.phases.size()) return;
+  const auto& p = tc.phases[static_cast<std::size_t>(mark.phase_index)];
+  ev.phase = sim::phase_label(p.kind);
+  auto add = [&](const char* name, double v, const char* unit) {
+    ev.setpoint_names.emplace_back(name);
+    ev.setpoint_values.push_back(v);
+    ev.setpoint_units.emplace_back(unit);
+  };
+  switch (p.kind) {
+    case config::PhaseKind::Rotation:
+      if (p.rate_rad_s) add("rate", *p.rate_rad_s, "rad/s");
+      if (p.angle_rad) add("angle", *p.angle_rad, "rad");
+      break;
+    case config::PhaseKind::Sine:
+      add("frequency", p.frequency_hz, "Hz");
+      add("amplitude", p.amplitude_mps2, "m/s^2");
+      break;
+    case config::PhaseKind::Random:
+      add("f1", p.f1_hz, "Hz");
+      add("f2", p.f2_hz, "Hz");
+      add("rms", p.rms_mps2, "m/s^2");
+      break;
+    case config::PhaseKind::Shock:
+      add("peak", p.peak_mps2, "m/s^2");
+      add("pulse", p.pulse_s, "s");
+      break;
+    case config::PhaseKind::ThermalStep: add("temperature", p.setpoint_c, "degC"); break;
+    case config::PhaseKind::Dwell: break;
+  }
+}
+
+}  // namespace inertia::daq

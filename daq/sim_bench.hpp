@@ -1,0 +1,119 @@
+#pragma once
+// A simulated bench (backend = "sim") standing behind the real wires (design.md, style.md §6):
+// the bench physics of hal/sim is computed for the whole test plan, then a driver thread plays
+// it in simulated time into
+//   * one CAN bus "accel": every accelerometer channel (sensors under test, monitors, the
+//     control accelerometer) as int32 signals in CAN FD frames (16 per frame, little-endian,
+//     signed, scale 1e-6 SI/count), plus "sample_index" (uint32, the simulated sample number,
+//     as ADC modules carry a frame counter), through a SOCK_SEQPACKET socketpair into the real
+//     CanDevice;
+//   * one encoder device per [linear_encoder]/[table_encoder]: x4 quadrature edges of the
+//     simulated position and a trigger-line edge on every sample tick (the bench's sample
+//     clock), as gpioevent_data records through pipes into the real GpiodEncoderDevice;
+//   * the bench controllers (thermal fixture, table, shaker status) on a loopback Modbus TCP
+//     server, polled by the real ModbusController/ModbusLink.
+// Paced (sample n written at t0 + n / rate) or as fast as the readers take it (blocking CAN
+// writes give back-pressure); the timestamps in the published blocks are the same either way.
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/config/bench_config.hpp"
+#include "daq/publisher.hpp"
+#include "daq/sampler.hpp"
+#include "hal/sim/bench_simulation.hpp"
+#include "hal/unique_fd.hpp"
+#include "hal/wire_sim/bench_controllers.hpp"
+#include "hal/wire_sim/encoder_wire.hpp"
+
+namespace inertia::daq {
+
+/// Faults the simulator injects (from --fault on the command line; times in simulated seconds).
+struct SimFaults {
+  double bus_off_at_s = -1.0, bus_off_s = 0.0;         // CAN: error frame BUSOFF, silence, RESTARTED
+  double modbus_gone_at_s = -1.0, modbus_gone_s = 0.0; // Modbus server stopped, then restarted
+  std::size_t glitch_every = 0;                        // encoder: a duplicate edge after every n-th edge
+};
+
+struct SimOptions {
+  bool fast = false;            // as fast as possible instead of paced in real time
+  double duration_s = 0.0;      // simulated seconds; <= 0: the plan once. Longer: the plan repeats.
+  SimFaults faults;
+  int modbus_poll_ms = 100;
+};
+
+/// Scale of the simulated CAN ADC (SI per count): the decoded value is within half of it.
+inline constexpr double kSimCanScale = 1e-6;
+/// Frame id of the first simulated CAN FD frame (the next ones follow).
+inline constexpr std::uint32_t kSimCanBaseId = 0x100;
+
+class SimBench {
+ public:
+  /// Simulates the plan and builds the wires and the devices (not yet configured). Throws
+  /// InputError for bad truth parameters; nullptr + why when a wire cannot be built.
+  static std::unique_ptr<SimBench> create(const config::BenchConfig& bench, const SimOptions& options,
+                                          std::size_t ring_capacity, std::string* why);
+  ~SimBench();
+
+  /// The samplers of the simulated devices, with their (unconfigured) devices. Once.
+  std::vector<std::unique_ptr<Sampler>> take_samplers() { return std::move(samplers_); }
+  /// Configures and activates every device; false + why naming the device.
+  /// (Called by the daemon through the samplers it owns; kept here because the sim owns the wires.)
+
+  /// Starts the driver at simulated time 0 = t0_ns (CLOCK_MONOTONIC). Marks go to `marks`.
+  void start(std::int64_t t0_ns, SpscRing<PlanMark>* marks);
+  void stop();
+  [[nodiscard]] bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
+  [[nodiscard]] std::uint64_t samples_written() const noexcept { return written_.load(std::memory_order_relaxed); }
+  /// Names and setpoints of a marker (publisher thread).
+  void describe(const PlanMark& mark, plan_event_t& event) const;
+
+  /// Samples in one pass of the plan / in this run.
+  [[nodiscard]] std::size_t plan_samples() const noexcept { return case_begin_.back(); }
+  [[nodiscard]] std::size_t run_samples() const noexcept { return run_samples_; }
+
+ private:
+  SimBench(const config::BenchConfig& bench, SimOptions options);
+  struct CanChannel {
+    std::string name, unit;
+    int kind;           // 0 sensor y, 1 monitor, 2 control
+    std::size_t index;  // sensor / monitor index
+  };
+  struct EncoderSim {
+    std::unique_ptr<hal::wire_sim::EncoderWire> wire;
+    double resolution;
+    bool table;          // table angle, else shaker displacement
+    std::int64_t count = 0;
+    double offset = 0.0; // keeps the position continuous across cases and plan repeats
+    bool trigger_level = false;
+    std::size_t edges = 0;
+  };
+  void run() noexcept;
+  double can_value(const CanChannel& ch, std::size_t c, std::size_t k) const;
+  double position(const EncoderSim& e, std::size_t c, std::size_t k) const;
+  bool write_edge(EncoderSim& e, hal::gpiod::EdgeLine line, bool rising, std::int64_t t_ns);
+  void write_can_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd);
+  void update_controllers(std::size_t c, std::size_t k);
+
+  const config::BenchConfig& bench_;
+  SimOptions options_;
+  double rate_hz_;
+  sim::BenchSimulation sim_;
+  std::vector<std::size_t> case_begin_;   // global sample index of each case's first sample; back() = total
+  std::size_t run_samples_ = 0;
+  std::vector<CanChannel> can_channels_;
+  hal::UniqueFd can_wire_;                // the simulator's end of the socketpair
+  std::vector<EncoderSim> encoders_;
+  std::unique_ptr<hal::wire_sim::BenchControllerServer> controllers_;
+  std::vector<std::unique_ptr<Sampler>> samplers_;
+  SpscRing<PlanMark>* marks_ = nullptr;
+  std::int64_t t0_ns_ = 0;
+  std::thread thread_;
+  std::atomic<bool> stop_{false}, finished_{false};
+  std::atomic<std::uint64_t> written_{0};
+};
+
+}  // namespace inertia::daq
