@@ -33,6 +33,39 @@ class FitContext {
     return finish_uls(phi_, y_, labels_, columns, rational_, factors_, sol, options_);
   }
 
+  // theta and classical sd for the t-test of step 9. Polynomial fits without noise lags come from
+  // the statistics alone (O(p^3), no data pass): pruning j terms one at a time would otherwise
+  // cost O(N j^2) per candidate model. Rational or ELS fits need the data (sandwich, residuals).
+  std::pair<Eigen::VectorXd, Eigen::VectorXd> theta_sd(const std::vector<Index>& columns) const {
+    const bool rational = std::any_of(columns.begin(), columns.end(), [this](Index c) {
+      return std::find(rational_.columns.begin(), rational_.columns.end(), c) != rational_.columns.end();
+    });
+    if (options_.noise_lags > 0 || rational) {
+      const UlsResult r = fit(columns);
+      return {r.process_theta(), r.std_dev.head(r.process_terms)};
+    }
+    std::vector<std::string> names;
+    for (Index c : columns) names.push_back(labels_[static_cast<std::size_t>(c)]);
+    const UlsSolution sol = solve_uls(stats_.subset(columns), names, options_);
+    const double dof = static_cast<double>(std::max<Index>(samples() - static_cast<Index>(columns.size()), 1));
+    const Eigen::VectorXd sd =
+        (sol.zeta_energy / dof * sol.gram_inverse.diagonal().cwiseMax(0.0)).cwiseSqrt();
+    return {sol.theta, sd};
+  }
+
+  // The ERR Gram matrix [Phi y]'[Phi y]; from the statistics when they exist (ERR does not
+  // depend on column scale or sign), so the ranking costs no second data pass.
+  Eigen::MatrixXd err_gram() const {
+    if (options_.noise_lags > 0) return ErrGram::from_data(phi_, y_).matrix();
+    const Index p = stats_.terms();
+    Eigen::MatrixXd g(p + 1, p + 1);
+    g.topLeftCorner(p, p) = stats_.gram;
+    g.col(p).head(p) = stats_.cross;
+    g.row(p).head(p) = stats_.cross.transpose();
+    g(p, p) = stats_.yy;
+    return g;
+  }
+
   [[nodiscard]] Index samples() const { return phi_.rows(); }
   [[nodiscard]] Index terms() const { return phi_.cols(); }
   [[nodiscard]] const std::vector<std::string>& labels() const { return labels_; }
@@ -50,11 +83,9 @@ class FitContext {
 // Steps 9-12 on `columns` of `context`.
 void prune_and_score(const FitContext& context, std::vector<Index> columns,
                      const SelectionOptions& options, double threshold, CandidateModel& model) {
-  UlsResult fit = context.fit(columns);
   for (;;) {
-    const ParameterTTest tt =
-        parameter_t_test(fit.process_theta(), fit.std_dev.head(fit.process_terms), context.samples());
-    model.t_test = tt;
+    const auto [theta, sd] = context.theta_sd(columns);
+    const ParameterTTest tt = parameter_t_test(theta, sd, context.samples());
     if (tt.p_value.size() == 0) break;
     Eigen::Index worst = 0;
     const double worst_p = tt.p_value.maxCoeff(&worst);
@@ -69,13 +100,22 @@ void prune_and_score(const FitContext& context, std::vector<Index> columns,
       }
     }
     columns = std::move(keep);
-    fit = context.fit(columns);  // step 10
   }
+  UlsResult fit = context.fit(columns);  // step 10, with residuals and the final covariance
+  model.t_test = parameter_t_test(fit.process_theta(), fit.std_dev.head(fit.process_terms),
+                                  context.samples());
   model.columns = columns;
   model.residual_mean = residual_mean_test(fit.residuals);                         // step 12
   model.aic = aic(fit.residuals, static_cast<Index>(fit.theta.size()));            // step 11
   model.fit = std::move(fit);
   model.ok = true;
+}
+
+// log of fitness up to the common factor exp(AIC_min / 2): ranks models before AIC_min is known.
+double log_score(const CandidateModel& m) {
+  return (m.residual_mean.p_value > 0.0 ? std::log(m.residual_mean.p_value)
+                                        : -std::numeric_limits<double>::infinity()) -
+         m.aic / 2.0;
 }
 
 }  // namespace
@@ -97,7 +137,7 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
   const FitContext base(problem.phi, problem.y, problem.labels, problem.rational, options.uls);
   SelectionResult out;
   out.ranking = problem.ranking;
-  if (out.ranking.empty()) out.ranking = err_rank(problem.phi, problem.y, options.err).order;
+  if (out.ranking.empty()) out.ranking = err_rank(base.err_gram(), options.err).order;
   for (Index c : out.ranking)
     if (c < 0 || c >= base.terms()) throw std::invalid_argument("selection: ranking index out of range");
   const std::size_t count =
@@ -113,6 +153,7 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
           : options.alpha;
   StageProblem stage;
   Index scored_samples = -1;
+  std::ptrdiff_t best = -1;
   for (std::size_t j = 1; j <= count; ++j) {
     CandidateModel model;
     model.ranked_terms = j;
@@ -146,6 +187,24 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
       model.failure = e.what();
     }
     out.candidates.push_back(std::move(model));
+    // Keep residuals only for the running best, so memory does not grow with the models tried.
+    // Ties (several j pruned to the same model) go to the smaller model, then the smaller j.
+    CandidateModel& m = out.candidates.back();
+    if (!m.ok) continue;
+    const std::size_t index = out.candidates.size() - 1;
+    if (best < 0) {
+      best = static_cast<std::ptrdiff_t>(index);
+      continue;
+    }
+    CandidateModel& b = out.candidates[static_cast<std::size_t>(best)];
+    const double ms = log_score(m), bs = log_score(b);
+    const bool better = ms > bs + 1e-9 || (ms >= bs - 1e-9 && m.fit.theta.size() < b.fit.theta.size());
+    if (better) {
+      b.fit.residuals = Eigen::VectorXd();
+      best = static_cast<std::ptrdiff_t>(index);
+    } else {
+      m.fit.residuals = Eigen::VectorXd();
+    }
   }
 
   // Step 14: relative likelihood and fitness over the models that could be fitted.
@@ -154,27 +213,17 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
     aics[static_cast<Eigen::Index>(i)] =
         out.candidates[i].ok ? out.candidates[i].aic : std::numeric_limits<double>::quiet_NaN();
   const Eigen::VectorXd p_aic = relative_likelihood(aics);
-  bool any = false;
   for (std::size_t i = 0; i < out.candidates.size(); ++i) {
     CandidateModel& m = out.candidates[i];
     if (!m.ok) continue;
     m.p_aic = p_aic[static_cast<Eigen::Index>(i)];
     m.fitness = fitness(m.residual_mean.p_value, m.p_aic);
-    if (!any) {
-      out.best = i;
-      any = true;
-      continue;
-    }
-    const CandidateModel& b = out.candidates[out.best];
-    // Step 15; ties (e.g. several j pruned to the same model) go to the smaller model.
-    if (m.fitness > b.fitness * (1.0 + 1e-12) ||
-        (m.fitness >= b.fitness * (1.0 - 1e-12) && m.fit.theta.size() < b.fit.theta.size()))
-      out.best = i;
   }
-  if (!any) {
+  if (best < 0) {
     throw std::runtime_error("selection: no candidate model could be fitted" +
                              (out.candidates.empty() ? std::string() : ": " + out.candidates.front().failure));
   }
+  out.best = static_cast<std::size_t>(best);  // step 15: highest fitness (same order as log_score)
   return out;
 }
 

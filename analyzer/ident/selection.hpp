@@ -99,7 +99,8 @@ struct CandidateModel {
   std::string failure;
   std::vector<Index> columns;        ///< final columns (of phi, or of the stage problem)
   std::vector<std::string> removed;  ///< pruned by the t-test, in removal order
-  UlsResult fit;                     ///< step 10 fit of the final columns
+  UlsResult fit;                     ///< step 10 fit of the final columns; fit.residuals is kept
+                                     ///< for the best model only (empty otherwise: memory O(N))
   ParameterTTest t_test;             ///< of fit.process_theta()
   ResidualMeanTest residual_mean;    ///< step 12
   double aic = 0.0;                  ///< equation 9 (parameters include noise terms)
@@ -117,8 +118,11 @@ struct SelectionResult {
 /// Algorithm 2 (hook != nullptr) or section 2.7.2 (hook == nullptr). Ties in fitness go to the
 /// model with fewer parameters, then to the smaller j. Throws std::invalid_argument on bad input
 /// and std::runtime_error when no candidate could be fitted.
-/// Memory: one UlsStatistics (p x p) per problem and one residual vector per fit alive at a time;
-/// nothing grows with the number of candidate models tried.
+/// Cost and memory: one O(N p^2) pass builds the statistics (the ERR ranking reuses them); each
+/// candidate then costs O(j^3) per pruning step and one O(N j) residual pass. Residuals are kept
+/// for the running best model only, so memory is O(N + p^2) plus a few numbers per candidate,
+/// whatever the number of candidate models tried. Rational or ELS fits need data passes per
+/// pruning step (sandwich covariance / residual lags).
 SelectionResult select_model(const SelectionProblem& problem, const SelectionOptions& options,
                              FitHook* hook = nullptr);
 

@@ -129,6 +129,7 @@ UlsSolution solve_uls(const UlsStatistics& stats, const std::vector<std::string>
   UlsSolution out;
   out.theta = Eigen::VectorXd::Zero(p);
   if (p == 0) {
+    out.zeta_energy = stats.yy;
     out.sigma2 = stats.yy / std::max(n, 1.0);
     out.condition_number = 1.0;
     out.converged = true;
@@ -194,7 +195,8 @@ UlsSolution solve_uls(const UlsStatistics& stats, const std::vector<std::string>
   };
   if (q == 0) {
     // Polynomial model: Psi = 0, the correction vanishes and ULS is LS (b == 1, sum b^2 = N).
-    out.sigma2 = zeta_energy(theta) / stats.s11;
+    out.zeta_energy = zeta_energy(theta);
+    out.sigma2 = out.zeta_energy / stats.s11;
     out.iterations = 1;
     out.converged = true;
     out.corrected_inverse = out.gram_inverse;
@@ -244,6 +246,7 @@ UlsSolution solve_uls(const UlsStatistics& stats, const std::vector<std::string>
     }
   }
   out.sigma2 = sigma2;
+  out.zeta_energy = zeta_energy(theta);
   const Eigen::MatrixXd m_inv = ldlt.solve(Eigen::MatrixXd::Identity(p, p));
   out.corrected_inverse = inv_scale.asDiagonal() * m_inv * inv_scale.asDiagonal();
   out.theta = inv_scale.cwiseProduct(theta);

@@ -125,6 +125,10 @@ struct UlsSolution {
   Eigen::MatrixXd gram_inverse;    ///< (Phi'Phi)^-1, unscaled: classical covariance / s^2
   Eigen::MatrixXd corrected_inverse;  ///< (Phi'Phi - sigma^2 Psi)^-1, unscaled (sandwich)
   double sigma2 = 0.0;
+  /// sum zeta^2 at theta from the statistics (yy - 2 theta'r + theta'R theta). Cancellation costs
+  /// log10(y'y / sum zeta^2) digits (1e10 for 1 g against 1e-4 noise leaves 6): enough for t-tests,
+  /// not for AIC, which finish_uls computes from the residuals themselves.
+  double zeta_energy = 0.0;
   double condition_number = 0.0;
   int iterations = 0;
   bool converged = false;
