@@ -2,12 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <stdexcept>
-#include <tuple>
 
 #include <fmt/format.h>
 
+#include "common/dataset/huge_pages.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::ident {
@@ -96,42 +95,29 @@ Eigen::Index first_usable_row(std::span<const Term> terms) {
 
 namespace {
 
-// Vectors of f(v)^n over the whole case, computed once per build and shared by every term (and
-// every lag of it: a lag is only a different segment of the same vector).
-class FactorCache {
- public:
-  explicit FactorCache(const SignalSet& signals) : signals_(signals) {}
+// sign(0) = 0, as the paper's sign (eq. 1), MATLAB's sign and std's signum convention.
+double signum(double a) { return a > 0.0 ? 1.0 : (a < 0.0 ? -1.0 : 0.0); }
 
-  const Eigen::VectorXd& values(const Factor& f) {
-    const Eigen::VectorXd& x = signals_.get(f.variable);
-    if (f.function == FactorFunction::Plain && f.power == 1) return x;
-    const auto key = std::make_tuple(f.variable, f.function, f.power);
-    auto it = cache_.find(key);
-    if (it != cache_.end()) return it->second;
-    Eigen::VectorXd v(x.size());
+// col = f(x)^n (first factor) or col *= f(x)^n, straight from the signal segment: no temporary
+// vectors, so fill_regressors allocates nothing (fresh pages cost more than the extra multiplies;
+// see common/dataset/huge_pages.hpp).
+template <class Column, class Segment>
+void apply_factor(Column&& col, const Segment& x, const Factor& f, bool first) {
+  for (int n = 0; n < f.power; ++n) {
+    const bool assign = first && n == 0;
     switch (f.function) {
-      case FactorFunction::Plain: v = integer_power(x.array(), f.power); break;
-      case FactorFunction::Abs: v = integer_power(x.array().abs(), f.power); break;
-      // Paper eq. 1: sign(0) = 0, as std's signum and MATLAB's sign.
-      case FactorFunction::Sign: v = x.unaryExpr([](double a) { return a > 0.0 ? 1.0 : (a < 0.0 ? -1.0 : 0.0); }); break;
+      case FactorFunction::Plain:
+        if (assign) col = x; else col.array() *= x.array();
+        break;
+      case FactorFunction::Abs:
+        if (assign) col = x.cwiseAbs(); else col.array() *= x.array().abs();
+        break;
+      case FactorFunction::Sign:
+        if (assign) col = x.unaryExpr(&signum); else col.array() *= x.unaryExpr(&signum).array();
+        break;
     }
-    return cache_.emplace(key, std::move(v)).first->second;
   }
-
- private:
-  // Repeated multiplication, exact for the small powers terms use (std::pow is slower and, for
-  // negative bases, needs an integer exponent anyway).
-  template <class Expr>
-  static Eigen::VectorXd integer_power(const Expr& base, int n) {
-    Eigen::VectorXd b = base.matrix();
-    Eigen::VectorXd r = b;
-    for (int i = 1; i < n; ++i) r.array() *= b.array();
-    return r;
-  }
-
-  const SignalSet& signals_;
-  std::map<std::tuple<Variable, FactorFunction, int>, Eigen::VectorXd> cache_;
-};
+}
 
 }  // namespace
 
@@ -152,7 +138,6 @@ void fill_regressors(std::span<const Term> terms, const SignalSet& signals, Eige
     throw std::invalid_argument(fmt::format("fill_regressors: phi is {}x{}, expected {}x{}", phi.rows(), phi.cols(),
                                             rows, terms.size()));
   }
-  FactorCache cache(signals);
   for (std::size_t j = 0; j < terms.size(); ++j) {
     auto col = phi.col(static_cast<Eigen::Index>(j));
     const auto& factors = terms[j].factors();
@@ -161,9 +146,10 @@ void fill_regressors(std::span<const Term> terms, const SignalSet& signals, Eige
       continue;
     }
     // Row r is sample first_row + r; a factor lagged by L reads sample first_row + r - L.
-    const auto segment = [&](const Factor& f) { return cache.values(f).segment(first_row - f.lag, rows); };
-    col = segment(factors[0]);
-    for (std::size_t i = 1; i < factors.size(); ++i) col.array() *= segment(factors[i]).array();
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      const Factor& f = factors[i];
+      apply_factor(col, signals.get(f.variable).segment(first_row - f.lag, rows), f, i == 0);
+    }
   }
 }
 
@@ -182,6 +168,7 @@ Regression build_regression(std::span<const Term> terms, const SignalSet& signal
                                  signals.size(), r.first_row));
   }
   r.phi.resize(rows, static_cast<Eigen::Index>(terms.size()));
+  dataset::advise_huge_pages(r.phi.data(), static_cast<std::size_t>(r.phi.size()) * sizeof(double));
   fill_regressors(terms, signals, r.first_row, r.phi);
   r.y = signals.get(Variable::Y).segment(r.first_row, rows);
   return r;

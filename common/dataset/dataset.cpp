@@ -13,10 +13,15 @@
 #include <iostream>
 #include <memory>
 #include <system_error>
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <toml++/toml.h>
+#include <unistd.h>
 
 #include <fmt/format.h>
 
+#include "common/dataset/huge_pages.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::dataset {
@@ -77,24 +82,51 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-std::string read_whole_file(const std::filesystem::path& file) {
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.c_str(), "rb"), &std::fclose);
-  if (!f) {
-    throw InputError(SourcePosition{file.string(), 0, 0},
-                     fmt::format("cannot open for reading: {}", std::strerror(errno)));
+// The file's bytes, mapped read-only (the page cache already holds them after the first read, so
+// this avoids copying hundreds of MB into fresh anonymous pages); read into a string where mmap
+// is not possible (a pipe, an empty file).
+class FileBytes {
+ public:
+  explicit FileBytes(const std::filesystem::path& file) {
+    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+      throw InputError(SourcePosition{file.string(), 0, 0},
+                       fmt::format("cannot open for reading: {}", std::strerror(errno)));
+    }
+    struct stat st {};
+    if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+      void* p = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+      if (p != MAP_FAILED) {
+        (void)::madvise(p, static_cast<std::size_t>(st.st_size), MADV_SEQUENTIAL);
+        map_ = static_cast<const char*>(p);
+        size_ = static_cast<std::size_t>(st.st_size);
+        ::close(fd);
+        return;
+      }
+    }
+    std::array<char, 1 << 16> chunk;
+    ssize_t got = 0;
+    while ((got = ::read(fd, chunk.data(), chunk.size())) > 0) copy_.append(chunk.data(), static_cast<std::size_t>(got));
+    const int read_errno = errno;
+    ::close(fd);
+    if (got < 0) {
+      throw InputError(SourcePosition{file.string(), 0, 0}, fmt::format("read error: {}", std::strerror(read_errno)));
+    }
   }
-  std::string buf;
-  std::array<char, 1 << 16> chunk;
-  std::error_code ec;
-  const auto size = std::filesystem::file_size(file, ec);
-  if (!ec) buf.reserve(static_cast<std::size_t>(size));
-  std::size_t got = 0;
-  while ((got = std::fread(chunk.data(), 1, chunk.size(), f.get())) > 0) buf.append(chunk.data(), got);
-  if (std::ferror(f.get())) {
-    throw InputError(SourcePosition{file.string(), 0, 0}, "read error");
+  ~FileBytes() {
+    if (map_ != nullptr) ::munmap(const_cast<char*>(map_), size_);
   }
-  return buf;
-}
+  FileBytes(const FileBytes&) = delete;
+  FileBytes& operator=(const FileBytes&) = delete;
+
+  [[nodiscard]] const char* data() const { return map_ != nullptr ? map_ : copy_.data(); }
+  [[nodiscard]] std::size_t size() const { return map_ != nullptr ? size_ : copy_.size(); }
+
+ private:
+  const char* map_ = nullptr;
+  std::size_t size_ = 0;
+  std::string copy_;
+};
 
 // One field's text, for error messages: up to the next comma or the end of the line.
 std::string_view field_text(const char* p, const char* eol) {
@@ -106,7 +138,7 @@ std::string_view field_text(const char* p, const char* eol) {
 
 void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings) {
   const std::string name = file.string();
-  const std::string buf = read_whole_file(file);
+  const FileBytes buf(file);
   const char* p = buf.data();
   const char* const end = buf.data() + buf.size();
   if (buf.size() >= 3 && std::memcmp(p, "\xEF\xBB\xBF", 3) == 0) p += 3;  // UTF-8 BOM from spreadsheets
@@ -188,6 +220,12 @@ void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostrea
   out.phase_names.clear();
   out.phase.clear();
   if (has(Column::Phase)) out.phase.resize(static_cast<std::size_t>(rows));
+  const auto advise = [](auto& m) { advise_huge_pages(m.data(), static_cast<std::size_t>(m.size()) * sizeof(double)); };
+  advise(out.t);
+  advise(out.a_e);
+  advise(out.y);
+  if (out.w_e) advise(*out.w_e);
+  if (out.temp) advise(*out.temp);
 
   std::vector<double*> dest(columns.size(), nullptr);
   for (std::size_t i = 0; i < columns.size(); ++i) {
@@ -414,6 +452,8 @@ std::string toml_float(double v) {
   return s;
 }
 
+constexpr std::size_t kWriteChunk = std::size_t{1} << 20;
+
 void write_file(const std::filesystem::path& file, const std::string& bytes) {
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.c_str(), "wb"), &std::fclose);
   if (!f) {
@@ -551,13 +591,24 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
 
   for (std::size_t i = 0; i < data.cases.size(); ++i) {
     const CaseData& c = data.cases[i];
-    std::string csv = "t,a_x,a_y,a_z";
+    const std::filesystem::path path = dir / files[i];
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "wb"), &std::fclose);
+    if (!f) throw std::system_error(errno, std::generic_category(), "cannot open " + path.string() + " for writing");
+    // Written in ~1 MB pieces: a multi-million-row case never sits in memory twice.
+    std::string csv;
+    csv.reserve(kWriteChunk + 1024);
+    const auto flush = [&] {
+      if (std::fwrite(csv.data(), 1, csv.size(), f.get()) != csv.size()) {
+        throw std::system_error(errno, std::generic_category(), "cannot write " + path.string());
+      }
+      csv.clear();
+    };
+    csv = "t,a_x,a_y,a_z";
     if (c.w_e) csv += ",w_x,w_y,w_z";
     if (c.temp) csv += ",temp";
     csv += ",y";
     if (!c.phase.empty()) csv += ",phase";
     csv += '\n';
-    csv.reserve(csv.size() + static_cast<std::size_t>(c.size()) * 200);
     for (Eigen::Index k = 0; k < c.size(); ++k) {
       append_double(csv, c.t[k]);
       for (int a = 0; a < 3; ++a) { csv += ','; append_double(csv, c.a_e(k, a)); }
@@ -572,8 +623,10 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
         csv += c.phase_names[c.phase[static_cast<std::size_t>(k)]];
       }
       csv += '\n';
+      if (csv.size() >= kWriteChunk) flush();
     }
-    write_file(dir / files[i], csv);
+    flush();
+    if (std::fflush(f.get()) != 0) throw std::system_error(errno, std::generic_category(), "cannot write " + path.string());
   }
 }
 
