@@ -66,6 +66,9 @@ struct DeviceSlot {
   std::atomic<std::uint64_t> heartbeat{0};  // +1 per loop: the supervisor's proof of life
   std::atomic<std::int8_t> state{static_cast<std::int8_t>(SlotState::Unconfigured)};
   std::atomic<bool> finished{false};        // the sampling thread drained and left
+  // Set while the sampling thread waits in poll() with nothing pending (read by the simulator's
+  // encoder handshake, see sim_bench.cpp).
+  std::atomic<bool> idle{false};
 
   // Written by the publisher only.
   std::uint64_t blocks = 0;

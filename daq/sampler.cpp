@@ -181,7 +181,9 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
     if (got != 0) continue;
     const bool peer_gone = (slot_->faults.load(std::memory_order_relaxed) & kFaultPeerClosed) != 0;
     if (nfds > 0 && !peer_gone) {
+      slot_->idle.store(true, std::memory_order_release);
       (void)::poll(fds, nfds, kIdleWaitMs);
+      slot_->idle.store(false, std::memory_order_release);
     } else {
       timespec ts{0, kIdleWaitMs * 1'000'000L};
       ::nanosleep(&ts, nullptr);

@@ -2,6 +2,8 @@
 
 #include <linux/can.h>
 #include <linux/can/error.h>
+#include <linux/gpio.h>
+#include <limits.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
@@ -119,13 +121,14 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     qc.resolution = enc.resolution;
     auto device = gp::GpiodEncoderDevice::from_source(e.wire->take_source(), qc, why);
     if (!device) return false;
-    std::vector<int> fds;
-    for (int fd : device->event_fds())
-      if (fd >= 0) fds.push_back(fd);
+    // Woken by the trigger line only: the simulator writes a tick's A/B edges before its trigger
+    // edge, so when the trigger is readable the whole tick is in the pipes (see run()).
+    std::vector<int> fds{device->event_fds()[static_cast<std::size_t>(gp::EdgeLine::Trigger)]};
     std::vector<ChannelInfo> info{{"count", "1", next_id}, {"position", table ? "rad" : "m", next_id + 1}};
     next_id += 2;
     auto slot = std::make_shared<DeviceSlot>(name, std::move(info), s->rate_hz_, ring_capacity);
     slot->sim_time_base = true;
+    e.slot = slot;
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::move(fds), slot, true));
     s->encoders_.push_back(std::move(e));
     return true;
@@ -194,13 +197,33 @@ double SimBench::position(const EncoderSim& e, std::size_t c, std::size_t k) con
   return e.offset + (e.table ? m.table_angle_rad[kk] : m.shaker_x_m[kk]);
 }
 
-bool SimBench::write_edge(EncoderSim& e, gp::EdgeLine line, bool rising, std::int64_t t_ns) {
-  // The pipe is non-blocking: a full pipe means the reader is behind; wait for it (the sim is
-  // the bench, it cannot drop edges), but never past stop().
-  while (!e.wire->write(gp::EdgeEvent{line, rising, t_ns})) {
-    if (stop_.load(std::memory_order_relaxed)) return false;
-    timespec ts{0, 20'000};
-    ::nanosleep(&ts, nullptr);
+void SimBench::queue_edge(EncoderSim& e, gp::EdgeLine line, bool rising, std::int64_t t_ns) {
+  gpioevent_data record{};
+  record.timestamp = static_cast<__u64>(t_ns);
+  record.id = rising ? GPIOEVENT_EVENT_RISING_EDGE : GPIOEVENT_EVENT_FALLING_EDGE;
+  auto& buf = e.pending[static_cast<std::size_t>(line)];
+  const auto* bytes = reinterpret_cast<const std::uint8_t*>(&record);
+  buf.insert(buf.end(), bytes, bytes + sizeof record);
+}
+
+bool SimBench::flush_edges(EncoderSim& e) {
+  // A/B first, the trigger last: the row the trigger makes must see every edge before it.
+  for (std::size_t l = 0; l < gp::kEdgeLineCount; ++l) {
+    auto& buf = e.pending[l];
+    std::size_t done = 0;
+    while (done < buf.size()) {
+      const std::size_t chunk = std::min<std::size_t>(buf.size() - done, PIPE_BUF / sizeof(gpioevent_data) * sizeof(gpioevent_data));
+      // The pipe is non-blocking: full means the reader is behind; wait for it (the sim is the
+      // bench, it cannot drop edges), but never past stop().
+      if (e.wire->write_raw(static_cast<gp::EdgeLine>(l), buf.data() + done, chunk)) {
+        done += chunk;
+      } else {
+        if (stop_.load(std::memory_order_relaxed)) return false;
+        timespec ts{0, 20'000};
+        ::nanosleep(&ts, nullptr);
+      }
+    }
+    buf.clear();
   }
   return true;
 }
@@ -345,7 +368,18 @@ void SimBench::run() noexcept {
     }
 
     // Encoders: the edges since the previous sample, then the sample clock's trigger edge.
+    // Handshake: GpiodEncoderDevice reads its lines' descriptors one after the other, so edges
+    // written while it is between two reads would be merged out of order (B's before A's).
+    // The simulator therefore writes a tick only while the encoder's sampler is parked in
+    // poll() on the trigger line with the previous tick's row pushed (two ring pushes per row).
+    // This is the simulator's pacing, not the daemon's: the sampling path is unchanged.
     for (auto& e : encoders_) {
+      while (!stop_.load(std::memory_order_relaxed) &&
+             !(e.slot->idle.load(std::memory_order_acquire) &&
+               e.slot->samples.load(std::memory_order_relaxed) + e.slot->ring_drops.load(std::memory_order_relaxed) >= 2 * n)) {
+        timespec ts{0, 5'000};
+        ::nanosleep(&ts, nullptr);
+      }
       const double x = position(e, c, k);
       const auto target = static_cast<std::int64_t>(std::floor(x / e.resolution));
       const std::int64_t steps = target - e.count;
@@ -365,12 +399,13 @@ void SimBench::run() noexcept {
           --e.count;
         }
         const std::int64_t t_edge = t_prev + (t_n - t_prev) * (j + 1) / (m + 1);
-        if (!write_edge(e, line, rising, t_edge)) break;
+        queue_edge(e, line, rising, t_edge);
         if (f.glitch_every > 0 && ++e.edges % f.glitch_every == 0)
-          (void)write_edge(e, line, rising, t_edge);  // the same edge again: no level change, a glitch
+          queue_edge(e, line, rising, t_edge + 1);  // the same edge again: no level change, a glitch
       }
       e.trigger_level = !e.trigger_level;
-      (void)write_edge(e, gp::EdgeLine::Trigger, e.trigger_level, t_n);
+      queue_edge(e, gp::EdgeLine::Trigger, e.trigger_level, t_n);
+      (void)flush_edges(e);
     }
     if (k == case_len - 1)
       for (auto& e : encoders_) e.offset = position(e, c, k);  // continuity into the next case

@@ -14,6 +14,7 @@
 //     server, polled by the real ModbusController/ModbusLink.
 // Paced (sample n written at t0 + n / rate) or as fast as the readers take it (blocking CAN
 // writes give back-pressure); the timestamps in the published blocks are the same either way.
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -90,11 +91,16 @@ class SimBench {
     double offset = 0.0; // keeps the position continuous across cases and plan repeats
     bool trigger_level = false;
     std::size_t edges = 0;
+    std::shared_ptr<DeviceSlot> slot;  // the encoder's sampler (handshake)
+    // Records of one sample tick per line, written in PIPE_BUF-sized batches (one syscall for
+    // many edges; a pipe write of at most PIPE_BUF bytes is atomic, so records never split).
+    std::array<std::vector<std::uint8_t>, hal::gpiod::kEdgeLineCount> pending;
   };
   void run() noexcept;
   double can_value(const CanChannel& ch, std::size_t c, std::size_t k) const;
   double position(const EncoderSim& e, std::size_t c, std::size_t k) const;
-  bool write_edge(EncoderSim& e, hal::gpiod::EdgeLine line, bool rising, std::int64_t t_ns);
+  void queue_edge(EncoderSim& e, hal::gpiod::EdgeLine line, bool rising, std::int64_t t_ns);
+  bool flush_edges(EncoderSim& e);
   void write_can_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd);
   void update_controllers(std::size_t c, std::size_t k);
 
