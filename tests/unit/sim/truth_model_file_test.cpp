@@ -1,0 +1,80 @@
+// truth.toml is a model file (design.md "Model file"): the analyzer's reader accepts it, every
+// term name is canonical in the analyzer's grammar, and the coefficients are equation 12's.
+#include <gtest/gtest.h>
+
+#include <sstream>
+
+#include "analyzer/model/model_file.hpp"
+#include "common/units.hpp"
+#include "hal/sim/simulate.hpp"
+#include "sim_test_util.hpp"
+
+namespace {
+
+using namespace inertia;
+
+TEST(TruthFile, ReadsAsAModelFileWithCanonicalTerms) {
+  const auto cfg = sim::test::temp_dir("cfg");
+  const auto out = sim::test::temp_dir("out");
+  const auto bench = sim::test::write_file(cfg / "b.toml", R"([bench]
+name = "t"
+sample_rate_hz = 1000.0
+[[sensor]]
+name = "acc"
+type = "accelerometer"
+[sensor.truth]
+k_s = 1e-5
+k_a = 2e-5
+k_oq = 3e-5
+scale_tc_per_degc = 1e-4
+bias_tc_g_per_degc = 2e-5
+[[sensor]]
+name = "fog"
+type = "gyroscope"
+output_unit = "rad/s"
+[sensor.truth]
+s0 = 2.0
+c_i = 1.001
+c_f1 = 1e-4
+eps_t_ppm_per_degc = 30.0
+c_t1 = 1e-6
+c_t2 = -5e-7
+drift_rad_s = 1e-6
+[[case]]
+name = "s"
+kind = "static"
+orientation = "IA"
+[[case.phase]]
+kind = "dwell"
+duration_s = 0.1
+)");
+  std::ostringstream sink;
+  sim::run_simulate(bench, out, sink);
+
+  const model::ModelFile acc = model::read_model(out / "acc" / "truth.toml");
+  EXPECT_EQ(acc.sensor, dataset::SensorKind::Accelerometer);
+  const double ki = 0.86, g = kStandardGravity;   // AccelerometerParams default K_i (table 1)
+  for (const model::ModelTerm& t : acc.terms) {
+    EXPECT_EQ(ident::parse_term(t.term.to_string()).to_string(), t.term.to_string());
+  }
+  EXPECT_NEAR(*acc.coefficient(ident::parse_term("a_i")), ki / g, 1e-15);
+  EXPECT_NEAR(*acc.coefficient(ident::parse_term("sign(a_i)")), ki * 1e-5, 1e-18);
+  EXPECT_NEAR(*acc.coefficient(ident::parse_term("abs(a_i)")), ki * 2e-5 / g, 1e-18);
+  EXPECT_NEAR(*acc.coefficient(ident::parse_term("a_i*abs(a_i)")), ki * 3e-5 / (g * g), 1e-18);
+  EXPECT_NEAR(*acc.coefficient(ident::parse_term("a_i*T")), ki * 1e-4 / g, 1e-18);
+  ASSERT_TRUE(acc.white_sd.has_value());
+  EXPECT_NEAR(*acc.white_sd, ki * 1e-4, 1e-18);
+  EXPECT_TRUE(frames::is_rotation(acc.m_cs, 1e-12));
+
+  const model::ModelFile fog = model::read_model(out / "fog" / "truth.toml");
+  EXPECT_EQ(fog.sensor, dataset::SensorKind::Gyroscope);
+  // Equation 5 solved for the output: Omega = (c_i w_i + c_T1 T + c_T2 T[k-1] + D_F)/S0
+  //   - 1e-6 eps_T Omega T - c_f1 Omega w_i.
+  EXPECT_NEAR(*fog.coefficient(ident::parse_term("w_i")), 1.001 / 2.0, 1e-15);
+  EXPECT_NEAR(*fog.coefficient(ident::parse_term("T[k-1]")), -5e-7 / 2.0, 1e-20);
+  EXPECT_NEAR(*fog.coefficient(ident::parse_term("y*T")), -30e-6, 1e-20);
+  EXPECT_NEAR(*fog.coefficient(ident::parse_term("y*w_i")), -1e-4, 1e-20);
+  EXPECT_NEAR(*fog.coefficient(ident::parse_term("1")), 1e-6 / 2.0, 1e-20);
+}
+
+}  // namespace
