@@ -4,6 +4,7 @@
 #include <linux/can/error.h>
 #include <linux/gpio.h>
 #include <limits.h>
+#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
@@ -275,6 +276,7 @@ void SimBench::update_controllers(std::size_t c, std::size_t k) {
 }
 
 void SimBench::run() noexcept {
+  ::prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);  // paced sleeps and handshake waits to the us
   const double period_ns = 1e9 / rate_hz_;
   const std::size_t batch = std::max<std::size_t>(1, static_cast<std::size_t>(rate_hz_ / 1000.0));  // 1 ms
   const std::size_t ctrl_every = std::max<std::size_t>(1, static_cast<std::size_t>(rate_hz_ / 100.0));  // 10 ms
@@ -370,16 +372,12 @@ void SimBench::run() noexcept {
     // Encoders: the edges since the previous sample, then the sample clock's trigger edge.
     // Handshake: GpiodEncoderDevice reads its lines' descriptors one after the other, so edges
     // written while it is between two reads would be merged out of order (B's before A's).
-    // The simulator therefore writes a tick only while the encoder's sampler is parked in
-    // poll() on the trigger line with the previous tick's row pushed (two ring pushes per row).
+    // The simulator therefore queues a batch of ticks (about 1 ms, at most ~2000 edges a line
+    // so a pipe never fills while the reader is parked) and writes it only while the encoder's
+    // sampler is parked in poll() on the trigger line with every earlier row pushed: A/B first,
+    // the batch's trigger edges last, so the wake-up finds the whole batch in the pipes.
     // This is the simulator's pacing, not the daemon's: the sampling path is unchanged.
     for (auto& e : encoders_) {
-      while (!stop_.load(std::memory_order_relaxed) &&
-             !(e.slot->idle.load(std::memory_order_acquire) &&
-               e.slot->samples.load(std::memory_order_relaxed) + e.slot->ring_drops.load(std::memory_order_relaxed) >= 2 * n)) {
-        timespec ts{0, 5'000};
-        ::nanosleep(&ts, nullptr);
-      }
       const double x = position(e, c, k);
       const auto target = static_cast<std::int64_t>(std::floor(x / e.resolution));
       const std::int64_t steps = target - e.count;
@@ -405,7 +403,25 @@ void SimBench::run() noexcept {
       }
       e.trigger_level = !e.trigger_level;
       queue_edge(e, gp::EdgeLine::Trigger, e.trigger_level, t_n);
-      (void)flush_edges(e);
+      ++e.queued_ticks;
+      const std::size_t ab = std::max(e.pending[0].size(), e.pending[1].size()) / sizeof(gpioevent_data);
+      if ((n + 1) % batch == 0 || ab >= 2048 || n + 1 == run_samples_) {
+        const std::uint64_t rows = 2 * (e.flushed_ticks);  // two ring pushes (count, position) per row
+        int spins = 0;
+        while (!stop_.load(std::memory_order_relaxed) &&
+               !(e.slot->idle.load(std::memory_order_acquire) &&
+                 e.slot->samples.load(std::memory_order_relaxed) + e.slot->ring_drops.load(std::memory_order_relaxed) >= rows)) {
+          if (++spins < 200) {
+            std::this_thread::yield();
+          } else {
+            timespec ts{0, 2'000};
+            ::nanosleep(&ts, nullptr);
+          }
+        }
+        (void)flush_edges(e);
+        e.flushed_ticks += e.queued_ticks;
+        e.queued_ticks = 0;
+      }
     }
     if (k == case_len - 1)
       for (auto& e : encoders_) e.offset = position(e, c, k);  // continuity into the next case

@@ -92,6 +92,7 @@ class SimBench {
     bool trigger_level = false;
     std::size_t edges = 0;
     std::shared_ptr<DeviceSlot> slot;  // the encoder's sampler (handshake)
+    std::size_t queued_ticks = 0, flushed_ticks = 0;
     // Records of one sample tick per line, written in PIPE_BUF-sized batches (one syscall for
     // many edges; a pipe write of at most PIPE_BUF bytes is atomic, so records never split).
     std::array<std::vector<std::uint8_t>, hal::gpiod::kEdgeLineCount> pending;
