@@ -1,15 +1,35 @@
 // inertia-analyze: one binary, several verbs (design.md, "Command line").
 // Exit status: 0 success, 2 bad input (InputError, CLI misuse), 1 anything else.
 #include <CLI/CLI.hpp>
+#include <charconv>
+#include <map>
+#include <vector>
 #include <exception>
 #include <filesystem>
 #include <iostream>
 #include <string>
 
+#include "analyzer/commands/characterize.hpp"
 #include "common/input_error.hpp"
 #include "hal/sim/simulate.hpp"
 
 namespace {
+
+/// "CASE=WEIGHT" pairs; a malformed one is bad input.
+std::map<std::string, double> parse_weights(const std::vector<std::string>& pairs) {
+  std::map<std::string, double> weights;
+  for (const std::string& pair : pairs) {
+    const auto eq = pair.find('=');
+    double w = 0.0;
+    const char* begin = pair.data() + (eq == std::string::npos ? 0 : eq + 1);
+    const auto [end, ec] = std::from_chars(begin, pair.data() + pair.size(), w);
+    if (eq == std::string::npos || eq == 0 || ec != std::errc() || end != pair.data() + pair.size() || !(w > 0.0)) {
+      throw inertia::InputError("--weight '" + pair + "': expected CASE=WEIGHT with a positive weight");
+    }
+    weights[pair.substr(0, eq)] = w;
+  }
+  return weights;
+}
 
 int run(int argc, char** argv) {
   CLI::App app{"inertia-analyze: identify nonlinear dynamic models of inertial sensors"};
@@ -20,6 +40,21 @@ int run(int argc, char** argv) {
   simulate->add_option("--bench", bench_path, "bench configuration (TOML)")->required();
   simulate->add_option("--out", out_dir, "dataset folder to write")->required();
 
+  inertia::commands::CharacterizeOptions characterize_options;
+  auto* characterize = app.add_subcommand("characterize", "the paper's Fig. 1 procedure on a dataset: model.toml and a report");
+  characterize->add_option("--dataset", characterize_options.dataset, "dataset folder")->required()->check(CLI::ExistingDirectory);
+  characterize->add_option("--out", characterize_options.out, "output folder (model.toml, report.md, plots)")->required();
+  characterize->add_option("--order", characterize_options.order, "model order r of the batch candidates")->capture_default_str();
+  characterize->add_option("--misalignment-order", characterize_options.misalignment_order,
+                           "model order r of the algorithm-2 candidates")->capture_default_str();
+  characterize->add_option("--noise-lags", characterize_options.noise_lags, "MA lags of the batch fit (-1: = order)")->capture_default_str();
+  characterize->add_option("--fixed-model", characterize_options.fixed_model, "block 10: fit these F_S terms instead of selecting")->delimiter(',');
+  characterize->add_option("--misalignment-model", characterize_options.misalignment_model,
+                           "blocks 5-6: fit these F_E-and-F_S terms instead of selecting")->delimiter(',');
+  std::vector<std::string> weights;
+  characterize->add_option("--weight", weights, "CASE=WEIGHT, per-case batch weight (section 3.4)")->delimiter(',');
+  characterize->add_option("--alpha", characterize_options.alpha, "t-test significance level")->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -28,6 +63,10 @@ int run(int argc, char** argv) {
   }
 
   if (simulate->parsed()) return inertia::sim::run_simulate(bench_path, out_dir, std::cout);
+  if (characterize->parsed()) {
+    characterize_options.weights = parse_weights(weights);
+    return inertia::commands::run_characterize(characterize_options, std::cout);
+  }
   return inertia::kExitBadInput;
 }
 

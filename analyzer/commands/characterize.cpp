@@ -1,0 +1,92 @@
+#include "analyzer/commands/characterize.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+
+#include <ostream>
+
+#include "analyzer/commands/truth_file.hpp"
+#include "analyzer/model/model_file.hpp"
+#include "analyzer/procedure/misalignment.hpp"
+#include "common/dataset/dataset.hpp"
+#include "common/input_error.hpp"
+#include "common/units.hpp"
+
+namespace inertia::commands {
+
+procedure::PipelineOptions pipeline_options(const CharacterizeOptions& options) {
+  if (options.order < 0 || options.misalignment_order < 0) throw InputError("--order must be >= 0");
+  procedure::PipelineOptions p;
+  p.misalignment.select = options.misalignment_model.empty();
+  p.misalignment.fixed_terms = options.misalignment_model;
+  p.misalignment.candidates.r = options.misalignment_order;
+  p.misalignment.candidates.include_output_lags = options.misalignment_order > 0;
+  if (options.fixed_model.empty()) {
+    p.batch.select = true;
+    p.batch.candidates.r = options.order;
+  } else {
+    p.batch.select = false;
+    p.batch.fixed_terms = options.fixed_model;
+  }
+  p.batch.noise_lags = options.noise_lags < 0 ? options.order : options.noise_lags;
+  p.case_weights = options.weights;
+  p.selection.alpha = options.alpha;
+  std::string why;
+  if (!p.selection.is_valid(&why)) throw InputError("--alpha: " + why);
+  return p;
+}
+
+int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
+  const dataset::Dataset data = dataset::read_dataset(options.dataset);
+  const std::string label = options.dataset.filename().string();
+  const procedure::PipelineOptions p = pipeline_options(options);
+  const procedure::PipelineResult result = procedure::run_pipeline(data, p, label);
+  const std::optional<Truth> truth = read_truth(options.dataset);
+
+  fmt::print(out, "dataset {}: {} {} case(s)\n", options.dataset.string(), data.cases.size(), dataset::to_string(data.sensor));
+  for (const procedure::MountingResult& m : result.mountings) {
+    fmt::print(out, "mounting {}: algorithm 2 tried {} models, {} refinement(s); selected {}\n", m.mounting,
+               m.candidates_tried, m.refinements, fmt::join(m.s_terms, " "));
+    for (std::size_t index : m.cases) {
+      const dataset::CaseData& c = data.cases[index];
+      const frames::Dcm& m_es = result.cases[index].m_es;
+      std::string score;
+      if (truth && truth->m_es.count(c.name)) {
+        score = fmt::format("; input axis error vs truth {:.5f} deg",
+                            rad_to_deg(procedure::input_axis_error(truth->m_es.at(c.name), m_es)));
+      }
+      fmt::print(out, "  case {}: M_E^S input axis [{:+.6f} {:+.6f} {:+.6f}]{}\n", c.name, m_es(0, 0), m_es(0, 1),
+                 m_es(0, 2), score);
+    }
+  }
+  fmt::print(out, "batch model ({} rows, residual sd {:.4g} {}):\n", result.fit.residuals.size(),
+             std::sqrt(result.fit.residual_variance), data.output_unit);
+  fmt::print(out, "  {:<16} {:>14} {:>12} {:>10}{}\n", "term", "coefficient", "std", "t", truth ? "      truth" : "");
+  for (Eigen::Index j = 0; j < result.fit.theta.size(); ++j) {
+    const std::string& name = result.fit.labels[static_cast<std::size_t>(j)];
+    std::string truth_text;
+    if (truth) {
+      const auto it = truth->terms.find(name);
+      truth_text = it == truth->terms.end() ? fmt::format(" {:>12}", "-") : fmt::format(" {:>12.5g}", it->second);
+    }
+    const double t = j < result.t_test.t.size() ? result.t_test.t(j) : result.fit.theta(j) / result.fit.std_dev(j);
+    fmt::print(out, "  {:<16} {:>14.6g} {:>12.3g} {:>10.1f}{}\n", name, result.fit.theta(j), result.fit.std_dev(j), t,
+               truth_text);
+  }
+
+  // The model file: process terms (noise terms describe the residual colour; kept, marked by e).
+  model::ModelFile model;
+  model.sensor = data.sensor;
+  model.m_cs = result.m_cs;
+  for (Eigen::Index j = 0; j < result.fit.theta.size(); ++j) {
+    model.terms.push_back({ident::parse_term(result.fit.labels[static_cast<std::size_t>(j)]), result.fit.theta(j),
+                           result.fit.std_dev(j)});
+  }
+  model.white_sd = std::sqrt(result.fit.residual_variance);
+  std::filesystem::create_directories(options.out);
+  model::write_model(options.out / "model.toml", model);
+  fmt::print(out, "wrote {}\n", (options.out / "model.toml").string());
+  return kExitOk;
+}
+
+}  // namespace inertia::commands

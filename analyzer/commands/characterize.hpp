@@ -1,0 +1,32 @@
+#pragma once
+// `inertia-analyze characterize --dataset DIR --out DIR`: the paper's Fig. 1 procedure on a
+// dataset folder; writes model.toml (design.md "Model file"), report.md and plots.
+#include <filesystem>
+#include <iosfwd>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "analyzer/procedure/pipeline.hpp"
+
+namespace inertia::commands {
+
+struct CharacterizeOptions {
+  std::filesystem::path dataset;
+  std::filesystem::path out;
+  int order = 1;                        // r of the batch candidates (block 11)
+  int misalignment_order = 0;           // r of the algorithm-2 candidates (blocks 5-6)
+  int noise_lags = -1;                  // MA lags of the batch fit; -1: equal to order
+  std::vector<std::string> fixed_model; // non-empty: block 10 with these F_S terms
+  std::vector<std::string> misalignment_model;  // non-empty: blocks 5-6 fixed on these F_E-and-F_S terms
+  std::map<std::string, double> weights;
+  double alpha = 0.05;
+  bool plots = true;
+};
+
+/// Pipeline options from the command-line choices (shared with reproduce-paper).
+procedure::PipelineOptions pipeline_options(const CharacterizeOptions& options);
+
+int run_characterize(const CharacterizeOptions& options, std::ostream& out);
+
+}  // namespace inertia::commands

@@ -1,0 +1,111 @@
+#pragma once
+// The data-analysis half of the paper's Fig. 1:
+//   blocks 5-6   per mounting, algorithm 2: model selection with misalignment estimation (or a
+//                fixed model, for the paper's "simple" comparison), giving M_E^S of every case;
+//   blocks 7-8   every case's references mapped to F_S with its M_E^S;
+//   block 9      the cases concatenated (optionally weighted, section 3.4);
+//   block 10/11  batch identification fixed on a model, or by selection (section 2.7.2).
+//
+// Mountings. The misalignment of a sensor case relative to the frame its references are given in
+// is one unknown per mounting of the sensor. Cases that share a mounting (dataset key `mounting`,
+// e.g. the three shaker orientations of Fig. 2, where the fixture is remounted but the sensor is
+// not) are estimated together: each case's references are first turned into its nominal case frame
+// (a_C = M_E^C a_E), where the shared misalignment is one rotation, and algorithm 2 runs on the
+// concatenated cases. A case without a mounting label is a mounting of its own.
+#include <Eigen/Dense>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "analyzer/ident/candidates.hpp"
+#include "analyzer/ident/selection.hpp"
+#include "analyzer/ident/term.hpp"
+#include "analyzer/ident/uls_batch.hpp"
+#include "common/dataset/dataset.hpp"
+#include "common/frames.hpp"
+
+namespace inertia::procedure {
+
+/// How a model is chosen: by algorithm 2 / section 2.7.2 over candidates, or fixed.
+struct ModelChoice {
+  bool select = true;                       // false: `fixed_terms`
+  ident::CandidateOptions candidates;       // r, sign/abs, temperature (noise terms: see noise_lags)
+  std::vector<std::string> fixed_terms;     // for select = false; F_E-and-F_S terms for blocks 5-6
+                                            // (e.g. 1 a_x a_y a_z), F_S terms for block 10 (1 a_i)
+  int noise_lags = 0;                       // MA part e[k-1..k-n] estimated by ELS (coloured noise)
+};
+
+struct PipelineOptions {
+  ModelChoice misalignment;                 // blocks 5-6
+  ModelChoice batch;                        // blocks 10-11
+  ident::SelectionOptions selection;        // t-test level, multiplicity, ULS options
+  std::map<std::string, double> case_weights;   // case name -> weight (section 3.4); default 1
+  /// Largest order of the autoregressive noise model used to prewhiten every fit (GLS; see
+  /// prewhitening.hpp); 0 fits by ordinary least squares as the paper does.
+  int whitening_max_order = 20;
+  int max_refinements = 6;                  // step-1 fixed point: nonlinear F_S terms need M_E^S
+  /// IEEE 1293 12.3.5.7 (paper section 3.2): on a rotation table a_p^2 and a_o^2 cannot be
+  /// estimated together with the bias and a_i^2 (a_i^2 + a_p^2 + a_o^2 = g^2), so blocks 5-6 leave
+  /// them out of rotation-table mountings.
+  bool ieee_rotation_table_exclusions = true;
+  /// The same section 3.2 on the shaker: the bias cannot be estimated together with the other
+  /// parameters there, so blocks 5-6 leave the bias out of mountings that are all shaker cases.
+  bool ieee_shaker_exclusions = true;
+  /// The bias such a mounting cannot estimate is a property of the sensor, not of the mounting:
+  /// take it from the mountings that can (rotation table, static), estimated first, and remove it
+  /// from the output before the shaker fit. Without it, the bias leaks into theta_x, theta_y,
+  /// theta_z (gravity points along a different case axis in each orientation) and tilts n_i.
+  bool shaker_bias_from_other_mountings = true;
+};
+
+struct MountingResult {
+  std::string mounting;
+  std::vector<std::size_t> cases;           // dataset case indices
+  frames::Dcm m_cs = frames::Dcm::Identity();   // M_C^S estimated (relative to the nominal case frame)
+  std::vector<std::string> es_terms;        // F_E-and-F_S model used for the misalignment
+  std::vector<std::string> s_terms;         // its F_S counterpart after pruning
+  ident::UlsResult s_fit;                   // the F_S fit of the selected model
+  double fitness = 0.0;
+  std::size_t candidates_tried = 0;
+  int refinements = 0;
+  std::vector<std::string> excluded;        // candidates left out (IEEE rule, dependence)
+  int whitening_order = 0;                  // AR order of the noise model (0: white)
+  std::optional<double> known_bias;         // removed from the output before the fit
+};
+
+struct CaseOutcome {
+  std::size_t case_index = 0;
+  frames::Dcm m_es = frames::Dcm::Identity();   // estimated M_E^S (blocks 5-6)
+  Eigen::Index first_row = 0;               // first case sample in the batch rows
+  Eigen::Index begin = 0, rows = 0;         // rows of the batch stack
+};
+
+struct PipelineResult {
+  std::vector<MountingResult> mountings;
+  std::vector<CaseOutcome> cases;
+  std::vector<ident::Term> terms;           // the batch model (F_S)
+  ident::UlsResult fit;                     // batch fit: theta, std_dev, residuals (stacked rows)
+  ident::ParameterTTest t_test;
+  ident::ResidualMeanTest residual_mean;
+  double aic = 0.0;
+  frames::Dcm m_cs = frames::Dcm::Identity();   // of the first mounting (model file)
+  Eigen::VectorXd whitening;                // batch AR noise model a_1..a_m (empty: white)
+};
+
+/// Runs blocks 5-11 on `data`. Throws InputError for bad input (missing columns, bad options) and
+/// std::runtime_error when nothing can be identified (the message names the terms involved).
+PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions& options,
+                            std::string_view dataset_label);
+
+/// Blocks 5-6 alone for one mounting (exposed for tests and reproduce-paper).
+/// `known_bias`: a bias (output unit) estimated elsewhere, subtracted from the output first.
+MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector<std::size_t>& cases,
+                                 const std::string& mounting, const PipelineOptions& options,
+                                 std::string_view dataset_label, std::optional<double> known_bias = std::nullopt);
+
+/// The mountings of a dataset: cases grouped by their `mounting` label, unlabelled cases alone,
+/// in order of first appearance.
+std::vector<std::pair<std::string, std::vector<std::size_t>>> mountings_of(const dataset::Dataset& data);
+
+}  // namespace inertia::procedure

@@ -1,0 +1,43 @@
+#pragma once
+// Generalized least squares for coloured noise by autoregressive prewhitening (iterated
+// Cochrane-Orcutt). A sensor's noise is rarely white: the paper's simulated accelerometer carries
+// pink (1/f) noise fifteen times stronger than its white noise. Ordinary least squares then stays
+// unbiased but wastes most of the data (the 1/f power sits exactly where slow test motions
+// are), and its classical covariance is far too small, so t-tests pass spurious terms and AIC
+// prefers large models. Fitting A(q) to the residuals and filtering the output and every column,
+//     A(q) y = A(q) Phi theta + white,
+// gives the efficient estimate with honest standard deviations. This is the noise model of the
+// paper's eqs. 2 and 4 (v(k) coloured) in its autoregressive form; the MA form stays available in
+// ULS (noise lags) for models that need it.
+#include <Eigen/Dense>
+#include <vector>
+
+#include "analyzer/procedure/stacked_regression.hpp"
+
+namespace inertia::procedure {
+
+class ArWhitener {
+ public:
+  /// The identity (no filtering).
+  ArWhitener() = default;
+
+  /// Fits A(q) = 1 - a_1 q^-1 - ... - a_m q^-m to `residuals` (the stacked rows of `layout`;
+  /// autocovariances are summed within cases only) by Levinson-Durbin, with the order chosen by
+  /// AIC among 0..max_order. Order 0 (white residuals) gives the identity.
+  static ArWhitener fit(const Eigen::VectorXd& residuals, const std::vector<CaseRows>& layout, int max_order);
+
+  [[nodiscard]] int order() const { return static_cast<int>(a_.size()); }
+  [[nodiscard]] const Eigen::VectorXd& coefficients() const { return a_; }
+  /// Innovation variance / residual variance: the share of the residual power left after whitening.
+  [[nodiscard]] double variance_ratio() const { return variance_ratio_; }
+
+  /// Filters y and every column in place, case by case; each case loses its first order() rows
+  /// (their filtered values would need samples from before the case). Updates s.cases.
+  void apply(StackedRegression& s) const;
+
+ private:
+  Eigen::VectorXd a_;
+  double variance_ratio_ = 1.0;
+};
+
+}  // namespace inertia::procedure
