@@ -45,6 +45,9 @@ void read_thermal(const TableReader& t, ThermalController& th) {
 MonitorAccelerometer read_monitor(const TableReader& t, bool named) {
   MonitorAccelerometer m;
   m.name = named ? t.string("name") : t.string_or("name", "control");
+  if (m.name.empty() || m.name.find_first_of(",\" \t") != std::string::npos) {
+    t.fail_key("name", "must be a non-empty name without commas, quotes or spaces (it heads a CSV column)");
+  }
   m.axis = t.has("axis") ? t.nonzero_vec3("axis").normalized() : Eigen::Vector3d::UnitX();
   m.bias_mps2 = g_to_mps2(t.number_or("bias_g", 0.0));
   m.scale_error = t.number_in("scale_error", 0.0, -0.5, 0.5);
@@ -221,6 +224,7 @@ Phase read_phase(const TableReader& t, CaseKind case_kind, double sample_rate_hz
                            to_string(case_kind) + " case");
   }
   p.duration_s = t.positive("duration_s");
+  if (p.duration_s * sample_rate_hz < 1.0) t.fail_key("duration_s", "is shorter than one sample period");
   const double nyquist = sample_rate_hz / 2.0;
   switch (p.kind) {
     case PhaseKind::Dwell: break;
@@ -251,6 +255,10 @@ Phase read_phase(const TableReader& t, CaseKind case_kind, double sample_rate_hz
       if (2.0 * p.ramp_s >= p.duration_s) t.fail_key("ramp_s", "the two tapers are longer than duration_s");
       if (p.f1_hz * p.duration_s < 2.0) {
         t.fail_key("f1_hz", "the phase must span at least two periods of f1_hz");
+      }
+      // The synthesis puts equal amplitudes on the FFT bins of the band (spacing <= 1/duration).
+      if ((p.f2_hz - p.f1_hz) * p.duration_s < 4.0) {
+        t.fail_key("f2_hz", "the band f1_hz..f2_hz must hold at least 4 frequency bins (width >= 4/duration_s)");
       }
       break;
     case PhaseKind::Shock:
@@ -374,7 +382,13 @@ BenchConfig load_bench_config(const std::filesystem::path& path) {
   }
   if (cfg.simulated && cfg.sensors.empty()) root.fail_here("a simulated bench needs at least one [[sensor]]");
 
-  for (const TableReader& m : root.tables("monitor")) cfg.monitors.push_back(read_monitor(m, true));
+  std::set<std::string> monitor_names;
+  for (const TableReader& m : root.tables("monitor")) {
+    cfg.monitors.push_back(read_monitor(m, true));
+    if (!monitor_names.insert(cfg.monitors.back().name).second) {
+      m.fail_key("name", "duplicate monitor name '" + cfg.monitors.back().name + "'");
+    }
+  }
   if (const auto c = root.optional_table("control_accelerometer")) cfg.control_accelerometer = read_monitor(*c, false);
   if (const auto e = root.optional_table("linear_encoder")) cfg.linear_encoder = read_encoder(*e, "resolution_m");
   if (const auto e = root.optional_table("table_encoder")) cfg.table_encoder = read_encoder(*e, "resolution_rad");

@@ -234,6 +234,23 @@ TEST_F(TempFiles, OutOfRangeAndMisplacedValues) {
         << e.what();
   }
   {
+    // A random band too narrow to hold bins at this duration would silently synthesize nothing.
+    const InputError e = error_of(replace(kMinimal, "kind = \"sine\"\nfrequency_hz = 10.0\namplitude_g = 1.0",
+                                          "kind = \"random\"\nf1_hz = 100.0\nf2_hz = 102.0\ngrms = 1.0"));
+    EXPECT_EQ(e.where().line, 16u);
+    EXPECT_NE(std::string(e.what()).find("at least 4 frequency bins"), std::string::npos) << e.what();
+  }
+  {
+    const InputError e = error_of(replace(kMinimal, "duration_s = 1.0", "duration_s = 0.0001"));
+    EXPECT_EQ(e.where().line, 17u);
+    EXPECT_NE(std::string(e.what()).find("shorter than one sample period"), std::string::npos) << e.what();
+  }
+  {
+    const InputError e = error_of(std::string(kMinimal) + "[[monitor]]\nname = \"m1\"\n[[monitor]]\nname = \"m1\"\n");
+    EXPECT_EQ(e.where().line, 21u);
+    EXPECT_NE(std::string(e.what()).find("duplicate monitor name 'm1'"), std::string::npos) << e.what();
+  }
+  {
     const InputError e = error_of(replace(kMinimal, "orientation = \"IA\"", "m_ec = [[1, 0, 0], [0, 1, 0], [0, 1, 1]]"));
     EXPECT_EQ(e.where().line, 12u);
     EXPECT_NE(std::string(e.what()).find("must be a rotation"), std::string::npos) << e.what();
