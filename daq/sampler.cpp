@@ -230,7 +230,8 @@ void ModbusSampler::run() noexcept {
       (void)sink.push(static_cast<std::uint32_t>(i), t0, values[i].valid ? values[i].value : 0.0, values[i].valid);
     }
     const auto& h = controller_->link().health();
-    slot_->decode_errors.store(h.protocol_errors + h.exceptions, std::memory_order_relaxed);
+    // Every failed request (timeout, refused, exception, bad data) left its values invalid.
+    slot_->decode_errors.store(h.errors, std::memory_order_relaxed);
     slot_->resyncs.store(h.reconnects, std::memory_order_relaxed);
     std::uint32_t faults = slot_->faults.load(std::memory_order_relaxed) & ~kFaultModbusGone;
     if (!any_valid || !controller_->link().connected()) faults |= kFaultModbusGone;

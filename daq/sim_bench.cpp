@@ -148,7 +148,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
   mc.name = "controller";
   mc.host = "127.0.0.1";
   mc.port = s->controllers_->port();
-  mc.response_timeout_s = 0.2;
+  mc.response_timeout_s = 0.5;
   mc.reconnect_initial_s = 0.2;
   mc.reconnect_max_s = 1.0;
   mc.timeouts_before_reconnect = 2;

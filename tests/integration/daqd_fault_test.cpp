@@ -72,6 +72,7 @@ TEST(DaqdFaults, ModbusServerGoneTwoSecondsOtherDevicesKeepSamplingAndItRecovers
   EXPECT_TRUE(accel_ran_while_gone) << "the CAN device kept sampling during the outage";
   EXPECT_FALSE(has_fault(*device(st.back(), "controller"), "modbus-gone")) << "recovered by itself";
   EXPECT_GE(device(st.back(), "controller")->resyncs, 1) << "reconnects are counted";
+  EXPECT_GT(device(st.back(), "controller")->decode_errors, 0) << "failed requests are counted";
 
   // The log marks the outage: invalid controller samples, valid ones before and after.
   const auto blocks = decode_all<sample_block_t>(r.events, "INERTIA_RAW_CONTROLLER");

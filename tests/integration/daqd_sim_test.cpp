@@ -109,14 +109,20 @@ TEST(DaqdSim, LogAndStreamMatchSimulatorTruth) {
   ASSERT_GE(t_ch, 0);
   const double tmin = std::min(sc.references.temp_measured_c.minCoeff(), sc.motion.temp_c.minCoeff()) - 0.006;
   const double tmax = std::max(sc.references.temp_measured_c.maxCoeff(), sc.motion.temp_c.maxCoeff()) + 0.006;
+  std::int64_t ctrl_invalid = 0, ctrl_rows = 0;
   for (const auto& b : ctrl)
     for (std::int32_t s = 0; s < b.num_samples; ++s) {
-      ASSERT_TRUE(sample_valid(b, t_ch, s));
+      ++ctrl_rows;
+      if (!sample_valid(b, t_ch, s)) {  // a request that failed under load: must be counted
+        ++ctrl_invalid;
+        continue;
+      }
       const double v = b.values[static_cast<std::size_t>(t_ch)][static_cast<std::size_t>(s)];
       EXPECT_GE(v, tmin);
       EXPECT_LE(v, tmax);
     }
 
+  EXPECT_LT(ctrl_invalid * 10, ctrl_rows);
   // Plan markers: case start/end and start/end of each of the 5 phases, with names.
   const auto marks = decode_all<plan_event_t>(events, "INERTIA_EVENT");
   std::size_t phase_starts = 0;
@@ -132,6 +138,9 @@ TEST(DaqdSim, LogAndStreamMatchSimulatorTruth) {
   const auto status = decode_all<daq_status_t>(events, "INERTIA_STATUS");
   ASSERT_FALSE(status.empty());
   for (const auto& d : status.back().devices) {
+    if (d.device == "controller" && ctrl_invalid > 0) {
+      EXPECT_GT(d.decode_errors, 0) << "invalid rows are failed requests, counted";
+    }
     EXPECT_EQ(d.ring_drops, 0) << d.device;
     EXPECT_EQ(d.state, device_status_t::STATE_ACTIVE) << d.device;
   }
