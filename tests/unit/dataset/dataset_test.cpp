@@ -2,6 +2,7 @@
 // file:line:column for every kind of bad CSV or dataset.toml.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -280,6 +281,35 @@ TEST(Dataset, BadTomlNamesTheKey) {
     const InputError e = read_error(dir);
     EXPECT_EQ(e.where().line, c.line) << e.what();
     EXPECT_NE(std::string(e.what()).find(c.part), std::string::npos) << e.what();
+  }
+}
+
+TEST(Dataset, CorruptedFilesGiveDataOrAPositionedInputError) {
+  // Single-byte corruptions of a valid file: the reader either returns data or names a position
+  // inside the file; it never crashes or reads past the end (this also runs under ASan).
+  const std::string good = "t,a_x,a_y,a_z,w_x,w_y,w_z,temp,y,phase\n0,1.5,-2,3e-3,0,0,0,25,0.1,sine\n"
+                           "0.001,1.25,-2,3e-3,0,0,0,25,0.2,sine\n0.002,1,-2,3e-3,0,0,0,25.5,0.3,rest\n";
+  const std::string alphabet = "0123456789.,-+eE \r\nnaif\"x_";
+  std::mt19937 rng(7);
+  const fs::path dir = folder_with_csv("corrupt", good);
+  for (int trial = 0; trial < 300; ++trial) {
+    std::string bad = good;
+    const std::size_t at = std::uniform_int_distribution<std::size_t>(0, bad.size() - 1)(rng);
+    const char c = alphabet[std::uniform_int_distribution<std::size_t>(0, alphabet.size() - 1)(rng)];
+    if (trial % 3 == 0) bad.erase(at, 1); else if (trial % 3 == 1) bad[at] = c; else bad.insert(at, 1, c);
+    if (trial % 7 == 0) bad.resize(at);   // truncated file
+    spit(dir / "c1.csv", bad);
+    std::ostringstream warnings;
+    try {
+      const Dataset d = read_dataset(dir, warnings);
+      const CaseData& c1 = d.cases.at(0);
+      EXPECT_EQ(c1.a_e.rows(), c1.size());
+      EXPECT_EQ(c1.y.size(), c1.size());
+      EXPECT_TRUE(c1.t.allFinite() && c1.a_e.allFinite() && c1.y.allFinite());
+    } catch (const InputError& e) {
+      const std::size_t lines = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), '\n')) + 1;
+      EXPECT_LE(e.where().line, lines) << e.what() << "\n" << bad;
+    }
   }
 }
 

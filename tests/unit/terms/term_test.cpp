@@ -1,6 +1,7 @@
 // Term grammar (design.md, "Model terms"; analyzer/ident/term.hpp).
 #include <gtest/gtest.h>
 
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
@@ -108,6 +109,29 @@ TEST(Term, RejectsWithTextAndPosition) {
       EXPECT_NE(what.find(r.part), std::string::npos) << r.text << " -> " << what;
     }
   }
+}
+
+TEST(Term, RandomTextEitherFailsCleanlyOrHasAStableCanonicalForm) {
+  // Property: whatever parses, its canonical text parses to the same term and prints the same.
+  const std::vector<std::string> tokens = {"a_i", "a_p", "a_o", "a_x", "w_i", "w_z", "T", "y", "e", "abs(", "sign(",
+                                           ")", "*", "^", "2", "3", "0", "[k-", "1", "]", " ", "k", "-", "a_", "["};
+  std::mt19937 rng(11);
+  int parsed = 0;
+  for (int trial = 0; trial < 5000; ++trial) {
+    std::string text;
+    const int n = std::uniform_int_distribution<int>(1, 9)(rng);
+    for (int i = 0; i < n; ++i) text += tokens[std::uniform_int_distribution<std::size_t>(0, tokens.size() - 1)(rng)];
+    try {
+      const Term t = parse_term(text);
+      ++parsed;
+      const std::string canonical = t.to_string();
+      EXPECT_EQ(parse_term(canonical), t) << text;
+      EXPECT_EQ(parse_term(canonical).to_string(), canonical) << text;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("term '" + text + "'"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_GT(parsed, 100);   // the generator does reach valid terms
 }
 
 TEST(Term, LagsOutputMultiplicationAndVariables) {
