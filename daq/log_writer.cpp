@@ -117,6 +117,16 @@ bool LogWriter::enqueue(std::string_view channel, const void* data, std::size_t 
   return true;
 }
 
+void LogWriter::rotate() noexcept {
+  close_file();
+  std::string why;
+  if (open_next(&why)) {
+    rotations_.fetch_add(1, std::memory_order_relaxed);
+  } else {
+    write_errors_.fetch_add(1, std::memory_order_relaxed);  // messages now count as lost until a later rotate works
+  }
+}
+
 void LogWriter::run() noexcept {
   const std::int64_t start_ns = hal::monotonic_now_ns();
   std::int64_t last_sync_ns = start_ns;
@@ -131,19 +141,12 @@ void LogWriter::run() noexcept {
       std::this_thread::sleep_for(std::chrono::milliseconds(options_.stall_ms));
       in_write_.store(false, std::memory_order_relaxed);
     }
-    if (rotate_requested_.exchange(false, std::memory_order_relaxed) ||
-        (log_ != nullptr && file_bytes_ >= options_.rotate_bytes)) {
-      close_file();
-      std::string why;
-      if (open_next(&why)) {
-        rotations_.fetch_add(1, std::memory_order_relaxed);
-      } else {
-        write_errors_.fetch_add(1, std::memory_order_relaxed);
-      }
-    }
+    if (rotate_requested_.exchange(false, std::memory_order_relaxed)) rotate();
     std::size_t done = 0;
     while (std::uint32_t* index = full_.front()) {
       Slot& slot = pool_[*index];
+      if (log_ != nullptr && file_bytes_ > 0 && file_bytes_ + 28 + slot.channel_len + slot.data_len > options_.rotate_bytes)
+        rotate();  // a file never grows past the limit (unless one message alone exceeds it)
       if (log_ != nullptr) {
         lcm_eventlog_event_t event{};
         event.timestamp = slot.utime;

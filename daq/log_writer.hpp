@@ -84,6 +84,7 @@ class LogWriter {
   void run() noexcept;
   bool open_next(std::string* why);
   void sync() noexcept;
+  void rotate() noexcept;
   void close_file() noexcept;
 
   LogWriterOptions options_;

@@ -1,0 +1,150 @@
+// LogWriter: LCM log format (read back by lcm::LogFile and replayed by lcm-logplayer), rotation
+// by size and on request, a stalled writer that never blocks enqueue() and counts what it lost.
+#include <gtest/gtest.h>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <thread>
+
+#include "daq/daemon.hpp"
+#include "daq/log_writer.hpp"
+
+namespace inertia::daq {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    std::string t = (fs::temp_directory_path() / "logw-XXXXXX").string();
+    path = ::mkdtemp(t.data());
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+std::vector<fs::path> files_in(const fs::path& dir) {
+  std::vector<fs::path> v;
+  for (const auto& e : fs::directory_iterator(dir)) v.push_back(e.path());
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+std::size_t count_events(const std::vector<fs::path>& files, std::int64_t* sum = nullptr) {
+  std::size_t n = 0;
+  for (const auto& f : files) {
+    lcm::LogFile log(f.string(), "r");
+    while (const lcm::LogEvent* e = log.readNextEvent()) {
+      ++n;
+      if (sum) *sum += *static_cast<const std::int32_t*>(e->data);
+    }
+  }
+  return n;
+}
+
+TEST(LogWriter, WritesLcmLogFormatAndRotatesBySizeAndOnRequest) {
+  TempDir tmp;
+  LogWriterOptions o;
+  o.dir = tmp.path / "log";
+  o.base_name = "t";
+  o.rotate_bytes = 10000;
+  LogWriter w(o);
+  std::string why;
+  ASSERT_TRUE(w.open(&why)) << why;
+  w.start();
+  std::vector<std::uint8_t> payload(1000);
+  std::int64_t expected = 0;
+  for (std::int32_t i = 0; i < 100; ++i) {
+    std::memcpy(payload.data(), &i, sizeof i);
+    expected += i;
+    while (!w.enqueue("CH", payload.data(), payload.size(), i)) std::this_thread::yield();
+    if (i == 50) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      w.request_rotate();
+    }
+  }
+  w.stop();
+  const auto files = files_in(tmp.path / "log");
+  EXPECT_GE(files.size(), 10u) << "about 100 kB in files of 10 kB";
+  EXPECT_EQ(w.rotations() + 1, files.size());
+  std::int64_t sum = 0;
+  EXPECT_EQ(count_events(files, &sum), 100u);
+  EXPECT_EQ(sum, expected) << "every message once, none twice";
+  EXPECT_EQ(w.messages_lost(), 0u);
+  EXPECT_EQ(w.bytes_written(), 100u * (28 + 2 + 1000));
+  for (const auto& f : files) EXPECT_LE(fs::file_size(f), 10000u);
+}
+
+TEST(LogWriter, AStalledWriterNeverBlocksEnqueueAndCountsWhatItLost) {
+  TempDir tmp;
+  LogWriterOptions o;
+  o.dir = tmp.path;
+  o.queue_slots = 8;
+  o.stall_after_s = 0.0;
+  o.stall_ms = 500;
+  LogWriter w(o);
+  std::string why;
+  ASSERT_TRUE(w.open(&why));
+  w.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the writer is now stuck
+  std::vector<std::uint8_t> payload(100);
+  std::size_t accepted = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < 100; ++i) accepted += w.enqueue("CH", payload.data(), payload.size(), i) ? 1 : 0;
+  const auto took = std::chrono::steady_clock::now() - t0;
+  EXPECT_LT(took, std::chrono::milliseconds(50)) << "enqueue never waits for the disk";
+  EXPECT_EQ(accepted, 8u);
+  EXPECT_EQ(w.messages_lost(), 92u);
+  w.stop();
+  EXPECT_EQ(count_events(files_in(tmp.path)), 8u);
+  EXPECT_EQ(w.messages_written(), 8u);
+}
+
+TEST(LogWriter, AnUnwritableDirectoryIsNamed) {
+  LogWriterOptions o;
+  o.dir = "/proc/no-such-dir/log";
+  LogWriter w(o);
+  std::string why;
+  EXPECT_FALSE(w.open(&why));
+  EXPECT_NE(why.find("/proc/no-such-dir/log"), std::string::npos) << why;
+}
+
+class Counter {
+ public:
+  int n = 0;
+  void on(const lcm::ReceiveBuffer*, const std::string&) { ++n; }
+};
+
+TEST(LogWriter, LcmLogplayerReplaysTheLog) {
+  if (std::system("command -v lcm-logplayer > /dev/null 2>&1") != 0) GTEST_SKIP() << "lcm-logplayer not installed";
+  if (!has_multicast_route()) GTEST_SKIP() << "no multicast route (ip route add 224.0.0.0/4 dev lo)";
+  TempDir tmp;
+  LogWriterOptions o;
+  o.dir = tmp.path;
+  o.base_name = "replay";
+  LogWriter w(o);
+  std::string why;
+  ASSERT_TRUE(w.open(&why));
+  w.start();
+  const std::int64_t now_us =
+      std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  std::vector<std::uint8_t> payload(64, 7);
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(w.enqueue("INERTIA_REPLAY", payload.data(), payload.size(), now_us + i * 1000));
+  w.stop();
+  const std::string url = "udpm://239.255.76.67:" + std::to_string(30000 + ::getpid() % 20000) + "?ttl=0";
+  lcm::LCM lcm(url);
+  ASSERT_TRUE(lcm.good());
+  Counter c;
+  lcm.subscribe("INERTIA_REPLAY", &Counter::on, &c);
+  const std::string cmd = "lcm-logplayer -s 10 -l '" + url + "' " + w.current_path() + " > /dev/null 2>&1 &";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (c.n < 20 && std::chrono::steady_clock::now() < deadline) lcm.handleTimeout(100);
+  EXPECT_EQ(c.n, 20);
+}
+
+}  // namespace
+}  // namespace inertia::daq
