@@ -304,6 +304,9 @@ int run_daemon(const DaemonOptions& o) {
   publisher.stop();
   if (log) log->stop();
 
+  const double run_s = static_cast<double>(hal::monotonic_now_ns() - start) * 1e-9;
+  std::uint64_t channel_samples = 0;
+  for (auto& s : samplers) channel_samples += s->slot().samples.load();
   std::cerr << "inertia-daqd: stopped" << (exit_signal ? (exit_signal == SIGTERM ? " (SIGTERM)" : " (SIGINT)") : "") << "\n";
   for (auto& s : samplers) {
     const DeviceSlot& d = s->slot();
@@ -311,6 +314,8 @@ int run_daemon(const DaemonOptions& o) {
               << d.ring_drops.load() << ", misaligned " << d.misaligned << ", ring high-water " << d.ring_high_water
               << "/" << d.ring.capacity() << ", decode errors " << d.decode_errors.load() << "\n";
   }
+  std::cerr << "  run: seconds " << run_s << ", channel-samples " << channel_samples << ", per second "
+            << static_cast<std::uint64_t>(static_cast<double>(channel_samples) / run_s) << "\n";
   std::cerr << "  lcm: messages " << publisher.messages() << ", publish failures " << publisher.publish_failures() << "\n";
   if (log)
     std::cerr << "  log: messages " << log->messages_written() << ", lost " << log->messages_lost() << ", bytes "
