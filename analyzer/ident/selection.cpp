@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <utility>
 #include <stdexcept>
 
 namespace inertia::ident {
@@ -80,9 +82,9 @@ class FitContext {
   UlsStatistics stats_;
 };
 
-// Steps 9-12 on `columns` of `context`.
-void prune_and_score(const FitContext& context, std::vector<Index> columns,
-                     const SelectionOptions& options, double threshold, CandidateModel& model) {
+// Step 9 (and the refits of step 10 inside it): the columns that survive the t-test.
+std::vector<Index> prune(const FitContext& context, std::vector<Index> columns,
+                         const SelectionOptions& options, double threshold, CandidateModel& model) {
   for (;;) {
     const auto [theta, sd] = context.theta_sd(columns);
     const ParameterTTest tt = parameter_t_test(theta, sd, context.samples());
@@ -101,7 +103,12 @@ void prune_and_score(const FitContext& context, std::vector<Index> columns,
     }
     columns = std::move(keep);
   }
-  UlsResult fit = context.fit(columns);  // step 10, with residuals and the final covariance
+  return columns;
+}
+
+// Steps 10-12 on the surviving columns.
+void score(const FitContext& context, const std::vector<Index>& columns, CandidateModel& model) {
+  UlsResult fit = context.fit(columns);  // with residuals and the final covariance
   model.t_test = parameter_t_test(fit.process_theta(), fit.std_dev.head(fit.process_terms),
                                   context.samples());
   model.columns = columns;
@@ -154,6 +161,7 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
   StageProblem stage;
   Index scored_samples = -1;
   std::ptrdiff_t best = -1;
+  std::map<std::vector<Index>, std::size_t> scored;  // term set -> first candidate with it
   for (std::size_t j = 1; j <= count; ++j) {
     CandidateModel model;
     model.ranked_terms = j;
@@ -172,12 +180,28 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
                                       " samples, earlier models had " + std::to_string(scored_samples) +
                                       " (AIC needs the same N)");
         scored_samples = staged.samples();
-        prune_and_score(staged, std::move(all), options, threshold, model);
+        score(staged, prune(staged, std::move(all), options, threshold, model), model);
       } else {
         if (scored_samples >= 0 && base.samples() != scored_samples)
           throw std::invalid_argument("selection: models scored on different sample counts");
         scored_samples = base.samples();
-        prune_and_score(base, ranked, options, threshold, model);
+        const std::vector<Index> kept = prune(base, ranked, options, threshold, model);
+        std::vector<Index> key = kept;
+        std::sort(key.begin(), key.end());
+        const auto seen = scored.find(key);
+        if (seen != scored.end()) {
+          // Several j often prune to the same term set: same fit, same score, no data pass.
+          const CandidateModel& twin = out.candidates[seen->second];
+          model.columns = twin.columns;
+          model.t_test = twin.t_test;
+          model.residual_mean = twin.residual_mean;
+          model.aic = twin.aic;
+          model.fit = twin.fit;  // residuals may have been released; the twin keeps priority
+          model.ok = true;
+        } else {
+          score(base, kept, model);
+          scored.emplace(std::move(key), out.candidates.size());
+        }
       }
     } catch (const IdentifiabilityError& e) {
       model.ok = false;

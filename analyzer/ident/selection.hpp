@@ -100,7 +100,9 @@ struct CandidateModel {
   std::vector<Index> columns;        ///< final columns (of phi, or of the stage problem)
   std::vector<std::string> removed;  ///< pruned by the t-test, in removal order
   UlsResult fit;                     ///< step 10 fit of the final columns; fit.residuals is kept
-                                     ///< for the best model only (empty otherwise: memory O(N))
+                                     ///< for the best model only (empty otherwise: memory O(N)).
+                                     ///< A j that prunes to an already scored term set copies
+                                     ///< that score (no second data pass)
   ParameterTTest t_test;             ///< of fit.process_theta()
   ResidualMeanTest residual_mean;    ///< step 12
   double aic = 0.0;                  ///< equation 9 (parameters include noise terms)

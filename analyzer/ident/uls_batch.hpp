@@ -13,6 +13,10 @@
 // theta_j of an output-multiplied column is therefore its denominator coefficient, with the sign
 // it has in b: for a gyro y (1 + eps T) = S0 w the column "y*T" gets theta = eps.
 // The normalising denominator term p_b,1 is the constant 1 (b = 1 + ...).
+// The sigma^2 correction assumes the noise is additive on the output reading (y = a/b + e); if
+// the implicit equation itself carries the noise (y b = a + v) the correction is not the right
+// one (notes §1, modelling caution), and products of the output with *known* reference signals
+// are ordinary polynomial terms that need no correction at all.
 #include <Eigen/Dense>
 
 #include <span>
