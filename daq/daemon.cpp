@@ -1,5 +1,6 @@
 #include "daq/daemon.hpp"
 
+#include <pthread.h>
 #include <signal.h>
 #include <sys/mman.h>
 #include <systemd/sd-daemon.h>
@@ -169,6 +170,9 @@ int run_daemon(const DaemonOptions& o) {
   std::vector<std::unique_ptr<Sampler>> samplers;
   std::string why;
   if (bench.simulated) {
+    // Threads the simulator starts here (its Modbus server) inherit this name, so CPU accounting
+    // can tell the simulated bench from the daemon (tests/bench/daq_pipeline_benchmark.cpp).
+    ::pthread_setname_np(::pthread_self(), "sim-setup");
     SimOptions so;
     so.fast = o.fast;
     so.duration_s = o.duration_s;
@@ -179,6 +183,7 @@ int run_daemon(const DaemonOptions& o) {
       return kExitFailure;
     }
     samplers = sim->take_samplers();
+    ::pthread_setname_np(::pthread_self(), "inertia-daqd");
   } else {
     samplers = open_real_bench(bench, o.ring, &why);
     if (samplers.empty()) {

@@ -1,5 +1,6 @@
 #include "daq/log_writer.hpp"
 
+#include <pthread.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -128,6 +129,7 @@ void LogWriter::rotate() noexcept {
 }
 
 void LogWriter::run() noexcept {
+  ::pthread_setname_np(::pthread_self(), "log-writer");
   const std::int64_t start_ns = hal::monotonic_now_ns();
   std::int64_t last_sync_ns = start_ns;
   bool stalled_once = false;

@@ -1,5 +1,7 @@
 #include "daq/publisher.hpp"
 
+#include <pthread.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -225,6 +227,7 @@ void Publisher::publish_status(double dt_s) {
 }
 
 void Publisher::run() noexcept {
+  ::pthread_setname_np(::pthread_self(), "publisher");
   std::int64_t last_status = hal::monotonic_now_ns();
   const auto period_ns = static_cast<std::int64_t>(options_.status_period_s * 1e9);
   for (;;) {

@@ -153,6 +153,7 @@ void DeviceSampler::mirror_health() noexcept {
 }
 
 void DeviceSampler::run(RealtimeOptions rt) noexcept {
+  ::pthread_setname_np(::pthread_self(), ("smp-" + slot_->name).substr(0, 15).c_str());
   std::string why;
   if ((rt.fifo_priority > 0 || rt.cpu >= 0) && !apply_realtime(rt, &why))
     std::cerr << "inertia-daqd: warning: " << slot_->name << ": " << why << "running without it\n";
@@ -215,6 +216,7 @@ void ModbusSampler::stop() {
 }
 
 void ModbusSampler::run() noexcept {
+  ::pthread_setname_np(::pthread_self(), ("smp-" + slot_->name).substr(0, 15).c_str());
   RingSink sink(*slot_);
   timespec next{};
   ::clock_gettime(CLOCK_MONOTONIC, &next);

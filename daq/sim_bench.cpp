@@ -4,6 +4,7 @@
 #include <linux/can/error.h>
 #include <linux/gpio.h>
 #include <limits.h>
+#include <pthread.h>
 #include <sys/prctl.h>
 #include <sys/socket.h>
 #include <time.h>
@@ -277,6 +278,7 @@ void SimBench::update_controllers(std::size_t c, std::size_t k) {
 
 void SimBench::run() noexcept {
   ::prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);  // paced sleeps and handshake waits to the us
+  ::pthread_setname_np(::pthread_self(), "sim-bench");  // the simulator, not the daemon (CPU accounting)
   const double period_ns = 1e9 / rate_hz_;
   // Paced: wake every 1 ms of simulated time. Fast: hand the encoder 10 ms at a time (fewer handshakes).
   const std::size_t batch = std::max<std::size_t>(1, static_cast<std::size_t>(rate_hz_ / (options_.fast ? 100.0 : 1000.0)));
@@ -298,7 +300,9 @@ void SimBench::run() noexcept {
     const std::size_t k = pn - case_begin_[c];
     const std::size_t case_len = case_begin_[c + 1] - case_begin_[c];
     const std::int64_t t_n = time_of(n);
-    if (!options_.fast && n % batch == 0) sleep_until_ns(t_n);
+    // Paced: a batch goes out when its newest sample is due, as an ADC delivers samples only
+    // after taking them (never early, at most one batch late).
+    if (!options_.fast && n % batch == 0) sleep_until_ns(time_of(std::min(n + batch, run_samples_) - 1));
 
     // Plan markers at the sample they refer to.
     const auto& spans = sim_.cases[c].motion.spans;

@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/socket.h>
+#include <sys/resource.h>
 #include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -102,7 +103,7 @@ class DaqdProcess {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
     while (std::chrono::steady_clock::now() < deadline) {
       int st = 0;
-      const pid_t r = ::waitpid(pid_, &st, WNOHANG);
+      const pid_t r = ::wait4(pid_, &st, WNOHANG, &usage_);
       if (r == pid_) {
         exited_ = true;
         return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
@@ -122,14 +123,30 @@ class DaqdProcess {
     return ss.str();
   }
   [[nodiscard]] pid_t pid() const { return pid_; }
+  /// CPU seconds (user + system) of the exited process.
+  [[nodiscard]] double cpu_seconds() const {
+    return static_cast<double>(usage_.ru_utime.tv_sec + usage_.ru_stime.tv_sec) +
+           1e-6 * static_cast<double>(usage_.ru_utime.tv_usec + usage_.ru_stime.tv_usec);
+  }
 
  private:
   pid_t pid_ = -1;
   bool exited_ = false;
+  rusage usage_{};
   fs::path stderr_file_;
 };
 
-/// The integer after `key` on the summary line of `device` ("  accel: samples 123, ...").
+/// The number after `key` on the summary line of `device` ("  accel: samples 123, ...").
+inline double summary_number(const std::string& out, const std::string& line_prefix, const std::string& key) {
+  const auto at = out.find(line_prefix);
+  if (at == std::string::npos) return -1;
+  const auto eol = out.find('\n', at);
+  const std::string line = out.substr(at, eol - at);
+  const auto k = line.find(key + " ");
+  if (k == std::string::npos) return -1;
+  return std::stod(line.substr(k + key.size() + 1));
+}
+
 inline long long summary_value(const std::string& out, const std::string& line_prefix, const std::string& key) {
   const auto at = out.find(line_prefix);
   if (at == std::string::npos) return -1;
