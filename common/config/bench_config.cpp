@@ -298,6 +298,7 @@ TestCase read_case(const TableReader& t, double alpha_rad, double sample_rate_hz
     c.m_ec = t.mat3("m_ec");
     if (!frames::is_rotation(c.m_ec, 1e-6)) t.fail_key("m_ec", "must be a rotation (orthonormal, det +1)");
   }
+  c.mounting = t.string_or("mounting", "");
   c.fixture_misalignment = read_axis_angle(t, "fixture_misalignment");
   c.case_misalignment = read_axis_angle(t, "case_misalignment");
   c.start_attitude = read_axis_angle(t, "start_attitude");

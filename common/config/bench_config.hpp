@@ -206,6 +206,9 @@ struct Phase {
 struct TestCase {
   std::string name;
   CaseKind kind = CaseKind::Static;
+  // Cases with the same mounting label share one mounting of the sensor (its case misalignment);
+  // written to the dataset so the analysis estimates that misalignment once over all of them.
+  std::string mounting;
   frames::Dcm m_ec = frames::Dcm::Identity();       // nominal M_E^C
   std::optional<Orientation> orientation;           // set when m_ec came from a Fig. 2 slot
   AxisAngle fixture_misalignment;                   // F_E -> true fixture frame, axis in F_E

@@ -138,6 +138,7 @@ void write_simulation(const config::BenchConfig& bench, const BenchSimulation& s
       cd.kind = to_dataset(tc.kind);
       cd.file = tc.name + ".csv";
       cd.m_ec = tc.m_ec;   // nominal: the analyzer must not see the misalignments
+      cd.mounting = tc.mounting;
       cd.sample_period_s = 1.0 / bench.sample_rate_hz;
       cd.t = sc.motion.t;
       cd.a_e = sc.sensors[s].reference(sc.motion);
