@@ -51,11 +51,13 @@ void parse_fault(const std::string& spec, DaemonOptions& o) {
     const auto [a, ms] = at_for(kind, arg);
     o.log_stall_after_s = a;
     o.log_stall_ms = static_cast<int>(ms);
+  } else if (kind == "stuck") {
+    std::tie(o.faults.stuck_at_s, o.faults.stuck_s) = at_for(kind, arg);
   } else if (kind == "encoder-glitch") {
     o.faults.glitch_every = static_cast<std::size_t>(to_number("--fault encoder-glitch", arg));
   } else {
     throw InputError("option --fault: unknown fault '" + kind +
-                     "' (known: bus-off@AT+S, modbus-gone@AT+S, log-stall@AT+MS, encoder-glitch@N)");
+                     "' (known: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S, log-stall@AT+MS, encoder-glitch@N)");
   }
 }
 
@@ -78,8 +80,8 @@ const char* usage() {
          "  --fifo-priority P    SCHED_FIFO priority of the sampling threads (default: off)\n"
          "  --cpu N              pin the sampling threads to CPU N\n"
          "  --mlock              mlockall(MCL_CURRENT | MCL_FUTURE)\n"
-         "  --fault SPEC         sim bench fault: bus-off@AT+S, modbus-gone@AT+S, log-stall@AT+MS,\n"
-         "                       encoder-glitch@N (times in simulated seconds)\n";
+         "  --fault SPEC         sim bench fault: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S (first\n"
+         "                       sensor frozen), log-stall@AT+MS, encoder-glitch@N (simulated seconds)\n";
 }
 
 DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
@@ -257,6 +259,7 @@ int run_daemon(const DaemonOptions& o) {
   const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0;
   const std::int64_t watchdog_ns = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
   std::vector<std::uint64_t> beats(samplers.size(), 0);
+  std::vector<std::uint32_t> faults_seen(samplers.size(), 0);
   std::int64_t last_ping = hal::monotonic_now_ns(), last_status = last_ping;
   const std::int64_t start = last_ping;
   bool stalled_reported = false;
@@ -288,6 +291,15 @@ int run_daemon(const DaemonOptions& o) {
       last_ping = now;
     }
     if (now - last_status >= 1'000'000'000) {
+      // Fault transitions go to the journal (stderr under systemd) as well as INERTIA_STATUS.
+      for (std::size_t i = 0; i < samplers.size(); ++i) {
+        const std::uint32_t f = samplers[i]->slot().faults.load(std::memory_order_relaxed);
+        if (f != faults_seen[i]) {
+          for (const auto& name : fault_names(f & ~faults_seen[i])) std::cerr << "inertia-daqd: " << samplers[i]->slot().name << ": fault " << name << "\n";
+          for (const auto& name : fault_names(faults_seen[i] & ~f)) std::cerr << "inertia-daqd: " << samplers[i]->slot().name << ": cleared " << name << "\n";
+          faults_seen[i] = f;
+        }
+      }
       std::uint64_t samples = 0, drops = 0;
       for (auto& s : samplers) {
         samples += s->slot().samples.load(std::memory_order_relaxed);
@@ -317,7 +329,8 @@ int run_daemon(const DaemonOptions& o) {
     const DeviceSlot& d = s->slot();
     std::cerr << "  " << d.name << ": samples " << d.samples.load() << ", blocks " << d.blocks << ", ring drops "
               << d.ring_drops.load() << ", misaligned " << d.misaligned << ", ring high-water " << d.ring_high_water
-              << "/" << d.ring.capacity() << ", decode errors " << d.decode_errors.load() << "\n";
+              << "/" << d.ring.capacity() << ", decode errors " << d.decode_errors.load() << ", stuck "
+              << d.stuck_invalid << "\n";
   }
   std::cerr << "  run: seconds " << run_s << ", channel-samples " << channel_samples << ", per second "
             << static_cast<std::uint64_t>(static_cast<double>(channel_samples) / run_s) << "\n";

@@ -29,6 +29,7 @@ enum FaultBit : std::uint32_t {
   kFaultGlitches = 1u << 4,
   kFaultMisaligned = 1u << 5,
   kFaultInvalidSamples = 1u << 6,
+  kFaultStuck = 1u << 7,
 };
 std::vector<std::string> fault_names(std::uint32_t bits);
 
@@ -52,6 +53,10 @@ struct DeviceSlot {
   const double nominal_rate_hz;            // samples per second per channel
   bool sim_time_base = false;              // block times from the simulated clock (see publisher)
   int time_index_channel = -1;             // with sim_time_base: a channel holding the sample number
+  // A channel repeating exactly the same value this many samples in a row is stuck: from then on
+  // its samples are marked invalid until the value moves (0: off; only for channels that always
+  // carry noise, e.g. accelerometers digitised below their noise floor).
+  std::uint32_t stuck_samples = 0;
   SpscRing<RingSample> ring;
 
   // Written by the sampling thread (relaxed: counters, read for status only).
@@ -74,6 +79,7 @@ struct DeviceSlot {
   std::uint64_t blocks = 0;
   std::uint64_t misaligned = 0;             // samples a channel got ahead of its siblings by > buffer
   std::uint32_t ring_high_water = 0;
+  std::uint64_t stuck_invalid = 0;          // samples marked invalid as stuck
 };
 
 }  // namespace inertia::daq

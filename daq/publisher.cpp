@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "common/lcm/sample_block_layout.hpp"
 #include "hal/device.hpp"
@@ -62,6 +63,8 @@ bool Publisher::configure(std::string* why) {
     p.t_first.assign(p.capacity, 0);
     p.fill.assign(static_cast<std::size_t>(nch), 0);
     p.channel_seq.assign(static_cast<std::size_t>(nch), 0);
+    p.last_value.assign(static_cast<std::size_t>(nch), std::numeric_limits<double>::quiet_NaN());
+    p.run.assign(static_cast<std::size_t>(nch), 0);
     largest = std::max(largest, static_cast<std::size_t>(p.block.getEncodedSize()));
   }
   buffer_.resize(std::max<std::size_t>(largest, 1 << 16) * 2);
@@ -128,6 +131,27 @@ void Publisher::emit(Packer& p, std::int32_t n) noexcept {
   if (p.block.num_samples != p.block_len) shape_sample_block(p.block, nch, p.block_len);
 }
 
+void Publisher::mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept {
+  DeviceSlot& slot = *p.slot;
+  const double v = p.values[c][f];
+  const bool was_stuck = p.run[c] >= slot.stuck_samples;
+  p.run[c] = (v == p.last_value[c]) ? p.run[c] + 1 : 0;
+  p.last_value[c] = v;
+  const bool stuck = p.run[c] >= slot.stuck_samples;
+  if (stuck) {
+    p.valid[c][f] = 0;  // the log shows exactly which samples were judged stuck
+    ++slot.stuck_invalid;
+  }
+  if (stuck != was_stuck) {
+    p.stuck_channels = stuck ? p.stuck_channels + 1 : p.stuck_channels - 1;
+    if (p.stuck_channels > 0) {
+      slot.faults.fetch_or(kFaultStuck, std::memory_order_relaxed);
+    } else {
+      slot.faults.fetch_and(~kFaultStuck, std::memory_order_relaxed);
+    }
+  }
+}
+
 std::size_t Publisher::drain(Packer& p) noexcept {
   DeviceSlot& slot = *p.slot;
   const std::size_t occupancy = slot.ring.size_approx();
@@ -140,6 +164,7 @@ std::size_t Publisher::drain(Packer& p) noexcept {
       if (f < p.capacity) {
         p.values[c][f] = s->value;
         p.valid[c][f] = static_cast<std::uint8_t>(s->valid);
+        if (slot.stuck_samples > 0 && static_cast<int>(c) != slot.time_index_channel) mark_stuck(p, c, f);
         if (c == 0) p.t_first[f] = s->t_ns;
         ++f;
         if (f >= static_cast<std::size_t>(p.block_len) &&

@@ -85,10 +85,14 @@ class Publisher {
     std::int64_t seq = 0;
     std::vector<std::int64_t> channel_seq;
     std::uint64_t status_samples = 0;    // for the measured rate
+    std::vector<double> last_value;      // stuck detection: previous value and run length per channel
+    std::vector<std::uint32_t> run;
+    std::uint32_t stuck_channels = 0;
   };
   void run() noexcept;
   std::size_t drain(Packer& p) noexcept;
   void emit(Packer& p, std::int32_t n) noexcept;
+  void mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept;
   void publish_status(double dt_s);
   void publish_marks();
   void send(const std::string& channel, const void* data, std::size_t size) noexcept;

@@ -70,7 +70,8 @@ std::vector<std::string> fault_names(std::uint32_t bits) {
   static constexpr std::pair<std::uint32_t, const char*> kNames[] = {
       {kFaultBusOff, "bus-off"},        {kFaultBusPassive, "bus-passive"},   {kFaultModbusGone, "modbus-gone"},
       {kFaultPeerClosed, "peer-closed"}, {kFaultGlitches, "encoder-glitch"}, {kFaultMisaligned, "misaligned"},
-      {kFaultInvalidSamples, "invalid-samples"}};
+      {kFaultInvalidSamples, "invalid-samples"},
+      {kFaultStuck, "stuck"}};
   std::vector<std::string> out;
   for (const auto& [bit, name] : kNames)
     if ((bits & bit) != 0) out.emplace_back(name);

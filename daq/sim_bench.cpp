@@ -99,6 +99,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     auto slot = std::make_shared<DeviceSlot>("accel", std::move(info), s->rate_hz_, ring_capacity);
     slot->sim_time_base = true;
     slot->time_index_channel = static_cast<int>(n);
+    slot->stuck_samples = kSimStuckSamples;
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::vector<int>{fd}, slot, false));
   }
 
@@ -288,6 +289,8 @@ void SimBench::run() noexcept {
   std::vector<std::uint8_t> payload(frames * 64);
   const std::size_t plan = plan_samples();
   bool bus_off = false, modbus_gone = false;
+  std::int64_t stuck_raw = 0;
+  bool stuck = false;
   auto time_of = [&](std::size_t n) { return t0_ns_ + static_cast<std::int64_t>(std::llround(n * period_ns)); };
   auto mark = [&](std::int64_t t, std::size_t c, std::int32_t phase, std::int8_t what, std::int64_t b, std::int64_t e) {
     if (marks_) (void)marks_->try_push(PlanMark{t, b, e, static_cast<std::int32_t>(c), phase, what});
@@ -360,6 +363,12 @@ void SimBench::run() noexcept {
           raw = std::llround(can_value(can_channels_[i], c, k) / kSimCanScale);
           raw = std::clamp<std::int64_t>(raw, std::numeric_limits<std::int32_t>::min(),
                                          std::numeric_limits<std::int32_t>::max());
+          if (i == 0 && f.stuck_at_s >= 0) {  // a sensor whose output freezes (stuck ADC or cable)
+            const bool want = t_s >= f.stuck_at_s && t_s < f.stuck_at_s + f.stuck_s;
+            if (want && !stuck) stuck_raw = raw;
+            stuck = want;
+            if (stuck) raw = stuck_raw;
+          }
         } else {
           raw = static_cast<std::int64_t>(n & 0xffffffffu);
         }

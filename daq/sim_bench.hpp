@@ -37,6 +37,7 @@ struct SimFaults {
   double bus_off_at_s = -1.0, bus_off_s = 0.0;         // CAN: error frame BUSOFF, silence, RESTARTED
   double modbus_gone_at_s = -1.0, modbus_gone_s = 0.0; // Modbus server stopped, then restarted
   std::size_t glitch_every = 0;                        // encoder: a duplicate edge after every n-th edge
+  double stuck_at_s = -1.0, stuck_s = 0.0;             // CAN: the first sensor's value frozen
 };
 
 struct SimOptions {
@@ -46,6 +47,9 @@ struct SimOptions {
   int modbus_poll_ms = 100;
 };
 
+/// Identical values in a row that mark a simulated accelerometer channel stuck (10 ms at 10 kHz;
+/// with noise far above the 1e-6 ADC step, a repeat of even 3 happens with negligible chance).
+inline constexpr std::uint32_t kSimStuckSamples = 100;
 /// Scale of the simulated CAN ADC (SI per count): the decoded value is within half of it.
 inline constexpr double kSimCanScale = 1e-6;
 /// Frame id of the first simulated CAN FD frame (the next ones follow).

@@ -143,3 +143,35 @@ TEST(DaqdFaults, EncoderGlitchesAreCountedAndTheCountStaysRight) {
 
 }  // namespace
 }  // namespace inertia::daq::testing
+
+namespace inertia::daq::testing {
+namespace {
+
+TEST(DaqdFaults, StuckSensorIsMarkedInvalidExactlyFromDetectionOn) {
+  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  // Fast; the first sensor's output freezes from 0.5 s for 0.3 s (3000 samples at 10 kHz).
+  const DaqdRun r = run_daqd({"--fast", "--fault", "stuck@0.5+0.3"}, 60);
+  const auto blocks = decode_all<sample_block_t>(r.events, "INERTIA_RAW_ACCEL");
+  ASSERT_FALSE(blocks.empty());
+  const int stuck_ch = channel_index(blocks.front(), "acc-a");
+  ASSERT_EQ(stuck_ch, 0);
+  // Held from sample 5000 (its own value) through 7999: samples 5001.. repeat it; the run reaches
+  // kSimStuckSamples (100) at 5100, so 5100..7999 are invalid: 2900 samples, and nothing else.
+  std::int64_t invalid = 0, wrong = 0, other_invalid = 0;
+  for (const auto& b : blocks)
+    for (std::int32_t s = 0; s < b.num_samples; ++s) {
+      const std::int64_t k = b.channel_seq[0] + s;
+      const bool expect_invalid = k >= 5100 && k < 8000;
+      const bool valid = sample_valid(b, stuck_ch, s);
+      invalid += valid ? 0 : 1;
+      wrong += (valid == expect_invalid) ? 1 : 0;
+      for (std::int32_t c = 1; c < b.num_channels; ++c) other_invalid += sample_valid(b, c, s) ? 0 : 1;
+    }
+  EXPECT_EQ(invalid, 2900);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(other_invalid, 0) << "the other channels of the bus are unaffected";
+  EXPECT_EQ(summary_value(r.out, "  accel:", "stuck"), 2900);
+}
+
+}  // namespace
+}  // namespace inertia::daq::testing

@@ -12,7 +12,7 @@ TEST(DaemonOptions, ParsesTheDocumentedCommandLine) {
   bool help = false;
   const auto o = parse_options({"--config", "b.toml", "--duration", "2.5", "--log", "/tmp/x", "--fast", "--block-ms", "20",
                                 "--fault", "modbus-gone@1+5", "--fault", "bus-off@0.5+0.2", "--fault", "log-stall@1+1000",
-                                "--fault", "encoder-glitch@100"},
+                                "--fault", "encoder-glitch@100", "--fault", "stuck@2+0.5"},
                                &help);
   EXPECT_FALSE(help);
   EXPECT_EQ(o.config, "b.toml");
@@ -25,6 +25,8 @@ TEST(DaemonOptions, ParsesTheDocumentedCommandLine) {
   EXPECT_DOUBLE_EQ(o.faults.bus_off_s, 0.2);
   EXPECT_EQ(o.log_stall_ms, 1000);
   EXPECT_EQ(o.faults.glitch_every, 100u);
+  EXPECT_DOUBLE_EQ(o.faults.stuck_at_s, 2.0);
+  EXPECT_DOUBLE_EQ(o.faults.stuck_s, 0.5);
 }
 
 TEST(DaemonOptions, BadInputNamesTheOption) {
