@@ -51,13 +51,15 @@ void parse_fault(const std::string& spec, DaemonOptions& o) {
     const auto [a, ms] = at_for(kind, arg);
     o.log_stall_after_s = a;
     o.log_stall_ms = static_cast<int>(ms);
+  } else if (kind == "sampler-hang") {
+    std::tie(o.faults.hang_at_s, o.faults.hang_s) = at_for(kind, arg);
   } else if (kind == "stuck") {
     std::tie(o.faults.stuck_at_s, o.faults.stuck_s) = at_for(kind, arg);
   } else if (kind == "encoder-glitch") {
     o.faults.glitch_every = static_cast<std::size_t>(to_number("--fault encoder-glitch", arg));
   } else {
     throw InputError("option --fault: unknown fault '" + kind +
-                     "' (known: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S, log-stall@AT+MS, encoder-glitch@N)");
+                     "' (known: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S, sampler-hang@AT+S, log-stall@AT+MS, encoder-glitch@N)");
   }
 }
 
@@ -81,7 +83,8 @@ const char* usage() {
          "  --cpu N              pin the sampling threads to CPU N\n"
          "  --mlock              mlockall(MCL_CURRENT | MCL_FUTURE)\n"
          "  --fault SPEC         sim bench fault: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S (first\n"
-         "                       sensor frozen), log-stall@AT+MS, encoder-glitch@N (simulated seconds)\n";
+         "                       sensor frozen), sampler-hang@AT+S (CAN sampling thread sleeps; the\n"
+         "                       watchdog must stop), log-stall@AT+MS, encoder-glitch@N (simulated s)\n";
 }
 
 DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {

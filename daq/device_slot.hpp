@@ -74,6 +74,9 @@ struct DeviceSlot {
   // Set while the sampling thread waits in poll() with nothing pending (read by the simulator's
   // encoder handshake, see sim_bench.cpp).
   std::atomic<bool> idle{false};
+  // Fault injection (sim fault sampler-hang): the sampling thread sleeps until this CLOCK_MONOTONIC
+  // time, as a thread stuck in a driver would, so the watchdog logic can be tested. 0: none.
+  std::atomic<std::int64_t> hang_until_ns{0};
 
   // Written by the publisher only.
   std::uint64_t blocks = 0;

@@ -171,6 +171,12 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
   // once it is reported, and fall back to the idle wait.
   std::uint64_t loops = 0;
   for (;;) {
+    if (const std::int64_t hang = slot_->hang_until_ns.load(std::memory_order_relaxed); hang != 0) {
+      const timespec until{static_cast<time_t>(hang / 1'000'000'000), static_cast<long>(hang % 1'000'000'000)};
+      while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, nullptr) == EINTR) {
+      }
+      slot_->hang_until_ns.store(0, std::memory_order_relaxed);
+    }
     const bool stopping = stop_.load(std::memory_order_acquire);
     // Drain: read_into is bounded per call, so loop until nothing is pending.
     std::size_t got = 0;

@@ -100,6 +100,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     slot->sim_time_base = true;
     slot->time_index_channel = static_cast<int>(n);
     slot->stuck_samples = kSimStuckSamples;
+    s->can_slot_ = slot;
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::vector<int>{fd}, slot, false));
   }
 
@@ -353,6 +354,10 @@ void SimBench::run() noexcept {
         modbus_gone = want;
       }
     }
+
+    if (f.hang_at_s >= 0 && n == static_cast<std::size_t>(std::llround(f.hang_at_s * rate_hz_)))
+      can_slot_->hang_until_ns.store(hal::monotonic_now_ns() + static_cast<std::int64_t>(f.hang_s * 1e9),
+                                     std::memory_order_relaxed);
 
     // CAN: one FD frame per 16 channels, sample_index last. Nothing goes out while bus-off.
     if (!bus_off) {

@@ -38,6 +38,7 @@ struct SimFaults {
   double modbus_gone_at_s = -1.0, modbus_gone_s = 0.0; // Modbus server stopped, then restarted
   std::size_t glitch_every = 0;                        // encoder: a duplicate edge after every n-th edge
   double stuck_at_s = -1.0, stuck_s = 0.0;             // CAN: the first sensor's value frozen
+  double hang_at_s = -1.0, hang_s = 0.0;               // the CAN sampling thread hangs (watchdog test)
 };
 
 struct SimOptions {
@@ -117,6 +118,7 @@ class SimBench {
   std::size_t run_samples_ = 0;
   std::vector<CanChannel> can_channels_;
   hal::UniqueFd can_wire_;                // the simulator's end of the socketpair
+  std::shared_ptr<DeviceSlot> can_slot_;
   std::vector<EncoderSim> encoders_;
   std::unique_ptr<hal::wire_sim::BenchControllerServer> controllers_;
   std::vector<std::unique_ptr<Sampler>> samplers_;

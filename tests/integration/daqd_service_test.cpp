@@ -14,7 +14,7 @@ namespace {
 const std::string kSmall = source_path("tests/integration/configs/daq-small.toml");
 
 /// Total samples per channel of a device in the log, checking continuity on the way.
-std::int64_t logged_samples(const std::vector<LogEvent>& events, const std::string& channel, std::int64_t* gaps) {
+inline std::int64_t logged_samples(const std::vector<LogEvent>& events, const std::string& channel, std::int64_t* gaps) {
   const auto blocks = decode_all<sample_block_t>(events, channel);
   *gaps = sequence_gaps(blocks);
   std::int64_t n = 0;
@@ -215,6 +215,41 @@ TEST(DaqdService, UnitFilePassesSystemdAnalyzeVerify) {
   std::stringstream os;
   os << o.rdbuf();
   EXPECT_EQ(rc, 0) << os.str();
+}
+
+}  // namespace
+}  // namespace inertia::daq::testing
+
+namespace inertia::daq::testing {
+namespace {
+
+TEST(DaqdService, WatchdogIsWithheldWhileASamplingThreadHangsAndResumesAfter) {
+  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  TempDir tmp;
+  NotifySocket notify(tmp.path / "notify.sock");
+  // Paced; the CAN sampling thread sleeps 1.5 s from 0.5 s (as if stuck in a driver).
+  DaqdProcess daqd({"--config", kSmall, "--duration", "600", "--log", (tmp.path / "log").string(), "--lcm-url",
+                    private_lcm_url(), "--fault", "sampler-hang@0.5+1.5"},
+                   {"NOTIFY_SOCKET=" + notify.path().string(), "WATCHDOG_USEC=400000"}, tmp.path / "stderr.txt");
+  std::vector<double> pings;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::milliseconds(3500)) {
+    const std::string msg = notify.receive(0.3);
+    if (msg.find("WATCHDOG=1") != std::string::npos)
+      pings.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  daqd.signal(SIGTERM);
+  ASSERT_EQ(daqd.wait(20), 0) << daqd.output();
+  ASSERT_GE(pings.size(), 4u);
+  double longest = 0;
+  for (std::size_t i = 1; i < pings.size(); ++i) longest = std::max(longest, pings[i] - pings[i - 1]);
+  EXPECT_GE(longest, 1.0) << "no WATCHDOG=1 while the sampler was stuck (systemd would restart us)";
+  EXPECT_GT(pings.back(), 2.3) << "pings resume once the thread moves again";
+  EXPECT_NE(daqd.output().find("accel is not moving"), std::string::npos) << daqd.output();
+  // And nothing was lost: the bench waited (CAN back-pressure), the log has no gap.
+  std::int64_t gaps = 0;
+  (void)logged_samples(read_log_dir(tmp.path / "log"), "INERTIA_RAW_ACCEL", &gaps);
+  EXPECT_EQ(gaps, 0);
 }
 
 }  // namespace
