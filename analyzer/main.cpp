@@ -10,6 +10,7 @@
 #include <string>
 
 #include "analyzer/commands/characterize.hpp"
+#include "analyzer/commands/reproduce_paper.hpp"
 #include "common/input_error.hpp"
 #include "hal/sim/simulate.hpp"
 
@@ -55,6 +56,15 @@ int run(int argc, char** argv) {
   characterize->add_option("--weight", weights, "CASE=WEIGHT, per-case batch weight (section 3.4)")->delimiter(',');
   characterize->add_option("--alpha", characterize_options.alpha, "t-test significance level")->capture_default_str();
 
+  inertia::commands::ReproducePaperOptions paper_options;
+  paper_options.bench = std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-paper.toml";
+  paper_options.seeds = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10};
+  auto* paper = app.add_subcommand("reproduce-paper", "the paper's section 3 over several seeds: tables 2, 3, 4 beside the paper's");
+  paper->add_option("--json", paper_options.json, "write the figures as JSON");
+  paper->add_option("--bench", paper_options.bench, "the paper's bench file")->capture_default_str()->check(CLI::ExistingFile);
+  paper->add_option("--seeds", paper_options.seeds, "simulation seeds")->delimiter(',')->capture_default_str();
+  paper->add_option("--order", paper_options.order, "model order r of case (4)")->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -63,6 +73,7 @@ int run(int argc, char** argv) {
   }
 
   if (simulate->parsed()) return inertia::sim::run_simulate(bench_path, out_dir, std::cout);
+  if (paper->parsed()) return inertia::commands::run_reproduce_paper(paper_options, std::cout);
   if (characterize->parsed()) {
     characterize_options.weights = parse_weights(weights);
     return inertia::commands::run_characterize(characterize_options, std::cout);

@@ -121,36 +121,40 @@ void write_references(const config::BenchConfig& bench, const SimulatedCase& sc,
 
 }  // namespace
 
+dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSimulation& sim, std::size_t s) {
+  const config::SensorUnderTest& sensor = bench.sensors.at(s);
+  dataset::Dataset ds;
+  ds.sensor = sensor.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
+                                                               : dataset::SensorKind::Gyroscope;
+  ds.output_unit = sensor.output_unit;
+  ds.t_ref = bench.t_ref_c;
+  for (std::size_t c = 0; c < bench.cases.size(); ++c) {
+    const config::TestCase& tc = bench.cases[c];
+    const SimulatedCase& sc = sim.cases[c];
+    dataset::CaseData cd;
+    cd.name = tc.name;
+    cd.kind = to_dataset(tc.kind);
+    cd.file = tc.name + ".csv";
+    cd.m_ec = tc.m_ec;   // nominal: the analyzer must not see the misalignments
+    cd.mounting = tc.mounting;
+    cd.sample_period_s = 1.0 / bench.sample_rate_hz;
+    cd.t = sc.motion.t;
+    cd.a_e = sc.sensors[s].reference(sc.motion);
+    cd.w_e = sc.motion.w_e;
+    cd.temp = sc.motion.temp_c;
+    cd.y = sc.sensors[s].y;
+    cd.phase_names = sc.motion.phase_names;
+    cd.phase = sc.motion.phase;
+    ds.cases.push_back(std::move(cd));
+  }
+  return ds;
+}
+
 void write_simulation(const config::BenchConfig& bench, const BenchSimulation& sim, const std::filesystem::path& out) {
   std::filesystem::create_directories(out);
   for (std::size_t s = 0; s < bench.sensors.size(); ++s) {
-    const config::SensorUnderTest& sensor = bench.sensors[s];
-    dataset::Dataset ds;
-    ds.sensor = sensor.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
-                                                                 : dataset::SensorKind::Gyroscope;
-    ds.output_unit = sensor.output_unit;
-    ds.t_ref = bench.t_ref_c;
-    for (std::size_t c = 0; c < bench.cases.size(); ++c) {
-      const config::TestCase& tc = bench.cases[c];
-      const SimulatedCase& sc = sim.cases[c];
-      dataset::CaseData cd;
-      cd.name = tc.name;
-      cd.kind = to_dataset(tc.kind);
-      cd.file = tc.name + ".csv";
-      cd.m_ec = tc.m_ec;   // nominal: the analyzer must not see the misalignments
-      cd.mounting = tc.mounting;
-      cd.sample_period_s = 1.0 / bench.sample_rate_hz;
-      cd.t = sc.motion.t;
-      cd.a_e = sc.sensors[s].reference(sc.motion);
-      cd.w_e = sc.motion.w_e;
-      cd.temp = sc.motion.temp_c;
-      cd.y = sc.sensors[s].y;
-      cd.phase_names = sc.motion.phase_names;
-      cd.phase = sc.motion.phase;
-      ds.cases.push_back(std::move(cd));
-    }
     const std::filesystem::path dir = sensor_dir(bench, s, out);
-    dataset::write_dataset(dir, ds);
+    dataset::write_dataset(dir, sensor_dataset(bench, sim, s));
     write_truth(bench, sim, s, dir / "truth.toml");
   }
   std::filesystem::create_directories(out / "references");

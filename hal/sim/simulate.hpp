@@ -9,6 +9,7 @@
 #include <iosfwd>
 
 #include "common/config/bench_config.hpp"
+#include "common/dataset/dataset.hpp"
 #include "hal/sim/bench_simulation.hpp"
 
 namespace inertia::sim {
@@ -16,6 +17,10 @@ namespace inertia::sim {
 /// Loads, simulates, writes and prints a summary. Returns kExitOk; bad input throws InputError
 /// (the caller maps it to exit status 2).
 int run_simulate(const std::filesystem::path& bench, const std::filesystem::path& out, std::ostream& summary);
+
+/// The dataset (design.md contract, in memory) of sensor under test `sensor_index`: nominal m_ec,
+/// the references it saw, its output. write_simulation writes exactly this.
+dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSimulation& sim, std::size_t sensor_index);
 
 /// Writes the dataset folders, truth files and reference CSVs of a finished simulation.
 void write_simulation(const config::BenchConfig& bench, const BenchSimulation& sim, const std::filesystem::path& out);
