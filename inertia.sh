@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # inertia quick start. Each command installs missing Debian packages, configures and builds first.
-#   ./inertia.sh demo   characterize a sensor on the built-in simulated bench (config/sim-paper.toml)
+#   ./inertia.sh demo   simulate the paper's bench (config/sim-paper.toml) and characterize the sensor on it
 #   ./inertia.sh test   run the whole test suite (what CI runs)
 #   ./inertia.sh build  only install, configure and build
 set -euo pipefail
@@ -42,7 +42,9 @@ case "${1:-}" in
   demo)
     configure_and_build
     out="${2:-$here/out/sim-paper}"
-    "$build_dir/bin/inertia-analyze" simulate --bench "$here/config/sim-paper.toml" --out "$out"
+    "$build_dir/bin/inertia-analyze" simulate --bench "$here/config/sim-paper.toml" --out "$out/dataset"
+    "$build_dir/bin/inertia-analyze" characterize --dataset "$out/dataset" --out "$out/characterization"
+    echo "inertia: dataset in $out/dataset, model and report in $out/characterization (report.md, model.toml, plots/)"
     ;;
   test)
     configure_and_build

@@ -8,6 +8,7 @@
 #include "analyzer/commands/truth_file.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/report/characterization_report.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/input_error.hpp"
 #include "common/units.hpp"
@@ -86,6 +87,13 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   std::filesystem::create_directories(options.out);
   model::write_model(options.out / "model.toml", model);
   fmt::print(out, "wrote {}\n", (options.out / "model.toml").string());
+  report::ReportInputs in;
+  in.data = &data;
+  in.result = &result;
+  in.dataset_label = label;
+  in.plots = options.plots;
+  if (truth) in.truth = report::TruthForReport{truth->terms, truth->m_es};
+  fmt::print(out, "wrote {}\n", report::write_characterization_report(in, options.out).string());
   return kExitOk;
 }
 

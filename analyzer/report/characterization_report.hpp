@@ -1,0 +1,35 @@
+#pragma once
+// The report of `characterize`: report.md with the selected terms, coefficients (standard
+// deviation, t, p, physical name), misalignment per case, residual statistics per case and phase
+// (RMS, mean test, whiteness and independence from the input with 95% bands), verification error
+// per case (the paper's Fig. 7) and, when the dataset carries truth.toml, every estimate scored
+// against truth. Plots are PNGs drawn by gnuplot from data files written beside them; without
+// gnuplot the data files and scripts stay for the user and the report says so.
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+
+#include "analyzer/procedure/pipeline.hpp"
+#include "common/dataset/dataset.hpp"
+#include "common/frames.hpp"
+
+namespace inertia::report {
+
+struct TruthForReport {
+  std::map<std::string, double> terms;          // canonical term -> coefficient
+  std::map<std::string, frames::Dcm> m_es;      // case name -> true M_E^S
+};
+
+struct ReportInputs {
+  const dataset::Dataset* data = nullptr;
+  const procedure::PipelineResult* result = nullptr;
+  std::optional<TruthForReport> truth;
+  std::string dataset_label;
+  bool plots = true;
+};
+
+/// Writes report.md (and plots/) into `out`. Returns the report path.
+std::filesystem::path write_characterization_report(const ReportInputs& in, const std::filesystem::path& out);
+
+}  // namespace inertia::report
