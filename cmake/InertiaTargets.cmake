@@ -39,7 +39,10 @@ function(inertia_add_gtest name)
   target_link_libraries(${name} PRIVATE ${ARG_DEPENDS} GTest::gtest_main inertia_warnings)
   target_compile_definitions(${name} PRIVATE INERTIA_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
                              INERTIA_BINARY_DIR="${PROJECT_BINARY_DIR}")
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "${ARG_LABELS}")
+  # Labels go on the directory (every test folder holds one area): a list passed through
+  # gtest_discover_tests' PROPERTIES keeps only its first element in CMake 3.25.
+  set_property(DIRECTORY APPEND PROPERTY LABELS ${ARG_LABELS})
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60)
 endfunction()
 
 # inertia_add_benchmark(name SOURCES ... DEPENDS ...): a Google Benchmark binary in build/bench.
