@@ -1,0 +1,76 @@
+// AR prewhitening: recovers a known AR process and whitens it; respects case boundaries.
+#include "analyzer/procedure/prewhitening.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace inertia::procedure {
+namespace {
+
+Eigen::VectorXd ar2(Eigen::Index n, double a1, double a2, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::VectorXd e(n);
+  double x1 = 0, x2 = 0;
+  for (Eigen::Index k = -500; k < n; ++k) {   // burn-in so the series is stationary
+    const double x = a1 * x1 + a2 * x2 + g(rng);
+    x2 = x1;
+    x1 = x;
+    if (k >= 0) e(k) = x;
+  }
+  return e;
+}
+
+TEST(ArWhitener, RecoversAr2CoefficientsWithinTheirSamplingSpread) {
+  const Eigen::Index n = 100000;
+  const Eigen::VectorXd e = ar2(n, 1.2, -0.5, 11);
+  const std::vector<CaseRows> layout = {CaseRows{0, 0, n, 0}};
+  const ArWhitener w = ArWhitener::fit(e, layout, 10);
+  ASSERT_GE(w.order(), 2);
+  // Asymptotic sd of AR(2) estimates: sqrt((1 - a2^2) / N) = 0.0027 at N = 1e5; allow 4 sd.
+  const double sd = std::sqrt((1.0 - 0.25) / static_cast<double>(n));
+  EXPECT_NEAR(w.coefficients()(0), 1.2, 4 * sd);
+  EXPECT_NEAR(w.coefficients()(1), -0.5, 4 * sd);
+  for (int j = 2; j < w.order(); ++j) EXPECT_NEAR(w.coefficients()(j), 0.0, 4 * sd);
+  // Innovation variance 1 against the process variance of this AR(2).
+  const double process_var = e.squaredNorm() / static_cast<double>(n);
+  EXPECT_NEAR(w.variance_ratio(), 1.0 / process_var, 0.02 / process_var);
+}
+
+TEST(ArWhitener, WhiteInputNeedsNoFilter) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::VectorXd e(50000);
+  for (Eigen::Index k = 0; k < e.size(); ++k) e(k) = g(rng);
+  const ArWhitener w = ArWhitener::fit(e, {CaseRows{0, 0, e.size(), 0}}, 10);
+  // AIC may keep a spurious small order now and then; its coefficients must be tiny.
+  for (int j = 0; j < w.order(); ++j) EXPECT_LT(std::abs(w.coefficients()(j)), 4.0 / std::sqrt(5e4));
+}
+
+TEST(ArWhitener, FiltersEachCaseWithoutCrossingItsStart) {
+  StackedRegression s;
+  s.phi = Eigen::MatrixXd(10, 1);
+  s.y = Eigen::VectorXd(10);
+  for (int k = 0; k < 10; ++k) {
+    s.phi(k, 0) = k;
+    s.y(k) = 100 + k;
+  }
+  s.cases = {CaseRows{0, 0, 4, 0}, CaseRows{1, 4, 6, 0}};
+  s.labels = {"a_i"};
+  const Eigen::VectorXd e = ar2(20000, 0.5, 0.0, 2);
+  const ArWhitener w = ArWhitener::fit(e, {CaseRows{0, 0, e.size(), 0}}, 1);
+  ASSERT_EQ(w.order(), 1);
+  const double a = w.coefficients()(0);
+  w.apply(s);
+  ASSERT_EQ(s.y.size(), 8);   // each case lost its first row
+  EXPECT_DOUBLE_EQ(s.y(0), 101 - a * 100);        // case 0, sample 1
+  EXPECT_DOUBLE_EQ(s.y(3), 105 - a * 104);        // case 1, sample 1 (sample 0 is row 4, not row 3)
+  EXPECT_DOUBLE_EQ(s.phi(3, 0), 5 - a * 4);
+  EXPECT_EQ(s.cases[1].begin, 3);
+  EXPECT_EQ(s.cases[1].first_sample, 1);
+}
+
+}  // namespace
+}  // namespace inertia::procedure
