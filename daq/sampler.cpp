@@ -102,7 +102,12 @@ bool apply_realtime(const RealtimeOptions& rt, std::string* why) {
 
 DeviceSampler::DeviceSampler(std::unique_ptr<hal::Device> device, std::vector<int> wait_fds,
                              std::shared_ptr<DeviceSlot> slot, bool trigger_rows)
-    : device_(std::move(device)), wait_fds_(std::move(wait_fds)), slot_(std::move(slot)), trigger_rows_(trigger_rows) {}
+    : device_(std::move(device)),
+      can_(dynamic_cast<hal::socketcan::CanDevice*>(device_.get())),
+      encoder_(dynamic_cast<hal::gpiod::GpiodEncoderDevice*>(device_.get())),
+      wait_fds_(std::move(wait_fds)),
+      slot_(std::move(slot)),
+      trigger_rows_(trigger_rows) {}
 
 bool DeviceSampler::bring_up(std::string* why) {
   auto set = [this](SlotState st) { slot_->state.store(static_cast<std::int8_t>(st), std::memory_order_relaxed); };
@@ -137,13 +142,13 @@ void DeviceSampler::mirror_health() noexcept {
   store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(h.read_time_max_us * 1e3));
   std::uint32_t faults = slot_->faults.load(std::memory_order_relaxed) &
                          ~(kFaultBusOff | kFaultBusPassive | kFaultPeerClosed | kFaultGlitches);
-  if (auto* can = dynamic_cast<hal::socketcan::CanDevice*>(device_.get())) {
-    const auto& s = can->status();
+  if (can_ != nullptr) {
+    const auto& s = can_->status();
     if (s.bus_state == hal::socketcan::BusState::BusOff) faults |= kFaultBusOff;
     if (s.bus_state == hal::socketcan::BusState::ErrorPassive) faults |= kFaultBusPassive;
     if (s.peer_closed) faults |= kFaultPeerClosed;
-  } else if (auto* enc = dynamic_cast<hal::gpiod::GpiodEncoderDevice*>(device_.get())) {
-    const auto s = enc->status();
+  } else if (encoder_ != nullptr) {
+    const auto s = encoder_->status();
     const std::uint64_t glitches = s.quadrature.glitches + s.quadrature.illegal_transitions;
     if (glitches > slot_->glitches.load(std::memory_order_relaxed)) faults |= kFaultGlitches;
     slot_->glitches.store(glitches, std::memory_order_relaxed);
@@ -159,8 +164,7 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
   if ((rt.fifo_priority > 0 || rt.cpu >= 0) && !apply_realtime(rt, &why))
     std::cerr << "inertia-daqd: warning: " << slot_->name << ": " << why << "running without it\n";
   RingSink ring_sink(*slot_);
-  auto* encoder = dynamic_cast<hal::gpiod::GpiodEncoderDevice*>(device_.get());
-  TriggerRowSink row_sink(ring_sink, encoder != nullptr ? encoder->trigger_channel() : -1);
+  TriggerRowSink row_sink(ring_sink, encoder_ != nullptr ? encoder_->trigger_channel() : -1);
   hal::SampleSink& sink = trigger_rows_ ? static_cast<hal::SampleSink&>(row_sink) : ring_sink;
 
   pollfd fds[hal::gpiod::kEdgeLineCount]{};

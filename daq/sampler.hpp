@@ -60,6 +60,9 @@ class DeviceSampler final : public Sampler {
   void mirror_health() noexcept;
 
   std::unique_ptr<hal::Device> device_;
+  // The backend behind device_, resolved once (not per loop) for its extra status.
+  hal::socketcan::CanDevice* can_ = nullptr;
+  hal::gpiod::GpiodEncoderDevice* encoder_ = nullptr;
   std::vector<int> wait_fds_;
   std::shared_ptr<DeviceSlot> slot_;
   bool trigger_rows_;
