@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numbers>
 #include <stdexcept>
 
 #include "analyzer/procedure/misalignment.hpp"
@@ -125,14 +127,172 @@ ident::UlsResult fit_identifiable(const StackedRegression& s, std::vector<Eigen:
   }
 }
 
+/// Columns of `labels` that are plain squares of a sensor-frame acceleration (a_i^2, a_p^2,
+/// a_o^2, at any lag): the terms eq. 12 passes through K_jj(s).
+std::vector<Eigen::Index> square_columns(const std::vector<std::string>& labels) {
+  std::vector<Eigen::Index> out;
+  for (std::size_t j = 0; j < labels.size(); ++j) {
+    if (labels[j] == "1" || labels[j].find("^2") == std::string::npos) continue;
+    const Term t = ident::parse_term(labels[j]);
+    const auto& f = t.factors();
+    if (f.size() == 1 && f[0].power == 2 && f[0].function == ident::FactorFunction::Plain &&
+        (f[0].variable == ident::Variable::Ai || f[0].variable == ident::Variable::Ap ||
+         f[0].variable == ident::Variable::Ao)) {
+      out.push_back(static_cast<Eigen::Index>(j));
+    }
+  }
+  return out;
+}
+
+/// H_b(s) = s / (s + b) by the bilinear transform prewarped at b, case by case over the rows of
+/// `layout`, settled on each case's first row (its output starts at 0):
+///   h(k) = p h(k-1) + g (x(k) - x(k-1)),  c = b / tan(b T / 2),  p = (c - b)/(c + b),  g = c/(c + b).
+void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns, const std::vector<CaseRows>& layout,
+                      const dataset::Dataset& data, double corner_rad_s) {
+  for (const CaseRows& rows : layout) {
+    if (rows.rows <= 0) continue;
+    const double period = data.cases.at(rows.case_index).sample_period_s;
+    const double c = corner_rad_s / std::tan(corner_rad_s * period / 2.0);
+    const double p = (c - corner_rad_s) / (c + corner_rad_s);
+    const double g = c / (c + corner_rad_s);
+    for (Eigen::Index col : columns) {
+      auto v = x.col(col).segment(rows.begin, rows.rows);
+      double h = 0.0, previous = v(0);
+      for (Eigen::Index k = 0; k < v.size(); ++k) {
+        const double input = v(k);
+        h = p * h + g * (input - previous);
+        previous = input;
+        v(k) = h;
+      }
+    }
+  }
+}
+
+/// The largest high-pass corner every case of `layout` can be filtered with (below Nyquist).
+double max_corner(const std::vector<CaseRows>& layout, const dataset::Dataset& data) {
+  double smallest_nyquist = std::numeric_limits<double>::infinity();
+  for (const CaseRows& rows : layout) {
+    const double period = data.cases.at(rows.case_index).sample_period_s;
+    if (period > 0.0) smallest_nyquist = std::min(smallest_nyquist, std::numbers::pi / period);
+  }
+  return 0.9 * smallest_nyquist;
+}
+
+/// Residual sum of squares of the least-squares fit of y on the columns of a stacked problem
+/// when its square columns pass H_b (or stay static): the criterion of the corner search. The
+/// Gram matrix of the other columns is computed once; each corner costs one filter pass over the
+/// square columns and their products with the rest.
+class SquareCornerSearch {
+ public:
+  SquareCornerSearch(const StackedRegression& s, std::vector<Eigen::Index> squares, const dataset::Dataset& data)
+      : s_(s), squares_(std::move(squares)), data_(data) {
+    gram_ = s.phi.transpose() * s.phi;
+    xty_ = s.phi.transpose() * s.y;
+    yy_ = s.y.squaredNorm();
+  }
+
+  [[nodiscard]] double rss(std::optional<double> corner_rad_s) const {
+    Eigen::MatrixXd g = gram_;
+    Eigen::VectorXd v = xty_;
+    if (corner_rad_s) {
+      const auto n = static_cast<Eigen::Index>(squares_.size());
+      Eigen::MatrixXd f(s_.phi.rows(), n);
+      std::vector<Eigen::Index> all(squares_.size());
+      for (Eigen::Index i = 0; i < n; ++i) {
+        f.col(i) = s_.phi.col(squares_[static_cast<std::size_t>(i)]);
+        all[static_cast<std::size_t>(i)] = i;
+      }
+      highpass_columns(f, all, s_.cases, data_, *corner_rad_s);
+      const Eigen::MatrixXd cross = f.transpose() * s_.phi;   // n x p, square columns still unfiltered on the right
+      const Eigen::MatrixXd ff = f.transpose() * f;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const Eigen::Index a = squares_[static_cast<std::size_t>(i)];
+        g.row(a) = cross.row(i);
+        g.col(a) = cross.row(i).transpose();
+        v(a) = f.col(i).dot(s_.y);
+      }
+      for (Eigen::Index i = 0; i < n; ++i) {
+        for (Eigen::Index j = 0; j < n; ++j) g(squares_[static_cast<std::size_t>(i)], squares_[static_cast<std::size_t>(j)]) = ff(i, j);
+      }
+    }
+    // Scaled pseudo-inverse (dependent columns are harmless here: only the residual counts).
+    const Eigen::VectorXd d = g.diagonal().cwiseMax(std::numeric_limits<double>::min()).cwiseSqrt();
+    const Eigen::MatrixXd gs = d.cwiseInverse().asDiagonal() * g * d.cwiseInverse().asDiagonal();
+    const Eigen::VectorXd vs = d.cwiseInverse().asDiagonal() * v;
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gs);
+    const double cut = 1e-12 * eig.eigenvalues().maxCoeff();
+    double explained = 0.0;
+    for (Eigen::Index k = 0; k < eig.eigenvalues().size(); ++k) {
+      const double lambda = eig.eigenvalues()(k);
+      if (lambda > cut) {
+        const double proj = eig.eigenvectors().col(k).dot(vs);
+        explained += proj * proj / lambda;
+      }
+    }
+    return yy_ - explained;
+  }
+
+  /// The corner minimizing rss over [lo, hi] (log-spaced grid, then golden section), or nullopt
+  /// when the static squares fit better.
+  [[nodiscard]] std::optional<double> best(double lo, double hi) const {
+    const double static_rss = rss(std::nullopt);
+    if (!(hi > lo) || lo <= 0.0) return std::nullopt;
+    constexpr int kGrid = 13;
+    const double l0 = std::log(lo), l1 = std::log(hi);
+    int best_index = 0;
+    double best_rss = std::numeric_limits<double>::infinity();
+    std::vector<double> grid(kGrid);
+    for (int i = 0; i < kGrid; ++i) {
+      grid[static_cast<std::size_t>(i)] = l0 + (l1 - l0) * i / (kGrid - 1);
+      const double r = rss(std::exp(grid[static_cast<std::size_t>(i)]));
+      if (r < best_rss) {
+        best_rss = r;
+        best_index = i;
+      }
+    }
+    double a = grid[static_cast<std::size_t>(std::max(0, best_index - 1))];
+    double b = grid[static_cast<std::size_t>(std::min(kGrid - 1, best_index + 1))];
+    const double ratio = (std::sqrt(5.0) - 1.0) / 2.0;
+    double x1 = b - ratio * (b - a), x2 = a + ratio * (b - a);
+    double f1 = rss(std::exp(x1)), f2 = rss(std::exp(x2));
+    for (int it = 0; it < 24; ++it) {
+      if (f1 < f2) {
+        b = x2; x2 = x1; f2 = f1; x1 = b - ratio * (b - a); f1 = rss(std::exp(x1));
+      } else {
+        a = x1; x1 = x2; f1 = f2; x2 = a + ratio * (b - a); f2 = rss(std::exp(x2));
+      }
+    }
+    const double x = f1 < f2 ? x1 : x2;
+    const double fx = std::min(f1, f2);
+    if (std::min(fx, best_rss) >= static_rss) return std::nullopt;
+    return fx <= best_rss ? std::exp(x) : std::exp(grid[static_cast<std::size_t>(best_index)]);
+  }
+
+ private:
+  const StackedRegression& s_;
+  std::vector<Eigen::Index> squares_;
+  const dataset::Dataset& data_;
+  Eigen::MatrixXd gram_;
+  Eigen::VectorXd xty_;
+  double yy_ = 0.0;
+};
+
+/// Applies a mounting's square high pass (if any) to a freshly stacked problem.
+void apply_square_model(StackedRegression& s, const dataset::Dataset& data, std::optional<double> corner_rad_s) {
+  if (!corner_rad_s) return;
+  const std::vector<Eigen::Index> squares = square_columns(s.labels);
+  if (!squares.empty()) highpass_columns(s.phi, squares, s.cases, data, *corner_rad_s);
+}
+
 /// Algorithm 2 steps 6-8 as a selection hook: the misalignment from the step-5 fit, then the F_S
 /// problem of the ranked terms built with it.
 class MisalignmentHook final : public ident::FitHook {
  public:
   MisalignmentHook(const MountingData& m, const std::vector<std::size_t>& cases, const std::vector<Term>& es_terms,
-                   double t_ref, std::string_view label, Eigen::Index first_row, const ArWhitener& whitener)
-      : m_(m), cases_(cases), es_terms_(es_terms), t_ref_(t_ref), label_(label), first_row_(first_row),
-        whitener_(whitener) {}
+                   const dataset::Dataset& data, std::string_view label, Eigen::Index first_row,
+                   const ArWhitener& whitener, std::optional<double> square_corner)
+      : m_(m), cases_(cases), es_terms_(es_terms), data_(data), label_(label), first_row_(first_row),
+        whitener_(whitener), square_corner_(square_corner) {}
 
   bool transform(std::size_t j, const ident::UlsResult& ranked_fit, ident::StageProblem& stage) override {
     const auto theta = external_sensitivities(ranked_fit.labels, ranked_fit.theta);
@@ -144,7 +304,8 @@ class MisalignmentHook final : public ident::FitHook {
     for (const std::string& label : ranked_fit.labels) ranked.push_back(ident::parse_term(label));
     const std::vector<Term> s_terms = ident::to_sensor_frame(ranked);
     const auto inputs = stack_inputs(m_, cases_, m_cs);
-    StackedRegression s = stack_regressions(s_terms, inputs, t_ref_, label_, first_row_);
+    StackedRegression s = stack_regressions(s_terms, inputs, data_.t_ref, label_, first_row_);
+    apply_square_model(s, data_, square_corner_);
     whitener_.apply(s);
     stage.phi = std::move(s.phi);
     stage.y = std::move(s.y);
@@ -161,10 +322,11 @@ class MisalignmentHook final : public ident::FitHook {
   const MountingData& m_;
   const std::vector<std::size_t>& cases_;
   const std::vector<Term>& es_terms_;
-  double t_ref_;
+  const dataset::Dataset& data_;
   std::string_view label_;
   Eigen::Index first_row_;
   const ArWhitener& whitener_;
+  std::optional<double> square_corner_;
   std::vector<std::optional<frames::Dcm>> misalignments_;
 };
 
@@ -224,9 +386,19 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   frames::Dcm m_cs = frames::Dcm::Identity();
   StackedRegression es;
   ArWhitener whitener;
+  std::optional<double> square_corner;
   std::vector<Eigen::Index> usable;
   for (result.refinements = 0; result.refinements < std::max(1, options.max_refinements); ++result.refinements) {
     es = stack_regressions(es_terms, stack_inputs(m, cases, m_cs), data.t_ref, dataset_label, first_row);
+    if (options.square_highpass) {
+      const std::vector<Eigen::Index> squares = square_columns(es.labels);
+      if (!squares.empty()) {
+        const SquareCornerSearch search(es, squares, data);
+        square_corner = search.best(options.square_highpass_min_rad_s,
+                                    std::min(options.square_highpass_max_rad_s, max_corner(es.cases, data)));
+      }
+      apply_square_model(es, data, square_corner);
+    }
     // Columns the data cannot separate from the others are left out, named in the result.
     usable = identifiable_ranking(es, options.selection.err);
     ident::UlsOptions uls = options.selection.uls;
@@ -244,6 +416,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     if (change < 1e-10) break;
   }
   result.whitening_order = whitener.order();
+  result.square_corner_rad_s = square_corner;
   for (Eigen::Index j = 0; j < es.phi.cols(); ++j) {
     if (std::find(usable.begin(), usable.end(), j) == usable.end()) result.excluded.push_back(es.labels[static_cast<std::size_t>(j)]);
   }
@@ -254,6 +427,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     result.es_terms = ident::to_strings(es_terms);
     const std::vector<Term> s_terms = ident::to_sensor_frame(es_terms);
     StackedRegression s = stack_regressions(s_terms, stack_inputs(m, cases, m_cs), data.t_ref, dataset_label, first_row);
+    apply_square_model(s, data, square_corner);
     whitener.apply(s);
     std::vector<Eigen::Index> columns = identifiable_ranking(s, options.selection.err);
     result.s_fit = fit_identifiable(s, columns, options.selection.uls, result.excluded);
@@ -263,7 +437,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   }
 
   // Steps 2-15 on the converged F_E problem.
-  MisalignmentHook hook(m, cases, es_terms, data.t_ref, dataset_label, first_row, whitener);
+  MisalignmentHook hook(m, cases, es_terms, data, dataset_label, first_row, whitener, square_corner);
   ident::SelectionProblem problem{es.phi, es.y, es.labels, {}, {}};
   ident::SelectionOptions selection = options.selection;
   selection.uls.noise_lags = 0;

@@ -57,6 +57,19 @@ struct PipelineOptions {
   /// from the output before the shaker fit. Without it, the bias leaks into theta_x, theta_y,
   /// theta_z (gravity points along a different case axis in each orientation) and tilts n_i.
   bool shaker_bias_from_other_mountings = true;
+  /// Eq. 12 (section 3.1): the squares a_i^2, a_p^2, a_o^2 act through first-order high-pass
+  /// filters K_jj(s) = K_jj s / (s + b). A static model of them is structurally wrong on the
+  /// shaker (the filter removes the large mean of v^2 and shifts the phase of the 2 g v part)
+  /// and tilts theta_x..z by far more than the noise does. When true, blocks 5-6 filter the square
+  /// columns of every mounting with H_b(s) = s / (s + b) (bilinear, prewarped at b; the filter
+  /// settled at each case's first row) and estimate the corner b by a 1-D search on the residual
+  /// sum of squares of the full model (variable projection); the static model (no filter) is one
+  /// of the candidates and wins when it fits better. The coefficients of the mounting fit are then
+  /// the high-frequency gains K_jj. The model stays an output-error one (no y lags), so the
+  /// prewhitening stays consistent.
+  bool square_highpass = true;
+  double square_highpass_min_rad_s = 1.0;     // search range of b
+  double square_highpass_max_rad_s = 1.0e4;   // (clamped below the Nyquist frequency)
 };
 
 struct MountingResult {
@@ -72,6 +85,7 @@ struct MountingResult {
   std::vector<std::string> excluded;        // candidates left out (IEEE rule, dependence)
   int whitening_order = 0;                  // AR order of the noise model (0: white)
   std::optional<double> known_bias;         // removed from the output before the fit
+  std::optional<double> square_corner_rad_s;   // b of the squares' high pass (none: static squares)
 };
 
 struct CaseOutcome {
