@@ -232,6 +232,10 @@ TEST(DaqdService, WatchdogIsWithheldWhileASamplingThreadHangsAndResumesAfter) {
                     private_lcm_url(), "--fault", "sampler-hang@0.5+1.5"},
                    {"NOTIFY_SOCKET=" + notify.path().string(), "WATCHDOG_USEC=400000"}, tmp.path / "stderr.txt");
   std::vector<double> pings;
+  // Times from READY=1 (the simulated clock starts there), however slow the start (sanitizers).
+  bool ready = false;
+  for (int i = 0; i < 60 && !ready; ++i) ready = notify.receive(0.5).find("READY=1") != std::string::npos;
+  ASSERT_TRUE(ready) << daqd.output();
   const auto t0 = std::chrono::steady_clock::now();
   while (std::chrono::steady_clock::now() - t0 < std::chrono::milliseconds(3500)) {
     const std::string msg = notify.receive(0.3);
