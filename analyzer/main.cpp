@@ -10,6 +10,7 @@
 #include <string>
 
 #include "analyzer/commands/characterize.hpp"
+#include "analyzer/commands/diagnose.hpp"
 #include "analyzer/commands/reproduce_paper.hpp"
 #include "common/input_error.hpp"
 #include "hal/sim/simulate.hpp"
@@ -65,6 +66,15 @@ int run(int argc, char** argv) {
   paper->add_option("--seeds", paper_options.seeds, "simulation seeds")->delimiter(',')->capture_default_str();
   paper->add_option("--order", paper_options.order, "model order r of case (4)")->capture_default_str();
 
+  inertia::commands::DiagnoseCommandOptions diagnose_options;
+  auto* diagnose = app.add_subcommand("diagnose", "where simulation and measurement disagree, and which effect is missing");
+  diagnose->add_option("--model", diagnose_options.model, "model file (TOML)")->required()->check(CLI::ExistingFile);
+  diagnose->add_option("--dataset", diagnose_options.dataset, "dataset folder")->required()->check(CLI::ExistingDirectory);
+  diagnose->add_option("--json", diagnose_options.json, "write the findings as JSON")->required();
+  diagnose->add_option("--report", diagnose_options.report, "report folder (report.md, plots, augmented model)");
+  diagnose->add_option("--log", diagnose_options.log, "also write the console summary to this file");
+  diagnose->add_option("--alpha", diagnose_options.alpha, "family-wise significance level of each search step")->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -73,6 +83,7 @@ int run(int argc, char** argv) {
   }
 
   if (simulate->parsed()) return inertia::sim::run_simulate(bench_path, out_dir, std::cout);
+  if (diagnose->parsed()) return inertia::commands::run_diagnose(diagnose_options, std::cout);
   if (paper->parsed()) return inertia::commands::run_reproduce_paper(paper_options, std::cout);
   if (characterize->parsed()) {
     characterize_options.weights = parse_weights(weights);

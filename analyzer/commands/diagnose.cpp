@@ -1,0 +1,109 @@
+#include "analyzer/commands/diagnose.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+
+#include <chrono>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <sstream>
+
+#include "analyzer/diagnose/diagnose_report.hpp"
+#include "analyzer/diagnose/discrepancy.hpp"
+#include "analyzer/model/model_file.hpp"
+#include "common/dataset/dataset.hpp"
+#include "common/input_error.hpp"
+
+namespace inertia::commands {
+namespace {
+
+nlohmann::json rms_json(const diagnose::DiagnoseResult& r, const diagnose::ResidualSummary& s) {
+  nlohmann::json cases = nlohmann::json::object();
+  for (std::size_t c = 0; c < r.case_names.size(); ++c) {
+    nlohmann::json phases = nlohmann::json::object();
+    for (const diagnose::SegmentStats& seg : s.segments) {
+      if (seg.case_index != c) continue;
+      phases[seg.phase] = {{"rms", seg.rms}, {"samples", seg.samples}, {"ratio", seg.ratio},
+                           {"p_value", seg.p_value}, {"excess", seg.excess}};
+    }
+    cases[r.case_names[c]] = {{"rms", s.per_case[c]}, {"phases", phases}};
+  }
+  return {{"overall", s.overall}, {"cases", cases}};
+}
+
+}  // namespace
+
+int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
+  const auto start = std::chrono::steady_clock::now();
+  const model::ModelFile model = model::read_model(options.model);
+  std::ostringstream warnings;
+  const dataset::Dataset data = dataset::read_dataset(options.dataset, warnings);
+  const std::string label = options.dataset.filename().empty() ? options.dataset.parent_path().filename().string()
+                                                               : options.dataset.filename().string();
+  diagnose::DiagnoseOptions d;
+  d.alpha = options.alpha;
+  const diagnose::DiagnoseResult r = diagnose::diagnose(data, model, d, label);
+
+  const std::filesystem::path model_dir =
+      options.report.empty() ? options.json.parent_path() : options.report;
+  if (!model_dir.empty()) std::filesystem::create_directories(model_dir);
+  const std::filesystem::path model_out = model_dir / "model-augmented.toml";
+  model::write_model(model_out, r.final_model);
+
+  nlohmann::json j;
+  j["model"] = options.model.string();
+  j["dataset"] = options.dataset.string();
+  j["output_unit"] = data.output_unit;
+  j["noise_reference"] = r.noise_reference;
+  j["location_test"] = r.location_test;
+  j["alpha"] = options.alpha;
+  j["library"] = r.library;
+  j["held_fixed"] = r.held_fixed;
+  j["baseline"]["residual_rms"] = rms_json(r, r.steps.front());
+  j["final"]["residual_rms"] = rms_json(r, r.steps.back());
+  j["final"]["model_file"] = model_out.string();
+  j["findings"] = nlohmann::json::array();
+  for (const diagnose::Finding& f : r.findings) {
+    j["findings"].push_back({{"term", f.term}, {"effect", f.effect}, {"coefficient", f.coefficient}, {"std", f.std},
+                             {"t", f.t}, {"p_value", f.p_value}, {"p_needed", f.threshold_p}, {"err", f.err},
+                             {"delta_aic", f.delta_aic}, {"ar_order", f.ar_order},
+                             {"where", {{"case", f.where_case}, {"phase", f.where_phase}, {"rms", f.where_rms}}}});
+  }
+  j["steps"] = nlohmann::json::array();
+  for (const diagnose::ResidualSummary& s : r.steps) {
+    nlohmann::json step = rms_json(r, s);
+    step["label"] = s.label;
+    j["steps"].push_back(step);
+  }
+  if (!options.json.parent_path().empty()) std::filesystem::create_directories(options.json.parent_path());
+  {
+    std::ofstream f(options.json);
+    if (!f) throw std::runtime_error("cannot write " + options.json.string());
+    f << j.dump(2) << '\n';
+  }
+
+  std::ostringstream log;
+  log << warnings.str();
+  fmt::print(log, "dataset {}: {} case(s), {} model terms, {} library candidates\n", options.dataset.string(),
+             data.cases.size(), model.terms.size(), r.library.size());
+  fmt::print(log, "residual RMS overall: baseline {:.5g} {}, final {:.5g} {} (noise reference {:.4g})\n",
+             r.steps.front().overall, data.output_unit, r.steps.back().overall, data.output_unit, r.noise_reference);
+  if (r.findings.empty()) fmt::print(log, "no significant missing effect\n");
+  for (const diagnose::Finding& f : r.findings) {
+    fmt::print(log, "found {:<14} ({}): {:.6g} +- {:.3g}, t = {:.1f}, acts most in {}/{}\n", f.term, f.effect,
+               f.coefficient, f.std, f.t, f.where_case, f.where_phase);
+  }
+  fmt::print(log, "wrote {}, {}\n", options.json.string(), model_out.string());
+  if (!options.report.empty()) {
+    fmt::print(log, "wrote {}\n",
+               diagnose::write_diagnose_report(data, r, label, options.report, options.plots).string());
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  fmt::print(log, "diagnose took {:.2f} s\n", seconds);
+  out << log.str();
+  if (!options.log.empty()) std::ofstream(options.log) << log.str();
+  return kExitOk;
+}
+
+}  // namespace inertia::commands

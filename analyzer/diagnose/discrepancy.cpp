@@ -1,0 +1,610 @@
+#include "analyzer/diagnose/discrepancy.hpp"
+
+#include <boost/math/distributions/chi_squared.hpp>
+#include <boost/math/distributions/fisher_f.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <optional>
+
+#include "analyzer/ident/err.hpp"
+#include "analyzer/ident/regressors.hpp"
+#include "analyzer/ident/statistics.hpp"
+#include "analyzer/ident/uls_batch.hpp"
+#include "analyzer/procedure/model_simulation.hpp"
+#include "analyzer/procedure/prewhitening.hpp"
+#include "analyzer/procedure/stacked_regression.hpp"
+#include "common/input_error.hpp"
+
+namespace inertia::diagnose {
+namespace {
+
+using Eigen::Index;
+using ident::Term;
+
+/// Everything the search needs about the data, built once: the stacked columns of the model's
+/// terms and of the library (they never change; only the residual does), each case's signals for
+/// the free-run simulation, and the output-multiplied factors.
+struct Workspace {
+  std::vector<Term> columns;                 // model terms (non-noise) first, then library candidates
+  std::vector<std::string> labels;
+  procedure::StackedRegression stack;        // phi: every column, y: measured output
+  Eigen::MatrixXd gram;                      // Phi' Phi
+  std::vector<ident::SignalSet> signals;     // per case
+  Index first_row = 0;
+  std::map<Index, Eigen::VectorXd> factors;  // output-multiplied column -> p_b (stacked)
+  /// Lagged Gram matrices of Z = [Phi y] within cases: lagged[l] = sum_k z(k) z(k-l)'. Every fit
+  /// of the search (least squares, the residual's autocovariance, the AR-whitened GLS refit) is a
+  /// quadratic form in these, so after this one pass no fit touches the data again.
+  std::vector<Eigen::MatrixXd> lagged;
+};
+
+/// Statistics of a polynomial fit from its Gram matrix, as UlsStatistics::from_data builds them
+/// from data (RMS-scaled), so solve_uls gives the estimate and its identifiability check.
+ident::UlsStatistics statistics_from_gram(const Eigen::MatrixXd& gram, const Eigen::VectorXd& cross, double yy,
+                                          Index samples) {
+  ident::UlsStatistics s;
+  s.samples = samples;
+  s.scale = (gram.diagonal() / static_cast<double>(std::max<Index>(samples, 1))).cwiseMax(0.0).cwiseSqrt();
+  const Eigen::VectorXd inv = (s.scale.array() > 0.0).select(s.scale.array().inverse(), 1.0).matrix();
+  s.gram = inv.asDiagonal() * gram * inv.asDiagonal();
+  s.cross = inv.asDiagonal() * cross;
+  s.yy = yy;
+  s.s11 = static_cast<double>(samples);
+  s.den_gram.resize(0, 0);
+  s.den_sum.resize(0);
+  return s;
+}
+
+/// Levinson-Durbin on autocovariances acov(0..M) (pooled over n samples), order by AIC among
+/// 0..M; returns a_1..a_m of A(q) = 1 - sum a_j q^-j. The same estimator as
+/// procedure::ArWhitener::fit, which needs the residual samples; here only their
+/// autocovariances exist (quadratic forms of the lagged Gram matrices).
+Eigen::VectorXd ar_from_autocovariance(const Eigen::VectorXd& acov, double n) {
+  const int max_order = static_cast<int>(acov.size()) - 1;
+  if (max_order <= 0 || !(acov(0) > 0.0) || n < 10.0 * max_order) return {};
+  // std::vector, not Eigen: GCC 12 reports a false -Wuse-after-free on resizing Eigen assignments
+  // inlined here, and CI builds with -Werror.
+  std::vector<double> phi(static_cast<std::size_t>(max_order), 0.0), prev = phi;
+  int best_order = 0;
+  std::vector<double> best;
+  double variance = acov(0);
+  double best_aic = n * std::log(variance);
+  for (int m = 1; m <= max_order; ++m) {
+    const auto um = static_cast<std::size_t>(m);
+    double acc = acov(m);
+    for (std::size_t j = 1; j < um; ++j) acc -= prev[j - 1] * acov(m - static_cast<int>(j));
+    const double k = acc / variance;
+    if (!std::isfinite(k) || std::abs(k) >= 1.0) break;
+    phi[um - 1] = k;
+    for (std::size_t j = 1; j < um; ++j) phi[j - 1] = prev[j - 1] - k * prev[um - j - 1];
+    variance *= 1.0 - k * k;
+    prev = phi;
+    const double aic = n * std::log(variance) + 2.0 * m;
+    if (aic < best_aic) {
+      best_aic = aic;
+      best_order = m;
+      best = phi;
+    }
+  }
+  Eigen::VectorXd out(best_order);
+  for (int j = 0; j < best_order; ++j) out(j) = best[static_cast<std::size_t>(j)];
+  return out;
+}
+
+/// For an output-multiplied term y*p: p (the factors other than the unlagged y).
+Term denominator_of(const Term& term) {
+  std::vector<ident::Factor> rest;
+  for (const ident::Factor& f : term.factors()) {
+    if (!(f.variable == ident::Variable::Y && f.lag == 0)) rest.push_back(f);
+  }
+  return Term::from_factors(rest);
+}
+
+struct ColumnFit {
+  bool ok = false;
+  std::string failure;
+  std::vector<Index> columns;        // positions into Workspace::columns, in theta order
+  Eigen::VectorXd theta, std_dev;
+  int ar_order = 0;
+  double dof = 0.0;
+  std::vector<Index> newly_fixed;    // model columns found unidentifiable on the way
+};
+
+/// The IdentifiabilityError handling shared by both fits: the model column to hold, if any.
+std::optional<std::size_t> column_to_hold(const std::vector<Index>& fit, const std::vector<std::string>& labels,
+                                          const ident::IdentifiabilityError& e, Index candidate) {
+  std::optional<std::size_t> drop;
+  for (std::size_t j = 0; j < fit.size(); ++j) {
+    if (fit[j] == candidate) continue;
+    if (std::find(e.labels().begin(), e.labels().end(), labels[j]) != e.labels().end()) drop = j;
+  }
+  return drop;
+}
+
+/// fit_columns for polynomial terms, on the lagged Gram matrices only: least squares, the AR
+/// model of its residual (autocovariances w' C_l w), then GLS on the whitened Gram
+///   sum_ij c_i c_j sum_k z(k-i) z(k-j)',  c = (1, -a_1, .., -a_m),
+/// whose inner sums are lagged[j-i] (or its transpose). That ignores at most m rows at each end
+/// of a case (the data path drops the first m): O(m / N_case), far below the noise.
+ColumnFit fit_on_statistics(const Workspace& w, const std::vector<Index>& fit,
+                            const std::vector<std::pair<Index, double>>& held, Index candidate,
+                            const DiagnoseOptions& options) {
+  (void)options;
+  ColumnFit out;
+  const Index q = static_cast<Index>(w.columns.size()) + 1;
+  const Index iy = q - 1;
+  const auto nfit = static_cast<Index>(fit.size());
+  Eigen::MatrixXd e = Eigen::MatrixXd::Zero(q, nfit);
+  std::vector<std::string> labels;
+  for (Index j = 0; j < nfit; ++j) {
+    e(fit[static_cast<std::size_t>(j)], j) = 1.0;
+    labels.push_back(w.labels[static_cast<std::size_t>(fit[static_cast<std::size_t>(j)])]);
+  }
+  Eigen::VectorXd wy = Eigen::VectorXd::Zero(q);
+  wy(iy) = 1.0;
+  for (const auto& [col, coef] : held) wy(col) -= coef;
+  const Index n = w.stack.y.size();
+  auto stats = [&](const Eigen::MatrixXd& m, Index samples) {
+    const Eigen::MatrixXd g = e.transpose() * m * e;
+    const Eigen::VectorXd c = e.transpose() * (m * wy);
+    return statistics_from_gram(g, c, wy.dot(m * wy), samples);
+  };
+  ident::UlsSolution sol;
+  try {
+    sol = ident::solve_uls(stats(w.lagged[0], n), labels, ident::UlsOptions{});
+  } catch (const ident::IdentifiabilityError& err) {
+    if (const auto drop = column_to_hold(fit, labels, err, candidate)) {
+      out.newly_fixed.push_back(fit[*drop]);
+    } else {
+      out.failure = err.what();
+    }
+    return out;
+  }
+  const Eigen::VectorXd we = wy - e * sol.theta;
+  const Index max_lag = static_cast<Index>(w.lagged.size()) - 1;
+  Eigen::VectorXd acov(max_lag + 1);
+  for (Index l = 0; l <= max_lag; ++l) acov(l) = we.dot(w.lagged[static_cast<std::size_t>(l)] * we) / static_cast<double>(n);
+  const Eigen::VectorXd a = ar_from_autocovariance(acov, static_cast<double>(n));
+  Index samples = n;
+  if (a.size() > 0) {
+    Eigen::VectorXd c(a.size() + 1);
+    c(0) = 1.0;
+    c.tail(a.size()) = -a;
+    Eigen::MatrixXd white = Eigen::MatrixXd::Zero(q, q);
+    for (Index i = 0; i < c.size(); ++i) {
+      for (Index j = 0; j < c.size(); ++j) {
+        const Eigen::MatrixXd& lag = w.lagged[static_cast<std::size_t>(std::abs(j - i))];
+        if (j >= i) {
+          white += c(i) * c(j) * lag;
+        } else {
+          white += c(i) * c(j) * lag.transpose();
+        }
+      }
+    }
+    samples = n - a.size() * static_cast<Index>(w.stack.cases.size());
+    try {
+      sol = ident::solve_uls(stats(white, samples), labels, ident::UlsOptions{});
+    } catch (const ident::IdentifiabilityError& err) {
+      out.failure = err.what();
+      return out;
+    }
+    out.ar_order = static_cast<int>(a.size());
+  }
+  const double s2 = sol.zeta_energy / static_cast<double>(samples - nfit);
+  out.columns = fit;
+  out.theta = sol.theta;
+  out.std_dev = (s2 * sol.gram_inverse.diagonal()).cwiseMax(0.0).cwiseSqrt();
+  out.dof = static_cast<double>(samples - nfit - 1);
+  out.ok = true;
+  return out;
+}
+
+/// Least squares (ULS for output-multiplied terms) of y minus the held terms on `fit` columns,
+/// then AR prewhitening of the residual and a refit (GLS) for honest standard deviations under
+/// coloured noise. A near-dependence among the model's own columns holds the last model column
+/// it names (a model term the data cannot estimate, e.g. a_i*a_p on static data): it is returned
+/// in newly_fixed and the caller retries holding it at its given value; `candidate` is never held.
+ColumnFit fit_columns(const Workspace& w, const std::vector<Index>& fit,
+                      const std::vector<std::pair<Index, double>>& held, Index candidate,
+                      const DiagnoseOptions& options) {
+  ColumnFit out;
+  const procedure::StackedRegression& s = w.stack;
+  bool rational_fit = false;
+  for (Index c : fit) rational_fit = rational_fit || w.factors.count(c) > 0;
+  if (!rational_fit) return fit_on_statistics(w, fit, held, candidate, options);
+  {
+    Eigen::VectorXd y = s.y;
+    for (const auto& [col, coef] : held) y -= coef * s.phi.col(col);
+    Eigen::MatrixXd phi(s.phi.rows(), static_cast<Index>(fit.size()));
+    std::vector<std::string> labels;
+    ident::OutputMultiplied rational;
+    std::vector<Index> rational_cols;
+    for (std::size_t j = 0; j < fit.size(); ++j) {
+      phi.col(static_cast<Index>(j)) = s.phi.col(fit[j]);
+      labels.push_back(w.labels[static_cast<std::size_t>(fit[j])]);
+      if (w.factors.count(fit[j])) {
+        rational.columns.push_back(static_cast<Index>(j));
+        rational_cols.push_back(fit[j]);
+      }
+    }
+    if (!rational_cols.empty()) {
+      rational.factors.resize(phi.rows(), static_cast<Index>(rational_cols.size()));
+      for (std::size_t j = 0; j < rational_cols.size(); ++j) rational.factors.col(static_cast<Index>(j)) = w.factors.at(rational_cols[j]);
+    }
+    ident::UlsResult r;
+    try {
+      r = ident::uls_batch(phi, y, labels, rational, ident::UlsOptions{});
+    } catch (const ident::IdentifiabilityError& e) {
+      // Hold the last-listed model column the dependence names (not the candidate).
+      const std::optional<std::size_t> drop = column_to_hold(fit, labels, e, candidate);
+      if (!drop) {
+        out.failure = e.what();
+        return out;
+      }
+      out.newly_fixed.push_back(fit[*drop]);
+      return out;   // the caller re-enters holding it at the model's coefficient
+    }
+    out.columns = fit;
+    out.theta = r.process_theta();
+    out.std_dev = r.std_dev.head(r.process_terms);
+    out.dof = static_cast<double>(y.size() - r.process_terms - 1);
+    // Rational columns hold y itself: filtering them is not the filtered model, so their fits
+    // keep the ULS sandwich covariance (white-noise assumption; stated in the report).
+    if (rational_cols.empty() && options.max_ar_order > 0) {
+      const procedure::ArWhitener whitener = procedure::ArWhitener::fit(r.residuals, s.cases, options.max_ar_order);
+      if (whitener.order() > 0) {
+        procedure::StackedRegression ws{std::move(phi), std::move(y), s.cases, labels};
+        whitener.apply(ws);
+        const ident::UlsResult g = ident::uls_batch(ws.phi, ws.y, labels, {}, ident::UlsOptions{});
+        out.theta = g.process_theta();
+        out.std_dev = g.std_dev.head(g.process_terms);
+        out.dof = static_cast<double>(ws.y.size() - g.process_terms - 1);
+        out.ar_order = whitener.order();
+      }
+    }
+    out.ok = true;
+    return out;
+  }
+}
+
+Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& model, const DiagnoseOptions& options,
+                          const std::string& label) {
+  Workspace w;
+  for (const model::ModelTerm& t : model.terms) {
+    if (!t.term.is_noise_term()) w.columns.push_back(t.term);
+  }
+  for (const Term& t : candidate_library(data.sensor, options.library)) {
+    if (std::find(w.columns.begin(), w.columns.end(), t) != w.columns.end()) continue;
+    if (dataset_supports(data, t)) w.columns.push_back(t);
+  }
+  w.labels = ident::to_strings(w.columns);
+  w.first_row = ident::first_usable_row(w.columns);
+  std::vector<procedure::StackInput> inputs;
+  for (std::size_t i = 0; i < data.cases.size(); ++i) {
+    const dataset::CaseData& c = data.cases[i];
+    const Eigen::Matrix3d m_es = model.m_cs * c.m_ec;
+    inputs.push_back({i, &c, m_es, 1.0});
+    w.signals.push_back(ident::signals_from_case(c, m_es, data.t_ref, label));
+    std::vector<Term> model_terms;
+    for (const model::ModelTerm& t : model.terms) model_terms.push_back(t.term);
+    ident::check_signals(model_terms, w.signals.back());   // InputError naming term, column, case
+    if (c.size() <= w.first_row + 1) throw InputError("case '" + c.name + "' of dataset " + label + " is too short");
+  }
+  w.stack = procedure::stack_regressions(w.columns, inputs, data.t_ref, label, w.first_row);
+  w.gram = Eigen::MatrixXd(w.stack.phi.cols(), w.stack.phi.cols());
+  w.gram.setZero();
+  w.gram.selfadjointView<Eigen::Lower>().rankUpdate(w.stack.phi.transpose());
+  w.gram = w.gram.selfadjointView<Eigen::Lower>();
+  // Lagged Gram matrices of [Phi y], within cases (a lag never pairs two cases).
+  const Index p = w.stack.phi.cols();
+  w.lagged.assign(static_cast<std::size_t>(std::max(options.max_ar_order, 0) + 1), Eigen::MatrixXd::Zero(p + 1, p + 1));
+  w.lagged[0].topLeftCorner(p, p) = w.gram;
+  w.lagged[0].col(p).head(p) = w.stack.phi.transpose() * w.stack.y;
+  w.lagged[0].row(p).head(p) = w.lagged[0].col(p).head(p).transpose();
+  w.lagged[0](p, p) = w.stack.y.squaredNorm();
+  for (std::size_t l = 1; l < w.lagged.size(); ++l) {
+    const auto lag = static_cast<Index>(l);
+    Eigen::MatrixXd& c = w.lagged[l];
+    for (const procedure::CaseRows& cr : w.stack.cases) {
+      if (cr.rows <= lag) continue;
+      const auto now = w.stack.phi.middleRows(cr.begin + lag, cr.rows - lag);
+      const auto before = w.stack.phi.middleRows(cr.begin, cr.rows - lag);
+      const auto y_now = w.stack.y.segment(cr.begin + lag, cr.rows - lag);
+      const auto y_before = w.stack.y.segment(cr.begin, cr.rows - lag);
+      c.topLeftCorner(p, p).noalias() += now.transpose() * before;
+      c.col(p).head(p).noalias() += now.transpose() * y_before;
+      c.row(p).head(p).noalias() += (before.transpose() * y_now).transpose();
+      c(p, p) += y_now.dot(y_before);
+    }
+  }
+  for (std::size_t j = 0; j < w.columns.size(); ++j) {
+    if (!w.columns[j].is_output_multiplied()) continue;
+    const Term p = denominator_of(w.columns[j]);
+    Eigen::VectorXd f(w.stack.y.size());
+    for (const procedure::CaseRows& c : w.stack.cases) {
+      ident::fill_regressors(std::span<const Term>(&p, 1), w.signals[c.case_index], c.first_sample,
+                             f.segment(c.begin, c.rows));
+    }
+    w.factors.emplace(static_cast<Index>(j), std::move(f));
+  }
+  return w;
+}
+
+/// Measured minus free-run simulated output, stacked like the workspace rows.
+Eigen::VectorXd residual_of(const Workspace& w, const model::ModelFile& model) {
+  std::vector<Term> terms;
+  Eigen::VectorXd theta(static_cast<Index>(model.terms.size()));
+  for (std::size_t j = 0; j < model.terms.size(); ++j) {
+    terms.push_back(model.terms[j].term);
+    theta(static_cast<Index>(j)) = model.terms[j].coefficient;
+  }
+  Eigen::VectorXd r(w.stack.y.size());
+  for (const procedure::CaseRows& c : w.stack.cases) {
+    const Eigen::VectorXd sim = procedure::simulate_model(terms, theta, w.signals[c.case_index], c.first_sample);
+    r.segment(c.begin, c.rows) = w.stack.y.segment(c.begin, c.rows) - sim;
+  }
+  return r;
+}
+
+/// Index of each model term among the workspace columns (-1 for noise terms).
+Index column_of(const Workspace& w, const Term& t) {
+  const auto it = std::find(w.columns.begin(), w.columns.end(), t);
+  return it == w.columns.end() ? -1 : static_cast<Index>(it - w.columns.begin());
+}
+
+std::vector<std::string> segment_phase_names(const dataset::CaseData& c) {
+  return c.phase_names.empty() ? std::vector<std::string>{"all"} : c.phase_names;
+}
+
+std::uint16_t phase_at(const dataset::CaseData& c, Index sample) {
+  return c.phase.empty() ? std::uint16_t{0} : c.phase[static_cast<std::size_t>(sample)];
+}
+
+/// Per case and phase: sum of squares and count of a stacked vector.
+std::vector<std::vector<std::pair<double, Index>>> segment_power(const dataset::Dataset& data, const Workspace& w,
+                                                                 const Eigen::VectorXd& v) {
+  std::vector<std::vector<std::pair<double, Index>>> out(data.cases.size());
+  for (const procedure::CaseRows& c : w.stack.cases) {
+    const dataset::CaseData& cd = data.cases[c.case_index];
+    auto& seg = out[c.case_index];
+    seg.assign(segment_phase_names(cd).size(), {0.0, 0});
+    for (Index r = 0; r < c.rows; ++r) {
+      auto& [ss, n] = seg[phase_at(cd, c.first_sample + r)];
+      ss += v(c.begin + r) * v(c.begin + r);
+      ++n;
+    }
+  }
+  return out;
+}
+
+ResidualSummary summarize(const dataset::Dataset& data, const Workspace& w, const Eigen::VectorXd& r,
+                          std::string label, double noise_sd, bool chi_square, Index reference_dof, double alpha) {
+  ResidualSummary s;
+  s.label = std::move(label);
+  s.overall = std::sqrt(r.squaredNorm() / static_cast<double>(r.size()));
+  const auto power = segment_power(data, w, r);
+  std::size_t segments = 0;
+  for (const auto& p : power) segments += static_cast<std::size_t>(std::count_if(p.begin(), p.end(), [](const auto& x) { return x.second > 0; }));
+  for (std::size_t i = 0; i < data.cases.size(); ++i) {
+    double ss = 0.0;
+    Index n = 0;
+    const std::vector<std::string> names = segment_phase_names(data.cases[i]);
+    for (std::size_t k = 0; k < power[i].size(); ++k) {
+      const auto& [pss, pn] = power[i][k];
+      ss += pss;
+      n += pn;
+      if (pn == 0) continue;
+      SegmentStats seg;
+      seg.case_index = i;
+      seg.phase = names[k];
+      seg.samples = pn;
+      seg.rms = std::sqrt(pss / static_cast<double>(pn));
+      seg.ratio = seg.rms / noise_sd;
+      const double stat = pss / (noise_sd * noise_sd);
+      if (chi_square) {
+        seg.p_value = boost::math::cdf(boost::math::complement(boost::math::chi_squared(static_cast<double>(pn)), stat));
+      } else {
+        const boost::math::fisher_f f(static_cast<double>(pn), static_cast<double>(reference_dof));
+        seg.p_value = boost::math::cdf(boost::math::complement(f, stat / static_cast<double>(pn)));
+      }
+      seg.excess = seg.p_value < alpha / static_cast<double>(std::max<std::size_t>(1, segments));
+      s.segments.push_back(seg);
+    }
+    s.per_case.push_back(n > 0 ? std::sqrt(ss / static_cast<double>(n)) : std::nan(""));
+  }
+  return s;
+}
+
+}  // namespace
+
+DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& model, const DiagnoseOptions& options,
+                        const std::string& dataset_label) {
+  if (model.sensor != data.sensor) {
+    throw InputError(std::string("the model is for a ") + dataset::to_string(model.sensor) + ", but dataset " +
+                     dataset_label + " holds " + dataset::to_string(data.sensor) + " data");
+  }
+  if (data.cases.empty()) throw InputError("dataset " + dataset_label + " has no case");
+  if (!(options.alpha > 0.0 && options.alpha < 1.0)) throw InputError("alpha must lie in (0, 1)");
+  DiagnoseResult out;
+  out.baseline = model;
+  for (const dataset::CaseData& c : data.cases) out.case_names.push_back(c.name);
+  const Workspace w = build_workspace(data, model, options, dataset_label);
+
+  model::ModelFile current = model;
+  // Columns (of the workspace) of the current model's terms, and which of them are held fixed.
+  auto model_columns = [&] {
+    std::vector<Index> cols;
+    for (const model::ModelTerm& t : current.terms) {
+      if (const Index c = column_of(w, t.term); c >= 0) cols.push_back(c);
+    }
+    return cols;
+  };
+  std::vector<Index> held;
+  auto coefficient_of = [&](Index col) { return *current.coefficient(w.columns[static_cast<std::size_t>(col)]); };
+  // Fit `cols` (model columns + maybe a candidate), holding what cannot be estimated.
+  auto fit_with = [&](Index candidate) {
+    for (;;) {
+      std::vector<Index> fit;
+      std::vector<std::pair<Index, double>> fixed;
+      for (Index c : model_columns()) {
+        if (std::find(held.begin(), held.end(), c) != held.end()) {
+          fixed.emplace_back(c, coefficient_of(c));
+        } else {
+          fit.push_back(c);
+        }
+      }
+      if (candidate >= 0) fit.push_back(candidate);
+      ColumnFit f = fit_columns(w, fit, fixed, candidate, options);
+      if (f.newly_fixed.empty()) return f;
+      held.insert(held.end(), f.newly_fixed.begin(), f.newly_fixed.end());
+    }
+  };
+  // Which model terms the data can estimate at all: a fit of the model as it is.
+  if (!model_columns().empty()) (void)fit_with(-1);
+
+  // The model with `fit`'s coefficients on every fitted column and the candidate appended.
+  auto augmented = [&w](const model::ModelFile& base, const ColumnFit& fit, Index candidate) {
+    model::ModelFile m = base;
+    m.terms.push_back({w.columns[static_cast<std::size_t>(candidate)], 0.0, std::nullopt});
+    for (std::size_t j = 0; j < fit.columns.size(); ++j) {
+      const Term& t = w.columns[static_cast<std::size_t>(fit.columns[j])];
+      for (model::ModelTerm& mt : m.terms) {
+        if (mt.term == t) {
+          mt.coefficient = fit.theta(static_cast<Index>(j));
+          mt.std = fit.std_dev(static_cast<Index>(j));
+        }
+      }
+    }
+    return m;
+  };
+  std::vector<Eigen::VectorXd> residuals{residual_of(w, current)};
+  std::vector<std::string> step_labels{"baseline"};
+  const Index p = static_cast<Index>(w.columns.size());
+  for (int step = 0; step < options.max_findings; ++step) {
+    const Eigen::VectorXd& r = residuals.back();
+    // ERR of every candidate on the residual, the model's columns forced first (so a candidate
+    // only counts for what the model's own terms, re-estimated, could not absorb).
+    Eigen::MatrixXd g(p + 1, p + 1);
+    g.topLeftCorner(p, p) = w.gram;
+    g.col(p).head(p) = w.stack.phi.transpose() * r;
+    g.row(p).head(p) = g.col(p).head(p).transpose();
+    g(p, p) = r.squaredNorm();
+    const std::vector<Index> in_model = model_columns();
+    ident::ErrOptions eo;
+    eo.forced = in_model;
+    eo.reference = ident::ErrReference::AfterForced;
+    const ident::ErrRanking ranking = ident::err_rank(g, eo);
+    const std::size_t ranked = ranking.order.size() - ranking.forced_count;
+    if (ranked == 0) break;
+    const double threshold = options.alpha / static_cast<double>(ranked);
+
+    std::optional<ColumnFit> best;
+    std::vector<Index> best_held;
+    Index best_col = -1;
+    double best_err = 0.0, best_p = 1.0, best_t = 0.0, best_daic = 0.0;
+    model::ModelFile best_model;
+    Eigen::VectorXd best_residual;
+    // Among significant contenders the one whose augmented model simulates best wins. Why not
+    // the largest t: an output lag y[k-1] predicts any slow missing effect one step ahead (y(k)
+    // ~ y(k-1)) with a huge t, yet adds nothing to a free-run simulation; the workflow's purpose
+    // is the simulation gap, so that is the criterion (and a winner must shrink it).
+    double best_rms = r.norm();
+    for (std::size_t k = 0; k < ranked && k < static_cast<std::size_t>(options.contenders); ++k) {
+      const Index col = ranking.order[ranking.forced_count + k];
+      const std::vector<Index> held_before = held;
+      ColumnFit f = fit_with(col);
+      const std::vector<Index> held_by_this = held;
+      held = held_before;   // what a rejected contender needed held must not stick
+      if (!f.ok) continue;
+      const Index j = static_cast<Index>(std::find(f.columns.begin(), f.columns.end(), col) - f.columns.begin());
+      const double t = f.theta(j) / f.std_dev(j);
+      const double pv = ident::student_t_two_sided_p(t, f.dof);
+      // Adding one column to a least-squares fit changes AIC by N ln(dof / (dof + t^2)) + 2
+      // (RSS ratio from the t-value), on the same (whitened) rows.
+      const double n = f.dof + static_cast<double>(f.columns.size()) + 1.0;
+      const double daic = n * std::log(f.dof / (f.dof + t * t)) + 2.0;
+      if (!(pv < threshold) || !(daic < 0.0) || !std::isfinite(t)) continue;
+      model::ModelFile trial = augmented(current, f, col);
+      Eigen::VectorXd trial_residual = residual_of(w, trial);
+      if (trial_residual.norm() < best_rms) {
+        best_rms = trial_residual.norm();
+        best_model = std::move(trial);
+        best_residual = std::move(trial_residual);
+        best = std::move(f);
+        best_held = held_by_this;
+        best_col = col;
+        best_err = ranking.err(static_cast<Index>(ranking.forced_count + k));
+        best_p = pv;
+        best_t = t;
+        best_daic = daic;
+      }
+    }
+    if (!best) break;
+    held = best_held;
+
+    const Term& winner = w.columns[static_cast<std::size_t>(best_col)];
+    current = std::move(best_model);
+    const Index jw = static_cast<Index>(best->columns.size()) - 1;
+    Finding f;
+    f.term = winner.to_string();
+    f.effect = ident::physical_name(winner, data.sensor);
+    f.coefficient = best->theta(jw);
+    f.std = best->std_dev(jw);
+    f.t = best_t;
+    f.p_value = best_p;
+    f.threshold_p = threshold;
+    f.err = best_err;
+    f.delta_aic = best_daic;
+    f.ar_order = best->ar_order;
+    // Where it acts: the segment in which its contribution has the largest RMS.
+    const Eigen::VectorXd contribution = f.coefficient * w.stack.phi.col(best_col);
+    const auto power = segment_power(data, w, contribution);
+    for (std::size_t i = 0; i < power.size(); ++i) {
+      const std::vector<std::string> names = segment_phase_names(data.cases[i]);
+      for (std::size_t k = 0; k < power[i].size(); ++k) {
+        if (power[i][k].second == 0) continue;
+        const double rms = std::sqrt(power[i][k].first / static_cast<double>(power[i][k].second));
+        if (rms > f.where_rms) {
+          f.where_rms = rms;
+          f.where_case = data.cases[i].name;
+          f.where_phase = names[k];
+        }
+      }
+    }
+    out.findings.push_back(f);
+    residuals.push_back(std::move(best_residual));
+    step_labels.push_back("+ " + f.term);
+  }
+
+  for (Index c : held) out.held_fixed.push_back(w.labels[static_cast<std::size_t>(c)]);
+  std::sort(out.held_fixed.begin(), out.held_fixed.end());
+  out.held_fixed.erase(std::unique(out.held_fixed.begin(), out.held_fixed.end()), out.held_fixed.end());
+  out.final_model = current;
+  out.library.assign(w.labels.begin(), w.labels.end());
+
+  // Location test: the model's claimed white noise when it states one (chi-square with n dof:
+  // sum r^2 / sd^2 over a segment); otherwise the final model's residual variance (F-type).
+  const bool chi_square = model.white_sd.has_value() && *model.white_sd > 0.0;
+  const Eigen::VectorXd& final_r = residuals.back();
+  out.noise_reference = chi_square ? *model.white_sd : std::sqrt(final_r.squaredNorm() / static_cast<double>(final_r.size()));
+  out.location_test = chi_square ? "chi-square: sum(r^2)/white_sd^2 ~ chi2(n), white_sd from the model file"
+                                 : "F: segment variance / final residual variance ~ F(n, N) (model file has no white_sd)";
+  for (std::size_t s = 0; s < residuals.size(); ++s) {
+    out.steps.push_back(summarize(data, w, residuals[s], step_labels[s], out.noise_reference, chi_square,
+                                  final_r.size(), options.alpha));
+  }
+  for (const procedure::CaseRows& c : w.stack.cases) {
+    const dataset::CaseData& cd = data.cases[c.case_index];
+    out.time.push_back(cd.t.segment(c.first_sample, c.rows));
+    out.residual_before.push_back(residuals.front().segment(c.begin, c.rows));
+    out.residual_after.push_back(final_r.segment(c.begin, c.rows));
+    std::vector<std::uint16_t> ph(static_cast<std::size_t>(c.rows));
+    for (Index r = 0; r < c.rows; ++r) ph[static_cast<std::size_t>(r)] = phase_at(cd, c.first_sample + r);
+    out.phase.push_back(std::move(ph));
+  }
+  return out;
+}
+
+}  // namespace inertia::diagnose

@@ -1,0 +1,86 @@
+#pragma once
+// The discrepancy workflow (issue 5): simulate a model on the measured references, locate where
+// the residual exceeds the noise the model claims, name the missing effect from a library of
+// candidate terms (ERR on the residual, then a t-test with honest standard deviations and AIC),
+// add it, re-estimate, re-simulate, repeat until no candidate is significant.
+#include <Eigen/Dense>
+#include <string>
+#include <vector>
+
+#include "analyzer/diagnose/candidate_library.hpp"
+#include "analyzer/model/model_file.hpp"
+#include "common/dataset/dataset.hpp"
+
+namespace inertia::diagnose {
+
+struct DiagnoseOptions {
+  /// Family-wise significance level of one search step: the winner's t-test runs at alpha / m,
+  /// m = candidates ranked (Bonferroni), since the winner is the best of m, and its own p-value
+  /// is optimistic; this keeps the false-alarm probability of a step at most alpha.
+  double alpha = 0.05;
+  int max_findings = 8;
+  /// The ERR-ranked candidates whose t-value is computed; the most significant of them wins.
+  /// Why more than one: under coloured residuals a slow spurious column can top the ERR ranking
+  /// (ERR weighs low-frequency power), while the prewhitened t-test sees through it.
+  int contenders = 3;
+  /// AR prewhitening order limit (AIC picks the order, 0 = white). Each order costs one lagged
+  /// Gram pass over the data (O(N p^2)), so it bounds the run time; 12 whitens pink noise well.
+  int max_ar_order = 12;
+  LibraryOptions library;
+};
+
+/// Residual RMS of one case and phase, and the location test against the noise reference.
+struct SegmentStats {
+  std::size_t case_index = 0;
+  std::string phase;          // "all" when the case has no phase column
+  Eigen::Index samples = 0;
+  double rms = 0.0;
+  double ratio = 0.0;         // rms / noise reference
+  double p_value = 1.0;       // chi-square (or F) upper tail: P(this much power | model noise)
+  bool excess = false;        // p below alpha / number of segments
+};
+
+struct ResidualSummary {
+  std::string label;                 // "baseline", "+ a_i*a_p", ...
+  double overall = 0.0;              // RMS over every residual sample
+  std::vector<double> per_case;      // RMS per case
+  std::vector<SegmentStats> segments;
+};
+
+struct Finding {
+  std::string term;                  // canonical
+  std::string effect;                // physical name
+  double coefficient = 0.0;          // in the re-estimated augmented model
+  double std = 0.0;                  // prewhitened (GLS) standard deviation
+  double t = 0.0;
+  double p_value = 1.0;              // two-sided, Student's t
+  double threshold_p = 0.0;          // alpha / m it had to beat
+  double err = 0.0;                  // ERR on the residual at its step
+  double delta_aic = 0.0;            // AIC(with) - AIC(without), negative = better
+  int ar_order = 0;                  // prewhitening order of the fit
+  std::string where_case, where_phase;   // segment where its contribution is largest (RMS)
+  double where_rms = 0.0;
+};
+
+struct DiagnoseResult {
+  model::ModelFile baseline;
+  model::ModelFile final_model;
+  std::vector<std::string> case_names;
+  std::vector<std::string> library;        // canonical candidate terms the search used
+  std::vector<ResidualSummary> steps;      // steps[0] = baseline, then one per finding
+  std::vector<Finding> findings;
+  std::vector<std::string> held_fixed;     // model terms the data cannot estimate (kept as given)
+  double noise_reference = 0.0;            // the sd the location test compares with
+  std::string location_test;               // which test: chi-square vs white_sd, or F vs final
+  /// Per case: time of each residual row, residual before and after (for plots).
+  std::vector<Eigen::VectorXd> time, residual_before, residual_after;
+  std::vector<std::vector<std::uint16_t>> phase;   // per residual row, index into the case's names
+};
+
+/// Runs the workflow. Throws InputError when the model is for another sensor kind than the
+/// dataset, or when a case lacks a column one of the model's terms needs (naming term, column,
+/// case). `dataset_label` names the dataset in messages.
+DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& model, const DiagnoseOptions& options,
+                        const std::string& dataset_label);
+
+}  // namespace inertia::diagnose
