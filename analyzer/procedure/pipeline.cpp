@@ -284,21 +284,36 @@ void apply_square_model(StackedRegression& s, const dataset::Dataset& data, std:
   if (!squares.empty()) highpass_columns(s.phi, squares, s.cases, data, *corner_rad_s);
 }
 
+/// `m` turned about its first row (n_i) by `psi`: n_p, n_o rotated in their plane.
+frames::Dcm with_twist(const frames::Dcm& m, double psi) {
+  if (psi == 0.0) return m;
+  frames::Dcm r = m;
+  const double c = std::cos(psi), s = std::sin(psi);
+  r.row(1) = c * m.row(1) + s * m.row(2);
+  r.row(2) = -s * m.row(1) + c * m.row(2);
+  return r;
+}
+
+bool uses_cross_axes(const std::vector<Term>& terms) {
+  return std::any_of(terms.begin(), terms.end(),
+                     [](const Term& t) { return t.uses(ident::Variable::Ap) || t.uses(ident::Variable::Ao); });
+}
+
 /// Algorithm 2 steps 6-8 as a selection hook: the misalignment from the step-5 fit, then the F_S
 /// problem of the ranked terms built with it.
 class MisalignmentHook final : public ident::FitHook {
  public:
   MisalignmentHook(const MountingData& m, const std::vector<std::size_t>& cases, const std::vector<Term>& es_terms,
                    const dataset::Dataset& data, std::string_view label, Eigen::Index first_row,
-                   const ArWhitener& whitener, std::optional<double> square_corner)
+                   const ArWhitener& whitener, std::optional<double> square_corner, double twist)
       : m_(m), cases_(cases), es_terms_(es_terms), data_(data), label_(label), first_row_(first_row),
-        whitener_(whitener), square_corner_(square_corner) {}
+        whitener_(whitener), square_corner_(square_corner), twist_(twist) {}
 
   bool transform(std::size_t j, const ident::UlsResult& ranked_fit, ident::StageProblem& stage) override {
     const auto theta = external_sensitivities(ranked_fit.labels, ranked_fit.theta);
     if (misalignments_.size() < j) misalignments_.resize(j);
     if (!theta) return false;   // no a_x, a_y, a_z yet: nothing to align; score the F_E problem
-    const frames::Dcm m_cs = misalignment_from_sensitivities(*theta, frames::Dcm::Identity());
+    const frames::Dcm m_cs = with_twist(misalignment_from_sensitivities(*theta, frames::Dcm::Identity()), twist_);
     misalignments_[j - 1] = m_cs;
     std::vector<Term> ranked;
     for (const std::string& label : ranked_fit.labels) ranked.push_back(ident::parse_term(label));
@@ -327,6 +342,7 @@ class MisalignmentHook final : public ident::FitHook {
   Eigen::Index first_row_;
   const ArWhitener& whitener_;
   std::optional<double> square_corner_;
+  double twist_;
   std::vector<std::optional<frames::Dcm>> misalignments_;
 };
 
@@ -387,12 +403,14 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   StackedRegression es;
   ArWhitener whitener;
   std::optional<double> square_corner;
+  double twist = 0.0;
+  const bool twist_matters = uses_cross_axes(es_terms);
   std::vector<Eigen::Index> usable;
   for (result.refinements = 0; result.refinements < std::max(1, options.max_refinements); ++result.refinements) {
     es = stack_regressions(es_terms, stack_inputs(m, cases, m_cs), data.t_ref, dataset_label, first_row);
     if (options.square_highpass) {
       const std::vector<Eigen::Index> squares = square_columns(es.labels);
-      if (!squares.empty()) {
+      if (!squares.empty() && result.refinements < 2) {   // the corner hardly moves with M_C^S after that
         const SquareCornerSearch search(es, squares, data);
         square_corner = search.best(options.square_highpass_min_rad_s,
                                     std::min(options.square_highpass_max_rad_s, max_corner(es.cases, data)));
@@ -410,13 +428,33 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     const ident::UlsResult full = fit_identifiable(es, usable, uls, dropped);
     const auto theta = external_sensitivities(full.labels, full.theta);
     if (!theta) throw std::runtime_error("mounting '" + mounting + "': the model has no a_x, a_y, a_z sensitivity");
-    const frames::Dcm next = misalignment_from_sensitivities(*theta, frames::Dcm::Identity());
+    const frames::Dcm aligned = misalignment_from_sensitivities(*theta, frames::Dcm::Identity());
+    if (options.estimate_twist && twist_matters) {
+      // One parabolic step on the residual sum of squares as a function of the twist.
+      const auto rss_at = [&](double psi) {
+        StackedRegression t =
+            stack_regressions(es_terms, stack_inputs(m, cases, with_twist(aligned, psi)), data.t_ref, dataset_label, first_row);
+        apply_square_model(t, data, square_corner);
+        whitener.apply(t);   // the GLS criterion: unwhitened, the 1/f noise the columns can fit decides
+        return SquareCornerSearch(t, {}, data).rss(std::nullopt);
+      };
+      constexpr double kProbe = 0.5 * std::numbers::pi / 180.0;
+      const double r0 = rss_at(twist), rm = rss_at(twist - kProbe), rp = rss_at(twist + kProbe);
+      const double curvature = rp + rm - 2.0 * r0;
+      if (curvature > 0.0) {
+        twist += std::clamp(-kProbe * (rp - rm) / (2.0 * curvature), -4.0 * kProbe, 4.0 * kProbe);
+      } else {
+        twist += rp < rm ? 4.0 * kProbe : (rm < rp ? -4.0 * kProbe : 0.0);
+      }
+    }
+    const frames::Dcm next = with_twist(aligned, twist);
     const double change = frames::angle_between(next, m_cs);
     m_cs = next;
     if (change < 1e-10) break;
   }
   result.whitening_order = whitener.order();
   result.square_corner_rad_s = square_corner;
+  result.twist_rad = twist;
   for (Eigen::Index j = 0; j < es.phi.cols(); ++j) {
     if (std::find(usable.begin(), usable.end(), j) == usable.end()) result.excluded.push_back(es.labels[static_cast<std::size_t>(j)]);
   }
@@ -437,7 +475,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   }
 
   // Steps 2-15 on the converged F_E problem.
-  MisalignmentHook hook(m, cases, es_terms, data, dataset_label, first_row, whitener, square_corner);
+  MisalignmentHook hook(m, cases, es_terms, data, dataset_label, first_row, whitener, square_corner, twist);
   ident::SelectionProblem problem{es.phi, es.y, es.labels, {}, {}};
   ident::SelectionOptions selection = options.selection;
   selection.uls.noise_lags = 0;
