@@ -1,0 +1,104 @@
+// Blocks 5-6 on the simulated paper experiment (config/sim-paper.toml: table 1's accelerometer,
+// the rotation-table test and the three shaker orientations of Fig. 2), three seeds, simulated
+// in-process. The figure is the paper's table 2: the angle between the true and the estimated
+// input axis, with the paper's simple model (1, a_x, a_y, a_z) and its complete model (eq. 2 with
+// r = 0 and without the sign/abs terms, section 3.2), both fixed.
+//
+// Where the thresholds come from (median over seeds 1-5 at the time of writing, RelWithDebInfo):
+//   rotation table, complete: 0.007 deg (seeds spread 0.003-0.020): the pink noise of table 1 at
+//     the rotation frequency and below (noise-free data gives < 1e-5 deg);
+//   shaker, complete: 0.003 deg (0.0029-0.0032): nearly all of it the model error left by the
+//     twist about n_i that algorithm 1 cannot see (noise-free: 0.0031 deg; with the twist known,
+//     PipelineOptions::estimate_twist, 2e-5 deg);
+//   simple model: table 0.034-0.062 deg, shaker 0.073-0.099 deg (the unmodelled quadratic terms).
+// The paper's targets (table 2) are 0.0043 deg (table) and 0.0130 deg (shaker) for the complete
+// model. The test asserts the shaker target per seed, the table at 0.012 deg for the median of
+// three seeds (the seeds' spread; 0.03 deg was the figure with one slow revolution per axis) and
+// 0.03 deg per seed, and the simple model clearly worse (x2 on the table, x5 on the shaker).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/pipeline.hpp"
+#include "common/config/bench_config.hpp"
+#include "common/units.hpp"
+#include "hal/sim/bench_simulation.hpp"
+#include "hal/sim/simulate.hpp"
+
+namespace {
+
+using inertia::procedure::PipelineOptions;
+
+PipelineOptions fixed(const std::vector<std::string>& misalignment) {
+  PipelineOptions p;
+  p.misalignment.select = false;
+  p.misalignment.fixed_terms = misalignment;
+  p.batch.select = false;
+  p.batch.fixed_terms = {"1", "a_i"};
+  return p;
+}
+
+struct Errors {
+  double table_deg = 0.0;
+  double shaker_deg = 0.0;   // the worst of the three orientations (they share one mounting)
+};
+
+Errors errors(const inertia::dataset::Dataset& data, const std::vector<inertia::frames::Dcm>& truth,
+              const PipelineOptions& options) {
+  const auto result = inertia::procedure::run_pipeline(data, options, "paper");
+  Errors e;
+  for (std::size_t c = 0; c < data.cases.size(); ++c) {
+    const double err = inertia::rad_to_deg(inertia::procedure::input_axis_error(truth[c], result.cases[c].m_es));
+    if (data.cases[c].kind == inertia::dataset::CaseKind::RotationTable) {
+      e.table_deg = std::max(e.table_deg, err);
+    } else {
+      e.shaker_deg = std::max(e.shaker_deg, err);
+    }
+  }
+  return e;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+TEST(PaperMisalignment, CompleteModelReachesTheNoiseFloorAndBeatsTheSimpleOne) {
+  const std::vector<std::string> simple = {"1", "a_x", "a_y", "a_z"};
+  const std::vector<std::string> complete = {"1",     "a_x",     "a_y",     "a_z",     "a_i^2",
+                                             "a_p^2", "a_o^2",   "a_i*a_p", "a_i*a_o", "a_p*a_o"};
+  inertia::config::BenchConfig bench =
+      inertia::config::load_bench_config(std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-paper.toml");
+  std::vector<double> table_complete, table_simple;
+  for (const std::uint64_t seed : {1U, 2U, 3U}) {
+    // As if the bench file said `seed = <seed>`: the loader derives the sensors' noise seeds from
+    // the bench seed (common/config/bench_config.cpp), so setting bench.seed alone would keep the
+    // sensor noise of the file's seed.
+    bench.seed = seed;
+    for (std::size_t i = 0; i < bench.sensors.size(); ++i) bench.sensors[i].seed = seed * 1000003U + 17U * (i + 1);
+    const inertia::sim::BenchSimulation sim = inertia::sim::simulate_bench(bench);
+    const inertia::dataset::Dataset data = inertia::sim::sensor_dataset(bench, sim, 0);
+    std::vector<inertia::frames::Dcm> truth;
+    for (const auto& c : sim.cases) truth.push_back(c.sensors.at(0).m_cs * c.sensors.at(0).mounting.true_m_ec);
+
+    const Errors c = errors(data, truth, fixed(complete));
+    const Errors s = errors(data, truth, fixed(simple));
+    std::printf("seed %u: complete table %.5f shaker %.5f deg; simple table %.5f shaker %.5f deg\n",
+                static_cast<unsigned>(seed), c.table_deg, c.shaker_deg, s.table_deg, s.shaker_deg);
+    EXPECT_LT(c.shaker_deg, 0.0130) << "seed " << seed;
+    EXPECT_LT(c.table_deg, 0.03) << "seed " << seed;
+    EXPECT_GT(s.shaker_deg, 5.0 * c.shaker_deg) << "seed " << seed;
+    table_complete.push_back(c.table_deg);
+    table_simple.push_back(s.table_deg);
+  }
+  EXPECT_LT(median(table_complete), 0.012);
+  EXPECT_GT(median(table_simple), 2.0 * median(table_complete));
+}
+
+}  // namespace
