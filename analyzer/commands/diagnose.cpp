@@ -62,6 +62,7 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
   j["held_fixed"] = r.held_fixed;
   j["baseline"]["residual_rms"] = rms_json(r, r.steps.front());
   j["final"]["residual_rms"] = rms_json(r, r.steps.back());
+  if (r.refit_only) j["refit_only"]["residual_rms"] = rms_json(r, *r.refit_only);
   j["final"]["model_file"] = model_out.string();
   j["findings"] = nlohmann::json::array();
   for (const diagnose::Finding& f : r.findings) {

@@ -48,6 +48,11 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
   md << fmt::format("Overall residual RMS: baseline {:.5g} {}, final {:.5g} {} (ratio final/baseline {:.3f}).\n\n",
                     first.overall, unit, last.overall, unit, last.overall / first.overall);
 
+  if (r.refit_only) {
+    md << fmt::format("Re-estimating only the given terms would leave {:.5g} {}: the rest of the baseline gap is "
+                      "coefficient error, not a missing effect.\n\n",
+                      r.refit_only->overall, unit);
+  }
   md << "## Findings (in the order found)\n\n";
   if (r.findings.empty()) {
     md << "No candidate term is significant: nothing the library can name is missing.\n\n";
@@ -118,6 +123,7 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
     }
     gp << fmt::format("set output '{}'\nset title 'residual RMS per case and phase'\nset style data histograms\n"
                       "set style histogram clustered\nset style fill solid 0.8\nset xtics rotate by -45\nunset xlabel\n"
+                      "set logscale y\n"
                       "set ylabel 'RMS ({})'\nplot '{}' using 2:xtic(1) title 'baseline', '' using 3 title 'final', "
                       "{} with lines lc rgb 'black' title 'noise reference'\n",
                       (dir / "segments.png").string(), unit, (dir / "segments.dat").string(), r.noise_reference);

@@ -461,8 +461,22 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
       held.insert(held.end(), f.newly_fixed.begin(), f.newly_fixed.end());
     }
   };
-  // Which model terms the data can estimate at all: a fit of the model as it is.
-  if (!model_columns().empty()) (void)fit_with(-1);
+  // Which model terms the data can estimate at all: a fit of the model as it is. Its free-run
+  // residual is reported beside the baseline: it tells how much of the gap is only the given
+  // coefficients being off (no term missing) - the search below refits them anyway.
+  std::optional<Eigen::VectorXd> refit_residual;
+  if (!model_columns().empty()) {
+    const ColumnFit refit = fit_with(-1);
+    if (refit.ok) {
+      model::ModelFile m = current;
+      for (std::size_t j = 0; j < refit.columns.size(); ++j) {
+        for (model::ModelTerm& mt : m.terms) {
+          if (mt.term == w.columns[static_cast<std::size_t>(refit.columns[j])]) mt.coefficient = refit.theta(static_cast<Index>(j));
+        }
+      }
+      refit_residual = residual_of(w, m);
+    }
+  }
 
   // The model with `fit`'s coefficients on every fitted column and the candidate appended.
   auto augmented = [&w](const model::ModelFile& base, const ColumnFit& fit, Index candidate) {
@@ -594,6 +608,10 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
   for (std::size_t s = 0; s < residuals.size(); ++s) {
     out.steps.push_back(summarize(data, w, residuals[s], step_labels[s], out.noise_reference, chi_square,
                                   final_r.size(), options.alpha));
+  }
+  if (refit_residual) {
+    out.refit_only = summarize(data, w, *refit_residual, "given terms refitted", out.noise_reference, chi_square,
+                               final_r.size(), options.alpha);
   }
   for (const procedure::CaseRows& c : w.stack.cases) {
     const dataset::CaseData& cd = data.cases[c.case_index];

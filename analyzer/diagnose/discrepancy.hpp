@@ -4,6 +4,7 @@
 // candidate terms (ERR on the residual, then a t-test with honest standard deviations and AIC),
 // add it, re-estimate, re-simulate, repeat until no candidate is significant.
 #include <Eigen/Dense>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -68,6 +69,9 @@ struct DiagnoseResult {
   std::vector<std::string> case_names;
   std::vector<std::string> library;        // canonical candidate terms the search used
   std::vector<ResidualSummary> steps;      // steps[0] = baseline, then one per finding
+  /// The given terms only, re-estimated (ULS, held terms kept): how much of the baseline gap is
+  /// coefficient error rather than a missing effect. Absent when that fit is impossible.
+  std::optional<ResidualSummary> refit_only;
   std::vector<Finding> findings;
   std::vector<std::string> held_fixed;     // model terms the data cannot estimate (kept as given)
   double noise_reference = 0.0;            // the sd the location test compares with

@@ -19,6 +19,7 @@
 #include "analyzer/ident/term.hpp"
 #include "common/config/bench_config.hpp"
 #include "hal/sim/bench_simulation.hpp"
+#include "hal/sim/sensor_truth.hpp"
 #include "hal/sim/sensors/accelerometer_model_terms.hpp"
 #include "hal/sim/simulate.hpp"
 
@@ -61,6 +62,28 @@ std::string thermal_bench(const std::string& truth, std::uint64_t seed) {
   return s;
 }
 
+/// A rate table at 200 Hz with one FOG at the table centre: 90 deg steps about a horizontal axis
+/// (the input axis sees +-1 g and 0 g: g-sensitivity shows in the dwells) and constant rates.
+std::string gyro_bench(std::uint64_t seed) {
+  std::string s = "[bench]\nname = \"diag-gyro\"\nbackend = \"sim\"\nsample_rate_hz = 200.0\nt_ref_c = 25.0\nseed = " +
+                  std::to_string(seed) + "\n[fixture]\nalpha_deg = 25.0\n";
+  s += "[[sensor]]\nname = \"fog\"\ntype = \"gyroscope\"\noutput_unit = \"rad/s\"\nslot = \"G1\"\n[sensor.truth]\n"
+       "s0 = 1.0\nc_i = 1.0005\ndrift_rad_s = 2e-6\nnoise_sd_rad_s = 1e-5\n"
+       "g_sens_i_num = [2e-5, 0.0, 0.0]\ng_sens_i_den = [1.0, 0.0, 0.0]\n";
+  s += "[table_encoder]\nresolution_rad = 1e-6\n";
+  s += "[[case]]\nname = \"multipoint\"\nkind = \"rotation_table\"\nm_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n";
+  for (int i = 0; i < 4; ++i) {
+    s += "[[case.phase]]\nkind = \"dwell\"\nduration_s = 3.0\n"
+         "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 1.0, 0.0]\nangle_deg = 90.0\nduration_s = 2.0\n";
+  }
+  s += "[[case]]\nname = \"rates\"\nkind = \"rotation_table\"\nm_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n";
+  for (const char* rate : {"30.0", "-30.0", "90.0", "-90.0"}) {
+    s += std::string("[[case.phase]]\nkind = \"rotation\"\naxis = [1.0, 0.0, 0.0]\nrate_deg_s = ") + rate +
+         "\nduration_s = 3.0\n[[case.phase]]\nkind = \"dwell\"\nduration_s = 1.0\n";
+  }
+  return s;
+}
+
 /// White noise only, no high-pass quadratics (their static stand-in a_j^2 is not exact).
 std::string truth_fields(const std::string& extra) {
   return "k_i = 0.86\nk_b = 4e-3\nk_ii = 0.0\nk_pp = 0.0\nk_oo = 0.0\nwhite_sd_g = 1e-4\npink_sd_g = 0.0\n"
@@ -99,12 +122,38 @@ Scenario make_scenario(const std::string& bench_text, const std::set<std::string
   return s;
 }
 
+Scenario make_gyro_scenario(std::uint64_t seed, const std::set<std::string>& hide) {
+  const std::filesystem::path file = std::filesystem::temp_directory_path() /
+                                     ("diag_gyro_" + std::to_string(::getpid()) + "_" + std::to_string(seed) + ".toml");
+  std::ofstream(file) << gyro_bench(seed);
+  const config::BenchConfig bench = config::load_bench_config(file);
+  std::filesystem::remove(file);
+  const sim::BenchSimulation simulation = sim::simulate_bench(bench);
+  Scenario s;
+  s.data = sim::sensor_dataset(bench, simulation, 0);
+  const auto& params = std::get<sim::FogParams>(simulation.params[0]);
+  s.model.sensor = dataset::SensorKind::Gyroscope;
+  s.model.m_cs = simulation.cases[0].sensors[0].m_cs;
+  s.model.white_sd = params.noise_sd_rad_s / params.s0;
+  for (const auto& [key, value] : sim::model_terms(params, nullptr)) {
+    const std::string canonical = ident::parse_term(key.str()).to_string();
+    const double coefficient = value.value<double>().value_or(std::nan(""));
+    if (hide.count(canonical)) {
+      s.hidden[canonical] = coefficient;
+    } else {
+      s.model.terms.push_back({ident::parse_term(canonical), coefficient, std::nullopt});
+    }
+  }
+  EXPECT_EQ(s.hidden.size(), hide.size()) << "a hidden term is not in the truth";
+  return s;
+}
+
 /// The figures, for the log: what was found against truth, and the RMS before and after.
 void print_figures(const char* name, const Scenario& s, const DiagnoseResult& r) {
   Eigen::Index rows = 0;
   for (const dataset::CaseData& c : s.data.cases) rows += c.size();
   std::cout << "[ " << name << " ] " << rows << " rows, RMS baseline " << r.steps.front().overall << " final "
-            << r.steps.back().overall << " floor " << kScale * kWhiteSdG << '\n';
+            << r.steps.back().overall << " floor " << *s.model.white_sd << '\n';
   for (const Finding& f : r.findings) {
     const auto it = s.hidden.find(f.term);
     std::cout << "    found " << f.term << " (" << f.effect << ") " << f.coefficient << " +- " << f.std << " t " << f.t
@@ -141,7 +190,7 @@ TEST(DiagnoseScenario, HiddenCrossCouplingFoundUnderVibration) {
       EXPECT_FALSE(seg.excess) << seg.phase;
     }
   }
-  EXPECT_NE(r.findings.front().where_phase, "dwell");
+  EXPECT_NE(r.findings.front().where_phase, "static");   // the simulator labels dwells "static"
 }
 
 TEST(DiagnoseScenario, HiddenOddQuadraticFound) {
@@ -160,7 +209,7 @@ TEST(DiagnoseScenario, HiddenBiasTemperatureCoefficientFoundInThermalSteps) {
   expect_found_first(s, r, "T");
   EXPECT_EQ(r.findings.size(), 1U);
   EXPECT_EQ(r.findings.front().effect, "bias temperature coefficient");
-  EXPECT_NE(r.findings.front().where_phase, "dwell");
+  EXPECT_NE(r.findings.front().where_phase, "static");   // the simulator labels dwells "static"
 }
 
 TEST(DiagnoseScenario, TwoHiddenEffectsBothFound) {
@@ -184,6 +233,21 @@ TEST(DiagnoseScenario, TwoHiddenEffectsBothFound) {
   }
   const double floor = kScale * kWhiteSdG;
   EXPECT_LT(std::abs(r.steps.back().overall / floor - 1.0), 0.2);
+}
+
+TEST(DiagnoseScenario, HiddenGyroGSensitivityFound) {
+  const Scenario s = make_gyro_scenario(21, {"a_i"});
+  const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-gyro");
+  print_figures("gyro g-sensitivity", s, r);
+  ASSERT_FALSE(r.findings.empty());
+  const Finding& f = r.findings.front();
+  EXPECT_EQ(f.term, "a_i");
+  EXPECT_EQ(f.effect, "g-sensitivity");
+  EXPECT_LT(std::abs(f.coefficient - s.hidden.at("a_i")), 3.0 * f.std) << f.coefficient << " +- " << f.std;
+  EXPECT_EQ(r.findings.size(), 1U);
+  const double floor = *s.model.white_sd;
+  EXPECT_LT(std::abs(r.steps.back().overall / floor - 1.0), 0.2) << r.steps.back().overall << " vs " << floor;
+  EXPECT_GT(r.steps.front().overall, 1.5 * floor);
 }
 
 /// Nothing hidden: at most 5% of seeds may report a finding (alpha = 0.05 family-wise per step).
