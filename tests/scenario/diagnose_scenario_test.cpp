@@ -84,10 +84,11 @@ std::string gyro_bench(std::uint64_t seed) {
   return s;
 }
 
-/// White noise only, no high-pass quadratics (their static stand-in a_j^2 is not exact).
-std::string truth_fields(const std::string& extra) {
-  return "k_i = 0.86\nk_b = 4e-3\nk_ii = 0.0\nk_pp = 0.0\nk_oo = 0.0\nwhite_sd_g = 1e-4\npink_sd_g = 0.0\n"
-         "brown_sd_g = 0.0\nb_ii_rad_s = 100.0\nb_pp_rad_s = 100.0\nb_oo_rad_s = 100.0\n" + extra;
+/// White noise only (unless `pink_sd_g` > 0), no high-pass quadratics (their static stand-in
+/// a_j^2 is not exact).
+std::string truth_fields(const std::string& extra, double pink_sd_g = 0.0) {
+  return "k_i = 0.86\nk_b = 4e-3\nk_ii = 0.0\nk_pp = 0.0\nk_oo = 0.0\nwhite_sd_g = 1e-4\npink_sd_g = " +
+         std::to_string(pink_sd_g) + "\nbrown_sd_g = 0.0\nb_ii_rad_s = 100.0\nb_pp_rad_s = 100.0\nb_oo_rad_s = 100.0\n" + extra;
 }
 
 struct Scenario {
@@ -265,6 +266,68 @@ TEST(DiagnoseScenario, ControlNothingHiddenFalseAlarmRate) {
     }
   }
   std::cout << "[ control ] false alarms " << alarms << " of " << kSeeds << " seeds" << what << '\n';
+  EXPECT_LE(alarms, 1) << what;
+}
+
+}  // namespace
+}  // namespace inertia::diagnose
+
+namespace inertia::diagnose {
+namespace {
+
+/// Honest standard deviations: over seeds, z = (estimate - truth) / std must scatter like N(0, 1).
+/// Under white noise and under pink noise five times stronger than the white (where ordinary
+/// least squares would understate the sd several-fold; the AR prewhitening must correct it).
+/// A weak effect (t of order 10-30), so the 3-sd criterion of the other tests is not trivially met.
+/// Bounds: with 20 seeds, the sample sd of z lies in [0.6, 1.45] with probability ~99% when the
+/// stated sd is right (chi-square, 19 dof).
+void expect_honest_std(double pink_sd_g, const char* label) {
+  constexpr int kSeeds = 20;
+  std::vector<double> z;
+  int found_first = 0;
+  for (int seed = 1; seed <= kSeeds; ++seed) {
+    const Scenario s = make_scenario(shaker_bench(truth_fields("k_ip = 2e-3\nk_oq = 1e-6\n", pink_sd_g), 300 + seed),
+                                     {"a_i*abs(a_i)"});
+    const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
+    if (r.findings.empty() || r.findings.front().term != "a_i*abs(a_i)") {
+      std::cout << "    seed " << 300 + seed << ": first finding "
+                << (r.findings.empty() ? std::string("none") : r.findings.front().term) << '\n';
+      continue;
+    }
+    std::cout << "    seed " << 300 + seed << ": t " << r.findings.front().t << " AR order " << r.findings.front().ar_order << '\n';
+    ++found_first;
+    z.push_back((r.findings.front().coefficient - s.hidden.at("a_i*abs(a_i)")) / r.findings.front().std);
+  }
+  double mean = 0.0, ss = 0.0;
+  for (double v : z) mean += v / static_cast<double>(z.size());
+  for (double v : z) ss += (v - mean) * (v - mean);
+  const double sd = std::sqrt(ss / static_cast<double>(z.size() - 1));
+  std::cout << "[ " << label << " ] found first in " << found_first << " of " << kSeeds << " seeds; z mean " << mean
+            << " sd " << sd << '\n';
+  EXPECT_EQ(found_first, kSeeds);
+  ASSERT_GE(z.size(), 10U);
+  EXPECT_GT(sd, 0.6);
+  EXPECT_LT(sd, 1.45);
+  EXPECT_LT(std::abs(mean), 3.0 / std::sqrt(static_cast<double>(z.size())));   // 3 sd of the mean of N(0, 1)
+}
+
+TEST(DiagnoseScenario, WeakOddQuadraticHonestStdWhiteNoise) { expect_honest_std(0.0, "coverage, white noise"); }
+TEST(DiagnoseScenario, WeakOddQuadraticHonestStdPinkNoise) { expect_honest_std(5e-4, "coverage, pink noise"); }
+
+/// Control under pink noise: the prewhitened t-test must keep the false-alarm rate too.
+TEST(DiagnoseScenario, ControlPinkNoiseFalseAlarmRate) {
+  int alarms = 0;
+  std::string what;
+  constexpr int kSeeds = 20;
+  for (int seed = 1; seed <= kSeeds; ++seed) {
+    const Scenario s = make_scenario(shaker_bench(truth_fields("k_ip = 2e-3\nk_oq = 2e-5\n", 5e-4), 500 + seed), {});
+    const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
+    if (!r.findings.empty()) {
+      ++alarms;
+      what += " seed " + std::to_string(500 + seed) + ": " + r.findings.front().term;
+    }
+  }
+  std::cout << "[ control, pink noise ] false alarms " << alarms << " of " << kSeeds << " seeds" << what << '\n';
   EXPECT_LE(alarms, 1) << what;
 }
 
