@@ -539,6 +539,16 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     inputs.push_back({i, &data.cases[i], result.cases[i].m_es, weight_of(options, data.cases[i].name)});
   }
   StackedRegression batch = stack_regressions(candidates, inputs, data.t_ref, dataset_label);
+  if (options.square_highpass) {
+    // The squares' high pass (eq. 12), its corner estimated on the whole batch as in blocks 5-6.
+    const std::vector<Eigen::Index> squares = square_columns(batch.labels);
+    if (!squares.empty()) {
+      const SquareCornerSearch search(batch, squares, data);
+      result.square_corner_rad_s = search.best(options.square_highpass_min_rad_s,
+                                               std::min(options.square_highpass_max_rad_s, max_corner(batch.cases, data)));
+      apply_square_model(batch, data, result.square_corner_rad_s);
+    }
+  }
   {
     // The noise model from the residuals of the full candidate set (dependent columns left out).
     std::vector<Eigen::Index> usable = identifiable_ranking(batch, options.selection.err);

@@ -43,7 +43,7 @@ struct PipelineOptions {
   std::map<std::string, double> case_weights;   // case name -> weight (section 3.4); default 1
   /// Largest order of the autoregressive noise model used to prewhiten every fit (GLS; see
   /// prewhitening.hpp); 0 fits by ordinary least squares as the paper does.
-  int whitening_max_order = 20;
+  int whitening_max_order = 60;
   int max_refinements = 6;                  // step-1 fixed point: nonlinear F_S terms need M_E^S
   /// IEEE 1293 12.3.5.7 (paper section 3.2): on a rotation table a_p^2 and a_o^2 cannot be
   /// estimated together with the bias and a_i^2 (a_i^2 + a_p^2 + a_o^2 = g^2), so blocks 5-6 leave
@@ -118,6 +118,10 @@ struct PipelineResult {
   double aic = 0.0;
   frames::Dcm m_cs = frames::Dcm::Identity();   // of the first mounting (model file)
   Eigen::VectorXd whitening;                // batch AR noise model a_1..a_m (empty: white)
+  /// With square_highpass: the corner b of the batch's squares (a_i^2, a_p^2, a_o^2 enter as
+  /// s/(s + b) a_j^2, so their coefficients are the high-frequency gains K_jj of eq. 12);
+  /// none: static squares. A model file must carry it to mean the same model.
+  std::optional<double> square_corner_rad_s;
 };
 
 /// Runs blocks 5-11 on `data`. Throws InputError for bad input (missing columns, bad options) and
