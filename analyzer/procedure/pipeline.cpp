@@ -173,7 +173,8 @@ double max_corner(const std::vector<CaseRows>& layout, const dataset::Dataset& d
   double smallest_nyquist = std::numeric_limits<double>::infinity();
   for (const CaseRows& rows : layout) {
     const double period = data.cases.at(rows.case_index).sample_period_s;
-    if (period > 0.0) smallest_nyquist = std::min(smallest_nyquist, std::numbers::pi / period);
+    if (!(period > 0.0)) return 0.0;   // no sample period: no filter (the search keeps static squares)
+    smallest_nyquist = std::min(smallest_nyquist, std::numbers::pi / period);
   }
   return 0.9 * smallest_nyquist;
 }
