@@ -12,6 +12,10 @@
 //   [noise]                                   # optional
 //   white_sd = 1.0e-4
 //
+// Meaning of the coefficients: y (1 + sum_b c_b p_b) = sum_a c_a term_a, where the output-multiplied
+// terms y*p_b (rational models, paper eq. 5: y*T, y*w_i) carry their denominator coefficient c_b
+// and every other term its ordinary coefficient. Without output-multiplied terms this is simply
+// y = sum c_j term_j. Estimation (ULS), simulation and the simulator's truth use this convention.
 // Term keys are written in canonical form (analyzer/ident/term.hpp) and read in any spelling the
 // grammar accepts. Other top-level keys are ignored, so later versions can add information.
 #include <filesystem>

@@ -177,8 +177,9 @@ toml::table model_terms(const FogParams& p, toml::table* notes) {
   put_term(t, "w_i", p.c_i / p.s0);
   put_term(t, "T", p.c_t1 / p.s0);
   put_term(t, "T[k-1]", p.c_t2 / p.s0);
-  put_term(t, "y*T", -1e-6 * p.eps_t_ppm_per_degc);
-  put_term(t, "y*w_i", -p.c_f1);
+  // Output-multiplied terms carry their denominator coefficient (model_file.hpp): y (1 + eps T + c_f1 w_i) = ...
+  put_term(t, "y*T", 1e-6 * p.eps_t_ppm_per_degc);
+  put_term(t, "y*w_i", p.c_f1);
   put_term(t, "a_i", static_gain(p.g_sens_i) / p.s0);
   put_term(t, "a_p", static_gain(p.g_sens_p) / p.s0);
   put_term(t, "a_o", static_gain(p.g_sens_o) / p.s0);

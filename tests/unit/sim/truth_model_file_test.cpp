@@ -68,12 +68,12 @@ duration_s = 0.1
 
   const model::ModelFile fog = model::read_model(out / "fog" / "truth.toml");
   EXPECT_EQ(fog.sensor, dataset::SensorKind::Gyroscope);
-  // Equation 5 solved for the output: Omega = (c_i w_i + c_T1 T + c_T2 T[k-1] + D_F)/S0
-  //   - 1e-6 eps_T Omega T - c_f1 Omega w_i.
+  // Equation 5 in the model file's convention: Omega (1 + 1e-6 eps_T T + c_f1 w_i) =
+  //   (c_i w_i + c_T1 T + c_T2 T[k-1] + D_F)/S0, so y*T and y*w_i carry +1e-6 eps_T and +c_f1.
   EXPECT_NEAR(*fog.coefficient(ident::parse_term("w_i")), 1.001 / 2.0, 1e-15);
   EXPECT_NEAR(*fog.coefficient(ident::parse_term("T[k-1]")), -5e-7 / 2.0, 1e-20);
-  EXPECT_NEAR(*fog.coefficient(ident::parse_term("y*T")), -30e-6, 1e-20);
-  EXPECT_NEAR(*fog.coefficient(ident::parse_term("y*w_i")), -1e-4, 1e-20);
+  EXPECT_NEAR(*fog.coefficient(ident::parse_term("y*T")), 30e-6, 1e-20);
+  EXPECT_NEAR(*fog.coefficient(ident::parse_term("y*w_i")), 1e-4, 1e-20);
   EXPECT_NEAR(*fog.coefficient(ident::parse_term("1")), 1e-6 / 2.0, 1e-20);
 }
 
