@@ -84,6 +84,7 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
                            result.fit.std_dev(j)});
   }
   model.white_sd = std::sqrt(result.fit.residual_variance);
+  model.square_highpass_rad_s = result.square_corner_rad_s;
   std::filesystem::create_directories(options.out);
   model::write_model(options.out / "model.toml", model);
   fmt::print(out, "wrote {}\n", (options.out / "model.toml").string());

@@ -14,7 +14,7 @@ namespace inertia::commands {
 struct CharacterizeOptions {
   std::filesystem::path dataset;
   std::filesystem::path out;
-  int order = 1;                        // r of the batch candidates (block 11)
+  int order = 0;                        // r of the batch candidates (block 11); the squares get eq. 12's high pass
   int misalignment_order = 0;           // r of the algorithm-2 candidates (blocks 5-6)
   int noise_lags = -1;                  // MA lags of the batch fit; -1: equal to order
   std::vector<std::string> fixed_model; // non-empty: block 10 with these F_S terms

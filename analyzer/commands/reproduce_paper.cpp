@@ -93,7 +93,8 @@ void verify(const dataset::Dataset& data, const PipelineResult& result, const Se
   for (std::size_t c = 0; c < data.cases.size(); ++c) {
     const ident::SignalSet signals = ident::signals_from_case(data.cases[c], truth.m_es[c], data.t_ref, "paper");
     const Eigen::Index first = ident::first_usable_row(result.terms);
-    const Eigen::VectorXd y_model = procedure::simulate_model(result.terms, theta, signals, first);
+    const Eigen::VectorXd y_model = procedure::simulate_model(result.terms, theta, signals, first, result.square_corner_rad_s,
+                                                              data.cases[c].sample_period_s);
     const Eigen::Index rows = y_model.size();
     const Eigen::VectorXd e_clean = (y_model - truth.clean_y[c].tail(rows)) / truth.k_i;
     const Eigen::VectorXd e_meas = (y_model - data.cases[c].y.tail(rows)) / truth.k_i;
@@ -158,7 +159,10 @@ int run_reproduce_paper(const ReproducePaperOptions& options, std::ostream& out)
   // case name -> per-seed scores; "simple" is the misalignment with the simple model on all cases.
   std::map<std::string, std::vector<CaseScore>> scores;
   for (std::uint64_t seed : options.seeds) {
+    // The sensors' noise seeds are derived when the bench is loaded; set them too, or every seed
+    // would share one sensor noise realization.
     bench.seed = seed;
+    for (std::size_t i = 0; i < bench.sensors.size(); ++i) bench.sensors[i].seed = seed * 1000003 + 17 * (i + 1);
     const sim::BenchSimulation sim = sim::simulate_bench(bench);
     const dataset::Dataset data = sim::sensor_dataset(bench, sim, 0);
     const SeedTruth truth = truth_of(bench, sim);

@@ -32,6 +32,7 @@ struct Workspace {
   procedure::StackedRegression stack;        // phi: every column, y: measured output
   Eigen::MatrixXd gram;                      // Phi' Phi
   std::vector<ident::SignalSet> signals;     // per case
+  std::vector<double> sample_period_s;       // per case
   Index first_row = 0;
   std::map<Index, Eigen::VectorXd> factors;  // output-multiplied column -> p_b (stacked)
   /// Lagged Gram matrices of Z = [Phi y] within cases: lagged[l] = sum_k z(k) z(k-l)'. Every fit
@@ -290,6 +291,7 @@ Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& 
     const Eigen::Matrix3d m_es = model.m_cs * c.m_ec;
     inputs.push_back({i, &c, m_es, 1.0});
     w.signals.push_back(ident::signals_from_case(c, m_es, data.t_ref, label));
+    w.sample_period_s.push_back(c.sample_period_s);
     std::vector<Term> model_terms;
     for (const model::ModelTerm& t : model.terms) model_terms.push_back(t.term);
     ident::check_signals(model_terms, w.signals.back());   // InputError naming term, column, case
@@ -345,7 +347,8 @@ Eigen::VectorXd residual_of(const Workspace& w, const model::ModelFile& model) {
   }
   Eigen::VectorXd r(w.stack.y.size());
   for (const procedure::CaseRows& c : w.stack.cases) {
-    const Eigen::VectorXd sim = procedure::simulate_model(terms, theta, w.signals[c.case_index], c.first_sample);
+    const Eigen::VectorXd sim = procedure::simulate_model(terms, theta, w.signals[c.case_index], c.first_sample,
+                                                          model.square_highpass_rad_s, w.sample_period_s[c.case_index]);
     r.segment(c.begin, c.rows) = w.stack.y.segment(c.begin, c.rows) - sim;
   }
   return r;

@@ -172,6 +172,12 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
     }
   }
 
+  if (const toml::node* b = root.get("square_highpass_rad_s")) {
+    model.square_highpass_rad_s = finite_number(*b, file, "square_highpass_rad_s");
+    if (!(*model.square_highpass_rad_s > 0.0)) {
+      throw InputError(position_of(b->source(), file), "square_highpass_rad_s must be positive");
+    }
+  }
   if (const toml::table* noise = optional_table(root, "noise", file)) {
     if (const toml::node* sd = noise->get("white_sd")) {
       model.white_sd = finite_number(*sd, file, "noise.white_sd");
@@ -203,7 +209,12 @@ std::string format_model(const ModelFile& model) {
     for (int c = 0; c < 3; ++c) s += (c == 0 ? "" : ", ") + toml_float(model.m_cs(r, c), "m_cs");
     s += "]";
   }
-  s += "]\n\n[terms]\n";
+  s += "]\n";
+  if (model.square_highpass_rad_s) {
+    s += "# a_i^2, a_p^2, a_o^2 act through the high pass s / (s + b) of eq. 12\n";
+    s += "square_highpass_rad_s = " + toml_float(*model.square_highpass_rad_s, "square_highpass_rad_s") + "\n";
+  }
+  s += "\n[terms]\n";
   bool any_std = false;
   for (const ModelTerm& t : model.terms) {
     const std::string name = t.term.to_string();

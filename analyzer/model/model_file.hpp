@@ -41,6 +41,9 @@ struct ModelFile {
   frames::Dcm m_cs = frames::Dcm::Identity();
   std::vector<ModelTerm> terms;     // in file order
   std::optional<double> white_sd;   // [noise] white_sd, output unit
+  /// square_highpass_rad_s (top level, optional): the squares a_i^2, a_p^2, a_o^2 pass eq. 12's
+  /// first-order high pass s / (s + b) with this corner; absent: they act statically.
+  std::optional<double> square_highpass_rad_s;
 
   /// The coefficient of `term`, or nullopt when the model does not hold it.
   [[nodiscard]] std::optional<double> coefficient(const ident::Term& term) const;

@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "analyzer/procedure/square_highpass.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::procedure {
@@ -39,7 +40,11 @@ std::optional<Term> denominator_factor(const Term& term) {
 }  // namespace
 
 Eigen::VectorXd simulate_model(std::span<const ident::Term> terms, const Eigen::VectorXd& theta,
-                               const ident::SignalSet& signals, Eigen::Index first_row) {
+                               const ident::SignalSet& signals, Eigen::Index first_row,
+                               std::optional<double> square_highpass_rad_s, double sample_period_s) {
+  if (square_highpass_rad_s && !(sample_period_s > 0.0)) {
+    throw std::invalid_argument("simulate_model: a square high pass needs the sample period");
+  }
   if (static_cast<Eigen::Index>(terms.size()) != theta.size()) {
     throw std::invalid_argument("simulate_model: one coefficient per term needed");
   }
@@ -72,6 +77,13 @@ Eigen::VectorXd simulate_model(std::span<const ident::Term> terms, const Eigen::
   if (!input_terms.empty()) {
     Eigen::MatrixXd phi(rows, static_cast<Eigen::Index>(input_terms.size()));
     ident::fill_regressors(input_terms, signals, first_row, phi);
+    if (square_highpass_rad_s) {
+      for (std::size_t j = 0; j < input_terms.size(); ++j) {
+        if (is_square_term(input_terms[j])) {
+          highpass_in_place(phi.col(static_cast<Eigen::Index>(j)), *square_highpass_rad_s, sample_period_s);
+        }
+      }
+    }
     numerator = phi * Eigen::Map<const Eigen::VectorXd>(input_theta.data(), static_cast<Eigen::Index>(input_theta.size()));
   }
   Eigen::VectorXd denominator = Eigen::VectorXd::Ones(rows);

@@ -8,6 +8,7 @@
 
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
+#include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
 #include "common/input_error.hpp"
 
@@ -133,38 +134,18 @@ std::vector<Eigen::Index> square_columns(const std::vector<std::string>& labels)
   std::vector<Eigen::Index> out;
   for (std::size_t j = 0; j < labels.size(); ++j) {
     if (labels[j] == "1" || labels[j].find("^2") == std::string::npos) continue;
-    const Term t = ident::parse_term(labels[j]);
-    const auto& f = t.factors();
-    if (f.size() == 1 && f[0].power == 2 && f[0].function == ident::FactorFunction::Plain &&
-        (f[0].variable == ident::Variable::Ai || f[0].variable == ident::Variable::Ap ||
-         f[0].variable == ident::Variable::Ao)) {
-      out.push_back(static_cast<Eigen::Index>(j));
-    }
+    if (is_square_term(ident::parse_term(labels[j]))) out.push_back(static_cast<Eigen::Index>(j));
   }
   return out;
 }
 
-/// H_b(s) = s / (s + b) by the bilinear transform prewarped at b, case by case over the rows of
-/// `layout`, settled on each case's first row (its output starts at 0):
-///   h(k) = p h(k-1) + g (x(k) - x(k-1)),  c = b / tan(b T / 2),  p = (c - b)/(c + b),  g = c/(c + b).
+/// The squares' high pass (square_highpass.hpp), case by case over the rows of `layout`.
 void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns, const std::vector<CaseRows>& layout,
                       const dataset::Dataset& data, double corner_rad_s) {
   for (const CaseRows& rows : layout) {
     if (rows.rows <= 0) continue;
     const double period = data.cases.at(rows.case_index).sample_period_s;
-    const double c = corner_rad_s / std::tan(corner_rad_s * period / 2.0);
-    const double p = (c - corner_rad_s) / (c + corner_rad_s);
-    const double g = c / (c + corner_rad_s);
-    for (Eigen::Index col : columns) {
-      auto v = x.col(col).segment(rows.begin, rows.rows);
-      double h = 0.0, previous = v(0);
-      for (Eigen::Index k = 0; k < v.size(); ++k) {
-        const double input = v(k);
-        h = p * h + g * (input - previous);
-        previous = input;
-        v(k) = h;
-      }
-    }
+    for (Eigen::Index col : columns) highpass_in_place(x.col(col).segment(rows.begin, rows.rows), corner_rad_s, period);
   }
 }
 

@@ -34,7 +34,8 @@ CaseTraces traces_of(const dataset::Dataset& data, std::size_t index, const proc
   CaseTraces tr;
   const Eigen::Index first = reg.first_row, rows = reg.y.size();
   tr.residual = reg.y - reg.phi * theta;
-  tr.verification = procedure::simulate_model(r.terms, theta, signals, first) - c.y.tail(rows);
+  tr.verification = procedure::simulate_model(r.terms, theta, signals, first, r.square_corner_rad_s, c.sample_period_s) -
+                    c.y.tail(rows);
   tr.t = c.t.tail(rows);
   tr.a_i = signals.get(ident::Variable::Ai).tail(rows);
   if (!c.phase.empty()) tr.phase.assign(c.phase.end() - rows, c.phase.end());
