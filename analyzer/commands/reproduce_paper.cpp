@@ -47,6 +47,9 @@ PipelineOptions fixed_options(const std::vector<std::string>& misalignment, cons
   p.misalignment.fixed_terms = misalignment;
   p.batch.select = false;
   p.batch.fixed_terms = batch;
+  // Cases (1)-(3) are the paper's: static squares in the batch (blocks 10-11). Blocks 5-6 keep
+  // eq. 12's high pass on the squares, without which the shaker misalignment is off by ~1 deg.
+  p.batch_square_highpass = false;
   return p;
 }
 

@@ -521,7 +521,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     inputs.push_back({i, &data.cases[i], result.cases[i].m_es, weight_of(options, data.cases[i].name)});
   }
   StackedRegression batch = stack_regressions(candidates, inputs, data.t_ref, dataset_label);
-  if (options.square_highpass) {
+  if (options.square_highpass && options.batch_square_highpass) {
     // The squares' high pass (eq. 12), its corner estimated on the whole batch as in blocks 5-6.
     const std::vector<Eigen::Index> squares = square_columns(batch.labels);
     if (!squares.empty()) {

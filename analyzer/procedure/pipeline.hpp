@@ -71,6 +71,8 @@ struct PipelineOptions {
   /// the high-frequency gains K_jj. The model stays an output-error one (no y lags), so the
   /// prewhitening stays consistent.
   bool square_highpass = true;
+  /// The same for the batch (blocks 10-11); off reproduces the paper's static eqs. 2 and 4.
+  bool batch_square_highpass = true;
   double square_highpass_min_rad_s = 1.0;     // search range of b
   double square_highpass_max_rad_s = 1.0e4;   // (clamped below the Nyquist frequency)
   /// Algorithm 1 fixes n_i only; n_p and n_o follow the nominal case axes turned onto n_i, so a
