@@ -1,4 +1,5 @@
 #include "analyzer/model/model_file.hpp"
+#include "common/toml_text.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -65,30 +66,11 @@ const toml::table* optional_table(const toml::table& root, std::string_view key,
   return node->as_table();
 }
 
-std::string toml_quote(std::string_view s) {
-  std::string out = "\"";
-  for (const char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (ch == '"' || ch == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (c < 0x20 || c == 0x7F) {
-      out += fmt::format("\\u{:04X}", static_cast<unsigned>(c));
-    } else {
-      out += ch;
-    }
-  }
-  return out + '"';
-}
 
 // Shortest round-trip digits, with ".0" when they would otherwise read as a TOML integer.
 std::string toml_float(double v, std::string_view what) {
   if (!std::isfinite(v)) throw InputError(fmt::format("cannot write model: {} = {} is not finite", what, v));
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  std::string s(buf, r.ptr);
-  if (s.find_first_of(".eE") == std::string::npos) s += ".0";
-  return s;
+  return inertia::toml_float(v);
 }
 
 }  // namespace

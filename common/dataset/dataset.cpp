@@ -3,6 +3,7 @@
 // nothing allocates per field. Numbers are written with std::to_chars' shortest round-trip form,
 // which makes read(write(x)) == x bit for bit and the bytes a function of the data alone.
 #include "common/dataset/dataset.hpp"
+#include "common/toml_text.hpp"
 
 #include <algorithm>
 #include <array>
@@ -421,22 +422,6 @@ frames::Dcm read_matrix3(const toml::node& node, const std::string& file, std::s
   return m;
 }
 
-// TOML basic string with the escapes the spec requires.
-std::string toml_quote(std::string_view s) {
-  std::string out = "\"";
-  for (const char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (ch == '"' || ch == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (c < 0x20 || c == 0x7F) {
-      out += fmt::format("\\u{:04X}", static_cast<unsigned>(c));
-    } else {
-      out += ch;
-    }
-  }
-  return out + '"';
-}
 
 void append_double(std::string& out, double v) {
   char buf[32];
@@ -444,13 +429,6 @@ void append_double(std::string& out, double v) {
   out.append(buf, r.ptr);
 }
 
-// A TOML float: the shortest round-trip digits, with ".0" added when they would read as an integer.
-std::string toml_float(double v) {
-  std::string s;
-  append_double(s, v);
-  if (s.find_first_of(".eEn") == std::string::npos) s += ".0";
-  return s;
-}
 
 constexpr std::size_t kWriteChunk = std::size_t{1} << 20;
 
