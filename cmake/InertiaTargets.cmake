@@ -14,21 +14,6 @@ function(inertia_add_library name)
   add_library(${name} STATIC ${ARG_SOURCES})
   target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR} ${PROJECT_BINARY_DIR}/generated)
   target_link_libraries(${name} PUBLIC ${ARG_DEPENDS} PRIVATE inertia_warnings)
-  # Sources may be added later by the library's subfolders (target_sources); check at the end.
-  cmake_language(EVAL CODE
-    "cmake_language(DEFER DIRECTORY [[${PROJECT_SOURCE_DIR}]] CALL _inertia_require_sources [[${name}]])")
-endfunction()
-
-# A library whose folders are still empty builds as an empty archive, with a warning, instead of
-# failing generation for every other part of the tree.
-function(_inertia_require_sources name)
-  get_target_property(sources ${name} SOURCES)
-  if(NOT sources)
-    message(WARNING "${name} has no sources yet")
-    set(placeholder ${PROJECT_BINARY_DIR}/empty/${name}.cpp)
-    file(WRITE ${placeholder} "// ${name} has no sources yet\n")
-    target_sources(${name} PRIVATE ${placeholder})
-  endif()
 endfunction()
 
 # inertia_add_gtest(name SOURCES ... DEPENDS ... [LABELS ...]): one GoogleTest binary, each test a CTest test.
