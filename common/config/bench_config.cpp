@@ -405,16 +405,6 @@ BenchConfig load_bench_config(const std::filesystem::path& path) {
   return cfg;
 }
 
-const char* to_string(CaseKind kind) {
-  switch (kind) {
-    case CaseKind::RotationTable: return "rotation_table";
-    case CaseKind::Shaker: return "shaker";
-    case CaseKind::Thermal: return "thermal";
-    case CaseKind::Static: return "static";
-  }
-  return "?";
-}
-
 const char* to_string(PhaseKind kind) {
   switch (kind) {
     case PhaseKind::Dwell: return "dwell";

@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "common/case_kind.hpp"
 #include "common/frames.hpp"
 #include "common/input_error.hpp"
 
@@ -171,7 +172,7 @@ struct ModbusDevice {
 };
 
 // ---- test plan ----
-enum class CaseKind { RotationTable, Shaker, Thermal, Static };
+using inertia::CaseKind;
 enum class PhaseKind { Dwell, Rotation, Sine, Random, Shock, ThermalStep };
 enum class Orientation { IA, PA, OA };
 
@@ -253,7 +254,7 @@ frames::Dcm slot_orientation(Orientation orientation, double alpha_rad);
 /// unknown phase kinds. Not real-time: allocates, reads files.
 BenchConfig load_bench_config(const std::filesystem::path& path);
 
-const char* to_string(CaseKind kind);
+using inertia::to_string;
 const char* to_string(PhaseKind kind);
 const char* to_string(SensorType type);
 const char* to_string(Orientation orientation);

@@ -35,25 +35,8 @@ const char* to_string(SensorKind kind) {
   return "?";
 }
 
-const char* to_string(CaseKind kind) {
-  switch (kind) {
-    case CaseKind::RotationTable: return "rotation_table";
-    case CaseKind::Shaker: return "shaker";
-    case CaseKind::Thermal: return "thermal";
-    case CaseKind::Static: return "static";
-  }
-  return "?";
-}
-
 std::optional<SensorKind> sensor_kind_from_string(std::string_view text) {
   for (SensorKind k : {SensorKind::Accelerometer, SensorKind::Gyroscope}) {
-    if (text == to_string(k)) return k;
-  }
-  return std::nullopt;
-}
-
-std::optional<CaseKind> case_kind_from_string(std::string_view text) {
-  for (CaseKind k : {CaseKind::RotationTable, CaseKind::Shaker, CaseKind::Thermal, CaseKind::Static}) {
     if (text == to_string(k)) return k;
   }
   return std::nullopt;

@@ -10,12 +10,15 @@
 #include <string_view>
 #include <vector>
 
+#include "common/case_kind.hpp"
 #include "common/frames.hpp"
 
 namespace inertia::dataset {
 
 enum class SensorKind { Accelerometer, Gyroscope };
-enum class CaseKind { RotationTable, Shaker, Thermal, Static };
+using inertia::CaseKind;
+using inertia::case_kind_from_string;
+using inertia::to_string;
 
 using Matrix3Columns = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 
@@ -85,8 +88,6 @@ void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostrea
 void write_dataset(const std::filesystem::path& dir, const Dataset& data);
 
 const char* to_string(SensorKind kind);   // "accelerometer", "gyroscope" (the dataset.toml spelling)
-const char* to_string(CaseKind kind);     // "rotation_table", "shaker", "thermal", "static"
 std::optional<SensorKind> sensor_kind_from_string(std::string_view text);
-std::optional<CaseKind> case_kind_from_string(std::string_view text);
 
 }  // namespace inertia::dataset

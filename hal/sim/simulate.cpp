@@ -18,16 +18,6 @@ namespace inertia::sim {
 
 namespace {
 
-dataset::CaseKind to_dataset(config::CaseKind kind) {
-  switch (kind) {
-    case config::CaseKind::RotationTable: return dataset::CaseKind::RotationTable;
-    case config::CaseKind::Shaker: return dataset::CaseKind::Shaker;
-    case config::CaseKind::Thermal: return dataset::CaseKind::Thermal;
-    case config::CaseKind::Static: return dataset::CaseKind::Static;
-  }
-  return dataset::CaseKind::Static;
-}
-
 std::filesystem::path sensor_dir(const config::BenchConfig& bench, std::size_t s, const std::filesystem::path& out) {
   return bench.sensors.size() == 1 ? out : out / bench.sensors[s].name;
 }
@@ -133,7 +123,7 @@ dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSim
     const SimulatedCase& sc = sim.cases[c];
     dataset::CaseData cd;
     cd.name = tc.name;
-    cd.kind = to_dataset(tc.kind);
+    cd.kind = tc.kind;
     cd.file = tc.name + ".csv";
     cd.m_ec = tc.m_ec;   // nominal: the analyzer must not see the misalignments
     cd.mounting = tc.mounting;
