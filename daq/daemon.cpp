@@ -18,6 +18,7 @@
 #include "daq/publisher.hpp"
 #include "daq/real_bench.hpp"
 #include "hal/device.hpp"
+#include "inertia/bench_config_t.hpp"
 
 namespace inertia::daq {
 namespace {
@@ -203,6 +204,28 @@ int run_daemon(const DaemonOptions& o) {
     }
   }
 
+  // The bench file travels with the data (INERTIA_BENCH): the log alone is enough to analyze.
+  std::vector<std::uint8_t> bench_message;
+  {
+    bench_config_t msg{};
+    timespec now{};
+    ::clock_gettime(CLOCK_REALTIME, &now);
+    msg.utime = static_cast<std::int64_t>(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
+    msg.bench_name = bench.name;
+    for (const config::SourceFile& f : bench.sources) {
+      msg.paths.push_back(f.path.string());
+      msg.texts.push_back(f.text);
+    }
+    msg.num_files = static_cast<std::int32_t>(msg.paths.size());
+    bench_message.resize(static_cast<std::size_t>(msg.getEncodedSize()));
+    (void)msg.encode(bench_message.data(), 0, static_cast<int>(bench_message.size()));
+    if (bench_message.size() > LogWriter::kMaxData) {
+      std::cerr << "inertia-daqd: " << o.config << ": the bench file and its includes encode to " << bench_message.size()
+                << " bytes on INERTIA_BENCH, more than one log slot holds (" << LogWriter::kMaxData << ")\n";
+      return kExitBadInput;
+    }
+  }
+
   // Log writer.
   std::unique_ptr<LogWriter> log;
   if (!o.log_dir.empty()) {
@@ -214,6 +237,7 @@ int run_daemon(const DaemonOptions& o) {
     lo.stall_after_s = o.log_stall_after_s;
     lo.stall_ms = o.log_stall_ms;
     log = std::make_unique<LogWriter>(lo);
+    log->set_file_header("INERTIA_BENCH", bench_message);
     if (!log->open(&why)) {
       std::cerr << "inertia-daqd: " << why << "\n";
       return kExitBadInput;
@@ -230,6 +254,7 @@ int run_daemon(const DaemonOptions& o) {
   }
   PublisherOptions po;
   po.block_s = o.block_ms * 1e-3;
+  po.bench_message = bench_message;
   timespec wall{}, mono{};
   ::clock_gettime(CLOCK_REALTIME, &wall);
   ::clock_gettime(CLOCK_MONOTONIC, &mono);

@@ -30,6 +30,11 @@ LogWriter::~LogWriter() {
   close_file();
 }
 
+void LogWriter::set_file_header(std::string channel, std::vector<std::uint8_t> data) {
+  header_channel_ = std::move(channel);
+  header_data_ = std::move(data);
+}
+
 bool LogWriter::open(std::string* why) {
   std::error_code ec;
   std::filesystem::create_directories(options_.dir, ec);
@@ -57,6 +62,23 @@ bool LogWriter::open_next(std::string* why) {
   }
   log_ = log;
   file_bytes_ = 0;
+  if (!header_channel_.empty()) {
+    timespec wall{};
+    ::clock_gettime(CLOCK_REALTIME, &wall);
+    lcm_eventlog_event_t event{};
+    event.timestamp = static_cast<std::int64_t>(wall.tv_sec) * 1'000'000 + wall.tv_nsec / 1000;
+    event.channellen = static_cast<std::int32_t>(header_channel_.size());
+    event.datalen = static_cast<std::int32_t>(header_data_.size());
+    event.channel = header_channel_.data();
+    event.data = header_data_.data();
+    if (lcm_eventlog_write_event(log_, &event) == 0) {
+      const std::uint64_t n = 28u + header_channel_.size() + header_data_.size();
+      file_bytes_ += n;
+      bytes_.fetch_add(n, std::memory_order_relaxed);
+    } else {
+      write_errors_.fetch_add(1, std::memory_order_relaxed);
+    }
+  }
   std::lock_guard lock(path_mutex_);
   files_.push_back(path);
   return true;

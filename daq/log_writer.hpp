@@ -46,6 +46,10 @@ class LogWriter {
   LogWriter(const LogWriter&) = delete;
   LogWriter& operator=(const LogWriter&) = delete;
 
+  /// A message written first into every file (the first and each rotated one), so that any
+  /// one file is self-contained (INERTIA_BENCH). Set before open(); control thread.
+  void set_file_header(std::string channel, std::vector<std::uint8_t> data);
+
   /// Creates the directory and the first file. False + why (naming the path). Control thread.
   bool open(std::string* why);
   void start();
@@ -95,6 +99,8 @@ class LogWriter {
   std::uint64_t file_bytes_ = 0;
   int file_index_ = 0;
   std::string stamp_;
+  std::string header_channel_;
+  std::vector<std::uint8_t> header_data_;
   mutable std::mutex path_mutex_;  // guards files_ (writer appends on rotation; status reads)
   std::vector<std::filesystem::path> files_;
   std::thread thread_;

@@ -255,6 +255,10 @@ void Publisher::run() noexcept {
   ::pthread_setname_np(::pthread_self(), "publisher");
   std::int64_t last_status = hal::monotonic_now_ns();
   const auto period_ns = static_cast<std::int64_t>(options_.status_period_s * 1e9);
+  const auto bench_period_ns = static_cast<std::int64_t>(options_.bench_period_s * 1e9);
+  std::int64_t last_bench = last_status;
+  if (!options_.bench_message.empty())
+    send("INERTIA_BENCH", options_.bench_message.data(), options_.bench_message.size());
   for (;;) {
     const bool stopping = stop_.load(std::memory_order_acquire);
     std::size_t n = 0;
@@ -264,6 +268,10 @@ void Publisher::run() noexcept {
     if (now - last_status >= period_ns) {
       publish_status(static_cast<double>(now - last_status) * 1e-9);
       last_status = now;
+    }
+    if (!options_.bench_message.empty() && now - last_bench >= bench_period_ns) {
+      send("INERTIA_BENCH", options_.bench_message.data(), options_.bench_message.size());
+      last_bench = now;
     }
     if (stopping && n == 0) break;
     if (n == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));

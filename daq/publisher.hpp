@@ -42,6 +42,10 @@ struct PublisherOptions {
   std::int64_t mono_to_wall_ns = 0;      // wall - monotonic, once at start (t0_utime)
   /// Fills case/phase names and setpoints of a marker. Publisher thread.
   std::function<void(const PlanMark&, plan_event_t&)> describe_mark;
+  /// An encoded bench_config_t, sent on INERTIA_BENCH at start and every bench_period_s (so a
+  /// late subscriber or lcm-logger gets the bench); empty: none.
+  std::vector<std::uint8_t> bench_message;
+  double bench_period_s = 10.0;
   /// Daemon-wide faults for the status (e.g. "lcm-no-route"). Publisher thread.
   std::function<std::vector<std::string>()> daemon_faults;
 };

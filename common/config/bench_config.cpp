@@ -1,6 +1,8 @@
 #include "common/config/bench_config.hpp"
 
 #include <cmath>
+#include <fstream>
+#include <functional>
 #include <limits>
 #include <set>
 #include <sstream>
@@ -311,7 +313,20 @@ TestCase read_case(const TableReader& t, double alpha_rad, double sample_rate_hz
   return c;
 }
 
-void read_cases(const TableReader& root, BenchConfig& cfg, std::set<std::string>& names, int depth) {
+std::optional<std::string> read_text_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::ostringstream text;
+  text << in.rdbuf();
+  return std::move(text).str();
+}
+
+// Where the loader gets a file's text: the disk, or the texts carried by INERTIA_BENCH.
+// nullopt when the file does not exist there.
+using SourceFetch = std::function<std::optional<std::string>(const std::filesystem::path&)>;
+
+void read_cases(const TableReader& root, BenchConfig& cfg, std::set<std::string>& names, int depth,
+                const SourceFetch& fetch) {
   for (const TableReader& c : root.tables("case")) {
     TestCase tc = read_case(c, cfg.alpha_rad, cfg.sample_rate_hz);
     if (!names.insert(tc.name).second) c.fail_key("name", "duplicate case name '" + tc.name + "'");
@@ -327,32 +342,23 @@ void read_cases(const TableReader& root, BenchConfig& cfg, std::set<std::string>
     const auto name = e.value_exact<std::string>();
     if (!name) root.fail(e, "include must list file names (strings)");
     const std::filesystem::path path = base / *name;
-    if (!std::filesystem::exists(path)) root.fail(e, "included file '" + path.string() + "' not found");
-    const toml::table sub = parse_toml_file(path);
+    std::optional<std::string> text = fetch(path);
+    if (!text) root.fail(e, "included file '" + path.string() + "' not found");
+    const toml::table sub = parse_toml_text(*text, path.string());
+    cfg.sources.push_back({path, std::move(*text)});
     // An included file holds a test plan only: [[case]] tables and further includes.
     const TableReader reader(sub, "", path.string());
-    read_cases(reader, cfg, names, depth + 1);
+    read_cases(reader, cfg, names, depth + 1, fetch);
     reader.finish();
   }
 }
 
-}  // namespace
-
-frames::Dcm slot_orientation(Orientation orientation, double alpha_rad) {
-  const double c = std::cos(alpha_rad), s = std::sin(alpha_rad);
-  const int k = static_cast<int>(orientation);
-  frames::Dcm m;
-  m.row(k) << c, s, 0.0;
-  m.row((k + 1) % 3) << 0.0, 0.0, 1.0;
-  m.row((k + 2) % 3) << s, -c, 0.0;   // = row k x row k+1: right-handed (det +1)
-  return m;
-}
-
-BenchConfig load_bench_config(const std::filesystem::path& path) {
-  const toml::table root_table = parse_toml_file(path);
+BenchConfig load_bench(const std::filesystem::path& path, std::string text, const SourceFetch& fetch) {
+  const toml::table root_table = parse_toml_text(text, path.string());
   const TableReader root(root_table, "", path.string());
   BenchConfig cfg;
   cfg.file = path;
+  cfg.sources.push_back({path, std::move(text)});
 
   const TableReader bench = root.table("bench");
   cfg.name = bench.string("name");
@@ -399,10 +405,38 @@ BenchConfig load_bench_config(const std::filesystem::path& path) {
   for (const TableReader& d : root.tables("modbus_device")) cfg.modbus_devices.push_back(read_modbus_device(d));
 
   std::set<std::string> case_names;
-  read_cases(root, cfg, case_names, 0);
+  read_cases(root, cfg, case_names, 0, fetch);
   if (cfg.simulated && cfg.cases.empty()) root.fail_here("a simulated bench needs a test plan ([[case]] tables)");
   root.finish();
   return cfg;
+}
+
+}  // namespace
+
+frames::Dcm slot_orientation(Orientation orientation, double alpha_rad) {
+  const double c = std::cos(alpha_rad), s = std::sin(alpha_rad);
+  const int k = static_cast<int>(orientation);
+  frames::Dcm m;
+  m.row(k) << c, s, 0.0;
+  m.row((k + 1) % 3) << 0.0, 0.0, 1.0;
+  m.row((k + 2) % 3) << s, -c, 0.0;   // = row k x row k+1: right-handed (det +1)
+  return m;
+}
+
+BenchConfig load_bench_config(const std::filesystem::path& path) {
+  std::optional<std::string> text = read_text_file(path);
+  if (!text) throw InputError(SourcePosition{path.string(), 0, 0}, "file not found");
+  return load_bench(path, std::move(*text), read_text_file);
+}
+
+BenchConfig load_bench_config_from_sources(const std::vector<SourceFile>& sources) {
+  if (sources.empty()) throw InputError("bench config: no files (the bench file's text is missing)");
+  const SourceFetch fetch = [&sources](const std::filesystem::path& path) -> std::optional<std::string> {
+    for (const SourceFile& f : sources)
+      if (f.path.lexically_normal() == path.lexically_normal()) return f.text;
+    return std::nullopt;
+  };
+  return load_bench(sources.front().path, sources.front().text, fetch);
 }
 
 const char* to_string(PhaseKind kind) {

@@ -219,8 +219,17 @@ struct TestCase {
   SourcePosition where;
 };
 
+/// One file of a bench: its path (as given, or as an include resolved it) and its exact text.
+struct SourceFile {
+  std::filesystem::path path;
+  std::string text;
+};
+
 struct BenchConfig {
   std::filesystem::path file;
+  /// The bench file and every file it included, in load order: what the daemon publishes on
+  /// INERTIA_BENCH so that a log carries the bench it was recorded on.
+  std::vector<SourceFile> sources;
   std::string name;
   bool simulated = true;            // backend = "sim"
   double sample_rate_hz = 1000.0;
@@ -253,6 +262,12 @@ frames::Dcm slot_orientation(Orientation orientation, double alpha_rad);
 /// expected for TOML syntax errors, wrong types, missing or unknown keys, values out of range and
 /// unknown phase kinds. Not real-time: allocates, reads files.
 BenchConfig load_bench_config(const std::filesystem::path& path);
+
+/// The same from texts in memory (an INERTIA_BENCH message): sources[0] is the bench file, the
+/// others are the files its includes name, looked up by path (resolved as load_bench_config
+/// resolves them). Same validation and errors, positions naming the recorded paths; an include
+/// missing from `sources` is an error at the include. Throws InputError when `sources` is empty.
+BenchConfig load_bench_config_from_sources(const std::vector<SourceFile>& sources);
 
 using inertia::to_string;
 const char* to_string(PhaseKind kind);

@@ -38,6 +38,16 @@ toml::table parse_toml_file(const std::filesystem::path& path) {
   }
 }
 
+toml::table parse_toml_text(std::string_view text, const std::string& path) {
+  try {
+    return toml::parse(text, std::string_view{path});
+  } catch (const toml::parse_error& e) {
+    const toml::source_region& src = e.source();
+    SourcePosition p{src.path ? *src.path : path, src.begin.line, src.begin.column};
+    throw InputError(p, "TOML syntax error: " + std::string(e.description()));
+  }
+}
+
 TableReader::TableReader(const toml::table& table, std::string context, std::string file)
     : table_(&table), context_(std::move(context)), file_(std::move(file)),
       used_(std::make_shared<std::set<std::string, std::less<>>>()) {}

@@ -26,6 +26,10 @@ SourcePosition position_of(const toml::node& node, const std::string& fallback_f
 /// InputError naming the file.
 toml::table parse_toml_file(const std::filesystem::path& path);
 
+/// Parses TOML text that came from `path` (positions in errors and in nodes name that path), for
+/// files carried in memory (the bench file on INERTIA_BENCH).
+toml::table parse_toml_text(std::string_view text, const std::string& path);
+
 class TableReader {
  public:
   /// `context` names the table in messages ("case[2].phase[1]"); empty for the root.

@@ -279,6 +279,48 @@ duration_s = 2.0
   EXPECT_EQ(e.where().column, 8u);
 }
 
+TEST_F(TempFiles, SourcesInMemoryLoadAsTheFilesAndKeepTheirErrors) {
+  // The daemon publishes bench.sources on INERTIA_BENCH; the analyzer loads them back without
+  // the files: the same config, the same positioned errors, and a missing include is an error.
+  write("plan.toml", "[[case]]\nname = \"c2\"\nkind = \"static\"\norientation = \"PA\"\n[[case.phase]]\nkind = \"dwell\"\nduration_s = 2.0\n");
+  const fs::path bench = write("bench.toml", "include = [\"plan.toml\"]\n" + std::string(kMinimal));
+  const BenchConfig disk = load_bench_config(bench);
+  ASSERT_EQ(disk.sources.size(), 2u);
+  EXPECT_EQ(disk.sources[0].path, bench);
+  EXPECT_EQ(disk.sources[1].path.filename(), "plan.toml");
+  fs::remove(bench);
+  fs::remove(disk.sources[1].path);
+  const BenchConfig memory = load_bench_config_from_sources(disk.sources);
+  ASSERT_EQ(memory.cases.size(), 2u);
+  EXPECT_EQ(memory.cases[1].name, "c2");
+  EXPECT_EQ(memory.cases[1].m_ec, disk.cases[1].m_ec);
+  EXPECT_EQ(memory.sensors[0].seed, disk.sensors[0].seed);
+  EXPECT_EQ(memory.name, disk.name);
+  EXPECT_EQ(memory.file, bench);
+  ASSERT_EQ(memory.sources.size(), 2u);
+  EXPECT_EQ(memory.sources[1].text, disk.sources[1].text);
+
+  std::vector<SourceFile> bad = disk.sources;
+  bad[1].text = replace(bad[1].text, "\"dwell\"", "\"dwel\"");
+  try {
+    (void)load_bench_config_from_sources(bad);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, disk.sources[1].path.string());
+    EXPECT_EQ(e.where().line, 6u);
+    EXPECT_EQ(e.where().column, 8u);
+  }
+  try {
+    (void)load_bench_config_from_sources({disk.sources[0]});
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, bench.string());
+    EXPECT_EQ(e.where().line, 1u);
+    EXPECT_NE(std::string(e.what()).find("included file"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW((void)load_bench_config_from_sources({}), InputError);
+}
+
 TEST_F(TempFiles, MissingFile) {
   try {
     (void)load_bench_config("/nonexistent/bench.toml");

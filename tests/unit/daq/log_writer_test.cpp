@@ -45,6 +45,42 @@ std::size_t count_events(const std::vector<fs::path>& files, std::int64_t* sum =
   return n;
 }
 
+TEST(LogWriter, FileHeaderOpensEveryFile) {
+  // INERTIA_BENCH goes first into each file, so a rotated file alone can be analyzed.
+  TempDir tmp;
+  LogWriterOptions o;
+  o.dir = tmp.path / "log";
+  o.base_name = "t";
+  o.rotate_bytes = 5000;
+  LogWriter w(o);
+  const std::vector<std::uint8_t> header{1, 2, 3, 4, 5};
+  w.set_file_header("HDR", header);
+  std::string why;
+  ASSERT_TRUE(w.open(&why)) << why;
+  w.start();
+  std::vector<std::uint8_t> payload(1000);
+  for (std::int32_t i = 0; i < 20; ++i)
+    while (!w.enqueue("CH", payload.data(), payload.size(), i)) std::this_thread::yield();
+  w.stop();
+  const auto files = files_in(tmp.path / "log");
+  ASSERT_GE(files.size(), 4u);
+  std::size_t data_events = 0;
+  for (const auto& f : files) {
+    lcm::LogFile log(f.string(), "r");
+    const lcm::LogEvent* first = log.readNextEvent();
+    ASSERT_NE(first, nullptr) << f;
+    EXPECT_EQ(first->channel, "HDR") << f;
+    ASSERT_EQ(first->datalen, 5);
+    EXPECT_EQ(std::memcmp(first->data, header.data(), header.size()), 0);
+    while (const lcm::LogEvent* e = log.readNextEvent()) {
+      EXPECT_EQ(e->channel, "CH");
+      ++data_events;
+    }
+    EXPECT_LE(fs::file_size(f), 5000u);
+  }
+  EXPECT_EQ(data_events, 20u);
+}
+
 TEST(LogWriter, WritesLcmLogFormatAndRotatesBySizeAndOnRequest) {
   TempDir tmp;
   LogWriterOptions o;
