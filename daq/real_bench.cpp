@@ -93,13 +93,15 @@ std::vector<std::unique_ptr<Sampler>> open_real_bench(const config::BenchConfig&
     q.line_trigger = e.line_trigger;
     q.active_low = e.active_low;
     q.resolution = e.resolution;
+    // Without a trigger line the device samples itself on the bench's rate (zero-order hold).
+    q.sample_rate_hz = e.line_trigger >= 0 ? 0.0 : bench.sample_rate_hz;
     std::string reason;
     auto dev = hal::gpiod::GpiodEncoderDevice::open(q, &reason);
     if (!dev) return fail("device '" + e.name + "' (GPIO " + e.chip + "): " + reason);
     std::vector<int> fds;
     for (int fd : dev->event_fds())
       if (fd >= 0) fds.push_back(fd);
-    // Sampled on the trigger line (the bench's sample clock) when there is one.
+    // Sampled on the trigger line (the bench's sample clock) when there is one, else on ticks.
     const bool rows = e.line_trigger >= 0;
     std::vector<ChannelInfo> info{{"count", "1", next_id}, {"position", e.rotary ? "rad" : "m", next_id + 1}};
     next_id += 2;

@@ -132,7 +132,6 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     next_id += 2;
     auto slot = std::make_shared<DeviceSlot>(name, std::move(info), s->rate_hz_, ring_capacity);
     slot->sim_time_base = true;
-    e.slot = slot;
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::move(fds), slot, true));
     s->encoders_.push_back(std::move(e));
     return true;
@@ -210,9 +209,14 @@ void SimBench::queue_edge(EncoderSim& e, gp::EdgeLine line, bool rising, std::in
   buf.insert(buf.end(), bytes, bytes + sizeof record);
 }
 
-bool SimBench::flush_edges(EncoderSim& e) {
-  // A/B first, the trigger last: the row the trigger makes must see every edge before it.
+bool SimBench::flush_edges(EncoderSim& e, std::int64_t through_ns) {
+  // A/B first, then their clock, the trigger last: when the trigger wakes the sampler, the
+  // device already knows A and B are complete through the batch and merges all of it.
   for (std::size_t l = 0; l < gp::kEdgeLineCount; ++l) {
+    if (l == static_cast<std::size_t>(gp::EdgeLine::Trigger)) {
+      e.wire->advance(gp::EdgeLine::A, through_ns);
+      e.wire->advance(gp::EdgeLine::B, through_ns);
+    }
     auto& buf = e.pending[l];
     std::size_t done = 0;
     while (done < buf.size()) {
@@ -279,10 +283,10 @@ void SimBench::update_controllers(std::size_t c, std::size_t k) {
 }
 
 void SimBench::run() noexcept {
-  ::prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);  // paced sleeps and handshake waits to the us
+  ::prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);  // paced sleeps and pipe-full waits to the us
   ::pthread_setname_np(::pthread_self(), "sim-bench");  // the simulator, not the daemon (CPU accounting)
   const double period_ns = 1e9 / rate_hz_;
-  // Paced: wake every 1 ms of simulated time. Fast: hand the encoder 10 ms at a time (fewer handshakes).
+  // Paced: wake every 1 ms of simulated time. Fast: 10 ms at a time (fewer, larger writes).
   const std::size_t batch = std::max<std::size_t>(1, static_cast<std::size_t>(rate_hz_ / (options_.fast ? 100.0 : 1000.0)));
   const std::size_t ctrl_every = std::max<std::size_t>(1, static_cast<std::size_t>(rate_hz_ / 100.0));  // 10 ms
   const std::size_t nch = can_channels_.size();
@@ -388,14 +392,10 @@ void SimBench::run() noexcept {
         write_can_frame(kSimCanBaseId + static_cast<std::uint32_t>(g), payload.data() + 64 * g, 64, true);
     }
 
-    // Encoders: the edges since the previous sample, then the sample clock's trigger edge.
-    // Handshake: GpiodEncoderDevice reads its lines' descriptors one after the other, so edges
-    // written while it is between two reads would be merged out of order (B's before A's).
-    // The simulator therefore queues a batch of ticks (about 1 ms, at most ~2000 edges a line
-    // so a pipe never fills while the reader is parked) and writes it only while the encoder's
-    // sampler is parked in poll() on the trigger line with every earlier row pushed: A/B first,
-    // the batch's trigger edges last, so the wake-up finds the whole batch in the pipes.
-    // This is the simulator's pacing, not the daemon's: the sampling path is unchanged.
+    // Encoders: the edges since the previous sample, then the sample clock's trigger edge,
+    // queued and written a batch at a time (about 1 ms, at most ~2000 edges a line). The wire's
+    // clock (EncoderWire::advance) tells the device how far each line is complete, so it merges
+    // the lines in time order however its reads interleave with these writes.
     for (auto& e : encoders_) {
       const double x = position(e, c, k);
       const auto target = static_cast<std::int64_t>(std::floor(x / e.resolution));
@@ -422,25 +422,8 @@ void SimBench::run() noexcept {
       }
       e.trigger_level = !e.trigger_level;
       queue_edge(e, gp::EdgeLine::Trigger, e.trigger_level, t_n);
-      ++e.queued_ticks;
       const std::size_t ab = std::max(e.pending[0].size(), e.pending[1].size()) / sizeof(gpioevent_data);
-      if ((n + 1) % batch == 0 || ab >= 2048 || n + 1 == run_samples_) {
-        const std::uint64_t rows = 2 * (e.flushed_ticks);  // two ring pushes (count, position) per row
-        int spins = 0;
-        while (!stop_.load(std::memory_order_relaxed) &&
-               !(e.slot->idle.load(std::memory_order_acquire) &&
-                 e.slot->samples.load(std::memory_order_relaxed) + e.slot->ring_drops.load(std::memory_order_relaxed) >= rows)) {
-          if (++spins < 200) {
-            std::this_thread::yield();
-          } else {
-            timespec ts{0, 2'000};
-            ::nanosleep(&ts, nullptr);
-          }
-        }
-        (void)flush_edges(e);
-        e.flushed_ticks += e.queued_ticks;
-        e.queued_ticks = 0;
-      }
+      if ((n + 1) % batch == 0 || ab >= 2048 || n + 1 == run_samples_) (void)flush_edges(e, t_n);
     }
     if (k == case_len - 1)
       for (auto& e : encoders_) e.offset = position(e, c, k);  // continuity into the next case

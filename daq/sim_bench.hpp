@@ -96,8 +96,6 @@ class SimBench {
     double offset = 0.0; // keeps the position continuous across cases and plan repeats
     bool trigger_level = false;
     std::size_t edges = 0;
-    std::shared_ptr<DeviceSlot> slot;  // the encoder's sampler (handshake)
-    std::size_t queued_ticks = 0, flushed_ticks = 0;
     // Records of one sample tick per line, written in PIPE_BUF-sized batches (one syscall for
     // many edges; a pipe write of at most PIPE_BUF bytes is atomic, so records never split).
     std::array<std::vector<std::uint8_t>, hal::gpiod::kEdgeLineCount> pending;
@@ -106,7 +104,8 @@ class SimBench {
   double can_value(const CanChannel& ch, std::size_t c, std::size_t k) const;
   double position(const EncoderSim& e, std::size_t c, std::size_t k) const;
   void queue_edge(EncoderSim& e, hal::gpiod::EdgeLine line, bool rising, std::int64_t t_ns);
-  bool flush_edges(EncoderSim& e);
+  /// Writes the queued records; every line is then complete through `through_ns`.
+  bool flush_edges(EncoderSim& e, std::int64_t through_ns);
   void write_can_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd);
   void update_controllers(std::size_t c, std::size_t k);
 

@@ -40,7 +40,8 @@ bool QuadratureConfig::is_valid(std::string* why) const {
                             static_cast<unsigned>(line_trigger) == line_b || line_trigger == line_marker))
     return fail("line_trigger repeats another line");
   if (!std::isfinite(resolution) || resolution <= 0.0) return fail("resolution must be positive (SI per count)");
-  if (min_edge_interval_ns < 0 || simultaneous_ns < 0) return fail("intervals must not be negative");
+  if (min_edge_interval_ns < 0 || simultaneous_ns < 0 || edge_latency_ns < 0) return fail("intervals must not be negative");
+  if (!std::isfinite(sample_rate_hz) || sample_rate_hz < 0.0) return fail("sample_rate_hz must be >= 0");
   return true;
 }
 
@@ -56,7 +57,7 @@ std::unique_ptr<GpiodEdgeSource> GpiodEdgeSource::open(const QuadratureConfig& c
     }
     return nullptr;
   }
-  std::unique_ptr<GpiodEdgeSource> source(new GpiodEdgeSource(chip));
+  std::unique_ptr<GpiodEdgeSource> source(new GpiodEdgeSource(chip, config.edge_latency_ns));
   const int offsets[kEdgeLineCount] = {static_cast<int>(config.line_a), static_cast<int>(config.line_b),
                                        config.line_marker, config.line_trigger};
   const int flags = config.active_low ? GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW : 0;
@@ -83,6 +84,10 @@ int GpiodEdgeSource::event_fd(EdgeLine line) const noexcept {
 bool GpiodEdgeSource::level(EdgeLine line) const noexcept {
   gpiod_line* l = lines_[static_cast<std::size_t>(line)];
   return l != nullptr && ::gpiod_line_get_value(l) == 1;
+}
+
+std::int64_t GpiodEdgeSource::complete_through_ns(EdgeLine) const noexcept {
+  return monotonic_now_ns() - latency_ns_;
 }
 
 // --- device ---------------------------------------------------------------------------------
@@ -117,6 +122,7 @@ GpiodEncoderDevice::GpiodEncoderDevice(std::unique_ptr<EdgeSource> source, Quadr
     trigger_channel_ = static_cast<int>(channels_.size());
     channels_.push_back(config_.name + ".trigger");
   }
+  if (trigger_channel_ < 0 && config_.sample_rate_hz > 0.0) tick_period_ns_ = 1e9 / config_.sample_rate_hz;
 }
 
 Step GpiodEncoderDevice::configure() {
@@ -146,6 +152,17 @@ void GpiodEncoderDevice::discard_pending() noexcept {
 
 Step GpiodEncoderDevice::activate() {
   if (!configured_) return fail(Step::Fatal, "activate() before configure()");
+  // Taken before the discard: everything stamped up to here is thrown away with the backlog.
+  std::int64_t through = std::numeric_limits<std::int64_t>::max();
+  for (std::size_t i = 0; i < kEdgeLineCount; ++i) {
+    newest_[i] = kNever;
+    watermark_[i] = kNever;
+    if (source_->event_fd(static_cast<EdgeLine>(i)) < 0) continue;
+    watermark_[i] = source_->complete_through_ns(static_cast<EdgeLine>(i));
+    through = std::min(through, watermark_[i]);
+  }
+  // The first tick after activation: the count before it is not known.
+  if (ticked()) next_tick_ = static_cast<std::int64_t>(std::floor(static_cast<double>(through) / tick_period_ns_)) + 1;
   discard_pending();
   decoder_.reset(source_->level(EdgeLine::A), source_->level(EdgeLine::B), decoder_.count());
   ++health_.resyncs;
@@ -185,7 +202,7 @@ std::size_t GpiodEncoderDevice::handle(EdgeLine line, const gpiod_line_event& ev
     case EdgeLine::B: {
       const std::int64_t before = decoder_.count();
       decoder_.on_edge(line, rising, t_ns);
-      if (decoder_.count() != before) {
+      if (decoder_.count() != before && !ticked()) {
         pushed += push(kCountChannel, t_ns, static_cast<double>(decoder_.count()), sink);
         pushed += push(kPositionChannel, t_ns, position(), sink);
       }
@@ -205,32 +222,53 @@ std::size_t GpiodEncoderDevice::handle(EdgeLine line, const gpiod_line_event& ev
   return pushed;
 }
 
+bool GpiodEncoderDevice::emit_ticks(std::int64_t through, bool strict, SampleSink& sink, std::size_t& pushed,
+                                    std::size_t& budget) noexcept {
+  for (;;) {
+    const std::int64_t t = tick_time_ns(next_tick_);
+    if (strict ? t >= through : t > through) return true;
+    if (budget == 0) return false;
+    --budget;
+    // Zero-order hold: the count after the last edge stamped at or before the tick.
+    pushed += push(kCountChannel, t, static_cast<double>(decoder_.count()), sink);
+    pushed += push(kPositionChannel, t, position(), sink);
+    ++next_tick_;
+  }
+}
+
 std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
   if (!active_) return 0;
   const std::int64_t t_start = monotonic_now_ns();
   std::size_t pushed = 0;
+  std::size_t tick_budget = kMaxTicksPerRead;
   for (std::size_t round = 0; round < kMaxRoundsPerRead; ++round) {
     bool read_any = false;
     for (std::size_t i = 0; i < kEdgeLineCount; ++i) {
       LineBuffer& buf = buffers_[i];
-      const int fd = source_->event_fd(static_cast<EdgeLine>(i));
+      const auto line = static_cast<EdgeLine>(i);
+      const int fd = source_->event_fd(line);
       if (fd < 0 || buf.head < buf.size) continue;
+      const std::int64_t through = source_->complete_through_ns(line);  // before the read, see header
       const int n = ::gpiod_line_event_read_fd_multiple(fd, buf.events.data(), kEventsPerRead);
       buf.head = 0;
       buf.size = n > 0 ? static_cast<std::size_t>(n) : 0;
-      buf.more = buf.size == kEventsPerRead;
-      if (n > 0) read_any = true;
+      if (n > 0) {
+        read_any = true;
+        newest_[i] = std::max(newest_[i], to_ns(buf.events[buf.size - 1].ts));
+      }
       if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
         // EIO: fewer bytes than one record (libgpiod's check); anything else is the descriptor.
         if (errno == EIO) ++health_.malformed;
         else ++health_.io_errors;
       }
+      // A full batch may leave later events in the descriptor: known only through its newest.
+      const std::int64_t known = buf.size == kEventsPerRead ? newest_[i] : std::max(newest_[i], through);
+      watermark_[i] = std::max(watermark_[i], known);
     }
-    // A full batch may hide later events of that line; nothing beyond its last one is safe yet.
     std::int64_t horizon = std::numeric_limits<std::int64_t>::max();
-    for (const LineBuffer& buf : buffers_)
-      if (buf.more && buf.head < buf.size) horizon = std::min(horizon, to_ns(buf.events[buf.size - 1].ts));
-    bool handled_any = false;
+    for (std::size_t i = 0; i < kEdgeLineCount; ++i)
+      if (source_->event_fd(static_cast<EdgeLine>(i)) >= 0) horizon = std::min(horizon, watermark_[i]);
+    bool handled_any = false, out_of_ticks = false;
     for (;;) {
       std::size_t best = kEdgeLineCount;
       std::int64_t best_t = horizon;
@@ -244,13 +282,17 @@ std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
         }
       }
       if (best == kEdgeLineCount) break;
+      if (ticked() && !emit_ticks(best_t, true, sink, pushed, tick_budget)) {
+        out_of_ticks = true;
+        break;
+      }
       LineBuffer& buf = buffers_[best];
       pushed += handle(static_cast<EdgeLine>(best), buf.events[buf.head], sink);
       ++buf.head;
       handled_any = true;
-      if (buf.head == buf.size && buf.more) break;  // refill it before going past its horizon
     }
-    if (!read_any && !handled_any) break;
+    if (ticked() && !out_of_ticks) out_of_ticks = !emit_ticks(horizon, false, sink, pushed, tick_budget);
+    if (out_of_ticks || (!read_any && !handled_any)) break;
   }
   const double us = static_cast<double>(monotonic_now_ns() - t_start) * 1e-3;
   if (us > health_.read_time_max_us) health_.read_time_max_us = us;

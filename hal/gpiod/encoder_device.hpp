@@ -10,7 +10,9 @@
 #include <gpiod.h>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -31,6 +33,14 @@ struct QuadratureConfig {
   double resolution = 1e-6;              // SI per x4 count: m/count (linear) or rad/count (rotary)
   std::int64_t min_edge_interval_ns = 0; // shorter pulses on one line are glitches (0: off)
   std::int64_t simultaneous_ns = 0;      // A and B edges this close count as a skipped state
+  // Without a trigger line: count and position are sampled at this rate on CLOCK_MONOTONIC
+  // (ticks at whole multiples of the period) by zero-order hold of the count between edges.
+  // 0: a count/position sample at every edge instead. Ignored when line_trigger is set.
+  double sample_rate_hz = 0.0;
+  // gpiolib stamps an edge in its hard IRQ handler but queues it from the IRQ thread; an edge
+  // stamped less than this before a read may not be readable yet. Every merge and every
+  // sample tick waits this long behind the clock (libgpiod source only).
+  std::int64_t edge_latency_ns = 1'000'000;
   bool is_valid(std::string* why) const;
 };
 
@@ -43,6 +53,10 @@ class EdgeSource {
   [[nodiscard]] virtual int event_fd(EdgeLine line) const noexcept = 0;
   /// Present level of `line` (seeds the decoder). Non-RT.
   [[nodiscard]] virtual bool level(EdgeLine line) const noexcept = 0;
+  /// Every event of `line` stamped at or before this time (the events' clock) is already in its
+  /// descriptor, or was read from it. The device asks right before it reads the line, so after
+  /// a read that emptied the descriptor nothing older can still come. Real-time safe.
+  [[nodiscard]] virtual std::int64_t complete_through_ns(EdgeLine line) const noexcept = 0;
 };
 
 /// libgpiod v1: one both-edge event request per line on one chip. Non-RT.
@@ -54,10 +68,13 @@ class GpiodEdgeSource final : public EdgeSource {
   ~GpiodEdgeSource() override;
   [[nodiscard]] int event_fd(EdgeLine line) const noexcept override;
   [[nodiscard]] bool level(EdgeLine line) const noexcept override;
+  /// CLOCK_MONOTONIC now minus QuadratureConfig::edge_latency_ns.
+  [[nodiscard]] std::int64_t complete_through_ns(EdgeLine line) const noexcept override;
 
  private:
-  explicit GpiodEdgeSource(gpiod_chip* chip) : chip_(chip) {}
+  GpiodEdgeSource(gpiod_chip* chip, std::int64_t latency_ns) : chip_(chip), latency_ns_(latency_ns) {}
   gpiod_chip* chip_;                      // owned; closing it releases the lines
+  std::int64_t latency_ns_;
   std::array<gpiod_line*, kEdgeLineCount> lines_{};
 };
 
@@ -88,11 +105,16 @@ class GpiodEncoderDevice final : public Device {
   /// while inactive are not tracked; counted as a resync, the count is kept).
   Step activate() override;
   /// Thread: sampling thread. Real-time: no allocation, no lock, non-blocking reads of at most
-  /// kEventsPerRead events per line per round, kMaxRoundsPerRead rounds. Events of all lines
-  /// are merged in timestamp order; an event later than the last one of a line whose batch was
-  /// full waits for that line's next batch, so A/B order is kept across descriptors.
-  /// Pushes count and position after each edge that changed the count, a marker sample
-  /// (value: position at the marker's rising edge) and a trigger sample (value: new level).
+  /// kEventsPerRead events per line per round, kMaxRoundsPerRead rounds.
+  /// The lines are separate descriptors read one after another, so an edge may reach line A's
+  /// descriptor after A was read and before a later edge of B is read. Each line therefore has
+  /// a watermark, the time through which all its events are known: its newest event read, or,
+  /// when a read emptied the descriptor, the source's complete_through_ns() taken before that
+  /// read. Events are merged in timestamp order only up to the lowest watermark of all lines;
+  /// later ones wait in the line buffers for the next read.
+  /// Pushes a marker sample (value: position at the marker's rising edge) and a trigger sample
+  /// (value: new level); count and position after each edge that changed the count, or, with
+  /// sample_rate_hz and no trigger line, at every tick once the lowest watermark has passed it.
   std::size_t read_into(SampleSink& sink) noexcept override;
   Step deactivate() override;
   /// Line A's descriptor. Each line has its own (one request per line in libgpiod v1): a poll
@@ -111,18 +133,30 @@ class GpiodEncoderDevice final : public Device {
   /// Channel of the marker / trigger samples, or -1 when the line is not configured.
   [[nodiscard]] int marker_channel() const noexcept { return marker_channel_; }
   [[nodiscard]] int trigger_channel() const noexcept { return trigger_channel_; }
+  /// Whether count and position are sampled on ticks of sample_rate_hz (no trigger line).
+  [[nodiscard]] bool ticked() const noexcept { return tick_period_ns_ > 0.0; }
+  /// CLOCK_MONOTONIC time of tick k: round(k / sample_rate_hz), in ns.
+  [[nodiscard]] std::int64_t tick_time_ns(std::int64_t k) const noexcept {
+    return static_cast<std::int64_t>(std::llround(static_cast<double>(k) * tick_period_ns_));
+  }
 
  private:
   GpiodEncoderDevice(std::unique_ptr<EdgeSource> source, QuadratureConfig config);
   std::size_t handle(EdgeLine line, const gpiod_line_event& event, SampleSink& sink) noexcept;
   bool push(std::uint32_t channel, std::int64_t t_ns, double value, SampleSink& sink) noexcept;
   void discard_pending() noexcept;
+  /// Pushes the rows of ticks at or before `through` (before `before` when strict); false when
+  /// the per-call budget ran out first.
+  bool emit_ticks(std::int64_t through, bool strict, SampleSink& sink, std::size_t& pushed,
+                  std::size_t& budget) noexcept;
 
   struct LineBuffer {
     std::array<gpiod_line_event, kEventsPerRead> events{};
     std::size_t head = 0, size = 0;
-    bool more = false;  // the last read was full: more may be waiting in the descriptor
   };
+  static constexpr std::int64_t kNever = std::numeric_limits<std::int64_t>::min();
+  // Bounds one read_into() after a long pause (e.g. 20 ms idle wait at 10 kHz is 200 ticks).
+  static constexpr std::size_t kMaxTicksPerRead = 1024;
 
   std::unique_ptr<EdgeSource> source_;
   QuadratureConfig config_;
@@ -133,6 +167,10 @@ class GpiodEncoderDevice final : public Device {
   bool configured_ = false;
   bool active_ = false;
   std::array<LineBuffer, kEdgeLineCount> buffers_{};
+  std::array<std::int64_t, kEdgeLineCount> newest_{};     // newest stamp read per line
+  std::array<std::int64_t, kEdgeLineCount> watermark_{};  // see read_into()
+  double tick_period_ns_ = 0.0;                           // > 0: ticked (zero-order hold)
+  std::int64_t next_tick_ = 0;                            // index of the next tick to emit
   std::uint64_t markers_ = 0, triggers_ = 0;
 };
 

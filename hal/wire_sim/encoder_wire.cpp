@@ -6,26 +6,35 @@
 
 #include <cerrno>
 #include <cstring>
+#include <limits>
 
 namespace inertia::hal::wire_sim {
 namespace {
 
 static_assert(sizeof(gpioevent_data) == 16);
 
+using Flags = std::array<std::atomic<bool>, gpiod::kEdgeLineCount>;
+using Stamps = std::array<std::atomic<std::int64_t>, gpiod::kEdgeLineCount>;
+
 class PipeEdgeSource final : public gpiod::EdgeSource {
  public:
-  PipeEdgeSource(std::shared_ptr<const std::array<std::atomic<bool>, gpiod::kEdgeLineCount>> level,
+  PipeEdgeSource(std::shared_ptr<const Flags> level, std::shared_ptr<const Stamps> through,
                  std::array<int, gpiod::kEdgeLineCount> fds, std::shared_ptr<void> keep)
-      : level_(std::move(level)), fds_(fds), keep_(std::move(keep)) {}
+      : level_(std::move(level)), through_(std::move(through)), fds_(fds), keep_(std::move(keep)) {}
   [[nodiscard]] int event_fd(gpiod::EdgeLine line) const noexcept override {
     return fds_[static_cast<std::size_t>(line)];
   }
   [[nodiscard]] bool level(gpiod::EdgeLine line) const noexcept override {
     return (*level_)[static_cast<std::size_t>(line)].load();
   }
+  [[nodiscard]] std::int64_t complete_through_ns(gpiod::EdgeLine line) const noexcept override {
+    // Acquire: pairs with advance()'s release, so the records written before are readable.
+    return (*through_)[static_cast<std::size_t>(line)].load(std::memory_order_acquire);
+  }
 
  private:
-  std::shared_ptr<const std::array<std::atomic<bool>, gpiod::kEdgeLineCount>> level_;
+  std::shared_ptr<const Flags> level_;
+  std::shared_ptr<const Stamps> through_;
   std::array<int, gpiod::kEdgeLineCount> fds_;
   std::shared_ptr<void> keep_;  // owns the read ends
 };
@@ -48,6 +57,7 @@ std::unique_ptr<EncoderWire> EncoderWire::create(const Lines& lines, std::string
   }
   wire->shared_->level[0] = lines.a0;
   wire->shared_->level[1] = lines.b0;
+  for (auto& t : wire->shared_->through) t = std::numeric_limits<std::int64_t>::min();
   return wire;
 }
 
@@ -56,8 +66,9 @@ std::unique_ptr<gpiod::EdgeSource> EncoderWire::take_source() {
   taken_ = true;
   std::array<int, gpiod::kEdgeLineCount> fds{};
   for (std::size_t i = 0; i < gpiod::kEdgeLineCount; ++i) fds[i] = shared_->read_end[i].get();
-  auto level = std::shared_ptr<const std::array<std::atomic<bool>, gpiod::kEdgeLineCount>>(shared_, &shared_->level);
-  return std::make_unique<PipeEdgeSource>(std::move(level), fds, shared_);
+  auto level = std::shared_ptr<const Flags>(shared_, &shared_->level);
+  auto through = std::shared_ptr<const Stamps>(shared_, &shared_->through);
+  return std::make_unique<PipeEdgeSource>(std::move(level), std::move(through), fds, shared_);
 }
 
 bool EncoderWire::write(const gpiod::EdgeEvent& event) {
@@ -67,6 +78,14 @@ bool EncoderWire::write(const gpiod::EdgeEvent& event) {
   if (!write_raw(event.line, &record, sizeof record)) return false;
   shared_->level[static_cast<std::size_t>(event.line)] = event.rising;
   return true;
+}
+
+void EncoderWire::advance(gpiod::EdgeLine line, std::int64_t t_ns) {
+  shared_->through[static_cast<std::size_t>(line)].store(t_ns, std::memory_order_release);
+}
+
+void EncoderWire::advance_all(std::int64_t t_ns) {
+  for (std::size_t i = 0; i < gpiod::kEdgeLineCount; ++i) advance(static_cast<gpiod::EdgeLine>(i), t_ns);
 }
 
 bool EncoderWire::write_raw(gpiod::EdgeLine line, const void* bytes, std::size_t size) {

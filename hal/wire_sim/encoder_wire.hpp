@@ -28,6 +28,11 @@ class EncoderWire {
 
   /// Writes one record; false when the pipe is full (EAGAIN) or the line does not exist.
   bool write(const gpiod::EdgeEvent& event);
+  /// The wire's clock, as a kernel's: every edge of `line` stamped at or before t_ns has been
+  /// written (the reader's EdgeSource::complete_through_ns()). Call it after the writes, never
+  /// before: a reader trusting it too early merges edges out of order. Starts at "never".
+  void advance(gpiod::EdgeLine line, std::int64_t t_ns);
+  void advance_all(std::int64_t t_ns);
   /// Raw bytes on a line's pipe (partial records for fault tests).
   bool write_raw(gpiod::EdgeLine line, const void* bytes, std::size_t size);
 
@@ -35,6 +40,7 @@ class EncoderWire {
   EncoderWire() = default;
   struct Shared {
     std::array<std::atomic<bool>, gpiod::kEdgeLineCount> level{};
+    std::array<std::atomic<std::int64_t>, gpiod::kEdgeLineCount> through{};
     std::array<UniqueFd, gpiod::kEdgeLineCount> read_end;
   };
   std::shared_ptr<Shared> shared_;

@@ -97,6 +97,7 @@ struct EncoderRig {
     for (std::size_t i = 0; i < trace.edges.size(); i += chunk) {
       for (std::size_t k = i; k < std::min(trace.edges.size(), i + chunk); ++k)
         ASSERT_TRUE(wire->write(trace.edges[k].event));
+      wire->advance_all(trace.edges[std::min(trace.edges.size(), i + chunk) - 1].event.t_ns);
       device->read_into(sink);
     }
     for (int k = 0; k < 4; ++k) device->read_into(sink);
@@ -172,6 +173,136 @@ TEST(GpiodEncoderDevice, ManyEdgesOnOneLineKeepTheirOrderAgainstTheOtherLine) {
   EXPECT_EQ(rig.device->status().count, trace.edges.back().expected_count - trace.start_count);
 }
 
+// A kernel that keeps delivering edges while the device reads: before each read of a line (the
+// device asks complete_through_ns() then) a simulated clock advances by step_ns and every edge
+// stamped up to it is written into its line's pipe. Edges of both lines therefore land between
+// the device's read of line A and its read of line B, as on a moving encoder.
+class ArrivingEdges final : public EdgeSource {
+ public:
+  ArrivingEdges(const QuadratureTrace& trace, std::int64_t start_ns, std::int64_t step_ns)
+      : trace_(trace), clock_(start_ns), step_(step_ns) {
+    std::string why;
+    wire_ = EncoderWire::create({false, false, trace.a0, trace.b0}, &why);
+    EXPECT_NE(wire_, nullptr) << why;
+    inner_ = wire_->take_source();
+  }
+  [[nodiscard]] int event_fd(EdgeLine line) const noexcept override { return inner_->event_fd(line); }
+  [[nodiscard]] bool level(EdgeLine line) const noexcept override { return inner_->level(line); }
+  [[nodiscard]] std::int64_t complete_through_ns(EdgeLine) const noexcept override {
+    if (armed_) advance();
+    return clock_;
+  }
+  void arm() { armed_ = true; }
+  void disarm() { armed_ = false; }
+  [[nodiscard]] bool delivered_all() const { return next_ == trace_.edges.size(); }
+  [[nodiscard]] std::int64_t clock() const { return clock_; }
+
+ private:
+  void advance() const noexcept {
+    clock_ += step_;
+    while (next_ < trace_.edges.size() && trace_.edges[next_].event.t_ns <= clock_)
+      (void)wire_->write(trace_.edges[next_++].event);
+  }
+  const QuadratureTrace& trace_;
+  std::unique_ptr<EncoderWire> wire_;
+  std::unique_ptr<EdgeSource> inner_;
+  mutable std::int64_t clock_;
+  mutable std::size_t next_ = 0;
+  std::int64_t step_;
+  bool armed_ = false;
+};
+
+TEST(GpiodEncoderDevice, EdgesArrivingBetweenTheReadsOfTwoLinesAreMergedInTimeOrder) {
+  const QuadratureTrace trace = wire_sim::generate_quadrature(shaker_x, EncoderRig::kResolution, 0.0, 0.2, 2e-6,
+                                                              1'000'000);
+  ASSERT_GT(trace.edges.size(), 1000u);
+  // Steps from much shorter than an edge interval (~100 us at peak speed) to several of them
+  // (then a line's batch of 16 fills).
+  for (const std::int64_t step : {7'000, 45'000, 400'000, 3'000'000}) {
+    SCOPED_TRACE("step_ns " + std::to_string(step));
+    auto owned = std::make_unique<ArrivingEdges>(trace, 0, step);
+    ArrivingEdges* source = owned.get();
+    QuadratureConfig config;
+    config.resolution = EncoderRig::kResolution;
+    std::string why;
+    auto device = GpiodEncoderDevice::from_source(std::move(owned), config, &why);
+    ASSERT_NE(device, nullptr) << why;
+    ASSERT_EQ(device->configure(), Step::Ok);
+    ASSERT_EQ(device->activate(), Step::Ok);
+    source->arm();
+    RecordingSink sink;
+    const std::int64_t end = trace.edges.back().event.t_ns + 4 * step;
+    for (;;) {
+      const std::size_t n = device->read_into(sink);
+      if (n == 0 && source->delivered_all() && source->clock() >= end) break;
+    }
+    expect_count_at_every_motion_edge(trace, sink, trace.start_count);
+    EXPECT_EQ(device->status().count, trace.edges.back().expected_count - trace.start_count);
+    EXPECT_EQ(device->status().quadrature.glitches, 0u);
+  }
+}
+
+TEST(GpiodEncoderDevice, WithoutTriggerLineSamplesTheHeldCountOnTheSampleClock) {
+  // 50 ms standing still (no edge at all), then the shaker; edges keep arriving during reads.
+  auto x = [](double t) { return t < 0.05 ? shaker_x(0.0) : shaker_x(t - 0.05); };
+  constexpr std::int64_t kT0 = 1'000'000;  // the trace's time 0 on the kernel clock
+  const QuadratureTrace trace = wire_sim::generate_quadrature(x, EncoderRig::kResolution, 0.0, 0.2, 2e-6, kT0);
+  ASSERT_GT(trace.edges.size(), 800u);
+  constexpr double kRate = 10'000.0;
+  constexpr std::int64_t kPeriod = 100'000;
+  for (const std::int64_t step : {45'000, 400'000}) {
+    SCOPED_TRACE("step_ns " + std::to_string(step));
+    auto owned = std::make_unique<ArrivingEdges>(trace, 0, step);
+    ArrivingEdges* source = owned.get();
+    QuadratureConfig config;
+    config.resolution = EncoderRig::kResolution;
+    config.sample_rate_hz = kRate;
+    std::string why;
+    auto device = GpiodEncoderDevice::from_source(std::move(owned), config, &why);
+    ASSERT_NE(device, nullptr) << why;
+    ASSERT_TRUE(device->ticked());
+    ASSERT_EQ(device->configure(), Step::Ok);
+    ASSERT_EQ(device->activate(), Step::Ok);  // at clock 0: the first tick is 100 us
+    source->arm();
+    RecordingSink sink;
+    const std::int64_t end = kT0 + 210'000'000;
+    while (!source->delivered_all() || source->clock() < end) device->read_into(sink);
+    source->disarm();  // the clock stops: read what is left, then no tick is due any more
+    while (device->read_into(sink) != 0) {
+    }
+    // Rows: count then position, on consecutive ticks from the first one on.
+    ASSERT_EQ(sink.samples.size() % 2, 0u);
+    const std::size_t rows = sink.samples.size() / 2;
+    EXPECT_GE(static_cast<std::int64_t>(rows) * kPeriod, end - step * 8) << "ticks up to the clock";
+    std::size_t next_edge = 0;
+    std::int64_t held = trace.start_count;
+    std::int64_t worst = 0;
+    for (std::size_t r = 0; r < rows; ++r) {
+      const Sample& c = sink.samples[2 * r];
+      const Sample& p = sink.samples[2 * r + 1];
+      const std::int64_t t = static_cast<std::int64_t>(r + 1) * kPeriod;
+      ASSERT_EQ(c.channel, GpiodEncoderDevice::kCountChannel);
+      ASSERT_EQ(p.channel, GpiodEncoderDevice::kPositionChannel);
+      ASSERT_EQ(c.t_ns, t);
+      ASSERT_EQ(p.t_ns, t);
+      while (next_edge < trace.edges.size() && trace.edges[next_edge].event.t_ns <= t)
+        held = trace.edges[next_edge++].expected_count;
+      // Exactly the count after the last edge at or before the tick (zero-order hold) ...
+      ASSERT_EQ(static_cast<std::int64_t>(c.value), held - trace.start_count) << "tick at " << t;
+      ASSERT_NEAR(p.value, c.value * EncoderRig::kResolution, 1e-15);
+      // ... which is the true position quantized: floor(x / resolution).
+      // The trace covers 0..0.2 s; the encoder stands still before and after.
+      const double x_true = x(std::clamp(static_cast<double>(t - kT0) * 1e-9, 0.0, 0.2));
+      const double p_abs = p.value + static_cast<double>(trace.start_count) * EncoderRig::kResolution;
+      ASSERT_LE(p_abs, x_true + 1e-12) << "tick at " << t;
+      ASSERT_GT(p_abs + EncoderRig::kResolution, x_true - 1e-12) << "tick at " << t;
+      worst = std::max<std::int64_t>(worst, std::llabs(static_cast<std::int64_t>(c.value)));
+    }
+    EXPECT_GT(worst, 400) << "the shaker moved the count";
+    EXPECT_EQ(device->status().count, trace.edges.back().expected_count - trace.start_count);
+  }
+}
+
 TEST(GpiodEncoderDevice, InjectedGlitchesAreCountedExactlyAndDoNotMoveTheCount) {
   QuadratureFaults faults;
   faults.pulse_every = 37;
@@ -219,6 +350,7 @@ TEST(GpiodEncoderDevice, MarkerAndTriggerEdgesBecomeTimestampedSamples) {
   ASSERT_TRUE(rig.wire->write({EdgeLine::Marker, false, t_mark + 500}));
   ASSERT_TRUE(rig.wire->write({EdgeLine::Trigger, true, t_mark + 700}));
   for (std::size_t i = 10; i < 20; ++i) ASSERT_TRUE(rig.wire->write(trace.edges[i].event));
+  rig.wire->advance_all(trace.edges[19].event.t_ns);
   rig.device->read_into(rig.sink);
   std::vector<Sample> marks, trigs;
   for (const Sample& s : rig.sink.samples) {
