@@ -17,4 +17,15 @@ bool is_square_term(const ident::Term& term);
 /// Filters x in place with s / (s + corner) at the sample period.
 void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s);
 
+/// The filter's memory between blocks of one signal (the online estimator filters chunk by chunk).
+struct HighpassState {
+  double previous_input = 0.0, output = 0.0;
+  bool started = false;   // false: the next block starts settled, as highpass_in_place does
+};
+
+/// The same filter continued from `state` (updated): blocks filtered one after another give
+/// exactly what highpass_in_place gives on their concatenation.
+void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s,
+                       HighpassState& state);
+
 }  // namespace inertia::procedure
