@@ -56,11 +56,13 @@ void parse_fault(const std::string& spec, DaemonOptions& o) {
     std::tie(o.faults.hang_at_s, o.faults.hang_s) = at_for(kind, arg);
   } else if (kind == "stuck") {
     std::tie(o.faults.stuck_at_s, o.faults.stuck_s) = at_for(kind, arg);
+  } else if (kind == "nan") {
+    std::tie(o.faults.nan_at_s, o.faults.nan_s) = at_for(kind, arg);
   } else if (kind == "encoder-glitch") {
     o.faults.glitch_every = static_cast<std::size_t>(to_number("--fault encoder-glitch", arg));
   } else {
     throw InputError("option --fault: unknown fault '" + kind +
-                     "' (known: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S, sampler-hang@AT+S, log-stall@AT+MS, encoder-glitch@N)");
+                     "' (known: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S, nan@AT+S, sampler-hang@AT+S, log-stall@AT+MS, encoder-glitch@N)");
   }
 }
 
@@ -70,7 +72,9 @@ volatile sig_atomic_t g_unused = 0;
 
 const char* usage() {
   return "usage: inertia-daqd --config FILE [--duration S] [--log DIR] [options]\n"
-         "  --config FILE        bench file (config/*.toml)\n"
+         "  --config FILE        bench file (config/*.toml); its [daemon] table sets defaults for\n"
+         "                       --log, --lcm-url, --block-ms, --rotate-mb, --fsync-ms, --log-queue,\n"
+         "                       --ring, --fifo-priority, --cpu, --mlock (the command line wins)\n"
          "  --duration S         stop after S seconds (simulated seconds on a sim bench; default: the\n"
          "                       plan once on a sim bench, until SIGTERM on a real one)\n"
          "  --log DIR            durable event log (LCM log format) in DIR; SIGHUP starts a new file\n"
@@ -78,13 +82,15 @@ const char* usage() {
          "  --lcm-url URL        LCM provider (default: $LCM_DEFAULT_URL or LCM's default)\n"
          "  --block-ms MS        sample block length (default 10)\n"
          "  --rotate-mb MB       start a new log file past MB megabytes (default 256)\n"
+         "  --fsync-ms MS        fflush + fsync the log at least every MS (default 1000)\n"
          "  --log-queue N        messages buffered for the log writer (default 512)\n"
          "  --ring N             samples buffered per device (default 131072)\n"
          "  --fifo-priority P    SCHED_FIFO priority of the sampling threads (default: off)\n"
          "  --cpu N              pin the sampling threads to CPU N\n"
          "  --mlock              mlockall(MCL_CURRENT | MCL_FUTURE)\n"
          "  --fault SPEC         sim bench fault: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S (first\n"
-         "                       sensor frozen), sampler-hang@AT+S (CAN sampling thread sleeps; the\n"
+         "                       sensor frozen), nan@AT+S (first sensor reports no valid reading),\n"
+         "                       sampler-hang@AT+S (CAN sampling thread sleeps; the\n"
          "                       watchdog must stop), log-stall@AT+MS, encoder-glitch@N (simulated s)\n";
 }
 
@@ -95,6 +101,7 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
     const std::string& a = args[i];
     auto value = [&]() -> const std::string& {
       if (i + 1 >= args.size()) throw InputError("option " + a + " needs a value");
+      o.given.insert(a);
       return args[++i];
     };
     if (a == "--help" || a == "-h") *help = true;
@@ -105,11 +112,15 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
     else if (a == "--fast") o.fast = true;
     else if (a == "--block-ms") o.block_ms = to_number(a, value());
     else if (a == "--rotate-mb") o.rotate_mb = to_number(a, value());
+    else if (a == "--fsync-ms") o.fsync_ms = static_cast<int>(to_number(a, value()));
     else if (a == "--log-queue") o.log_queue = static_cast<std::size_t>(to_number(a, value()));
     else if (a == "--ring") o.ring = static_cast<std::size_t>(to_number(a, value()));
     else if (a == "--fifo-priority") o.fifo_priority = static_cast<int>(to_number(a, value()));
     else if (a == "--cpu") o.cpu = static_cast<int>(to_number(a, value()));
-    else if (a == "--mlock") o.mlock = true;
+    else if (a == "--mlock") {
+      o.mlock = true;
+      o.given.insert(a);
+    }
     else if (a == "--fault") parse_fault(value(), o);
     else throw InputError("unknown option '" + a + "'\n" + usage());
   }
@@ -118,9 +129,26 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
   if (o.duration_s < 0) throw InputError("option --duration: must be >= 0");
   if (o.block_ms <= 0) throw InputError("option --block-ms: must be > 0");
   if (o.rotate_mb <= 0) throw InputError("option --rotate-mb: must be > 0");
+  if (o.fsync_ms < 1) throw InputError("option --fsync-ms: must be >= 1");
   if (o.log_queue < 4) throw InputError("option --log-queue: must be >= 4");
   if (o.ring < 1024) throw InputError("option --ring: must be >= 1024");
   return o;
+}
+
+void apply_bench_settings(DaemonOptions& o, const config::DaemonSettings& d) {
+  auto take = [&o](const char* option, const auto& from_file, auto& target) {
+    if (from_file && o.given.count(option) == 0) target = *from_file;
+  };
+  take("--log", d.log_dir, o.log_dir);
+  take("--lcm-url", d.lcm_url, o.lcm_url);
+  take("--block-ms", d.block_ms, o.block_ms);
+  take("--rotate-mb", d.rotate_mb, o.rotate_mb);
+  take("--fsync-ms", d.fsync_ms, o.fsync_ms);
+  take("--fifo-priority", d.fifo_priority, o.fifo_priority);
+  take("--cpu", d.cpu_affinity, o.cpu);
+  take("--mlock", d.mlock, o.mlock);
+  if (d.log_queue && o.given.count("--log-queue") == 0) o.log_queue = static_cast<std::size_t>(*d.log_queue);
+  if (d.ring_samples && o.given.count("--ring") == 0) o.ring = static_cast<std::size_t>(*d.ring_samples);
 }
 
 bool has_multicast_route() {
@@ -139,8 +167,10 @@ bool has_multicast_route() {
   return false;
 }
 
-int run_daemon(const DaemonOptions& o) {
-  const config::BenchConfig bench = config::load_bench_config(o.config);  // InputError -> exit 2
+int run_daemon(const DaemonOptions& command_line) {
+  const config::BenchConfig bench = config::load_bench_config(command_line.config);  // InputError -> exit 2
+  DaemonOptions o = command_line;
+  apply_bench_settings(o, bench.daemon);
 
   // Signals are taken synchronously by the supervisor: block them before any thread starts so
   // every thread inherits the mask.
@@ -233,6 +263,7 @@ int run_daemon(const DaemonOptions& o) {
     lo.dir = o.log_dir;
     lo.base_name = bench.name;
     lo.rotate_bytes = static_cast<std::uint64_t>(o.rotate_mb * 1024 * 1024);
+    lo.fsync_interval_ms = o.fsync_ms;
     lo.queue_slots = o.log_queue;
     lo.stall_after_s = o.log_stall_after_s;
     lo.stall_ms = o.log_stall_ms;
@@ -261,8 +292,13 @@ int run_daemon(const DaemonOptions& o) {
   po.mono_to_wall_ns = (static_cast<std::int64_t>(wall.tv_sec) - mono.tv_sec) * 1'000'000'000LL + (wall.tv_nsec - mono.tv_nsec);
   po.sim_t0_ns = hal::monotonic_now_ns() + 20'000'000;  // 20 ms for the threads to start
   if (sim) po.describe_mark = [&sim](const PlanMark& m, plan_event_t& e) { sim->describe(m, e); };
-  const bool log_off = !log;
-  po.daemon_faults = [log_off] { return log_off ? std::vector<std::string>{"log-off"} : std::vector<std::string>{}; };
+  LogWriter* log_ptr = log.get();
+  po.daemon_faults = [log_ptr] {
+    std::vector<std::string> f;
+    if (log_ptr == nullptr) f.emplace_back("log-off");
+    else if (log_ptr->disk_full()) f.emplace_back("disk-full");
+    return f;
+  };
   Publisher publisher(lcm, log.get(), slots, po);
   if (!publisher.configure(&why)) {
     std::cerr << "inertia-daqd: " << why << "\n";
@@ -288,6 +324,9 @@ int run_daemon(const DaemonOptions& o) {
   const std::int64_t watchdog_ns = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
   std::vector<std::uint64_t> beats(samplers.size(), 0);
   std::vector<std::uint32_t> faults_seen(samplers.size(), 0);
+  // invalid-samples: raised while a device pushed samples marked invalid within the last second.
+  std::vector<std::uint64_t> invalid_seen(samplers.size(), 0);
+  std::vector<std::int64_t> invalid_last_ns(samplers.size(), 0);
   std::int64_t last_ping = hal::monotonic_now_ns(), last_status = last_ping;
   const std::int64_t start = last_ping;
   bool stalled_reported = false;
@@ -303,6 +342,18 @@ int run_daemon(const DaemonOptions& o) {
       break;
     }
     const std::int64_t now = hal::monotonic_now_ns();
+    for (std::size_t i = 0; i < samplers.size(); ++i) {
+      DeviceSlot& slot = samplers[i]->slot();
+      const std::uint64_t invalid = slot.invalid_samples.load(std::memory_order_relaxed);
+      if (invalid != invalid_seen[i]) {
+        invalid_seen[i] = invalid;
+        invalid_last_ns[i] = now;
+        slot.faults.fetch_or(kFaultInvalidSamples, std::memory_order_relaxed);
+      } else if (invalid_last_ns[i] != 0 && now - invalid_last_ns[i] >= 1'000'000'000) {
+        slot.faults.fetch_and(~kFaultInvalidSamples, std::memory_order_relaxed);
+        invalid_last_ns[i] = 0;
+      }
+    }
     if (sim ? sim->finished() : (o.duration_s > 0 && now - start >= static_cast<std::int64_t>(o.duration_s * 1e9))) break;
     if (watchdog && now - last_ping >= watchdog_ns) {
       bool alive = true;
@@ -358,7 +409,7 @@ int run_daemon(const DaemonOptions& o) {
     std::cerr << "  " << d.name << ": samples " << d.samples.load() << ", blocks " << d.blocks << ", ring drops "
               << d.ring_drops.load() << ", misaligned " << d.misaligned << ", ring high-water " << d.ring_high_water
               << "/" << d.ring.capacity() << ", decode errors " << d.decode_errors.load() << ", stuck "
-              << d.stuck_invalid << "\n";
+              << d.stuck_invalid << ", invalid " << d.invalid_samples.load() << "\n";
   }
   std::cerr << "  run: seconds " << run_s << ", channel-samples " << channel_samples << ", per second "
             << static_cast<std::uint64_t>(static_cast<double>(channel_samples) / run_s) << "\n";
@@ -366,7 +417,8 @@ int run_daemon(const DaemonOptions& o) {
   if (log)
     std::cerr << "  log: messages " << log->messages_written() << ", lost " << log->messages_lost() << ", bytes "
               << log->bytes_written() << ", files " << log->files().size() << ", queue high-water "
-              << log->queue_high_water() << ", fsync max " << log->fsync_max_ms() << " ms\n";
+              << log->queue_high_water() << ", fsync max " << log->fsync_max_ms() << " ms, disk full lost "
+              << log->disk_full_lost() << "\n";
   return kExitOk;
 }
 

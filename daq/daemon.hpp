@@ -6,9 +6,11 @@
 // the main thread as supervisor: signals (SIGTERM/SIGINT stop, SIGHUP rotates the log),
 // sd_notify READY/STATUS/WATCHDOG/STOPPING. WATCHDOG=1 is sent only when every sampling thread's
 // heartbeat moved since the previous ping, so a hung sampler gets the daemon restarted.
+#include <set>
 #include <string>
 #include <vector>
 
+#include "common/config/bench_config.hpp"
 #include "daq/sim_bench.hpp"
 
 namespace inertia::daq {
@@ -21,6 +23,7 @@ struct DaemonOptions {
   bool fast = false;
   double block_ms = 10.0;
   double rotate_mb = 256.0;
+  int fsync_ms = 1000;
   std::size_t log_queue = 512;
   std::size_t ring = 1 << 17;
   int fifo_priority = 0;
@@ -29,7 +32,12 @@ struct DaemonOptions {
   double log_stall_after_s = -1.0;
   int log_stall_ms = 0;
   SimFaults faults;
+  /// The options given on the command line ("--block-ms", ...): they win over the bench file.
+  std::set<std::string> given;
 };
+
+/// Settings of the bench file's [daemon] table for every option the command line did not give.
+void apply_bench_settings(DaemonOptions& options, const config::DaemonSettings& settings);
 
 /// Parses argv. Throws InputError naming the option on bad input. `help` set for --help.
 DaemonOptions parse_options(const std::vector<std::string>& args, bool* help);

@@ -1,12 +1,15 @@
 #include "daq/log_writer.hpp"
 
 #include <pthread.h>
+#include <sys/uio.h>
 #include <time.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <iostream>
 #include <system_error>
 
 #include "hal/device.hpp"
@@ -62,6 +65,7 @@ bool LogWriter::open_next(std::string* why) {
   }
   log_ = log;
   file_bytes_ = 0;
+  direct_ = false;
   if (!header_channel_.empty()) {
     timespec wall{};
     ::clock_gettime(CLOCK_REALTIME, &wall);
@@ -140,6 +144,72 @@ bool LogWriter::enqueue(std::string_view channel, const void* data, std::size_t 
   return true;
 }
 
+namespace {
+
+void put_be(std::uint8_t* p, std::uint64_t v, int bytes) noexcept {
+  for (int i = bytes - 1; i >= 0; --i, v >>= 8) p[i] = static_cast<std::uint8_t>(v);
+}
+
+}  // namespace
+
+int LogWriter::append(const Slot& slot) noexcept {
+  const int fd = ::fileno(log_->f);
+  if (!direct_) {
+    // Whatever went through stdio (a file header) must be on disk before records bypass it.
+    direct_ = true;
+    if (std::fflush(log_->f) != 0) {
+      const int err = errno;
+      (void)::ftruncate(fd, 0);  // glibc drops the unwritten buffer: keep no partial record
+      (void)::lseek(fd, 0, SEEK_SET);
+      file_bytes_ = 0;
+      std::clearerr(log_->f);
+      write_errors_.fetch_add(1, std::memory_order_relaxed);
+      if (err == ENOSPC || err == EDQUOT) direct_ = false;  // try the header's flush again later
+      return err;
+    }
+  }
+  // LCM log record (lcm/eventlog.c): sync word, event number, utime, channel length, data
+  // length (big-endian), channel, data. One writev per record: a failure can be cut back exactly.
+  std::uint8_t header[28];
+  put_be(header, 0xEDA1DA01u, 4);
+  put_be(header + 4, static_cast<std::uint64_t>(log_->eventcount), 8);
+  put_be(header + 12, static_cast<std::uint64_t>(slot.utime), 8);
+  put_be(header + 20, slot.channel_len, 4);
+  put_be(header + 24, slot.data_len, 4);
+  iovec iov[3] = {{header, sizeof header},
+                  {const_cast<char*>(slot.channel), slot.channel_len},
+                  {const_cast<std::uint8_t*>(slot.data), slot.data_len}};
+  const std::size_t total = sizeof header + slot.channel_len + slot.data_len;
+  std::size_t done = 0;
+  iovec* first = iov;
+  int count = 3;
+  while (done < total) {
+    const ssize_t n = ::writev(fd, first, count);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int err = errno;
+      // Cut the partial record off: the file ends with the last whole one.
+      if (done > 0 && ::ftruncate(fd, static_cast<off_t>(file_bytes_)) != 0) write_errors_.fetch_add(1, std::memory_order_relaxed);
+      (void)::lseek(fd, static_cast<off_t>(file_bytes_), SEEK_SET);
+      return err;
+    }
+    done += static_cast<std::size_t>(n);
+    auto skip = static_cast<std::size_t>(n);  // a short write: go on after what went out
+    while (count > 0 && skip >= first->iov_len) {
+      skip -= first->iov_len;
+      ++first;
+      --count;
+    }
+    if (count > 0) {
+      first->iov_base = static_cast<std::uint8_t*>(first->iov_base) + skip;
+      first->iov_len -= skip;
+    }
+  }
+  ++log_->eventcount;
+  file_bytes_ += total;
+  return 0;
+}
+
 void LogWriter::rotate() noexcept {
   close_file();
   std::string why;
@@ -172,20 +242,27 @@ void LogWriter::run() noexcept {
       if (log_ != nullptr && file_bytes_ > 0 && file_bytes_ + 28 + slot.channel_len + slot.data_len > options_.rotate_bytes)
         rotate();  // a file never grows past the limit (unless one message alone exceeds it)
       if (log_ != nullptr) {
-        lcm_eventlog_event_t event{};
-        event.timestamp = slot.utime;
-        event.channellen = static_cast<std::int32_t>(slot.channel_len);
-        event.datalen = static_cast<std::int32_t>(slot.data_len);
-        event.channel = slot.channel;
-        event.data = slot.data;
         in_write_.store(true, std::memory_order_relaxed);
-        const int rc = lcm_eventlog_write_event(log_, &event);
+        const int err = append(slot);
         in_write_.store(false, std::memory_order_relaxed);
-        if (rc == 0) {
+        if (err == 0) {
           written_.fetch_add(1, std::memory_order_relaxed);
-          const std::uint64_t n = 28u + slot.channel_len + slot.data_len;  // header + channel + data
-          file_bytes_ += n;
-          bytes_.fetch_add(n, std::memory_order_relaxed);
+          bytes_.fetch_add(28u + slot.channel_len + slot.data_len, std::memory_order_relaxed);
+          if (disk_full_.load(std::memory_order_relaxed)) {
+            disk_full_.store(false, std::memory_order_relaxed);
+            std::cerr << "inertia-daqd: log: writing again to " << current_path() << " after "
+                      << disk_full_lost_.load(std::memory_order_relaxed) - full_since_lost_
+                      << " messages lost to the full disk\n";
+          }
+        } else if (err == ENOSPC || err == EDQUOT) {
+          lost_.fetch_add(1, std::memory_order_relaxed);
+          disk_full_lost_.fetch_add(1, std::memory_order_relaxed);
+          if (!disk_full_.load(std::memory_order_relaxed)) {
+            disk_full_.store(true, std::memory_order_relaxed);
+            full_since_lost_ = disk_full_lost_.load(std::memory_order_relaxed) - 1;
+            std::cerr << "inertia-daqd: log: disk full writing " << current_path() << " (" << std::strerror(err)
+                      << "); sampling and publishing go on, messages that cannot be written are counted until space is back\n";
+          }
         } else {
           write_errors_.fetch_add(1, std::memory_order_relaxed);
           lost_.fetch_add(1, std::memory_order_relaxed);

@@ -9,6 +9,13 @@
 // stuck, slots fill; when none is free the message is counted in messages_lost() (reported on
 // INERTIA_STATUS and at exit), never dropped silently. With the default pool (512 slots of
 // 64 KiB) a nominal 10 kHz bench (~200 messages/s) rides out a stall of more than 2 s.
+//
+// A full disk (ENOSPC, EDQUOT): each message goes to the file in one write (the record built
+// here in LCM's log layout), and a write that fails is cut back off the file, so the file holds
+// whole records only and a missing block shows as a gap in `seq`. The writer keeps draining the
+// queue, counts every message it could not write (messages_lost(), disk_full_lost()), reports
+// disk_full() while it lasts (on INERTIA_STATUS and once on stderr, the journal) and writes
+// again as soon as a write succeeds.
 #include <lcm/eventlog.h>
 
 #include <atomic>
@@ -72,6 +79,10 @@ class LogWriter {
   [[nodiscard]] double fsync_max_ms() const noexcept { return fsync_max_us_.load(std::memory_order_relaxed) * 1e-3; }
   [[nodiscard]] std::size_t queue_high_water() const noexcept { return queue_high_water_.load(std::memory_order_relaxed); }
   [[nodiscard]] bool stalled() const noexcept { return in_write_.load(std::memory_order_relaxed); }
+  /// The last write failed for lack of space; clears with the next write that succeeds.
+  [[nodiscard]] bool disk_full() const noexcept { return disk_full_.load(std::memory_order_relaxed); }
+  /// Messages lost to a full disk (also in messages_lost()).
+  [[nodiscard]] std::uint64_t disk_full_lost() const noexcept { return disk_full_lost_.load(std::memory_order_relaxed); }
   /// The file being written. Non-RT (copies under a mutex).
   [[nodiscard]] std::string current_path() const;
   /// Every file this writer created, in order. Non-RT.
@@ -86,6 +97,8 @@ class LogWriter {
     std::uint8_t data[kMaxData];
   };
   void run() noexcept;
+  /// Appends one record; 0, or the errno of the write that failed (the file is cut back).
+  int append(const Slot& slot) noexcept;
   bool open_next(std::string* why);
   void sync() noexcept;
   void rotate() noexcept;
@@ -107,6 +120,10 @@ class LogWriter {
   std::atomic<bool> stop_{false};
   std::atomic<bool> rotate_requested_{false};
   std::atomic<bool> in_write_{false};
+  std::atomic<bool> disk_full_{false};
+  std::atomic<std::uint64_t> disk_full_lost_{0};
+  std::uint64_t full_since_lost_ = 0;   // disk_full_lost_ when the disk filled (writer thread)
+  bool direct_ = false;                 // the FILE's buffer was flushed: records go straight to its fd
   std::atomic<std::uint64_t> written_{0}, lost_{0}, bytes_{0}, write_errors_{0};
   std::atomic<std::uint32_t> rotations_{0};
   std::atomic<std::uint64_t> fsync_last_us_{0}, fsync_max_us_{0};

@@ -80,6 +80,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
       sig.bit_length = 32;
       sig.is_signed = i < n;
       sig.scale = i < n ? kSimCanScale : 1.0;
+      if (i < n) sig.invalid_raw = kSimCanNoReading;
       cfg.map.signals.push_back(sig);
       info.push_back({sig.name, i < n ? s->can_channels_[i].unit : "1", next_id++});
     }
@@ -370,7 +371,7 @@ void SimBench::run() noexcept {
         std::int64_t raw;
         if (i < nch) {
           raw = std::llround(can_value(can_channels_[i], c, k) / kSimCanScale);
-          raw = std::clamp<std::int64_t>(raw, std::numeric_limits<std::int32_t>::min(),
+          raw = std::clamp<std::int64_t>(raw, std::numeric_limits<std::int32_t>::min() + 1,  // min: kSimCanNoReading
                                          std::numeric_limits<std::int32_t>::max());
           if (i == 0 && f.stuck_at_s >= 0) {  // a sensor whose output freezes (stuck ADC or cable)
             const bool want = t_s >= f.stuck_at_s && t_s < f.stuck_at_s + f.stuck_s;
@@ -378,6 +379,8 @@ void SimBench::run() noexcept {
             stuck = want;
             if (stuck) raw = stuck_raw;
           }
+          if (i == 0 && f.nan_at_s >= 0 && t_s >= f.nan_at_s && t_s < f.nan_at_s + f.nan_s)
+            raw = static_cast<std::int32_t>(kSimCanNoReading);  // the sensor's output is NaN
         } else {
           raw = static_cast<std::int64_t>(n & 0xffffffffu);
         }

@@ -38,6 +38,7 @@ struct SimFaults {
   double modbus_gone_at_s = -1.0, modbus_gone_s = 0.0; // Modbus server stopped, then restarted
   std::size_t glitch_every = 0;                        // encoder: a duplicate edge after every n-th edge
   double stuck_at_s = -1.0, stuck_s = 0.0;             // CAN: the first sensor's value frozen
+  double nan_at_s = -1.0, nan_s = 0.0;                 // CAN: the first sensor sends "no valid reading"
   double hang_at_s = -1.0, hang_s = 0.0;               // the CAN sampling thread hangs (watchdog test)
 };
 
@@ -53,6 +54,9 @@ struct SimOptions {
 inline constexpr std::uint32_t kSimStuckSamples = 100;
 /// Scale of the simulated CAN ADC (SI per count): the decoded value is within half of it.
 inline constexpr double kSimCanScale = 1e-6;
+/// What the simulated ADC sends for a reading it does not have (a sensor output of NaN): the
+/// most negative int32, as CAN ADC modules mark "not available"; real readings never use it.
+inline constexpr std::uint32_t kSimCanNoReading = 0x80000000u;
 /// Frame id of the first simulated CAN FD frame (the next ones follow).
 inline constexpr std::uint32_t kSimCanBaseId = 0x100;
 

@@ -160,6 +160,25 @@ GpiodEncoder read_gpiod_encoder(const TableReader& t) {
   return e;
 }
 
+DaemonSettings read_daemon(const TableReader& t) {
+  DaemonSettings d;
+  if (t.has("log_dir")) {
+    d.log_dir = t.string("log_dir");
+    if (d.log_dir->empty()) t.fail_key("log_dir", "must not be empty (leave the key out for no log)");
+  }
+  if (t.has("lcm_url")) d.lcm_url = t.string("lcm_url");
+  if (t.has("block_ms")) d.block_ms = t.positive("block_ms");
+  if (t.has("rotate_mb")) d.rotate_mb = t.positive("rotate_mb");
+  if (t.has("fsync_ms")) d.fsync_ms = static_cast<int>(t.integer_in("fsync_ms", 1000, 1, 3'600'000));
+  if (t.has("log_queue")) d.log_queue = static_cast<int>(t.integer_in("log_queue", 512, 4, 1 << 20));
+  if (t.has("ring_samples")) d.ring_samples = static_cast<int>(t.integer_in("ring_samples", 1 << 17, 1024, 1 << 28));
+  if (t.has("fifo_priority")) d.fifo_priority = static_cast<int>(t.integer_in("fifo_priority", 0, 0, 99));
+  if (t.has("cpu_affinity")) d.cpu_affinity = static_cast<int>(t.integer_in("cpu_affinity", -1, -1, 4095));
+  if (t.has("mlock")) d.mlock = t.boolean_or("mlock", false);
+  t.finish();
+  return d;
+}
+
 ModbusDevice read_modbus_device(const TableReader& t) {
   ModbusDevice d;
   d.name = t.string("name");
@@ -403,6 +422,7 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
   for (const TableReader& d : root.tables("can_device")) cfg.can_devices.push_back(read_can_device(d));
   for (const TableReader& d : root.tables("gpiod_encoder")) cfg.gpiod_encoders.push_back(read_gpiod_encoder(d));
   for (const TableReader& d : root.tables("modbus_device")) cfg.modbus_devices.push_back(read_modbus_device(d));
+  if (const auto d = root.optional_table("daemon")) cfg.daemon = read_daemon(*d);
 
   std::set<std::string> case_names;
   read_cases(root, cfg, case_names, 0, fetch);

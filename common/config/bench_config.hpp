@@ -13,6 +13,7 @@
 //   [control_accelerometer]    the shaker's control accelerometer (vibration axis)
 //   [linear_encoder] [table_encoder]
 //   [[can_device]] [[gpiod_encoder]] [[modbus_device]]   real-bench wiring (the simulator ignores it)
+//   [daemon]                   inertia-daqd's run settings (every key optional; the command line wins)
 //   [[case]]                   the test plan, in order: name, kind, mounting, misalignments, and
 //                              [[case.phase]] tables, each with a `kind` (dwell, rotation, sine,
 //                              random, shock, thermal_step). `include = ["plan.toml"]` at the top
@@ -171,6 +172,21 @@ struct ModbusDevice {
   std::vector<ModbusRegister> registers;
 };
 
+/// [daemon]: settings of inertia-daqd on this bench, each the default of the command-line option
+/// of the same meaning (named in the comment), which overrides it. Unset: the daemon's default.
+struct DaemonSettings {
+  std::optional<std::string> log_dir;      // --log: durable event log directory
+  std::optional<std::string> lcm_url;      // --lcm-url
+  std::optional<double> block_ms;          // --block-ms: sample block length, > 0
+  std::optional<double> rotate_mb;         // --rotate-mb: new log file past this size, > 0
+  std::optional<int> fsync_ms;             // --fsync-ms: fflush + fsync period of the log, >= 1
+  std::optional<int> log_queue;            // --log-queue: messages buffered for the writer, >= 4
+  std::optional<int> ring_samples;         // --ring: samples buffered per device, >= 1024
+  std::optional<int> fifo_priority;        // --fifo-priority: SCHED_FIFO of the sampling threads, 0 (off)..99
+  std::optional<int> cpu_affinity;         // --cpu: pin the sampling threads to this CPU, -1: none
+  std::optional<bool> mlock;               // --mlock: mlockall(MCL_CURRENT | MCL_FUTURE)
+};
+
 // ---- test plan ----
 using inertia::CaseKind;
 enum class PhaseKind { Dwell, Rotation, Sine, Random, Shock, ThermalStep };
@@ -245,6 +261,7 @@ struct BenchConfig {
   std::vector<CanDevice> can_devices;
   std::vector<GpiodEncoder> gpiod_encoders;
   std::vector<ModbusDevice> modbus_devices;
+  DaemonSettings daemon;
   std::vector<TestCase> cases;
 };
 

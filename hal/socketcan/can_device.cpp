@@ -259,7 +259,9 @@ std::size_t CanDevice::handle_record(const std::uint8_t* bytes, std::size_t size
       ++health_.decode_errors;  // the frame is shorter than the map says: push the gap, marked
       valid = false;
     } else {
-      value = to_value(extract_raw(payload, e.signal), e.signal);
+      const std::uint64_t raw = extract_raw(payload, e.signal);
+      valid = !is_invalid_raw(raw, e.signal);  // the sender said "no reading": marked, never a number
+      value = valid ? to_value(raw, e.signal) : kNoReading;
     }
     if (sink.push(e.channel, t_ns, value, valid)) {
       ++health_.samples;

@@ -18,6 +18,8 @@
 //   value = scale * raw + offset, raw two's complement when is_signed.
 #include <cstddef>
 #include <cstdint>
+#include <limits>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -37,7 +39,14 @@ struct CanSignal {
   bool is_signed = false;
   double scale = 1.0;               // SI units per count
   double offset = 0.0;              // SI
+  // The raw value the sender puts on the bus for "no valid reading" (a sensor whose output is
+  // NaN or out of range; e.g. 0x80000000 in a signed 32-bit signal). Such a sample is pushed
+  // marked invalid with the value kNoReading. Unset: every raw value is a reading.
+  std::optional<std::uint64_t> invalid_raw;
 };
+
+/// The value of a sample whose raw value was the signal's invalid_raw.
+inline constexpr double kNoReading = std::numeric_limits<double>::quiet_NaN();
 
 struct CanFrameMap {
   std::vector<CanSignal> signals;   // channel index = position in this vector
@@ -50,6 +59,10 @@ struct CanFrameMap {
 std::uint64_t extract_raw(std::span<const std::uint8_t> payload, const CanSignal& signal) noexcept;
 /// scale * (raw, sign-extended when is_signed) + offset. Real-time safe.
 double to_value(std::uint64_t raw, const CanSignal& signal) noexcept;
+/// Whether `raw` (as extract_raw returns it) is the signal's "no valid reading". Real-time safe.
+inline bool is_invalid_raw(std::uint64_t raw, const CanSignal& signal) noexcept {
+  return signal.invalid_raw.has_value() && raw == *signal.invalid_raw;
+}
 /// Writes raw bits of one signal into a payload (the simulator's encoder; tests). Bits outside
 /// the signal are kept. Real-time safe.
 void insert_raw(std::span<std::uint8_t> payload, const CanSignal& signal, std::uint64_t raw) noexcept;

@@ -138,6 +138,14 @@ TEST(ShippedConfigs, TemplateKeepsRealBenchWiring) {
   EXPECT_TRUE(sp.writable);
   EXPECT_DOUBLE_EQ(sp.min, 0.0);
   EXPECT_DOUBLE_EQ(sp.max, 60.0);
+  // [daemon]: every key the template documents is read.
+  EXPECT_EQ(b.daemon.log_dir.value_or(""), "/var/lib/inertia/log");
+  EXPECT_FALSE(b.daemon.lcm_url.has_value());  // commented out
+  EXPECT_EQ(b.daemon.fifo_priority.value_or(0), 80);
+  EXPECT_EQ(b.daemon.cpu_affinity.value_or(-1), 1);
+  EXPECT_TRUE(b.daemon.mlock.value_or(false));
+  EXPECT_DOUBLE_EQ(b.daemon.block_ms.value_or(0.0), 10.0);
+  EXPECT_EQ(b.daemon.fsync_ms.value_or(0), 1000);
 }
 
 // Fig. 2 orientations built independently: IA = F_E turned by alpha about z_E, then by +90 deg
@@ -197,6 +205,39 @@ TEST_F(TempFiles, UnknownKeyIsAnError) {
   EXPECT_EQ(e.where().line, 18u);   // the misspelt key, after duration_s on line 17
   EXPECT_EQ(e.where().column, 1u);
   EXPECT_NE(std::string(e.what()).find("unknown key 'case[0].phase[0].frequncy_hz'"), std::string::npos) << e.what();
+}
+
+TEST_F(TempFiles, DaemonTableIsOptionalAndStrict) {
+  const BenchConfig none = load_bench_config(write("none.toml", kMinimal));
+  EXPECT_FALSE(none.daemon.block_ms || none.daemon.fifo_priority || none.daemon.mlock || none.daemon.log_dir);
+  const std::string with = std::string(kMinimal) +
+                           "\n[daemon]\nblock_ms = 20\nfifo_priority = 50\ncpu_affinity = 0\nmlock = false\n"
+                           "rotate_mb = 8\nfsync_ms = 250\nlog_queue = 64\nring_samples = 4096\n"
+                           "log_dir = \"/tmp/l\"\nlcm_url = \"memq://\"\n";
+  const BenchConfig b = load_bench_config(write("with.toml", with));
+  EXPECT_DOUBLE_EQ(*b.daemon.block_ms, 20.0);
+  EXPECT_EQ(*b.daemon.fifo_priority, 50);
+  EXPECT_EQ(*b.daemon.cpu_affinity, 0);
+  EXPECT_FALSE(*b.daemon.mlock);
+  EXPECT_DOUBLE_EQ(*b.daemon.rotate_mb, 8.0);
+  EXPECT_EQ(*b.daemon.fsync_ms, 250);
+  EXPECT_EQ(*b.daemon.log_queue, 64);
+  EXPECT_EQ(*b.daemon.ring_samples, 4096);
+  EXPECT_EQ(*b.daemon.log_dir, "/tmp/l");
+  EXPECT_EQ(*b.daemon.lcm_url, "memq://");
+  // Unknown keys are errors here as everywhere (a typo must not fall back to a default).
+  const InputError typo = error_of(std::string(kMinimal) + "\n[daemon]\nfifo_priorty = 50\n");
+  EXPECT_NE(std::string(typo.what()).find("unknown key 'daemon.fifo_priorty'"), std::string::npos) << typo.what();
+  EXPECT_EQ(typo.where().line, 20u);  // the misspelt key: kMinimal has 17 lines, a blank, [daemon]
+  // Out of range and wrong types name the key.
+  const InputError prio = error_of(std::string(kMinimal) + "\n[daemon]\nfifo_priority = 100\n");
+  EXPECT_NE(std::string(prio.what()).find("daemon.fifo_priority"), std::string::npos) << prio.what();
+  const InputError block = error_of(std::string(kMinimal) + "\n[daemon]\nblock_ms = 0\n");
+  EXPECT_NE(std::string(block.what()).find("daemon.block_ms"), std::string::npos) << block.what();
+  const InputError ring = error_of(std::string(kMinimal) + "\n[daemon]\nring_samples = 10\n");
+  EXPECT_NE(std::string(ring.what()).find("daemon.ring_samples"), std::string::npos) << ring.what();
+  const InputError mlock = error_of(std::string(kMinimal) + "\n[daemon]\nmlock = 1\n");
+  EXPECT_NE(std::string(mlock.what()).find("daemon.mlock"), std::string::npos) << mlock.what();
 }
 
 TEST_F(TempFiles, MissingKeyPointsAtItsTable) {
