@@ -44,7 +44,13 @@ int run(int argc, char** argv) {
 
   inertia::commands::CharacterizeOptions characterize_options;
   auto* characterize = app.add_subcommand("characterize", "the paper's Fig. 1 procedure on a dataset: model.toml and a report");
-  characterize->add_option("--dataset", characterize_options.dataset, "dataset folder")->required()->check(CLI::ExistingDirectory);
+  auto* characterize_dataset =
+      characterize->add_option("--dataset", characterize_options.dataset, "dataset folder")->check(CLI::ExistingDirectory);
+  auto* characterize_log = characterize->add_option("--log", characterize_options.event_log,
+                                                    "inertia-daqd event log (LCM log file) instead of --dataset");
+  characterize_dataset->excludes(characterize_log);
+  characterize->add_option("--sensor", characterize_options.sensor, "with --log: the sensor under test (when the bench has several)");
+  characterize->add_option("--dataset-out", characterize_options.dataset_out, "with --log: also write the converted dataset folder");
   characterize->add_option("--out", characterize_options.out, "output folder (model.toml, report.md, plots)")->required();
   characterize->add_option("--order", characterize_options.order, "model order r of the batch candidates")->capture_default_str();
   characterize->add_option("--misalignment-order", characterize_options.misalignment_order,
@@ -69,10 +75,15 @@ int run(int argc, char** argv) {
   inertia::commands::DiagnoseCommandOptions diagnose_options;
   auto* diagnose = app.add_subcommand("diagnose", "where simulation and measurement disagree, and which effect is missing");
   diagnose->add_option("--model", diagnose_options.model, "model file (TOML)")->required()->check(CLI::ExistingFile);
-  diagnose->add_option("--dataset", diagnose_options.dataset, "dataset folder")->required()->check(CLI::ExistingDirectory);
+  auto* diagnose_dataset =
+      diagnose->add_option("--dataset", diagnose_options.dataset, "dataset folder")->check(CLI::ExistingDirectory);
+  auto* diagnose_log =
+      diagnose->add_option("--log", diagnose_options.event_log, "inertia-daqd event log (LCM log file) instead of --dataset");
+  diagnose_dataset->excludes(diagnose_log);
+  diagnose->add_option("--sensor", diagnose_options.sensor, "with --log: the sensor under test (when the bench has several)");
   diagnose->add_option("--json", diagnose_options.json, "write the findings as JSON")->required();
   diagnose->add_option("--report", diagnose_options.report, "report folder (report.md, plots, augmented model)");
-  diagnose->add_option("--log", diagnose_options.log, "also write the console summary to this file");
+  diagnose->add_option("--summary", diagnose_options.log, "also write the console summary to this file");
   diagnose->add_option("--alpha", diagnose_options.alpha, "family-wise significance level of each search step")->capture_default_str();
 
   try {

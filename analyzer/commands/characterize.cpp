@@ -3,9 +3,11 @@
 #include <fmt/format.h>
 #include <fmt/ostream.h>
 
+#include <iostream>
 #include <ostream>
 
 #include "analyzer/commands/truth_file.hpp"
+#include "analyzer/fusion/log_dataset.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/report/characterization_report.hpp"
@@ -38,13 +40,26 @@ procedure::PipelineOptions pipeline_options(const CharacterizeOptions& options) 
 }
 
 int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
-  const dataset::Dataset data = dataset::read_dataset(options.dataset);
-  const std::string label = options.dataset.filename().string();
+  if (options.dataset.empty() == options.event_log.empty())
+    throw InputError("characterize: give exactly one of --dataset DIR and --log FILE");
+  if (!options.dataset_out.empty() && options.event_log.empty())
+    throw InputError("characterize: --dataset-out needs --log FILE (it writes the dataset converted from the log)");
+  const bool from_log = !options.event_log.empty();
+  const dataset::Dataset data = from_log ? fusion::log_dataset(options.event_log, options.sensor, std::cerr)
+                                         : dataset::read_dataset(options.dataset);
+  if (!options.dataset_out.empty()) {
+    dataset::write_dataset(options.dataset_out, data);
+    fmt::print(out, "wrote dataset {}\n", options.dataset_out.string());
+  }
+  const std::filesystem::path source = from_log ? options.event_log : options.dataset;
+  const std::string label = from_log ? source.stem().string() : source.filename().string();
   const procedure::PipelineOptions p = pipeline_options(options);
   const procedure::PipelineResult result = procedure::run_pipeline(data, p, label);
-  const std::optional<Truth> truth = read_truth(options.dataset);
+  // A log has no truth.toml; a dataset folder converted from one has none either.
+  const std::optional<Truth> truth = from_log ? std::nullopt : read_truth(options.dataset);
 
-  fmt::print(out, "dataset {}: {} {} case(s)\n", options.dataset.string(), data.cases.size(), dataset::to_string(data.sensor));
+  fmt::print(out, "{} {}: {} {} case(s)\n", from_log ? "log" : "dataset", source.string(), data.cases.size(),
+             dataset::to_string(data.sensor));
   for (const procedure::MountingResult& m : result.mountings) {
     fmt::print(out, "mounting {}: algorithm 2 tried {} models, {} refinement(s); selected {}\n", m.mounting,
                m.candidates_tried, m.refinements, fmt::join(m.s_terms, " "));

@@ -1,6 +1,6 @@
 #pragma once
-// `inertia-analyze characterize --dataset DIR --out DIR`: the paper's Fig. 1 procedure on a
-// dataset folder; writes model.toml (design.md "Model file"), report.md and plots.
+// `inertia-analyze characterize --dataset DIR|--log FILE --out DIR`: the paper's Fig. 1 procedure on a
+// dataset folder or an event log (fused into the same dataset, analyzer/fusion/log_dataset.hpp); writes model.toml (design.md "Model file"), report.md and plots.
 #include <filesystem>
 #include <iosfwd>
 #include <map>
@@ -13,6 +13,9 @@ namespace inertia::commands {
 
 struct CharacterizeOptions {
   std::filesystem::path dataset;
+  std::filesystem::path event_log;      // instead of dataset: an inertia-daqd event log (--log)
+  std::string sensor;                   // with event_log: the sensor under test (empty: the only one)
+  std::filesystem::path dataset_out;    // with event_log: also write the converted dataset folder here
   std::filesystem::path out;
   int order = 0;                        // r of the batch candidates (block 11); the squares get eq. 12's high pass
   int misalignment_order = 0;           // r of the algorithm-2 candidates (blocks 5-6)

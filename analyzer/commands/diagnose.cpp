@@ -11,6 +11,7 @@
 
 #include "analyzer/diagnose/diagnose_report.hpp"
 #include "analyzer/diagnose/discrepancy.hpp"
+#include "analyzer/fusion/log_dataset.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/input_error.hpp"
@@ -38,9 +39,14 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
   const auto start = std::chrono::steady_clock::now();
   const model::ModelFile model = model::read_model(options.model);
   std::ostringstream warnings;
-  const dataset::Dataset data = dataset::read_dataset(options.dataset, warnings);
-  const std::string label = options.dataset.filename().empty() ? options.dataset.parent_path().filename().string()
-                                                               : options.dataset.filename().string();
+  if (options.dataset.empty() == options.event_log.empty())
+    throw InputError("diagnose: give exactly one of --dataset DIR and --log FILE");
+  const dataset::Dataset data = options.event_log.empty()
+                                    ? dataset::read_dataset(options.dataset, warnings)
+                                    : fusion::log_dataset(options.event_log, options.sensor, warnings);
+  const std::filesystem::path source = options.event_log.empty() ? options.dataset : options.event_log;
+  const std::string label = source.filename().empty() ? source.parent_path().filename().string()
+                                                      : source.stem().string();
   diagnose::DiagnoseOptions d;
   d.alpha = options.alpha;
   const diagnose::DiagnoseResult r = diagnose::diagnose(data, model, d, label);
@@ -53,7 +59,7 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
 
   nlohmann::json j;
   j["model"] = options.model.string();
-  j["dataset"] = options.dataset.string();
+  j["dataset"] = source.string();
   j["output_unit"] = data.output_unit;
   j["noise_reference"] = r.noise_reference;
   j["location_test"] = r.location_test;
@@ -86,7 +92,7 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
 
   std::ostringstream log;
   log << warnings.str();
-  fmt::print(log, "dataset {}: {} case(s), {} model terms, {} library candidates\n", options.dataset.string(),
+  fmt::print(log, "dataset {}: {} case(s), {} model terms, {} library candidates\n", source.string(),
              data.cases.size(), model.terms.size(), r.library.size());
   fmt::print(log, "residual RMS overall: baseline {:.5g} {}, final {:.5g} {} (noise reference {:.4g})\n",
              r.steps.front().overall, data.output_unit, r.steps.back().overall, data.output_unit, r.noise_reference);

@@ -1,0 +1,134 @@
+#include "analyzer/fusion/log_dataset.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <lcm/lcm-cpp.hpp>
+#include <map>
+#include <ostream>
+
+#include "common/input_error.hpp"
+
+namespace inertia::fusion {
+namespace {
+
+constexpr unsigned char kSyncWord[4] = {0xED, 0xA1, 0xDA, 0x01};   // lcm/eventlog.c, big-endian
+
+template <class Message>
+Message decode(const lcm::LogEvent& e, const std::string& where, const char* type) {
+  Message m;
+  if (m.decode(e.data, 0, e.datalen) != e.datalen)
+    throw InputError(where + ": " + e.channel + " does not decode as " + type);
+  return m;
+}
+
+}  // namespace
+
+void feed_log(const std::filesystem::path& file, StreamAssembler& assembler, std::ostream& messages) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) throw InputError(SourcePosition{file.string(), 0, 0}, "no such log file");
+  const auto size = static_cast<long>(std::filesystem::file_size(file, ec));
+  {
+    std::ifstream in(file, std::ios::binary);
+    unsigned char head[4] = {0, 0, 0, 0};
+    in.read(reinterpret_cast<char*>(head), 4);
+    if (!in || std::memcmp(head, kSyncWord, 4) != 0)
+      throw InputError(file.string() + ": byte 0: not an LCM event log (no LCM sync word 0xEDA1DA01)");
+  }
+  lcm::LogFile log(file.string(), "r");
+  if (!log.good()) throw InputError(SourcePosition{file.string(), 0, 0}, "cannot open the log");
+  std::int64_t index = 0;
+  for (;; ++index) {
+    const long offset = std::ftell(log.getFilePtr());
+    const lcm::LogEvent* e = log.readNextEvent();
+    if (e == nullptr) {
+      if (offset >= 0 && offset < size)
+        fmt::print(messages, "{}: the log ends inside event {} (byte {} of {}): read up to it\n", file.string(), index,
+                   offset, size);
+      break;
+    }
+    const std::string where = fmt::format("{}: event {} at byte {}", file.string(), index, offset);
+    if (e->channel == "INERTIA_BENCH") {
+      assembler.push(decode<bench_config_t>(*e, where, "bench_config_t"), where);
+    } else if (e->channel == "INERTIA_EVENT") {
+      assembler.push(decode<plan_event_t>(*e, where, "plan_event_t"), where);
+    } else if (e->channel.rfind("INERTIA_RAW_", 0) == 0) {
+      assembler.push(decode<sample_block_t>(*e, where, "sample_block_t"), where);
+    }
+  }
+  try {
+    assembler.finish();
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{} ({} events): {}", file.string(), index, e.what()));
+  }
+}
+
+dataset::Dataset log_dataset(const std::filesystem::path& file, const std::string& sensor, std::ostream& messages,
+                             const AssemblerOptions& options) {
+  std::vector<FusedSegment> segments;
+  AssemblerOptions o = options;
+  o.sensor = sensor;
+  StreamAssembler assembler(o, [&segments](FusedSegment&& s) { segments.push_back(std::move(s)); });
+  feed_log(file, assembler, messages);
+  const config::BenchConfig& bench = assembler.bench();
+  const config::SensorUnderTest& sut = bench.sensors[assembler.sensor_index()];
+
+  dataset::Dataset ds;
+  ds.sensor = sut.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
+                                                            : dataset::SensorKind::Gyroscope;
+  ds.output_unit = sut.output_unit;
+  ds.t_ref = bench.t_ref_c;
+  std::stable_sort(segments.begin(), segments.end(),
+                   [](const FusedSegment& a, const FusedSegment& b) { return a.case_index < b.case_index; });
+  std::map<std::size_t, int> pieces;
+  for (const FusedSegment& s : segments) ++pieces[s.case_index];
+  std::map<std::size_t, int> seen;
+  for (FusedSegment& s : segments) {
+    const config::TestCase& tc = bench.cases[s.case_index];
+    const int k = seen[s.case_index]++;
+    dataset::CaseData cd;
+    cd.name = k == 0 ? tc.name : fmt::format("{}-seg{}", tc.name, k + 1);
+    cd.kind = tc.kind;
+    cd.file = cd.name + ".csv";
+    cd.m_ec = tc.m_ec;   // nominal, as simulate writes it: the analysis estimates the misalignment
+    // Pieces of one case are one mounting of the sensor, whatever the plan says of the others.
+    cd.mounting = tc.mounting.empty() && pieces[s.case_index] > 1 ? tc.name : tc.mounting;
+    cd.sample_period_s = s.sample_period_s;
+    cd.t = std::move(s.t);
+    cd.a_e = std::move(s.a_e);
+    if (s.w_e) cd.w_e = std::move(*s.w_e);
+    if (s.temp) cd.temp = std::move(*s.temp);
+    cd.y = std::move(s.y);
+    cd.phase_names = std::move(s.phase_names);
+    cd.phase = std::move(s.phase);
+    ds.cases.push_back(std::move(cd));
+  }
+  // A dataset is all temperature columns or none for a case: keep what each case has.
+
+  fmt::print(messages, "log {}: bench {}, sensor {}, {} fused rows in {} dataset case(s)\n", file.string(), bench.name,
+             sut.name, assembler.fused_rows(), ds.cases.size());
+  if (assembler.skipped_blocks() > 0)
+    fmt::print(messages, "  {} sample block(s) recorded before INERTIA_BENCH skipped\n", assembler.skipped_blocks());
+  for (const StreamGap& g : assembler.gaps())
+    fmt::print(messages, "  gap: {} missing {} sample(s) (channel_seq jump {}) before {}\n", g.device,
+               g.missing_samples, g.missing_seq, g.where);
+  std::map<std::pair<std::string, std::string>, std::pair<std::int64_t, double>> excluded;   // total, first t
+  for (const Exclusion& x : assembler.exclusions()) {
+    auto [it, fresh] = excluded.try_emplace({x.case_name, x.reason}, 0, x.t_s);
+    it->second.first += x.samples;
+  }
+  for (const auto& [key, v] : excluded)
+    fmt::print(messages, "  case {}: {} sample(s) excluded: {} (first at t = {:.4f} s)\n", key.first, v.first,
+               key.second, v.second);
+  for (const std::string& n : assembler.notes()) fmt::print(messages, "  note: {}\n", n);
+  for (const config::TestCase& tc : bench.cases)
+    if (pieces.count(static_cast<std::size_t>(&tc - bench.cases.data())) == 0)
+      fmt::print(messages, "  case {}: no usable samples in this log\n", tc.name);
+  if (ds.cases.empty()) throw InputError(file.string() + ": no case has a usable stretch of samples");
+  return ds;
+}
+
+}  // namespace inertia::fusion
