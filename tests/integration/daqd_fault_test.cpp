@@ -1,9 +1,15 @@
-// Faults injected by the simulator (--fault): the daemon keeps sampling every healthy device,
-// reports the fault on INERTIA_STATUS, recovers when it clears, and the log shows exactly which
-// samples are missing or invalid.
+// Faults injected by the simulator (--fault), and a real full disk (a small tmpfs the test
+// mounts; skipped when not root): the daemon keeps sampling every healthy device, reports the
+// fault on INERTIA_STATUS, recovers when it clears, and the log shows exactly which samples are
+// missing or invalid.
 #include <gtest/gtest.h>
+#include <sys/mount.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 #include <iostream>
 
 #include "common/config/bench_config.hpp"
@@ -171,6 +177,145 @@ TEST(DaqdFaults, StuckSensorIsMarkedInvalidExactlyFromDetectionOn) {
   EXPECT_EQ(wrong, 0);
   EXPECT_EQ(other_invalid, 0) << "the other channels of the bus are unaffected";
   EXPECT_EQ(summary_value(r.out, "  accel:", "stuck"), 2900);
+}
+
+}  // namespace
+}  // namespace inertia::daq::testing
+
+namespace inertia::daq::testing {
+namespace {
+
+TEST(DaqdFaults, NanSensorIsMarkedInvalidExactlyReportedAndRecovers) {
+  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  // Paced 3.5 s; the first sensor sends "no valid reading" from 0.5 s for 1 s: samples
+  // 5000..14999 (10000 at 10 kHz) and no others.
+  const DaqdRun r = run_daqd({"--duration", "3.5", "--fault", "nan@0.5+1"}, 30);
+  const auto blocks = decode_all<sample_block_t>(r.events, "INERTIA_RAW_ACCEL");
+  ASSERT_FALSE(blocks.empty());
+  EXPECT_EQ(sequence_gaps(blocks), 0);
+  const int ch = channel_index(blocks.front(), "acc-a");
+  ASSERT_EQ(ch, 0);
+  std::int64_t invalid = 0, wrong = 0, not_nan = 0, other_invalid = 0, samples = 0;
+  for (const auto& b : blocks)
+    for (std::int32_t s = 0; s < b.num_samples; ++s, ++samples) {
+      const std::int64_t k = b.channel_seq[0] + s;
+      const bool expect_invalid = k >= 5000 && k < 15000;
+      const bool valid = sample_valid(b, ch, s);
+      invalid += valid ? 0 : 1;
+      wrong += (valid == expect_invalid) ? 1 : 0;
+      if (!valid && !std::isnan(b.values[0][static_cast<std::size_t>(s)])) ++not_nan;
+      for (std::int32_t c = 1; c < b.num_channels; ++c) other_invalid += sample_valid(b, c, s) ? 0 : 1;
+    }
+  EXPECT_EQ(samples, 35000);
+  EXPECT_EQ(invalid, 10000);
+  EXPECT_EQ(wrong, 0) << "exactly the samples of the NaN time are invalid";
+  EXPECT_EQ(not_nan, 0) << "an invalid sample carries NaN, never a number";
+  EXPECT_EQ(other_invalid, 0) << "the other channels of the bus are unaffected";
+  EXPECT_EQ(summary_value(r.out, "  accel:", "invalid"), 10000);
+  EXPECT_EQ(summary_value(r.out, "  accel:", "stuck"), 0) << "NaN is not a stuck value";
+  // INERTIA_STATUS: reported while it lasts, cleared after; the journal says both.
+  bool seen = false;
+  for (const auto& s : statuses(r.events)) seen = seen || has_fault(*device(s, "accel"), "invalid-samples");
+  EXPECT_TRUE(seen);
+  EXPECT_FALSE(has_fault(*device(statuses(r.events).back(), "accel"), "invalid-samples")) << "recovered";
+  EXPECT_NE(r.out.find("accel: fault invalid-samples"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("accel: cleared invalid-samples"), std::string::npos) << r.out;
+}
+
+/// A small tmpfs: a disk that really fills (ENOSPC). Unmounted before its directory goes.
+struct SmallDisk {
+  fs::path path;
+  std::string why_not;  // empty when mounted
+  SmallDisk(const fs::path& where, const char* size) : path(where) {
+    fs::create_directories(path);
+    const std::string options = std::string("size=") + size;
+    if (::geteuid() != 0) why_not = "not root: cannot mount a small tmpfs to fill";
+    else if (::mount("tmpfs", path.c_str(), "tmpfs", 0, options.c_str()) != 0)
+      why_not = std::string("mount tmpfs: ") + std::strerror(errno);
+  }
+  ~SmallDisk() {
+    if (why_not.empty()) (void)::umount2(path.c_str(), MNT_DETACH);
+  }
+};
+
+TEST(DaqdFaults, FullDiskKeepsSamplingAndPublishingCountsTheMissingBlocksAndResumes) {
+  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  TempDir tmp;
+  SmallDisk disk(tmp.path / "disk", "6m");
+  if (!disk.why_not.empty()) GTEST_SKIP() << disk.why_not;
+  {  // 5 of the 6 MiB taken: the log (~1.3 MB/s) fills the rest within about a second
+    std::ofstream filler(disk.path / "filler", std::ios::binary);
+    const std::vector<char> chunk(1 << 20, 'f');
+    for (int i = 0; i < 5; ++i) filler.write(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    ASSERT_TRUE(filler.good());
+  }
+  const std::string url = private_lcm_url();
+  LcmCollector live(url);
+  DaqdProcess daqd({"--config", kSmall, "--duration", "5", "--log", (disk.path / "log").string(), "--lcm-url", url},
+                   {}, tmp.path / "stderr.txt");
+  const auto t0 = std::chrono::steady_clock::now();
+  while (daqd.output().find("log: disk full") == std::string::npos &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(10))
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_NE(daqd.output().find("log: disk full"), std::string::npos) << "the journal says so\n" << daqd.output();
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  fs::remove(disk.path / "filler");  // space is back
+  ASSERT_EQ(daqd.wait(30), 0) << daqd.output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  live.stop();
+  const std::string out = daqd.output();
+  EXPECT_NE(out.find("log: writing again"), std::string::npos) << out;
+
+  // INERTIA_STATUS (live: the log missed some of them) says disk-full while it lasted.
+  bool full_seen = false, full_at_end = false;
+  for (const auto& m : live.take()) {
+    if (m.channel != "INERTIA_STATUS") continue;
+    daq_status_t st;
+    if (st.decode(m.data.data(), 0, static_cast<int>(m.data.size())) < 0) continue;
+    full_at_end = std::find(st.faults.begin(), st.faults.end(), "disk-full") != st.faults.end();
+    full_seen = full_seen || full_at_end;
+  }
+  EXPECT_TRUE(full_seen);
+  EXPECT_FALSE(full_at_end) << "recovered by itself";
+
+  // Sampling and publishing never noticed; every message is in the log or counted.
+  EXPECT_EQ(summary_value(out, "  accel:", "ring drops"), 0);
+  const long long published = summary_value(out, "  lcm:", "messages");
+  const long long written = summary_value(out, "  log:", "messages");
+  const long long lost = summary_value(out, "  log:", "lost");
+  EXPECT_GT(lost, 10);
+  EXPECT_EQ(summary_value(out, "  log:", "disk full lost"), lost);
+  EXPECT_EQ(written + lost, published);
+  std::size_t files = 0;
+  const auto events = read_log_dir(disk.path / "log", &files);
+  EXPECT_EQ(static_cast<long long>(events.size()), written + static_cast<long long>(files))
+      << "whole records only (plus the INERTIA_BENCH header of each file)";
+
+  // The log shows exactly which blocks are missing: seq gaps whose channel_seq jumps by the
+  // samples of exactly those blocks, and blocks again after the gap up to the last one.
+  long long missing_blocks = 0;
+  for (const char* device_name : {"accel", "linear_encoder"}) {
+    SCOPED_TRACE(device_name);
+    const auto blocks = decode_all<sample_block_t>(events, raw_channel(device_name));
+    ASSERT_GT(blocks.size(), 2u);
+    EXPECT_EQ(blocks.front().seq, 0);
+    long long device_missing = 0;
+    for (std::size_t i = 1; i < blocks.size(); ++i) {
+      const auto& a = blocks[i - 1];
+      const auto& b = blocks[i];
+      ASSERT_GT(b.seq, a.seq);
+      const long long gap = b.seq - a.seq - 1;
+      device_missing += gap;
+      for (std::size_t c = 0; c < b.channel_seq.size(); ++c)
+        EXPECT_EQ(b.channel_seq[c], a.channel_seq[c] + (gap + 1) * a.num_samples) << "block " << b.seq;
+    }
+    EXPECT_EQ(blocks.back().seq + 1, summary_value(out, "  " + std::string(device_name) + ":", "blocks"));
+    EXPECT_GT(device_missing, 0);
+    missing_blocks += device_missing;
+  }
+  EXPECT_LE(missing_blocks, lost) << "the rest of the lost messages are statuses and markers";
+  std::cout << "full disk: " << lost << " messages lost (" << missing_blocks << " accel/encoder blocks), " << written
+            << " written\n";
 }
 
 }  // namespace

@@ -1,10 +1,16 @@
 // LogWriter: LCM log format (read back by lcm::LogFile and replayed by lcm-logplayer), rotation
 // by size and on request, a stalled writer that never blocks enqueue() and counts what it lost.
 #include <gtest/gtest.h>
+#include <sys/mount.h>
+#include <unistd.h>
 
 #include <lcm/lcm-cpp.hpp>
 
+#include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
+#include <fstream>
 #include <cstdlib>
 #include <filesystem>
 #include <thread>
@@ -137,6 +143,93 @@ TEST(LogWriter, AStalledWriterNeverBlocksEnqueueAndCountsWhatItLost) {
   w.stop();
   EXPECT_EQ(count_events(files_in(tmp.path)), 8u);
   EXPECT_EQ(w.messages_written(), 8u);
+}
+
+// A small tmpfs mounted here: a disk that really fills (ENOSPC), unmounted on scope exit.
+struct SmallDisk {
+  fs::path path;
+  std::string why_not;  // empty when mounted
+  SmallDisk(const fs::path& where, const char* size) : path(where) {
+    fs::create_directories(path);
+    const std::string options = std::string("size=") + size;
+    if (::geteuid() != 0) why_not = "not root: cannot mount a small tmpfs to fill";
+    else if (::mount("tmpfs", path.c_str(), "tmpfs", 0, options.c_str()) != 0)
+      why_not = std::string("mount tmpfs: ") + std::strerror(errno);
+  }
+  ~SmallDisk() {
+    if (why_not.empty()) (void)::umount2(path.c_str(), MNT_DETACH);
+  }
+};
+
+TEST(LogWriter, AFullDiskLeavesWholeRecordsCountsWhatItCouldNotWriteAndResumes) {
+  TempDir tmp;
+  SmallDisk disk(tmp.path / "disk", "2m");
+  if (!disk.why_not.empty()) GTEST_SKIP() << disk.why_not;
+  {  // 1.25 MiB of the 2 MiB taken by something else: about 75 messages fit
+    std::ofstream filler(disk.path / "filler", std::ios::binary);
+    const std::vector<char> chunk(1 << 16, 'f');
+    for (int i = 0; i < 20; ++i) filler.write(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    ASSERT_TRUE(filler.good());
+  }
+  LogWriterOptions o;
+  o.dir = disk.path / "log";
+  o.base_name = "t";
+  o.fsync_interval_ms = 5;
+  LogWriter w(o);
+  std::string why;
+  ASSERT_TRUE(w.open(&why)) << why;
+  w.start();
+  // 10 kB messages, each numbered, one at a time (the queue never overflows: every loss here
+  // is the disk's).
+  std::vector<std::uint8_t> payload(10'000);
+  auto send = [&](std::int32_t i) {
+    std::memcpy(payload.data(), &i, sizeof i);
+    std::fill(payload.begin() + sizeof i, payload.end(), static_cast<std::uint8_t>(i));
+    ASSERT_TRUE(w.enqueue("CH", payload.data(), payload.size(), i));
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+    while (w.messages_written() + w.messages_lost() < static_cast<std::uint64_t>(i) + 1 &&
+           std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+  };
+  std::int32_t i = 0;
+  for (; i < 300 && !w.disk_full(); ++i) send(i);
+  ASSERT_TRUE(w.disk_full()) << "2 MiB filled";
+  const std::int32_t first_lost = i - 1;
+  for (const std::int32_t end = i + 20; i < end; ++i) send(i);  // 20 more while full
+  EXPECT_TRUE(w.disk_full());
+  fs::remove(disk.path / "filler");  // space is back
+  for (const std::int32_t end = i + 40; i < end; ++i) send(i);
+  EXPECT_FALSE(w.disk_full()) << "writing again";
+  w.stop();
+
+  const std::uint64_t lost = w.messages_lost();
+  EXPECT_EQ(lost, w.disk_full_lost());
+  EXPECT_EQ(lost, 21u) << "the one that hit the full disk and the 20 after it";
+  EXPECT_EQ(w.messages_written() + lost, static_cast<std::uint64_t>(i));
+  // Read back: whole records only, each intact, exactly the lost ones missing.
+  const auto files = files_in(o.dir);
+  ASSERT_EQ(files.size(), 1u);
+  lcm::LogFile log(files[0].string(), "r");
+  std::vector<std::int32_t> seen;
+  while (const lcm::LogEvent* e = log.readNextEvent()) {
+    ASSERT_EQ(e->channel, "CH");
+    ASSERT_EQ(e->datalen, 10'000);
+    std::int32_t k = 0;
+    std::memcpy(&k, e->data, sizeof k);
+    const auto* d = static_cast<const std::uint8_t*>(e->data);
+    EXPECT_EQ(std::count(d + sizeof k, d + 10'000, static_cast<std::uint8_t>(k)), 10'000 - 4) << "message " << k;
+    EXPECT_EQ(e->timestamp, k);
+    seen.push_back(k);
+  }
+  ASSERT_EQ(seen.size(), w.messages_written());
+  std::int32_t expect = 0;
+  for (const std::int32_t k : seen) {
+    if (expect == first_lost) expect += 21;  // the gap: exactly the lost messages
+    EXPECT_EQ(k, expect);
+    expect = k + 1;
+  }
+  EXPECT_EQ(expect, i);
+  EXPECT_EQ(fs::file_size(files[0]), w.messages_written() * (28u + 2u + 10'000u)) << "no partial record left";
 }
 
 TEST(LogWriter, AnUnwritableDirectoryIsNamed) {
