@@ -2,12 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cstring>
 #include <stdexcept>
 #include <thread>
 #include <type_traits>
+#include <vector>
 
 namespace inertia {
 namespace {
@@ -110,6 +112,44 @@ TEST(SpscRing, WrapsAroundOverManyCyclesInOrder) {
   EXPECT_EQ(next_pop, 225'000U);
 }
 
+TEST(SpscRing, StagedElementsAreInvisibleUntilPublished) {
+  SpscRing<std::uint64_t> ring(8);
+  ASSERT_TRUE(ring.try_stage(1));
+  ASSERT_TRUE(ring.try_stage(2));
+  EXPECT_EQ(ring.front(), nullptr);
+  EXPECT_EQ(ring.size_approx(), 0U);
+  ring.publish();
+  EXPECT_EQ(ring.size_approx(), 2U);
+  // A staged element holds its slot: 2 published + 6 staged fill the ring.
+  for (std::uint64_t i = 3; i <= 8; ++i) ASSERT_TRUE(ring.try_stage(i));
+  EXPECT_FALSE(ring.try_stage(9));
+  EXPECT_FALSE(ring.try_push(9));
+  EXPECT_EQ(ring.size_approx(), 2U);
+  ring.publish();
+  std::uint64_t expected = 1;
+  EXPECT_EQ(ring.consume([&](std::uint64_t& v) { EXPECT_EQ(v, expected++); }), 8U);
+  EXPECT_EQ(ring.front(), nullptr);
+}
+
+TEST(SpscRing, ConsumeIsBoundedAndFreesWhatItConsumed) {
+  SpscRing<std::uint64_t> ring(16);
+  for (std::uint64_t i = 0; i < 16; ++i) ASSERT_TRUE(ring.try_push(i));
+  std::vector<std::uint64_t> got;
+  EXPECT_EQ(ring.consume([&](std::uint64_t& v) { got.push_back(v); }, 5), 5U);
+  EXPECT_EQ(ring.size_approx(), 11U);
+  for (std::uint64_t i = 16; i < 21; ++i) ASSERT_TRUE(ring.try_push(i)) << "consume() freed five slots";
+  EXPECT_FALSE(ring.try_push(21));
+  // front()/pop() and consume() share the read index.
+  ASSERT_NE(ring.front(), nullptr);
+  EXPECT_EQ(*ring.front(), 5U);
+  ring.pop();
+  got.push_back(5);
+  EXPECT_EQ(ring.consume([&](std::uint64_t& v) { got.push_back(v); }), 15U);
+  EXPECT_EQ(ring.consume([&](std::uint64_t& v) { got.push_back(v); }), 0U);
+  ASSERT_EQ(got.size(), 21U);
+  for (std::uint64_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i], i);
+}
+
 // Producer pushes 0..N-1 (spinning when full, as a test may; the daemon counts a drop instead),
 // consumer asserts each arrives exactly once and in order. A small ring makes both sides hit
 // full and empty constantly, the paths where the index caches are refreshed.
@@ -155,6 +195,53 @@ void pass_sequence_between_threads(std::uint64_t count, std::size_t capacity, Ma
   EXPECT_EQ(ring.front(), nullptr) << "an element arrived twice or was invented";
   EXPECT_EQ(ring.size_approx(), 0U);
   ::testing::Test::RecordProperty("producer_full_spins", static_cast<int>(pushed_full > INT32_MAX ? INT32_MAX : pushed_full));
+}
+
+// The daemon's pattern: the producer stages a batch of varying length and publishes it, the
+// consumer takes whatever is visible in bounded batches. Same checks as above.
+template <class T, class Make, class Seq>
+void pass_batches_between_threads(std::uint64_t count, std::size_t capacity, Make make, Seq seq_of) {
+  SpscRing<T> ring(capacity);
+  std::thread producer([&] {
+    std::uint64_t i = 0;
+    std::uint64_t batch = 1;
+    unsigned spins = 0;
+    while (i < count) {
+      const std::uint64_t end = std::min(count, i + batch);
+      while (i < end && ring.try_stage(make(i))) ++i;
+      ring.publish();
+      if (i < end) back_off(spins);  // full: wait for the consumer, as a test may
+      batch = batch % 97 + 1;        // 1..97, so batches straddle the wrap at every offset
+    }
+  });
+  std::uint64_t expected = 0;
+  std::uint64_t mismatches = 0;
+  unsigned spins = 0;
+  std::size_t bound = 1;
+  while (expected < count) {
+    const std::size_t n = ring.consume(
+        [&](const T& item) {
+          const T want = make(expected);
+          if (seq_of(item) != expected || std::memcmp(&item, &want, sizeof(T)) != 0) {
+            ++mismatches;
+            if (mismatches < 5) ADD_FAILURE() << "expected " << expected << ", got " << seq_of(item);
+          }
+          ++expected;
+        },
+        bound);
+    bound = bound % 61 + 1;
+    if (n == 0) back_off(spins);
+  }
+  producer.join();
+  EXPECT_EQ(mismatches, 0U);
+  EXPECT_EQ(ring.front(), nullptr) << "an element arrived twice or was invented";
+}
+
+TEST(SpscRingThreads, StagedBatchesAndBoundedConsumeKeepEveryElementInOrder) {
+  pass_batches_between_threads<std::uint64_t>(
+      2'000'000, 256, [](std::uint64_t i) { return i; }, [](std::uint64_t v) { return v; });
+  pass_batches_between_threads<Sample64>(
+      200'000, 64, make_sample, [](const Sample64& s) { return s.seq; });
 }
 
 TEST(SpscRingThreads, TenMillionSequenceNumbersNoLossNoDuplicateInOrder) {
