@@ -7,6 +7,7 @@
 #include <net/if.h>
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <utility>
@@ -102,9 +103,19 @@ std::unique_ptr<CanDevice> CanDevice::from_fd(UniqueFd fd, const CanDeviceConfig
 }
 
 CanDevice::CanDevice(UniqueFd fd, CanDeviceConfig config, bool is_can_socket)
-    : fd_(std::move(fd)), config_(std::move(config)), is_can_socket_(is_can_socket), map_(config_.map) {
+    : fd_(std::move(fd)),
+      config_(std::move(config)),
+      is_can_socket_(is_can_socket),
+      map_(config_.map),
+      batch_receive_(config_.batch_receive) {
   channels_.reserve(config_.map.signals.size());
   for (const CanSignal& s : config_.map.signals) channels_.push_back(config_.name + "." + s.name);
+  for (std::size_t i = 0; i < kReceiveBatch; ++i) {
+    iov_[i] = iovec{batch_[i].record.data(), batch_[i].record.size()};
+    headers_[i].msg_hdr.msg_iov = &iov_[i];
+    headers_[i].msg_hdr.msg_iovlen = 1;
+    headers_[i].msg_hdr.msg_control = batch_[i].control.data();
+  }
 }
 
 Step CanDevice::configure() {
@@ -138,7 +149,7 @@ Step CanDevice::configure() {
 bool CanDevice::drain() noexcept {
   // Bounded so a peer that writes forever cannot hold the control thread here.
   for (int i = 0; i < 100000; ++i) {
-    const ssize_t n = ::recv(fd_.get(), record_.data(), record_.size(), MSG_DONTWAIT);
+    const ssize_t n = ::recv(fd_.get(), batch_[0].record.data(), batch_[0].record.size(), MSG_DONTWAIT);
     if (n > 0) continue;
     if (n < 0 && errno == EINTR) continue;
     return true;
@@ -158,6 +169,45 @@ Step CanDevice::deactivate() {
   return ok();
 }
 
+int CanDevice::receive(std::size_t want) noexcept {
+  for (std::size_t i = 0; i < want; ++i) {  // the kernel shrinks these per record
+    headers_[i].msg_hdr.msg_controllen = batch_[i].control.size();
+    headers_[i].msg_hdr.msg_flags = 0;
+    headers_[i].msg_len = 0;
+  }
+  while (batch_receive_) {
+    const int got = ::recvmmsg(fd_.get(), headers_.data(), static_cast<unsigned>(want), MSG_DONTWAIT, nullptr);
+    if (got >= 0) {
+      if (got > 0) ++status_.receive_calls;
+      return got;
+    }
+    if (errno == EINTR) continue;
+    if (errno == ENOSYS) {
+      batch_receive_ = false;  // for good (an old kernel or a seccomp filter): one by one below
+      break;
+    }
+    if (errno == EAGAIN || errno == EWOULDBLOCK) return 0;
+    ++health_.io_errors;
+    return -1;
+  }
+  std::size_t n = 0;
+  while (n < want) {
+    const ssize_t len = ::recvmsg(fd_.get(), &headers_[n].msg_hdr, MSG_DONTWAIT);
+    if (len < 0) {
+      if (errno == EINTR) continue;
+      if (errno != EAGAIN && errno != EWOULDBLOCK) {
+        ++health_.io_errors;
+        if (n == 0) return -1;
+      }
+      break;
+    }
+    ++status_.receive_calls;
+    headers_[n++].msg_len = static_cast<unsigned>(len);
+    if (len == 0) break;  // end of file: nothing follows it
+  }
+  return static_cast<int>(n);
+}
+
 std::size_t CanDevice::read_into(SampleSink& sink) noexcept {
   if (!active_) return 0;
   const std::int64_t t_start = monotonic_now_ns();
@@ -165,40 +215,39 @@ std::size_t CanDevice::read_into(SampleSink& sink) noexcept {
   // step between the frame and this call shifts the stamp by the step, as any software stamp).
   const std::int64_t realtime_minus_mono = clock_ns(CLOCK_REALTIME) - t_start;
   std::size_t pushed = 0;
-  for (std::size_t i = 0; i < config_.max_records_per_read; ++i) {
-    iovec iov{record_.data(), record_.size()};
-    msghdr msg{};
-    msg.msg_iov = &iov;
-    msg.msg_iovlen = 1;
-    msg.msg_control = control_.data();
-    msg.msg_controllen = control_.size();
-    const ssize_t n = ::recvmsg(fd_.get(), &msg, MSG_DONTWAIT);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      if (errno != EAGAIN && errno != EWOULDBLOCK) ++health_.io_errors;
-      break;
-    }
-    if (n == 0) {
-      // A CAN_RAW socket never reads 0; a socketpair does once the peer is gone.
-      status_.peer_closed = true;
-      break;
-    }
-    std::int64_t t_ns = 0;
-    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
-      if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS &&
-          c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
-        timespec ts{};
-        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        t_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec - realtime_minus_mono;
-        ++status_.kernel_timestamps;
+  std::size_t records = 0;
+  while (records < config_.max_records_per_read) {
+    const std::size_t want = std::min(kReceiveBatch, config_.max_records_per_read - records);
+    const int got = receive(want);
+    if (got <= 0) break;
+    for (int r = 0; r < got; ++r) {
+      const msghdr& msg = headers_[static_cast<std::size_t>(r)].msg_hdr;
+      const std::size_t size = headers_[static_cast<std::size_t>(r)].msg_len;
+      ++records;
+      if (size == 0) {
+        // A CAN_RAW socket never reads 0; a socketpair does once the peer is gone (recvmmsg then
+        // fills the rest of the batch with the same end of file).
+        status_.peer_closed = true;
+        break;
       }
+      std::int64_t t_ns = 0;
+      for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(const_cast<msghdr*>(&msg), c)) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS &&
+            c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
+          timespec ts{};
+          std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+          t_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec - realtime_minus_mono;
+          ++status_.kernel_timestamps;
+        }
+      }
+      if (t_ns == 0) t_ns = monotonic_now_ns();
+      if ((msg.msg_flags & MSG_TRUNC) != 0) {
+        ++health_.malformed;
+        continue;
+      }
+      pushed += handle_record(batch_[static_cast<std::size_t>(r)].record.data(), size, t_ns, sink);
     }
-    if (t_ns == 0) t_ns = monotonic_now_ns();
-    if ((msg.msg_flags & MSG_TRUNC) != 0) {
-      ++health_.malformed;
-      continue;
-    }
-    pushed += handle_record(record_.data(), static_cast<std::size_t>(n), t_ns, sink);
+    if (static_cast<std::size_t>(got) < want) break;  // drained: spare the call that says so
   }
   const double us = static_cast<double>(monotonic_now_ns() - t_start) * 1e-3;
   if (us > health_.read_time_max_us) health_.read_time_max_us = us;

@@ -57,7 +57,7 @@ void reference_put(std::uint8_t* payload, const CanSignal& s, std::uint64_t raw)
 
 class CanPair : public ::testing::Test {
  protected:
-  void open(CanFrameMap map, std::size_t max_records = 64) {
+  void open(CanFrameMap map, std::size_t max_records = 64, bool batch_receive = true) {
     int sv[2];
     ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
     writer_ = UniqueFd(sv[0]);
@@ -65,6 +65,7 @@ class CanPair : public ::testing::Test {
     config.name = "adc";
     config.map = std::move(map);
     config.max_records_per_read = max_records;
+    config.batch_receive = batch_receive;
     std::string why;
     device_ = CanDevice::from_fd(UniqueFd(sv[1]), config, &why);
     ASSERT_NE(device_, nullptr) << why;
@@ -95,7 +96,18 @@ class CanPair : public ::testing::Test {
 
 CanSignal sig(std::string name, std::uint32_t id, std::uint8_t byte, std::uint8_t bit, std::uint8_t len,
               ByteOrder order, bool is_signed, double scale = 1.0, double offset = 0.0, bool ext = false) {
-  return CanSignal{std::move(name), id, ext, byte, bit, len, order, is_signed, scale, offset};
+  CanSignal s;  // member by member: CanSignal may grow fields with defaults
+  s.name = std::move(name);
+  s.id = id;
+  s.extended = ext;
+  s.byte_offset = byte;
+  s.bit_offset = bit;
+  s.bit_length = len;
+  s.byte_order = order;
+  s.is_signed = is_signed;
+  s.scale = scale;
+  s.offset = offset;
+  return s;
 }
 
 TEST(FrameMap, DecodesEveryLayoutAsTheDocumentedBitNumberingSays) {
@@ -307,6 +319,99 @@ TEST_F(CanPair, LifecycleDiscardsStaleFramesAndCountsSinkDrops) {
   device_->read_into(sink_);
   EXPECT_TRUE(device_->status().peer_closed);
 }
+
+// recvmmsg (a batch of records per call) and the one-record recvmsg fallback see the same
+// stream: records of every kind, decoded into identical samples and counters; the batch path
+// needs one call per kReceiveBatch records (the point of it), the fallback one per record.
+class CanPaths : public CanPair, public ::testing::WithParamInterface<bool> {};
+
+TEST_P(CanPaths, EveryRecordKindDecodesTheSameInBatchesAsOneByOne) {
+  const bool batch = GetParam();
+  open(CanFrameMap{{sig("a", 0x10, 0, 0, 16, ByteOrder::LittleEndian, true, 0.5),
+                    sig("b", 0x10, 2, 0, 8, ByteOrder::LittleEndian, false),
+                    sig("w", 0x200, 0, 0, 32, ByteOrder::BigEndian, false, 1.0, 0.0, true)}},
+       CanDevice::kMaxRecordsPerReadLimit, batch);
+  // Rounds of one whole batch: the socketpair's send buffer holds them (the writer blocks), and
+  // the expected number of calls is exact.
+  constexpr std::size_t kRound = CanDevice::kReceiveBatch;
+  constexpr std::size_t kRounds = 16;
+  const int sndbuf = 1 << 20;  // headroom over the default (capped by net.core.wmem_max)
+  ASSERT_EQ(::setsockopt(writer_.get(), SOL_SOCKET, SO_SNDBUF, &sndbuf, sizeof sndbuf), 0);
+  std::mt19937 rng(11);
+  std::vector<double> want_a, want_w;
+  std::uint64_t malformed = 0, unknown = 0, errors = 0;
+  std::size_t pushed = 0;
+  for (std::size_t round = 0; round < kRounds; ++round) {
+    for (std::size_t i = 0; i < kRound; ++i) {
+      switch (rng() % 8) {
+        case 0: {  // an FD frame with an extended id
+          canfd_frame f{};
+          f.can_id = 0x200 | CAN_EFF_FLAG;
+          f.len = 8;
+          const std::uint32_t v = static_cast<std::uint32_t>(rng());
+          reference_put(f.data, sig("w", 0x200, 0, 0, 32, ByteOrder::BigEndian, false), v);
+          want_w.push_back(static_cast<double>(v));
+          send_bytes(&f, sizeof f);
+          break;
+        }
+        case 1: {
+          const std::uint8_t fragment[10] = {};
+          send_bytes(fragment, sizeof fragment);
+          ++malformed;
+          break;
+        }
+        case 2:
+          send_classic(0x11, {1, 2});
+          ++unknown;
+          break;
+        case 3:
+          send_error(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_WARNING);
+          ++errors;
+          break;
+        default: {
+          const auto raw = static_cast<std::int16_t>(rng());
+          const auto u = static_cast<std::uint16_t>(raw);
+          send_classic(0x10, {static_cast<std::uint8_t>(u), static_cast<std::uint8_t>(u >> 8), 7});
+          want_a.push_back(0.5 * raw);
+          break;
+        }
+      }
+    }
+    pushed += device_->read_into(sink_);
+    EXPECT_EQ(device_->read_into(sink_), 0u);
+  }
+  EXPECT_EQ(pushed, 2 * want_a.size() + want_w.size());
+  std::vector<double> got_a, got_w;
+  for (const Sample& s : sink_.samples) {
+    EXPECT_TRUE(s.valid);
+    if (s.channel == 0) got_a.push_back(s.value);
+    if (s.channel == 1) {
+      EXPECT_DOUBLE_EQ(s.value, 7);
+    }
+    if (s.channel == 2) got_w.push_back(s.value);
+  }
+  EXPECT_EQ(got_a, want_a);
+  EXPECT_EQ(got_w, want_w);
+  const CanStatus& st = device_->status();
+  EXPECT_EQ(device_->health().malformed, malformed);
+  EXPECT_EQ(st.unknown_ids, unknown);
+  EXPECT_EQ(st.error_frames, errors);
+  EXPECT_EQ(st.kernel_timestamps, kRound * kRounds);
+  EXPECT_EQ(st.receive_calls, batch ? kRounds : kRound * kRounds);
+  // Records queued before the peer closed are all decoded, then the end is reported.
+  send_classic(0x10, {1, 0, 3});
+  send_classic(0x10, {2, 0, 3});
+  writer_.reset();
+  sink_.samples.clear();
+  EXPECT_EQ(device_->read_into(sink_), 4u);
+  EXPECT_TRUE(device_->status().peer_closed);
+  ASSERT_EQ(sink_.samples.size(), 4u);
+  EXPECT_DOUBLE_EQ(sink_.samples[0].value, 0.5);
+  EXPECT_DOUBLE_EQ(sink_.samples[2].value, 1.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(ReceivePath, CanPaths, ::testing::Values(true, false),
+                         [](const ::testing::TestParamInfo<bool>& p) { return p.param ? "recvmmsg" : "recvmsg"; });
 
 TEST(CanDeviceOpen, InterfaceOpenFailsWithAReason) {
   CanDeviceConfig config;
