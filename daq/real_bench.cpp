@@ -101,6 +101,7 @@ std::vector<std::unique_ptr<Sampler>> open_real_bench(const config::BenchConfig&
     std::vector<int> fds;
     for (int fd : dev->event_fds())
       if (fd >= 0) fds.push_back(fd);
+    if (dev->tick_fd() >= 0) fds.push_back(dev->tick_fd());  // ticks go out while the encoder stands still
     // Sampled on the trigger line (the bench's sample clock) when there is one, else on ticks.
     const bool rows = e.line_trigger >= 0;
     std::vector<ChannelInfo> info{{"count", "1", next_id}, {"position", e.rotary ? "rad" : "m", next_id + 1}};

@@ -2,6 +2,8 @@
 
 #include <fcntl.h>
 #include <glob.h>
+#include <sys/timerfd.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cmath>
@@ -106,7 +108,16 @@ std::unique_ptr<GpiodEncoderDevice> GpiodEncoderDevice::from_source(std::unique_
     if (why) *why = "encoder '" + config.name + "': the edge source has no A/B event descriptors";
     return nullptr;
   }
-  return std::unique_ptr<GpiodEncoderDevice>(new GpiodEncoderDevice(std::move(source), config));
+  std::unique_ptr<GpiodEncoderDevice> device(new GpiodEncoderDevice(std::move(source), config));
+  if (device->ticked()) {
+    // Created here so that the poll loop can be given it before configure() arms it.
+    device->tick_timer_ = UniqueFd(::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC));
+    if (!device->tick_timer_.valid()) {
+      if (why) *why = "encoder '" + config.name + "': timerfd_create: " + std::strerror(errno);
+      return nullptr;
+    }
+  }
+  return device;
 }
 
 GpiodEncoderDevice::GpiodEncoderDevice(std::unique_ptr<EdgeSource> source, QuadratureConfig config)
@@ -132,6 +143,13 @@ Step GpiodEncoderDevice::configure() {
     const int flags = ::fcntl(fd, F_GETFL);
     if (flags < 0 || ::fcntl(fd, F_SETFL, flags | O_NONBLOCK) != 0)
       return fail(Step::Fatal, std::string("fcntl(O_NONBLOCK) on a line event descriptor: ") + std::strerror(errno));
+  }
+  if (tick_timer_.valid()) {
+    itimerspec spec{};
+    spec.it_interval.tv_nsec = kTickWakeNs;
+    spec.it_value.tv_nsec = kTickWakeNs;
+    if (::timerfd_settime(tick_timer_.get(), 0, &spec, nullptr) != 0)
+      return fail(Step::Fatal, std::string("timerfd_settime for the encoder's sample ticks: ") + std::strerror(errno));
   }
   decoder_.reset(source_->level(EdgeLine::A), source_->level(EdgeLine::B), 0);
   configured_ = true;
@@ -241,6 +259,10 @@ std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
   const std::int64_t t_start = monotonic_now_ns();
   std::size_t pushed = 0;
   std::size_t tick_budget = kMaxTicksPerRead;
+  if (tick_timer_.valid()) {
+    std::uint64_t expirations = 0;  // only the wake-up matters; the ticks come from the clock
+    (void)!::read(tick_timer_.get(), &expirations, sizeof expirations);
+  }
   for (std::size_t round = 0; round < kMaxRoundsPerRead; ++round) {
     bool read_any = false;
     for (std::size_t i = 0; i < kEdgeLineCount; ++i) {

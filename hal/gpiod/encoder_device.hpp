@@ -19,6 +19,7 @@
 
 #include "hal/device.hpp"
 #include "hal/gpiod/quadrature_decoder.hpp"
+#include "hal/unique_fd.hpp"
 
 namespace inertia::hal::gpiod {
 
@@ -135,6 +136,11 @@ class GpiodEncoderDevice final : public Device {
   [[nodiscard]] int trigger_channel() const noexcept { return trigger_channel_; }
   /// Whether count and position are sampled on ticks of sample_rate_hz (no trigger line).
   [[nodiscard]] bool ticked() const noexcept { return tick_period_ns_ > 0.0; }
+  /// Ticked: a timerfd, readable every kTickWakeNs once configure() armed it (read_into() consumes it),
+  /// for the poll loop to wait on with the line descriptors, so ticks go out on time while the
+  /// encoder stands still. -1 otherwise.
+  [[nodiscard]] int tick_fd() const noexcept { return tick_timer_.get(); }
+  static constexpr std::int64_t kTickWakeNs = 1'000'000;
   /// CLOCK_MONOTONIC time of tick k: round(k / sample_rate_hz), in ns.
   [[nodiscard]] std::int64_t tick_time_ns(std::int64_t k) const noexcept {
     return static_cast<std::int64_t>(std::llround(static_cast<double>(k) * tick_period_ns_));
@@ -170,6 +176,7 @@ class GpiodEncoderDevice final : public Device {
   std::array<std::int64_t, kEdgeLineCount> newest_{};     // newest stamp read per line
   std::array<std::int64_t, kEdgeLineCount> watermark_{};  // see read_into()
   double tick_period_ns_ = 0.0;                           // > 0: ticked (zero-order hold)
+  UniqueFd tick_timer_;
   std::int64_t next_tick_ = 0;                            // index of the next tick to emit
   std::uint64_t markers_ = 0, triggers_ = 0;
 };

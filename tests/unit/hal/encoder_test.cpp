@@ -1,5 +1,6 @@
 // Quadrature decoding: the decoder alone, then GpiodEncoderDevice reading gpioevent_data records
 // from pipes through libgpiod's own gpiod_line_event_read_fd_multiple().
+#include <poll.h>
 #include <sys/stat.h>
 
 #include <cmath>
@@ -239,6 +240,7 @@ TEST(GpiodEncoderDevice, EdgesArrivingBetweenTheReadsOfTwoLinesAreMergedInTimeOr
     expect_count_at_every_motion_edge(trace, sink, trace.start_count);
     EXPECT_EQ(device->status().count, trace.edges.back().expected_count - trace.start_count);
     EXPECT_EQ(device->status().quadrature.glitches, 0u);
+    EXPECT_EQ(device->tick_fd(), -1) << "samples at edges: no tick timer";
   }
 }
 
@@ -300,6 +302,10 @@ TEST(GpiodEncoderDevice, WithoutTriggerLineSamplesTheHeldCountOnTheSampleClock) 
     }
     EXPECT_GT(worst, 400) << "the shaker moved the count";
     EXPECT_EQ(device->status().count, trace.edges.back().expected_count - trace.start_count);
+    // The poll loop's wake-up for a standing encoder: a timer, armed by configure().
+    ASSERT_GE(device->tick_fd(), 0);
+    pollfd p{device->tick_fd(), POLLIN, 0};
+    EXPECT_EQ(::poll(&p, 1, 1000), 1) << "readable within a second (every 1 ms)";
   }
 }
 
