@@ -1,11 +1,13 @@
 #include "daq/publisher.hpp"
 
 #include <pthread.h>
+#include <sys/prctl.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <iostream>
 #include <limits>
 
 #include "common/lcm/sample_block_layout.hpp"
@@ -71,9 +73,9 @@ bool Publisher::configure(std::string* why) {
   return true;
 }
 
-void Publisher::start() {
+void Publisher::start(const RealtimeOptions& rt) {
   start_ns_ = hal::monotonic_now_ns();
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this, rt] { run(rt); });
 }
 
 void Publisher::stop() {
@@ -152,31 +154,38 @@ void Publisher::mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept {
   }
 }
 
+void Publisher::take(Packer& p, const RingSample& s) noexcept {
+  DeviceSlot& slot = *p.slot;
+  const std::size_t c = s.channel;
+  if (c >= p.fill.size()) return;
+  std::size_t& f = p.fill[c];
+  if (f < p.capacity) {
+    p.values[c][f] = s.value;
+    p.valid[c][f] = static_cast<std::uint8_t>(s.valid);
+    if (slot.stuck_samples > 0 && static_cast<int>(c) != slot.time_index_channel) mark_stuck(p, c, f);
+    if (c == 0) p.t_first[f] = s.t_ns;
+    ++f;
+    if (f >= static_cast<std::size_t>(p.block_len) &&
+        *std::min_element(p.fill.begin(), p.fill.end()) >= static_cast<std::size_t>(p.block_len))
+      emit(p, p.block_len);
+  } else {
+    ++slot.misaligned;
+    slot.faults.fetch_or(kFaultMisaligned, std::memory_order_relaxed);
+  }
+}
+
 std::size_t Publisher::drain(Packer& p) noexcept {
   DeviceSlot& slot = *p.slot;
   const std::size_t occupancy = slot.ring.size_approx();
   if (occupancy > slot.ring_high_water) slot.ring_high_water = static_cast<std::uint32_t>(occupancy);
+  // Bounded batches give slots back to the sampler while a long backlog is packed; one ring's
+  // worth per call keeps the other devices, markers and the status turning.
+  constexpr std::size_t kBatch = 4096;
   std::size_t n = 0;
-  while (RingSample* s = slot.ring.front()) {
-    const std::size_t c = s->channel;
-    if (c < p.fill.size()) {
-      std::size_t& f = p.fill[c];
-      if (f < p.capacity) {
-        p.values[c][f] = s->value;
-        p.valid[c][f] = static_cast<std::uint8_t>(s->valid);
-        if (slot.stuck_samples > 0 && static_cast<int>(c) != slot.time_index_channel) mark_stuck(p, c, f);
-        if (c == 0) p.t_first[f] = s->t_ns;
-        ++f;
-        if (f >= static_cast<std::size_t>(p.block_len) &&
-            *std::min_element(p.fill.begin(), p.fill.end()) >= static_cast<std::size_t>(p.block_len))
-          emit(p, p.block_len);
-      } else {
-        ++slot.misaligned;
-        slot.faults.fetch_or(kFaultMisaligned, std::memory_order_relaxed);
-      }
-    }
-    slot.ring.pop();
-    ++n;
+  while (n < slot.ring.capacity()) {
+    const std::size_t got = slot.ring.consume([&](const RingSample& s) { take(p, s); }, kBatch);
+    n += got;
+    if (got < kBatch) break;
   }
   return n;
 }
@@ -251,8 +260,15 @@ void Publisher::publish_status(double dt_s) {
   if (st.encode(buf.data(), 0, size) == size) send("INERTIA_STATUS", buf.data(), buf.size());
 }
 
-void Publisher::run() noexcept {
+void Publisher::run(RealtimeOptions rt) noexcept {
   ::pthread_setname_np(::pthread_self(), "publisher");
+  if (rt.fifo_priority > 0 || rt.cpu >= 0) {
+    rt.fifo_priority = rt.fifo_priority > 1 ? rt.fifo_priority - 1 : rt.fifo_priority;
+    std::string why;
+    if (!apply_realtime(rt, &why)) std::cerr << "inertia-daqd: warning: publisher: " << why << "running without it\n";
+    // The idle wait below is 1 ms; the default 50 us of timer slack would be 5 % of it.
+    if (rt.fifo_priority > 0) ::prctl(PR_SET_TIMERSLACK, 1000UL, 0UL, 0UL, 0UL);
+  }
   std::int64_t last_status = hal::monotonic_now_ns();
   const auto period_ns = static_cast<std::int64_t>(options_.status_period_s * 1e9);
   const auto bench_period_ns = static_cast<std::int64_t>(options_.bench_period_s * 1e9);

@@ -20,6 +20,7 @@
 #include "common/spsc_ring.hpp"
 #include "daq/device_slot.hpp"
 #include "daq/log_writer.hpp"
+#include "daq/sampler.hpp"
 #include "inertia/daq_status_t.hpp"
 #include "inertia/plan_event_t.hpp"
 #include "inertia/sample_block_t.hpp"
@@ -63,7 +64,9 @@ class Publisher {
 
   /// Shapes blocks; false + why when a device's block cannot fit one datagram. Control thread.
   bool configure(std::string* why);
-  void start();
+  /// With rt.fifo_priority > 0 the publisher thread runs SCHED_FIFO one below the sampling
+  /// threads (it is on the sample-to-LCM path; below them so it never delays a read), with rt.cpu.
+  void start(const RealtimeOptions& rt = {});
   /// Drains the rings (call after every sampler has finished), sends partial last blocks and a
   /// final status, then joins. Control thread.
   void stop();
@@ -93,8 +96,9 @@ class Publisher {
     std::vector<std::uint32_t> run;
     std::uint32_t stuck_channels = 0;
   };
-  void run() noexcept;
+  void run(RealtimeOptions rt) noexcept;
   std::size_t drain(Packer& p) noexcept;
+  void take(Packer& p, const RingSample& s) noexcept;
   void emit(Packer& p, std::int32_t n) noexcept;
   void mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept;
   void publish_status(double dt_s);

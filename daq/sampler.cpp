@@ -12,23 +12,36 @@
 namespace inertia::daq {
 namespace {
 
-/// The ring writer every device pushes into. Real-time: try_push only; a full ring is a
-/// counted drop (style.md section 8), never a wait.
+/// The ring writer every device pushes into. Real-time: try_stage only; a full ring is a
+/// counted drop (style.md section 8), never a wait. Samples become visible to the publisher at
+/// flush(), once per read_into() call rather than once per sample, and the counters are the
+/// sampling thread's own (plain increments, stored to the slot's atomics at flush): per-sample
+/// atomic read-modify-writes and index stores were most of the sink's cost at 10^6 samples/s.
 class RingSink final : public hal::SampleSink {
  public:
   explicit RingSink(DeviceSlot& slot) : slot_(slot) {}
   bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
-    if (!valid) slot_.invalid_samples.fetch_add(1, std::memory_order_relaxed);
-    if (!slot_.ring.try_push(RingSample{t_ns, value, channel, valid ? 1u : 0u})) {
-      slot_.ring_drops.fetch_add(1, std::memory_order_relaxed);
+    if (!valid) ++invalid_;
+    if (!slot_.ring.try_stage(RingSample{t_ns, value, channel, valid ? 1u : 0u})) {
+      ++drops_;
       return false;
     }
-    slot_.samples.fetch_add(1, std::memory_order_relaxed);
+    ++samples_;
     return true;
+  }
+  /// Publishes the staged samples, then the counters (so a reader that sees a count finds the
+  /// samples in the ring). Sampling thread.
+  void flush() noexcept {
+    slot_.ring.publish();
+    // Only this thread writes these counters: a relaxed store of our own total is exact.
+    slot_.samples.store(samples_, std::memory_order_relaxed);
+    slot_.ring_drops.store(drops_, std::memory_order_relaxed);
+    slot_.invalid_samples.store(invalid_, std::memory_order_relaxed);
   }
 
  private:
   DeviceSlot& slot_;
+  std::uint64_t samples_ = 0, drops_ = 0, invalid_ = 0;
 };
 
 /// Encoder on the sample clock: latches count and position from every edge and pushes one row
@@ -140,8 +153,10 @@ void DeviceSampler::mirror_health() noexcept {
   slot_->decode_errors.store(h.decode_errors + h.malformed, std::memory_order_relaxed);
   slot_->resyncs.store(h.resyncs, std::memory_order_relaxed);
   store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(h.read_time_max_us * 1e3));
-  std::uint32_t faults = slot_->faults.load(std::memory_order_relaxed) &
-                         ~(kFaultBusOff | kFaultBusPassive | kFaultPeerClosed | kFaultGlitches);
+  // Only this thread's own bits change here, by read-modify-write: the supervisor and the
+  // publisher set and clear other bits of the same word at any time.
+  constexpr std::uint32_t kMine = kFaultBusOff | kFaultBusPassive | kFaultPeerClosed | kFaultGlitches;
+  std::uint32_t faults = 0;
   if (can_ != nullptr) {
     const auto& s = can_->status();
     if (s.bus_state == hal::socketcan::BusState::BusOff) faults |= kFaultBusOff;
@@ -155,7 +170,9 @@ void DeviceSampler::mirror_health() noexcept {
     // Glitches and illegal transitions are edges that did not decode into motion.
     slot_->decode_errors.store(h.decode_errors + h.malformed + glitches, std::memory_order_relaxed);
   }
-  slot_->faults.store(faults, std::memory_order_relaxed);
+  const std::uint32_t before = slot_->faults.load(std::memory_order_relaxed) & kMine;
+  if ((before & ~faults) != 0) slot_->faults.fetch_and(~(before & ~faults), std::memory_order_relaxed);
+  if ((faults & ~before) != 0) slot_->faults.fetch_or(faults & ~before, std::memory_order_relaxed);
 }
 
 void DeviceSampler::run(RealtimeOptions rt) noexcept {
@@ -186,6 +203,7 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
     std::size_t got = 0;
     for (int i = 0; i < 64; ++i) {
       const std::size_t n = device_->read_into(sink);
+      ring_sink.flush();  // the publisher sees this call's samples now, not after the drain
       got += n;
       if (n == 0) break;
     }
@@ -242,13 +260,17 @@ void ModbusSampler::run() noexcept {
       // One row per poll, all stamped with the poll's start so the row stays aligned.
       (void)sink.push(static_cast<std::uint32_t>(i), t0, values[i].valid ? values[i].value : 0.0, values[i].valid);
     }
+    sink.flush();
     const auto& h = controller_->link().health();
     // Every failed request (timeout, refused, exception, bad data) left its values invalid.
     slot_->decode_errors.store(h.errors, std::memory_order_relaxed);
     slot_->resyncs.store(h.reconnects, std::memory_order_relaxed);
-    std::uint32_t faults = slot_->faults.load(std::memory_order_relaxed) & ~kFaultModbusGone;
-    if (!any_valid || !controller_->link().connected()) faults |= kFaultModbusGone;
-    slot_->faults.store(faults, std::memory_order_relaxed);
+    // Read-modify-write of our bit only (the supervisor sets invalid-samples on the same word).
+    if (!any_valid || !controller_->link().connected()) {
+      slot_->faults.fetch_or(kFaultModbusGone, std::memory_order_relaxed);
+    } else {
+      slot_->faults.fetch_and(~kFaultModbusGone, std::memory_order_relaxed);
+    }
     slot_->heartbeat.fetch_add(1, std::memory_order_relaxed);
     // Absolute schedule; after an overrun (a request timing out) restart from now, no burst.
     next.tv_nsec += static_cast<long>(poll_interval_ms_) * 1'000'000L;
