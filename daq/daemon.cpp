@@ -211,6 +211,7 @@ int run_daemon(const DaemonOptions& command_line) {
     ::pthread_setname_np(::pthread_self(), "sim-setup");
     SimOptions so;
     so.fast = o.fast;
+    so.fifo_priority = o.fifo_priority;
     so.duration_s = o.duration_s;
     so.faults = o.faults;
     sim = SimBench::create(bench, so, o.ring, &why);
@@ -306,8 +307,8 @@ int run_daemon(const DaemonOptions& command_line) {
   }
 
   if (log) log->start();
-  publisher.start();
   const RealtimeOptions rt{o.fifo_priority, o.cpu};
+  publisher.start(rt);
   for (auto& s : samplers) s->start(rt);
   if (sim) sim->start(po.sim_t0_ns, &publisher.plan_marks());
 

@@ -14,6 +14,8 @@
 //     server, polled by the real ModbusController/ModbusLink.
 // Paced (sample n written at t0 + n / rate) or as fast as the readers take it (blocking CAN
 // writes give back-pressure); the timestamps in the published blocks are the same either way.
+#include <linux/can.h>
+
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -47,6 +49,9 @@ struct SimOptions {
   double duration_s = 0.0;      // simulated seconds; <= 0: the plan once. Longer: the plan repeats.
   SimFaults faults;
   int modbus_poll_ms = 100;
+  // > 0: a paced driver thread runs SCHED_FIFO one above the sampling threads, as the bench's
+  // hardware keeps its clock whatever the PC does (the daemon's --fifo-priority).
+  int fifo_priority = 0;
 };
 
 /// Identical values in a row that mark a simulated accelerometer channel stuck (10 ms at 10 kHz;
@@ -111,6 +116,7 @@ class SimBench {
   /// Writes the queued records; every line is then complete through `through_ns`.
   bool flush_edges(EncoderSim& e, std::int64_t through_ns);
   void write_can_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd);
+  void flush_can_frames();
   void update_controllers(std::size_t c, std::size_t k);
 
   const config::BenchConfig& bench_;
@@ -121,6 +127,11 @@ class SimBench {
   std::size_t run_samples_ = 0;
   std::vector<CanChannel> can_channels_;
   hal::UniqueFd can_wire_;                // the simulator's end of the socketpair
+  struct PendingFrame {
+    canfd_frame frame;
+    std::size_t size;                     // CAN_MTU or CANFD_MTU
+  };
+  std::vector<PendingFrame> can_pending_; // written by flush_can_frames()
   std::shared_ptr<DeviceSlot> can_slot_;
   std::vector<EncoderSim> encoders_;
   std::unique_ptr<hal::wire_sim::BenchControllerServer> controllers_;
