@@ -63,7 +63,9 @@ inline constexpr const char* kNoRouteMessage =
 
 class DaqdProcess {
  public:
-  DaqdProcess(const std::vector<std::string>& args, const std::vector<std::string>& extra_env, const fs::path& stderr_file)
+  /// `binary`: another build of the daemon (the benchmark's peer), default this build's.
+  DaqdProcess(const std::vector<std::string>& args, const std::vector<std::string>& extra_env, const fs::path& stderr_file,
+              const std::string& binary = daqd_binary())
       : stderr_file_(stderr_file) {
     pid_ = ::fork();
     if (pid_ == 0) {
@@ -72,7 +74,7 @@ class DaqdProcess {
         ::dup2(fd, 2);
         ::dup2(fd, 1);
       }
-      std::vector<std::string> argv_s{daqd_binary()};
+      std::vector<std::string> argv_s{binary};
       argv_s.insert(argv_s.end(), args.begin(), args.end());
       std::vector<char*> argv;
       for (auto& a : argv_s) argv.push_back(a.data());
@@ -214,6 +216,7 @@ class LcmCollector {
     std::string channel;
     std::vector<std::uint8_t> data;
     std::int64_t mono_ns;
+    std::int64_t recv_utime;  // LCM's receive time (ReceiveBuffer::recv_utime), wall clock
   };
   std::vector<Received> take() {
     std::lock_guard lock(mutex_);
@@ -231,7 +234,7 @@ class LcmCollector {
     const auto* d = static_cast<const std::uint8_t*>(rbuf->data);
     std::lock_guard lock(mutex_);
     received_.push_back({channel, std::vector<std::uint8_t>(d, d + rbuf->data_size),
-                         static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec});
+                         static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec, rbuf->recv_utime});
   }
   lcm::LCM lcm_;
   std::thread thread_;
