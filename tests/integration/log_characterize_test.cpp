@@ -1,0 +1,158 @@
+// The whole chain on real binaries: inertia-daqd records a simulated bench (the shape of
+// config/sim-paper.toml, shortened to 1 kHz and 10.5 s: configs/log-paper-small.toml) into an
+// event log; inertia-analyze characterize --log fuses it into a dataset and identifies the
+// sensor; diagnose --log checks the model against the same log. Scored against the simulator's
+// truth (inertia-analyze simulate on the same bench file writes truth.toml) and beside the
+// characterization from the simulator's exact reference (the dataset simulate writes).
+//
+// Tolerances. The batch fit's coefficient standard deviations come from its residual, which holds
+// the sensor noise (white 1e-4 g and pink 1.5e-3 g) and the fused reference's error (monitor WLS:
+// 5e-4 g per monitor over four monitors at 45 deg to x_E gives ~3.5e-4 g per sample on the shaker;
+// the table encoder's 1e-6 rad steps give ~1e-5 g of gravity direction): 5 sd covers both; the
+// pink noise makes the sd somewhat optimistic, so the bound is not tighter. Input axis: the exact
+// reference run on the same truth reaches e_exact; the fused reference adds its noise, bounded by
+// 0.1 deg (the paper's table 4 level on 1/10 of its samples).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+
+#include "analyzer/commands/truth_file.hpp"
+#include "analyzer/model/model_file.hpp"
+#include "analyzer/procedure/misalignment.hpp"
+#include "common/units.hpp"
+#include "tests/integration/daqd_harness.hpp"
+
+namespace inertia::daq::testing {
+namespace {
+
+std::string analyze_binary() { return std::string(INERTIA_BINARY_DIR) + "/bin/inertia-analyze"; }
+
+int run_command(const std::string& command, const fs::path& output) {
+  const int st = std::system((command + " > " + output.string() + " 2>&1").c_str());
+  return WIFEXITED(st) ? WEXITSTATUS(st) : 128;
+}
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+double coefficient(const model::ModelFile& m, const std::string& name, double* sd) {
+  for (const model::ModelTerm& t : m.terms) {
+    if (t.term.to_string() == name) {
+      if (sd) *sd = t.std.value_or(0.0);
+      return t.coefficient;
+    }
+  }
+  ADD_FAILURE() << "model has no term " << name;
+  return 0.0;
+}
+
+// "  case NAME: M_E^S input axis [+x +y +z]" lines of characterize's output.
+std::map<std::string, Eigen::Vector3d> input_axes(const std::string& out) {
+  std::map<std::string, Eigen::Vector3d> axes;
+  const std::regex line(R"(case (\S+): M_E\^S input axis \[([-+0-9.e]+) ([-+0-9.e]+) ([-+0-9.e]+)\])");
+  for (std::sregex_iterator it(out.begin(), out.end(), line), end; it != end; ++it)
+    axes[(*it)[1]] = Eigen::Vector3d(std::stod((*it)[2]), std::stod((*it)[3]), std::stod((*it)[4]));
+  return axes;
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return rad_to_deg(std::atan2(a.normalized().cross(b.normalized()).norm(), a.normalized().dot(b.normalized())));
+}
+
+TEST(LogCharacterize, DaqdLogToModelMatchesTheSimulatorTruth) {
+  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  TempDir tmp;
+  const std::string config = source_path("tests/integration/configs/log-paper-small.toml");
+  DaqdProcess daqd({"--config", config, "--fast", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+                   {}, tmp.path / "daqd.txt");
+  ASSERT_EQ(daqd.wait(900.0), 0) << daqd.output();
+  std::vector<fs::path> logs;
+  for (const auto& e : fs::directory_iterator(tmp.path / "log")) logs.push_back(e.path());
+  ASSERT_EQ(logs.size(), 1u);
+  const std::string log = logs[0].string();
+
+  // Truth, and the exact-reference characterization for comparison.
+  ASSERT_EQ(run_command(analyze_binary() + " simulate --bench " + config + " --out " + (tmp.path / "sim").string(),
+                        tmp.path / "simulate.txt"),
+            0)
+      << read_text(tmp.path / "simulate.txt");
+  const std::optional<commands::Truth> truth = commands::read_truth(tmp.path / "sim");
+  ASSERT_TRUE(truth.has_value());
+  ASSERT_EQ(run_command(analyze_binary() + " characterize --dataset " + (tmp.path / "sim").string() + " --out " +
+                            (tmp.path / "exact").string(),
+                        tmp.path / "exact.txt"),
+            0)
+      << read_text(tmp.path / "exact.txt");
+
+  ASSERT_EQ(run_command(analyze_binary() + " characterize --log " + log + " --out " + (tmp.path / "out").string() +
+                            " --dataset-out " + (tmp.path / "ds").string(),
+                        tmp.path / "characterize.txt"),
+            0)
+      << read_text(tmp.path / "characterize.txt");
+  const std::string out = read_text(tmp.path / "characterize.txt");
+  const model::ModelFile fused = model::read_model(tmp.path / "out" / "model.toml");
+  const model::ModelFile exact = model::read_model(tmp.path / "exact" / "model.toml");
+  EXPECT_TRUE(fs::exists(tmp.path / "ds" / "dataset.toml"));
+
+  for (const char* name : {"a_i", "1"}) {
+    SCOPED_TRACE(name);
+    double sd = 0.0, sd_exact = 0.0;
+    const double value = coefficient(fused, name, &sd);
+    const double value_exact = coefficient(exact, name, &sd_exact);
+    const double want = truth->terms.at(name);
+    std::cout << "[ figures ] " << name << ": truth " << want << ", log " << value << " +- " << sd << ", exact reference "
+              << value_exact << " +- " << sd_exact << "\n";
+    EXPECT_NEAR(value, want, 5 * sd);
+  }
+  const auto axes = input_axes(out);
+  const auto axes_exact = input_axes(read_text(tmp.path / "exact.txt"));
+  ASSERT_EQ(axes.size(), 4u) << out;
+  for (const auto& [name, axis] : axes) {
+    SCOPED_TRACE(name);
+    const Eigen::Vector3d want = truth->m_es.at(name).row(0).transpose();
+    const double e = angle_deg(axis, want);
+    const double e_exact = axes_exact.count(name) ? angle_deg(axes_exact.at(name), want) : -1.0;
+    std::cout << "[ figures ] " << name << ": input axis error " << e << " deg from the log, " << e_exact
+              << " deg from the exact reference\n";
+    EXPECT_LT(e, 0.1);
+  }
+
+  // diagnose on the same log with the model just characterized.
+  const fs::path json = tmp.path / "diag.json";
+  ASSERT_EQ(run_command(analyze_binary() + " diagnose --model " + (tmp.path / "out" / "model.toml").string() +
+                            " --log " + log + " --json " + json.string(),
+                        tmp.path / "diagnose.txt"),
+            0)
+      << read_text(tmp.path / "diagnose.txt");
+  const nlohmann::json j = nlohmann::json::parse(read_text(json));
+  std::cout << "[ figures ] diagnose: " << j["findings"].size() << " finding(s), "
+            << j["case_misalignments"].size() << " case misalignment finding(s)\n"
+            << read_text(tmp.path / "diagnose.txt");
+  // A finding must be justified: significant at the level the search demanded.
+  for (const auto& f : j["findings"]) EXPECT_LT(f["p_value"].get<double>(), f["p_needed"].get<double>()) << f.dump();
+
+  // Bad input: exit 2 naming the file.
+  const fs::path junk = tmp.path / "junk.lcmlog";
+  std::ofstream(junk) << "not a log";
+  ASSERT_EQ(run_command(analyze_binary() + " characterize --log " + junk.string() + " --out " + (tmp.path / "x").string(),
+                        tmp.path / "junk.txt"),
+            2);
+  EXPECT_NE(read_text(tmp.path / "junk.txt").find("not an LCM event log"), std::string::npos);
+  ASSERT_EQ(run_command(analyze_binary() + " characterize --log " + log + " --sensor nosuch --out " +
+                            (tmp.path / "x").string(),
+                        tmp.path / "sensor.txt"),
+            2);
+  EXPECT_NE(read_text(tmp.path / "sensor.txt").find("unknown sensor 'nosuch'"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace inertia::daq::testing
