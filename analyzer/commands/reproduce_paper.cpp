@@ -86,12 +86,16 @@ struct CaseScore {
   double verification_variance_measured_g2 = NAN; // vs the measured (noisy) output
   std::map<std::string, double> coefficients_per_g;
   std::vector<std::string> terms;
+  /// "case/phase" -> its share of verification_variance_g2 (sum of its squared deviations from
+  /// the overall mean over all samples): where the verification error sits.
+  std::map<std::string, double> verification_breakdown_g2;
 };
 
 /// Table 4's verification: the identified model fed with every case's references mapped to F_S
 /// with the TRUE misalignment (as the paper does), compared with the sensor's output.
 void verify(const dataset::Dataset& data, const PipelineResult& result, const SeedTruth& truth, CaseScore& score) {
   std::vector<double> clean_err, measured_err;
+  std::vector<std::string> where;   // "case/phase" of every sample of clean_err
   const Eigen::VectorXd theta = result.fit.process_theta();
   for (std::size_t c = 0; c < data.cases.size(); ++c) {
     const ident::SignalSet signals = ident::signals_from_case(data.cases[c], truth.m_es[c], data.t_ref, "paper");
@@ -103,6 +107,10 @@ void verify(const dataset::Dataset& data, const PipelineResult& result, const Se
     const Eigen::VectorXd e_meas = (y_model - data.cases[c].y.tail(rows)) / truth.k_i;
     clean_err.insert(clean_err.end(), e_clean.data(), e_clean.data() + rows);
     measured_err.insert(measured_err.end(), e_meas.data(), e_meas.data() + rows);
+    const dataset::CaseData& cd = data.cases[c];
+    for (Eigen::Index k = cd.size() - rows; k < cd.size(); ++k) {
+      where.push_back(cd.phase.empty() ? cd.name : cd.name + "/" + cd.phase_names[cd.phase[static_cast<std::size_t>(k)]]);
+    }
   }
   const auto variance = [](const std::vector<double>& e) {
     const Eigen::Map<const Eigen::VectorXd> v(e.data(), static_cast<Eigen::Index>(e.size()));
@@ -110,6 +118,14 @@ void verify(const dataset::Dataset& data, const PipelineResult& result, const Se
   };
   score.verification_variance_g2 = variance(clean_err);
   score.verification_variance_measured_g2 = variance(measured_err);
+  double mean = 0.0;
+  for (double e : clean_err) mean += e;
+  mean /= static_cast<double>(std::max<std::size_t>(1, clean_err.size()));
+  score.verification_breakdown_g2.clear();
+  for (std::size_t i = 0; i < clean_err.size(); ++i) {
+    score.verification_breakdown_g2[where[i]] +=
+        (clean_err[i] - mean) * (clean_err[i] - mean) / static_cast<double>(std::max<std::size_t>(1, clean_err.size() - 1));
+  }
 }
 
 CaseScore score_case(const dataset::Dataset& data, const PipelineResult& result, const SeedTruth& truth) {
@@ -244,6 +260,20 @@ int run_reproduce_paper(const ReproducePaperOptions& options, std::ostream& out)
                c <= 3 ? fmt::format("{:.3g}", kPaperTable4[c - 1]) : std::string("not run"));
   }
   fmt::print(out, "case 4 model (seed {}): {}\n", options.seeds.front(), fmt::join(scores["case4"].front().terms, " "));
+  // Where the verification error of cases 3 and 4 sits: each case/phase's share of the variance.
+  const auto med_share = [&](const std::string& c, const std::string& where) {
+    std::vector<double> v;
+    for (const CaseScore& s : scores[c]) {
+      const auto it = s.verification_breakdown_g2.find(where);
+      v.push_back(it == s.verification_breakdown_g2.end() ? 0.0 : it->second);
+    }
+    return median(v);
+  };
+  fmt::print(out, "\nTable 4 by case/phase (median share of the variance, g^2)   case 3       case 4\n");
+  for (const auto& [where, value] : scores["case4"].front().verification_breakdown_g2) {
+    (void)value;
+    fmt::print(out, "  {:<52} {:>10.3e}   {:>10.3e}\n", where, med_share("case3", where), med_share("case4", where));
+  }
 
   if (!options.json.empty()) {
     nlohmann::json j;
@@ -261,6 +291,12 @@ int run_reproduce_paper(const ReproducePaperOptions& options, std::ostream& out)
         (void)value;
         const double m = med_coef(name, term);
         if (std::isfinite(m)) j["table3"][name][term] = m;
+      }
+    }
+    for (const char* name : {"case3", "case4"}) {
+      for (const auto& [where, value] : scores[name].front().verification_breakdown_g2) {
+        (void)value;
+        j["table4_breakdown"][name][where] = med_share(name, where);
       }
     }
     std::ofstream file(options.json);
