@@ -57,6 +57,10 @@ struct DeviceSlot {
   // its samples are marked invalid until the value moves (0: off; only for channels that always
   // carry noise, e.g. accelerometers digitised below their noise floor).
   std::uint32_t stuck_samples = 0;
+  // Fast simulated runs only: the sampling thread waits for room in the ring instead of dropping,
+  // which backs up into the wire and paces the simulator (a bench that waits for the reader).
+  // Never on real devices: their hot path counts a full ring as a drop and never waits.
+  bool backpressure = false;
   SpscRing<RingSample> ring;
 
   // Written by the sampling thread (relaxed: counters, read for status only).

@@ -181,6 +181,9 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
   if ((rt.fifo_priority > 0 || rt.cpu >= 0) && !apply_realtime(rt, &why))
     std::cerr << "inertia-daqd: warning: " << slot_->name << ": " << why << "running without it\n";
   RingSink ring_sink(*slot_);
+  // Room for what one read_into() call can push (bounded by the device's records per call; a
+  // quarter ring is well above that for the simulated devices that use backpressure).
+  auto room_for_a_read = [this] { return slot_->ring.capacity() - slot_->ring.size_approx() >= slot_->ring.capacity() / 4; };
   TriggerRowSink row_sink(ring_sink, encoder_ != nullptr ? encoder_->trigger_channel() : -1);
   hal::SampleSink& sink = trigger_rows_ ? static_cast<hal::SampleSink&>(row_sink) : ring_sink;
 
@@ -202,6 +205,16 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
     // Drain: read_into is bounded per call, so loop until nothing is pending.
     std::size_t got = 0;
     for (int i = 0; i < 64; ++i) {
+      if (slot_->backpressure && !room_for_a_read()) {
+        if (i == 0) {
+          timespec ts{0, 200'000};  // the publisher frees a quarter ring in far less
+          ::nanosleep(&ts, nullptr);
+          slot_->heartbeat.fetch_add(1, std::memory_order_relaxed);
+          i = -1;
+          continue;
+        }
+        break;
+      }
       const std::size_t n = device_->read_into(sink);
       ring_sink.flush();  // the publisher sees this call's samples now, not after the drain
       got += n;

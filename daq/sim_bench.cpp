@@ -101,6 +101,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     const int fd = device->wait_fd();
     auto slot = std::make_shared<DeviceSlot>("accel", std::move(info), s->rate_hz_, ring_capacity);
     slot->sim_time_base = true;
+    slot->backpressure = options.fast;
     slot->time_index_channel = static_cast<int>(n);
     slot->stuck_samples = kSimStuckSamples;
     s->can_slot_ = slot;
@@ -135,6 +136,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     next_id += 2;
     auto slot = std::make_shared<DeviceSlot>(name, std::move(info), s->rate_hz_, ring_capacity);
     slot->sim_time_base = true;
+    slot->backpressure = options.fast;
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::move(fds), slot, true));
     s->encoders_.push_back(std::move(e));
     return true;

@@ -206,6 +206,7 @@ struct FastRun {
   bool ok = false;
   std::string error;
   double seconds = 0, channel_samples = 0, daemon_count_minus_log = 0, gaps = 0, log_lost = 0, cpu_s = 0;
+  double ring_drops = 0;  // samples a full ring refused: lost before any block, so no seq gap shows them
 };
 
 FastRun fast_run(const char* config, const std::string& binary) {
@@ -225,6 +226,8 @@ FastRun fast_run(const char* config, const std::string& binary) {
   r.daemon_count_minus_log = summary_number(out, "  run:", "channel-samples") - r.channel_samples;
   r.gaps = static_cast<double>(log.gaps);
   r.log_lost = static_cast<double>(summary_value(out, "  log:", "lost"));
+  for (const char* d : {"  accel:", "  linear_encoder:", "  controller:"})
+    if (out.find(d) != std::string::npos) r.ring_drops += static_cast<double>(summary_value(out, d, "ring drops"));
   r.cpu_s = daqd.cpu_seconds();
   r.ok = true;
   return r;
@@ -252,6 +255,7 @@ void run_fast(benchmark::State& state, const char* config) {
     state.counters["daemon_count_minus_log"] = r.daemon_count_minus_log;
     state.counters["log_seq_gaps"] = r.gaps;
     state.counters["log_lost"] = r.log_lost;
+    state.counters["ring_drops"] = r.ring_drops;
     state.counters["cpu_percent_of_one_core"] = 100.0 * r.cpu_s / std::max(r.seconds, 1e-9);
     state.counters["cpu_s_per_M_channel_samples"] = cpu_per_m;
     if (peer != nullptr && *peer != '\0') {
