@@ -11,6 +11,7 @@
 
 #include "analyzer/commands/characterize.hpp"
 #include "analyzer/commands/diagnose.hpp"
+#include "analyzer/commands/online.hpp"
 #include "analyzer/commands/reproduce_paper.hpp"
 #include "common/input_error.hpp"
 #include "hal/sim/simulate.hpp"
@@ -31,6 +32,20 @@ std::map<std::string, double> parse_weights(const std::vector<std::string>& pair
     weights[pair.substr(0, eq)] = w;
   }
   return weights;
+}
+
+/// --model values of `online`: "SENSOR=FILE" or "FILE" (the bench's only sensor).
+std::map<std::string, std::filesystem::path> parse_models(const std::vector<std::string>& values) {
+  std::map<std::string, std::filesystem::path> models;
+  for (const std::string& v : values) {
+    const auto eq = v.find('=');
+    const bool named = eq != std::string::npos && v.substr(0, eq).find('/') == std::string::npos;
+    const std::string sensor = named ? v.substr(0, eq) : std::string();
+    const std::string file = named ? v.substr(eq + 1) : v;
+    if (file.empty() || (named && sensor.empty())) throw inertia::InputError("--model '" + v + "': expected [SENSOR=]MODEL.toml");
+    if (!models.emplace(sensor, file).second) throw inertia::InputError("--model '" + v + "': sensor given twice");
+  }
+  return models;
 }
 
 int run(int argc, char** argv) {
@@ -86,6 +101,16 @@ int run(int argc, char** argv) {
   diagnose->add_option("--summary", diagnose_options.log, "also write the console summary to this file");
   diagnose->add_option("--alpha", diagnose_options.alpha, "family-wise significance level of each search step")->capture_default_str();
 
+  inertia::commands::OnlineCommandOptions online_options;
+  std::vector<std::string> online_models;
+  auto* online = app.add_subcommand("online", "live: fuse the daemon's stream, recursive ULS per sensor, publish INERTIA_ESTIMATE_*");
+  online->add_option("--config", online_options.config, "the bench file inertia-daqd runs")->required();
+  online->add_option("--model", online_models, "[SENSOR=]MODEL.toml: terms and M_C^S to track (default: the paper's complete static model)");
+  online->add_option("--duration", online_options.duration_s, "stop after S seconds (default: until SIGINT/SIGTERM)");
+  online->add_option("--publish-hz", online_options.publish_hz, "estimate publishing rate")->capture_default_str();
+  online->add_option("--forgetting", online_options.forgetting, "recursive ULS forgetting factor lambda in (0, 1]")->capture_default_str();
+  online->add_option("--lcm-url", online_options.lcm_url, "LCM provider (default: $LCM_DEFAULT_URL or LCM's default)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -95,6 +120,10 @@ int run(int argc, char** argv) {
 
   if (simulate->parsed()) return inertia::sim::run_simulate(bench_path, out_dir, std::cout);
   if (diagnose->parsed()) return inertia::commands::run_diagnose(diagnose_options, std::cout);
+  if (online->parsed()) {
+    online_options.models = parse_models(online_models);
+    return inertia::commands::run_online(online_options, std::cout);
+  }
   if (paper->parsed()) return inertia::commands::run_reproduce_paper(paper_options, std::cout);
   if (characterize->parsed()) {
     characterize_options.weights = parse_weights(weights);

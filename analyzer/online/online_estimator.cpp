@@ -212,16 +212,22 @@ OnlineSnapshot OnlineEstimator::snapshot() {
   const double k = s.values(scale_term_);
   s.misalignment_rad = Eigen::Vector3d(0.0, -s.values(cross_o_) / k, s.values(cross_p_) / k);
 
-  const bool enough = s.samples_used >= static_cast<std::int64_t>(options_.min_samples_per_term) * p;
-  bool settled = previous_values_.has_value();
-  if (settled) {
-    for (Index j = 0; j < p; ++j) {
-      const double moved = std::abs(s.values(j) - (*previous_values_)(j));
-      if (!(moved <= options_.converged_sigmas * s.std_devs(j))) settled = false;
+  // Judged on the newest data only: a snapshot without new samples keeps the previous verdict
+  // (time passing proves nothing), one with new samples compares with the estimate before them.
+  if (s.samples_used != previous_samples_) {
+    const bool enough = s.samples_used >= static_cast<std::int64_t>(options_.min_samples_per_term) * p;
+    bool settled = previous_values_.has_value();
+    if (settled) {
+      for (Index j = 0; j < p; ++j) {
+        const double moved = std::abs(s.values(j) - (*previous_values_)(j));
+        if (!(moved <= options_.converged_sigmas * s.std_devs(j))) settled = false;
+      }
     }
+    converged_ = enough && settled;
+    previous_values_ = s.values;
+    previous_samples_ = s.samples_used;
   }
-  s.converged = enough && settled;
-  previous_values_ = s.values;
+  s.converged = converged_;
   return s;
 }
 

@@ -34,8 +34,9 @@ namespace inertia::online {
 
 struct OnlineOptions {
   ident::RecursiveUlsOptions uls;   ///< forgetting factor, P0, ...
-  /// Convergence: every coefficient moved by less than this many of its own standard deviations
-  /// since the previous snapshot, and at least min_samples_per_term * terms samples were used.
+  /// Convergence: the samples that arrived since the previous snapshot moved every coefficient by
+  /// less than this many of its own standard deviations, and at least min_samples_per_term *
+  /// terms samples were used. A snapshot with no new samples keeps the previous verdict.
   double converged_sigmas = 2.0;
   int min_samples_per_term = 100;
 };
@@ -89,7 +90,9 @@ class OnlineEstimator {
   bool has_history_ = false;
   Eigen::VectorXd highpass_state_;  // per square term: previous input and output (2 per term)
   Eigen::VectorXd factors_;         // p_b of each output-multiplied column, per sample
-  std::optional<Eigen::VectorXd> previous_values_;
+  std::optional<Eigen::VectorXd> previous_values_;   // at the previous snapshot with new samples
+  std::int64_t previous_samples_ = 0;
+  bool converged_ = false;
 };
 
 }  // namespace inertia::online

@@ -168,12 +168,14 @@ TEST(OnlineEstimator, ConvergedOnlyOnceTheEstimateHasSettled) {
   EXPECT_FALSE(est.snapshot().converged);   // first snapshot with enough samples: nothing to compare with yet
   est.push(rows(c, 5100, 5000), true);
   EXPECT_TRUE(est.snapshot().converged);
+  EXPECT_TRUE(est.snapshot().converged);   // no new samples: the verdict stands
   // The sensor changes (scale factor +1%): the estimate moves by many standard deviations.
   dataset::CaseData changed = rows(c, 10100, 9900);
   set_output(changed, {ident::parse_term("1"), ident::parse_term("a_i")}, Eigen::Vector2d(2e-3, 0.0886),
              Eigen::Matrix3d::Identity(), 1e-3, 10);
   est.push(changed, true);
   EXPECT_FALSE(est.snapshot().converged);
+  EXPECT_FALSE(est.snapshot().converged);   // and waiting does not make it converge
 }
 
 TEST(OnlineEstimator, RejectsWhatTheLiveStreamCannotEstimate) {

@@ -1,0 +1,32 @@
+#pragma once
+// The LCM channel names of design.md ("LCM"), in one place: the daemon publishes them, the
+// analyzer subscribes to them and reads them from logs, and scripts outside the code tail them.
+#include <string>
+#include <string_view>
+
+namespace inertia::channels {
+
+inline constexpr std::string_view kEvent = "INERTIA_EVENT";     // plan_event_t
+inline constexpr std::string_view kStatus = "INERTIA_STATUS";   // daq_status_t, 1 Hz
+inline constexpr std::string_view kBench = "INERTIA_BENCH";     // bench_config_t (extension, README)
+inline constexpr std::string_view kRawPrefix = "INERTIA_RAW_";           // + device: sample_block_t
+inline constexpr std::string_view kEstimatePrefix = "INERTIA_ESTIMATE_"; // + sensor: model_estimate_t
+
+/// A bench name as a channel suffix: upper case, anything but [A-Z0-9_] becomes '_'
+/// ("ref_accel-1" -> "REF_ACCEL_1"), so channel names stay valid LCM regex literals.
+inline std::string channel_suffix(std::string_view name) {
+  std::string out;
+  out.reserve(name.size());
+  for (char c : name) {
+    const char u = (c >= 'a' && c <= 'z') ? static_cast<char>(c - 'a' + 'A') : c;
+    out += ((u >= 'A' && u <= 'Z') || (u >= '0' && u <= '9') || u == '_') ? u : '_';
+  }
+  return out;
+}
+
+inline std::string raw_channel(std::string_view device) { return std::string(kRawPrefix) + channel_suffix(device); }
+inline std::string estimate_channel(std::string_view sensor) {
+  return std::string(kEstimatePrefix) + channel_suffix(sensor);
+}
+
+}  // namespace inertia::channels
