@@ -416,7 +416,8 @@ int run_daemon(const DaemonOptions& command_line) {
             << static_cast<std::uint64_t>(static_cast<double>(channel_samples) / run_s) << "\n";
   std::cerr << "  lcm: messages " << publisher.messages() << ", publish failures " << publisher.publish_failures() << "\n";
   if (log)
-    std::cerr << "  log: messages " << log->messages_written() << ", lost " << log->messages_lost() << ", bytes "
+    std::cerr << "  log: messages " << log->messages_written() << ", lost " << log->messages_lost() << ", file headers "
+              << log->headers_written() << ", bytes "
               << log->bytes_written() << ", files " << log->files().size() << ", queue high-water "
               << log->queue_high_water() << ", fsync max " << log->fsync_max_ms() << " ms, disk full lost "
               << log->disk_full_lost() << "\n";

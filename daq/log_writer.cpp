@@ -79,6 +79,7 @@ bool LogWriter::open_next(std::string* why) {
       const std::uint64_t n = 28u + header_channel_.size() + header_data_.size();
       file_bytes_ += n;
       bytes_.fetch_add(n, std::memory_order_relaxed);
+      headers_.fetch_add(1, std::memory_order_relaxed);
     } else {
       write_errors_.fetch_add(1, std::memory_order_relaxed);
     }

@@ -70,7 +70,11 @@ class LogWriter {
   void request_rotate() noexcept { rotate_requested_.store(true, std::memory_order_relaxed); }
 
   // Counters, any thread.
+  /// Messages from the queue in the log (file headers not counted: see headers_written()).
   [[nodiscard]] std::uint64_t messages_written() const noexcept { return written_.load(std::memory_order_relaxed); }
+  /// File headers written (one per file opened while a header is set): the log's records are
+  /// messages_written() + headers_written().
+  [[nodiscard]] std::uint64_t headers_written() const noexcept { return headers_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t messages_lost() const noexcept { return lost_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t bytes_written() const noexcept { return bytes_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint32_t rotations() const noexcept { return rotations_.load(std::memory_order_relaxed); }
@@ -124,7 +128,7 @@ class LogWriter {
   std::atomic<std::uint64_t> disk_full_lost_{0};
   std::uint64_t full_since_lost_ = 0;   // disk_full_lost_ when the disk filled (writer thread)
   bool direct_ = false;                 // the FILE's buffer was flushed: records go straight to its fd
-  std::atomic<std::uint64_t> written_{0}, lost_{0}, bytes_{0}, write_errors_{0};
+  std::atomic<std::uint64_t> written_{0}, lost_{0}, bytes_{0}, write_errors_{0}, headers_{0};
   std::atomic<std::uint32_t> rotations_{0};
   std::atomic<std::uint64_t> fsync_last_us_{0}, fsync_max_us_{0};
   std::atomic<std::size_t> queue_high_water_{0};
