@@ -33,6 +33,40 @@ nlohmann::json rms_json(const diagnose::DiagnoseResult& r, const diagnose::Resid
   return {{"overall", s.overall}, {"cases", cases}};
 }
 
+/// location.bands / location.conditions: baseline and final side by side (same bands and bins).
+nlohmann::json location_json(const diagnose::DiagnoseResult& r) {
+  const diagnose::Location& b = r.location_before;
+  const diagnose::Location& a = r.location_after;
+  nlohmann::json bands = nlohmann::json::array();
+  for (std::size_t c = 0; c < b.bands.size() && c < a.bands.size(); ++c) {
+    nlohmann::json list = nlohmann::json::array();
+    for (std::size_t k = 0; k < b.bands[c].bands.size() && k < a.bands[c].bands.size(); ++k) {
+      auto one = [](const diagnose::BandTest& t) {
+        return nlohmann::json{{"residual_psd", t.residual_psd}, {"model_psd", t.model_psd}, {"ratio", t.ratio},
+                              {"dof", t.dof}, {"p_value", t.p_value}, {"excess", t.excess}};
+      };
+      const diagnose::BandTest& t = b.bands[c].bands[k];
+      list.push_back({{"f_lo_hz", t.f_lo_hz}, {"f_hi_hz", t.f_hi_hz}, {"bins", t.bins},
+                      {"baseline", one(t)}, {"final", one(a.bands[c].bands[k])}});
+    }
+    bands.push_back({{"case", r.case_names[b.bands[c].case_index]}, {"sample_rate_hz", b.bands[c].sample_rate_hz},
+                     {"segment_length", b.bands[c].segment_length}, {"segments", b.bands[c].segments},
+                     {"bands", list}});
+  }
+  nlohmann::json conditions = nlohmann::json::array();
+  for (std::size_t k = 0; k < b.conditions.size() && k < a.conditions.size(); ++k) {
+    auto one = [](const diagnose::ConditionBin& t) {
+      return nlohmann::json{{"rms", t.rms}, {"expected_rms", t.expected_rms}, {"ratio", t.ratio}, {"dof", t.dof},
+                            {"p_value", t.p_value}, {"excess", t.excess}};
+    };
+    const diagnose::ConditionBin& t = b.conditions[k];
+    conditions.push_back({{"quantity", t.quantity}, {"unit", t.quantity == "T" ? "degC" : "g"}, {"lo", t.lo},
+                          {"hi", t.hi > 1e299 ? nlohmann::json(nullptr) : nlohmann::json(t.hi)}, {"samples", t.samples},
+                          {"baseline", one(t)}, {"final", one(a.conditions[k])}});
+  }
+  return {{"bands", bands}, {"conditions", conditions}, {"verdict", {{"baseline", b.verdict}, {"final", a.verdict}}}};
+}
+
 }  // namespace
 
 int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
@@ -70,12 +104,20 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
   j["final"]["residual_rms"] = rms_json(r, r.steps.back());
   if (r.refit_only) j["refit_only"]["residual_rms"] = rms_json(r, *r.refit_only);
   j["final"]["model_file"] = model_out.string();
+  j["location"] = location_json(r);
   j["findings"] = nlohmann::json::array();
   for (const diagnose::Finding& f : r.findings) {
     j["findings"].push_back({{"term", f.term}, {"effect", f.effect}, {"coefficient", f.coefficient}, {"std", f.std},
                              {"t", f.t}, {"p_value", f.p_value}, {"p_needed", f.threshold_p}, {"err", f.err},
                              {"delta_aic", f.delta_aic}, {"ar_order", f.ar_order},
                              {"where", {{"case", f.where_case}, {"phase", f.where_phase}, {"rms", f.where_rms}}}});
+  }
+  j["case_misalignments"] = nlohmann::json::array();
+  for (const diagnose::Finding& f : r.case_misalignments) {
+    j["case_misalignments"].push_back({{"mounting", f.mounting}, {"cases", f.mounting_cases},
+                                       {"axis", std::string(1, "xyz"[f.axis])}, {"effect", f.effect},
+                                       {"angle_deg", f.angle_deg}, {"angle_std_deg", f.angle_std_deg}, {"t", f.t},
+                                       {"p_value", f.p_value}, {"p_needed", f.threshold_p}});
   }
   j["steps"] = nlohmann::json::array();
   for (const diagnose::ResidualSummary& s : r.steps) {
@@ -96,10 +138,16 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
              data.cases.size(), model.terms.size(), r.library.size());
   fmt::print(log, "residual RMS overall: baseline {:.5g} {}, final {:.5g} {} (noise reference {:.4g})\n",
              r.steps.front().overall, data.output_unit, r.steps.back().overall, data.output_unit, r.noise_reference);
+  fmt::print(log, "location (baseline): {}\n", r.location_before.verdict);
+  fmt::print(log, "location (final): {}\n", r.location_after.verdict);
   if (r.findings.empty()) fmt::print(log, "no significant missing effect\n");
   for (const diagnose::Finding& f : r.findings) {
     fmt::print(log, "found {:<14} ({}): {:.6g} +- {:.3g}, t = {:.1f}, acts most in {}/{}\n", f.term, f.effect,
                f.coefficient, f.std, f.t, f.where_case, f.where_phase);
+  }
+  for (const diagnose::Finding& f : r.case_misalignments) {
+    fmt::print(log, "found {} about case {}: {:.4f} +- {:.2g} deg, t = {:.1f}\n", f.effect, "xyz"[f.axis], f.angle_deg,
+               f.angle_std_deg, f.t);
   }
   fmt::print(log, "wrote {}, {}\n", options.json.string(), model_out.string());
   if (!options.report.empty()) {

@@ -67,6 +67,18 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
     }
     md << "\n";
   }
+  if (!r.case_misalignments.empty()) {
+    md << "## Case misalignments (test setup, not sensor effects)\n\n"
+          "A rotation of a mounting (cases sharing a `mounting` label) about a case axis that the dataset's nominal "
+          "m_ec does not hold; estimated on the exact rotated references, not added to the model file.\n\n";
+    md << "| mounting | cases | axis | angle (deg) | std (deg) | t | p | p needed |\n|---|---|---|---|---|---|---|---|\n";
+    for (const Finding& f : r.case_misalignments) {
+      md << fmt::format("| {} | {} | {} | {:.5f} | {:.2g} | {:.1f} | {:.2g} | {:.2g} |\n", f.mounting,
+                        fmt::join(f.mounting_cases, ", "), "xyz"[f.axis], f.angle_deg, f.angle_std_deg, f.t, f.p_value,
+                        f.threshold_p);
+    }
+    md << "\n";
+  }
   if (!r.held_fixed.empty()) {
     md << fmt::format("Held at their given values (the data cannot estimate them): {}.\n\n",
                       fmt::join(r.held_fixed, ", "));
@@ -100,6 +112,43 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
   for (const ResidualSummary& s : r.steps) md << fmt::format(" {:.4g} |", s.overall);
   md << "\n\n";
 
+  const Location& lb = r.location_before;
+  const Location& la = r.location_after;
+  md << "## Location by frequency band\n\n";
+  md << fmt::format("Residual Welch PSD (Hann, 50% overlap) against the PSD the model's noise explains (white_sd "
+                    "through its noise terms e[k-j] and output lags y[k-j]), per octave band; ratio = residual / model "
+                    "power; chi-square with the Welch dof, `excess` below alpha / all bands of all cases.\n\n"
+                    "Baseline: {}.\n\nFinal: {}.\n\n",
+                    lb.verdict, la.verdict);
+  for (std::size_t c = 0; c < lb.bands.size() && c < la.bands.size(); ++c) {
+    const CaseBands& b = lb.bands[c];
+    if (b.bands.empty()) continue;
+    md << fmt::format("Case {} ({:.6g} Hz, {} segments of {}):\n\n", r.case_names[b.case_index], b.sample_rate_hz,
+                      b.segments, b.segment_length);
+    md << "| band (Hz) | dof | ratio before | p before | ratio after | p after |\n|---|---|---|---|---|---|\n";
+    for (std::size_t k = 0; k < b.bands.size() && k < la.bands[c].bands.size(); ++k) {
+      const BandTest& x = b.bands[k];
+      const BandTest& y = la.bands[c].bands[k];
+      md << fmt::format("| {:.4g}-{:.4g} | {:.0f} | {:.3g} | {:.2g}{} | {:.3g} | {:.2g}{} |\n", x.f_lo_hz, x.f_hi_hz, x.dof,
+                        x.ratio, x.p_value, x.excess ? " excess" : "", y.ratio, y.p_value, y.excess ? " excess" : "");
+    }
+    md << "\n";
+  }
+  md << "## Location by condition\n\n";
+  md << "Residual RMS per bin of reference specific-force magnitude |a| and of temperature, against the RMS of the "
+        "model's noise; chi-square, `excess` below alpha / number of bins.\n\n";
+  md << "| quantity | bin | samples | expected RMS | RMS before | ratio | p | RMS after | ratio | p |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n";
+  for (std::size_t k = 0; k < lb.conditions.size() && k < la.conditions.size(); ++k) {
+    const ConditionBin& x = lb.conditions[k];
+    const ConditionBin& y = la.conditions[k];
+    const std::string bin = x.hi > 1e299 ? fmt::format(">= {:.3g}", x.lo) : fmt::format("{:.3g}-{:.3g}", x.lo, x.hi);
+    md << fmt::format("| {} ({}) | {} | {} | {:.4g} | {:.4g} | {:.3g} | {:.2g}{} | {:.4g} | {:.3g} | {:.2g}{} |\n", x.quantity,
+                      x.quantity == "T" ? "degC" : "g", bin, x.samples, x.expected_rms, x.rms, x.ratio, x.p_value,
+                      x.excess ? " excess" : "", y.rms, y.ratio, y.p_value, y.excess ? " excess" : "");
+  }
+  md << "\n";
+
   if (plots) {
     const std::filesystem::path dir = out / "plots";
     std::filesystem::create_directories(dir);
@@ -127,10 +176,49 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
                       "set ylabel 'RMS ({})'\nplot '{}' using 2:xtic(1) title 'baseline', '' using 3 title 'final', "
                       "{} with lines lc rgb 'black' title 'noise reference'\n",
                       (dir / "segments.png").string(), unit, (dir / "segments.dat").string(), r.noise_reference);
+    // Spectra: baseline and final residual PSD with the model's noise PSD, log-log.
+    gp << "unset style\nset style data lines\nset xtics norotate\nset logscale xy\nset xlabel 'f (Hz)'\n";
+    gp << fmt::format("set ylabel 'PSD ({}^2/Hz)'\n", unit);
+    std::vector<std::string> spectra;
+    for (std::size_t c = 0; c < lb.bands.size() && c < la.bands.size(); ++c) {
+      const CaseBands& b = lb.bands[c];
+      if (b.plot_f.size() == 0 || b.plot_f.size() != la.bands[c].plot_f.size()) continue;
+      const std::string name = "psd_" + slug(r.case_names[b.case_index]);
+      {
+        std::ofstream f(dir / (name + ".dat"));
+        for (Eigen::Index k = 0; k < b.plot_f.size(); ++k) {
+          f << fmt::format("{:.6g} {:.6g} {:.6g} {:.6g}\n", b.plot_f(k), b.plot_psd(k), la.bands[c].plot_psd(k), b.plot_model(k));
+        }
+      }
+      gp << fmt::format("set output '{}'\nset title 'residual PSD, case {}'\n", (dir / (name + ".png")).string(),
+                        r.case_names[b.case_index]);
+      gp << fmt::format("plot '{0}' using 1:2 lc rgb '#cc4444' title 'baseline', '{0}' using 1:3 lc rgb '#2255aa' "
+                        "title 'final', '{0}' using 1:4 lc rgb 'black' dt 2 title 'model noise'\n",
+                        (dir / (name + ".dat")).string());
+      spectra.push_back(r.case_names[b.case_index]);
+    }
+    if (!lb.conditions.empty() && lb.conditions.size() == la.conditions.size()) {
+      {
+        std::ofstream f(dir / "conditions.dat");
+        for (std::size_t k = 0; k < lb.conditions.size(); ++k) {
+          const ConditionBin& x = lb.conditions[k];
+          const std::string bin = x.hi > 1e299 ? fmt::format(">={:.3g}", x.lo) : fmt::format("{:.3g}-{:.3g}", x.lo, x.hi);
+          f << fmt::format("\"{} {}\" {:.6g} {:.6g}\n", x.quantity, bin, x.ratio, la.conditions[k].ratio);
+        }
+      }
+      gp << fmt::format("set output '{}'\nset title 'residual RMS / model noise RMS per condition bin'\n"
+                        "unset logscale x\nset logscale y\nset style data histograms\nset style histogram clustered\n"
+                        "set style fill solid 0.8\nset xtics rotate by -45\nunset xlabel\nset ylabel 'RMS ratio'\n"
+                        "plot '{}' using 2:xtic(1) title 'baseline', '' using 3 title 'final', 1 with lines lc rgb "
+                        "'black' title 'model noise'\n",
+                        (dir / "conditions.png").string(), (dir / "conditions.dat").string());
+    }
     gp.close();
     md << "## Plots\n\n";
     if (run_gnuplot(dir / "residuals.gp")) {
       md << "![RMS per segment](plots/segments.png)\n\n";
+      for (const std::string& c : spectra) md << fmt::format("![PSD {0}](plots/psd_{1}.png)\n\n", c, slug(c));
+      if (!lb.conditions.empty()) md << "![RMS per condition](plots/conditions.png)\n\n";
       for (const std::string& c : r.case_names) md << fmt::format("![residual {0}](plots/residual_{1}.png)\n\n", c, slug(c));
     } else {
       md << "gnuplot did not run (is `gnuplot` installed?): the data files and scripts are in plots/.\n";

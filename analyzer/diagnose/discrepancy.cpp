@@ -2,10 +2,13 @@
 
 #include <boost/math/distributions/chi_squared.hpp>
 #include <boost/math/distributions/fisher_f.hpp>
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <optional>
 
 #include "analyzer/ident/err.hpp"
@@ -14,6 +17,7 @@
 #include "analyzer/ident/uls_batch.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
+#include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
 #include "common/input_error.hpp"
 
@@ -39,7 +43,70 @@ struct Workspace {
   /// of the search (least squares, the residual's autocovariance, the AR-whitened GLS refit) is a
   /// quadratic form in these, so after this one pass no fit touches the data again.
   std::vector<Eigen::MatrixXd> lagged;
+  /// Per column: the mounting rotation it stands for (mounting, case-frame axis), or -1 for a term.
+  std::vector<std::pair<int, int>> rotation_of;
+  std::vector<int> case_mounting;            // per case: index into MountingState
+  /// The measured output. stack.y (and the y row of `lagged`) is the regression's output: the
+  /// measured one minus the second-order remainder of the mounting rotations (set_output).
+  Eigen::VectorXd y_measured;
 };
+
+/// Sets the regression output and its rows of the lagged Gram matrices (O(N p) per lag).
+void set_output(Workspace& w, const Eigen::VectorXd& y) {
+  w.stack.y = y;
+  const Index p = w.stack.phi.cols();
+  for (std::size_t l = 0; l < w.lagged.size(); ++l) {
+    const auto lag = static_cast<Index>(l);
+    Eigen::MatrixXd& c = w.lagged[l];
+    c.col(p).setZero();
+    c.row(p).setZero();
+    for (const procedure::CaseRows& cr : w.stack.cases) {
+      if (cr.rows <= lag) continue;
+      const auto now = w.stack.phi.middleRows(cr.begin + lag, cr.rows - lag);
+      const auto before = w.stack.phi.middleRows(cr.begin, cr.rows - lag);
+      const auto y_now = y.segment(cr.begin + lag, cr.rows - lag);
+      const auto y_before = y.segment(cr.begin, cr.rows - lag);
+      c.col(p).head(p).noalias() += now.transpose() * y_before;
+      c.row(p).head(p).noalias() += (before.transpose() * y_now).transpose();
+      c(p, p) += y_now.dot(y_before);
+    }
+  }
+}
+
+/// The mountings of a dataset: cases sharing a `mounting` label, else each case its own. A
+/// mounting's rotation (rotation vector delta, case frame) enters as M_E^S = m_cs R(delta) m_ec.
+struct MountingState {
+  std::vector<std::string> names;
+  std::vector<std::vector<std::string>> cases;
+};
+
+MountingState mountings_of(const dataset::Dataset& data) {
+  MountingState m;
+  for (const dataset::CaseData& c : data.cases) {
+    const std::string name = c.mounting.empty() ? c.name : c.mounting;
+    auto it = std::find(m.names.begin(), m.names.end(), name);
+    if (it == m.names.end()) {
+      m.names.push_back(name);
+      m.cases.emplace_back();
+      it = m.names.end() - 1;
+    }
+    m.cases[static_cast<std::size_t>(it - m.names.begin())].push_back(c.name);
+  }
+  return m;
+}
+
+int mounting_index(const MountingState& m, const dataset::CaseData& c) {
+  const std::string name = c.mounting.empty() ? c.name : c.mounting;
+  return static_cast<int>(std::find(m.names.begin(), m.names.end(), name) - m.names.begin());
+}
+
+Eigen::Matrix3d small_rotation(const Eigen::Vector3d& v) {
+  const double angle = v.norm();
+  if (angle == 0.0) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, v / angle).toRotationMatrix();
+}
+
+
 
 /// Statistics of a polynomial fit from its Gram matrix, as UlsStatistics::from_data builds them
 /// from data (RMS-scaled), so solve_uls gives the estimate and its identifiability check.
@@ -273,8 +340,64 @@ ColumnFit fit_columns(const Workspace& w, const std::vector<Index>& fit,
   }
 }
 
-Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& model, const DiagnoseOptions& options,
-                          const std::string& label) {
+/// Appends, per mounting and case axis, the column d(model output)/d(angle): the model's input
+/// terms (no output or noise terms: in the equation-error regression the output is measured, not
+/// rotated) on the references rotated by +-h about that axis, differenced. Zero outside the
+/// mounting's cases. A column with no energy (an axis the data cannot see) is left out.
+void add_rotation_columns(Workspace& w, const dataset::Dataset& data, const model::ModelFile& current,
+                          const MountingState& mountings) {
+  std::vector<Term> terms;
+  std::vector<double> theta;
+  for (const model::ModelTerm& t : current.terms) {
+    if (t.term.is_noise_term() || t.term.uses(ident::Variable::Y)) continue;
+    terms.push_back(t.term);
+    theta.push_back(t.coefficient);
+  }
+  if (terms.empty()) return;
+  const Eigen::Map<const Eigen::VectorXd> th(theta.data(), static_cast<Index>(theta.size()));
+  constexpr double kStep = 1e-3;   // rad; central differences are exact up to second-order terms
+  for (std::size_t m = 0; m < mountings.names.size(); ++m) {
+    for (int axis = 0; axis < 3; ++axis) {
+      Eigen::VectorXd col = Eigen::VectorXd::Zero(w.stack.y.size());
+      for (const procedure::CaseRows& c : w.stack.cases) {
+        if (w.case_mounting[c.case_index] != static_cast<int>(m)) continue;
+        const dataset::CaseData& cd = data.cases[c.case_index];
+        Eigen::VectorXd diff = Eigen::VectorXd::Zero(c.rows);
+        for (const double sign : {1.0, -1.0}) {
+          const Eigen::Matrix3d m_es =
+              current.m_cs * small_rotation(sign * kStep * Eigen::Vector3d::Unit(axis)) * cd.m_ec;
+          const ident::SignalSet s = ident::signals_from_case(cd, m_es, data.t_ref);
+          Eigen::MatrixXd phi(c.rows, static_cast<Index>(terms.size()));
+          ident::fill_regressors(terms, s, c.first_sample, phi);
+          if (current.square_highpass_rad_s) {
+            for (std::size_t j = 0; j < terms.size(); ++j) {
+              if (procedure::is_square_term(terms[j])) {
+                procedure::highpass_in_place(phi.col(static_cast<Index>(j)), *current.square_highpass_rad_s,
+                                             cd.sample_period_s);
+              }
+            }
+          }
+          diff += sign * (phi * th);
+        }
+        col.segment(c.begin, c.rows) = diff / (2.0 * kStep);
+      }
+      if (!(col.squaredNorm() > 0.0)) continue;
+      const Index j = w.stack.phi.cols();
+      w.stack.phi.conservativeResize(Eigen::NoChange, j + 1);
+      w.stack.phi.col(j) = col;
+      w.columns.emplace_back();   // placeholder: the column is no model term
+      w.labels.push_back("rotation(" + mountings.names[m] + ", " + "xyz"[axis] + ")");
+      w.rotation_of.emplace_back(static_cast<int>(m), axis);
+    }
+  }
+}
+
+/// The workspace on the nominal references. `model` gives the columns (the given model's terms,
+/// then the library); `current` gives the mounting-rotation columns: the sensitivity of its input
+/// terms to a small rotation of each mounting about each case axis, by central differences
+/// (exact for terms up to second order in the inputs).
+Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& model, const model::ModelFile& current,
+                          const MountingState& mountings, const DiagnoseOptions& options, const std::string& label) {
   Workspace w;
   for (const model::ModelTerm& t : model.terms) {
     if (!t.term.is_noise_term()) w.columns.push_back(t.term);
@@ -288,16 +411,33 @@ Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& 
   std::vector<procedure::StackInput> inputs;
   for (std::size_t i = 0; i < data.cases.size(); ++i) {
     const dataset::CaseData& c = data.cases[i];
+    w.case_mounting.push_back(mounting_index(mountings, c));
     const Eigen::Matrix3d m_es = model.m_cs * c.m_ec;
     inputs.push_back({i, &c, m_es, 1.0});
     w.signals.push_back(ident::signals_from_case(c, m_es, data.t_ref, label));
     w.sample_period_s.push_back(c.sample_period_s);
+    // Noise terms e[k-j] describe the residual, not an input: the simulation drops them, so they
+    // need no column (characterize writes them whenever it fits an MA part).
     std::vector<Term> model_terms;
-    for (const model::ModelTerm& t : model.terms) model_terms.push_back(t.term);
+    for (const model::ModelTerm& t : model.terms) {
+      if (!t.term.is_noise_term()) model_terms.push_back(t.term);
+    }
     ident::check_signals(model_terms, w.signals.back());   // InputError naming term, column, case
     if (c.size() <= w.first_row + 1) throw InputError("case '" + c.name + "' of dataset " + label + " is too short");
   }
   w.stack = procedure::stack_regressions(w.columns, inputs, data.t_ref, label, w.first_row);
+  w.rotation_of.assign(w.columns.size(), {-1, -1});
+  // The squares pass the model's high pass, as in its simulation (same filter, same first row).
+  if (model.square_highpass_rad_s) {
+    for (std::size_t j = 0; j < w.columns.size(); ++j) {
+      if (!procedure::is_square_term(w.columns[j])) continue;
+      for (const procedure::CaseRows& c : w.stack.cases) {
+        procedure::highpass_in_place(w.stack.phi.col(static_cast<Index>(j)).segment(c.begin, c.rows),
+                                     *model.square_highpass_rad_s, w.sample_period_s[c.case_index]);
+      }
+    }
+  }
+  if (options.library.mounting_rotations && mountings.names.size() >= 2) add_rotation_columns(w, data, current, mountings);
   w.gram = Eigen::MatrixXd(w.stack.phi.cols(), w.stack.phi.cols());
   w.gram.setZero();
   w.gram.selfadjointView<Eigen::Lower>().rankUpdate(w.stack.phi.transpose());
@@ -306,24 +446,16 @@ Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& 
   const Index p = w.stack.phi.cols();
   w.lagged.assign(static_cast<std::size_t>(std::max(options.max_ar_order, 0) + 1), Eigen::MatrixXd::Zero(p + 1, p + 1));
   w.lagged[0].topLeftCorner(p, p) = w.gram;
-  w.lagged[0].col(p).head(p) = w.stack.phi.transpose() * w.stack.y;
-  w.lagged[0].row(p).head(p) = w.lagged[0].col(p).head(p).transpose();
-  w.lagged[0](p, p) = w.stack.y.squaredNorm();
   for (std::size_t l = 1; l < w.lagged.size(); ++l) {
     const auto lag = static_cast<Index>(l);
-    Eigen::MatrixXd& c = w.lagged[l];
     for (const procedure::CaseRows& cr : w.stack.cases) {
       if (cr.rows <= lag) continue;
-      const auto now = w.stack.phi.middleRows(cr.begin + lag, cr.rows - lag);
-      const auto before = w.stack.phi.middleRows(cr.begin, cr.rows - lag);
-      const auto y_now = w.stack.y.segment(cr.begin + lag, cr.rows - lag);
-      const auto y_before = w.stack.y.segment(cr.begin, cr.rows - lag);
-      c.topLeftCorner(p, p).noalias() += now.transpose() * before;
-      c.col(p).head(p).noalias() += now.transpose() * y_before;
-      c.row(p).head(p).noalias() += (before.transpose() * y_now).transpose();
-      c(p, p) += y_now.dot(y_before);
+      w.lagged[l].topLeftCorner(p, p).noalias() +=
+          w.stack.phi.middleRows(cr.begin + lag, cr.rows - lag).transpose() * w.stack.phi.middleRows(cr.begin, cr.rows - lag);
     }
   }
+  w.y_measured = w.stack.y;
+  set_output(w, w.stack.y);
   for (std::size_t j = 0; j < w.columns.size(); ++j) {
     if (!w.columns[j].is_output_multiplied()) continue;
     const Term p = denominator_of(w.columns[j]);
@@ -337,21 +469,73 @@ Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& 
   return w;
 }
 
-/// Measured minus free-run simulated output, stacked like the workspace rows.
-Eigen::VectorXd residual_of(const Workspace& w, const model::ModelFile& model) {
+/// Measured minus free-run simulated output, stacked like the workspace rows. `delta` (per
+/// mounting, empty = none): the mountings' rotations, applied to the references before simulating.
+Eigen::VectorXd residual_of(const Workspace& w, const model::ModelFile& model, const dataset::Dataset* data = nullptr,
+                            const std::vector<Eigen::Vector3d>& delta = {}) {
   std::vector<Term> terms;
   Eigen::VectorXd theta(static_cast<Index>(model.terms.size()));
   for (std::size_t j = 0; j < model.terms.size(); ++j) {
     terms.push_back(model.terms[j].term);
     theta(static_cast<Index>(j)) = model.terms[j].coefficient;
   }
-  Eigen::VectorXd r(w.stack.y.size());
+  Eigen::VectorXd r(w.y_measured.size());
   for (const procedure::CaseRows& c : w.stack.cases) {
-    const Eigen::VectorXd sim = procedure::simulate_model(terms, theta, w.signals[c.case_index], c.first_sample,
-                                                          model.square_highpass_rad_s, w.sample_period_s[c.case_index]);
-    r.segment(c.begin, c.rows) = w.stack.y.segment(c.begin, c.rows) - sim;
+    const auto m = static_cast<std::size_t>(w.case_mounting[c.case_index]);
+    std::optional<ident::SignalSet> rotated;
+    if (m < delta.size() && delta[m].squaredNorm() > 0.0) {
+      const dataset::CaseData& cd = data->cases[c.case_index];
+      rotated = ident::signals_from_case(cd, model.m_cs * small_rotation(delta[m]) * cd.m_ec, data->t_ref);
+    }
+    const Eigen::VectorXd sim = procedure::simulate_model(terms, theta, rotated ? *rotated : w.signals[c.case_index],
+                                                          c.first_sample, model.square_highpass_rad_s,
+                                                          w.sample_period_s[c.case_index]);
+    r.segment(c.begin, c.rows) = w.y_measured.segment(c.begin, c.rows) - sim;
   }
   return r;
+}
+
+/// What the rotation columns, linear in delta, leave out of the model's input terms on the
+/// rotated references: Phi(delta) theta - Phi(0) theta - sum_j delta_j J_j (second order in delta,
+/// and the change of J with theta). Subtracted from the regression's output, it makes the linear
+/// fit of delta a fixed-point iteration on the exact rotation (chord method: J stays at delta 0).
+Eigen::VectorXd rotation_remainder(const Workspace& w, const dataset::Dataset& data, const model::ModelFile& current,
+                                   const std::vector<Eigen::Vector3d>& delta) {
+  std::vector<Term> terms;
+  std::vector<double> theta;
+  for (const model::ModelTerm& t : current.terms) {
+    if (t.term.is_noise_term() || t.term.uses(ident::Variable::Y)) continue;
+    terms.push_back(t.term);
+    theta.push_back(t.coefficient);
+  }
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(w.y_measured.size());
+  if (terms.empty()) return out;
+  const Eigen::Map<const Eigen::VectorXd> th(theta.data(), static_cast<Index>(theta.size()));
+  for (const procedure::CaseRows& c : w.stack.cases) {
+    const auto m = static_cast<std::size_t>(w.case_mounting[c.case_index]);
+    if (m >= delta.size() || delta[m].squaredNorm() == 0.0) continue;
+    const dataset::CaseData& cd = data.cases[c.case_index];
+    auto output = [&](const Eigen::Matrix3d& rotation) {
+      const ident::SignalSet s = ident::signals_from_case(cd, current.m_cs * rotation * cd.m_ec, data.t_ref);
+      Eigen::MatrixXd phi(c.rows, static_cast<Index>(terms.size()));
+      ident::fill_regressors(terms, s, c.first_sample, phi);
+      if (current.square_highpass_rad_s) {
+        for (std::size_t j = 0; j < terms.size(); ++j) {
+          if (procedure::is_square_term(terms[j])) {
+            procedure::highpass_in_place(phi.col(static_cast<Index>(j)), *current.square_highpass_rad_s, cd.sample_period_s);
+          }
+        }
+      }
+      return Eigen::VectorXd(phi * th);
+    };
+    Eigen::VectorXd n = output(small_rotation(delta[m])) - output(Eigen::Matrix3d::Identity());
+    for (std::size_t j = 0; j < w.rotation_of.size(); ++j) {
+      const auto [mm, axis] = w.rotation_of[j];
+      if (mm == static_cast<int>(m)) n -= delta[m](axis) * w.stack.phi.col(static_cast<Index>(j)).segment(c.begin, c.rows);
+    }
+    out.segment(c.begin, c.rows) = n;
+  }
+  return out;
 }
 
 /// The Gram matrix of [Phi r] after prewhitening by the AR model of r itself (order by AIC up to
@@ -494,19 +678,28 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
   DiagnoseResult out;
   out.baseline = model;
   for (const dataset::CaseData& c : data.cases) out.case_names.push_back(c.name);
-  const Workspace w = build_workspace(data, model, options, dataset_label);
+  const MountingState mountings = mountings_of(data);
+  Workspace w = build_workspace(data, model, model, mountings, options, dataset_label);
+  // Rotation vector of each mounting (rad, case frame) as the search has it.
+  std::vector<Eigen::Vector3d> delta(mountings.names.size(), Eigen::Vector3d::Zero());
 
   model::ModelFile current = model;
-  // Columns (of the workspace) of the current model's terms, and which of them are held fixed.
+  // Mounting-rotation columns the search has accepted: refitted at every step like model terms.
+  std::vector<Index> rotations;
+  // Columns (of the workspace) of the current model's terms and accepted rotations.
   auto model_columns = [&] {
     std::vector<Index> cols;
     for (const model::ModelTerm& t : current.terms) {
       if (const Index c = column_of(w, t.term); c >= 0) cols.push_back(c);
     }
+    cols.insert(cols.end(), rotations.begin(), rotations.end());
     return cols;
   };
   std::vector<Index> held;
-  auto coefficient_of = [&](Index col) { return *current.coefficient(w.columns[static_cast<std::size_t>(col)]); };
+  auto coefficient_of = [&](Index col) {
+    const auto [m, axis] = w.rotation_of[static_cast<std::size_t>(col)];
+    return m >= 0 ? delta[static_cast<std::size_t>(m)](axis) : *current.coefficient(w.columns[static_cast<std::size_t>(col)]);
+  };
   // Fit `cols` (model columns + maybe a candidate), holding what cannot be estimated.
   auto fit_with = [&](Index candidate) {
     for (;;) {
@@ -525,28 +718,15 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
       held.insert(held.end(), f.newly_fixed.begin(), f.newly_fixed.end());
     }
   };
-  // Which model terms the data can estimate at all: a fit of the model as it is. Its free-run
-  // residual is reported beside the baseline: it tells how much of the gap is only the given
-  // coefficients being off (no term missing) - the search below refits them anyway.
-  std::optional<Eigen::VectorXd> refit_residual;
-  if (!model_columns().empty()) {
-    const ColumnFit refit = fit_with(-1);
-    if (refit.ok) {
-      model::ModelFile m = current;
-      for (std::size_t j = 0; j < refit.columns.size(); ++j) {
-        for (model::ModelTerm& mt : m.terms) {
-          if (mt.term == w.columns[static_cast<std::size_t>(refit.columns[j])]) mt.coefficient = refit.theta(static_cast<Index>(j));
-        }
-      }
-      refit_residual = residual_of(w, m);
-    }
-  }
-
-  // The model with `fit`'s coefficients on every fitted column and the candidate appended.
+  // The model with `fit`'s coefficients on every fitted term column and the candidate appended
+  // (a term; a rotation candidate adds no term). Rotation increments of the fit: per mounting.
   auto augmented = [&w](const model::ModelFile& base, const ColumnFit& fit, Index candidate) {
     model::ModelFile m = base;
-    m.terms.push_back({w.columns[static_cast<std::size_t>(candidate)], 0.0, std::nullopt});
+    if (candidate >= 0 && w.rotation_of[static_cast<std::size_t>(candidate)].first < 0) {
+      m.terms.push_back({w.columns[static_cast<std::size_t>(candidate)], 0.0, std::nullopt});
+    }
     for (std::size_t j = 0; j < fit.columns.size(); ++j) {
+      if (w.rotation_of[static_cast<std::size_t>(fit.columns[j])].first >= 0) continue;
       const Term& t = w.columns[static_cast<std::size_t>(fit.columns[j])];
       for (model::ModelTerm& mt : m.terms) {
         if (mt.term == t) {
@@ -557,6 +737,50 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
     }
     return m;
   };
+  // The mounting rotations with `fit`'s estimates on its rotation columns.
+  auto deltas_of = [&](const ColumnFit& fit) {
+    std::vector<Eigen::Vector3d> d = delta;
+    for (std::size_t j = 0; j < fit.columns.size(); ++j) {
+      const auto [m, axis] = w.rotation_of[static_cast<std::size_t>(fit.columns[j])];
+      if (m >= 0) d[static_cast<std::size_t>(m)](axis) = fit.theta(static_cast<Index>(j));
+    }
+    return d;
+  };
+  // Which model terms the data can estimate at all: a fit of the model as it is. Its free-run
+  // residual is reported beside the baseline: it tells how much of the gap is only the given
+  // coefficients being off (no term missing) - the search below refits them anyway.
+  std::optional<Eigen::VectorXd> refit_residual;
+  if (!model_columns().empty()) {
+    const ColumnFit refit = fit_with(-1);
+    if (refit.ok) refit_residual = residual_of(w, augmented(current, refit, -1));
+  }
+
+  // Sd (rad) of the rotation estimates as of the last fit, per mounting.
+  std::vector<Eigen::Vector3d> rotation_std(mountings.names.size(), Eigen::Vector3d::Zero());
+  // Takes `fit`'s rotations, subtracts their second-order remainder from the regression output
+  // and refits (model terms and rotations), until the rotations move by less than a tenth of
+  // their sd: the rotation columns are linear, and a 2 deg misalignment's second-order effect
+  // (0.5 delta^2 ~ 6e-4 of the input, at 30 g) is far above the noise.
+  auto settle_rotations = [&](ColumnFit fit) {
+    for (int iteration = 0; iteration < 8; ++iteration) {
+      const std::vector<Eigen::Vector3d> next = deltas_of(fit);
+      double worst = 0.0;
+      for (std::size_t j = 0; j < fit.columns.size(); ++j) {
+        const auto [m, axis] = w.rotation_of[static_cast<std::size_t>(fit.columns[j])];
+        if (m < 0) continue;
+        const auto mi = static_cast<std::size_t>(m);
+        rotation_std[mi](axis) = fit.std_dev(static_cast<Index>(j));
+        worst = std::max(worst, std::abs(next[mi](axis) - delta[mi](axis)) / fit.std_dev(static_cast<Index>(j)));
+      }
+      delta = next;
+      set_output(w, w.y_measured - rotation_remainder(w, data, current, delta));
+      if (worst < 0.1) return;
+      fit = fit_with(-1);
+      if (!fit.ok) return;
+      current = augmented(current, fit, -1);
+    }
+  };
+
   std::vector<Eigen::VectorXd> residuals{residual_of(w, current)};
   std::vector<std::string> step_labels{"baseline"};
   for (int step = 0; step < options.max_findings; ++step) {
@@ -603,7 +827,7 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
       const double daic = n * std::log(f.dof / (f.dof + t * t)) + 2.0;
       if (!(pv < threshold) || !(daic < 0.0) || !std::isfinite(t)) continue;
       model::ModelFile trial = augmented(current, f, col);
-      Eigen::VectorXd trial_residual = residual_of(w, trial);
+      Eigen::VectorXd trial_residual = residual_of(w, trial, &data, deltas_of(f));
       const double score = whitened_energy(w, trial_residual, f.ar) / whitened_energy(w, r, f.ar);
       if (score < best_score) {
         best_score = score;
@@ -621,12 +845,10 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
     if (!best) break;
     held = best_held;
 
-    const Term& winner = w.columns[static_cast<std::size_t>(best_col)];
     current = std::move(best_model);
     const Index jw = static_cast<Index>(best->columns.size()) - 1;
+    const auto [winner_mounting, winner_axis] = w.rotation_of[static_cast<std::size_t>(best_col)];
     Finding f;
-    f.term = winner.to_string();
-    f.effect = ident::physical_name(winner, data.sensor);
     f.coefficient = best->theta(jw);
     f.std = best->std_dev(jw);
     f.t = best_t;
@@ -650,9 +872,47 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
         }
       }
     }
+    if (winner_mounting >= 0) {
+      const auto m = static_cast<std::size_t>(winner_mounting);
+      f.mounting = mountings.names[m];
+      f.mounting_cases = mountings.cases[m];
+      f.axis = winner_axis;
+      f.term = fmt::format("rotation({}, {})", f.mounting, "xyz"[winner_axis]);
+      f.effect = mountings.cases[m].size() == 1 && mountings.cases[m][0] == mountings.names[m]
+                     ? "misalignment of case " + mountings.names[m]
+                     : fmt::format("misalignment of mounting {} (cases {})", mountings.names[m],
+                                   fmt::join(mountings.cases[m], ", "));
+      rotations.push_back(best_col);
+    } else {
+      const Term& winner = w.columns[static_cast<std::size_t>(best_col)];
+      f.term = winner.to_string();
+      f.effect = ident::physical_name(winner, data.sensor);
+    }
+    if (!rotations.empty()) {
+      settle_rotations(*best);
+      best_residual = residual_of(w, current, &data, delta);
+    }
     out.findings.push_back(f);
     residuals.push_back(std::move(best_residual));
-    step_labels.push_back("+ " + f.term);
+    step_labels.push_back("+ " + (winner_mounting >= 0 ? f.effect + " about case " + "xyz"[winner_axis] : f.term));
+  }
+  // Rotation findings: the mounting's rotation about their axis (and its sd) after the search.
+  for (Finding& f : out.findings) {
+    if (f.mounting.empty()) continue;
+    const auto m = static_cast<std::size_t>(
+        std::find(mountings.names.begin(), mountings.names.end(), f.mounting) - mountings.names.begin());
+    f.angle_deg = delta[m](f.axis) * 180.0 / std::numbers::pi;
+    f.angle_std_deg = rotation_std[m](f.axis) * 180.0 / std::numbers::pi;
+  }
+  // The findings list holds sensor effects only; mounting rotations go to their own list (they
+  // belong to the test setup, not to the model file).
+  for (auto it = out.findings.begin(); it != out.findings.end();) {
+    if (it->mounting.empty()) {
+      ++it;
+    } else {
+      out.case_misalignments.push_back(*it);
+      it = out.findings.erase(it);
+    }
   }
 
   for (Index c : held) out.held_fixed.push_back(w.labels[static_cast<std::size_t>(c)]);
@@ -684,7 +944,19 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
     std::vector<std::uint16_t> ph(static_cast<std::size_t>(c.rows));
     for (Index r = 0; r < c.rows; ++r) ph[static_cast<std::size_t>(r)] = phase_at(cd, c.first_sample + r);
     out.phase.push_back(std::move(ph));
+    out.first_sample.push_back(c.first_sample);
   }
+  auto case_residuals = [&](const std::vector<Eigen::VectorXd>& per_case) {
+    std::vector<CaseResidual> v;
+    for (std::size_t i = 0; i < w.stack.cases.size(); ++i) {
+      v.push_back({w.stack.cases[i].case_index, w.stack.cases[i].first_sample, per_case[i]});
+    }
+    return v;
+  };
+  out.location_before = locate(data, case_residuals(out.residual_before), NoiseModel::of(model, out.noise_reference),
+                               options.alpha);
+  out.location_after = locate(data, case_residuals(out.residual_after), NoiseModel::of(current, out.noise_reference),
+                              options.alpha);
   return out;
 }
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "analyzer/diagnose/candidate_library.hpp"
+#include "analyzer/diagnose/location.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "common/dataset/dataset.hpp"
 
@@ -61,6 +62,13 @@ struct Finding {
   int ar_order = 0;                  // prewhitening order of the fit
   std::string where_case, where_phase;   // segment where its contribution is largest (RMS)
   double where_rms = 0.0;
+  /// A mounting rotation (case misalignment) rather than a sensor term: the mounting, its cases,
+  /// the case axis (0 x, 1 y, 2 z), and the mounting's total rotation about it after the search
+  /// with its sd (coefficient and std are then the angle increment of its step, rad).
+  std::string mounting;
+  std::vector<std::string> mounting_cases;
+  int axis = -1;
+  double angle_deg = 0.0, angle_std_deg = 0.0;
 };
 
 struct DiagnoseResult {
@@ -72,13 +80,20 @@ struct DiagnoseResult {
   /// The given terms only, re-estimated (ULS, held terms kept): how much of the baseline gap is
   /// coefficient error rather than a missing effect. Absent when that fit is impossible.
   std::optional<ResidualSummary> refit_only;
-  std::vector<Finding> findings;
+  std::vector<Finding> findings;           // sensor effects, in the order found
+  /// Mounting rotations the search accepted (in the order found, interleaved with the findings in
+  /// `steps`): a case misalignment the dataset's nominal m_ec lacks, named as such.
+  std::vector<Finding> case_misalignments;
   std::vector<std::string> held_fixed;     // model terms the data cannot estimate (kept as given)
   double noise_reference = 0.0;            // the sd the location test compares with
   std::string location_test;               // which test: chi-square vs white_sd, or F vs final
   /// Per case: time of each residual row, residual before and after (for plots).
   std::vector<Eigen::VectorXd> time, residual_before, residual_after;
   std::vector<std::vector<std::uint16_t>> phase;   // per residual row, index into the case's names
+  std::vector<Eigen::Index> first_sample;          // per case: the case sample of residual row 0
+  /// Where the residual exceeds the model's noise by frequency band and by condition, before
+  /// (baseline model and its noise) and after (final model).
+  Location location_before, location_after;
 };
 
 /// Runs the workflow. Throws InputError when the model is for another sensor kind than the

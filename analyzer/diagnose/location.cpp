@@ -1,0 +1,331 @@
+#include "analyzer/diagnose/location.hpp"
+
+#include <boost/math/distributions/chi_squared.hpp>
+#include <fmt/format.h>
+#include <unsupported/Eigen/FFT>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <numbers>
+
+#include "common/units.hpp"
+
+namespace inertia::diagnose {
+namespace {
+
+using Eigen::Index;
+using Complex = std::complex<double>;
+
+double chi2_upper(double dof, double stat) {
+  if (!(dof > 0.0) || !std::isfinite(stat)) return 1.0;
+  return boost::math::cdf(boost::math::complement(boost::math::chi_squared(dof), std::max(stat, 0.0)));
+}
+
+/// Periodic Hann window: its squared DFT is nonzero at 0 and +-1, +-2 bins only, so the
+/// periodogram's bin correlations below are short.
+Eigen::VectorXd hann(Index n) {
+  Eigen::VectorXd w(n);
+  for (Index k = 0; k < n; ++k) w(k) = 0.5 * (1.0 - std::cos(2.0 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(n)));
+  return w;
+}
+
+/// Correlations of the windowed DFT of white noise, relative to E|X_k|^2, for bin offsets
+/// d = -D..D: within one segment (gap 0) and between segments half a window apart (gap 1):
+///   rho_g(d) = |sum_n w(n) w(n + g L/2) exp(-i 2 pi d n / L)| / sum_n w(n)^2.
+/// Cov(|X_k|^2, |X'_m|^2) = E^2 (rho(k - m)^2 + rho(k + m)^2) for Gaussian data (the second,
+/// the pseudo-covariance, matters only near 0 and Nyquist).
+struct WindowCorrelation {
+  static constexpr int kSpan = 8;   // beyond it |rho| < 1e-3 for gap 1 and exactly 0 for gap 0
+  Index length = 0;
+  std::array<std::array<double, 2 * kSpan + 1>, 2> rho{};
+
+  explicit WindowCorrelation(const Eigen::VectorXd& w) : length(w.size()) {
+    const Index n = w.size();
+    const double energy = w.squaredNorm();
+    for (int gap = 0; gap < 2; ++gap) {
+      const Index shift = gap * n / 2;
+      for (int d = -kSpan; d <= kSpan; ++d) {
+        Complex acc = 0.0;
+        for (Index k = 0; k + shift < n; ++k) {
+          const double phase = -2.0 * std::numbers::pi * d * static_cast<double>(k) / static_cast<double>(n);
+          acc += w(k) * w(k + shift) * Complex(std::cos(phase), std::sin(phase));
+        }
+        rho[static_cast<std::size_t>(gap)][static_cast<std::size_t>(d + kSpan)] = std::abs(acc) / energy;
+      }
+    }
+  }
+  /// rho_gap(d) with d taken modulo the window length.
+  [[nodiscard]] double at(int gap, Index d) const {
+    d %= length;
+    if (d > length / 2) d -= length;
+    if (d < -length / 2) d += length;
+    if (std::abs(d) > kSpan) return 0.0;
+    return rho[static_cast<std::size_t>(gap)][static_cast<std::size_t>(d + kSpan)];
+  }
+  /// Sum over bin pairs k, m in [lo, hi) of rho_gap(k - m)^2 + rho_gap(k + m)^2.
+  [[nodiscard]] double pair_sum(int gap, Index lo, Index hi) const {
+    double s = 0.0;
+    for (Index k = lo; k < hi; ++k) {
+      for (Index m = std::max(lo, k - kSpan); m < std::min(hi, k + kSpan + 1); ++m) s += std::pow(at(gap, k - m), 2);
+      for (int e = -kSpan; e <= kSpan; ++e) {
+        for (Index m : {e - k, length + e - k}) {
+          if (m >= lo && m < hi) s += std::pow(at(gap, k + m), 2);
+        }
+      }
+    }
+    return s;
+  }
+};
+
+/// Octave bands of the bins of an L-point grid: [0, 2), [2, 4), ..., [L/4, L/2 + 1).
+std::vector<std::pair<Index, Index>> octave_bands(Index length) {
+  std::vector<std::pair<Index, Index>> b;
+  for (Index lo = 0, hi = 2; lo < length / 2; lo = hi, hi *= 2) b.emplace_back(lo, hi >= length / 2 ? length / 2 + 1 : hi);
+  return b;
+}
+
+CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise) {
+  CaseBands out;
+  out.case_index = cr.case_index;
+  out.sample_rate_hz = fs;
+  const Index n = cr.residual.size();
+  // At least ~7 half-overlapping segments (dof), at most 2^15 points (resolution far below any
+  // band we report); too short a case gets no spectrum.
+  Index length = 16;
+  while (length * 2 <= n / 4 && length < (Index{1} << 15)) length *= 2;
+  if (n < 4 * 16) return out;
+  const Index hop = length / 2;
+  const Index segments = (n - length) / hop + 1;
+  out.segment_length = static_cast<int>(length);
+  out.segments = static_cast<int>(segments);
+  const Eigen::VectorXd w = hann(length);
+  const double w_energy = w.squaredNorm();
+  const Index half = length / 2;
+  Eigen::VectorXd power = Eigen::VectorXd::Zero(half + 1);   // sum over segments of |X_k|^2
+  Eigen::FFT<double> fft;
+  std::vector<double> buf(static_cast<std::size_t>(length));
+  std::vector<Complex> spec;
+  for (Index s = 0; s < segments; ++s) {
+    for (Index k = 0; k < length; ++k) buf[static_cast<std::size_t>(k)] = w(k) * cr.residual(s * hop + k);
+    fft.fwd(spec, buf);
+    for (Index k = 0; k <= half; ++k) power(k) += std::norm(spec[static_cast<std::size_t>(k)]);
+  }
+  // Expected |X_k|^2 under the model: sigma^2 |H|^2 sum w^2; one-sided PSD factor 2 / (fs sum w^2).
+  const double sigma2 = noise.white_sd * noise.white_sd;
+  Eigen::VectorXd expected(half + 1), psd_factor(half + 1);
+  for (Index k = 0; k <= half; ++k) {
+    const double f = fs * static_cast<double>(k) / static_cast<double>(length);
+    expected(k) = sigma2 * noise.gain2(f, fs) * w_energy;
+    psd_factor(k) = (k == 0 || k == half ? 1.0 : 2.0) / (fs * w_energy);
+  }
+  const WindowCorrelation corr(w);
+  const double kd = static_cast<double>(segments);
+  for (const auto& [lo, hi] : octave_bands(length)) {
+    BandTest b;
+    b.f_lo_hz = fs * static_cast<double>(lo) / static_cast<double>(length);
+    b.f_hi_hz = fs * static_cast<double>(std::min(hi, half)) / static_cast<double>(length);
+    b.bins = static_cast<int>(hi - lo);
+    double q = 0.0, psd = 0.0, model = 0.0;
+    for (Index k = lo; k < hi; ++k) {
+      q += power(k) / expected(k);
+      psd += power(k) / kd * psd_factor(k);
+      model += expected(k) * psd_factor(k);
+    }
+    const double mean = kd * static_cast<double>(hi - lo);
+    const double variance = kd * corr.pair_sum(0, lo, hi) + 2.0 * (kd - 1.0) * corr.pair_sum(1, lo, hi);
+    b.residual_psd = psd / static_cast<double>(hi - lo);
+    b.model_psd = model / static_cast<double>(hi - lo);
+    b.ratio = q / mean;
+    b.dof = 2.0 * mean * mean / variance;
+    b.p_value = chi2_upper(b.dof, b.dof * b.ratio);
+    out.bands.push_back(b);
+  }
+  // Plot points: bins averaged over log-spaced groups (~8 per octave).
+  std::vector<double> pf, pp, pm;
+  for (Index lo = 1; lo <= half;) {
+    const Index hi = std::min(half + 1, std::max(lo + 1, static_cast<Index>(std::ceil(static_cast<double>(lo) * 1.09))));
+    double p = 0.0, m = 0.0;
+    for (Index k = lo; k < hi; ++k) {
+      p += power(k) / kd * psd_factor(k);
+      m += expected(k) * psd_factor(k);
+    }
+    const double cnt = static_cast<double>(hi - lo);
+    pf.push_back(fs * 0.5 * static_cast<double>(lo + hi - 1) / static_cast<double>(length));
+    pp.push_back(p / cnt);
+    pm.push_back(m / cnt);
+    lo = hi;
+  }
+  out.plot_f = Eigen::Map<Eigen::VectorXd>(pf.data(), static_cast<Index>(pf.size()));
+  out.plot_psd = Eigen::Map<Eigen::VectorXd>(pp.data(), static_cast<Index>(pp.size()));
+  out.plot_model = Eigen::Map<Eigen::VectorXd>(pm.data(), static_cast<Index>(pm.size()));
+  return out;
+}
+
+/// Contiguous excess bands of a case, merged: "20-2500 Hz (power x12)".
+std::string band_ranges(const CaseBands& cb) {
+  std::string s;
+  for (std::size_t i = 0; i < cb.bands.size();) {
+    if (!cb.bands[i].excess) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    double worst = 0.0;
+    while (j < cb.bands.size() && cb.bands[j].excess) worst = std::max(worst, cb.bands[j++].ratio);
+    s += fmt::format("{}{:.3g}-{:.3g} Hz (power x{:.3g})", s.empty() ? "" : ", ", cb.bands[i].f_lo_hz,
+                     cb.bands[j - 1].f_hi_hz, worst);
+    i = j;
+  }
+  return s;
+}
+
+/// Bins of |a| in g: the rest, 1 g, and octaves of vibration level.
+constexpr std::array<double, 10> kAccelEdgesG{0.0, 0.5, 1.5, 3.0, 6.0, 12.0, 24.0, 48.0, 96.0, 1e300};
+constexpr double kTempBinC = 5.0;
+constexpr Index kMinBinSamples = 20;
+
+}  // namespace
+
+NoiseModel NoiseModel::of(const model::ModelFile& model, double white_sd) {
+  NoiseModel n;
+  n.white_sd = white_sd;
+  for (const model::ModelTerm& t : model.terms) {
+    const auto& f = t.term.factors();
+    if (f.size() != 1 || f[0].lag == 0 || f[0].power != 1 || f[0].function != ident::FactorFunction::Plain) continue;
+    Eigen::VectorXd* target = f[0].variable == ident::Variable::E   ? &n.ma
+                              : f[0].variable == ident::Variable::Y ? &n.ar
+                                                                     : nullptr;
+    if (target == nullptr) continue;
+    if (target->size() < f[0].lag) target->conservativeResizeLike(Eigen::VectorXd::Zero(f[0].lag));
+    (*target)(f[0].lag - 1) += t.coefficient;
+  }
+  return n;
+}
+
+double NoiseModel::gain2(double f_hz, double fs_hz) const {
+  const double omega = 2.0 * std::numbers::pi * f_hz / fs_hz;
+  Complex c = 1.0, a = 1.0;
+  for (Index j = 0; j < ma.size(); ++j) c += ma(j) * std::polar(1.0, -omega * static_cast<double>(j + 1));
+  for (Index j = 0; j < ar.size(); ++j) a -= ar(j) * std::polar(1.0, -omega * static_cast<double>(j + 1));
+  return std::norm(c) / std::norm(a);
+}
+
+Eigen::VectorXd NoiseModel::impulse_response(Index max_length) const {
+  std::vector<double> h;
+  double energy = 0.0;
+  for (Index k = 0; k < max_length; ++k) {
+    double v = k == 0 ? 1.0 : 0.0;
+    if (k >= 1 && k <= ma.size()) v += ma(k - 1);
+    for (Index j = 1; j <= ar.size() && j <= k; ++j) v += ar(j - 1) * h[static_cast<std::size_t>(k - j)];
+    h.push_back(v);
+    energy += v * v;
+    if (k > ma.size() + ar.size() && v * v < 1e-12 * energy && (ar.size() == 0 || k > 64)) break;
+  }
+  return Eigen::Map<Eigen::VectorXd>(h.data(), static_cast<Index>(h.size()));
+}
+
+Location locate(const dataset::Dataset& data, const std::vector<CaseResidual>& residuals, const NoiseModel& noise,
+                double alpha) {
+  Location out;
+  if (!(noise.white_sd > 0.0)) {
+    out.verdict = "no noise reference: location by band and condition skipped";
+    return out;
+  }
+  std::size_t tests = 0;
+  for (const CaseResidual& cr : residuals) {
+    const double fs = 1.0 / data.cases[cr.case_index].sample_period_s;
+    out.bands.push_back(case_bands(cr, fs, noise));
+    tests += out.bands.back().bands.size();
+  }
+  for (CaseBands& cb : out.bands) {
+    for (BandTest& b : cb.bands) b.excess = b.p_value < alpha / static_cast<double>(std::max<std::size_t>(tests, 1));
+  }
+
+  // Conditions. Per-sample variance and effective dof of a sum of n squares of the noise process:
+  // E = n var, Var = 2 var^2 sum_l (n - |l|) rho_l^2 ~ 2 n var^2 S, S = sum_l rho_l^2; so
+  // dof = n / S (n for white noise). Samples of a bin need not be contiguous: S is then an upper
+  // bound on the dependence, the test slightly conservative.
+  const Eigen::VectorXd h = noise.impulse_response();
+  const double h_energy = h.squaredNorm();
+  const double var = noise.white_sd * noise.white_sd * h_energy;
+  double s_rho = 1.0;
+  for (Index l = 1; l < h.size(); ++l) s_rho += 2.0 * std::pow(h.head(h.size() - l).dot(h.tail(h.size() - l)) / h_energy, 2);
+  struct Acc {
+    double ss = 0.0;
+    Index n = 0;
+  };
+  std::vector<Acc> accel(kAccelEdgesG.size() - 1);
+  double t_min = std::numeric_limits<double>::infinity(), t_max = -t_min;
+  bool have_temp = true;
+  for (const CaseResidual& cr : residuals) {
+    const dataset::CaseData& c = data.cases[cr.case_index];
+    have_temp = have_temp && c.temp.has_value();
+    for (Index r = 0; r < cr.residual.size(); ++r) {
+      const Index k = cr.first_sample + r;
+      const double g = mps2_to_g(c.a_e.row(k).norm());
+      const auto bin = static_cast<std::size_t>(std::upper_bound(kAccelEdgesG.begin(), kAccelEdgesG.end(), g) - kAccelEdgesG.begin()) - 1;
+      accel[std::min(bin, accel.size() - 1)].ss += cr.residual(r) * cr.residual(r);
+      ++accel[std::min(bin, accel.size() - 1)].n;
+      if (c.temp) {
+        t_min = std::min(t_min, (*c.temp)(k));
+        t_max = std::max(t_max, (*c.temp)(k));
+      }
+    }
+  }
+  auto add = [&](const char* quantity, double lo, double hi, const Acc& a) {
+    if (a.n < kMinBinSamples) return;
+    ConditionBin b;
+    b.quantity = quantity;
+    b.lo = lo;
+    b.hi = hi;
+    b.samples = a.n;
+    b.rms = std::sqrt(a.ss / static_cast<double>(a.n));
+    b.expected_rms = std::sqrt(var);
+    b.ratio = b.rms / b.expected_rms;
+    b.dof = std::min(static_cast<double>(a.n), static_cast<double>(a.n) / s_rho);
+    b.p_value = chi2_upper(b.dof, b.dof * a.ss / (static_cast<double>(a.n) * var));
+    out.conditions.push_back(b);
+  };
+  for (std::size_t i = 0; i < accel.size(); ++i) add("|a|", kAccelEdgesG[i], kAccelEdgesG[i + 1], accel[i]);
+  if (have_temp && std::isfinite(t_min) && t_max - t_min > 1.0) {
+    const double base = std::floor(t_min / kTempBinC) * kTempBinC;
+    std::vector<Acc> temp(static_cast<std::size_t>(std::floor((t_max - base) / kTempBinC)) + 1);
+    for (const CaseResidual& cr : residuals) {
+      const dataset::CaseData& c = data.cases[cr.case_index];
+      for (Index r = 0; r < cr.residual.size(); ++r) {
+        const auto bin = static_cast<std::size_t>(std::floor(((*c.temp)(cr.first_sample + r) - base) / kTempBinC));
+        temp[std::min(bin, temp.size() - 1)].ss += cr.residual(r) * cr.residual(r);
+        ++temp[std::min(bin, temp.size() - 1)].n;
+      }
+    }
+    for (std::size_t i = 0; i < temp.size(); ++i) {
+      add("T", base + kTempBinC * static_cast<double>(i), base + kTempBinC * static_cast<double>(i + 1), temp[i]);
+    }
+  }
+  for (ConditionBin& b : out.conditions) b.excess = b.p_value < alpha / static_cast<double>(out.conditions.size());
+
+  std::string where;
+  for (const CaseBands& cb : out.bands) {
+    const std::string r = band_ranges(cb);
+    if (!r.empty()) where += fmt::format("{}{}: {}", where.empty() ? "" : "; ", data.cases[cb.case_index].name, r);
+  }
+  std::string cond;
+  for (const ConditionBin& b : out.conditions) {
+    if (!b.excess) continue;
+    cond += fmt::format("{}{} {:.3g}-{:.3g} {} (RMS x{:.3g})", cond.empty() ? "" : ", ", b.quantity, b.lo,
+                        b.hi > 1e299 ? std::numeric_limits<double>::infinity() : b.hi, b.quantity == "T" ? "degC" : "g",
+                        b.ratio);
+  }
+  if (where.empty() && cond.empty()) {
+    out.verdict = "within the model noise in every frequency band and condition bin";
+  } else {
+    out.verdict = "excess by frequency: " + (where.empty() ? std::string("none") : where) +
+                  "; by condition: " + (cond.empty() ? std::string("none") : cond);
+  }
+  return out;
+}
+
+}  // namespace inertia::diagnose
