@@ -14,6 +14,7 @@
 
 #include "common/config/bench_config.hpp"
 #include "common/input_error.hpp"
+#include "common/lcm/channels.hpp"
 #include "daq/log_writer.hpp"
 #include "daq/publisher.hpp"
 #include "daq/real_bench.hpp"
@@ -151,22 +152,6 @@ void apply_bench_settings(DaemonOptions& o, const config::DaemonSettings& d) {
   if (d.ring_samples && o.given.count("--ring") == 0) o.ring = static_cast<std::size_t>(*d.ring_samples);
 }
 
-bool has_multicast_route() {
-  std::ifstream in("/proc/net/route");
-  std::string line;
-  std::getline(in, line);  // header
-  while (std::getline(in, line)) {
-    std::istringstream ss(line);
-    std::string iface, dest, gateway, flags, refcnt, use, metric, mask;
-    if (!(ss >> iface >> dest >> gateway >> flags >> refcnt >> use >> metric >> mask)) continue;
-    // Little-endian hex: 224.0.0.0 is 000000E0. A route covers it when (224.0.0.0 & mask) == dest.
-    const auto d = static_cast<std::uint32_t>(std::stoul(dest, nullptr, 16));
-    const auto m = static_cast<std::uint32_t>(std::stoul(mask, nullptr, 16));
-    if ((0x000000E0u & m) == d) return true;
-  }
-  return false;
-}
-
 int run_daemon(const DaemonOptions& command_line) {
   const config::BenchConfig bench = config::load_bench_config(command_line.config);  // InputError -> exit 2
   DaemonOptions o = command_line;
@@ -269,7 +254,7 @@ int run_daemon(const DaemonOptions& command_line) {
     lo.stall_after_s = o.log_stall_after_s;
     lo.stall_ms = o.log_stall_ms;
     log = std::make_unique<LogWriter>(lo);
-    log->set_file_header("INERTIA_BENCH", bench_message);
+    log->set_file_header(std::string(channels::kBench), bench_message);
     if (!log->open(&why)) {
       std::cerr << "inertia-daqd: " << why << "\n";
       return kExitBadInput;

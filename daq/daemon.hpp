@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "common/config/bench_config.hpp"
+#include "common/lcm/multicast_route.hpp"
 #include "daq/sim_bench.hpp"
 
 namespace inertia::daq {
@@ -43,9 +44,8 @@ void apply_bench_settings(DaemonOptions& options, const config::DaemonSettings& 
 DaemonOptions parse_options(const std::vector<std::string>& args, bool* help);
 const char* usage();
 
-/// Whether the routing table has a route for 224.0.0.0/4 (or a default route), read from
-/// /proc/net/route; LCM's udpm provider cannot start without one.
-bool has_multicast_route();
+/// Whether the routing table covers 224.0.0.0/4 (common/lcm/multicast_route.hpp).
+using inertia::has_multicast_route;
 
 /// Runs the daemon; returns the exit status (0 ok, 1 failure, 2 bad input).
 int run_daemon(const DaemonOptions& options);

@@ -10,19 +10,11 @@
 #include <iostream>
 #include <limits>
 
+#include "common/lcm/channels.hpp"
 #include "common/lcm/sample_block_layout.hpp"
 #include "hal/device.hpp"
 
 namespace inertia::daq {
-
-std::string raw_channel(const std::string& device) {
-  std::string out = "INERTIA_RAW_";
-  for (char c : device) {
-    const char u = (c >= 'a' && c <= 'z') ? static_cast<char>(c - 'a' + 'A') : c;
-    out += ((u >= 'A' && u <= 'Z') || (u >= '0' && u <= '9') || u == '_') ? u : '_';
-  }
-  return out;
-}
 
 Publisher::Publisher(lcm::LCM& lcm, LogWriter* log, std::vector<std::shared_ptr<DeviceSlot>> slots,
                      PublisherOptions options)
@@ -41,7 +33,7 @@ bool Publisher::configure(std::string* why) {
   for (Packer& p : packers_) {
     DeviceSlot& slot = *p.slot;
     const auto nch = static_cast<std::int32_t>(slot.channels.size());
-    p.channel = raw_channel(slot.name);
+    p.channel = channels::raw_channel(slot.name);
     p.block.device = slot.name;
     shape_sample_block(p.block, nch, 1);
     for (std::int32_t c = 0; c < nch; ++c) {
@@ -205,7 +197,7 @@ void Publisher::publish_marks() {
     marks_.pop();
     const int size = ev.getEncodedSize();
     std::vector<std::uint8_t> buf(static_cast<std::size_t>(size));
-    if (ev.encode(buf.data(), 0, size) == size) send("INERTIA_EVENT", buf.data(), buf.size());
+    if (ev.encode(buf.data(), 0, size) == size) send(std::string(channels::kEvent), buf.data(), buf.size());
   }
 }
 
@@ -257,7 +249,7 @@ void Publisher::publish_status(double dt_s) {
   st.num_faults = static_cast<std::int32_t>(st.faults.size());
   const int size = st.getEncodedSize();
   std::vector<std::uint8_t> buf(static_cast<std::size_t>(size));
-  if (st.encode(buf.data(), 0, size) == size) send("INERTIA_STATUS", buf.data(), buf.size());
+  if (st.encode(buf.data(), 0, size) == size) send(std::string(channels::kStatus), buf.data(), buf.size());
 }
 
 void Publisher::run(RealtimeOptions rt) noexcept {
@@ -274,7 +266,7 @@ void Publisher::run(RealtimeOptions rt) noexcept {
   const auto bench_period_ns = static_cast<std::int64_t>(options_.bench_period_s * 1e9);
   std::int64_t last_bench = last_status;
   if (!options_.bench_message.empty())
-    send("INERTIA_BENCH", options_.bench_message.data(), options_.bench_message.size());
+    send(std::string(channels::kBench), options_.bench_message.data(), options_.bench_message.size());
   for (;;) {
     const bool stopping = stop_.load(std::memory_order_acquire);
     std::size_t n = 0;
@@ -286,7 +278,7 @@ void Publisher::run(RealtimeOptions rt) noexcept {
       last_status = now;
     }
     if (!options_.bench_message.empty() && now - last_bench >= bench_period_ns) {
-      send("INERTIA_BENCH", options_.bench_message.data(), options_.bench_message.size());
+      send(std::string(channels::kBench), options_.bench_message.data(), options_.bench_message.size());
       last_bench = now;
     }
     if (stopping && n == 0) break;

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/lcm/channels.hpp"
 #include "common/spsc_ring.hpp"
 #include "daq/device_slot.hpp"
 #include "daq/log_writer.hpp"
@@ -51,9 +52,8 @@ struct PublisherOptions {
   std::function<std::vector<std::string>()> daemon_faults;
 };
 
-/// The LCM channel of a device's blocks: INERTIA_RAW_ + the name in upper case, with every
-/// character outside [A-Z0-9_] turned into '_' ("acc-a" -> INERTIA_RAW_ACC_A).
-std::string raw_channel(const std::string& device);
+/// The LCM channel of a device's blocks (common/lcm/channels.hpp): "acc-a" -> INERTIA_RAW_ACC_A.
+using channels::raw_channel;
 
 class Publisher {
  public:

@@ -11,6 +11,7 @@
 #include <ostream>
 
 #include "common/input_error.hpp"
+#include "common/lcm/channels.hpp"
 
 namespace inertia::fusion {
 namespace {
@@ -51,11 +52,11 @@ void feed_log(const std::filesystem::path& file, StreamAssembler& assembler, std
       break;
     }
     const std::string where = fmt::format("{}: event {} at byte {}", file.string(), index, offset);
-    if (e->channel == "INERTIA_BENCH") {
+    if (e->channel == channels::kBench) {
       assembler.push(decode<bench_config_t>(*e, where, "bench_config_t"), where);
-    } else if (e->channel == "INERTIA_EVENT") {
+    } else if (e->channel == channels::kEvent) {
       assembler.push(decode<plan_event_t>(*e, where, "plan_event_t"), where);
-    } else if (e->channel.rfind("INERTIA_RAW_", 0) == 0) {
+    } else if (e->channel.rfind(channels::kRawPrefix, 0) == 0) {
       assembler.push(decode<sample_block_t>(*e, where, "sample_block_t"), where);
     }
   }
