@@ -12,7 +12,7 @@ struct LibraryOptions {
   bool temperature = true;   // T, a_i*T (gyro: T, w_i*T, y*T); dropped when a case has no temp
   bool dynamics = true;      // lag-1 terms: inputs, their squares (high-pass K(s) a_j^2) and y[k-1]
   /// A small rotation of each mounting about each case axis (cases sharing a `mounting` label are
-  /// one mounting), when the dataset has two or more mountings: a case misalignment the dataset's
+  /// one mounting), when the dataset declares mounting labels and has two or more mountings: a case misalignment the dataset's
   /// nominal m_ec does not hold is then named as such instead of as a spurious sensor term. With
   /// one mounting it is the model's own m_cs, which the terms a_p, a_o (w_p, w_o) already cover.
   bool mounting_rotations = true;
