@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # inertia quick start. Each command installs missing Debian packages, configures and builds first.
-#   ./inertia.sh demo   simulate the paper's bench (config/sim-paper.toml) and characterize the sensor on it
+#   ./inertia.sh demo   simulate the paper's bench (config/sim-paper.toml) and characterize the sensor on it;
+#                       then record a shortened paper bench with inertia-daqd and characterize its log
 #   ./inertia.sh test   run the whole test suite (what CI runs)
 #   ./inertia.sh build  only install, configure and build
 set -euo pipefail
@@ -46,7 +47,16 @@ case "${1:-}" in
     out="${2:-$here/out/sim-paper}"
     "$build_dir/bin/inertia-analyze" simulate --bench "$here/config/sim-paper.toml" --out "$out/dataset"
     "$build_dir/bin/inertia-analyze" characterize --dataset "$out/dataset" --out "$out/characterization"
-    echo "inertia: dataset in $out/dataset, model and report in $out/characterization (report.md, model.toml, plots/)"
+    # The same sensor through the acquisition daemon: inertia-daqd records a shortened paper bench
+    # (config/sim-paper-daq.toml; every encoder step is a simulated GPIO edge) as fast as it can,
+    # and characterize reads its event log.
+    ensure_multicast_route
+    rm -rf "$out/daq-log"
+    "$build_dir/bin/inertia-daqd" --config "$here/config/sim-paper-daq.toml" --fast --log "$out/daq-log"
+    log_file="$(ls "$out/daq-log"/*.lcmlog | head -n 1)"
+    "$build_dir/bin/inertia-analyze" characterize --log "$log_file" --out "$out/characterization-from-log"
+    echo "inertia: dataset in $out/dataset, model and report in $out/characterization (report.md, model.toml, plots/);"
+    echo "inertia: daemon log in $out/daq-log, its characterization in $out/characterization-from-log"
     ;;
   test)
     configure_and_build

@@ -1,5 +1,5 @@
 // The whole chain on real binaries: inertia-daqd records a simulated bench (the shape of
-// config/sim-paper.toml, shortened to 1 kHz and 10.5 s: configs/log-paper-small.toml) into an
+// config/sim-paper.toml, shortened to 1 kHz and 10.5 s: config/sim-paper-daq.toml) into an
 // event log; inertia-analyze characterize --log fuses it into a dataset and identifies the
 // sensor; diagnose --log checks the model against the same log. Scored against the simulator's
 // truth (inertia-analyze simulate on the same bench file writes truth.toml) and beside the
@@ -71,7 +71,7 @@ double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 TEST(LogCharacterize, DaqdLogToModelMatchesTheSimulatorTruth) {
   if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
   TempDir tmp;
-  const std::string config = source_path("tests/integration/configs/log-paper-small.toml");
+  const std::string config = source_path("config/sim-paper-daq.toml");
   DaqdProcess daqd({"--config", config, "--fast", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "daqd.txt");
   ASSERT_EQ(daqd.wait(900.0), 0) << daqd.output();
