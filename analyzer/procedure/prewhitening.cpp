@@ -56,23 +56,17 @@ void ArWhitener::apply(StackedRegression& s) const {
   for (const CaseRows& c : s.cases) {
     const Eigen::Index rows = c.rows - m;
     if (rows <= 0) continue;
-    // Row r of the result (r >= 0) is sample r + m of the case: x[k] - sum a_j x[k - j]. Written
-    // front to back into rows that are already consumed (out <= c.begin + r), so in place is safe.
-    for (Eigen::Index r = 0; r < rows; ++r) {
-      const Eigen::Index k = c.begin + m + r;
-      double y = s.y(k);
-      for (int j = 1; j <= m; ++j) y -= a_(j - 1) * s.y(k - j);
-      s.y(out + r) = y;
-    }
-    for (Eigen::Index col = 0; col < s.phi.cols(); ++col) {
-      auto x = s.phi.col(col);
-      for (Eigen::Index r = 0; r < rows; ++r) {
-        const Eigen::Index k = c.begin + m + r;
-        double v = x(k);
-        for (int j = 1; j <= m; ++j) v -= a_(j - 1) * x(k - j);
-        x(out + r) = v;
-      }
-    }
+    // Row r of the result (r >= 0) is sample r + m of the case: x[k] - sum a_j x[k - j]. Whole
+    // segments per lag (vectorized; the same per-sample order of operations as a scalar loop) into
+    // a scratch vector, then copied to rows already consumed (out <= c.begin), so in place is safe.
+    Eigen::VectorXd scratch(rows);
+    const auto filter_into = [&](auto&& x) {
+      scratch = x.segment(c.begin + m, rows);
+      for (int j = 1; j <= m; ++j) scratch.noalias() -= a_(j - 1) * x.segment(c.begin + m - j, rows);
+      x.segment(out, rows) = scratch;
+    };
+    filter_into(s.y);
+    for (Eigen::Index col = 0; col < s.phi.cols(); ++col) filter_into(s.phi.col(col));
     cases.push_back(CaseRows{c.case_index, out, rows, c.first_sample + m});
     out += rows;
   }
