@@ -22,10 +22,10 @@ using ident::Term;
 /// The pipeline allocates and frees regressor matrices of tens of MB hundreds of times. glibc
 /// serves each from a fresh mmap (or trims the heap after the free), so every one costs a page
 /// fault per 4 kB: on the paper dataset 0.6 M faults, a third of the run time in the kernel. Keeping
-/// freed memory in the heap makes the next matrix reuse it (peak RSS 390 -> 490 MB there).
+/// freed memory in the heap makes the next matrix reuse it (peak RSS 390 -> 400 MB there).
 void keep_freed_matrices() {
   static const bool done = [] {
-    mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);   // glibc's largest accepted value
+    mallopt(M_MMAP_THRESHOLD, 1024 * 1024 * 1024);
     mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
     return true;
   }();
