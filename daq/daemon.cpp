@@ -272,6 +272,7 @@ int run_daemon(const DaemonOptions& command_line) {
   PublisherOptions po;
   po.block_s = o.block_ms * 1e-3;
   po.bench_message = bench_message;
+  po.log_backpressure = sim != nullptr && o.fast;
   timespec wall{}, mono{};
   ::clock_gettime(CLOCK_REALTIME, &wall);
   ::clock_gettime(CLOCK_MONOTONIC, &mono);

@@ -145,6 +145,16 @@ bool LogWriter::enqueue(std::string_view channel, const void* data, std::size_t 
   return true;
 }
 
+bool LogWriter::enqueue_waiting(std::string_view channel, const void* data, std::size_t size, std::int64_t utime,
+                                std::int64_t max_wait_ns) noexcept {
+  const std::int64_t deadline = hal::monotonic_now_ns() + max_wait_ns;
+  while (free_.front() == nullptr && hal::monotonic_now_ns() < deadline) {
+    const timespec nap{0, 100'000};   // the writer frees a slot per record it writes
+    ::nanosleep(&nap, nullptr);
+  }
+  return enqueue(channel, data, size, utime);
+}
+
 namespace {
 
 void put_be(std::uint8_t* p, std::uint64_t v, int bytes) noexcept {

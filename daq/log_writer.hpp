@@ -66,6 +66,11 @@ class LogWriter {
   /// Copies one message into a free slot. Thread: the publisher only (SPSC producer).
   /// Real-time: no allocation, no lock, no wait; false (and counted) when no slot is free.
   bool enqueue(std::string_view channel, const void* data, std::size_t size, std::int64_t utime) noexcept;
+  /// For fast simulated runs only (no real device is behind the caller, and the simulator waits
+  /// for the samplers, which wait for the publisher): waits up to max_wait_ns for a free slot,
+  /// then enqueue()s (a queue still full after that is counted as lost, as always).
+  bool enqueue_waiting(std::string_view channel, const void* data, std::size_t size, std::int64_t utime,
+                       std::int64_t max_wait_ns) noexcept;
   /// Async-signal-safe: the writer starts a new file at its next wake-up.
   void request_rotate() noexcept { rotate_requested_.store(true, std::memory_order_relaxed); }
 

@@ -80,7 +80,9 @@ void Publisher::send(const std::string& channel, const void* data, std::size_t s
   messages_.fetch_add(1, std::memory_order_relaxed);
   if (log_ != nullptr) {
     const std::int64_t utime = (hal::monotonic_now_ns() + options_.mono_to_wall_ns) / 1000;
-    (void)log_->enqueue(channel, data, size, utime);  // a full queue is counted by the writer
+    // A full queue is counted by the writer.
+    if (options_.log_backpressure) (void)log_->enqueue_waiting(channel, data, size, utime, 2'000'000'000);
+    else (void)log_->enqueue(channel, data, size, utime);
   }
 }
 

@@ -48,6 +48,10 @@ struct PublisherOptions {
   /// late subscriber or lcm-logger gets the bench); empty: none.
   std::vector<std::uint8_t> bench_message;
   double bench_period_s = 10.0;
+  /// Fast simulated runs: wait for room in the log queue instead of losing messages (the
+  /// samplers then wait for ring room, and the simulator for them), so "as fast as possible"
+  /// means as fast as the disk, with nothing lost. Never for real devices.
+  bool log_backpressure = false;
   /// Daemon-wide faults for the status (e.g. "lcm-no-route"). Publisher thread.
   std::function<std::vector<std::string>()> daemon_faults;
 };
