@@ -5,7 +5,6 @@
 #include <limits>
 #include <numbers>
 
-#include <malloc.h>
 #include <stdexcept>
 
 #include "analyzer/procedure/misalignment.hpp"
@@ -18,19 +17,6 @@ namespace inertia::procedure {
 namespace {
 
 using ident::Term;
-
-/// The pipeline allocates and frees regressor matrices of tens of MB hundreds of times. glibc
-/// serves each from a fresh mmap (or trims the heap after the free), so every one costs a page
-/// fault per 4 kB: on the paper dataset 0.6 M faults, a third of the run time in the kernel. Keeping
-/// freed memory in the heap makes the next matrix reuse it (peak RSS 390 -> 400 MB there).
-void keep_freed_matrices() {
-  static const bool done = [] {
-    mallopt(M_MMAP_THRESHOLD, 1024 * 1024 * 1024);
-    mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
-    return true;
-  }();
-  (void)done;
-}
 
 double weight_of(const PipelineOptions& options, const std::string& case_name) {
   const auto it = options.case_weights.find(case_name);
@@ -497,7 +483,6 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
 PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions& options,
                             std::string_view dataset_label) {
   if (data.cases.empty()) throw InputError("the dataset has no cases");
-  keep_freed_matrices();
   PipelineResult result;
   result.cases.resize(data.cases.size());
 
