@@ -14,6 +14,7 @@
 #include <ostream>
 #include <vector>
 
+#include "analyzer/fusion/log_dataset.hpp"
 #include "analyzer/fusion/stream_assembler.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/online/online_estimator.hpp"
@@ -45,20 +46,6 @@ struct SensorPipeline {
 
 dataset::SensorKind sensor_kind(config::SensorType t) {
   return t == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer : dataset::SensorKind::Gyroscope;
-}
-
-dataset::CaseData case_rows(fusion::FusedSegment&& s, const config::TestCase& tc) {
-  dataset::CaseData cd;
-  cd.name = s.case_name;
-  cd.kind = s.kind;
-  cd.m_ec = tc.m_ec;
-  cd.sample_period_s = s.sample_period_s;
-  cd.t = std::move(s.t);
-  cd.a_e = std::move(s.a_e);
-  if (s.w_e) cd.w_e = std::move(*s.w_e);
-  if (s.temp) cd.temp = std::move(*s.temp);
-  cd.y = std::move(s.y);
-  return cd;
 }
 
 model_estimate_t to_message(const SensorPipeline& p, const online::OnlineSnapshot& s) {
@@ -165,7 +152,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
     ao.sensor = s.name;
     p.assembler = std::make_unique<fusion::StreamAssembler>(ao, [&p](fusion::FusedSegment&& seg) {
       const config::TestCase& tc = p.assembler->bench().cases[seg.case_index];
-      p.estimator->push(case_rows(std::move(seg), tc), false);
+      p.estimator->push(fusion::to_case_data(std::move(seg), tc), false);
       ++p.segments;
     });
   }

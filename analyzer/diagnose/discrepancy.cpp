@@ -125,51 +125,6 @@ ident::UlsStatistics statistics_from_gram(const Eigen::MatrixXd& gram, const Eig
   return s;
 }
 
-/// Levinson-Durbin on autocovariances acov(0..M) (pooled over n samples), order by AIC among
-/// 0..M; returns a_1..a_m of A(q) = 1 - sum a_j q^-j. The same estimator as
-/// procedure::ArWhitener::fit, which needs the residual samples; here only their
-/// autocovariances exist (quadratic forms of the lagged Gram matrices).
-Eigen::VectorXd ar_from_autocovariance(const Eigen::VectorXd& acov, double n) {
-  const int max_order = static_cast<int>(acov.size()) - 1;
-  if (max_order <= 0 || !(acov(0) > 0.0) || n < 10.0 * max_order) return {};
-  // std::vector, not Eigen: GCC 12 reports a false -Wuse-after-free on resizing Eigen assignments
-  // inlined here, and CI builds with -Werror.
-  std::vector<double> phi(static_cast<std::size_t>(max_order), 0.0), prev = phi;
-  int best_order = 0;
-  std::vector<double> best;
-  double variance = acov(0);
-  double best_aic = n * std::log(variance);
-  for (int m = 1; m <= max_order; ++m) {
-    const auto um = static_cast<std::size_t>(m);
-    double acc = acov(m);
-    for (std::size_t j = 1; j < um; ++j) acc -= prev[j - 1] * acov(m - static_cast<int>(j));
-    const double k = acc / variance;
-    if (!std::isfinite(k) || std::abs(k) >= 1.0) break;
-    phi[um - 1] = k;
-    for (std::size_t j = 1; j < um; ++j) phi[j - 1] = prev[j - 1] - k * prev[um - j - 1];
-    variance *= 1.0 - k * k;
-    prev = phi;
-    const double aic = n * std::log(variance) + 2.0 * m;
-    if (aic < best_aic) {
-      best_aic = aic;
-      best_order = m;
-      best = phi;
-    }
-  }
-  Eigen::VectorXd out(best_order);
-  for (int j = 0; j < best_order; ++j) out(j) = best[static_cast<std::size_t>(j)];
-  return out;
-}
-
-/// For an output-multiplied term y*p: p (the factors other than the unlagged y).
-Term denominator_of(const Term& term) {
-  std::vector<ident::Factor> rest;
-  for (const ident::Factor& f : term.factors()) {
-    if (!(f.variable == ident::Variable::Y && f.lag == 0)) rest.push_back(f);
-  }
-  return Term::from_factors(rest);
-}
-
 struct ColumnFit {
   bool ok = false;
   std::string failure;
@@ -235,7 +190,7 @@ ColumnFit fit_on_statistics(const Workspace& w, const std::vector<Index>& fit,
   const Index max_lag = static_cast<Index>(w.lagged.size()) - 1;
   Eigen::VectorXd acov(max_lag + 1);
   for (Index l = 0; l <= max_lag; ++l) acov(l) = we.dot(w.lagged[static_cast<std::size_t>(l)] * we) / static_cast<double>(n);
-  const Eigen::VectorXd a = ar_from_autocovariance(acov, static_cast<double>(n));
+  const Eigen::VectorXd a = procedure::ar_from_autocovariance(acov, static_cast<double>(n));
   Index samples = n;
   if (a.size() > 0) {
     Eigen::VectorXd c(a.size() + 1);
@@ -464,7 +419,7 @@ Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& 
   set_output(w, w.stack.y);
   for (std::size_t j = 0; j < w.columns.size(); ++j) {
     if (!w.columns[j].is_output_multiplied()) continue;
-    const Term p = denominator_of(w.columns[j]);
+    const Term p = w.columns[j].denominator_factor();
     Eigen::VectorXd f(w.stack.y.size());
     for (const procedure::CaseRows& c : w.stack.cases) {
       ident::fill_regressors(std::span<const Term>(&p, 1), w.signals[c.case_index], c.first_sample,
@@ -570,7 +525,7 @@ Eigen::MatrixXd whitened_err_gram(const Workspace& w, const Eigen::VectorXd& r) 
     }
     acov(l) = c(p, p) / static_cast<double>(r.size());
   }
-  const Eigen::VectorXd a = ar_from_autocovariance(acov, static_cast<double>(r.size()));
+  const Eigen::VectorXd a = procedure::ar_from_autocovariance(acov, static_cast<double>(r.size()));
   Eigen::VectorXd cf(a.size() + 1);
   cf(0) = 1.0;
   cf.tail(a.size()) = -a;

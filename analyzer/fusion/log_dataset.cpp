@@ -67,6 +67,23 @@ void feed_log(const std::filesystem::path& file, StreamAssembler& assembler, std
   }
 }
 
+dataset::CaseData to_case_data(FusedSegment&& segment, const config::TestCase& tc) {
+  dataset::CaseData cd;
+  cd.name = tc.name;
+  cd.kind = tc.kind;
+  cd.m_ec = tc.m_ec;   // nominal, as simulate writes it: the analysis estimates the misalignment
+  cd.mounting = tc.mounting;
+  cd.sample_period_s = segment.sample_period_s;
+  cd.t = std::move(segment.t);
+  cd.a_e = std::move(segment.a_e);
+  if (segment.w_e) cd.w_e = std::move(*segment.w_e);
+  if (segment.temp) cd.temp = std::move(*segment.temp);
+  cd.y = std::move(segment.y);
+  cd.phase_names = std::move(segment.phase_names);
+  cd.phase = std::move(segment.phase);
+  return cd;
+}
+
 dataset::Dataset log_dataset(const std::filesystem::path& file, const std::string& sensor, std::ostream& messages,
                              const AssemblerOptions& options) {
   std::vector<FusedSegment> segments;
@@ -90,21 +107,12 @@ dataset::Dataset log_dataset(const std::filesystem::path& file, const std::strin
   for (FusedSegment& s : segments) {
     const config::TestCase& tc = bench.cases[s.case_index];
     const int k = seen[s.case_index]++;
-    dataset::CaseData cd;
+    const std::size_t case_index = s.case_index;
+    dataset::CaseData cd = to_case_data(std::move(s), tc);
     cd.name = k == 0 ? tc.name : fmt::format("{}-seg{}", tc.name, k + 1);
-    cd.kind = tc.kind;
     cd.file = cd.name + ".csv";
-    cd.m_ec = tc.m_ec;   // nominal, as simulate writes it: the analysis estimates the misalignment
     // Pieces of one case are one mounting of the sensor, whatever the plan says of the others.
-    cd.mounting = tc.mounting.empty() && pieces[s.case_index] > 1 ? tc.name : tc.mounting;
-    cd.sample_period_s = s.sample_period_s;
-    cd.t = std::move(s.t);
-    cd.a_e = std::move(s.a_e);
-    if (s.w_e) cd.w_e = std::move(*s.w_e);
-    if (s.temp) cd.temp = std::move(*s.temp);
-    cd.y = std::move(s.y);
-    cd.phase_names = std::move(s.phase_names);
-    cd.phase = std::move(s.phase);
+    if (tc.mounting.empty() && pieces[case_index] > 1) cd.mounting = tc.name;
     ds.cases.push_back(std::move(cd));
   }
   // A dataset is all temperature columns or none for a case: keep what each case has.

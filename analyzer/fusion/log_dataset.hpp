@@ -25,4 +25,8 @@ void feed_log(const std::filesystem::path& file, StreamAssembler& assembler, std
 dataset::Dataset log_dataset(const std::filesystem::path& file, const std::string& sensor, std::ostream& messages,
                              const AssemblerOptions& options = {});
 
+/// A fused segment as dataset rows of its test case `tc`: name, kind, nominal m_ec and mounting
+/// from the plan (as `simulate` writes them), the samples and phase labels moved in.
+dataset::CaseData to_case_data(FusedSegment&& segment, const config::TestCase& tc);
+
 }  // namespace inertia::fusion

@@ -114,6 +114,19 @@ int Term::max_lag() const {
   return m;
 }
 
+Term Term::denominator_factor() const {
+  if (!is_output_multiplied()) return *this;
+  std::vector<Factor> rest;
+  for (const Factor& f : factors_) {
+    if (f.variable == Variable::Y && f.lag == 0) {
+      if (f.power > 1) rest.push_back({Variable::Y, 0, f.function, f.power - 1});
+      continue;
+    }
+    rest.push_back(f);
+  }
+  return rest.empty() ? Term() : from_factors(std::move(rest));
+}
+
 bool Term::is_output_multiplied() const {
   return std::any_of(factors_.begin(), factors_.end(),
                      [](const Factor& f) { return f.variable == Variable::Y && f.lag == 0; });

@@ -82,6 +82,10 @@ class Term {
   /// (paper eq. 5), moved to the right-hand side, so it is correlated with the noise and needs an
   /// estimator that corrects for that (the ULS / RME of section 2.6).
   [[nodiscard]] bool is_output_multiplied() const;
+  /// For an output-multiplied term y*p: p, the factor the output multiplies (p_b of
+  /// uls_batch.hpp), i.e. the term with one power of the unlagged y removed ("y*w_i" -> "w_i").
+  /// Any other term is returned unchanged.
+  [[nodiscard]] Term denominator_factor() const;
 
   /// True when the term holds a lagged residual e[k-j]: its column can be built only once the
   /// estimator provides residuals.

@@ -26,20 +26,6 @@ Index position(const std::vector<Term>& terms, const Term& t) {
   return it == terms.end() ? -1 : static_cast<Index>(it - terms.begin());
 }
 
-// The factor an output-multiplied term multiplies y(k) by (p_b of uls_batch.hpp): the term with
-// its unlagged y removed ("y*w_i" -> "w_i", "y" alone cannot occur: the grammar rejects it).
-Term denominator_factor(const Term& t) {
-  std::vector<ident::Factor> rest;
-  for (const ident::Factor& f : t.factors()) {
-    if (f.variable == Variable::Y && f.lag == 0) {
-      if (f.power > 1) rest.push_back({Variable::Y, 0, f.function, f.power - 1});
-      continue;
-    }
-    rest.push_back(f);
-  }
-  return rest.empty() ? Term() : Term::from_factors(std::move(rest));
-}
-
 // Rows [from, from + count) of a case, as a case of their own (a_e, w_e, temp, y; the rest copied).
 void append_rows(const dataset::CaseData& src, Index from, Index count, dataset::CaseData& dst) {
   const Index old = dst.y.size();
@@ -174,7 +160,7 @@ void OnlineEstimator::push(const dataset::CaseData& chunk, bool continues_previo
   Eigen::MatrixXd factor_values;
   if (!output_multiplied_.empty()) {
     std::vector<Term> factor_terms;
-    for (Index j : output_multiplied_) factor_terms.push_back(denominator_factor(terms_[static_cast<std::size_t>(j)]));
+    for (Index j : output_multiplied_) factor_terms.push_back(terms_[static_cast<std::size_t>(j)].denominator_factor());
     factor_values.resize(rows, static_cast<Index>(factor_terms.size()));
     ident::fill_regressors(factor_terms, signals, first_row, factor_values);
   }

@@ -21,10 +21,20 @@ ArWhitener ArWhitener::fit(const Eigen::VectorXd& residuals, const std::vector<C
   if (n < 10.0 * max_order || !(acov(0) > 0.0)) return w;
   acov /= n;
 
+  double innovation = 0.0;
+  w.a_ = ar_from_autocovariance(acov, n, &innovation);
+  w.variance_ratio_ = innovation / acov(0);
+  return w;
+}
+
+Eigen::VectorXd ar_from_autocovariance(const Eigen::VectorXd& acov, double n, double* innovation_variance) {
+  const int max_order = static_cast<int>(acov.size()) - 1;
+  if (innovation_variance != nullptr) *innovation_variance = acov.size() > 0 ? acov(0) : 0.0;
+  if (max_order <= 0 || !(acov(0) > 0.0) || n < 10.0 * max_order) return {};
   // Levinson-Durbin: AR(m) coefficients and innovation variance for every m, AIC picks m.
   Eigen::VectorXd phi = Eigen::VectorXd::Zero(max_order), prev = phi;
   double variance = acov(0);
-  double best_aic = n * std::log(variance);
+  double best_aic = n * std::log(variance), best_variance = variance;
   int best_order = 0;
   Eigen::VectorXd best = Eigen::VectorXd();
   for (int m = 1; m <= max_order; ++m) {
@@ -41,11 +51,11 @@ ArWhitener ArWhitener::fit(const Eigen::VectorXd& residuals, const std::vector<C
       best_aic = aic;
       best_order = m;
       best = phi.head(m);
+      best_variance = variance;
     }
   }
-  w.a_ = best_order > 0 ? best : Eigen::VectorXd();
-  w.variance_ratio_ = std::exp((best_aic - 2.0 * best_order) / n) / acov(0);
-  return w;
+  if (innovation_variance != nullptr) *innovation_variance = best_variance;
+  return best_order > 0 ? best : Eigen::VectorXd();
 }
 
 void ArWhitener::apply(StackedRegression& s) const {

@@ -40,4 +40,10 @@ class ArWhitener {
   double variance_ratio_ = 1.0;
 };
 
+/// Levinson-Durbin on autocovariances acov(0..M) pooled over n samples, the AR order chosen by
+/// AIC among 0..M: a_1..a_m of A(q) = 1 - sum a_j q^-j (empty: white, also when n < 10 M or
+/// acov(0) <= 0). innovation_variance (optional) receives the chosen order's innovation variance.
+/// ArWhitener::fit uses it on residuals; diagnose on autocovariances of quadratic forms.
+Eigen::VectorXd ar_from_autocovariance(const Eigen::VectorXd& acov, double n, double* innovation_variance = nullptr);
+
 }  // namespace inertia::procedure
