@@ -1,6 +1,9 @@
 #include "analyzer/procedure/square_highpass.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numbers>
 
 namespace inertia::procedure {
 
@@ -34,6 +37,108 @@ void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, doubl
   }
   state.previous_input = previous;
   state.output = h;
+}
+
+void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns, const std::vector<CaseRows>& layout,
+                      const dataset::Dataset& data, double corner_rad_s) {
+  for (const CaseRows& rows : layout) {
+    if (rows.rows <= 0) continue;
+    const double period = data.cases.at(rows.case_index).sample_period_s;
+    for (Eigen::Index col : columns) highpass_in_place(x.col(col).segment(rows.begin, rows.rows), corner_rad_s, period);
+  }
+}
+
+double max_corner(const std::vector<CaseRows>& layout, const dataset::Dataset& data) {
+  double smallest_nyquist = std::numeric_limits<double>::infinity();
+  for (const CaseRows& rows : layout) {
+    const double period = data.cases.at(rows.case_index).sample_period_s;
+    if (!(period > 0.0)) return 0.0;   // no sample period: no filter (the search keeps static squares)
+    smallest_nyquist = std::min(smallest_nyquist, std::numbers::pi / period);
+  }
+  return 0.9 * smallest_nyquist;
+}
+
+SquareCornerSearch::SquareCornerSearch(const StackedRegression& s, std::vector<Eigen::Index> squares,
+                                       const dataset::Dataset& data)
+    : s_(s), squares_(std::move(squares)), data_(data) {
+  gram_ = s.phi.transpose() * s.phi;
+  xty_ = s.phi.transpose() * s.y;
+  yy_ = s.y.squaredNorm();
+}
+
+double SquareCornerSearch::rss(std::optional<double> corner_rad_s) const {
+  Eigen::MatrixXd g = gram_;
+  Eigen::VectorXd v = xty_;
+  if (corner_rad_s) {
+    const auto n = static_cast<Eigen::Index>(squares_.size());
+    Eigen::MatrixXd f(s_.phi.rows(), n);
+    std::vector<Eigen::Index> all(squares_.size());
+    for (Eigen::Index i = 0; i < n; ++i) {
+      f.col(i) = s_.phi.col(squares_[static_cast<std::size_t>(i)]);
+      all[static_cast<std::size_t>(i)] = i;
+    }
+    highpass_columns(f, all, s_.cases, data_, *corner_rad_s);
+    const Eigen::MatrixXd cross = f.transpose() * s_.phi;   // n x p, square columns still unfiltered on the right
+    const Eigen::MatrixXd ff = f.transpose() * f;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Index a = squares_[static_cast<std::size_t>(i)];
+      g.row(a) = cross.row(i);
+      g.col(a) = cross.row(i).transpose();
+      v(a) = f.col(i).dot(s_.y);
+    }
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (Eigen::Index j = 0; j < n; ++j) g(squares_[static_cast<std::size_t>(i)], squares_[static_cast<std::size_t>(j)]) = ff(i, j);
+    }
+  }
+  // Scaled pseudo-inverse (dependent columns are harmless here: only the residual counts).
+  const Eigen::VectorXd d = g.diagonal().cwiseMax(std::numeric_limits<double>::min()).cwiseSqrt();
+  const Eigen::MatrixXd gs = d.cwiseInverse().asDiagonal() * g * d.cwiseInverse().asDiagonal();
+  const Eigen::VectorXd vs = d.cwiseInverse().asDiagonal() * v;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gs);
+  const double cut = 1e-12 * eig.eigenvalues().maxCoeff();
+  double explained = 0.0;
+  for (Eigen::Index k = 0; k < eig.eigenvalues().size(); ++k) {
+    const double lambda = eig.eigenvalues()(k);
+    if (lambda > cut) {
+      const double proj = eig.eigenvectors().col(k).dot(vs);
+      explained += proj * proj / lambda;
+    }
+  }
+  return yy_ - explained;
+}
+
+std::optional<double> SquareCornerSearch::best(double lo, double hi) const {
+  const double static_rss = rss(std::nullopt);
+  if (!(hi > lo) || lo <= 0.0) return std::nullopt;
+  constexpr int kGrid = 13;
+  const double l0 = std::log(lo), l1 = std::log(hi);
+  int best_index = 0;
+  double best_rss = std::numeric_limits<double>::infinity();
+  std::vector<double> grid(kGrid);
+  for (int i = 0; i < kGrid; ++i) {
+    grid[static_cast<std::size_t>(i)] = l0 + (l1 - l0) * i / (kGrid - 1);
+    const double r = rss(std::exp(grid[static_cast<std::size_t>(i)]));
+    if (r < best_rss) {
+      best_rss = r;
+      best_index = i;
+    }
+  }
+  double a = grid[static_cast<std::size_t>(std::max(0, best_index - 1))];
+  double b = grid[static_cast<std::size_t>(std::min(kGrid - 1, best_index + 1))];
+  const double ratio = (std::sqrt(5.0) - 1.0) / 2.0;
+  double x1 = b - ratio * (b - a), x2 = a + ratio * (b - a);
+  double f1 = rss(std::exp(x1)), f2 = rss(std::exp(x2));
+  for (int it = 0; it < 24; ++it) {
+    if (f1 < f2) {
+      b = x2; x2 = x1; f2 = f1; x1 = b - ratio * (b - a); f1 = rss(std::exp(x1));
+    } else {
+      a = x1; x1 = x2; f1 = f2; x2 = a + ratio * (b - a); f2 = rss(std::exp(x2));
+    }
+  }
+  const double x = f1 < f2 ? x1 : x2;
+  const double fx = std::min(f1, f2);
+  if (std::min(fx, best_rss) >= static_rss) return std::nullopt;
+  return fx <= best_rss ? std::exp(x) : std::exp(grid[static_cast<std::size_t>(best_index)]);
 }
 
 }  // namespace inertia::procedure

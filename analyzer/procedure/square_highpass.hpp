@@ -7,7 +7,12 @@
 //   h(k) = p h(k-1) + g (x(k) - x(k-1)),  c = b / tan(b T / 2),  p = (c - b)/(c + b),  g = c/(c + b).
 #include <Eigen/Dense>
 
+#include <optional>
+#include <vector>
+
 #include "analyzer/ident/term.hpp"
+#include "analyzer/procedure/stacked_regression.hpp"
+#include "common/dataset/dataset.hpp"
 
 namespace inertia::procedure {
 
@@ -27,5 +32,38 @@ struct HighpassState {
 /// exactly what highpass_in_place gives on their concatenation.
 void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s,
                        HighpassState& state);
+
+/// The high pass on `columns` of `x`, case by case over the rows of `layout` (a filter never
+/// runs across two cases).
+void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns, const std::vector<CaseRows>& layout,
+                      const dataset::Dataset& data, double corner_rad_s);
+
+/// The largest corner every case of `layout` can be filtered with (below Nyquist); 0 when a case
+/// has no sample period.
+double max_corner(const std::vector<CaseRows>& layout, const dataset::Dataset& data);
+
+/// Eq. 12's corner b from data: the residual sum of squares of the least-squares fit of y on
+/// every column of a stacked problem when its square columns pass s / (s + b) (or stay static).
+/// The Gram matrix of the columns is computed once; each corner costs one filter pass over the
+/// square columns and their products with the rest. Used where a model's squares are fitted
+/// (pipeline) and where a model without them is diagnosed (diagnose).
+class SquareCornerSearch {
+ public:
+  SquareCornerSearch(const StackedRegression& s, std::vector<Eigen::Index> squares, const dataset::Dataset& data);
+
+  [[nodiscard]] double rss(std::optional<double> corner_rad_s) const;
+
+  /// The corner minimizing rss over [lo, hi] (log-spaced grid, then golden section), or nullopt
+  /// when the static squares fit better.
+  [[nodiscard]] std::optional<double> best(double lo, double hi) const;
+
+ private:
+  const StackedRegression& s_;
+  std::vector<Eigen::Index> squares_;
+  const dataset::Dataset& data_;
+  Eigen::MatrixXd gram_;
+  Eigen::VectorXd xty_;
+  double yy_ = 0.0;
+};
 
 }  // namespace inertia::procedure
