@@ -108,7 +108,7 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
   j["findings"] = nlohmann::json::array();
   for (const diagnose::Finding& f : r.findings) {
     j["findings"].push_back({{"term", f.term}, {"effect", f.effect}, {"coefficient", f.coefficient}, {"std", f.std},
-                             {"t", f.t}, {"p_value", f.p_value}, {"p_needed", f.threshold_p}, {"err", f.err},
+                             {"t", f.t}, {"final_coefficient", f.final_coefficient}, {"final_std", f.final_std}, {"p_value", f.p_value}, {"p_needed", f.threshold_p}, {"err", f.err},
                              {"delta_aic", f.delta_aic}, {"ar_order", f.ar_order},
                              {"where", {{"case", f.where_case}, {"phase", f.where_phase}, {"rms", f.where_rms}}}});
   }
@@ -141,9 +141,13 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
   fmt::print(log, "location (baseline): {}\n", r.location_before.verdict);
   fmt::print(log, "location (final): {}\n", r.location_after.verdict);
   if (r.findings.empty()) fmt::print(log, "no significant missing effect\n");
+  if (r.estimated_square_corner_rad_s) {
+    fmt::print(log, "the squares act through eq. 12's high pass s/(s+b): b = {:.4g} rad/s estimated (the model had none)\n",
+               *r.estimated_square_corner_rad_s);
+  }
   for (const diagnose::Finding& f : r.findings) {
-    fmt::print(log, "found {:<14} ({}): {:.6g} +- {:.3g}, t = {:.1f}, acts most in {}/{}\n", f.term, f.effect,
-               f.coefficient, f.std, f.t, f.where_case, f.where_phase);
+    fmt::print(log, "found {:<14} ({}): {:.6g} +- {:.3g}, t = {:.1f}, acts most in {}/{}; final model {:.6g} +- {:.3g}\n",
+               f.term, f.effect, f.coefficient, f.std, f.t, f.where_case, f.where_phase, f.final_coefficient, f.final_std);
   }
   for (const diagnose::Finding& f : r.case_misalignments) {
     fmt::print(log, "found {} about case {}: {:.4f} +- {:.2g} deg, t = {:.1f}\n", f.effect, "xyz"[f.axis], f.angle_deg,

@@ -16,6 +16,11 @@ struct LibraryOptions {
   /// nominal m_ec does not hold is then named as such instead of as a spurious sensor term. With
   /// one mounting it is the model's own m_cs, which the terms a_p, a_o (w_p, w_o) already cover.
   bool mounting_rotations = true;
+  /// The largest mounting rotation (deg) offered as a misalignment. The rotation columns are the
+  /// linearised sensitivity, and a setup error of several degrees is a wrong nominal m_ec rather
+  /// than a misalignment; past this bound the rotation stops being a model of the data and starts
+  /// fitting whatever the given model lacks (a datasheet model on sim-paper took 37.8 deg about x).
+  double max_rotation_deg = 5.0;
 };
 
 /// Accelerometer: 1, a_i, a_p, a_o (scale factor, cross-axis), a_i^2 a_p^2 a_o^2 (second order),

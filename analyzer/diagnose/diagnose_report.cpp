@@ -57,13 +57,21 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
   if (r.findings.empty()) {
     md << "No candidate term is significant: nothing the library can name is missing.\n\n";
   } else {
-    md << "| # | term | effect | coefficient | std | t | p | p needed | ERR | dAIC | AR order | acts most in |\n";
-    md << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    md << "Coefficient, std, t and p are those of the step that found the term; the final columns hold the "
+          "augmented model's, every finding refitted together.\n\n";
+    if (r.estimated_square_corner_rad_s) {
+      md << fmt::format("The given model had no squares and no high pass; the squares found act through eq. 12's "
+                        "s/(s+b) with b = {:.5g} rad/s estimated from the data (written to the augmented model).\n\n",
+                        *r.estimated_square_corner_rad_s);
+    }
+    md << "| # | term | effect | coefficient | std | t | p | p needed | ERR | dAIC | AR order | acts most in | final coefficient | final std |\n";
+    md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (std::size_t i = 0; i < r.findings.size(); ++i) {
       const Finding& f = r.findings[i];
-      md << fmt::format("| {} | `{}` | {} | {:.6g} | {:.3g} | {:.1f} | {:.2g} | {:.2g} | {:.3g} | {:.1f} | {} | {} / {} ({:.3g} {}) |\n",
+      md << fmt::format("| {} | `{}` | {} | {:.6g} | {:.3g} | {:.1f} | {:.2g} | {:.2g} | {:.3g} | {:.1f} | {} | {} / {} ({:.3g} {}) | {:.6g} | {:.3g} |\n",
                         i + 1, f.term, f.effect, f.coefficient, f.std, f.t, f.p_value, f.threshold_p, f.err,
-                        f.delta_aic, f.ar_order, f.where_case, f.where_phase, f.where_rms, unit);
+                        f.delta_aic, f.ar_order, f.where_case, f.where_phase, f.where_rms, unit, f.final_coefficient,
+                        f.final_std);
     }
     md << "\n";
   }

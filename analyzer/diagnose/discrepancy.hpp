@@ -52,7 +52,10 @@ struct ResidualSummary {
 struct Finding {
   std::string term;                  // canonical
   std::string effect;                // physical name
-  double coefficient = 0.0;          // in the re-estimated augmented model
+  double coefficient = 0.0;          // at the step it was found (what its test saw)
+  /// In the final augmented model, every finding refitted together: with several effects
+  /// missing, the first step's coefficient also carries what later findings explain.
+  double final_coefficient = 0.0, final_std = 0.0;
   double std = 0.0;                  // prewhitened (GLS) standard deviation
   double t = 0.0;
   double p_value = 1.0;              // two-sided, Student's t
@@ -84,6 +87,9 @@ struct DiagnoseResult {
   /// Mounting rotations the search accepted (in the order found, interleaved with the findings in
   /// `steps`): a case misalignment the dataset's nominal m_ec lacks, named as such.
   std::vector<Finding> case_misalignments;
+  /// Set when the given model had no squares and no high pass, and the squares found act through
+  /// eq. 12's high pass: its corner (rad/s), estimated from the data and written to the model.
+  std::optional<double> estimated_square_corner_rad_s;
   std::vector<std::string> held_fixed;     // model terms the data cannot estimate (kept as given)
   double noise_reference = 0.0;            // the sd the location test compares with
   std::string location_test;               // which test: chi-square vs white_sd, or F vs final

@@ -110,7 +110,7 @@ double SquareCornerSearch::rss(std::optional<double> corner_rad_s) const {
 std::optional<double> SquareCornerSearch::best(double lo, double hi) const {
   const double static_rss = rss(std::nullopt);
   if (!(hi > lo) || lo <= 0.0) return std::nullopt;
-  constexpr int kGrid = 13;
+  constexpr int kGrid = kGridCorners;
   const double l0 = std::log(lo), l1 = std::log(hi);
   int best_index = 0;
   double best_rss = std::numeric_limits<double>::infinity();

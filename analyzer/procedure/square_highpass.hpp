@@ -49,6 +49,9 @@ double max_corner(const std::vector<CaseRows>& layout, const dataset::Dataset& d
 /// (pipeline) and where a model without them is diagnosed (diagnose).
 class SquareCornerSearch {
  public:
+  /// Corners of the log-spaced grid the search starts from (golden section refines the best).
+  static constexpr int kGridCorners = 13;
+
   SquareCornerSearch(const StackedRegression& s, std::vector<Eigen::Index> squares, const dataset::Dataset& data);
 
   [[nodiscard]] double rss(std::optional<double> corner_rad_s) const;

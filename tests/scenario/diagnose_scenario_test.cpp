@@ -257,6 +257,33 @@ TEST(DiagnoseScenario, HiddenHighPassSquareFound) {
   EXPECT_TRUE(r.case_misalignments.empty());
 }
 
+/// A datasheet model: bias, scale factor and cross-coupling only, no squares and no high pass,
+/// while the sensor's squares act through eq. 12's s / (s + 300 rad/s). Offered only as static
+/// squares they fit the wrong shape, so diagnose estimates the corner once a square wins a step;
+/// all three are then named, each with its high-frequency gain, and the corner goes to the model.
+TEST(DiagnoseScenario, DatasheetModelGetsTheSquaresAndTheirHighPass) {
+  const Scenario s = make_scenario(shaker_bench(highpass_truth("k_ip = 1e-3\n"), 17), {"a_i^2", "a_p^2", "a_o^2"});
+  const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
+  print_figures("datasheet model", s, r);
+  ASSERT_TRUE(r.estimated_square_corner_rad_s.has_value());
+  std::cout << "    corner " << *r.estimated_square_corner_rad_s << " rad/s, truth 300\n";
+  ASSERT_TRUE(r.final_model.square_highpass_rad_s.has_value());
+  EXPECT_EQ(*r.final_model.square_highpass_rad_s, *r.estimated_square_corner_rad_s);
+  std::set<std::string> found;
+  for (const Finding& f : r.findings) found.insert(f.term);
+  EXPECT_EQ(found, (std::set<std::string>{"a_i^2", "a_p^2", "a_o^2"}));
+  for (const auto& [term, truth] : s.hidden) {
+    const ident::Term t = ident::parse_term(term);
+    const auto it = std::find_if(r.final_model.terms.begin(), r.final_model.terms.end(),
+                                 [&](const model::ModelTerm& m) { return m.term == t; });
+    ASSERT_NE(it, r.final_model.terms.end()) << term;
+    ASSERT_TRUE(it->std.has_value());
+    EXPECT_LT(std::abs(it->coefficient - truth), 3.0 * *it->std) << term << ": " << it->coefficient << " +- " << *it->std
+                                                                 << " vs " << truth;
+  }
+  EXPECT_LT(std::abs(r.steps.back().overall / (kScale * kWhiteSdG) - 1.0), 0.2);
+}
+
 TEST(DiagnoseScenario, HiddenRectificationFound) {
   const Scenario s = make_scenario(shaker_bench(truth_fields("k_a = 5e-5\n"), 15), {"abs(a_i)"});
   const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
