@@ -1,0 +1,133 @@
+// The location statistics of diagnose (analyzer/diagnose/location.hpp) against noise of known
+// law: under the model's own noise every band and condition-bin test must hold its nominal size,
+// a band's mean ratio must be 1 within its chi-square spread, and an excess put in one band or one
+// |a| bin must be found there and nowhere else.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <numbers>
+#include <random>
+
+#include "analyzer/diagnose/location.hpp"
+
+namespace inertia::diagnose {
+namespace {
+
+constexpr double kFs = 1000.0;
+constexpr Eigen::Index kSamples = 20000;
+constexpr double kSd = 0.01;
+
+/// One case at rest (|a| = 1 g) for the first half, on a 5 g vibration for the second half.
+dataset::Dataset one_case() {
+  dataset::Dataset d;
+  dataset::CaseData c;
+  c.name = "case";
+  c.sample_period_s = 1.0 / kFs;
+  c.t = Eigen::VectorXd::LinSpaced(kSamples, 0.0, double(kSamples - 1) / kFs);
+  c.a_e = Eigen::MatrixXd::Zero(kSamples, 3);
+  for (Eigen::Index k = 0; k < kSamples; ++k) c.a_e(k, 2) = (k < kSamples / 2 ? 1.0 : 5.0) * 9.80665;
+  c.y = Eigen::VectorXd::Zero(kSamples);
+  d.cases.push_back(std::move(c));
+  return d;
+}
+
+Eigen::VectorXd white(std::mt19937_64& rng) {
+  std::normal_distribution<double> g(0.0, kSd);
+  Eigen::VectorXd e(kSamples);
+  for (Eigen::Index k = 0; k < kSamples; ++k) e(k) = g(rng);
+  return e;
+}
+
+NoiseModel white_model() {
+  NoiseModel n;
+  n.white_sd = kSd;
+  return n;
+}
+
+TEST(Location, WhiteNoiseHoldsTheBandTestsSizeAndRatioOne) {
+  const dataset::Dataset d = one_case();
+  std::mt19937_64 rng(11);
+  const int seeds = 200;
+  int tests = 0, rejections = 0, family_alarms = 0;
+  double worst_z = 0.0;
+  for (int s = 0; s < seeds; ++s) {
+    const Location loc = locate(d, {{0, 0, white(rng)}}, white_model(), 0.05);
+    ASSERT_EQ(loc.bands.size(), 1U);
+    bool alarm = false;
+    for (const BandTest& b : loc.bands[0].bands) {
+      ++tests;
+      rejections += b.p_value < 0.05;
+      alarm = alarm || b.excess;
+      // The ratio is a scaled chi-square / dof: mean 1, sd sqrt(2 / dof).
+      worst_z = std::max(worst_z, std::abs(b.ratio - 1.0) / std::sqrt(2.0 / b.dof));
+    }
+    family_alarms += alarm;
+  }
+  // Per-band size 0.05: binomial sd sqrt(n p (1-p)); 4 sd either way.
+  const double expected = 0.05 * tests, sd = std::sqrt(tests * 0.05 * 0.95);
+  EXPECT_NEAR(rejections, expected, 4.0 * sd) << rejections << " of " << tests;
+  // Bonferroni keeps the family's false-alarm rate at most alpha.
+  EXPECT_LE(family_alarms, 0.05 * seeds + 4.0 * std::sqrt(seeds * 0.05 * 0.95)) << family_alarms;
+  // Over ~2000 band statistics the largest deviation of a true chi-square stays below ~4.5 sd.
+  EXPECT_LT(worst_z, 5.0);
+  std::cout << "[ location ] white noise: " << rejections << " of " << tests << " band tests below p 0.05, " << family_alarms
+            << " of " << seeds << " seeds with a Bonferroni excess, largest |ratio - 1| " << worst_z << " sd\n";
+}
+
+TEST(Location, ArNoiseIsExplainedByItsModelAndNotByWhiteNoise) {
+  const dataset::Dataset d = one_case();
+  std::mt19937_64 rng(12);
+  // e filtered by 1 / (1 - 0.8 q^-1): a free-run residual of a model with y[k-1] = 0.8.
+  const Eigen::VectorXd e = white(rng);
+  Eigen::VectorXd r(kSamples);
+  r(0) = e(0) / std::sqrt(1.0 - 0.64);   // started stationary
+  for (Eigen::Index k = 1; k < kSamples; ++k) r(k) = 0.8 * r(k - 1) + e(k);
+  NoiseModel ar = white_model();
+  ar.ar = Eigen::VectorXd::Constant(1, 0.8);
+  const Location explained = locate(d, {{0, 0, r}}, ar, 0.05);
+  for (const BandTest& b : explained.bands[0].bands) EXPECT_FALSE(b.excess) << b.f_lo_hz << ".." << b.f_hi_hz << " ratio " << b.ratio;
+  // The AR(1) spectrum is 1 / |1 - 0.8 e^{-jw}|^2: 25 at DC, 1/3.24 at Nyquist. Against a white
+  // model with the same innovation sd the low bands are in excess and the top band is not.
+  const Location against_white = locate(d, {{0, 0, r}}, white_model(), 0.05);
+  const auto& bands = against_white.bands[0].bands;
+  EXPECT_TRUE(bands.front().excess);
+  EXPECT_GT(bands.front().ratio, 10.0);
+  EXPECT_FALSE(bands.back().excess);
+  EXPECT_LT(bands.back().ratio, 0.5);
+}
+
+TEST(Location, ASineIsLocatedInItsBandAndItsCondition) {
+  const dataset::Dataset d = one_case();
+  std::mt19937_64 rng(13);
+  Eigen::VectorXd r = white(rng);
+  // 2 sd of sine at 100 Hz, only while the case vibrates at 5 g.
+  const double f0 = 100.0;
+  for (Eigen::Index k = kSamples / 2; k < kSamples; ++k) r(k) += 2.0 * kSd * std::sin(2.0 * std::numbers::pi * f0 * double(k) / kFs);
+  const Location loc = locate(d, {{0, 0, r}}, white_model(), 0.05);
+  int flagged = 0;
+  for (const BandTest& b : loc.bands[0].bands) {
+    const bool holds = b.f_lo_hz <= f0 && f0 < b.f_hi_hz;
+    EXPECT_EQ(b.excess, holds) << b.f_lo_hz << ".." << b.f_hi_hz << " ratio " << b.ratio << " p " << b.p_value;
+    flagged += b.excess;
+  }
+  EXPECT_EQ(flagged, 1);
+  int bins = 0;
+  for (const ConditionBin& c : loc.conditions) {
+    if (c.quantity != "|a|") continue;
+    ++bins;
+    const bool vibrating = c.lo <= 5.0 && 5.0 < c.hi;
+    EXPECT_EQ(c.excess, vibrating) << c.lo << ".." << c.hi << " g, ratio " << c.ratio;
+    // Where the sine acts the mean square is (1 + 2^2 / 2) sd^2 = 3 sd^2; per sample r^2 has
+    // variance 2 sd^4 + 4 sd^2 (2^2 sd^2 / 2) = 10 sd^4, so the RMS ratio sqrt(3) has sd
+    // sqrt(10 / n) / (2 sqrt(3)) over the bin's n samples. 4 sd.
+    if (vibrating) {
+      const double n = double(c.samples);
+      EXPECT_NEAR(c.ratio, std::sqrt(3.0), 4.0 * std::sqrt(10.0 / n) / (2.0 * std::sqrt(3.0)));
+    }
+  }
+  EXPECT_EQ(bins, 2);
+}
+
+}  // namespace
+}  // namespace inertia::diagnose
