@@ -923,7 +923,10 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
     if (f.mounting.empty()) continue;
     const auto m = static_cast<std::size_t>(
         std::find(mountings.names.begin(), mountings.names.end(), f.mounting) - mountings.names.begin());
-    f.angle_deg = delta[m](f.axis) * 180.0 / std::numbers::pi;
+    // Reported as the turn of the mounting's frame (frames::frame_rotation, the convention of a
+    // bench file's case_misalignment): R(delta) maps case coordinates, the frame turns by -delta.
+    f.angle_deg = -delta[m](f.axis) * 180.0 / std::numbers::pi;
+    f.t = -f.t;
     f.angle_std_deg = rotation_std[m](f.axis) * 180.0 / std::numbers::pi;
   }
   // The findings list holds sensor effects only; mounting rotations go to their own list (they

@@ -284,6 +284,35 @@ TEST(DiagnoseScenario, DatasheetModelGetsTheSquaresAndTheirHighPass) {
   EXPECT_LT(std::abs(r.steps.back().overall / (kScale * kWhiteSdG) - 1.0), 0.2);
 }
 
+/// Two mountings on the shaker: IA and PA on one fixture, OA on a second one that is turned by
+/// 0.5 deg about the case Y axis. The model (truth, with the first fixture's m_cs) lacks nothing;
+/// the only discrepancy is the second fixture's rotation, and diagnose must report it as a case
+/// misalignment of that mounting (not as a sensor term), with the angle within 3 sd.
+TEST(DiagnoseScenario, MountingRotationNamedAsCaseMisalignment) {
+  std::string bench = shaker_bench(truth_fields("k_ip = 1e-3\n"), 18);
+  const std::string oa = "orientation = \"OA\"\n";
+  bench.replace(bench.find(oa), oa.size(), oa + "mounting = \"fixture-2\"\n"
+                "case_misalignment = { axis = [0.0, 1.0, 0.0], angle_deg = 0.5 }\n");
+  for (const char* o : {"IA", "PA"}) {
+    const std::string line = std::string("orientation = \"") + o + "\"\n";
+    bench.replace(bench.find(line), line.size(), line + "mounting = \"fixture-1\"\n");
+  }
+  const Scenario s = make_scenario(bench, {});
+  const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
+  print_figures("mounting rotation", s, r);
+  for (const Finding& f : r.case_misalignments) {
+    std::cout << "    case misalignment " << f.mounting << " about " << "xyz"[f.axis] << ": " << f.angle_deg << " +- "
+              << f.angle_std_deg << " deg\n";
+  }
+  EXPECT_TRUE(r.findings.empty()) << "found a sensor term: " << r.findings.front().term;
+  ASSERT_EQ(r.case_misalignments.size(), 1U);
+  const Finding& m = r.case_misalignments.front();
+  EXPECT_EQ(m.mounting, "fixture-2");
+  EXPECT_EQ(m.axis, 1);
+  EXPECT_LT(std::abs(m.angle_deg - 0.5), 3.0 * m.angle_std_deg) << m.angle_deg << " +- " << m.angle_std_deg;
+  EXPECT_LT(std::abs(r.steps.back().overall / (kScale * kWhiteSdG) - 1.0), 0.2);
+}
+
 TEST(DiagnoseScenario, HiddenRectificationFound) {
   const Scenario s = make_scenario(shaker_bench(truth_fields("k_a = 5e-5\n"), 15), {"abs(a_i)"});
   const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
