@@ -55,26 +55,28 @@ struct Workspace {
   bool square_corner_estimated = false;
 };
 
-/// Sets the regression output and its rows of the lagged Gram matrices (O(N p) per lag).
+/// The last row and column of the lag-`lag` Gram matrix `c` of Z = [Phi v], within cases:
+/// sum_k phi(k) v(k-l), sum_k v(k) phi(k-l)', sum_k v(k) v(k-l). O(N p).
+void lagged_cross_with(const Workspace& w, const Eigen::VectorXd& v, Index lag, Eigen::MatrixXd& c) {
+  const Index p = w.stack.phi.cols();
+  c.col(p).setZero();
+  c.row(p).setZero();
+  for (const procedure::CaseRows& cr : w.stack.cases) {
+    if (cr.rows <= lag) continue;
+    const auto now = w.stack.phi.middleRows(cr.begin + lag, cr.rows - lag);
+    const auto before = w.stack.phi.middleRows(cr.begin, cr.rows - lag);
+    const auto v_now = v.segment(cr.begin + lag, cr.rows - lag);
+    const auto v_before = v.segment(cr.begin, cr.rows - lag);
+    c.col(p).head(p).noalias() += now.transpose() * v_before;
+    c.row(p).head(p).noalias() += (before.transpose() * v_now).transpose();
+    c(p, p) += v_now.dot(v_before);
+  }
+}
+
+/// Sets the regression output and its rows of the lagged Gram matrices.
 void set_output(Workspace& w, const Eigen::VectorXd& y) {
   w.stack.y = y;
-  const Index p = w.stack.phi.cols();
-  for (std::size_t l = 0; l < w.lagged.size(); ++l) {
-    const auto lag = static_cast<Index>(l);
-    Eigen::MatrixXd& c = w.lagged[l];
-    c.col(p).setZero();
-    c.row(p).setZero();
-    for (const procedure::CaseRows& cr : w.stack.cases) {
-      if (cr.rows <= lag) continue;
-      const auto now = w.stack.phi.middleRows(cr.begin + lag, cr.rows - lag);
-      const auto before = w.stack.phi.middleRows(cr.begin, cr.rows - lag);
-      const auto y_now = y.segment(cr.begin + lag, cr.rows - lag);
-      const auto y_before = y.segment(cr.begin, cr.rows - lag);
-      c.col(p).head(p).noalias() += now.transpose() * y_before;
-      c.row(p).head(p).noalias() += (before.transpose() * y_now).transpose();
-      c(p, p) += y_now.dot(y_before);
-    }
-  }
+  for (std::size_t l = 0; l < w.lagged.size(); ++l) lagged_cross_with(w, y, static_cast<Index>(l), w.lagged[l]);
 }
 
 /// The mountings of a dataset: cases sharing a `mounting` label, else each case its own. A
@@ -539,16 +541,7 @@ Eigen::MatrixXd whitened_err_gram(const Workspace& w, const Eigen::VectorXd& r) 
   for (Index l = 0; l < lags; ++l) {
     Eigen::MatrixXd& c = z[static_cast<std::size_t>(l)];
     c.topLeftCorner(p, p) = w.lagged[static_cast<std::size_t>(l)].topLeftCorner(p, p);
-    for (const procedure::CaseRows& cr : w.stack.cases) {
-      if (cr.rows <= l) continue;
-      const auto now = w.stack.phi.middleRows(cr.begin + l, cr.rows - l);
-      const auto before = w.stack.phi.middleRows(cr.begin, cr.rows - l);
-      const auto r_now = r.segment(cr.begin + l, cr.rows - l);
-      const auto r_before = r.segment(cr.begin, cr.rows - l);
-      c.col(p).head(p).noalias() += now.transpose() * r_before;
-      c.row(p).head(p).noalias() += (before.transpose() * r_now).transpose();
-      c(p, p) += r_now.dot(r_before);
-    }
+    lagged_cross_with(w, r, l, c);
     acov(l) = c(p, p) / static_cast<double>(r.size());
   }
   const Eigen::VectorXd a = procedure::ar_from_autocovariance(acov, static_cast<double>(r.size()));
