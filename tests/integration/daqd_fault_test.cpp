@@ -222,21 +222,6 @@ TEST(DaqdFaults, NanSensorIsMarkedInvalidExactlyReportedAndRecovers) {
   EXPECT_NE(r.out.find("accel: cleared invalid-samples"), std::string::npos) << r.out;
 }
 
-/// A small tmpfs: a disk that really fills (ENOSPC). Unmounted before its directory goes.
-struct SmallDisk {
-  fs::path path;
-  std::string why_not;  // empty when mounted
-  SmallDisk(const fs::path& where, const char* size) : path(where) {
-    fs::create_directories(path);
-    const std::string options = std::string("size=") + size;
-    if (::geteuid() != 0) why_not = "not root: cannot mount a small tmpfs to fill";
-    else if (::mount("tmpfs", path.c_str(), "tmpfs", 0, options.c_str()) != 0)
-      why_not = std::string("mount tmpfs: ") + std::strerror(errno);
-  }
-  ~SmallDisk() {
-    if (why_not.empty()) (void)::umount2(path.c_str(), MNT_DETACH);
-  }
-};
 
 TEST(DaqdFaults, FullDiskKeepsSamplingAndPublishingCountsTheMissingBlocksAndResumes) {
   if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;

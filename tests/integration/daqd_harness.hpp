@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "daq/daemon.hpp"
+#include "tests/support/scratch_dirs.hpp"
 #include "inertia/daq_status_t.hpp"
 #include "inertia/plan_event_t.hpp"
 #include "inertia/sample_block_t.hpp"
@@ -36,18 +37,8 @@ namespace fs = std::filesystem;
 inline std::string daqd_binary() { return std::string(INERTIA_BINARY_DIR) + "/bin/inertia-daqd"; }
 inline std::string source_path(const std::string& rel) { return std::string(INERTIA_SOURCE_DIR) + "/" + rel; }
 
-/// A fresh directory under /tmp, removed by the destructor.
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "daqd-test-XXXXXX").string();
-    path = ::mkdtemp(tmpl.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
+using inertia::testing::SmallDisk;
+using inertia::testing::TempDir;
 
 /// A multicast URL on a port private to this test process (CTest runs each test as a process).
 inline std::string private_lcm_url() {

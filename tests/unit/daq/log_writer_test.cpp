@@ -17,20 +17,15 @@
 
 #include "daq/daemon.hpp"
 #include "daq/log_writer.hpp"
+#include "tests/support/scratch_dirs.hpp"
 
 namespace inertia::daq {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "logw-XXXXXX").string();
-    path = ::mkdtemp(t.data());
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
+using inertia::testing::SmallDisk;
+using inertia::testing::TempDir;
 
 std::vector<fs::path> files_in(const fs::path& dir) {
   std::vector<fs::path> v;
@@ -145,21 +140,6 @@ TEST(LogWriter, AStalledWriterNeverBlocksEnqueueAndCountsWhatItLost) {
   EXPECT_EQ(w.messages_written(), 8u);
 }
 
-// A small tmpfs mounted here: a disk that really fills (ENOSPC), unmounted on scope exit.
-struct SmallDisk {
-  fs::path path;
-  std::string why_not;  // empty when mounted
-  SmallDisk(const fs::path& where, const char* size) : path(where) {
-    fs::create_directories(path);
-    const std::string options = std::string("size=") + size;
-    if (::geteuid() != 0) why_not = "not root: cannot mount a small tmpfs to fill";
-    else if (::mount("tmpfs", path.c_str(), "tmpfs", 0, options.c_str()) != 0)
-      why_not = std::string("mount tmpfs: ") + std::strerror(errno);
-  }
-  ~SmallDisk() {
-    if (why_not.empty()) (void)::umount2(path.c_str(), MNT_DETACH);
-  }
-};
 
 TEST(LogWriter, AFullDiskLeavesWholeRecordsCountsWhatItCouldNotWriteAndResumes) {
   TempDir tmp;
