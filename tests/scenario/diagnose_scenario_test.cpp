@@ -360,22 +360,24 @@ TEST(DiagnoseScenario, HiddenGyroGSensitivityFound) {
 }
 
 /// Nothing hidden: at most 5% of seeds may report a finding (alpha = 0.05 family-wise per step).
-/// Over 20 seeds that allows one.
-TEST(DiagnoseScenario, ControlNothingHiddenFalseAlarmRate) {
+/// Over 20 seeds that allows one. Seeds first_seed + 1 .. first_seed + 20.
+void expect_false_alarm_rate(double pink_sd_g, int first_seed, const char* label) {
   int alarms = 0;
   std::string what;
   constexpr int kSeeds = 20;
-  for (int seed = 1; seed <= kSeeds; ++seed) {
-    const Scenario s = make_scenario(shaker_bench(truth_fields("k_ip = 2e-3\nk_oq = 2e-5\n"), 100 + seed), {});
+  for (int seed = first_seed + 1; seed <= first_seed + kSeeds; ++seed) {
+    const Scenario s = make_scenario(shaker_bench(truth_fields("k_ip = 2e-3\nk_oq = 2e-5\n", pink_sd_g), seed), {});
     const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
     if (!r.findings.empty()) {
       ++alarms;
-      what += " seed " + std::to_string(100 + seed) + ": " + r.findings.front().term;
+      what += " seed " + std::to_string(seed) + ": " + r.findings.front().term;
     }
   }
-  std::cout << "[ control ] false alarms " << alarms << " of " << kSeeds << " seeds" << what << '\n';
+  std::cout << "[ " << label << " ] false alarms " << alarms << " of " << kSeeds << " seeds" << what << '\n';
   EXPECT_LE(alarms, 1) << what;
 }
+
+TEST(DiagnoseScenario, ControlNothingHiddenFalseAlarmRate) { expect_false_alarm_rate(0.0, 100, "control"); }
 
 }  // namespace
 }  // namespace inertia::diagnose
@@ -423,21 +425,7 @@ TEST(DiagnoseScenario, WeakOddQuadraticHonestStdWhiteNoise) { expect_honest_std(
 TEST(DiagnoseScenario, WeakOddQuadraticHonestStdPinkNoise) { expect_honest_std(5e-4, "coverage, pink noise"); }
 
 /// Control under pink noise: the prewhitened t-test must keep the false-alarm rate too.
-TEST(DiagnoseScenario, ControlPinkNoiseFalseAlarmRate) {
-  int alarms = 0;
-  std::string what;
-  constexpr int kSeeds = 20;
-  for (int seed = 1; seed <= kSeeds; ++seed) {
-    const Scenario s = make_scenario(shaker_bench(truth_fields("k_ip = 2e-3\nk_oq = 2e-5\n", 5e-4), 500 + seed), {});
-    const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
-    if (!r.findings.empty()) {
-      ++alarms;
-      what += " seed " + std::to_string(500 + seed) + ": " + r.findings.front().term;
-    }
-  }
-  std::cout << "[ control, pink noise ] false alarms " << alarms << " of " << kSeeds << " seeds" << what << '\n';
-  EXPECT_LE(alarms, 1) << what;
-}
+TEST(DiagnoseScenario, ControlPinkNoiseFalseAlarmRate) { expect_false_alarm_rate(5e-4, 500, "control, pink noise"); }
 
 }  // namespace
 }  // namespace inertia::diagnose
