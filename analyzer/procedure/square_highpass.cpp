@@ -1,7 +1,10 @@
 #include "analyzer/procedure/square_highpass.hpp"
 
 #include <algorithm>
+#include <boost/math/tools/minima.hpp>
+
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numbers>
 
@@ -41,10 +44,31 @@ void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, doubl
 
 void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns, const std::vector<CaseRows>& layout,
                       const dataset::Dataset& data, double corner_rad_s) {
+  // The columns run side by side, sample by sample: one column's recursion is a chain of
+  // dependent multiply-adds, so interleaving independent ones keeps the pipeline full (the corner
+  // search filters the squares some 40 times per fit). Same arithmetic as highpass_in_place.
+  const auto n = columns.size();
+  std::vector<double> h(n), previous(n);
+  std::vector<double*> col(n);
   for (const CaseRows& rows : layout) {
     if (rows.rows <= 0) continue;
     const double period = data.cases.at(rows.case_index).sample_period_s;
-    for (Eigen::Index col : columns) highpass_in_place(x.col(col).segment(rows.begin, rows.rows), corner_rad_s, period);
+    const double c = corner_rad_s / std::tan(corner_rad_s * period / 2.0);
+    const double p = (c - corner_rad_s) / (c + corner_rad_s);
+    const double g = c / (c + corner_rad_s);
+    for (std::size_t i = 0; i < n; ++i) {
+      col[i] = x.col(columns[i]).data() + rows.begin;
+      h[i] = 0.0;
+      previous[i] = col[i][0];
+    }
+    for (Eigen::Index k = 0; k < rows.rows; ++k) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const double input = col[i][k];
+        h[i] = p * h[i] + g * (input - previous[i]);
+        previous[i] = input;
+        col[i][k] = h[i];
+      }
+    }
   }
 }
 
@@ -123,20 +147,15 @@ std::optional<double> SquareCornerSearch::best(double lo, double hi) const {
       best_index = i;
     }
   }
-  double a = grid[static_cast<std::size_t>(std::max(0, best_index - 1))];
-  double b = grid[static_cast<std::size_t>(std::min(kGrid - 1, best_index + 1))];
-  const double ratio = (std::sqrt(5.0) - 1.0) / 2.0;
-  double x1 = b - ratio * (b - a), x2 = a + ratio * (b - a);
-  double f1 = rss(std::exp(x1)), f2 = rss(std::exp(x2));
-  for (int it = 0; it < 24; ++it) {
-    if (f1 < f2) {
-      b = x2; x2 = x1; f2 = f1; x1 = b - ratio * (b - a); f1 = rss(std::exp(x1));
-    } else {
-      a = x1; x1 = x2; f1 = f2; x2 = a + ratio * (b - a); f2 = rss(std::exp(x2));
-    }
-  }
-  const double x = f1 < f2 ? x1 : x2;
-  const double fx = std::min(f1, f2);
+  // Brent's method (Boost.Math) inside the best grid point's neighbours, on log b: the rss is
+  // smooth there, so parabolic steps reach the tolerance in about a third of the evaluations
+  // golden section needs. 14 bits (tolerance 2^-13 relative to log b: ~8e-4 at b ~ 500 rad/s,
+  // 0.08% of b) is far below the corner's own scatter over seeds (~1.5%).
+  const double a = grid[static_cast<std::size_t>(std::max(0, best_index - 1))];
+  const double b = grid[static_cast<std::size_t>(std::min(kGrid - 1, best_index + 1))];
+  std::uintmax_t iterations = 40;
+  const auto [x, fx] = boost::math::tools::brent_find_minima([this](double log_b) { return rss(std::exp(log_b)); }, a,
+                                                             b, 14, iterations);
   if (std::min(fx, best_rss) >= static_rss) return std::nullopt;
   return fx <= best_rss ? std::exp(x) : std::exp(grid[static_cast<std::size_t>(best_index)]);
 }

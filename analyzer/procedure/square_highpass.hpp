@@ -56,8 +56,8 @@ class SquareCornerSearch {
 
   [[nodiscard]] double rss(std::optional<double> corner_rad_s) const;
 
-  /// The corner minimizing rss over [lo, hi] (log-spaced grid, then golden section), or nullopt
-  /// when the static squares fit better.
+  /// The corner minimizing rss over [lo, hi] (a log-spaced grid, then Brent's method between the
+  /// best point's neighbours), or nullopt when the static squares fit better.
   [[nodiscard]] std::optional<double> best(double lo, double hi) const;
 
  private:
