@@ -2,9 +2,12 @@
 
 #include <fcntl.h>
 #include <glob.h>
+#include <linux/gpio.h>
 #include <sys/timerfd.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -18,6 +21,27 @@ constexpr const char* kConsumer = "inertia-daqd";
 
 std::int64_t to_ns(const timespec& ts) noexcept {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+/// Up to `max` (<= GpiodEncoderDevice::kEventsPerRead) line events from a v1 line-event
+/// descriptor in one read(2), converted as libgpiod converts them. -1 with errno as read(2) set
+/// it, or EIO when the bytes are not whole records (libgpiod's check).
+int read_line_events(int fd, gpiod_line_event* out, std::size_t max) noexcept {
+  std::array<gpioevent_data, GpiodEncoderDevice::kEventsPerRead> raw;
+  const std::size_t want = std::min(max, raw.size());
+  const ssize_t got = ::read(fd, raw.data(), want * sizeof(gpioevent_data));
+  if (got < 0) return -1;
+  if (got % static_cast<ssize_t>(sizeof(gpioevent_data)) != 0) {
+    errno = EIO;
+    return -1;
+  }
+  const auto n = static_cast<std::size_t>(got) / sizeof(gpioevent_data);
+  for (std::size_t i = 0; i < n; ++i) {
+    out[i].ts.tv_sec = static_cast<time_t>(raw[i].timestamp / 1'000'000'000ULL);
+    out[i].ts.tv_nsec = static_cast<long>(raw[i].timestamp % 1'000'000'000ULL);
+    out[i].event_type = raw[i].id == GPIOEVENT_EVENT_RISING_EDGE ? GPIOD_LINE_EVENT_RISING_EDGE : GPIOD_LINE_EVENT_FALLING_EDGE;
+  }
+  return static_cast<int>(n);
 }
 
 bool any_gpiochip() {
@@ -161,8 +185,7 @@ void GpiodEncoderDevice::discard_pending() noexcept {
     buffers_[i] = LineBuffer{};
     const int fd = source_->event_fd(static_cast<EdgeLine>(i));
     if (fd < 0) continue;
-    for (int k = 0; k < 10000 && ::gpiod_line_event_read_fd_multiple(fd, buffers_[i].events.data(),
-                                                                      kEventsPerRead) > 0; ++k) {
+    for (int k = 0; k < 10000 && read_line_events(fd, buffers_[i].events.data(), kEventsPerRead) > 0; ++k) {
     }
     buffers_[i] = LineBuffer{};
   }
@@ -271,7 +294,7 @@ std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
       const int fd = source_->event_fd(line);
       if (fd < 0 || buf.head < buf.size) continue;
       const std::int64_t through = source_->complete_through_ns(line);  // before the read, see header
-      const int n = ::gpiod_line_event_read_fd_multiple(fd, buf.events.data(), kEventsPerRead);
+      const int n = read_line_events(fd, buf.events.data(), kEventsPerRead);
       buf.head = 0;
       buf.size = n > 0 ? static_cast<std::size_t>(n) : 0;
       if (n > 0) {
