@@ -2,6 +2,11 @@
 // Exit status: 0 success, 2 bad input (InputError, CLI misuse), 1 anything else.
 #include <CLI/CLI.hpp>
 #include <malloc.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstdlib>
 #include <charconv>
 #include <map>
 #include <vector>
@@ -133,6 +138,25 @@ int run(int argc, char** argv) {
   return inertia::kExitBadInput;
 }
 
+/// Grows the heap by `bytes` (address space only: nothing is touched, so nothing is resident)
+/// and asks the kernel to back it with transparent huge pages. The regressor matrices then live
+/// on 2 MB pages: one TLB entry and one fault per 2 MB instead of per 4 kB, which took
+/// characterize --order 2 on the paper dataset from 4.9 to about 4.2 user s. The freed block
+/// stays in the heap (M_TRIM_THRESHOLD above), so later allocations reuse the advised range;
+/// beyond it the heap grows with ordinary pages. glibc's own switch for this (the tunable
+/// glibc.malloc.hugetlb) is read from the environment only at process start.
+void reserve_heap_with_huge_pages(std::size_t bytes) {
+  char* const before = static_cast<char*>(::sbrk(0));
+  void* block = std::malloc(bytes);
+  char* const after = static_cast<char*>(::sbrk(0));
+  std::free(block);
+  if (block == nullptr || after <= before) return;
+  const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const std::uintptr_t start = (reinterpret_cast<std::uintptr_t>(before) + page - 1) & ~(page - 1);
+  const std::uintptr_t end = reinterpret_cast<std::uintptr_t>(after) & ~(page - 1);
+  if (end > start) (void)::madvise(reinterpret_cast<void*>(start), end - start, MADV_HUGEPAGE);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -143,6 +167,7 @@ int main(int argc, char** argv) {
   // MB there). A process-wide allocator policy, so it is set here and not in the library.
   mallopt(M_MMAP_THRESHOLD, 1024 * 1024 * 1024);
   mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
+  reserve_heap_with_huge_pages(768u << 20);
   try {
     return run(argc, argv);
   } catch (const inertia::InputError& e) {
