@@ -89,10 +89,11 @@ struct EncoderStatus {
 class GpiodEncoderDevice final : public Device {
  public:
   /// Records asked for per read(2). A chip's v1 line FIFO holds 16, so there a read returns at
-  /// most 16 whatever is asked; a simulated line (a pipe) holds more, and reading 64 at a time
-  /// (libgpiod's gpiod_line_event_read_fd_multiple() caps at 16) took a quarter of the syscalls
-  /// that made the encoder thread the limit of a fast simulated run.
-  static constexpr std::size_t kEventsPerRead = 64;
+  /// most 16 whatever is asked; a simulated line (a pipe) holds more, and the read syscalls
+  /// were the encoder thread's cost in a fast simulated run (libgpiod's
+  /// gpiod_line_event_read_fd_multiple() caps at 16): 256 is what the simulator writes at once
+  /// (one PIPE_BUF), so a busy line is emptied in one read instead of four at 64.
+  static constexpr std::size_t kEventsPerRead = 256;
   static constexpr std::size_t kMaxRoundsPerRead = 8;
 
   /// Production: opens the chip and requests the lines. nullptr with the reason otherwise.
