@@ -84,6 +84,12 @@ struct CaseScore {
   double shaker_error_deg = NAN;
   double verification_variance_g2 = NAN;          // vs the noise-free sensor output
   double verification_variance_measured_g2 = NAN; // vs the measured (noisy) output
+  /// vs the noise-free output, the references mapped with the model's OWN estimated M_E^S. A
+  /// rotation about the input axis (twist) leaves every linear term unchanged and turns the
+  /// complete model's quadratic form into another one of the same span, so no residual
+  /// determines it; with the true M_E^S the model's cross terms are applied in a frame the
+  /// unobservable part of the true case misalignment has turned (1.15 deg on the shaker).
+  double verification_variance_own_g2 = NAN;
   std::map<std::string, double> coefficients_per_g;
   std::vector<std::string> terms;
   /// "case/phase" -> its share of verification_variance_g2 (sum of its squared deviations from
@@ -94,7 +100,7 @@ struct CaseScore {
 /// Table 4's verification: the identified model fed with every case's references mapped to F_S
 /// with the TRUE misalignment (as the paper does), compared with the sensor's output.
 void verify(const dataset::Dataset& data, const PipelineResult& result, const SeedTruth& truth, CaseScore& score) {
-  std::vector<double> clean_err, measured_err;
+  std::vector<double> clean_err, measured_err, own_err;
   std::vector<std::string> where;   // "case/phase" of every sample of clean_err
   const Eigen::VectorXd theta = result.fit.process_theta();
   for (std::size_t c = 0; c < data.cases.size(); ++c) {
@@ -106,6 +112,16 @@ void verify(const dataset::Dataset& data, const PipelineResult& result, const Se
     const Eigen::VectorXd e_clean = (y_model - truth.clean_y[c].tail(rows)) / truth.k_i;
     const Eigen::VectorXd e_meas = (y_model - data.cases[c].y.tail(rows)) / truth.k_i;
     clean_err.insert(clean_err.end(), e_clean.data(), e_clean.data() + rows);
+    const auto estimated = std::find_if(result.cases.begin(), result.cases.end(),
+                                        [&](const procedure::CaseOutcome& o) { return o.case_index == c; });
+    // Only for a result identified on this same dataset (case 1 is identified on the table alone).
+    if (result.cases.size() == data.cases.size() && estimated != result.cases.end()) {
+      const ident::SignalSet own = ident::signals_from_case(data.cases[c], estimated->m_es, data.t_ref, "paper");
+      const Eigen::VectorXd y_own = procedure::simulate_model(result.terms, theta, own, first, result.square_corner_rad_s,
+                                                              data.cases[c].sample_period_s);
+      const Eigen::VectorXd e_own = (y_own - truth.clean_y[c].tail(rows)) / truth.k_i;
+      own_err.insert(own_err.end(), e_own.data(), e_own.data() + rows);
+    }
     measured_err.insert(measured_err.end(), e_meas.data(), e_meas.data() + rows);
     const dataset::CaseData& cd = data.cases[c];
     for (Eigen::Index k = cd.size() - rows; k < cd.size(); ++k) {
@@ -118,6 +134,7 @@ void verify(const dataset::Dataset& data, const PipelineResult& result, const Se
   };
   score.verification_variance_g2 = variance(clean_err);
   score.verification_variance_measured_g2 = variance(measured_err);
+  score.verification_variance_own_g2 = own_err.size() == clean_err.size() ? variance(own_err) : NAN;
   double mean = 0.0;
   for (double e : clean_err) mean += e;
   mean /= static_cast<double>(std::max<std::size_t>(1, clean_err.size()));
@@ -252,12 +269,14 @@ int run_reproduce_paper(const ReproducePaperOptions& options, std::ostream& out)
     fmt::print(out, "\n");
   }
 
-  fmt::print(out, "\nTable 4: verification error variance (g^2)   ours (vs noise-free)  ours (vs measured)   paper\n");
+  fmt::print(out, "\nTable 4: verification error variance (g^2)   ours (vs noise-free)  ours (vs measured)   paper"
+                  "   ours (own M_E^S)\n");
   for (int c = 1; c <= 4; ++c) {
     const std::string name = "case" + std::to_string(c);
-    fmt::print(out, "  test case {}                            {:>14.3e}      {:>14.3e}   {:>10}\n", c,
+    fmt::print(out, "  test case {}                            {:>14.3e}      {:>14.3e}   {:>10}   {:>14.3e}\n", c,
                med(name, &CaseScore::verification_variance_g2), med(name, &CaseScore::verification_variance_measured_g2),
-               c <= 3 ? fmt::format("{:.3g}", kPaperTable4[c - 1]) : std::string("not run"));
+               c <= 3 ? fmt::format("{:.3g}", kPaperTable4[c - 1]) : std::string("not run"),
+               med(name, &CaseScore::verification_variance_own_g2));
   }
   fmt::print(out, "case 4 model (seed {}): {}\n", options.seeds.front(), fmt::join(scores["case4"].front().terms, " "));
   // Where the verification error of cases 3 and 4 sits: each case/phase's share of the variance.
@@ -287,6 +306,7 @@ int run_reproduce_paper(const ReproducePaperOptions& options, std::ostream& out)
       const std::string name = "case" + std::to_string(c);
       j["table4"][name] = med(name, &CaseScore::verification_variance_g2);
       j["table4_vs_measured"][name] = med(name, &CaseScore::verification_variance_measured_g2);
+      j["table4_own_misalignment"][name] = med(name, &CaseScore::verification_variance_own_g2);
       for (const auto& [term, value] : scores[name].front().coefficients_per_g) {
         (void)value;
         const double m = med_coef(name, term);
