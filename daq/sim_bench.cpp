@@ -209,9 +209,7 @@ void SimBench::queue_edge(EncoderSim& e, gp::EdgeLine line, bool rising, std::in
   gpioevent_data record{};
   record.timestamp = static_cast<__u64>(t_ns);
   record.id = rising ? GPIOEVENT_EVENT_RISING_EDGE : GPIOEVENT_EVENT_FALLING_EDGE;
-  auto& buf = e.pending[static_cast<std::size_t>(line)];
-  const auto* bytes = reinterpret_cast<const std::uint8_t*>(&record);
-  buf.insert(buf.end(), bytes, bytes + sizeof record);
+  e.pending[static_cast<std::size_t>(line)].push_back(record);
 }
 
 bool SimBench::flush_edges(EncoderSim& e, std::int64_t through_ns) {
@@ -225,10 +223,10 @@ bool SimBench::flush_edges(EncoderSim& e, std::int64_t through_ns) {
     auto& buf = e.pending[l];
     std::size_t done = 0;
     while (done < buf.size()) {
-      const std::size_t chunk = std::min<std::size_t>(buf.size() - done, PIPE_BUF / sizeof(gpioevent_data) * sizeof(gpioevent_data));
+      const std::size_t chunk = std::min<std::size_t>(buf.size() - done, PIPE_BUF / sizeof(gpioevent_data));
       // The pipe is non-blocking: full means the reader is behind; wait for it (the sim is the
       // bench, it cannot drop edges), but never past stop().
-      if (e.wire->write_raw(static_cast<gp::EdgeLine>(l), buf.data() + done, chunk)) {
+      if (e.wire->write_raw(static_cast<gp::EdgeLine>(l), buf.data() + done, chunk * sizeof(gpioevent_data))) {
         done += chunk;
       } else {
         if (stop_.load(std::memory_order_relaxed)) return false;
@@ -455,7 +453,7 @@ void SimBench::run() noexcept {
       }
       e.trigger_level = !e.trigger_level;
       queue_edge(e, gp::EdgeLine::Trigger, e.trigger_level, t_n);
-      const std::size_t ab = std::max(e.pending[0].size(), e.pending[1].size()) / sizeof(gpioevent_data);
+      const std::size_t ab = std::max(e.pending[0].size(), e.pending[1].size());
       if ((n + 1) % batch == 0 || ab >= 2048 || n + 1 == run_samples_) (void)flush_edges(e, t_n);
     }
     if (k == case_len - 1)

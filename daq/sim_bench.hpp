@@ -15,6 +15,7 @@
 // Paced (sample n written at t0 + n / rate) or as fast as the readers take it (blocking CAN
 // writes give back-pressure); the timestamps in the published blocks are the same either way.
 #include <linux/can.h>
+#include <linux/gpio.h>
 
 #include <array>
 #include <atomic>
@@ -107,7 +108,7 @@ class SimBench {
     std::size_t edges = 0;
     // Records of one sample tick per line, written in PIPE_BUF-sized batches (one syscall for
     // many edges; a pipe write of at most PIPE_BUF bytes is atomic, so records never split).
-    std::array<std::vector<std::uint8_t>, hal::gpiod::kEdgeLineCount> pending;
+    std::array<std::vector<gpioevent_data>, hal::gpiod::kEdgeLineCount> pending;
   };
   void run() noexcept;
   double can_value(const CanChannel& ch, std::size_t c, std::size_t k) const;

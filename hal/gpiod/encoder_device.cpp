@@ -19,14 +19,12 @@ namespace {
 
 constexpr const char* kConsumer = "inertia-daqd";
 
-std::int64_t to_ns(const timespec& ts) noexcept {
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 /// Up to `max` (<= GpiodEncoderDevice::kEventsPerRead) line events from a v1 line-event
-/// descriptor in one read(2), converted as libgpiod converts them. -1 with errno as read(2) set
-/// it, or EIO when the bytes are not whole records (libgpiod's check).
-int read_line_events(int fd, gpiod_line_event* out, std::size_t max) noexcept {
+/// descriptor in one read(2), with libgpiod's reading of a record (id RISING_EDGE: rising, any
+/// other: falling) but the stamp kept in ns: libgpiod's timespec would be split here and joined
+/// again for every edge. -1 with errno as read(2) set it, or EIO when the bytes are not whole
+/// records (libgpiod's check).
+int read_line_events(int fd, EdgeLine line, EdgeEvent* out, std::size_t max) noexcept {
   std::array<gpioevent_data, GpiodEncoderDevice::kEventsPerRead> raw;
   const std::size_t want = std::min(max, raw.size());
   const ssize_t got = ::read(fd, raw.data(), want * sizeof(gpioevent_data));
@@ -37,9 +35,9 @@ int read_line_events(int fd, gpiod_line_event* out, std::size_t max) noexcept {
   }
   const auto n = static_cast<std::size_t>(got) / sizeof(gpioevent_data);
   for (std::size_t i = 0; i < n; ++i) {
-    out[i].ts.tv_sec = static_cast<time_t>(raw[i].timestamp / 1'000'000'000ULL);
-    out[i].ts.tv_nsec = static_cast<long>(raw[i].timestamp % 1'000'000'000ULL);
-    out[i].event_type = raw[i].id == GPIOEVENT_EVENT_RISING_EDGE ? GPIOD_LINE_EVENT_RISING_EDGE : GPIOD_LINE_EVENT_FALLING_EDGE;
+    out[i].line = line;
+    out[i].rising = raw[i].id == GPIOEVENT_EVENT_RISING_EDGE;
+    out[i].t_ns = static_cast<std::int64_t>(raw[i].timestamp);
   }
   return static_cast<int>(n);
 }
@@ -185,7 +183,8 @@ void GpiodEncoderDevice::discard_pending() noexcept {
     buffers_[i] = LineBuffer{};
     const int fd = source_->event_fd(static_cast<EdgeLine>(i));
     if (fd < 0) continue;
-    for (int k = 0; k < 10000 && read_line_events(fd, buffers_[i].events.data(), kEventsPerRead) > 0; ++k) {
+    for (int k = 0; k < 10000 && read_line_events(fd, static_cast<EdgeLine>(i), buffers_[i].events.data(), kEventsPerRead) > 0;
+         ++k) {
     }
     buffers_[i] = LineBuffer{};
   }
@@ -234,9 +233,10 @@ bool GpiodEncoderDevice::push(std::uint32_t channel, std::int64_t t_ns, double v
   return false;
 }
 
-std::size_t GpiodEncoderDevice::handle(EdgeLine line, const gpiod_line_event& event, SampleSink& sink) noexcept {
-  const std::int64_t t_ns = to_ns(event.ts);
-  const bool rising = event.event_type == GPIOD_LINE_EVENT_RISING_EDGE;
+std::size_t GpiodEncoderDevice::handle(const EdgeEvent& event, SampleSink& sink) noexcept {
+  const std::int64_t t_ns = event.t_ns;
+  const bool rising = event.rising;
+  const EdgeLine line = event.line;
   std::size_t pushed = 0;
   switch (line) {
     case EdgeLine::A:
@@ -294,12 +294,12 @@ std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
       const int fd = source_->event_fd(line);
       if (fd < 0 || buf.head < buf.size) continue;
       const std::int64_t through = source_->complete_through_ns(line);  // before the read, see header
-      const int n = read_line_events(fd, buf.events.data(), kEventsPerRead);
+      const int n = read_line_events(fd, line, buf.events.data(), kEventsPerRead);
       buf.head = 0;
       buf.size = n > 0 ? static_cast<std::size_t>(n) : 0;
       if (n > 0) {
         read_any = true;
-        newest_[i] = std::max(newest_[i], to_ns(buf.events[buf.size - 1].ts));
+        newest_[i] = std::max(newest_[i], buf.events[buf.size - 1].t_ns);
       }
       if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
         // EIO: fewer bytes than one record (libgpiod's check); anything else is the descriptor.
@@ -320,7 +320,7 @@ std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
       for (std::size_t i = 0; i < kEdgeLineCount; ++i) {
         const LineBuffer& buf = buffers_[i];
         if (buf.head >= buf.size) continue;
-        const std::int64_t t = to_ns(buf.events[buf.head].ts);
+        const std::int64_t t = buf.events[buf.head].t_ns;
         if (t <= best_t && (best == kEdgeLineCount || t < best_t)) {
           best = i;
           best_t = t;
@@ -332,7 +332,7 @@ std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
         break;
       }
       LineBuffer& buf = buffers_[best];
-      pushed += handle(static_cast<EdgeLine>(best), buf.events[buf.head], sink);
+      pushed += handle(buf.events[buf.head], sink);
       ++buf.head;
       handled_any = true;
     }

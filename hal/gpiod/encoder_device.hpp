@@ -153,7 +153,7 @@ class GpiodEncoderDevice final : public Device {
 
  private:
   GpiodEncoderDevice(std::unique_ptr<EdgeSource> source, QuadratureConfig config);
-  std::size_t handle(EdgeLine line, const gpiod_line_event& event, SampleSink& sink) noexcept;
+  std::size_t handle(const EdgeEvent& event, SampleSink& sink) noexcept;
   bool push(std::uint32_t channel, std::int64_t t_ns, double value, SampleSink& sink) noexcept;
   void discard_pending() noexcept;
   /// Pushes the rows of ticks at or before `through` (before `before` when strict); false when
@@ -162,7 +162,7 @@ class GpiodEncoderDevice final : public Device {
                   std::size_t& budget) noexcept;
 
   struct LineBuffer {
-    std::array<gpiod_line_event, kEventsPerRead> events{};
+    std::array<EdgeEvent, kEventsPerRead> events{};
     std::size_t head = 0, size = 0;
   };
   static constexpr std::int64_t kNever = std::numeric_limits<std::int64_t>::min();
