@@ -20,6 +20,7 @@ hal::socketcan::CanDeviceConfig to_hal(const config::CanDevice& d) {
     h.is_signed = s.is_signed;
     h.scale = s.scale;
     h.offset = s.offset;
+    h.invalid_raw = s.invalid_raw;
     c.map.signals.push_back(h);
   }
   return c;
@@ -93,6 +94,7 @@ std::vector<std::unique_ptr<Sampler>> open_real_bench(const config::BenchConfig&
     q.line_trigger = e.line_trigger;
     q.active_low = e.active_low;
     q.resolution = e.resolution;
+    q.edge_latency_ns = e.edge_latency_ns;
     // Without a trigger line the device samples itself on the bench's rate (zero-order hold).
     q.sample_rate_hz = e.line_trigger >= 0 ? 0.0 : bench.sample_rate_hz;
     std::string reason;

@@ -136,6 +136,18 @@ CanDevice read_can_device(const TableReader& t) {
     if (c.scale == 0.0) s.fail_key("scale", "must not be 0");
     c.offset = s.number_or("offset", 0.0);
     c.unit = s.string_or("unit", "");
+    if (s.has("invalid_raw")) {
+      // TOML integers are 64-bit signed: a 64-bit code above INT64_MAX is written negative.
+      const bool all64 = c.bit_length == 64;
+      const std::int64_t hi = all64 ? std::numeric_limits<std::int64_t>::max()
+                                    : static_cast<std::int64_t>((std::uint64_t{1} << c.bit_length) - 1);
+      const std::int64_t lo = all64 ? std::numeric_limits<std::int64_t>::min()
+                              : c.is_signed ? -static_cast<std::int64_t>(std::uint64_t{1} << (c.bit_length - 1))
+                                            : 0;
+      const std::int64_t v = s.integer_in("invalid_raw", 0, lo, hi);
+      const std::uint64_t mask = all64 ? ~std::uint64_t{0} : (std::uint64_t{1} << c.bit_length) - 1;
+      c.invalid_raw = static_cast<std::uint64_t>(v) & mask;  // two's complement bits of a negative code
+    }
     s.finish();
     d.signals.push_back(std::move(c));
   }
@@ -156,6 +168,7 @@ GpiodEncoder read_gpiod_encoder(const TableReader& t) {
   e.active_low = t.boolean_or("active_low", false);
   e.rotary = t.choice("kind", {"linear", "rotary"}) == 1;
   e.resolution = t.positive("resolution");
+  e.edge_latency_ns = t.integer_in("edge_latency_ns", e.edge_latency_ns, 0, 1'000'000'000);
   t.finish();
   return e;
 }

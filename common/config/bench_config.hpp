@@ -116,6 +116,10 @@ struct CanSignal {
   double scale = 1.0;               // SI per count: value = scale * raw + offset
   double offset = 0.0;
   std::string unit;                 // informational
+  // Raw bits (bit_length wide) the sender puts on the bus for "no valid reading": such samples
+  // are marked invalid (value NaN), never a number. The bench file may give a signed signal's
+  // code as its negative value (-32768 for 0x8000 in 16 bits). Unset: every raw is a reading.
+  std::optional<std::uint64_t> invalid_raw;
 };
 
 struct CanDevice {
@@ -135,6 +139,9 @@ struct GpiodEncoder {
   bool active_low = false;
   double resolution = 1e-6;         // SI per x4 count: m (linear) or rad (rotary)
   bool rotary = false;
+  // How long after its stamp gpiolib may still be queueing an edge (its IRQ thread): merges
+  // and sample ticks wait this long behind the clock.
+  std::int64_t edge_latency_ns = 1'000'000;
 };
 
 enum class RegisterKind { Holding, Input };

@@ -132,6 +132,8 @@ TEST(ShippedConfigs, TemplateKeepsRealBenchWiring) {
   EXPECT_EQ(b.can_devices[1].signals[0].byte_order, ByteOrder::BigEndian);
   ASSERT_EQ(b.gpiod_encoders.size(), 2u);
   EXPECT_TRUE(b.gpiod_encoders[1].rotary);
+  EXPECT_EQ(*b.can_devices[0].signals[0].invalid_raw, 0x800000u);  // -8388608 in 24 signed bits
+  EXPECT_EQ(b.gpiod_encoders[0].edge_latency_ns, 1'000'000);
   ASSERT_EQ(b.modbus_devices.size(), 3u);
   EXPECT_FALSE(b.modbus_devices[0].writes_enabled);   // off by default
   const ModbusRegister& sp = b.modbus_devices[0].registers[1];
@@ -238,6 +240,33 @@ TEST_F(TempFiles, DaemonTableIsOptionalAndStrict) {
   EXPECT_NE(std::string(ring.what()).find("daemon.ring_samples"), std::string::npos) << ring.what();
   const InputError mlock = error_of(std::string(kMinimal) + "\n[daemon]\nmlock = 1\n");
   EXPECT_NE(std::string(mlock.what()).find("daemon.mlock"), std::string::npos) << mlock.what();
+}
+
+TEST_F(TempFiles, CanInvalidRawAndEncoderEdgeLatency) {
+  const auto can = [](const std::string& signal_keys) {
+    return std::string(kMinimal) + "\n[[can_device]]\nname = \"adc\"\n[[can_device.signal]]\nname = \"x\"\nid = 0x101\n" +
+           signal_keys;
+  };
+  // Absent: every raw value is a reading.
+  EXPECT_FALSE(load_bench_config(write("none.toml", can("bit_length = 16\n"))).can_devices[0].signals[0].invalid_raw);
+  // A signed code given negative is stored as the signal's raw bits (two's complement, 24 bits).
+  const BenchConfig neg = load_bench_config(write("neg.toml", can("bit_length = 24\nsigned = true\ninvalid_raw = -8388608\n")));
+  EXPECT_EQ(*neg.can_devices[0].signals[0].invalid_raw, 0x800000u);
+  const BenchConfig hex = load_bench_config(write("hex.toml", can("bit_length = 16\ninvalid_raw = 0xFFFF\n")));
+  EXPECT_EQ(*hex.can_devices[0].signals[0].invalid_raw, 0xFFFFu);
+  // A code the signal cannot carry, or a negative one for an unsigned signal, names the key.
+  const InputError wide = error_of(can("bit_length = 16\ninvalid_raw = 0x10000\n"));
+  EXPECT_NE(std::string(wide.what()).find("invalid_raw"), std::string::npos) << wide.what();
+  const InputError unsig = error_of(can("bit_length = 16\ninvalid_raw = -1\n"));
+  EXPECT_NE(std::string(unsig.what()).find("invalid_raw"), std::string::npos) << unsig.what();
+
+  const std::string enc = std::string(kMinimal) +
+                          "\n[[gpiod_encoder]]\nname = \"e\"\nline_a = 1\nline_b = 2\nkind = \"linear\"\nresolution = 1e-6\n";
+  EXPECT_EQ(load_bench_config(write("enc.toml", enc)).gpiod_encoders[0].edge_latency_ns, 1'000'000);
+  EXPECT_EQ(load_bench_config(write("enc5.toml", enc + "edge_latency_ns = 5000000\n")).gpiod_encoders[0].edge_latency_ns,
+            5'000'000);
+  const InputError late = error_of(enc + "edge_latency_ns = -1\n");
+  EXPECT_NE(std::string(late.what()).find("edge_latency_ns"), std::string::npos) << late.what();
 }
 
 TEST_F(TempFiles, MissingKeyPointsAtItsTable) {
