@@ -84,17 +84,22 @@ class FitContext {
 
 // Step 9 (and the refits of step 10 inside it): the columns that survive the t-test.
 std::vector<Index> prune(const FitContext& context, std::vector<Index> columns,
-                         const SelectionOptions& options, double threshold, CandidateModel& model) {
+                         const SelectionOptions& options, double threshold, CandidateModel& model,
+                         const std::vector<Index>& kept = {}) {
   for (;;) {
     const auto [theta, sd] = context.theta_sd(columns);
     const ParameterTTest tt = parameter_t_test(theta, sd, context.samples());
-    if (tt.p_value.size() == 0) break;
+    Eigen::VectorXd p_value = tt.p_value;
+    for (Eigen::Index i = 0; i < p_value.size(); ++i) {
+      if (std::find(kept.begin(), kept.end(), columns[static_cast<std::size_t>(i)]) != kept.end()) p_value[i] = 0.0;
+    }
+    if (p_value.size() == 0) break;
     Eigen::Index worst = 0;
-    const double worst_p = tt.p_value.maxCoeff(&worst);
+    const double worst_p = p_value.maxCoeff(&worst);
     if (!(worst_p > threshold)) break;  // NaN p-values (dof <= 0) stop pruning too
     std::vector<Index> keep;
-    for (Eigen::Index i = 0; i < tt.p_value.size(); ++i) {
-      const bool drop = options.one_at_a_time ? i == worst : tt.p_value[i] > threshold;
+    for (Eigen::Index i = 0; i < p_value.size(); ++i) {
+      const bool drop = options.one_at_a_time ? i == worst : p_value[i] > threshold;
       if (drop) {
         model.removed.push_back(context.labels()[static_cast<std::size_t>(columns[static_cast<std::size_t>(i)])]);
       } else {
@@ -180,7 +185,7 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
                                       " samples, earlier models had " + std::to_string(scored_samples) +
                                       " (AIC needs the same N)");
         scored_samples = staged.samples();
-        score(staged, prune(staged, std::move(all), options, threshold, model), model);
+        score(staged, prune(staged, std::move(all), options, threshold, model, stage.kept), model);
       } else {
         if (scored_samples >= 0 && base.samples() != scored_samples)
           throw std::invalid_argument("selection: models scored on different sample counts");

@@ -48,6 +48,10 @@ struct StageProblem {
   Eigen::VectorXd y;
   std::vector<std::string> labels;
   OutputMultiplied rational;
+  /// Columns step 9 never removes: nuisance parameters the transform introduced, e.g. the tilt of
+  /// a misalignment estimated from the same data, so that the other terms' t-tests allow for its
+  /// uncertainty. They are fitted and counted (AIC) in every model of the stage.
+  std::vector<Index> kept;
 };
 
 /// Algorithm 2 steps 6-8 plug in here; section 2.7.2 is select_model without a hook.

@@ -1,6 +1,7 @@
 #include "analyzer/procedure/pipeline.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -162,6 +163,21 @@ bool uses_cross_axes(const std::vector<Term>& terms) {
                      [](const Term& t) { return t.uses(ident::Variable::Ap) || t.uses(ident::Variable::Ao); });
 }
 
+/// The F_S terms a tilt of the input axis adds to the sensitivity term when `s_terms` has it
+/// (a_i; w_i for gyroscopes) and lacks them: to first order in the tilt (d_p, d_o),
+/// theta_i (n_i + d_p n_p + d_o n_o) . a = theta_i a_i + theta_i d_p a_p + theta_i d_o a_o.
+std::vector<Term> tilt_terms(const std::vector<Term>& s_terms, dataset::SensorKind sensor) {
+  using ident::Variable;
+  const bool gyro = sensor == dataset::SensorKind::Gyroscope;
+  const auto plain = [](Variable v) { return Term::from_factors({ident::Factor{v, 0, ident::FactorFunction::Plain, 1}}); };
+  if (std::find(s_terms.begin(), s_terms.end(), plain(gyro ? Variable::Wi : Variable::Ai)) == s_terms.end()) return {};
+  std::vector<Term> out;
+  for (Variable v : gyro ? std::array{Variable::Wp, Variable::Wo} : std::array{Variable::Ap, Variable::Ao}) {
+    if (std::find(s_terms.begin(), s_terms.end(), plain(v)) == s_terms.end()) out.push_back(plain(v));
+  }
+  return out;
+}
+
 /// Algorithm 2 steps 6-8 as a selection hook: the misalignment from the step-5 fit, then the F_S
 /// problem of the ranked terms built with it.
 class MisalignmentHook final : public ident::FitHook {
@@ -172,6 +188,11 @@ class MisalignmentHook final : public ident::FitHook {
       : m_(m), cases_(cases), es_terms_(es_terms), data_(data), label_(label), first_row_(first_row),
         whitener_(whitener), square_corner_(square_corner), twist_(twist) {}
 
+  /// The tilt terms kept in the stage of j ranked terms (empty: none).
+  [[nodiscard]] std::vector<std::string> tilts(std::size_t j) const {
+    return j >= 1 && j <= tilts_.size() ? tilts_[j - 1] : std::vector<std::string>{};
+  }
+
   bool transform(std::size_t j, const ident::UlsResult& ranked_fit, ident::StageProblem& stage) override {
     const auto theta = external_sensitivities(ranked_fit.labels, ranked_fit.theta);
     if (misalignments_.size() < j) misalignments_.resize(j);
@@ -180,7 +201,17 @@ class MisalignmentHook final : public ident::FitHook {
     misalignments_[j - 1] = m_cs;
     std::vector<Term> ranked;
     for (const std::string& label : ranked_fit.labels) ranked.push_back(ident::parse_term(label));
-    const std::vector<Term> s_terms = ident::to_sensor_frame(ranked);
+    std::vector<Term> s_terms = ident::to_sensor_frame(ranked);
+    // M_E^S came from this data: its tilt stays free in the F_S fit (kept, never pruned), or the
+    // t-tests would credit its error to terms that share its directions (under gravity a tilt
+    // error is a per-orientation offset, which 1, abs(a_i), sign(a_i) and the squares can fit).
+    const std::size_t model_terms = s_terms.size();
+    std::vector<Term> tilts = tilt_terms(s_terms, data_.sensor);
+    s_terms.insert(s_terms.end(), tilts.begin(), tilts.end());
+    stage.kept.clear();
+    for (std::size_t c = model_terms; c < s_terms.size(); ++c) stage.kept.push_back(static_cast<Eigen::Index>(c));
+    if (tilts_.size() < j) tilts_.resize(j);
+    tilts_[j - 1] = ident::to_strings(tilts);
     const auto inputs = stack_inputs(m_, cases_, m_cs);
     StackedRegression s = stack_regressions(s_terms, inputs, data_.t_ref, label_, first_row_);
     apply_square_model(s, data_, square_corner_);
@@ -207,6 +238,7 @@ class MisalignmentHook final : public ident::FitHook {
   std::optional<double> square_corner_;
   double twist_;
   std::vector<std::optional<frames::Dcm>> misalignments_;
+  std::vector<std::vector<std::string>> tilts_;
 };
 
 }  // namespace
@@ -355,8 +387,34 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   for (std::size_t i = 0; i < best.ranked_terms; ++i) {
     result.es_terms.push_back(es.labels[static_cast<std::size_t>(selected.ranking[i])]);
   }
-  result.s_terms = best.fit.labels;
+  // The kept tilt corrects M_E^S (algorithm 1 on the model's sensitivities theta_i n_i + theta_p
+  // n_p + theta_o n_o), and the selected terms are fitted without it on the F_S regression built
+  // with the corrected M_E^S.
+  const std::vector<std::string> tilts = hook.tilts(best.ranked_terms);
   result.s_fit = best.fit;
+  if (!tilts.empty()) {
+    const bool gyro = data.sensor == dataset::SensorKind::Gyroscope;
+    const std::string axes[3] = {gyro ? "w_i" : "a_i", tilts.front(), tilts.back()};
+    Eigen::Vector3d theta = Eigen::Vector3d::Zero();   // theta_i, theta_p, theta_o
+    std::vector<Term> s_terms;
+    for (std::size_t i = 0; i < best.fit.labels.size(); ++i) {
+      const std::string& label = best.fit.labels[i];
+      for (int a = 0; a < 3; ++a) {
+        if (label == axes[a]) theta(a) = best.fit.theta(static_cast<Eigen::Index>(i));
+      }
+      if (std::find(tilts.begin(), tilts.end(), label) == tilts.end()) s_terms.push_back(ident::parse_term(label));
+    }
+    if (tilts.size() == 2 && theta(0) != 0.0) {
+      result.m_cs = with_twist(misalignment_from_sensitivities(result.m_cs.transpose() * theta, frames::Dcm::Identity()), twist);
+    }
+    StackedRegression s = stack_regressions(s_terms, stack_inputs(m, cases, result.m_cs), data.t_ref, dataset_label, first_row);
+    apply_square_model(s, data, square_corner);
+    whitener.apply(s);
+    std::vector<Eigen::Index> columns(s_terms.size());
+    for (std::size_t i = 0; i < columns.size(); ++i) columns[i] = static_cast<Eigen::Index>(i);
+    result.s_fit = fit_identifiable(s, columns, options.selection.uls, result.excluded);
+  }
+  result.s_terms = result.s_fit.labels;
   return result;
 }
 

@@ -148,6 +148,47 @@ TEST(Selection, HookReplacesTheScoredProblem) {
   EXPECT_FALSE(plain.best_model().transformed);
 }
 
+// A hook's nuisance column (StageProblem::kept) survives step 9 whatever its t, and is fitted in
+// the scored model; without `kept` the same column, pure noise, is pruned.
+class NuisanceHook final : public FitHook {
+ public:
+  NuisanceHook(const SparseCase& c, bool keep) : c_(c), keep_(keep) {}
+  bool transform(std::size_t, const UlsResult&, StageProblem& stage) override {
+    std::mt19937_64 rng(99);
+    std::normal_distribution<double> g(0.0, 1.0);
+    stage.phi.resize(c_.phi.rows(), c_.phi.cols() + 1);
+    stage.phi.leftCols(c_.phi.cols()) = c_.phi;
+    for (Eigen::Index r = 0; r < c_.phi.rows(); ++r) stage.phi(r, c_.phi.cols()) = g(rng);
+    stage.y = c_.y;
+    stage.labels = c_.labels;
+    stage.labels.push_back("nuisance");
+    stage.kept.clear();
+    if (keep_) stage.kept.push_back(c_.phi.cols());
+    return true;
+  }
+
+ private:
+  const SparseCase& c_;
+  bool keep_;
+};
+
+TEST(Selection, KeptColumnsAreNeverPruned) {
+  const SparseCase c = sparse_case(5, 2000, 0.1);
+  const SelectionProblem problem(c.phi, c.y, c.labels);
+  SelectionOptions options;
+  options.max_terms = 3;
+  for (bool keep : {true, false}) {
+    NuisanceHook hook(c, keep);
+    const SelectionResult result = select_model(problem, options, &hook);
+    const CandidateModel& best = result.best_model();
+    std::set<std::string> chosen(best.fit.labels.begin(), best.fit.labels.end());
+    EXPECT_EQ(chosen.count("nuisance"), keep ? 1u : 0u);
+    chosen.erase("nuisance");
+    EXPECT_EQ(chosen, c.true_terms) << "keep " << keep;
+    EXPECT_EQ(std::count(best.removed.begin(), best.removed.end(), "nuisance"), keep ? 0 : 1);
+  }
+}
+
 TEST(Selection, FailedCandidateIsReportedNotFatal) {
   SparseCase c = sparse_case(6, 500, 0.1);
   c.phi.col(19) = c.phi.col(1) * 2.0;  // "u3*u3[k-2]" made a copy of "u1"
