@@ -37,6 +37,10 @@ using namespace inertia;
 
 constexpr double kSigma = 0.01;       // m/s^2, about 1 mg of white output noise
 constexpr Eigen::Index kSamples = 1500;  // per orientation
+// Samples simulated before each case and cut off: the output of the first max-lag samples cannot
+// follow the model (their lagged inputs lie before the record), and left in they were outliers
+// of 500-1000 noise sd that the selection fitted with y[k-1] and lagged copies of true terms.
+constexpr Eigen::Index kRunIn = 2;
 
 struct Truth {
   std::vector<std::string> terms;  // F_S spelling, as candidate_terms prints it
@@ -60,8 +64,16 @@ dataset::Dataset simulate(unsigned seed, Truth& truth) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
 
   truth.r = static_cast<int>(rng() % 3);
-  // A case misalignment of up to about 1 deg about a random axis.
-  const Eigen::Vector3d axis = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+  // A case misalignment of up to about 1 deg about a random axis across the input axis (case x).
+  // A turn about the input axis itself (twist) is unobservable: it leaves every linear term as it
+  // is and turns the quadratic form into another of the same span, so algorithm 1 fixes it by
+  // convention (the smallest rotation carrying the nominal input axis onto the estimated one).
+  // With a twist in the truth, its true terms read in that frame are other terms (a 1 deg twist
+  // turns a_p^2 into a_p^2 + 0.035 a_p*a_o), and an exact-structure count would score the
+  // convention, not the selection.
+  Eigen::Vector3d axis(g(rng), g(rng), g(rng));
+  axis.x() = 0.0;
+  axis.normalize();
   truth.m_cs = Eigen::AngleAxisd(0.0175 * u(rng), axis).toRotationMatrix().transpose();
 
   dataset::Dataset data;
@@ -76,12 +88,13 @@ dataset::Dataset simulate(unsigned seed, Truth& truth) {
     c.m_ec = m_ecs[o];
     c.mounting = "fixture";
     c.sample_period_s = 1e-3;
-    c.t = Eigen::VectorXd::LinSpaced(kSamples, 0.0, double(kSamples - 1) * 1e-3);
-    c.a_e.resize(kSamples, 3);
+    const Eigen::Index n = kSamples + kRunIn;
+    c.t = Eigen::VectorXd::LinSpaced(n, 0.0, double(n - 1) * 1e-3);
+    c.a_e.resize(n, 3);
     // Three-axis random vibration of 5 m/s^2 rms per axis on top of gravity (specific force up).
-    for (Eigen::Index k = 0; k < kSamples; ++k)
+    for (Eigen::Index k = 0; k < n; ++k)
       c.a_e.row(k) << 5.0 * g(rng), 5.0 * g(rng), 9.81 + 5.0 * g(rng);
-    c.y = Eigen::VectorXd::Zero(kSamples);
+    c.y = Eigen::VectorXd::Zero(n);
     data.cases.push_back(std::move(c));
   }
 
@@ -116,24 +129,32 @@ dataset::Dataset simulate(unsigned seed, Truth& truth) {
   for (std::size_t o = 0; o < data.cases.size(); ++o) {
     auto& c = data.cases[o];
     const Eigen::VectorXd clean = regs[o].phi * theta;
-    for (Eigen::Index k = 0; k < kSamples; ++k)
+    static_assert(kRunIn >= 2, "the truth's regressors look 2 samples back");
+    for (Eigen::Index k = 0; k < c.y.size(); ++k)
       c.y[k] = (k >= regs[o].first_row ? clean[k - regs[o].first_row] : 0.0) + kSigma * g(rng);
+    c.t = c.t.tail(kSamples).eval();
+    c.a_e = c.a_e.bottomRows(kSamples).eval();
+    c.y = c.y.tail(kSamples).eval();
   }
   return data;
 }
 
-// DISABLED: the target is not met (measured 2026-11-22, seeds 7000..7039, RelWithDebInfo, 1.3 s):
-// exact structure 16/40, parameters within 3 sd 156/236. Of the 24 misses about half keep y[k-1]
-// with a_i[k-1] (and lag-1 copies of true terms) on an output-error truth; with the y lags left
-// out of the candidates (diagnostic run, not committed) it is 26/40 and 162/195, the remaining
-// misses being mostly one or two spurious quadratic or cross terms (a_i*a_o, a_p^2, a_o^2) next to
-// the true ones plus a few dropped true terms among the correlated sign/abs/square columns. With
-// the true misalignment set to identity as well it is still 26/40 (second diagnostic run), so the
-// size of M_C^S is not the cause; what differs from the hook-free unit test (39/40) is the hook's
-// F_E fit and algorithm 1 re-estimating M_E^S from each candidate model, and gravity's mean in
-// the columns: not yet separated. The assertions below are the issue 3 target, unchanged;
-// run with --gtest_also_run_disabled_tests to see the per-seed misses.
-TEST(SparseSelectionScenario, DISABLED_Algorithm2RecoversRandomSparseModelsWithMisalignment) {
+// Measured 2026-11-22, seeds 7000..7039, RelWithDebInfo, 2-4 s: exact structure 38/40, parameters
+// within 3 sd 168/171 (16/40 and 156/236 before). Separated by swapping one change at a time:
+// - the first max-lag outputs held no model output (kRunIn above): they were what y[k-1] and the
+//   lag-1 copies fitted; with the run-in the y lags stay out whether they are candidates or not;
+// - M_E^S is estimated from the same data, so algorithm 2's F_S fits keep its tilt (a_p, a_o next
+//   to a_i) free and never pruned (ident::StageProblem::kept): without that the tilt's error, a
+//   per-orientation offset under gravity, went to 1, abs/sign(a_i) and the squares (31/40, 167/179
+//   with the two test fixes);
+// - a twist about the input axis in the truth (the axis choice above) scores algorithm 1's
+//   convention, not the selection (36/40 with the other two fixes).
+// The two misses left each keep one cross term with t of 3-4 next to the true terms. These seeds
+// are not the rate: over seeds 7000..7099, 8000..8099 and 9000..9099 it is 278/300 (92.7%), the
+// misses being chance terms with t of 3-5 (Bonferroni at alpha 0.05 admits them in about 5% of
+// seeds) and y[k-l] standing in for a true a_i[k-l] (with output error and a scale factor of 1 the
+// two columns differ by less than the noise). With alpha 0.01 it is 287/300 (95.7%).
+TEST(SparseSelectionScenario, Algorithm2RecoversRandomSparseModelsWithMisalignment) {
   const auto start = std::chrono::steady_clock::now();
   const int seeds = 40;
   int exact = 0, params = 0, within = 0;
@@ -159,7 +180,8 @@ TEST(SparseSelectionScenario, DISABLED_Algorithm2RecoversRandomSparseModelsWithM
       std::cout << "[ sparse ] seed " << s << " r " << truth.r << ": true";
       for (const auto& t : truth.terms) std::cout << ' ' << t;
       std::cout << " | selected";
-      for (const auto& t : m.s_fit.labels) std::cout << ' ' << t;
+      for (std::size_t i = 0; i < m.s_fit.labels.size(); ++i)
+        std::cout << ' ' << m.s_fit.labels[i] << " (t " << std::lround(m.s_fit.theta[Eigen::Index(i)] / m.s_fit.std_dev[Eigen::Index(i)]) << ")";
       std::cout << "\n";
     }
     for (std::size_t i = 0; i < m.s_fit.labels.size(); ++i) {
