@@ -5,8 +5,10 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
-
+#include <optional>
+#include <span>
 #include <stdexcept>
+#include <string_view>
 
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
@@ -148,6 +150,18 @@ void apply_square_model(StackedRegression& s, const dataset::Dataset& data, std:
   if (!squares.empty()) highpass_columns(s.phi, squares, s.cases, data, *corner_rad_s);
 }
 
+/// One mounting's regression as algorithm 2 fits it: its cases stacked with M_C^S = m_cs, the
+/// squares through the mounting's high pass, AR-whitened.
+StackedRegression whitened_regression(std::span<const Term> terms, const MountingData& m, const std::vector<std::size_t>& cases,
+                                      const frames::Dcm& m_cs, const dataset::Dataset& data, std::string_view label,
+                                      Eigen::Index first_row, std::optional<double> square_corner,
+                                      const ArWhitener& whitener) {
+  StackedRegression s = stack_regressions(terms, stack_inputs(m, cases, m_cs), data.t_ref, label, first_row);
+  apply_square_model(s, data, square_corner);
+  whitener.apply(s);
+  return s;
+}
+
 /// `m` turned about its first row (n_i) by `psi`: n_p, n_o rotated in their plane.
 frames::Dcm with_twist(const frames::Dcm& m, double psi) {
   if (psi == 0.0) return m;
@@ -212,10 +226,8 @@ class MisalignmentHook final : public ident::FitHook {
     for (std::size_t c = model_terms; c < s_terms.size(); ++c) stage.kept.push_back(static_cast<Eigen::Index>(c));
     if (tilts_.size() < j) tilts_.resize(j);
     tilts_[j - 1] = ident::to_strings(tilts);
-    const auto inputs = stack_inputs(m_, cases_, m_cs);
-    StackedRegression s = stack_regressions(s_terms, inputs, data_.t_ref, label_, first_row_);
-    apply_square_model(s, data_, square_corner_);
-    whitener_.apply(s);
+    StackedRegression s =
+        whitened_regression(s_terms, m_, cases_, m_cs, data_, label_, first_row_, square_corner_, whitener_);
     stage.phi = std::move(s.phi);
     stage.y = std::move(s.y);
     stage.labels = std::move(s.labels);
@@ -327,10 +339,9 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     if (options.estimate_twist && twist_matters) {
       // One parabolic step on the residual sum of squares as a function of the twist.
       const auto rss_at = [&](double psi) {
-        StackedRegression t =
-            stack_regressions(es_terms, stack_inputs(m, cases, with_twist(aligned, psi)), data.t_ref, dataset_label, first_row);
-        apply_square_model(t, data, square_corner);
-        whitener.apply(t);   // the GLS criterion: unwhitened, the 1/f noise the columns can fit decides
+        // Whitened: the GLS criterion; unwhitened, the 1/f noise the columns can fit decides.
+        const StackedRegression t = whitened_regression(es_terms, m, cases, with_twist(aligned, psi), data, dataset_label,
+                                                        first_row, square_corner, whitener);
         return SquareCornerSearch(t, {}, data).rss(std::nullopt);
       };
       constexpr double kProbe = 0.5 * std::numbers::pi / 180.0;
@@ -359,9 +370,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     result.m_cs = m_cs;
     result.es_terms = ident::to_strings(es_terms);
     const std::vector<Term> s_terms = ident::to_sensor_frame(es_terms);
-    StackedRegression s = stack_regressions(s_terms, stack_inputs(m, cases, m_cs), data.t_ref, dataset_label, first_row);
-    apply_square_model(s, data, square_corner);
-    whitener.apply(s);
+    StackedRegression s =
+        whitened_regression(s_terms, m, cases, m_cs, data, dataset_label, first_row, square_corner, whitener);
     std::vector<Eigen::Index> columns = identifiable_ranking(s, options.selection.err);
     result.s_fit = fit_identifiable(s, columns, options.selection.uls, result.excluded);
     result.s_terms = s.labels;
@@ -407,9 +417,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     if (tilts.size() == 2 && theta(0) != 0.0) {
       result.m_cs = with_twist(misalignment_from_sensitivities(result.m_cs.transpose() * theta, frames::Dcm::Identity()), twist);
     }
-    StackedRegression s = stack_regressions(s_terms, stack_inputs(m, cases, result.m_cs), data.t_ref, dataset_label, first_row);
-    apply_square_model(s, data, square_corner);
-    whitener.apply(s);
+    StackedRegression s =
+        whitened_regression(s_terms, m, cases, result.m_cs, data, dataset_label, first_row, square_corner, whitener);
     std::vector<Eigen::Index> columns(s_terms.size());
     for (std::size_t i = 0; i < columns.size(); ++i) columns[i] = static_cast<Eigen::Index>(i);
     result.s_fit = fit_identifiable(s, columns, options.selection.uls, result.excluded);

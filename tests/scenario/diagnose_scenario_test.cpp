@@ -181,6 +181,30 @@ void expect_found_first(const Scenario& s, const DiagnoseResult& r, const std::s
   EXPECT_GT(r.steps.front().overall, 1.5 * floor);
 }
 
+/// The checks of the several-effect scenarios: every hidden term is in the final augmented model
+/// (all refitted together) within 3 of its sd of truth, and the final RMS is within 20% of the floor.
+void expect_final_model_holds_the_hidden_terms(const Scenario& s, const DiagnoseResult& r) {
+  for (const auto& [term, truth] : s.hidden) {
+    const ident::Term t = ident::parse_term(term);
+    const auto it = std::find_if(r.final_model.terms.begin(), r.final_model.terms.end(),
+                                 [&](const model::ModelTerm& m) { return m.term == t; });
+    ASSERT_NE(it, r.final_model.terms.end()) << term;
+    ASSERT_TRUE(it->std.has_value());
+    EXPECT_LT(std::abs(it->coefficient - truth), 3.0 * *it->std) << term << ": " << it->coefficient << " +- " << *it->std
+                                                                 << " vs " << truth;
+  }
+  EXPECT_LT(std::abs(r.steps.back().overall / (kScale * kWhiteSdG) - 1.0), 0.2);
+}
+
+/// One effect hidden on the shaker bench: found first and alone, under its physical name.
+void expect_single_effect(const Scenario& s, const char* label, const std::string& term, const std::string& effect) {
+  const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
+  print_figures(label, s, r);
+  expect_found_first(s, r, term);
+  EXPECT_EQ(r.findings.size(), 1U);
+  EXPECT_EQ(r.findings.front().effect, effect);
+}
+
 TEST(DiagnoseScenario, HiddenCrossCouplingFoundUnderVibration) {
   const Scenario s = make_scenario(shaker_bench(truth_fields("k_ip = 2e-3\nk_io = 1e-3\nk_po = 1e-3\n"), 11), {"a_i*a_p"});
   const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
@@ -198,12 +222,8 @@ TEST(DiagnoseScenario, HiddenCrossCouplingFoundUnderVibration) {
 }
 
 TEST(DiagnoseScenario, HiddenOddQuadraticFound) {
-  const Scenario s = make_scenario(shaker_bench(truth_fields("k_oq = 2e-5\n"), 12), {"a_i*abs(a_i)"});
-  const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
-  print_figures("odd quadratic", s, r);
-  expect_found_first(s, r, "a_i*abs(a_i)");
-  EXPECT_EQ(r.findings.size(), 1U);
-  EXPECT_EQ(r.findings.front().effect, "odd quadratic");
+  expect_single_effect(make_scenario(shaker_bench(truth_fields("k_oq = 2e-5\n"), 12), {"a_i*abs(a_i)"}), "odd quadratic",
+                       "a_i*abs(a_i)", "odd quadratic");
 }
 
 TEST(DiagnoseScenario, HiddenBiasTemperatureCoefficientFoundInThermalSteps) {
@@ -227,16 +247,7 @@ TEST(DiagnoseScenario, TwoHiddenEffectsBothFound) {
   }
   EXPECT_NE(r.findings[0].term, r.findings[1].term);
   // The coefficients of the final, augmented model (both re-estimated together).
-  for (const auto& [term, truth] : s.hidden) {
-    const ident::Term t = ident::parse_term(term);
-    const auto it = std::find_if(r.final_model.terms.begin(), r.final_model.terms.end(),
-                                 [&](const model::ModelTerm& m) { return m.term == t; });
-    ASSERT_NE(it, r.final_model.terms.end());
-    ASSERT_TRUE(it->std.has_value());
-    EXPECT_LT(std::abs(it->coefficient - truth), 3.0 * *it->std) << term;
-  }
-  const double floor = kScale * kWhiteSdG;
-  EXPECT_LT(std::abs(r.steps.back().overall / floor - 1.0), 0.2);
+  expect_final_model_holds_the_hidden_terms(s, r);
 }
 
 /// The squares through eq. 12's high pass (corner 300 rad/s on all three axes): the model given
@@ -272,16 +283,7 @@ TEST(DiagnoseScenario, DatasheetModelGetsTheSquaresAndTheirHighPass) {
   std::set<std::string> found;
   for (const Finding& f : r.findings) found.insert(f.term);
   EXPECT_EQ(found, (std::set<std::string>{"a_i^2", "a_p^2", "a_o^2"}));
-  for (const auto& [term, truth] : s.hidden) {
-    const ident::Term t = ident::parse_term(term);
-    const auto it = std::find_if(r.final_model.terms.begin(), r.final_model.terms.end(),
-                                 [&](const model::ModelTerm& m) { return m.term == t; });
-    ASSERT_NE(it, r.final_model.terms.end()) << term;
-    ASSERT_TRUE(it->std.has_value());
-    EXPECT_LT(std::abs(it->coefficient - truth), 3.0 * *it->std) << term << ": " << it->coefficient << " +- " << *it->std
-                                                                 << " vs " << truth;
-  }
-  EXPECT_LT(std::abs(r.steps.back().overall / (kScale * kWhiteSdG) - 1.0), 0.2);
+  expect_final_model_holds_the_hidden_terms(s, r);
 }
 
 /// Two mountings on the shaker: IA and PA on one fixture, OA on a second one that is turned by
@@ -314,12 +316,8 @@ TEST(DiagnoseScenario, MountingRotationNamedAsCaseMisalignment) {
 }
 
 TEST(DiagnoseScenario, HiddenRectificationFound) {
-  const Scenario s = make_scenario(shaker_bench(truth_fields("k_a = 5e-5\n"), 15), {"abs(a_i)"});
-  const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
-  print_figures("rectification", s, r);
-  expect_found_first(s, r, "abs(a_i)");
-  EXPECT_EQ(r.findings.size(), 1U);
-  EXPECT_EQ(r.findings.front().effect, "rectification");
+  expect_single_effect(make_scenario(shaker_bench(truth_fields("k_a = 5e-5\n"), 15), {"abs(a_i)"}), "rectification",
+                       "abs(a_i)", "rectification");
 }
 
 /// Three at once, one of them dynamic: cross-coupling, rectification and the high-pass a_i^2.
@@ -332,16 +330,8 @@ TEST(DiagnoseScenario, ThreeHiddenEffectsAllFound) {
   std::set<std::string> found;
   for (const Finding& f : r.findings) found.insert(f.term);
   EXPECT_EQ(found.size(), 3U);
-  for (const auto& [term, truth] : s.hidden) {
-    EXPECT_TRUE(found.count(term)) << term;
-    const ident::Term t = ident::parse_term(term);
-    const auto it = std::find_if(r.final_model.terms.begin(), r.final_model.terms.end(),
-                                 [&](const model::ModelTerm& m) { return m.term == t; });
-    ASSERT_NE(it, r.final_model.terms.end());
-    ASSERT_TRUE(it->std.has_value());
-    EXPECT_LT(std::abs(it->coefficient - truth), 3.0 * *it->std) << term;
-  }
-  EXPECT_LT(std::abs(r.steps.back().overall / (kScale * kWhiteSdG) - 1.0), 0.2);
+  for (const auto& [term, truth] : s.hidden) EXPECT_TRUE(found.count(term)) << term;
+  expect_final_model_holds_the_hidden_terms(s, r);
 }
 
 TEST(DiagnoseScenario, HiddenGyroGSensitivityFound) {
