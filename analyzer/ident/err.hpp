@@ -5,7 +5,7 @@
 // and orthogonalizing against a selected column m is the Schur complement
 //   G <- G - G(:,m) G(m,:) / G(m,m),
 // which is modified Gram-Schmidt carried out on inner products (Zhu & Billings 1996 idea).
-// One O(N p^2) pass builds G; ranking is O(p^3) and touches no data, so the memory of a ranking
+// One O(N p^2) pass builds G; ranking is O(p^2 k) for k terms and touches no data, so the memory of a ranking
 // or of any number of re-rankings (other forced sets, other sigma^2 corrections) is the (p+1)^2
 // Gram matrix, independent of N and of how many candidate models are tried.
 // Hazard: working on G squares the condition number; the dependence guard below (relative
@@ -69,7 +69,9 @@ struct ErrRanking {
 /// Forward orthogonal ranking on a Gram matrix (G = [Phi Y]'[Phi Y], possibly bias-corrected).
 /// Candidates with non-positive diagonal (possible after a bias correction) count as dependent.
 ErrRanking err_rank(const Eigen::Ref<const Eigen::MatrixXd>& gram, const ErrOptions& options);
-/// Convenience: builds the Gram matrix and ranks.
+/// The same ranking on data. With options.max_terms small against p (FROLS with a fixed model
+/// length) it forms only the Gram columns of the selected terms, one pass over phi each, instead
+/// of the whole Gram matrix: O(N p k) rather than O(N p^2).
 ErrRanking err_rank(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                     const Eigen::Ref<const Eigen::VectorXd>& y, const ErrOptions& options);
 

@@ -62,6 +62,34 @@ void BM_ErrRankFromGram(benchmark::State& state) {
 }
 BENCHMARK(BM_ErrRankFromGram)->Unit(benchmark::kMicrosecond);
 
+// FROLS with a fixed length (6 or 16 terms of 60): the left-looking ranking on the data (one pass per
+// term) against the Gram matrix route, measured in the same run. The ratio of the two decides
+// err_rank's switch: 3.5 (k + 1) <= p takes the data path, so 6 and 16 terms of 60 both do, the
+// second at the break-even point.
+void BM_ErrRankFixedLengthOnData(benchmark::State& state) {
+  const Data& d = data();
+  ErrOptions options;
+  options.max_terms = state.range(0);
+  for (auto _ : state) {
+    ErrRanking r = err_rank(d.phi, d.y, options);
+    benchmark::DoNotOptimize(r.order.data());
+  }
+  state.SetItemsProcessed(state.iterations() * kSamples);
+}
+BENCHMARK(BM_ErrRankFixedLengthOnData)->Arg(6)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ErrRankFixedLengthOnGram(benchmark::State& state) {
+  const Data& d = data();
+  ErrOptions options;
+  options.max_terms = state.range(0);
+  for (auto _ : state) {
+    ErrRanking r = err_rank(ErrGram::from_data(d.phi, d.y).matrix(), options);
+    benchmark::DoNotOptimize(r.order.data());
+  }
+  state.SetItemsProcessed(state.iterations() * kSamples);
+}
+BENCHMARK(BM_ErrRankFixedLengthOnGram)->Arg(6)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // The whole section 2.7.2 procedure: statistics pass, ERR ranking, 60 candidate sizes with
 // t-test pruning, AIC, p_res, fitness.
 void BM_ErrAndSelection(benchmark::State& state) {

@@ -1,7 +1,7 @@
 // Our half of the SysIdentPy comparison (tests/bench/peer/sysidentpy_compare.py). Reads the
 // candidate matrix SysIdentPy built (raw little-endian: int64 rows, int64 cols, then the columns
 // one after another, then y; all float64) and runs on exactly those columns:
-//   frols  - the ERR ranking stopped at --n-terms, then least squares on the chosen columns:
+//   frols  - the ERR ranking stopped at N_TERMS, then least squares on the chosen columns:
 //            the same procedure as SysIdentPy's FROLS with a fixed n_terms;
 //   select - the whole selection engine (section 2.7.2: ERR ranking, t-tests with Bonferroni,
 //            AIC, residual-mean test), which decides the number of terms itself.
@@ -80,20 +80,19 @@ int main(int argc, char** argv) {
     const double frols_s = median_seconds(repeat, [&] {
       ErrOptions eo;
       eo.max_terms = n_terms;
-      // One data pass (the Gram matrix); the ranking and the least-squares solution on the chosen
-      // columns are then O(p^3) on it, column-scaled normal equations as in solve_uls.
-      const ErrGram gram = ErrGram::from_data(p.phi, p.y);
-      const ErrRanking r = err_rank(gram.matrix(), eo);
+      // The ranking forms only the chosen columns' inner products (one memory-bound pass per
+      // term, as FROLS's own loop), then least squares on the k chosen columns by column-scaled
+      // normal equations as in solve_uls.
+      const ErrRanking r = err_rank(p.phi, p.y, eo);
       chosen.assign(r.order.begin(), r.order.end());
       const auto k = static_cast<Index>(chosen.size());
-      const Eigen::MatrixXd& g = gram.matrix();
-      const Index y_at = g.rows() - 1;
+      const auto column = [&](Index a) { return p.phi.col(chosen[std::size_t(a)]); };
       Eigen::MatrixXd gk(k, k);
       Eigen::VectorXd ck(k), scale(k);
-      for (Index a = 0; a < k; ++a) scale(a) = 1.0 / std::sqrt(g(chosen[std::size_t(a)], chosen[std::size_t(a)]));
+      for (Index a = 0; a < k; ++a) scale(a) = 1.0 / column(a).norm();
       for (Index a = 0; a < k; ++a) {
-        ck(a) = scale(a) * g(chosen[std::size_t(a)], y_at);
-        for (Index b = 0; b < k; ++b) gk(a, b) = scale(a) * scale(b) * g(chosen[std::size_t(a)], chosen[std::size_t(b)]);
+        ck(a) = scale(a) * column(a).dot(p.y);
+        for (Index b = 0; b <= a; ++b) gk(a, b) = gk(b, a) = scale(a) * scale(b) * column(a).dot(column(b));
       }
       theta = scale.asDiagonal() * gk.ldlt().solve(ck);
     });

@@ -16,7 +16,8 @@ exact matrix and target go to our tool through a raw float64 file. Two compariso
   auto    - SysIdentPy choosing the length by AIC (information_criterion, FROLS, least squares)
             against our whole selection (ERR ranking, Bonferroni t-tests, AIC, residual test).
 Times exclude data generation and matrix building on both sides (SysIdentPy: its selection and
-estimation calls on the matrix; ours: the median of 5 runs inside the tool).
+estimation calls on the matrix; ours: inside the tool). Fixed: the median of 5 runs on both
+sides. Auto: one SysIdentPy run (up to 25 s each at p = 78) against our median of 5.
 """
 import argparse
 import os
@@ -131,11 +132,14 @@ def main():
             p = reg.shape[1]
             truth = true_columns(m, x, y, fixed.max_lag, reg)
 
-            t0 = time.perf_counter()
-            out = fixed.run_mss_algorithm(reg, ycol, K)
-            _, piv, psi, target = fixed._unpack_mss_output(out, ycol)
-            fixed.estimator.optimize(psi, target)
-            t_fixed = time.perf_counter() - t0
+            times = []
+            for _ in range(5):  # the median of 5, as on our side: no first-call penalty for either
+                t0 = time.perf_counter()
+                out = fixed.run_mss_algorithm(reg, ycol, K)
+                _, piv, psi, target = fixed._unpack_mss_output(out, ycol)
+                fixed.estimator.optimize(psi, target)
+                times.append(time.perf_counter() - t0)
+            t_fixed = sorted(times)[2]
             s_fixed = sorted(int(j) for j in np.asarray(piv).reshape(-1)[:K])
 
             auto = frols(order_selection=True, n_info_values=min(p, 3 * K + 5), info_criteria="aic")

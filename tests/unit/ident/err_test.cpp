@@ -52,6 +52,43 @@ TEST(Err, MatchesHouseholderQrAndExplainedEnergy) {
   EXPECT_NEAR(ranking.err.sum() + ranking.unexplained, 1.0, 1e-12);
 }
 
+// A fixed model length among many candidates takes the left-looking data path (only the
+// selected terms' Gram columns are formed). It must rank exactly as the whole Gram matrix does,
+// forced terms and the dependence guard included.
+TEST(Err, FewTermsOnDataMatchWholeGram) {
+  const Eigen::Index n = 2000;
+  const Eigen::Index p = 40;
+  Eigen::MatrixXd phi = random_matrix(7, n, p);
+  phi.col(0).setOnes();
+  phi.col(11) = phi.col(5) - 0.5 * phi.col(9);  // exactly dependent on two true terms
+  phi.col(20) += 0.9 * phi.col(5);              // correlated with a true term
+  const Eigen::VectorXd y = (3.0 + 0.7 * phi.col(5).array() - 0.4 * phi.col(9).array() + 0.2 * phi.col(20).array() +
+                             0.05 * random_matrix(8, n, 1).col(0).array())
+                                .matrix();
+  ErrOptions options;
+  options.forced = {0};
+  options.reference = ErrReference::AfterForced;
+  options.max_terms = 5;  // 4 * (5 + 1) <= 40: the data path
+  const ErrRanking on_data = err_rank(phi, y, options);
+  const ErrRanking on_gram = err_rank(ErrGram::from_data(phi, y).matrix(), options);
+  ASSERT_EQ(on_data.order, on_gram.order);
+  EXPECT_EQ(on_data.order[0], 0);
+  // Three terms after the bias span the truth: 20 and two of the dependent triple {5, 9, 11};
+  // the third member of the triple is then caught by the guard.
+  std::vector<Eigen::Index> first(on_data.order.begin() + 1, on_data.order.begin() + 4);
+  std::sort(first.begin(), first.end());
+  EXPECT_TRUE(std::find(first.begin(), first.end(), 20) != first.end());
+  for (Eigen::Index c : {5, 9, 11}) {
+    const bool chosen = std::find(first.begin(), first.end(), c) != first.end();
+    const bool guarded = std::find(on_data.dependent.begin(), on_data.dependent.end(), c) != on_data.dependent.end();
+    EXPECT_NE(chosen, guarded) << c;
+  }
+  EXPECT_EQ(on_data.dependent, on_gram.dependent);
+  EXPECT_LT((on_data.err - on_gram.err).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_NEAR(on_data.reference_energy, on_gram.reference_energy, 1e-9 * on_gram.reference_energy);
+  EXPECT_NEAR(on_data.unexplained, on_gram.unexplained, 1e-12);
+}
+
 TEST(Err, DependentColumnIsGuarded) {
   Eigen::MatrixXd phi = random_matrix(3, 100, 4);
   phi.col(2) = phi.col(0) - 2.0 * phi.col(1);  // exactly dependent
