@@ -60,7 +60,7 @@ TEST(Err, FewTermsOnDataMatchWholeGram) {
   const Eigen::Index p = 40;
   Eigen::MatrixXd phi = random_matrix(7, n, p);
   phi.col(0).setOnes();
-  phi.col(11) = phi.col(5) - 0.5 * phi.col(9);  // exactly dependent on two true terms
+  phi.col(11) = phi.col(5) + phi.col(9);  // exactly dependent on two true terms, never tied with them
   phi.col(20) += 0.9 * phi.col(5);              // correlated with a true term
   const Eigen::VectorXd y = (3.0 + 0.7 * phi.col(5).array() - 0.4 * phi.col(9).array() + 0.2 * phi.col(20).array() +
                              0.05 * random_matrix(8, n, 1).col(0).array())
