@@ -23,7 +23,7 @@ struct CharacterizeOptions {
   std::vector<std::string> fixed_model; // non-empty: block 10 with these F_S terms
   std::vector<std::string> misalignment_model;  // non-empty: blocks 5-6 fixed on these F_E-and-F_S terms
   std::map<std::string, double> weights;
-  double alpha = 0.05;
+  double alpha = ident::SelectionOptions{}.alpha;
   bool plots = true;
 };
 

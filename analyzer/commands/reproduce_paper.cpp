@@ -82,6 +82,9 @@ struct SeedTruth {
 struct CaseScore {
   double table_error_deg = NAN;
   double shaker_error_deg = NAN;
+  /// The whole M_E^S's error on the shaker, the twist about n_i included: what table 4's
+  /// verification with the true M_E^S pays for, and what the shaker's residual barely pins down.
+  double shaker_full_error_deg = NAN;
   double verification_variance_g2 = NAN;          // vs the noise-free sensor output
   double verification_variance_measured_g2 = NAN; // vs the measured (noisy) output
   /// vs the noise-free output, the references mapped with the model's OWN estimated M_E^S. A
@@ -150,7 +153,10 @@ CaseScore score_case(const dataset::Dataset& data, const PipelineResult& result,
   for (const procedure::CaseOutcome& c : result.cases) {
     const double err = rad_to_deg(procedure::input_axis_error(truth.m_es[c.case_index], c.m_es));
     if (data.cases[c.case_index].kind == dataset::CaseKind::RotationTable) s.table_error_deg = err;
-    if (data.cases[c.case_index].kind == dataset::CaseKind::Shaker) s.shaker_error_deg = err;
+    if (data.cases[c.case_index].kind == dataset::CaseKind::Shaker) {
+      s.shaker_error_deg = err;
+      s.shaker_full_error_deg = rad_to_deg(procedure::full_dcm_error(truth.m_es[c.case_index], c.m_es));
+    }
   }
   const Eigen::VectorXd theta = result.fit.process_theta();
   for (std::size_t j = 0; j < result.terms.size(); ++j) {
@@ -254,6 +260,8 @@ int run_reproduce_paper(const ReproducePaperOptions& options, std::ostream& out)
   fmt::print(out, "  simple model     shaker                  {:>10.4f}   {:>10.4f}\n", med("simple", &CaseScore::shaker_error_deg), kPaperTable2[0][1]);
   fmt::print(out, "  complete model   rotation table          {:>10.4f}   {:>10.4f}\n", med("case2", &CaseScore::table_error_deg), kPaperTable2[1][0]);
   fmt::print(out, "  complete model   shaker                  {:>10.4f}   {:>10.4f}\n", med("case2", &CaseScore::shaker_error_deg), kPaperTable2[1][1]);
+  fmt::print(out, "  (whole M_E^S on the shaker, twist about n_i included: case 3 {:.4f}, case 4 {:.4f})\n",
+             med("case3", &CaseScore::shaker_full_error_deg), med("case4", &CaseScore::shaker_full_error_deg));
 
   fmt::print(out, "\nTable 3: coefficients (output unit per g^n), ours / paper\n  {:<9}", "term");
   for (int c = 1; c <= 3; ++c) fmt::print(out, " {:>22}", fmt::format("case {}", c));
@@ -302,6 +310,8 @@ int run_reproduce_paper(const ReproducePaperOptions& options, std::ostream& out)
     j["table2"]["simple"]["shaker_deg"] = med("simple", &CaseScore::shaker_error_deg);
     j["table2"]["complete"]["rotation_table_deg"] = med("case2", &CaseScore::table_error_deg);
     j["table2"]["complete"]["shaker_deg"] = med("case2", &CaseScore::shaker_error_deg);
+    j["table2"]["complete"]["shaker_full_dcm_deg"] = med("case3", &CaseScore::shaker_full_error_deg);
+    j["table2"]["case4"]["shaker_full_dcm_deg"] = med("case4", &CaseScore::shaker_full_error_deg);
     for (int c = 1; c <= 4; ++c) {
       const std::string name = "case" + std::to_string(c);
       j["table4"][name] = med(name, &CaseScore::verification_variance_g2);

@@ -42,11 +42,12 @@ struct PipelineOptions {
   ident::SelectionOptions selection;        // t-test level, multiplicity, ULS options
   std::map<std::string, double> case_weights;   // case name -> weight (section 3.4); default 1
   /// Largest order of the autoregressive noise model used to prewhiten every fit (GLS; see
-  /// prewhitening.hpp); 0 fits by ordinary least squares as the paper does. 60: at 10 kHz an AR
-  /// model needs many lags to follow 1/f noise down toward the table's rotation frequency; on the
-  /// simulated paper experiment the median table error was 0.013 deg with 0, 0.007 with 20, 0.004
-  /// with 60 and 0.004 with 150 (the last at twice the run time).
-  int whitening_max_order = 60;
+  /// prewhitening.hpp); 0 fits by ordinary least squares as the paper does. At 10 kHz an AR model
+  /// needs many lags to follow 1/f noise down toward the table's rotation frequency (AIC keeps
+  /// asking for the largest order on the table). Median complete-model table error over the 10
+  /// seeds of reproduce-paper: 0.0057 deg with 60, 0.0037 with 120, 0.0039 with 200; characterize
+  /// --order 2 on the paper dataset: 3.1, 3.3 and 5.8 s of user time.
+  int whitening_max_order = 120;
   int max_refinements = 6;                  // step-1 fixed point: nonlinear F_S terms need M_E^S
   /// IEEE 1293 12.3.5.7 (paper section 3.2): on a rotation table a_p^2 and a_o^2 cannot be
   /// estimated together with the bias and a_i^2 (a_i^2 + a_p^2 + a_o^2 = g^2), so blocks 5-6 leave
