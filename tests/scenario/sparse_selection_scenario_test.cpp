@@ -156,7 +156,7 @@ dataset::Dataset simulate(unsigned seed, Truth& truth) {
 // two columns differ by less than the noise). With alpha 0.01 it is 287/300 (95.7%).
 TEST(SparseSelectionScenario, Algorithm2RecoversRandomSparseModelsWithMisalignment) {
   const auto start = std::chrono::steady_clock::now();
-  const int seeds = 40;
+  const int seeds = 100;
   int exact = 0, params = 0, within = 0;
   for (int s = 0; s < seeds; ++s) {
     Truth truth;
