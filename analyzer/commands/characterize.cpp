@@ -89,6 +89,19 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
     fmt::print(out, "  {:<16} {:>14.6g} {:>12.3g} {:>10.1f}{}\n", name, result.fit.theta(j), result.fit.std_dev(j), t,
                truth_text);
   }
+  const std::vector<ident::StaticGain> gains = report::sensor_static_gains(result);
+  if (!gains.empty()) {
+    fmt::print(out, "static gains (a term with its lags, over 1 - sum of the y-lag coefficients):\n");
+    fmt::print(out, "  {:<16} {:>14} {:>12}{}\n", "term", "gain", "std", truth ? "        truth" : "");
+    for (const ident::StaticGain& g : gains) {
+      std::string truth_text;
+      if (truth) {
+        const auto it = truth->terms.find(g.term);
+        truth_text = it == truth->terms.end() ? fmt::format(" {:>12}", "-") : fmt::format(" {:>12.5g}", it->second);
+      }
+      fmt::print(out, "  {:<16} {:>14.6g} {:>12.3g}{}\n", g.term, g.gain, g.std_dev, truth_text);
+    }
+  }
 
   // The model file: process terms (noise terms describe the residual colour; kept, marked by e).
   model::ModelFile model;

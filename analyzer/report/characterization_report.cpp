@@ -12,6 +12,7 @@
 #include "analyzer/ident/statistics.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
+#include "analyzer/procedure/square_highpass.hpp"
 #include "common/units.hpp"
 
 namespace inertia::report {
@@ -64,6 +65,14 @@ bool run_gnuplot(const std::filesystem::path& script) {
 
 }  // namespace
 
+std::vector<ident::StaticGain> sensor_static_gains(const procedure::PipelineResult& result) {
+  std::vector<ident::StaticGain> gains = ident::static_gains(result.fit);
+  if (result.square_corner_rad_s) {
+    std::erase_if(gains, [](const ident::StaticGain& g) { return procedure::is_square_term(ident::parse_term(g.term)); });
+  }
+  return gains;
+}
+
 std::filesystem::path write_characterization_report(const ReportInputs& in, const std::filesystem::path& out) {
   if (in.data == nullptr || in.result == nullptr) throw std::invalid_argument("report: no dataset or result");
   const dataset::Dataset& data = *in.data;
@@ -106,8 +115,12 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
                     "(effective N {:.0f}); AIC {:.6g}; AR noise model order {}.\n\n",
                     r.fit.residuals.size(), std::sqrt(r.fit.residual_variance), data.output_unit, r.residual_mean.p_value,
                     r.residual_mean.effective_samples, r.aic, r.whitening.size());
-  md << "| term | physical meaning | coefficient | std | t | p |" << (in.truth ? " truth | (est - truth)/std |" : "") << "\n";
-  md << "|---|---|---|---|---|---|" << (in.truth ? "---|---|" : "") << "\n";
+  // A dynamic model's coefficients are not the sensor's gains; its truth is scored on the static
+  // gains below instead.
+  const std::vector<ident::StaticGain> gains = sensor_static_gains(r);
+  const bool score_coefficients = in.truth && gains.empty();
+  md << "| term | physical meaning | coefficient | std | t | p |" << (score_coefficients ? " truth | (est - truth)/std |" : "") << "\n";
+  md << "|---|---|---|---|---|---|" << (score_coefficients ? "---|---|" : "") << "\n";
   for (Eigen::Index j = 0; j < r.fit.theta.size(); ++j) {
     const std::string& name = r.fit.labels[static_cast<std::size_t>(j)];
     const bool process = j < r.fit.process_terms;
@@ -115,12 +128,28 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     const double t = process ? r.t_test.t(j) : r.fit.theta(j) / r.fit.std_dev(j);
     const double p = process ? r.t_test.p_value(j) : ident::student_t_two_sided_p(t, static_cast<double>(r.fit.residuals.size()));
     md << fmt::format("| `{}` | {} | {:.6g} | {:.3g} | {:.1f} | {:.2g} |", name, meaning, r.fit.theta(j), r.fit.std_dev(j), t, p);
-    if (in.truth) {
+    if (score_coefficients) {
       const auto it = in.truth->terms.find(name);
       md << (it == in.truth->terms.end() ? std::string(" - | - |")
                                          : fmt::format(" {:.6g} | {:+.1f} |", it->second, (r.fit.theta(j) - it->second) / r.fit.std_dev(j)));
     }
     md << "\n";
+  }
+  if (!gains.empty()) {
+    md << "\nStatic gains: with output lags a coefficient is not the sensor's gain. A term with its lagged copies, "
+          "over 1 - the sum of the y-lag coefficients, is (sd by the delta method from the fit's covariance). Squares "
+          "under eq. 12's high pass have no static response and are left out.\n\n";
+    md << "| term | from | static gain | std |" << (in.truth ? " truth | (est - truth)/std |" : "") << "\n";
+    md << "|---|---|---|---|" << (in.truth ? "---|---|" : "") << "\n";
+    for (const ident::StaticGain& g : gains) {
+      md << fmt::format("| `{}` | `{}` | {:.6g} | {:.3g} |", g.term, fmt::join(g.lagged, " "), g.gain, g.std_dev);
+      if (in.truth) {
+        const auto it = in.truth->terms.find(g.term);
+        md << (it == in.truth->terms.end() ? std::string(" - | - |")
+                                           : fmt::format(" {:.6g} | {:+.1f} |", it->second, (g.gain - it->second) / g.std_dev));
+      }
+      md << "\n";
+    }
   }
 
   md << "\n## Residuals and verification per case and phase\n\n"

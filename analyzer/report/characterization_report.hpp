@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 
+#include "analyzer/ident/static_gain.hpp"
 #include "analyzer/procedure/pipeline.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/frames.hpp"
@@ -28,6 +29,10 @@ struct ReportInputs {
   std::string dataset_label;
   bool plots = true;
 };
+
+/// The batch model's static gains (ident::static_gains) as the report and the summary show them:
+/// without the squares when they pass eq. 12's high pass, whose columns carry no static part.
+std::vector<ident::StaticGain> sensor_static_gains(const procedure::PipelineResult& result);
 
 /// Writes report.md (and plots/) into `out`. Returns the report path.
 std::filesystem::path write_characterization_report(const ReportInputs& in, const std::filesystem::path& out);
