@@ -77,29 +77,25 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   }
   fmt::print(out, "batch model ({} rows, residual sd {:.4g} {}):\n", result.fit.residuals.size(),
              std::sqrt(result.fit.residual_variance), data.output_unit);
+  // The truth column of the summary's tables: empty without truth.toml, "-" for a term it lacks.
+  const auto truth_text = [&](const std::string& term) -> std::string {
+    if (!truth) return "";
+    const auto it = truth->terms.find(term);
+    return it == truth->terms.end() ? fmt::format(" {:>12}", "-") : fmt::format(" {:>12.5g}", it->second);
+  };
   fmt::print(out, "  {:<16} {:>14} {:>12} {:>10}{}\n", "term", "coefficient", "std", "t", truth ? "      truth" : "");
   for (Eigen::Index j = 0; j < result.fit.theta.size(); ++j) {
     const std::string& name = result.fit.labels[static_cast<std::size_t>(j)];
-    std::string truth_text;
-    if (truth) {
-      const auto it = truth->terms.find(name);
-      truth_text = it == truth->terms.end() ? fmt::format(" {:>12}", "-") : fmt::format(" {:>12.5g}", it->second);
-    }
     const double t = j < result.t_test.t.size() ? result.t_test.t(j) : result.fit.theta(j) / result.fit.std_dev(j);
     fmt::print(out, "  {:<16} {:>14.6g} {:>12.3g} {:>10.1f}{}\n", name, result.fit.theta(j), result.fit.std_dev(j), t,
-               truth_text);
+               truth_text(name));
   }
   const std::vector<ident::StaticGain> gains = report::sensor_static_gains(result);
   if (!gains.empty()) {
     fmt::print(out, "static gains (a term with its lags, over 1 - sum of the y-lag coefficients):\n");
     fmt::print(out, "  {:<16} {:>14} {:>12}{}\n", "term", "gain", "std", truth ? "        truth" : "");
     for (const ident::StaticGain& g : gains) {
-      std::string truth_text;
-      if (truth) {
-        const auto it = truth->terms.find(g.term);
-        truth_text = it == truth->terms.end() ? fmt::format(" {:>12}", "-") : fmt::format(" {:>12.5g}", it->second);
-      }
-      fmt::print(out, "  {:<16} {:>14.6g} {:>12.3g}{}\n", g.term, g.gain, g.std_dev, truth_text);
+      fmt::print(out, "  {:<16} {:>14.6g} {:>12.3g}{}\n", g.term, g.gain, g.std_dev, truth_text(g.term));
     }
   }
 

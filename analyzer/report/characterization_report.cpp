@@ -119,6 +119,12 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   // gains below instead.
   const std::vector<ident::StaticGain> gains = sensor_static_gains(r);
   const bool score_coefficients = in.truth && gains.empty();
+  // "truth | (est - truth)/std" cells for an estimate of `term`.
+  const auto truth_cells = [&](const std::string& term, double estimate, double std_dev) {
+    const auto it = in.truth->terms.find(term);
+    return it == in.truth->terms.end() ? std::string(" - | - |")
+                                       : fmt::format(" {:.6g} | {:+.1f} |", it->second, (estimate - it->second) / std_dev);
+  };
   md << "| term | physical meaning | coefficient | std | t | p |" << (score_coefficients ? " truth | (est - truth)/std |" : "") << "\n";
   md << "|---|---|---|---|---|---|" << (score_coefficients ? "---|---|" : "") << "\n";
   for (Eigen::Index j = 0; j < r.fit.theta.size(); ++j) {
@@ -128,11 +134,7 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     const double t = process ? r.t_test.t(j) : r.fit.theta(j) / r.fit.std_dev(j);
     const double p = process ? r.t_test.p_value(j) : ident::student_t_two_sided_p(t, static_cast<double>(r.fit.residuals.size()));
     md << fmt::format("| `{}` | {} | {:.6g} | {:.3g} | {:.1f} | {:.2g} |", name, meaning, r.fit.theta(j), r.fit.std_dev(j), t, p);
-    if (score_coefficients) {
-      const auto it = in.truth->terms.find(name);
-      md << (it == in.truth->terms.end() ? std::string(" - | - |")
-                                         : fmt::format(" {:.6g} | {:+.1f} |", it->second, (r.fit.theta(j) - it->second) / r.fit.std_dev(j)));
-    }
+    if (score_coefficients) md << truth_cells(name, r.fit.theta(j), r.fit.std_dev(j));
     md << "\n";
   }
   if (!gains.empty()) {
@@ -143,11 +145,7 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     md << "|---|---|---|---|" << (in.truth ? "---|---|" : "") << "\n";
     for (const ident::StaticGain& g : gains) {
       md << fmt::format("| `{}` | `{}` | {:.6g} | {:.3g} |", g.term, fmt::join(g.lagged, " "), g.gain, g.std_dev);
-      if (in.truth) {
-        const auto it = in.truth->terms.find(g.term);
-        md << (it == in.truth->terms.end() ? std::string(" - | - |")
-                                           : fmt::format(" {:.6g} | {:+.1f} |", it->second, (g.gain - it->second) / g.std_dev));
-      }
+      if (in.truth) md << truth_cells(g.term, g.gain, g.std_dev);
       md << "\n";
     }
   }
