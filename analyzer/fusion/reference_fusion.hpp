@@ -12,6 +12,8 @@
 //    tangential terms of the sensor's offset from the axis.
 // All inputs and outputs SI (m/s^2, m, rad, rad/s, s).
 #include <Eigen/Dense>
+#include <array>
+#include <deque>
 #include <vector>
 
 namespace inertia::fusion {
@@ -31,12 +33,88 @@ struct MonitorLayout {
 Matrix3Columns fuse_monitors(const Eigen::MatrixXd& readings, const MonitorLayout& layout,
                              double* residual_rms = nullptr);
 
+/// The per-sample fit of fuse_monitors with its gain computed once for a layout (the live fusion).
+class MonitorFusion {
+ public:
+  /// Throws std::invalid_argument as fuse_monitors does for a layout that does not span 3D.
+  explicit MonitorFusion(const MonitorLayout& layout);
+  /// One sample: the m monitor readings -> specific force in F_E.
+  [[nodiscard]] Eigen::Vector3d fuse(const Eigen::Ref<const Eigen::VectorXd>& readings) const {
+    return gain_ * (readings - bias_);
+  }
+  [[nodiscard]] Eigen::Index monitors() const { return gain_.cols(); }
+
+ private:
+  friend Matrix3Columns fuse_monitors(const Eigen::MatrixXd&, const MonitorLayout&, double*);
+  Eigen::MatrixXd h_;      // m x 3, unit axes
+  Eigen::VectorXd w_;      // weights 1 / sd^2
+  Eigen::VectorXd bias_;
+  Eigen::MatrixXd gain_;   // 3 x m
+};
+
 /// Complementary fusion along one axis: low frequencies from the encoder displacement
 /// (differentiated twice), high frequencies from the accelerometer estimate, with second-order
 /// (critically damped) complementary filters at `crossover_hz`, so the sum of both paths is exact
 /// for a noise-free input. `accel_along_axis` and `displacement_m` are sampled at 1/dt_s.
 Eigen::VectorXd complementary_vibration(const Eigen::VectorXd& accel_along_axis, const Eigen::VectorXd& displacement_m,
                                         double dt_s, double crossover_hz);
+
+/// The same, one sample at a time (the live fusion): step() returns the fused value of the sample it
+/// is given, with the filters started settled on the first sample as the batch form starts them,
+/// so a sequence stepped through gives exactly what complementary_vibration gives on it.
+class ComplementaryFilter {
+ public:
+  /// Throws std::invalid_argument when the crossover is not between 0 and the Nyquist frequency.
+  ComplementaryFilter(double dt_s, double crossover_hz);
+  /// `encoder_accel` is the encoder displacement's second difference at the same sample.
+  double step(double accel_along_axis, double encoder_accel);
+
+ private:
+  struct Section {
+    double b0, b1, b2, a1, a2;
+    double s1 = 0.0, s2 = 0.0;
+    double step(double x);
+    void settle(double u);
+  };
+  std::array<Section, 2> encoder_path_{}, accel_path_{};
+  bool started_ = false;
+};
+
+/// First and second central differences of a sampled signal, one sample behind it: a sample's
+/// differences become final once the next sample is pushed (or the signal ends). The end samples
+/// are extrapolated linearly from their neighbours (d(0) = 2 d(1) - d(2)), so a smooth trace has
+/// no step at its ends for a filter to ring on; with fewer than 3 samples both are zero. A
+/// sequence pushed through gives exactly the batch differences of the whole sequence.
+class CentralDifferences {
+ public:
+  struct Value {
+    double first = 0.0, second = 0.0;
+  };
+  explicit CentralDifferences(double dt_s) : dt_(dt_s) {}
+  void push(double x);
+  /// The signal ended: the remaining samples' differences become final.
+  void finish();
+  /// Final values not yet taken, oldest first.
+  [[nodiscard]] bool ready() const { return !out_.empty(); }
+  Value pop();
+  [[nodiscard]] std::int64_t pushed() const { return count_; }
+
+ private:
+  [[nodiscard]] Value newest_central() const;
+  double dt_;
+  std::int64_t count_ = 0;
+  std::array<double, 3> last_{};                   // x(count-3 .. count-1)
+  std::array<Value, 2> recent_{};                  // central values at count-3, count-2
+  Value c1_{}, c2_{};                              // central values at 1 and 2 (the start's extrapolation)
+  std::deque<Value> out_;
+};
+
+/// Rotation table at one sample: the specific force for the table turned by `angle_rad` about
+/// `axis_unit` (unit, F_E) from the start attitude where it was `f0_e`, turning at `rate_rad_s`
+/// with angular acceleration `accel_rad_s2`, at `position_m` (F_E) from the axis.
+Eigen::Vector3d table_specific_force_at(double angle_rad, double rate_rad_s, double accel_rad_s2,
+                                        const Eigen::Vector3d& axis_unit, const Eigen::Vector3d& f0_e,
+                                        const Eigen::Vector3d& position_m);
 
 /// Rotation table: specific force in the table-top frame F_E for a table turning about
 /// `axis` (unit, F_E) by angle(t) from the start attitude where the specific force was `f0_e`,

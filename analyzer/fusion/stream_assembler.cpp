@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <stdexcept>
 
@@ -14,6 +15,49 @@
 #include "common/units.hpp"
 
 namespace inertia::fusion {
+
+// ---- SegmentCollector ----
+
+void SegmentCollector::on_rows(FusedChunk&& chunk) {
+  open_[{chunk.case_index, chunk.segment}].push_back(std::move(chunk));
+}
+
+void SegmentCollector::on_segment_end(const SegmentEnd& end) {
+  const auto it = open_.find({end.case_index, end.segment});
+  if (it == open_.end()) return;
+  std::vector<FusedChunk> chunks = std::move(it->second);
+  open_.erase(it);
+  if (!end.kept || chunks.empty()) return;
+  Eigen::Index n = 0;
+  for (const FusedChunk& c : chunks) n += c.rows();
+  const FusedChunk& first = chunks.front();
+  FusedSegment s;
+  s.case_index = first.case_index;
+  s.case_name = first.case_name;
+  s.kind = first.kind;
+  s.segment = kept_[first.case_index]++;
+  s.sample_period_s = first.sample_period_s;
+  s.t.resize(n);
+  s.a_e.resize(n, 3);
+  Rows3 w(n, 3);
+  s.y.resize(n);
+  if (first.temp) s.temp = Eigen::VectorXd(n);
+  Eigen::Index at = 0;
+  for (const FusedChunk& c : chunks) {
+    const Eigen::Index m = c.rows();
+    s.t.segment(at, m) = c.t;
+    s.a_e.middleRows(at, m) = c.a_e;
+    w.middleRows(at, m) = c.w_e;
+    s.y.segment(at, m) = c.y;
+    if (s.temp) s.temp->segment(at, m) = *c.temp;
+    s.phase.insert(s.phase.end(), c.phase.begin(), c.phase.end());
+    at += m;
+  }
+  s.w_e = std::move(w);
+  s.phase_names = chunks.back().phase_names;
+  sink_(std::move(s));
+}
+
 namespace {
 
 // What a needed channel is to the fusion of the sensor under test.
@@ -39,30 +83,35 @@ struct Need {
   ChannelRef ref;
 };
 
-// One stored block of a fast device: the needed channels only.
+// One stored block of a device: the needed channels only.
 struct StoredBlock {
-  std::int64_t first = 0;                       // timeline index of sample 0
+  std::int64_t seq0 = 0;                        // the device's sample counter at sample 0
   std::int32_t n = 0;
+  double t0_ns = 0.0;
+  double period_ns = 0.0;
   std::vector<std::vector<double>> values;      // per device-need slot
   std::vector<std::vector<std::uint8_t>> valid;
+  [[nodiscard]] double time(std::int64_t s) const { return t0_ns + static_cast<double>(s) * period_ns; }
+  [[nodiscard]] double last_ns() const { return time(n - 1); }
 };
 
 struct DeviceState {
   std::vector<std::size_t> needs;               // indices into Impl::needs
   std::vector<std::int32_t> columns;            // block column of each need, -1 until seen
-  std::vector<StoredBlock> blocks;              // ascending `first`
-  std::int64_t next_index = std::numeric_limits<std::int64_t>::min();
-  std::int64_t next_channel_seq = -1;
-  std::int64_t last_index = std::numeric_limits<std::int64_t>::min();  // highest index received
+  std::deque<StoredBlock> blocks;               // in arrival order (ascending time)
+  std::optional<std::int64_t> next_seq;         // channel_seq the next block should start at
+  double next_ns = std::numeric_limits<double>::quiet_NaN();   // time it should start at
+  double newest_ns = -std::numeric_limits<double>::infinity();  // newest sample received
 };
 
 struct TempSample {
-  std::int64_t t_ns;
+  double t_ns;
   double value;
 };
 
 struct PhaseMark {
-  std::int64_t start_ns;
+  double start_ns;
+  double end_ns;           // planned end (0: open-ended)
   std::int32_t phase_index;
   std::string label;
 };
@@ -70,69 +119,126 @@ struct PhaseMark {
 struct CaseMarks {
   std::size_t case_index = 0;
   std::string name;
-  std::int64_t start_ns = 0;
-  std::int64_t last_ns = 0;      // last sample (inclusive); valid when ended
+  double start_ns = 0.0;
+  double last_ns = 0.0;    // last sample (inclusive); valid when ended
   bool ended = false;
   bool aborted = false;
   std::vector<PhaseMark> phases;
 };
 
-std::int64_t round_index(double x) { return static_cast<std::int64_t>(std::llround(x)); }
+// A row read from the devices, waiting for the differences it needs.
+struct RawRow {
+  double t_ns = 0.0;
+  double t_case_s = 0.0;
+  double y = 0.0;
+  Eigen::Vector3d monitors_a = Eigen::Vector3d::Zero();   // monitor WLS (non-table cases)
+  double encoder = 0.0;                                   // displacement or table angle
+  std::int32_t phase_index = -1;
+  std::uint16_t phase_label = 0;
+  double temp = 0.0;
+};
+
+// Values and validity of one need at one row time.
+enum class Read { Ok, Invalid, Missing, NotYet };
+
+// Exclusions per reason, as runs of consecutive rows.
+struct Run {
+  double t_case_s = 0.0;
+  std::int64_t samples = 0;
+};
 
 }  // namespace
 
 struct StreamAssembler::Impl {
   AssemblerOptions options;
-  SegmentSink sink;
+  FusionSink* sink = nullptr;
   std::optional<config::BenchConfig> bench;
   std::vector<std::string> bench_texts;   // paths + texts of the first bench, to compare repeats
   std::size_t sensor = 0;
   std::vector<Need> needs;
   std::map<std::string, DeviceState> devices;
+  std::string output_device;
+  std::size_t output_slot = 0;            // the output need's slot in its device
   ChannelRef temp_ref;
   std::vector<TempSample> temps;
-  double period_s = 0.0;
-  double period_ns = 0.0;
-  std::optional<std::int64_t> origin_ns;
-  std::vector<CaseMarks> cases;           // in marker order; fused ones are removed
+  double temp_newest_ns = -std::numeric_limits<double>::infinity();
+  double marker_newest_ns = -std::numeric_limits<double>::infinity();
+  std::deque<CaseMarks> cases;            // in marker order; finished ones are removed (a deque: Fuser points into it)
   bool saw_case_marker = false;
   std::vector<Exclusion> exclusions;
   std::vector<StreamGap> gaps;
   std::vector<std::string> notes;
   std::int64_t skipped = 0;
-  std::int64_t rows = 0;
+  std::int64_t rows_kept = 0;
+  std::int64_t rows_out = 0;
+  bool finishing = false;
 
-  [[nodiscard]] std::int64_t index_of(std::int64_t t_ns) const {
-    return round_index(static_cast<double>(t_ns - *origin_ns) / period_ns);
-  }
+  // The output device's next row: block (front of its deque after release) and sample.
+  std::size_t cursor_block = 0;
+  std::int32_t cursor_sample = 0;
+  std::optional<StoredBlock> previous_output;  // header of the last output block read (its values dropped)
+  double last_read_ns = -std::numeric_limits<double>::infinity();   // time of the last output sample read
+  double last_row_ns = -std::numeric_limits<double>::infinity();    // time of the last row fused
+
+  // ---- the case being fused ----
+  struct Segment {
+    int number = 0;
+    std::int64_t rows_in = 0;
+    bool has_temp = false;
+    CentralDifferences differences{1.0};
+    std::optional<ComplementaryFilter> filter;
+    std::deque<RawRow> pending;
+    FusedChunk out;
+  };
+  struct Fuser {
+    CaseMarks* marks = nullptr;       // points into `cases` (front)
+    std::size_t case_index = 0;
+    std::string name;
+    CaseKind kind = CaseKind::Static;
+    std::vector<std::size_t> used;
+    std::vector<std::size_t> monitor_needs;
+    std::optional<std::size_t> encoder_need;   // table or linear encoder
+    std::optional<MonitorFusion> monitors;
+    Eigen::VectorXd readings, monitor_bias, monitor_gain;   // calibration from the bench file
+    std::vector<std::string> phase_names;
+    std::map<std::int32_t, std::uint16_t> phase_labels;   // phase index (-1 unplanned) -> label
+    // Table attitude, carried from phase to phase through the encoder.
+    std::map<std::int32_t, frames::Dcm> attitude;
+    std::map<std::int32_t, double> base;
+    std::int32_t phases_seen = -1;            // highest phase index with a row
+    std::int32_t attitude_lost_from = std::numeric_limits<std::int32_t>::max();
+    Eigen::Vector3d prev_axis = Eigen::Vector3d::UnitZ();
+    std::optional<double> prev_base;
+    frames::Dcm running_attitude = frames::Dcm::Identity();
+    std::optional<Segment> segment;
+    int segments_started = 0;
+    std::int64_t rows = 0;
+    std::map<std::string, Run> runs;
+  };
+  std::optional<Fuser> fuser;
+
+  // ---------------------------------------------------------------------------------------------
+  // Configuration
 
   void configure(const std::string& where) {
     const config::BenchConfig& b = *bench;
     if (b.sensors.empty()) throw InputError(where + ": the bench on INERTIA_BENCH has no [[sensor]] under test");
+    const auto names = [&b] {
+      std::string s;
+      for (const auto& x : b.sensors) s += (s.empty() ? "" : ", ") + x.name;
+      return s;
+    };
     if (options.sensor.empty()) {
-      if (b.sensors.size() > 1) {
-        std::string names;
-        for (const auto& s : b.sensors) names += (names.empty() ? "" : ", ") + s.name;
-        throw InputError(where + ": the bench has " + std::to_string(b.sensors.size()) +
-                         " sensors under test (" + names + "): choose one with --sensor NAME");
-      }
+      if (b.sensors.size() > 1)
+        throw InputError(where + ": the bench has " + std::to_string(b.sensors.size()) + " sensors under test (" +
+                         names() + "): choose one with --sensor NAME");
       sensor = 0;
     } else {
-      bool found = false;
-      for (std::size_t i = 0; i < b.sensors.size(); ++i) {
-        if (b.sensors[i].name == options.sensor) {
-          sensor = i;
-          found = true;
-        }
-      }
-      if (!found) {
-        std::string names;
-        for (const auto& s : b.sensors) names += (names.empty() ? "" : ", ") + s.name;
-        throw InputError(where + ": unknown sensor '" + options.sensor + "' (the bench's sensors: " + names + ")");
-      }
+      const auto it = std::find_if(b.sensors.begin(), b.sensors.end(), [&](const auto& s) { return s.name == options.sensor; });
+      if (it == b.sensors.end())
+        throw InputError(where + ": unknown sensor '" + options.sensor + "' (the bench's sensors: " + names() + ")");
+      sensor = static_cast<std::size_t>(it - b.sensors.begin());
     }
-    period_s = 1.0 / b.sample_rate_hz;
-    period_ns = 1e9 * period_s;
     const config::SensorUnderTest& s = b.sensors[sensor];
     needs.push_back({Role::Output, 0, channel_of(s.channel, "accel", s.name)});
     for (std::size_t i = 0; i < b.monitors.size(); ++i)
@@ -146,6 +252,9 @@ struct StreamAssembler::Impl {
       d.needs.push_back(i);
       d.columns.push_back(-1);
     }
+    output_device = needs[0].ref.device;
+    const DeviceState& od = devices[output_device];
+    output_slot = static_cast<std::size_t>(std::find(od.needs.begin(), od.needs.end(), 0) - od.needs.begin());
     temp_ref = channel_of(b.thermal.channel, "controller", "temperature");
   }
 
@@ -167,68 +276,81 @@ struct StreamAssembler::Impl {
     std::vector<config::SourceFile> sources;
     for (std::int32_t i = 0; i < msg.num_files; ++i)
       sources.push_back({msg.paths[static_cast<std::size_t>(i)], msg.texts[static_cast<std::size_t>(i)]});
+    config::BenchConfig loaded;
     try {
-      bench = config::load_bench_config_from_sources(sources);
+      loaded = config::load_bench_config_from_sources(sources);
     } catch (const InputError& e) {
       throw InputError(where + ": the bench file on INERTIA_BENCH: " + e.what());
     }
+    bench = std::move(loaded);
+    try {
+      configure(where);
+    } catch (...) {
+      bench.reset();
+      needs.clear();
+      devices.clear();
+      throw;
+    }
     bench_texts = std::move(texts);
-    configure(where);
   }
+
+  // ---------------------------------------------------------------------------------------------
+  // Blocks
 
   void on_block(const sample_block_t& block, const std::string& where) {
     if (!bench) {
       ++skipped;
       return;
     }
+    if (const std::string why = block_shape_error(block); !why.empty())
+      throw InputError(fmt::format("{}: device {}: malformed sample block ({})", where, block.device, why));
+    if (block.num_samples == 0) return;
     if (block.device == temp_ref.device) on_temperature(block);
     const auto it = devices.find(block.device);
     if (it == devices.end()) return;
     DeviceState& d = it->second;
-    if (block.num_samples <= 0) return;
-    if (std::abs(block.sample_period_s - period_s) > 1e-9 * period_s)
-      throw InputError(fmt::format("{}: device {} samples every {} s, the bench every {} s: its samples cannot be "
-                                   "put on the bench's sample timeline",
-                                   where, block.device, block.sample_period_s, period_s));
+    std::vector<std::int32_t> columns(d.needs.size(), -1);
     for (std::size_t k = 0; k < d.needs.size(); ++k) {
       const std::string& signal = needs[d.needs[k]].ref.signal;
-      std::int32_t col = -1;
       for (std::int32_t c = 0; c < block.num_channels; ++c)
-        if (block.channel_names[static_cast<std::size_t>(c)] == signal) col = c;
-      if (col < 0)
+        if (block.channel_names[static_cast<std::size_t>(c)] == signal) columns[k] = c;
+      if (columns[k] < 0)
         throw InputError(where + ": device " + block.device + " has no channel '" + signal + "' (needed as " +
                          needs[d.needs[k]].ref.label() + ")");
-      d.columns[k] = col;
     }
-    if (!origin_ns) origin_ns = block.t0_mono_ns;
-    const std::int64_t first = index_of(block.t0_mono_ns);
+    const double period_ns = 1e9 * block.sample_period_s;
+    const double t0 = static_cast<double>(block.t0_mono_ns);
     const std::int64_t seq = block.num_channels > 0 ? block.channel_seq[0] : 0;
-    if (d.next_index != std::numeric_limits<std::int64_t>::min()) {
-      if (first < d.next_index)
-        throw InputError(fmt::format("{}: device {} block starts at sample {} of the timeline, before the end of the "
-                                     "previous block ({}): blocks out of order or overlapping",
-                                     where, block.device, first, d.next_index));
-      if (first > d.next_index || seq != d.next_channel_seq) {
-        gaps.push_back({block.device, where, first - d.next_index, std::max<std::int64_t>(0, seq - d.next_channel_seq)});
-      }
+    if (!std::isnan(d.next_ns)) {
+      if (t0 < d.next_ns - 0.5 * period_ns)
+        throw InputError(fmt::format("{}: device {} block starts {:.1f} us before the end of its previous block: blocks "
+                                     "out of order or overlapping",
+                                     where, block.device, (d.next_ns - t0) * 1e-3));
+      const double missing = (t0 - d.next_ns) / period_ns;
+      if (missing > 0.5 || seq != *d.next_seq)
+        gaps.push_back({block.device, where, std::llround(missing), std::max<std::int64_t>(0, seq - *d.next_seq)});
     }
-    d.next_index = first + block.num_samples;
-    d.next_channel_seq = seq + block.num_samples;
-    d.last_index = d.next_index - 1;
+    d.columns = columns;
+    d.next_ns = t0 + static_cast<double>(block.num_samples) * period_ns;
+    d.next_seq = seq + block.num_samples;
     StoredBlock sb;
-    sb.first = first;
+    sb.seq0 = seq;
     sb.n = block.num_samples;
+    sb.t0_ns = t0;
+    sb.period_ns = period_ns;
     for (std::size_t k = 0; k < d.needs.size(); ++k) {
-      const auto c = d.columns[k];
-      const auto& v = block.values[static_cast<std::size_t>(c)];
+      const auto c = static_cast<std::size_t>(d.columns[k]);
+      const auto& v = block.values[c];
       sb.values.emplace_back(v.begin(), v.begin() + block.num_samples);
       std::vector<std::uint8_t> ok(static_cast<std::size_t>(block.num_samples));
       for (std::int32_t s = 0; s < block.num_samples; ++s)
-        ok[static_cast<std::size_t>(s)] = sample_valid(block, c, s) && std::isfinite(v[static_cast<std::size_t>(s)]);
+        ok[static_cast<std::size_t>(s)] =
+            sample_valid(block, d.columns[k], s) && std::isfinite(v[static_cast<std::size_t>(s)]);
       sb.valid.push_back(std::move(ok));
     }
+    d.newest_ns = std::max(d.newest_ns, sb.last_ns());
     d.blocks.push_back(std::move(sb));
-    fuse_ready(false);
+    advance();
   }
 
   void on_temperature(const sample_block_t& block) {
@@ -236,12 +358,17 @@ struct StreamAssembler::Impl {
       if (block.channel_names[static_cast<std::size_t>(c)] != temp_ref.signal) continue;
       for (std::int32_t s = 0; s < block.num_samples; ++s) {
         const double v = block.values[static_cast<std::size_t>(c)][static_cast<std::size_t>(s)];
+        const double t = static_cast<double>(block.t0_mono_ns) + block.sample_period_s * 1e9 * s;
+        temp_newest_ns = std::max(temp_newest_ns, t);
         if (!sample_valid(block, c, s) || !std::isfinite(v)) continue;
-        const double dt_ns = block.sample_period_s * 1e9 * s;
-        temps.push_back({block.t0_mono_ns + static_cast<std::int64_t>(std::llround(dt_ns)), v});
+        if (!temps.empty() && t < temps.back().t_ns) continue;   // out of order: keep the timeline monotonic
+        temps.push_back({t, v});
       }
     }
   }
+
+  // ---------------------------------------------------------------------------------------------
+  // Markers
 
   void on_event(const plan_event_t& ev, const std::string& where) {
     if (!bench) {
@@ -253,367 +380,540 @@ struct StreamAssembler::Impl {
       if (bench->cases[i].name == ev.case_name) index = i;
     if (index == bench->cases.size())
       throw InputError(where + ": marker for case '" + ev.case_name + "', which the bench's test plan does not have");
+    const double period_ns = output_period_ns();
     CaseMarks* open = nullptr;
     for (CaseMarks& c : cases)
-      if (c.case_index == index && !c.ended) open = &c;
+      if (!c.ended) open = &c;
     switch (ev.mark) {
       case plan_event_t::MARK_CASE_START:
         saw_case_marker = true;
         if (open != nullptr) {
-          notes.push_back(where + ": case " + ev.case_name + " started again before it ended; the first run ends here");
+          // A bench runs one case at a time: the new start ends the open one (its end marker was
+          // lost, or the case was restarted).
+          notes.push_back(where + ": case " + ev.case_name + " started while case " + open->name +
+                          " had not ended: that case ends here");
           open->ended = true;
-          open->last_ns = ev.start_mono_ns - static_cast<std::int64_t>(period_ns);
+          open->last_ns = static_cast<double>(ev.start_mono_ns) - period_ns;
         }
-        cases.push_back({index, ev.case_name, ev.start_mono_ns, 0, false, false, {}});
+        cases.push_back({index, ev.case_name, static_cast<double>(ev.start_mono_ns), 0.0, false, false, {}});
         break;
       case plan_event_t::MARK_CASE_END:
       case plan_event_t::MARK_ABORT:
-        if (open == nullptr) {
+        if (open == nullptr || open->case_index != index) {
           notes.push_back(where + ": end of case " + ev.case_name + " without its start: ignored");
           break;
         }
         open->ended = true;
         open->aborted = ev.mark == plan_event_t::MARK_ABORT;
-        open->last_ns = ev.mark == plan_event_t::MARK_ABORT ? ev.mono_ns : ev.end_mono_ns;
+        open->last_ns = static_cast<double>(ev.mark == plan_event_t::MARK_ABORT ? ev.mono_ns : ev.end_mono_ns);
         if (open->aborted) notes.push_back(where + ": case " + ev.case_name + " aborted; its samples up to the abort are used");
         break;
       case plan_event_t::MARK_PHASE_START:
-        if (open == nullptr) {
+        if (open == nullptr || open->case_index != index) {
           notes.push_back(where + ": phase marker of case " + ev.case_name + " outside the case: ignored");
           break;
         }
-        open->phases.push_back({ev.start_mono_ns, ev.phase_index, ev.phase.empty() ? std::string("phase") : ev.phase});
+        open->phases.push_back({static_cast<double>(ev.start_mono_ns), static_cast<double>(ev.end_mono_ns),
+                                ev.phase_index, ev.phase.empty() ? std::string("phase") : ev.phase});
+        std::stable_sort(open->phases.begin(), open->phases.end(),
+                         [](const PhaseMark& a, const PhaseMark& c) { return a.start_ns < c.start_ns; });
         break;
       default: break;  // MARK_PHASE_END: the next start (or the case end) closes a phase
     }
-    fuse_ready(false);
+    const double t = static_cast<double>(std::max({ev.mono_ns, ev.start_mono_ns, ev.mark == plan_event_t::MARK_CASE_END ? ev.end_mono_ns : 0}));
+    marker_newest_ns = std::max(marker_newest_ns, t);
+    advance();
   }
 
-  // Fuses every ended case whose samples have all arrived (at the end: every case).
-  void fuse_ready(bool final) {
-    if (!origin_ns) return;
-    while (!cases.empty()) {
-      CaseMarks& c = cases.front();
-      if (!c.ended && !final) return;
-      std::int64_t last;
-      if (c.ended) {
-        last = index_of(c.last_ns);
-      } else {
-        last = std::numeric_limits<std::int64_t>::min();
-        for (const auto& [name, d] : devices) last = std::max(last, d.last_index);
-        notes.push_back("case " + c.name + " has no end marker: cut at the last sample recorded");
+  // ---------------------------------------------------------------------------------------------
+  // Reading the devices at a row's time
+
+  [[nodiscard]] double output_period_ns() const {
+    const auto it = devices.find(output_device);
+    if (it != devices.end() && !it->second.blocks.empty()) return it->second.blocks.front().period_ns;
+    return 1e9 / bench->sample_rate_hz;
+  }
+
+  [[nodiscard]] double output_newest_ns() const {
+    const auto it = devices.find(output_device);
+    return it == devices.end() ? -std::numeric_limits<double>::infinity() : it->second.newest_ns;
+  }
+
+  /// Past max_wait: a device (or the markers) this far behind the output is not waited for.
+  [[nodiscard]] bool given_up(double t_ns) const {
+    return finishing || output_newest_ns() - t_ns > options.max_wait_s * 1e9;
+  }
+
+  /// Sample `seq` of device `d` (by its sample counter): its block and position, or none.
+  static const StoredBlock* find_sample(const DeviceState& d, std::int64_t seq, std::int32_t& s) {
+    for (auto it = d.blocks.rbegin(); it != d.blocks.rend(); ++it) {
+      if (seq >= it->seq0 && seq < it->seq0 + it->n) {
+        s = static_cast<std::int32_t>(seq - it->seq0);
+        return &*it;
       }
-      if (!final) {
-        for (const auto& [name, d] : devices)
-          if (d.last_index < last) return;   // still arriving
-      }
-      CaseMarks done = std::move(c);
-      cases.erase(cases.begin());
-      fuse_case(done, index_of(done.start_ns), last);
-      release_before(last + 1);
+      if (it->seq0 + it->n <= seq) break;
     }
+    return nullptr;
   }
 
-  void release_before(std::int64_t index) {
-    for (auto& [name, d] : devices) {
-      auto keep = std::find_if(d.blocks.begin(), d.blocks.end(),
-                               [index](const StoredBlock& b) { return b.first + b.n > index; });
-      d.blocks.erase(d.blocks.begin(), keep);
-    }
-    if (!cases.empty() || temps.size() < 2) return;
-    // Keep the last temperature before the next case: it is held into it.
-    const double t_ns = static_cast<double>(*origin_ns) + static_cast<double>(index) * period_ns;
-    auto it = std::upper_bound(temps.begin(), temps.end(), t_ns,
-                               [](double t, const TempSample& s) { return t < static_cast<double>(s.t_ns); });
-    if (it != temps.begin()) temps.erase(temps.begin(), it - 1);
-  }
-
-  // Values and validity of need `k` over [i0, i0 + n): missing samples (no block) flagged 2.
-  void gather(std::size_t k, std::int64_t i0, std::int64_t n, Eigen::VectorXd& value, std::vector<std::uint8_t>& state) {
-    value.setZero(n);
-    state.assign(static_cast<std::size_t>(n), 2);
-    DeviceState& d = devices.at(needs[k].ref.device);
+  /// The need's value at time t (ns): the device's sample at that instant, or a 4-point Lagrange
+  /// interpolation between its samples around it.
+  Read read(std::size_t need, double t, double& value) const {
+    const DeviceState& d = devices.at(needs[need].ref.device);
     std::size_t slot = 0;
-    while (d.needs[slot] != k) ++slot;
-    for (const StoredBlock& b : d.blocks) {
-      const std::int64_t lo = std::max(i0, b.first), hi = std::min(i0 + n, b.first + b.n);
-      for (std::int64_t i = lo; i < hi; ++i) {
-        const auto s = static_cast<std::size_t>(i - b.first);
-        value(i - i0) = b.values[slot][s];
-        state[static_cast<std::size_t>(i - i0)] = b.valid[slot][s] ? 0 : 1;
+    while (d.needs[slot] != need) ++slot;
+    // The block whose span holds t (or the last one starting before it).
+    const StoredBlock* b = nullptr;
+    for (auto it = d.blocks.rbegin(); it != d.blocks.rend(); ++it) {
+      if (it->t0_ns <= t + 0.5 * it->period_ns) {
+        b = &*it;
+        break;
       }
     }
+    if (b == nullptr) return d.newest_ns < t && !given_up(t) ? Read::NotYet : Read::Missing;
+    const double x = (t - b->t0_ns) / b->period_ns;
+    const double nearest = std::round(x);
+    if (std::abs(x - nearest) <= 1e-3) {
+      // The device samples at this instant (one clock, as on the simulated benches).
+      const auto s = static_cast<std::int64_t>(nearest);
+      if (s < b->n) {
+        value = b->values[slot][static_cast<std::size_t>(s)];
+        return b->valid[slot][static_cast<std::size_t>(s)] ? Read::Ok : Read::Invalid;
+      }
+      if (d.newest_ns < t && !given_up(t)) return Read::NotYet;
+      return Read::Missing;   // past the block, and the next one did not follow on
+    }
+    // Another clock: Lagrange through the samples at floor(x) - 1 .. floor(x) + 2.
+    const std::int64_t base = b->seq0 + static_cast<std::int64_t>(std::floor(x)) - 1;
+    const double u = x - std::floor(x) + 1.0;   // position in the 4-point stencil, in (1, 2)
+    double sum = 0.0;
+    for (int j = 0; j < 4; ++j) {
+      std::int32_t s = 0;
+      const StoredBlock* sb = find_sample(d, base + j, s);
+      if (sb == nullptr) return d.next_seq && base + j >= *d.next_seq && !given_up(t) ? Read::NotYet : Read::Missing;
+      if (!sb->valid[slot][static_cast<std::size_t>(s)]) return Read::Invalid;
+      double w = 1.0;
+      for (int m = 0; m < 4; ++m)
+        if (m != j) w *= (u - m) / static_cast<double>(j - m);
+      sum += w * sb->values[slot][static_cast<std::size_t>(s)];
+    }
+    value = sum;
+    return Read::Ok;
   }
 
-  void exclude_runs(const std::string& case_name, const std::vector<std::uint8_t>& bad, const std::string& reason) {
-    for (std::size_t i = 0; i < bad.size();) {
-      if (!bad[i]) {
-        ++i;
+  // ---------------------------------------------------------------------------------------------
+  // Rows
+
+  /// The case a row at t belongs to; nullptr when none. `ready` false when markers still to come
+  /// could change the answer.
+  CaseMarks* case_of(double t, double half, bool& ready) {
+    ready = true;
+    for (CaseMarks& c : cases) {
+      if (t < c.start_ns - half) continue;
+      if (c.ended && t > c.last_ns + half) continue;
+      return &c;
+    }
+    // No case holds it: a start marker could still come for it.
+    if (marker_newest_ns < t && !given_up(t)) ready = false;
+    return nullptr;
+  }
+
+  /// Whether the phase of a row at t in case c is settled: a later marker arrived, the phase's
+  /// planned end lies beyond t, or the markers are given up on.
+  bool phase_settled(const CaseMarks& c, double t, double half) const {
+    if (marker_newest_ns > t + half || c.ended) return true;
+    const PhaseMark* current = nullptr;
+    for (const PhaseMark& p : c.phases)
+      if (p.start_ns <= t + half) current = &p;
+    if (current != nullptr && current->end_ns > t + half) return true;
+    return given_up(t);
+  }
+
+  /// Reads and fuses every output sample whose inputs are all known.
+  void advance() {
+    if (!bench) return;
+    auto it = devices.find(output_device);
+    if (it == devices.end()) return;
+    DeviceState& od = it->second;
+    while (cursor_block < od.blocks.size()) {
+      const StoredBlock& b = od.blocks[cursor_block];
+      if (cursor_sample == 0 && previous_output) {
+        note_output_gap(*previous_output, b);
+        previous_output.reset();
+      }
+      if (cursor_sample >= b.n) {
+        previous_output = StoredBlock{b.seq0, b.n, b.t0_ns, b.period_ns, {}, {}};
+        ++cursor_block;
+        cursor_sample = 0;
         continue;
       }
-      std::size_t j = i;
-      while (j < bad.size() && bad[j]) ++j;
-      exclusions.push_back({case_name, reason, static_cast<double>(i) * period_s, static_cast<std::int64_t>(j - i)});
-      i = j;
+      if (!process_row(b, cursor_sample)) break;
+      last_read_ns = b.time(cursor_sample);
+      ++cursor_sample;
+    }
+    // A case whose end marker arrived and whose last row is read is over now, not at the next row.
+    if (fuser && fuser->marks->ended && last_read_ns + 0.5 * output_period_ns() >= fuser->marks->last_ns &&
+        &cases.front() == fuser->marks)
+      close_case();
+    release();
+    flush_chunk();
+  }
+
+  /// An output gap between two blocks ends the open segment (the rows are not there).
+  void note_output_gap(const StoredBlock& a, const StoredBlock& b) {
+    const double missing = (b.t0_ns - a.time(a.n)) / a.period_ns;
+    if (missing <= 0.5 && b.seq0 == a.seq0 + a.n) return;
+    if (fuser && fuser->segment) {
+      const auto n = std::max<std::int64_t>(std::llround(missing), b.seq0 - (a.seq0 + a.n));
+      const double t_case = (a.time(a.n) - fuser->marks->start_ns) * 1e-9;
+      end_segment();
+      exclusions.push_back({fuser->name, needs[0].ref.label() + " missing (gap)", t_case, std::max<std::int64_t>(n, 1)});
     }
   }
 
-  void fuse_case(const CaseMarks& marks, std::int64_t i0, std::int64_t i1) {
-    const config::BenchConfig& b = *bench;
-    const config::TestCase& tc = b.cases[marks.case_index];
-    const std::int64_t n = i1 - i0 + 1;
-    if (n <= 0) {
-      notes.push_back("case " + marks.name + " has no samples");
-      return;
+  /// One output sample. False when it must wait for more messages.
+  bool process_row(const StoredBlock& ob, std::int32_t s) {
+    const double t = ob.time(s);
+    const double half = 0.5 * ob.period_ns;
+    bool ready = true;
+    CaseMarks* c = case_of(t, half, ready);
+    if (!ready) return false;
+    // Cases wholly before this row are over.
+    while (!cases.empty() && &cases.front() != c && cases.front().ended && cases.front().last_ns + half < t) close_case();
+    if (c == nullptr) return true;   // between cases
+    if (!phase_settled(*c, t, half)) return false;
+    if (!fuser || fuser->marks != c) open_case(*c);
+    Fuser& f = *fuser;
+
+    // Every input of the row, or the reason it has none.
+    std::vector<std::string> reasons;
+    const double y = ob.values[output_slot][static_cast<std::size_t>(s)];
+    if (!ob.valid[output_slot][static_cast<std::size_t>(s)]) reasons.push_back(needs[0].ref.label() + " invalid");
+    Eigen::Index m = 0;
+    double encoder = 0.0;
+    for (std::size_t k : f.used) {
+      if (k == 0) continue;
+      double v = 0.0;
+      const Read r = read(k, t, v);
+      if (r == Read::NotYet) return false;
+      if (r == Read::Invalid) reasons.push_back(needs[k].ref.label() + " invalid");
+      if (r == Read::Missing) reasons.push_back(needs[k].ref.label() + " missing (gap)");
+      if (needs[k].role == Role::Monitor) {
+        f.readings(m) = (v - f.monitor_bias(m)) / f.monitor_gain(m);
+        ++m;
+      } else {
+        encoder = v;
+      }
     }
-    // Which references this case's fusion needs.
-    std::vector<std::size_t> used;
+    double temp = 0.0;
+    const bool with_temp = f.segment ? f.segment->has_temp : !temps.empty();
+    if (with_temp) {
+      if (temp_newest_ns < t && !given_up(t)) return false;
+      temp = held_temperature(t);
+    }
+
+    const double t_case = (t - c->start_ns) * 1e-9;
+    RawRow row;
+    row.t_ns = t;
+    row.t_case_s = t_case;
+    row.y = y;
+    row.encoder = encoder;
+    row.temp = temp;
+    label_phase(f, *c, t, half, row);
+    if (f.kind == CaseKind::RotationTable && !table_attitude(f, row, reasons.empty()) && reasons.empty()) {
+      reasons.push_back("table attitude unknown (a phase without encoder data before it)");
+    }
+    count_exclusions(f, reasons, t_case);
+    if (!reasons.empty()) {
+      if (f.segment) end_segment();
+      return true;
+    }
+    if (f.monitors) row.monitors_a = f.monitors->fuse(f.readings);
+    if (!f.segment) start_segment(with_temp);
+    f.segment->pending.push_back(row);
+    ++f.segment->rows_in;
+    f.segment->differences.push(row.encoder);
+    finalize_ready(false);
+    last_row_ns = t;
+    return true;
+  }
+
+  [[nodiscard]] double held_temperature(double t) const {
+    // The last controller reading at or before t (the first one for rows before it).
+    auto it = std::upper_bound(temps.begin(), temps.end(), t, [](double x, const TempSample& ts) { return x < ts.t_ns; });
+    return it == temps.begin() ? temps.front().value : std::prev(it)->value;
+  }
+
+  void label_phase(Fuser& f, const CaseMarks& c, double t, double half, RawRow& row) {
+    const PhaseMark* current = nullptr;
+    for (const PhaseMark& p : c.phases)
+      if (p.start_ns <= t + half) current = &p;
+    row.phase_index = current ? current->phase_index : -1;
+    auto [it, fresh] = f.phase_labels.try_emplace(row.phase_index, 0);
+    if (fresh) {
+      const std::string label = current ? current->label : std::string("unplanned");
+      auto named = std::find(f.phase_names.begin(), f.phase_names.end(), label);
+      if (named == f.phase_names.end()) {
+        f.phase_names.push_back(label);
+        named = std::prev(f.phase_names.end());
+      }
+      it->second = static_cast<std::uint16_t>(named - f.phase_names.begin());
+    }
+    row.phase_label = it->second;
+  }
+
+  /// The table's attitude at the row's phase (tracked through the encoder from the case's start
+  /// attitude): false when it is unknown (a phase whose first row had no angle, or any phase after it).
+  bool table_attitude(Fuser& f, const RawRow& row, bool usable) {
+    const std::int32_t p = row.phase_index;
+    if (p < 0) return false;
+    const config::TestCase& tc = bench->cases[f.case_index];
+    if (p > f.phases_seen) {
+      // The phase's first row: its start angle fixes the attitude (the phases turn about
+      // different axes, so one angle does not give it). Skipped phases lose it for good.
+      if (p > f.phases_seen + 1) f.attitude_lost_from = std::min(f.attitude_lost_from, f.phases_seen + 1);
+      f.phases_seen = p;
+      if (!usable) f.attitude_lost_from = std::min(f.attitude_lost_from, p);
+      if (p < f.attitude_lost_from) {
+        if (f.prev_base) f.running_attitude = frames::frame_rotation(f.prev_axis, row.encoder - *f.prev_base) * f.running_attitude;
+        f.attitude[p] = f.running_attitude;
+        f.base[p] = row.encoder;
+        const bool rotation = static_cast<std::size_t>(p) < tc.phases.size() &&
+                              tc.phases[static_cast<std::size_t>(p)].kind == config::PhaseKind::Rotation;
+        f.prev_axis = rotation ? tc.phases[static_cast<std::size_t>(p)].axis.normalized() : Eigen::Vector3d::UnitZ();
+        f.prev_base = row.encoder;
+      }
+    }
+    return p < f.attitude_lost_from && f.attitude.count(p) != 0;
+  }
+
+  void count_exclusions(Fuser& f, const std::vector<std::string>& reasons, double t_case) {
+    for (auto it = f.runs.begin(); it != f.runs.end();) {
+      if (std::find(reasons.begin(), reasons.end(), it->first) == reasons.end()) {
+        exclusions.push_back({f.name, it->first, it->second.t_case_s, it->second.samples});
+        it = f.runs.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    for (const std::string& r : reasons) {
+      auto [it, fresh] = f.runs.try_emplace(r, Run{t_case, 0});
+      ++it->second.samples;
+    }
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Cases and segments
+
+  void open_case(CaseMarks& c) {
+    if (fuser) close_fuser();
+    const config::BenchConfig& b = *bench;
+    const config::TestCase& tc = b.cases[c.case_index];
+    Fuser f;
+    f.marks = &c;
+    f.case_index = c.case_index;
+    f.name = c.name;
+    f.kind = tc.kind;
     for (std::size_t k = 0; k < needs.size(); ++k) {
       const Role r = needs[k].role;
-      const bool use = r == Role::Output ||
-                       (r == Role::Monitor && tc.kind != CaseKind::RotationTable) ||
+      const bool use = r == Role::Output || (r == Role::Monitor && tc.kind != CaseKind::RotationTable) ||
                        (r == Role::LinearEncoder && tc.kind == CaseKind::Shaker) ||
                        (r == Role::TableEncoder && tc.kind == CaseKind::RotationTable);
-      if (use) used.push_back(k);
+      if (!use) continue;
+      f.used.push_back(k);
+      if (r == Role::Monitor) f.monitor_needs.push_back(k);
+      if (r == Role::LinearEncoder || r == Role::TableEncoder) f.encoder_need = k;
     }
-    std::size_t monitors = 0;
-    bool table = false;
-    for (std::size_t k : used) {
-      monitors += needs[k].role == Role::Monitor ? 1 : 0;
-      table = table || needs[k].role == Role::TableEncoder;
+    if (tc.kind == CaseKind::RotationTable && !f.encoder_need)
+      throw InputError("case " + c.name + " (rotation_table): the bench has no [table_encoder] to fuse it with");
+    if (tc.kind != CaseKind::RotationTable) {
+      if (f.monitor_needs.size() < 3)
+        throw InputError("case " + c.name + " (" + to_string(tc.kind) +
+                         "): fusion needs at least three [[monitor]] accelerometers, the bench has " +
+                         std::to_string(f.monitor_needs.size()));
+      // Monitors: calibrated (bias, scale, misalignment from the bench file), then WLS.
+      MonitorLayout layout;
+      const auto count = static_cast<Eigen::Index>(f.monitor_needs.size());
+      f.readings.resize(count);
+      f.monitor_bias.resize(count);
+      f.monitor_gain.resize(count);
+      for (Eigen::Index j = 0; j < count; ++j) {
+        const config::MonitorAccelerometer& m = b.monitors[needs[f.monitor_needs[static_cast<std::size_t>(j)]].index];
+        f.monitor_gain(j) = 1.0 + m.scale_error;
+        f.monitor_bias(j) = m.bias_mps2;
+        layout.axes.push_back(m.misalignment.dcm().transpose() * m.axis.normalized());
+        layout.noise_sd_mps2.push_back(std::max(m.noise_sd_mps2, 1e-12) / f.monitor_gain(j));
+      }
+      f.monitors.emplace(layout);
     }
-    if (tc.kind == CaseKind::RotationTable && !table)
-      throw InputError("case " + marks.name + " (rotation_table): the bench has no [table_encoder] to fuse it with");
-    if (tc.kind != CaseKind::RotationTable && monitors < 3)
-      throw InputError("case " + marks.name + " (" + to_string(tc.kind) +
-                       "): fusion needs at least three [[monitor]] accelerometers, the bench has " +
-                       std::to_string(monitors));
+    f.running_attitude = tc.start_attitude.dcm();
+    fuser = std::move(f);
+  }
 
-    std::map<std::size_t, Eigen::VectorXd> value;
-    std::vector<std::uint8_t> usable(static_cast<std::size_t>(n), 1);
-    for (std::size_t k : used) {
-      std::vector<std::uint8_t> state;
-      gather(k, i0, n, value[k], state);
-      std::vector<std::uint8_t> invalid(state.size()), missing(state.size());
-      for (std::size_t i = 0; i < state.size(); ++i) {
-        invalid[i] = state[i] == 1;
-        missing[i] = state[i] == 2;
-        if (state[i] != 0) usable[i] = 0;
-      }
-      exclude_runs(marks.name, invalid, needs[k].ref.label() + " invalid");
-      exclude_runs(marks.name, missing, needs[k].ref.label() + " missing (gap)");
-    }
+  void start_segment(bool with_temp) {
+    Fuser& f = *fuser;
+    Segment s;
+    s.number = f.segments_started++;
+    s.has_temp = with_temp;
+    const double dt = output_period_ns() * 1e-9;
+    s.differences = CentralDifferences(dt);
+    if (f.kind == CaseKind::Shaker && f.encoder_need && 1.0 / dt > 2.0 * options.crossover_hz)
+      s.filter.emplace(dt, options.crossover_hz);
+    f.segment = std::move(s);
+  }
 
-    // Phase label of every sample: the last phase started at or before it.
-    std::vector<std::string> phase_names;
-    std::vector<std::uint16_t> phase(static_cast<std::size_t>(n), 0);
-    std::vector<std::int32_t> phase_index(static_cast<std::size_t>(n), -1);
-    {
-      std::vector<PhaseMark> ph = marks.phases;
-      std::stable_sort(ph.begin(), ph.end(), [](const PhaseMark& a, const PhaseMark& c) { return a.start_ns < c.start_ns; });
-      auto label_of = [&phase_names](const std::string& l) {
-        const auto it = std::find(phase_names.begin(), phase_names.end(), l);
-        if (it != phase_names.end()) return static_cast<std::uint16_t>(it - phase_names.begin());
-        phase_names.push_back(l);
-        return static_cast<std::uint16_t>(phase_names.size() - 1);
-      };
-      std::uint16_t current = 0;
-      bool any = false;
-      std::size_t next = 0;
-      std::int32_t current_index = -1;
-      for (std::int64_t i = 0; i < n; ++i) {
-        while (next < ph.size() && index_of(ph[next].start_ns) <= i0 + i) {
-          current = label_of(ph[next].label);
-          current_index = ph[next].phase_index;
-          any = true;
-          ++next;
-        }
-        if (!any) {
-          current = label_of("unplanned");
-          any = true;
-        }
-        phase[static_cast<std::size_t>(i)] = current;
-        phase_index[static_cast<std::size_t>(i)] = current_index;
+  /// Turns the raw rows whose differences are final into fused rows.
+  void finalize_ready(bool ending) {
+    Fuser& f = *fuser;
+    Segment& s = *f.segment;
+    if (ending) s.differences.finish();
+    const config::TestCase& tc = bench->cases[f.case_index];
+    const config::SensorUnderTest& sut = bench->sensors[sensor];
+    while (s.differences.ready()) {
+      const CentralDifferences::Value d = s.differences.pop();
+      const RawRow row = s.pending.front();
+      s.pending.pop_front();
+      Eigen::Vector3d a = row.monitors_a;
+      Eigen::Vector3d w = Eigen::Vector3d::Zero();
+      if (f.kind == CaseKind::RotationTable) {
+        const std::int32_t p = row.phase_index;
+        const config::Phase* ph = static_cast<std::size_t>(p) < tc.phases.size() ? &tc.phases[static_cast<std::size_t>(p)] : nullptr;
+        const Eigen::Vector3d axis = ph != nullptr && ph->kind == config::PhaseKind::Rotation ? ph->axis.normalized()
+                                                                                             : Eigen::Vector3d::UnitZ();
+        const Eigen::Vector3d f0 = kStandardGravity * f.attitude.at(p).col(2);
+        a = table_specific_force_at(row.encoder - f.base.at(p), d.first, d.second, axis, f0, sut.position_m);
+        w = d.first * axis;
+      } else if (s.filter) {
+        // The armature moves along the vibration axis x_E (config: the Fig. 2 fixture).
+        a.x() = s.filter->step(a.x(), d.second);
       }
+      append(s, row, a, w);
     }
+  }
 
-    // Contiguous usable segments.
-    std::vector<std::pair<std::int64_t, std::int64_t>> segments;   // [begin, end)
-    const auto min_len = static_cast<std::int64_t>(std::ceil(options.min_segment_s / period_s));
-    for (std::int64_t i = 0; i < n;) {
-      if (!usable[static_cast<std::size_t>(i)]) {
-        ++i;
-        continue;
-      }
-      std::int64_t j = i;
-      while (j < n && usable[static_cast<std::size_t>(j)]) ++j;
-      if (j - i >= std::max<std::int64_t>(min_len, 3)) {
-        segments.emplace_back(i, j);
-      } else {
-        exclusions.push_back({marks.name, fmt::format("valid stretch shorter than {} s", options.min_segment_s),
-                              static_cast<double>(i) * period_s, j - i});
-      }
-      i = j;
+  void append(Segment& s, const RawRow& row, const Eigen::Vector3d& a, const Eigen::Vector3d& w) {
+    FusedChunk& out = s.out;
+    if (out.rows() == 0) {
+      Fuser& f = *fuser;
+      out.case_index = f.case_index;
+      out.case_name = f.name;
+      out.kind = f.kind;
+      out.segment = s.number;
+      out.sample_period_s = output_period_ns() * 1e-9;
+      out.first_row = s.rows_in - static_cast<std::int64_t>(s.pending.size()) - 1;
+      out.phase.clear();
     }
-
-    const config::SensorUnderTest& sut = b.sensors[sensor];
-    // Table attitude at each phase's first sample, tracked through the encoder (the phases turn
-    // about different axes, so one angle does not give the attitude).
-    std::map<std::int32_t, frames::Dcm> phase_attitude;
-    std::map<std::int32_t, double> phase_base;
-    std::int32_t attitude_lost_from = std::numeric_limits<std::int32_t>::max();
-    std::size_t table_k = 0;
-    if (tc.kind == CaseKind::RotationTable) {
-      for (std::size_t k : used)
-        if (needs[k].role == Role::TableEncoder) table_k = k;
-      const Eigen::VectorXd& angle = value[table_k];
-      frames::Dcm att = tc.start_attitude.dcm();
-      Eigen::Vector3d prev_axis = Eigen::Vector3d::UnitZ();
-      std::optional<double> prev_base;
-      for (std::int32_t p = 0; p < static_cast<std::int32_t>(tc.phases.size()); ++p) {
-        std::optional<double> base;
-        for (std::int64_t i = 0; i < n; ++i) {
-          if (phase_index[static_cast<std::size_t>(i)] == p) {
-            if (usable[static_cast<std::size_t>(i)]) base = angle(i);
-            break;   // only the phase's first sample fixes its start angle
-          }
-        }
-        if (!base) {
-          attitude_lost_from = std::min(attitude_lost_from, p + 1);
-          continue;
-        }
-        if (prev_base) att = frames::frame_rotation(prev_axis, *base - *prev_base) * att;
-        phase_attitude[p] = att;
-        phase_base[p] = *base;
-        const config::Phase& ph = tc.phases[static_cast<std::size_t>(p)];
-        prev_axis = ph.kind == config::PhaseKind::Rotation ? ph.axis.normalized() : Eigen::Vector3d::UnitZ();
-        prev_base = base;
-      }
+    const Eigen::Index n = out.rows();
+    out.t.conservativeResize(n + 1);
+    out.t(n) = row.t_case_s;
+    out.a_e.conservativeResize(n + 1, Eigen::NoChange);
+    out.a_e.row(n) = a.transpose();
+    out.w_e.conservativeResize(n + 1, Eigen::NoChange);
+    out.w_e.row(n) = w.transpose();
+    out.y.conservativeResize(n + 1);
+    out.y(n) = row.y;
+    if (s.has_temp) {
+      if (!out.temp) out.temp = Eigen::VectorXd(0);
+      out.temp->conservativeResize(n + 1);
+      (*out.temp)(n) = row.temp;
     }
+    out.phase.push_back(row.phase_label);
+    out.newest_mono_ns = static_cast<std::int64_t>(row.t_ns);
+    if (out.rows() >= 4096) flush_chunk();
+  }
 
-    int seg_no = 0;
-    for (const auto& [s0, s1] : segments) {
-      const std::int64_t len = s1 - s0;
-      FusedSegment out;
-      out.case_index = marks.case_index;
-      out.case_name = marks.name;
-      out.kind = tc.kind;
-      out.sample_period_s = period_s;
-      out.t.resize(len);
-      for (std::int64_t i = 0; i < len; ++i) out.t(i) = static_cast<double>(s0 + i) * period_s;
-      out.y.resize(len);
-      out.a_e.resize(len, 3);
-      for (std::size_t k : used)
-        if (needs[k].role == Role::Output) out.y = value[k].segment(s0, len);
+  void flush_chunk() {
+    if (!fuser || !fuser->segment || fuser->segment->out.rows() == 0) return;
+    FusedChunk& out = fuser->segment->out;
+    out.phase_names = fuser->phase_names;
+    rows_out += out.rows();
+    sink->on_rows(std::move(out));
+    out = FusedChunk{};
+  }
 
-      if (tc.kind == CaseKind::RotationTable) {
-        Rows3 w(len, 3);
-        const Eigen::VectorXd& angle = value[table_k];
-        std::vector<std::uint8_t> lost(static_cast<std::size_t>(n), 0);
-        // One piece per phase inside the segment: its axis, start attitude and start angle.
-        for (std::int64_t i = 0; i < len;) {
-          const std::int32_t p = phase_index[static_cast<std::size_t>(s0 + i)];
-          std::int64_t j = i;
-          while (j < len && phase_index[static_cast<std::size_t>(s0 + j)] == p) ++j;
-          if (p < 0 || p >= attitude_lost_from || phase_attitude.count(p) == 0) {
-            for (std::int64_t q = i; q < j; ++q) lost[static_cast<std::size_t>(s0 + q)] = 1;
-            out.a_e.middleRows(i, j - i).setConstant(std::numeric_limits<double>::quiet_NaN());
-            i = j;
-            continue;
-          }
-          const config::Phase& ph = tc.phases[static_cast<std::size_t>(p)];
-          const Eigen::Vector3d axis = ph.kind == config::PhaseKind::Rotation ? ph.axis : Eigen::Vector3d::UnitZ();
-          const Eigen::Vector3d f0 = kStandardGravity * phase_attitude[p].col(2);
-          // Differences across the piece's ends: take the neighbours in the segment so rate and
-          // angular acceleration stay central at a phase boundary.
-          const std::int64_t a = std::max<std::int64_t>(0, i - 1), z = std::min<std::int64_t>(len, j + 1);
-          Eigen::VectorXd rel = angle.segment(s0 + a, z - a).array() - phase_base[p];
-          Rows3 rate;
-          const Rows3 f = table_specific_force(rel, axis, f0, sut.position_m, period_s, &rate);
-          out.a_e.middleRows(i, j - i) = f.middleRows(i - a, j - i);
-          w.middleRows(i, j - i) = rate.middleRows(i - a, j - i);
-          i = j;
-        }
-        out.w_e = std::move(w);
-        exclude_runs(marks.name, lost, "table attitude unknown (a phase without encoder data before it)");
-      } else {
-        // Monitors: calibrated (bias, scale, misalignment from the bench file), then WLS.
-        MonitorLayout layout;
-        Eigen::MatrixXd readings(len, static_cast<Eigen::Index>(monitors));
-        Eigen::Index col = 0;
-        for (std::size_t k : used) {
-          if (needs[k].role != Role::Monitor) continue;
-          const config::MonitorAccelerometer& m = b.monitors[needs[k].index];
-          const double gain = 1.0 + m.scale_error;
-          layout.axes.push_back(m.misalignment.dcm().transpose() * m.axis.normalized());
-          layout.noise_sd_mps2.push_back(std::max(m.noise_sd_mps2, 1e-12) / gain);
-          readings.col(col++) = (value[k].segment(s0, len).array() - m.bias_mps2) / gain;
-        }
-        out.a_e = fuse_monitors(readings, layout);
-        if (tc.kind == CaseKind::Shaker) {
-          for (std::size_t k : used) {
-            if (needs[k].role != Role::LinearEncoder) continue;
-            // The armature moves along the vibration axis x_E (config: the Fig. 2 fixture).
-            const Eigen::VectorXd along = out.a_e.col(0);
-            if (1.0 / period_s > 2.0 * options.crossover_hz)
-              out.a_e.col(0) = complementary_vibration(along, value[k].segment(s0, len), period_s, options.crossover_hz);
-          }
-        }
-        out.w_e = Rows3::Zero(len, 3);   // the shaker, static and thermal fixtures do not turn
-      }
-      if (!temps.empty()) {
-        Eigen::VectorXd temp(len);
-        std::size_t at = 0;
-        for (std::int64_t i = 0; i < len; ++i) {
-          const double t_ns = static_cast<double>(*origin_ns) + static_cast<double>(i0 + s0 + i) * period_ns;
-          while (at + 1 < temps.size() && static_cast<double>(temps[at + 1].t_ns) <= t_ns) ++at;
-          temp(i) = temps[at].value;
-        }
-        out.temp = std::move(temp);
-      }
-      out.phase_names = phase_names;
-      out.phase.assign(phase.begin() + s0, phase.begin() + s1);
-      // Drop rows the table could not fuse (NaN) by cutting the segment at them.
-      std::vector<std::pair<std::int64_t, std::int64_t>> pieces;
-      for (std::int64_t i = 0; i < len;) {
-        if (!std::isfinite(out.a_e(i, 0))) {
-          ++i;
-          continue;
-        }
-        std::int64_t j = i;
-        while (j < len && std::isfinite(out.a_e(j, 0))) ++j;
-        pieces.emplace_back(i, j);
-        i = j;
-      }
-      for (const auto& [p0, p1] : pieces) {
-        if (p1 - p0 < std::max<std::int64_t>(min_len, 3)) {
-          exclusions.push_back({marks.name, fmt::format("valid stretch shorter than {} s", options.min_segment_s),
-                                out.t(p0), p1 - p0});
-          continue;
-        }
-        FusedSegment piece;
-        piece.case_index = out.case_index;
-        piece.case_name = out.case_name;
-        piece.kind = out.kind;
-        piece.segment = seg_no++;
-        piece.sample_period_s = period_s;
-        piece.t = out.t.segment(p0, p1 - p0);
-        piece.a_e = out.a_e.middleRows(p0, p1 - p0);
-        if (out.w_e) piece.w_e = Rows3(out.w_e->middleRows(p0, p1 - p0));
-        if (out.temp) piece.temp = Eigen::VectorXd(out.temp->segment(p0, p1 - p0));
-        piece.y = out.y.segment(p0, p1 - p0);
-        piece.phase_names = out.phase_names;
-        piece.phase.assign(out.phase.begin() + p0, out.phase.begin() + p1);
-        rows += p1 - p0;
-        sink(std::move(piece));
-      }
+  void end_segment() {
+    Fuser& f = *fuser;
+    if (!f.segment) return;
+    finalize_ready(true);
+    flush_chunk();
+    Segment& s = *f.segment;
+    const auto min_len = static_cast<std::int64_t>(std::ceil(options.min_segment_s / (output_period_ns() * 1e-9)));
+    const bool kept = s.rows_in >= std::max<std::int64_t>(min_len, 3);
+    if (kept) {
+      rows_kept += s.rows_in;
+      f.rows += s.rows_in;
+    } else {
+      // The segment's first row: rows_in rows back from the last one read.
+      exclusions.push_back({f.name, fmt::format("valid stretch shorter than {} s", options.min_segment_s),
+                            (last_row_ns - f.marks->start_ns) * 1e-9 -
+                                static_cast<double>(s.rows_in - 1) * output_period_ns() * 1e-9,
+                            s.rows_in});
     }
+    sink->on_segment_end({f.case_index, f.name, s.number, s.rows_in, kept});
+    f.segment.reset();
+  }
+
+  void close_fuser() {
+    if (!fuser) return;
+    end_segment();
+    Fuser& f = *fuser;
+    for (const auto& [reason, run] : f.runs) exclusions.push_back({f.name, reason, run.t_case_s, run.samples});
+    if (f.rows == 0) notes.push_back("case " + f.name + " has no usable samples");
+    fuser.reset();
+  }
+
+  /// The front case is over: its fusion ends.
+  void close_case() {
+    if (fuser && fuser->marks == &cases.front()) close_fuser();
+    cases.erase(cases.begin());
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Memory
+
+  void release() {
+    auto it = devices.find(output_device);
+    if (it == devices.end()) return;
+    DeviceState& od = it->second;
+    // Output blocks before the cursor are read.
+    while (cursor_block > 0) {
+      od.blocks.pop_front();
+      --cursor_block;
+    }
+    if (od.blocks.empty()) return;
+    const StoredBlock& cur = od.blocks.front();
+    const double keep_from = cur.time(std::min(cursor_sample, cur.n - 1));
+    for (auto& [name, d] : devices) {
+      if (name == output_device) continue;
+      // Keep two samples before the next row's time for interpolation.
+      while (d.blocks.size() > 1 && d.blocks[1].t0_ns + 2.0 * d.blocks[1].period_ns < keep_from &&
+             d.blocks.front().last_ns() + 2.0 * d.blocks.front().period_ns < keep_from)
+        d.blocks.pop_front();
+    }
+    if (temps.size() > 2) {
+      auto t = std::upper_bound(temps.begin(), temps.end(), keep_from, [](double x, const TempSample& ts) { return x < ts.t_ns; });
+      if (t != temps.begin() && std::prev(t) != temps.begin()) temps.erase(temps.begin(), std::prev(t));
+    }
+  }
+
+  void finish() {
+    finishing = true;
+    advance();
+    if (fuser && !fuser->marks->ended) notes.push_back("case " + fuser->name + " has no end marker: cut at the last sample recorded");
+    close_fuser();
+    cases.clear();
   }
 };
 
-StreamAssembler::StreamAssembler(AssemblerOptions options, SegmentSink sink) : impl_(std::make_unique<Impl>()) {
+StreamAssembler::StreamAssembler(AssemblerOptions options, FusionSink& sink) : impl_(std::make_unique<Impl>()) {
   impl_->options = std::move(options);
-  impl_->sink = std::move(sink);
+  impl_->sink = &sink;
+}
+
+StreamAssembler::StreamAssembler(AssemblerOptions options, SegmentSink sink)
+    : own_collector_(std::make_unique<SegmentCollector>(std::move(sink))), impl_(std::make_unique<Impl>()) {
+  impl_->options = std::move(options);
+  impl_->sink = own_collector_.get();
 }
 
 StreamAssembler::~StreamAssembler() = default;
@@ -626,7 +926,7 @@ void StreamAssembler::finish() {
   if (!impl_->bench) throw InputError("no INERTIA_BENCH message: the bench the data was recorded on is unknown");
   if (!impl_->saw_case_marker)
     throw InputError("no case markers (INERTIA_EVENT MARK_CASE_START): the samples cannot be cut into cases");
-  impl_->fuse_ready(true);
+  impl_->finish();
 }
 
 bool StreamAssembler::has_bench() const noexcept { return impl_->bench.has_value(); }
@@ -638,7 +938,8 @@ std::size_t StreamAssembler::sensor_index() const { return impl_->sensor; }
 const std::vector<Exclusion>& StreamAssembler::exclusions() const noexcept { return impl_->exclusions; }
 const std::vector<StreamGap>& StreamAssembler::gaps() const noexcept { return impl_->gaps; }
 std::int64_t StreamAssembler::skipped_blocks() const noexcept { return impl_->skipped; }
-std::int64_t StreamAssembler::fused_rows() const noexcept { return impl_->rows; }
+std::int64_t StreamAssembler::fused_rows() const noexcept { return impl_->rows_kept; }
+std::int64_t StreamAssembler::rows_out() const noexcept { return impl_->rows_out; }
 const std::vector<std::string>& StreamAssembler::notes() const noexcept { return impl_->notes; }
 
 }  // namespace inertia::fusion

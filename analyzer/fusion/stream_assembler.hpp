@@ -2,25 +2,32 @@
 // From the daemon's messages to fused ground truth for one sensor under test (design.md: "The
 // event log written by the daemon and lcm-logger carries the same information [as the dataset
 // folder]"). StreamAssembler is pushed bench_config_t, sample_block_t and plan_event_t in the
-// order they were recorded (an event log, or live LCM for `online`):
+// order they arrive (an event log, or live LCM for `online`) and hands out fused rows as soon as
+// they are final, a few samples behind the stream:
 //  - the bench (INERTIA_BENCH) says which device channel is which instrument: the sensor's output,
 //    the monitors, the encoders, the fixture temperature ("<device>.<signal>" in the bench file;
 //    on a simulated bench the simulator's own devices, daq/sim_bench.hpp);
-//  - every device's samples go on one timeline, sample k of a block at t0_mono_ns + k * period,
-//    index = round((t - origin) / period), so devices line up sample by sample; a jump of the
-//    index or of channel_seq is a gap (counted and located), never filled;
-//  - case markers (INERTIA_EVENT) cut the timeline into cases, phase markers label the samples;
-//  - a case is fused when every device has passed its end (or at finish()): per case kind,
-//    shaker -> monitor WLS with the linear encoder along the vibration axis (complementary
-//    filter), rotation table -> table-encoder kinematics at the sensor's position, static and
-//    thermal -> monitor WLS (reference_fusion.hpp);
+//  - the rows are the sensor output's own samples (its device's sample clock: sample k of a block
+//    at t0_mono_ns + k * sample_period_s); every reference is read at a row's time, sample for
+//    sample where its device shares the sample instants, interpolated (4-point Lagrange) where
+//    its clock differs. A jump of a device's channel_seq or time is a gap (counted, located),
+//    never filled;
+//  - case markers (INERTIA_EVENT) cut the rows into cases, phase markers label them. A case
+//    start ends whatever case is still open, so one lost end marker costs nothing further;
+//  - per case kind: shaker -> monitor WLS with the linear encoder along the vibration axis
+//    (complementary filter), rotation table -> table-encoder kinematics at the sensor's position,
+//    static and thermal -> monitor WLS (reference_fusion.hpp), all in their streaming forms;
 //  - rows where any needed sample is invalid (validity bit clear) or missing split the case into
-//    contiguous segments; segments shorter than min_segment_s are dropped. Every excluded sample
-//    is accounted for in exclusions().
-// Memory: samples are kept from the oldest case not yet fused; a fused case's samples are
-// released, so a live stream holds about one case (the complementary filter and the table's
-// attitude tracking need a whole segment, so fusion runs per case, not per block).
-// Not real-time; one thread.
+//    contiguous segments; a segment shorter than min_segment_s is dropped when it ends (the sink
+//    hears so and discards what it was given). Every excluded sample is in exclusions().
+// Delay: a row is final once every device it reads has passed its time, the plan markers have
+// passed it (or its phase's planned end lies beyond it), and the differences it needs have their
+// next sample: one sample on the table and the shaker, four at a segment's start. A device or a
+// marker that stays behind the sensor output by more than max_wait_s is given up on for those
+// rows (missing, or labelled with what is known), so a silent device never stalls the rest.
+// The same code serves the event log (offline) and the live stream: messages in the same order
+// give the same rows.
+// Memory: samples are kept from the oldest row not yet final; one thread, not real-time.
 #include <Eigen/Dense>
 #include <cstdint>
 #include <functional>
@@ -40,20 +47,71 @@ namespace inertia::fusion {
 
 using Rows3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 
-/// Contiguous fused rows of one case: every needed sample valid and present.
-struct FusedSegment {
+/// Consecutive final rows of one segment of one case (the next chunk of the same segment continues
+/// it without a gap).
+struct FusedChunk {
   std::size_t case_index = 0;          // into bench().cases
   std::string case_name;
   CaseKind kind = CaseKind::Static;
-  int segment = 0;                     // 0, 1, ... within the case
-  double sample_period_s = 0.0;
+  int segment = 0;                     // 0, 1, ... in order of start within the case
+  double sample_period_s = 0.0;        // of the sensor output's clock
+  std::int64_t first_row = 0;          // position of the chunk's first row in its segment
   Eigen::VectorXd t;                   // s since the case's first sample
   Rows3 a_e;                           // fused specific force at the sensor, F_E, m/s^2
-  std::optional<Rows3> w_e;            // rate of F_E, rad/s (table: encoder; others: at rest)
+  Rows3 w_e;                           // rate of F_E, rad/s (table: encoder; others: at rest)
   std::optional<Eigen::VectorXd> temp; // fixture temperature, degC (held from the controller)
   Eigen::VectorXd y;                   // sensor output, output unit
+  std::vector<std::string> phase_names;   // the case's phase labels so far
+  std::vector<std::uint16_t> phase;
+  std::int64_t newest_mono_ns = 0;     // CLOCK_MONOTONIC of the chunk's last row
+  [[nodiscard]] Eigen::Index rows() const { return y.size(); }
+};
+
+/// A segment ended: `kept` false when it was shorter than min_segment_s (its rows do not count).
+struct SegmentEnd {
+  std::size_t case_index = 0;
+  std::string case_name;
+  int segment = 0;
+  std::int64_t rows = 0;
+  bool kept = true;
+};
+
+/// Contiguous fused rows of one case, whole (what SegmentCollector assembles from the chunks).
+struct FusedSegment {
+  std::size_t case_index = 0;
+  std::string case_name;
+  CaseKind kind = CaseKind::Static;
+  int segment = 0;                     // 0, 1, ... among the kept segments of the case
+  double sample_period_s = 0.0;
+  Eigen::VectorXd t;
+  Rows3 a_e;
+  std::optional<Rows3> w_e;
+  std::optional<Eigen::VectorXd> temp;
+  Eigen::VectorXd y;
   std::vector<std::string> phase_names;
   std::vector<std::uint16_t> phase;
+};
+
+/// Where fused rows go.
+class FusionSink {
+ public:
+  virtual ~FusionSink() = default;
+  virtual void on_rows(FusedChunk&& chunk) = 0;
+  virtual void on_segment_end(const SegmentEnd& end) = 0;
+};
+
+/// Concatenates the chunks of each segment and hands over the kept segments whole.
+class SegmentCollector final : public FusionSink {
+ public:
+  using SegmentSink = std::function<void(FusedSegment&&)>;
+  explicit SegmentCollector(SegmentSink sink) : sink_(std::move(sink)) {}
+  void on_rows(FusedChunk&& chunk) override;
+  void on_segment_end(const SegmentEnd& end) override;
+
+ private:
+  SegmentSink sink_;
+  std::map<std::pair<std::size_t, int>, std::vector<FusedChunk>> open_;
+  std::map<std::size_t, int> kept_;    // kept segments per case so far
 };
 
 /// Samples of a case left out of the fused rows, one entry per contiguous run and reason.
@@ -68,7 +126,7 @@ struct Exclusion {
 struct StreamGap {
   std::string device;
   std::string where;                   // log position of the block after the gap
-  std::int64_t missing_samples = 0;    // by the timeline
+  std::int64_t missing_samples = 0;    // by the device's sample times
   std::int64_t missing_seq = 0;        // by channel_seq (0: the device sampled nothing, e.g. bus-off)
 };
 
@@ -76,18 +134,25 @@ struct AssemblerOptions {
   std::string sensor;                  // sensor under test; empty: the bench's only one
   double min_segment_s = 0.5;          // shorter valid stretches are dropped (counted)
   double crossover_hz = 5.0;           // shaker: encoder below, monitors above
+  /// How far (stream time) a device or the plan markers may stay behind the sensor output before
+  /// its rows are fused without it (missing samples; phase as known). Live: the bound on the
+  /// fusion's wait for a late or silent device.
+  double max_wait_s = 0.5;
 };
 
 class StreamAssembler {
  public:
-  using SegmentSink = std::function<void(FusedSegment&&)>;
+  using SegmentSink = SegmentCollector::SegmentSink;
 
+  StreamAssembler(AssemblerOptions options, FusionSink& sink);
+  /// Whole segments (through a SegmentCollector of its own).
   StreamAssembler(AssemblerOptions options, SegmentSink sink);
   ~StreamAssembler();
   StreamAssembler(const StreamAssembler&) = delete;
   StreamAssembler& operator=(const StreamAssembler&) = delete;
 
-  // `where` names the message's position for errors ("FILE: event 12 at byte 3456").
+  // `where` names the message's position for errors ("FILE: event 12 at byte 3456"). A message
+  // that is refused (InputError) leaves the assembler as it was: the caller may skip it and go on.
   /// The first bench fixes the configuration; a repeat must be identical (InputError otherwise).
   void push(const bench_config_t& bench, const std::string& where);
   /// Blocks of devices the sensor's fusion does not use are ignored; blocks before the bench
@@ -105,12 +170,16 @@ class StreamAssembler {
   [[nodiscard]] const std::vector<Exclusion>& exclusions() const noexcept;
   [[nodiscard]] const std::vector<StreamGap>& gaps() const noexcept;
   [[nodiscard]] std::int64_t skipped_blocks() const noexcept;
+  /// Rows of kept segments.
   [[nodiscard]] std::int64_t fused_rows() const noexcept;
+  /// Rows handed to the sink so far (kept or not yet judged).
+  [[nodiscard]] std::int64_t rows_out() const noexcept;
   /// Notes for the user (an open case cut at its last sample, an aborted case, ...).
   [[nodiscard]] const std::vector<std::string>& notes() const noexcept;
 
  private:
   struct Impl;
+  std::unique_ptr<SegmentCollector> own_collector_;
   std::unique_ptr<Impl> impl_;
 };
 

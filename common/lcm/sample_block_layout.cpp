@@ -22,6 +22,22 @@ void shape_sample_block(sample_block_t& block, std::int32_t num_channels, std::i
   block.valid.assign(channels, std::vector<std::uint8_t>(valid_bytes_for(num_samples), 0));
 }
 
+std::string block_shape_error(const sample_block_t& b) {
+  if (b.num_channels < 0 || b.num_samples < 0) return "negative channel or sample count";
+  const auto channels = static_cast<std::size_t>(b.num_channels);
+  if (b.channel_ids.size() != channels || b.channel_names.size() != channels || b.units.size() != channels ||
+      b.channel_seq.size() != channels || b.values.size() != channels || b.valid.size() != channels)
+    return "channel arrays of another length than num_channels";
+  if (b.valid_bytes < 0 || static_cast<std::size_t>(b.valid_bytes) != valid_bytes_for(b.num_samples))
+    return "valid_bytes " + std::to_string(b.valid_bytes) + " for " + std::to_string(b.num_samples) + " samples";
+  for (std::size_t c = 0; c < channels; ++c) {
+    if (b.values[c].size() != static_cast<std::size_t>(b.num_samples) || b.valid[c].size() != static_cast<std::size_t>(b.valid_bytes))
+      return "sample arrays of another length than num_samples";
+  }
+  if (!(b.sample_period_s > 0.0) || !(b.sample_period_s < 1e6)) return "sample period " + std::to_string(b.sample_period_s) + " s";
+  return {};
+}
+
 std::size_t udp_payload_size(const sample_block_t& block, std::string_view channel) {
   return channel.size() + 1 + static_cast<std::size_t>(block.getEncodedSize());
 }

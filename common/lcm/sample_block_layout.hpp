@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <string_view>
 
 #include "inertia/sample_block_t.hpp"
@@ -30,6 +31,11 @@ std::size_t udp_payload_size(const sample_block_t& block, std::string_view chann
 /// names, units; its sample arrays are ignored) still goes out as one datagram on `channel`.
 /// Returns 0 when not even one sample fits or the block has no channels. Not real-time.
 std::int32_t max_samples_per_block(const sample_block_t& header, std::string_view channel);
+
+/// Why `block` cannot be read safely (empty when it can): a negative count, a valid_bytes that
+/// does not match num_samples (the bitmap would be read out of bounds), a non-finite or
+/// non-positive sample period. Every reader of blocks from outside (LCM, logs) checks this first.
+std::string block_shape_error(const sample_block_t& block);
 
 /// Validity bit of sample `s` of channel `c`: bit (s % 8) of valid[c][s / 8], LSB first
 /// (the layout documented in sample_block_t.lcm). Bounds are the caller's duty.
