@@ -132,8 +132,9 @@ double SquareCornerSearch::rss(std::optional<double> corner_rad_s) const {
 }
 
 std::optional<double> SquareCornerSearch::best(double lo, double hi) const {
+  if (!(lo > 0.0) || !(hi >= lo)) return std::nullopt;
+  if (hi == lo) return lo;   // a given corner (a model's): used as given
   const double static_rss = rss(std::nullopt);
-  if (!(hi > lo) || lo <= 0.0) return std::nullopt;
   constexpr int kGrid = kGridCorners;
   const double l0 = std::log(lo), l1 = std::log(hi);
   int best_index = 0;

@@ -57,7 +57,8 @@ class SquareCornerSearch {
   [[nodiscard]] double rss(std::optional<double> corner_rad_s) const;
 
   /// The corner minimizing rss over [lo, hi] (a log-spaced grid, then Brent's method between the
-  /// best point's neighbours), or nullopt when the static squares fit better.
+  /// best point's neighbours), or nullopt when the static squares fit better. lo == hi: that
+  /// corner (given, not searched).
   [[nodiscard]] std::optional<double> best(double lo, double hi) const;
 
  private:
