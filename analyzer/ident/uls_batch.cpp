@@ -92,6 +92,45 @@ UlsStatistics UlsStatistics::from_data(const Eigen::Ref<const Eigen::MatrixXd>& 
   return s;
 }
 
+UlsStatistics UlsStatistics::from_gram(const Eigen::Ref<const Eigen::MatrixXd>& augmented, Index samples,
+                                       std::span<const Index> output_multiplied_columns,
+                                       const Eigen::Ref<const Eigen::MatrixXd>& factor_gram,
+                                       const Eigen::Ref<const Eigen::VectorXd>& factor_sum) {
+  const Index p = augmented.rows() - 1;
+  const Index q = static_cast<Index>(output_multiplied_columns.size());
+  if (augmented.cols() != p + 1 || p < 0) throw std::invalid_argument("UlsStatistics::from_gram: the Gram matrix is not square");
+  if (q > 0 && (factor_gram.rows() != q || factor_gram.cols() != q || factor_sum.size() != q))
+    throw std::invalid_argument("UlsStatistics::from_gram: factor statistics must be q x q and q");
+  UlsStatistics s;
+  s.samples = samples;
+  const Eigen::MatrixXd g = augmented.topLeftCorner(p, p);
+  Eigen::VectorXd sign = Eigen::VectorXd::Ones(p);
+  for (Index c : output_multiplied_columns) sign[c] = -1.0;
+  s.scale = (g.diagonal().cwiseMax(0.0) / static_cast<double>(std::max<Index>(samples, 1))).cwiseSqrt();
+  const Eigen::VectorXd inv =
+      (s.scale.array() > 0.0).select(sign.array() / s.scale.array(), sign.array()).matrix();
+  s.gram = inv.asDiagonal() * g * inv.asDiagonal();
+  s.cross = inv.asDiagonal() * augmented.col(p).head(p);
+  s.yy = augmented(p, p);
+  s.s11 = static_cast<double>(samples);
+  std::vector<std::pair<Index, Index>> den;
+  for (std::size_t t = 0; t < output_multiplied_columns.size(); ++t)
+    den.emplace_back(output_multiplied_columns[t], static_cast<Index>(t));
+  std::sort(den.begin(), den.end());
+  s.den_gram.resize(q, q);
+  s.den_sum.resize(q);
+  for (Index a = 0; a < q; ++a) {
+    s.denominator.push_back(den[a].first);
+    const double sa = s.scale[den[a].first] > 0.0 ? 1.0 / s.scale[den[a].first] : 1.0;
+    s.den_sum[a] = sa * factor_sum[den[a].second];
+    for (Index b = 0; b < q; ++b) {
+      const double sb = s.scale[den[b].first] > 0.0 ? 1.0 / s.scale[den[b].first] : 1.0;
+      s.den_gram(a, b) = sa * sb * factor_gram(den[a].second, den[b].second);
+    }
+  }
+  return s;
+}
+
 UlsStatistics UlsStatistics::subset(std::span<const Index> positions) const {
   UlsStatistics s;
   const Index m = static_cast<Index>(positions.size());

@@ -118,6 +118,14 @@ struct UlsStatistics {
                                  const Eigen::Ref<const Eigen::VectorXd>& y,
                                  std::span<const Index> output_multiplied_columns,
                                  const Eigen::Ref<const Eigen::MatrixXd>& factors);
+  /// The same statistics from accumulated products instead of data (the live estimator keeps
+  /// them, analyzer/online): `augmented` = [Phi y]'[Phi y] ((p+1) x (p+1), y last, as ErrGram
+  /// holds it) over `samples` rows; for output-multiplied columns `factor_gram` = sum p_b p_b'
+  /// (q x q) and `factor_sum` = sum p_b, in the order of `output_multiplied_columns`.
+  static UlsStatistics from_gram(const Eigen::Ref<const Eigen::MatrixXd>& augmented, Index samples,
+                                 std::span<const Index> output_multiplied_columns = {},
+                                 const Eigen::Ref<const Eigen::MatrixXd>& factor_gram = Eigen::MatrixXd(),
+                                 const Eigen::Ref<const Eigen::VectorXd>& factor_sum = Eigen::VectorXd());
   /// The statistics of a subset of the columns (positions into this object), O(p^2).
   [[nodiscard]] UlsStatistics subset(std::span<const Index> positions) const;
   [[nodiscard]] Index terms() const { return gram.rows(); }
