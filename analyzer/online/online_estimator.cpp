@@ -2,57 +2,565 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numbers>
 
+#include <fmt/format.h>
+
+#include "analyzer/diagnose/candidate_library.hpp"
 #include "analyzer/ident/regressors.hpp"
+#include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
+#include "analyzer/procedure/stacked_regression.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::online {
-namespace {
 
 using Eigen::Index;
 using ident::Term;
 using ident::Variable;
 
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
 Term plain(Variable v, int power = 1) {
   return Term::from_factors({ident::Factor{v, 0, ident::FactorFunction::Plain, power}});
 }
-Term product(Variable a, Variable b) {
-  return Term::from_factors({ident::Factor{a}, ident::Factor{b}});
-}
+Term product(Variable a, Variable b) { return Term::from_factors({ident::Factor{a}, ident::Factor{b}}); }
 
-Index position(const std::vector<Term>& terms, const Term& t) {
-  const auto it = std::find(terms.begin(), terms.end(), t);
-  return it == terms.end() ? -1 : static_cast<Index>(it - terms.begin());
-}
-
-// Rows [from, from + count) of a case, as a case of their own (a_e, w_e, temp, y; the rest copied).
-void append_rows(const dataset::CaseData& src, Index from, Index count, dataset::CaseData& dst) {
-  const Index old = dst.y.size();
-  dst.y.conservativeResize(old + count);
-  dst.y.segment(old, count) = src.y.segment(from, count);
-  dst.a_e.conservativeResize(old + count, Eigen::NoChange);
-  dst.a_e.middleRows(old, count) = src.a_e.middleRows(from, count);
-  if (src.w_e) {
-    if (!dst.w_e) dst.w_e = dataset::Matrix3Columns(old, 3);
-    dst.w_e->conservativeResize(old + count, Eigen::NoChange);
-    dst.w_e->middleRows(old, count) = src.w_e->middleRows(from, count);
-  } else {
-    dst.w_e.reset();
+/// The Bonferroni bound of a two-sided normal test: |z| above it has probability alpha / tests.
+double bonferroni_z(double alpha, double tests) {
+  // Inverse of the normal tail by bisection on erfc (tests are few; called once per snapshot).
+  const double target = alpha / std::max(tests, 1.0);
+  double lo = 0.0, hi = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    if (std::erfc(mid / std::numbers::sqrt2) > target) lo = mid;
+    else hi = mid;
   }
-  if (src.temp) {
-    if (!dst.temp) dst.temp = Eigen::VectorXd(old);
-    dst.temp->conservativeResize(old + count);
-    dst.temp->segment(old, count) = src.temp->segment(from, count);
-  } else {
-    dst.temp.reset();
-  }
-  dst.t.conservativeResize(old + count);
-  dst.t.segment(old, count) = src.t.size() == src.y.size() ? Eigen::VectorXd(src.t.segment(from, count))
-                                                          : Eigen::VectorXd::Zero(count);
+  return 0.5 * (lo + hi);
 }
 
 }  // namespace
+
+struct OnlineEstimator::Impl {
+  dataset::SensorKind sensor;
+  double t_ref;
+  OnlineOptions options;
+  std::vector<Term> model_terms;
+  frames::Dcm model_m_cs = frames::Dcm::Identity();
+  std::unique_ptr<LiveBasis> basis;
+  std::unique_ptr<LiveSolver> solver;
+  std::vector<Index> model, candidates;
+  CornerGrid grid;   // the squares' corner: the model's, or the nodes it is interpolated on
+  bool rational = false;
+  Index model_max_lag = 0;
+
+  struct CaseState {
+    std::size_t plan_case = 0;
+    std::string name;
+    std::size_t mounting = 0;
+    Information info;
+    std::int64_t rows = 0;
+  };
+  struct MountingState {
+    std::string name;
+    std::vector<std::size_t> cases;
+    bool rotation_table = false;
+    bool shaker_only = true;
+    frames::Dcm m_cs = frames::Dcm::Identity();
+    MountingFit fit;
+  };
+  struct OpenSegment {
+    std::size_t state = 0;
+    std::size_t plan_case = 0;
+    int segment = 0;
+    double period = 0.0;
+    std::unique_ptr<SegmentPipeline> pipeline;
+    Information info;
+    dataset::CaseData history;   // the last max_lag rows (case frame), for lagged columns
+    std::int64_t rows = 0;       // rows into the statistics
+    std::int64_t raw_rows = 0;   // rows received
+  };
+  struct Buffered {
+    std::size_t state = 0;
+    std::size_t plan_case = 0;
+    int segment = 0;
+    double period = 0.0;
+    Eigen::MatrixXd base;
+    Eigen::VectorXd y;
+  };
+
+  std::vector<CaseState> cases;
+  std::vector<MountingState> mountings;
+  std::optional<OpenSegment> open;
+  std::vector<Buffered> buffer;
+  std::int64_t buffered_rows = 0;
+  bool noise_fitted = false;
+  Eigen::VectorXd ar;
+  std::int64_t rows_total = 0;
+  double nominal_period = 0.0;
+
+  // The convergence test runs on a stream-time interval; its verdict is kept in between.
+  std::int64_t last_convergence_rows = -1;
+  std::size_t last_convergence_cases = 0;
+  bool converged = false;
+  std::string convergence = "not tested yet";
+
+  [[nodiscard]] Information empty_information() const {
+    return Information(basis->base_size(), basis->filtered_size(), grid.nodes().size());
+  }
+
+  std::unique_ptr<SegmentPipeline> pipeline(double period) const {
+    return std::make_unique<SegmentPipeline>(ar, basis->filtered_sources(), grid.nodes(), period);
+  }
+
+  std::size_t state_of(std::size_t plan_case, const config::TestCase& tc) {
+    for (std::size_t i = 0; i < cases.size(); ++i)
+      if (cases[i].plan_case == plan_case) return i;
+    const std::string label = tc.mounting.empty() ? tc.name : tc.mounting;
+    std::size_t m = mountings.size();
+    for (std::size_t i = 0; i < mountings.size(); ++i)
+      if (mountings[i].name == label) m = i;
+    if (m == mountings.size()) {
+      MountingState ms;
+      ms.name = label;
+      ms.m_cs = model_m_cs;
+      mountings.push_back(std::move(ms));
+    }
+    MountingState& ms = mountings[m];
+    ms.rotation_table = ms.rotation_table || tc.kind == CaseKind::RotationTable;
+    ms.shaker_only = ms.shaker_only && tc.kind == CaseKind::Shaker;
+    CaseState cs;
+    cs.plan_case = plan_case;
+    cs.name = tc.name;
+    cs.mounting = m;
+    cs.info = empty_information();
+    cases.push_back(std::move(cs));
+    ms.cases.push_back(cases.size() - 1);
+    return cases.size() - 1;
+  }
+
+  void forget(Index rows) {
+    if (!(options.forgetting < 1.0)) return;
+    const double f = std::pow(options.forgetting, static_cast<double>(rows));
+    for (CaseState& c : cases) c.info.scale(f);
+    if (open) open->info.scale(f);
+  }
+
+  void close_open(bool kept) {
+    if (!open) return;
+    CaseState& c = cases[open->state];
+    if (kept) {
+      c.info.add(open->info);
+      c.rows += open->rows;
+    } else {
+      // Its rows leave the estimate, and the noise model's window.
+      std::erase_if(buffer, [&](const Buffered& b) {
+        const bool drop = b.state == open->state && b.segment == open->segment;
+        if (drop) buffered_rows -= b.y.size();
+        return drop;
+      });
+    }
+    open.reset();
+  }
+
+  void push(const fusion::FusedChunk& chunk, const config::TestCase& tc) {
+    const Index n = chunk.rows();
+    if (n == 0) return;
+    if (basis->reads(Variable::T) && !chunk.temp) {
+      throw InputError(fmt::format("case '{}': the model reads T, and the stream has no fixture temperature for it "
+                                   "(a [fixture.thermal] controller channel 'temp' or the bench's thermal.channel)",
+                                   tc.name));
+    }
+    const std::size_t state = state_of(chunk.case_index, tc);
+    if (!open || open->plan_case != chunk.case_index || open->segment != chunk.segment) {
+      close_open(true);   // its end was not announced: what it has counts
+      OpenSegment s;
+      s.state = state;
+      s.plan_case = chunk.case_index;
+      s.segment = chunk.segment;
+      s.period = chunk.sample_period_s;
+      s.pipeline = pipeline(chunk.sample_period_s);
+      s.info = empty_information();
+      // Lags of the structure table's candidates beyond the model's own see zeros before the
+      // segment's first row, so the model's rows start where the batch starts them.
+      const Index pad = basis->max_lag() - model_max_lag;
+      s.history.t = Eigen::VectorXd::Zero(pad);
+      s.history.a_e = dataset::Matrix3Columns::Zero(pad, 3);
+      s.history.w_e = dataset::Matrix3Columns::Zero(pad, 3);
+      s.history.y = Eigen::VectorXd::Zero(pad);
+      if (chunk.temp) s.history.temp = Eigen::VectorXd::Constant(pad, (*chunk.temp)(0));
+      open = std::move(s);
+    }
+    forget(n);
+    OpenSegment& seg = *open;
+    // The rows in the mounting's nominal case frame, after the kept history.
+    dataset::CaseData work;
+    work.name = tc.name;
+    work.kind = tc.kind;
+    work.sample_period_s = chunk.sample_period_s;
+    const Index kept = seg.history.y.size();
+    const Index total = kept + n;
+    work.t.resize(total);
+    work.a_e.resize(total, 3);
+    work.w_e = dataset::Matrix3Columns(total, 3);
+    work.y.resize(total);
+    if (chunk.temp) work.temp = Eigen::VectorXd(total);
+    if (kept > 0) {
+      work.t.head(kept) = seg.history.t;
+      work.a_e.topRows(kept) = seg.history.a_e;
+      work.w_e->topRows(kept) = *seg.history.w_e;
+      work.y.head(kept) = seg.history.y;
+      if (work.temp && seg.history.temp) work.temp->head(kept) = *seg.history.temp;
+    }
+    work.t.tail(n) = chunk.t;
+    work.a_e.bottomRows(n) = chunk.a_e * tc.m_ec.transpose();
+    work.w_e->bottomRows(n) = chunk.w_e * tc.m_ec.transpose();
+    work.y.tail(n) = chunk.y;
+    if (work.temp) work.temp->tail(n) = *chunk.temp;
+    const Index max_lag = basis->max_lag();
+    const Index first_row = kept + std::min<Index>(std::max<Index>(0, model_max_lag - seg.raw_rows), n);
+    seg.raw_rows += n;
+    // Keep the newest max_lag rows for the next chunk.
+    const Index tail = std::min<Index>(max_lag, total);
+    seg.history.t = work.t.tail(tail);
+    seg.history.a_e = work.a_e.bottomRows(tail);
+    seg.history.w_e = dataset::Matrix3Columns(work.w_e->bottomRows(tail));
+    seg.history.y = work.y.tail(tail);
+    if (work.temp) seg.history.temp = Eigen::VectorXd(work.temp->tail(tail));
+    const Index rows = total - first_row;
+    if (rows <= 0) return;
+    const MountingState& ms = mountings[cases[state].mounting];
+    const ident::SignalSet signals = ident::signals_from_case(work, ms.m_cs, t_ref, "live stream");
+    Eigen::MatrixXd x(rows, basis->base_size());
+    basis->evaluate(signals, first_row, x);
+    const Eigen::VectorXd y = work.y.tail(rows);
+    if (!noise_fitted) {
+      buffer.push_back({state, chunk.case_index, chunk.segment, chunk.sample_period_s, x, y});
+      buffered_rows += rows;
+    }
+    seg.pipeline->push(x, y, seg.info);
+    seg.rows += rows;
+    rows_total += rows;
+    if (nominal_period <= 0.0) nominal_period = chunk.sample_period_s;
+    if (!noise_fitted && static_cast<double>(buffered_rows) * chunk.sample_period_s >= options.noise_window_s) fit_noise_model();
+  }
+
+  void end_segment(const fusion::SegmentEnd& end) {
+    if (open && open->plan_case == end.case_index && open->segment == end.segment) close_open(end.kept);
+  }
+
+  // ---- The noise model ----
+
+  void fit_noise_model() {
+    noise_fitted = true;
+    if (rational || options.whitening_max_order <= 0) {
+      buffer.clear();
+      return;
+    }
+    // Residuals of the current (white-noise) fit over the kept rows.
+    Solution s = solve(false);
+    if (!s.batch.ok) {
+      buffer.clear();
+      return;
+    }
+    std::vector<Index> fitted = s.batch.terms;
+    std::vector<procedure::CaseRows> layout;
+    Eigen::VectorXd residuals(buffered_rows);
+    Index at = 0;
+    std::vector<procedure::HighpassState> hp;
+    std::pair<std::size_t, int> current{static_cast<std::size_t>(-1), -1};
+    for (const Buffered& b : buffer) {
+      Eigen::MatrixXd tb, tf;
+      basis->transform(fitted, s.m_cs[cases[b.state].mounting], s.batch.corner_rad_s.has_value(), tb, tf);
+      Eigen::VectorXd fit = b.base * (tb.transpose() * s.batch.theta);
+      if (s.batch.corner_rad_s) {
+        if (current != std::pair{b.state, b.segment}) hp.assign(basis->filtered_sources().size(), {});
+        Eigen::MatrixXd f(b.base.rows(), basis->filtered_size());
+        for (Index j = 0; j < f.cols(); ++j) {
+          f.col(j) = b.base.col(basis->filtered_sources()[static_cast<std::size_t>(j)]);
+          procedure::highpass_in_place(f.col(j), *s.batch.corner_rad_s, b.period,
+                                       hp[static_cast<std::size_t>(j)]);
+        }
+        fit += f * (tf.transpose() * s.batch.theta);
+      }
+      if (current != std::pair{b.state, b.segment}) {
+        layout.push_back({layout.size(), at, 0, 0});
+        current = {b.state, b.segment};
+      }
+      residuals.segment(at, b.y.size()) = b.y - fit;
+      layout.back().rows += b.y.size();
+      at += b.y.size();
+    }
+    ar = procedure::ArWhitener::fit(residuals, layout, options.whitening_max_order).coefficients();
+    // Every row so far again, through the noise model.
+    for (CaseState& c : cases) c.info.clear();
+    std::unique_ptr<SegmentPipeline> p;
+    Information info = empty_information();
+    current = {static_cast<std::size_t>(-1), -1};
+    const auto settle = [&] {
+      if (current.first == static_cast<std::size_t>(-1)) return;
+      if (open && open->state == current.first && open->segment == current.second) {
+        open->pipeline = std::move(p);
+        open->info = std::move(info);
+      } else {
+        cases[current.first].info.add(info);
+      }
+      info = empty_information();
+    };
+    for (const Buffered& b : buffer) {
+      if (current != std::pair{b.state, b.segment}) {
+        settle();
+        current = {b.state, b.segment};
+        p = pipeline(b.period);
+      }
+      p->push(b.base, b.y, info);
+    }
+    settle();
+    buffer.clear();
+    buffered_rows = 0;
+  }
+
+  // ---- The answer ----
+
+  struct Solution {
+    std::vector<std::size_t> order;          // mountings in fit order
+    std::vector<Information> infos;          // per mounting
+    std::vector<Eigen::Matrix3d> m_cs;       // per mounting, as the batch used it
+    std::vector<Eigen::Matrix3d> angle_covariances;
+    StatFit batch;
+    CaseScatter scatter;
+  };
+
+  [[nodiscard]] bool open_counts() const {
+    return open && open->period > 0.0 && static_cast<double>(open->rows) * open->period >= options.min_segment_s;
+  }
+
+  /// Whether case c has rows in the estimate (kept ones, or an open segment long enough to count).
+  [[nodiscard]] bool has_data(std::size_t c) const {
+    return cases[c].info.samples() > 0 || (open_counts() && open->state == c);
+  }
+  [[nodiscard]] std::size_t cases_with_data() const {
+    std::size_t n = 0;
+    for (std::size_t c = 0; c < cases.size(); ++c) n += has_data(c) ? 1 : 0;
+    return n;
+  }
+
+  /// Blocks 5-6 per mounting and the batch; `excluded_case`: a case left out, `fixed_m_cs`: the
+  /// mountings' misalignments to use instead of estimating them (the convergence test).
+  Solution solve(bool update_states, std::optional<std::size_t> excluded_case = std::nullopt,
+                 const std::vector<Eigen::Matrix3d>* fixed_m_cs = nullptr,
+                 const std::vector<Eigen::Matrix3d>* fixed_angle_covariances = nullptr) {
+    Solution s;
+    s.infos.assign(mountings.size(), empty_information());
+    for (std::size_t c = 0; c < cases.size(); ++c) {
+      if (excluded_case && *excluded_case == c) continue;
+      s.infos[cases[c].mounting].add(cases[c].info);
+    }
+    if (open_counts() && !(excluded_case && *excluded_case == open->state)) s.infos[cases[open->state].mounting].add(open->info);
+    // Mountings that determine the bias first: shaker-only ones take it from them.
+    for (std::size_t m = 0; m < mountings.size(); ++m)
+      if (!mountings[m].shaker_only) s.order.push_back(m);
+    for (std::size_t m = 0; m < mountings.size(); ++m)
+      if (mountings[m].shaker_only) s.order.push_back(m);
+    if (fixed_m_cs != nullptr) {
+      s.m_cs = *fixed_m_cs;
+      std::vector<const Information*> infos;
+      for (const Information& i : s.infos) infos.push_back(&i);
+      s.batch = solver->fit_batch(infos, s.m_cs);
+      if (fixed_angle_covariances != nullptr) solver->add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances);
+      add_case_scatter(s, s.m_cs, excluded_case);
+      return s;
+    }
+    std::optional<double> bias;
+    std::vector<MountingFit> fits(mountings.size());
+    for (std::size_t m : s.order) {
+      MountingData d;
+      d.name = mountings[m].name;
+      d.info = s.infos[m];
+      d.rotation_table = mountings[m].rotation_table;
+      d.shaker_only = mountings[m].shaker_only;
+      // Algorithm 1 starts where the batch starts it, every time: a start from an earlier, less
+      // determined estimate (one orientation so far) can lead the fixed point elsewhere.
+      d.m_cs = model_m_cs;
+      const bool use_bias = d.shaker_only && options.solver.ieee_shaker_exclusions;
+      fits[m] = solver->fit_mounting(d, use_bias ? bias : std::nullopt);
+      if (!bias && !d.shaker_only && fits[m].bias) bias = fits[m].bias;
+    }
+    // A mounting whose data does not fix its misalignment takes the first one that is fixed.
+    std::optional<std::size_t> reference;
+    for (std::size_t m : s.order)
+      if (fits[m].determined && !reference) reference = m;
+    std::vector<const Information*> infos;
+    std::vector<Eigen::Matrix3d> m_cs;
+    for (std::size_t m = 0; m < mountings.size(); ++m) {
+      if (!fits[m].determined && reference) {
+        fits[m].m_cs = fits[*reference].m_cs;
+        if (s.infos[m].samples() > 0)
+          fits[m].note = fmt::format("misalignment not determined by this mounting's data ({}); M_C^S of mounting '{}' used",
+                                     fits[m].note, mountings[*reference].name);
+      }
+      infos.push_back(&s.infos[m]);
+      m_cs.push_back(fits[m].m_cs);
+      if (update_states) {
+        if (fits[m].determined) mountings[m].m_cs = fits[m].m_cs;
+        mountings[m].fit = fits[m];
+      }
+    }
+    s.batch = solver->fit_batch(infos, m_cs);
+    std::vector<Eigen::Matrix3d> angle_covariances;
+    for (std::size_t m = 0; m < mountings.size(); ++m)
+      angle_covariances.push_back(fits[m].determined ? fits[m].angles_covariance : Eigen::Matrix3d::Zero());
+    solver->add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
+    add_case_scatter(s, m_cs, excluded_case);
+    s.m_cs = std::move(m_cs);
+    s.angle_covariances = std::move(angle_covariances);
+    return s;
+  }
+
+  /// The cases' offsets the noise model does not explain, into the batch's covariance.
+  void add_case_scatter(Solution& s, const std::vector<Eigen::Matrix3d>& m_cs, std::optional<std::size_t> excluded_case) {
+    std::vector<Information> with_open;
+    std::vector<const Information*> infos;
+    std::vector<Eigen::Matrix3d> case_m_cs;
+    with_open.reserve(cases.size());
+    for (std::size_t c = 0; c < cases.size(); ++c) {
+      if ((excluded_case && *excluded_case == c) || !has_data(c)) continue;
+      with_open.push_back(cases[c].info);
+      if (open_counts() && open->state == c) with_open.back().add(open->info);
+      case_m_cs.push_back(m_cs[cases[c].mounting]);
+    }
+    for (const Information& i : with_open) infos.push_back(&i);
+    s.scatter = solver->add_case_scatter(s.batch, infos, case_m_cs, 1.0 - ar.sum());
+  }
+
+  OnlineSnapshot snapshot() {
+    OnlineSnapshot out;
+    for (const Term& t : model_terms) out.terms.push_back(t.to_string());
+    const auto p = static_cast<Index>(model_terms.size());
+    out.values = Eigen::VectorXd::Constant(p, kNaN);
+    out.std_devs = Eigen::VectorXd::Constant(p, kNaN);
+    out.t = Eigen::VectorXd::Constant(p, kNaN);
+    out.noise_model_fitted = noise_fitted;
+    out.noise_order = static_cast<int>(ar.size());
+    Solution s = solve(true);
+    std::int64_t samples = 0;
+    for (const Information& i : s.infos) samples += i.samples();
+    out.samples_used = samples;
+    out.cases_used = static_cast<std::int64_t>(cases_with_data());
+    for (std::size_t m = 0; m < mountings.size(); ++m) {
+      const MountingState& ms = mountings[m];
+      MountingEstimate e;
+      e.name = ms.name;
+      for (std::size_t c : ms.cases) e.cases.push_back(cases[c].name);
+      e.determined = ms.fit.determined;
+      e.m_cs = ms.fit.m_cs;
+      e.angles_rad = ms.fit.angles;
+      e.angles_sd_rad = ms.fit.angles_sd;
+      e.samples = s.infos[m].samples();
+      e.note = ms.fit.note;
+      out.mountings.push_back(std::move(e));
+    }
+    if (!s.batch.ok) {
+      for (const Term& t : model_terms) out.undetermined.push_back(t.to_string());
+      out.convergence = s.batch.why.empty() ? "no estimate yet" : s.batch.why;
+      return out;
+    }
+    for (std::size_t j = 0; j < model.size(); ++j) {
+      bool found = false;
+      for (std::size_t k = 0; k < s.batch.terms.size(); ++k) {
+        if (s.batch.terms[k] != model[j]) continue;
+        out.values(static_cast<Index>(j)) = s.batch.theta(static_cast<Index>(k));
+        out.std_devs(static_cast<Index>(j)) = s.batch.sd(static_cast<Index>(k));
+        out.t(static_cast<Index>(j)) = s.batch.theta(static_cast<Index>(k)) / s.batch.sd(static_cast<Index>(k));
+        found = true;
+      }
+      if (!found) out.undetermined.push_back(model_terms[j].to_string());
+    }
+    out.residual_variance = s.batch.s2;
+    out.corner_rad_s = s.batch.corner_rad_s;
+    if (options.structure_table) {
+      std::vector<const Information*> infos;
+      std::vector<Eigen::Matrix3d> m_cs;
+      for (std::size_t m = 0; m < mountings.size(); ++m) {
+        infos.push_back(&s.infos[m]);
+        m_cs.push_back(mountings[m].fit.determined ? mountings[m].fit.m_cs : mountings[m].m_cs);
+      }
+      for (const CandidateStat& c : solver->structure(candidates, s.batch, infos, m_cs)) {
+        const Term& t = basis->terms()[static_cast<std::size_t>(c.term)];
+        out.structure.push_back({t.to_string(), ident::physical_name(t, sensor), c.err, c.value, c.sd, c.t, c.significant});
+      }
+      std::stable_sort(out.structure.begin(), out.structure.end(),
+                       [](const CandidateEstimate& a, const CandidateEstimate& b) { return a.err > b.err; });
+    }
+    update_convergence(s, out);
+    out.converged = converged;
+    out.convergence = convergence;
+    return out;
+  }
+
+  /// Leave-one-case-out: the estimate without case c against the estimate with it. Under the
+  /// model, theta_without - theta has variance var_without - var (nested estimators), so
+  /// z = |difference| / sqrt(var_without - var) is standard normal; a case whose z exceeds the
+  /// Bonferroni bound disagrees with the others, and one more such case would move the estimate.
+  void update_convergence(const Solution& s, const OnlineSnapshot& out) {
+    const auto rate_rows = nominal_period > 0.0 ? options.convergence_interval_s / nominal_period : 1e4;
+    const std::size_t with_data = cases_with_data();
+    if (last_convergence_rows >= 0 && with_data == last_convergence_cases &&
+        static_cast<double>(rows_total - last_convergence_rows) < rate_rows)
+      return;
+    last_convergence_rows = rows_total;
+    last_convergence_cases = with_data;
+    converged = false;
+    if (!out.undetermined.empty()) {
+      convergence = fmt::format("{} term(s) not determined yet", out.undetermined.size());
+      return;
+    }
+    if (with_data < 2) {
+      convergence = "one case so far: nothing to check it against";
+      return;
+    }
+    const double z_bound = bonferroni_z(options.convergence_alpha, static_cast<double>(with_data * model.size()));
+    double worst = 0.0;
+    std::string worst_at;
+    for (std::size_t c = 0; c < cases.size(); ++c) {
+      if (!has_data(c)) continue;
+      // The batch again without the case, each mounting keeping its M_C^S and its uncertainty
+      // (re-running algorithm 1 without the case would break the procedure's own structure: a
+      // shaker fixture left without the mounting that gives it the bias, an orientation missing
+      // that separated a tilt from the cross-couplings).
+      const Solution without = solve(false, c, &s.m_cs, &s.angle_covariances);
+      if (!without.batch.ok) {
+        convergence = fmt::format("without case {} the model is not determined", cases[c].name);
+        return;
+      }
+      for (std::size_t j = 0; j < model.size(); ++j) {
+        std::optional<Index> a, b;
+        for (std::size_t k = 0; k < s.batch.terms.size(); ++k)
+          if (s.batch.terms[k] == model[j]) a = static_cast<Index>(k);
+        for (std::size_t k = 0; k < without.batch.terms.size(); ++k)
+          if (without.batch.terms[k] == model[j]) b = static_cast<Index>(k);
+        if (!a || !b) {
+          convergence = fmt::format("without case {} term {} is not determined", cases[c].name, model_terms[j].to_string());
+          return;
+        }
+        // Nested estimators: theta - theta_without has variance var_without - var <= var_without,
+        // so measuring the move in sd_without is conservative (and needs no difference of
+        // variances, which the misalignment's share makes fragile).
+        const double sd_without = without.batch.sd(*b);
+        const double z = std::abs(without.batch.theta(*b) - s.batch.theta(*a)) / sd_without;
+        if (z > worst) {
+          worst = z;
+          worst_at = fmt::format("{} without case {}", model_terms[j].to_string(), cases[c].name);
+        }
+      }
+    }
+    converged = worst <= z_bound;
+    convergence = fmt::format("largest leave-one-case-out z {:.2f} ({}), bound {:.2f}", worst, worst_at, z_bound);
+  }
+};
 
 std::vector<Term> OnlineEstimator::default_terms(dataset::SensorKind sensor) {
   if (sensor == dataset::SensorKind::Gyroscope) {
@@ -70,151 +578,90 @@ std::vector<Term> OnlineEstimator::default_terms(dataset::SensorKind sensor) {
           product(Variable::Ap, Variable::Ao)};
 }
 
-OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional<model::ModelFile>& model,
-                                 double t_ref, const OnlineOptions& options)
-    : sensor_(sensor), t_ref_(t_ref), options_(options), m_cs_(frames::Dcm::Identity()),
-      uls_() {
+OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional<model::ModelFile>& model, double t_ref,
+                                 const OnlineOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& s = *impl_;
+  s.sensor = sensor;
+  s.t_ref = t_ref;
+  s.options = options;
+  const bool gyro = sensor == dataset::SensorKind::Gyroscope;
   if (model) {
     if (model->sensor != sensor) {
       throw InputError("online: the model is for a " + std::string(dataset::to_string(model->sensor)) +
                        ", the bench's sensor is a " + dataset::to_string(sensor));
     }
-    m_cs_ = model->m_cs;
-    square_highpass_rad_s_ = model->square_highpass_rad_s;
-    for (const model::ModelTerm& t : model->terms) terms_.push_back(t.term);
+    s.model_m_cs = model->m_cs;
+    for (const model::ModelTerm& t : model->terms) s.model_terms.push_back(t.term);
+    if (model->square_highpass_rad_s) s.grid = CornerGrid::single(*model->square_highpass_rad_s);
   } else {
-    terms_ = default_terms(sensor);
+    s.model_terms = default_terms(sensor);
   }
-  const bool gyro = sensor == dataset::SensorKind::Gyroscope;
+  for (const Term& t : s.model_terms) {
+    if (t.is_noise_term()) {
+      throw InputError("online: term '" + t.to_string() +
+                       "' is a noise lag; the live estimator keeps no residual history across gaps");
+    }
+    s.rational = s.rational || t.is_output_multiplied();
+    s.model_max_lag = std::max<Index>(s.model_max_lag, t.max_lag());
+  }
   const Variable axis = gyro ? Variable::Wi : Variable::Ai;
-  scale_term_ = position(terms_, plain(axis));
-  if (scale_term_ < 0) {
+  if (std::find(s.model_terms.begin(), s.model_terms.end(), plain(axis)) == s.model_terms.end()) {
     throw InputError(std::string("online: the model has no scale-factor term '") + ident::variable_name(axis) +
-                     "', so no misalignment can be referred to it");
+                     "': algorithm 1 needs it to find the misalignment");
   }
-  const Variable across_p = gyro ? Variable::Wp : Variable::Ap, across_o = gyro ? Variable::Wo : Variable::Ao;
-  for (Variable v : {across_p, across_o}) {
-    if (position(terms_, plain(v)) < 0) terms_.push_back(plain(v));
+  // The squares' corner: the model's, or searched over the batch pipeline's range (1 rad/s to
+  // 1e4 rad/s or 0.9 of Nyquist), static squares competing, as the batch does it.
+  std::vector<Term> squares;
+  for (const Term& t : s.model_terms)
+    if (procedure::is_square_term(t)) squares.push_back(t);
+  const bool search_corner = !squares.empty() && !model;
+  if (search_corner) {
+    const double period = options.nominal_sample_period_s;
+    const double hi = std::min(1.0e4, period > 0.0 ? 0.9 * std::numbers::pi / period : 1.0e4);
+    s.grid = CornerGrid::spanning(1.0, hi);
   }
-  cross_p_ = position(terms_, plain(across_p));
-  cross_o_ = position(terms_, plain(across_o));
-  for (std::size_t j = 0; j < terms_.size(); ++j) {
-    if (terms_[j].is_noise_term()) {
-      throw InputError("online: term '" + terms_[j].to_string() +
-                       "' is a noise lag; the live estimator does not carry residual history across gaps");
+  if (s.grid.empty()) squares.clear();
+  // Every term the estimator may be asked for: the model, its external-frame sensitivities, the
+  // structure table's candidates, and the factors of output-multiplied terms.
+  std::vector<Term> all = s.model_terms;
+  const std::vector<Term> sensitivities = gyro ? std::vector<Term>{plain(Variable::Wx), plain(Variable::Wy), plain(Variable::Wz)}
+                                               : std::vector<Term>{plain(Variable::Ax), plain(Variable::Ay), plain(Variable::Az)};
+  const auto add = [&all](const Term& t) {
+    if (std::find(all.begin(), all.end(), t) == all.end()) all.push_back(t);
+  };
+  for (const Term& t : sensitivities) add(t);
+  std::vector<Term> candidate_terms;
+  if (options.structure_table) {
+    diagnose::LibraryOptions lo;
+    lo.temperature = options.temperature_candidates;
+    lo.mounting_rotations = false;
+    for (const Term& t : diagnose::candidate_library(sensor, lo)) {
+      if (t.is_noise_term() || std::find(s.model_terms.begin(), s.model_terms.end(), t) != s.model_terms.end()) continue;
+      // Cross-axis terms are the misalignment's (algorithm 1 per mounting).
+      if (t == plain(gyro ? Variable::Wp : Variable::Ap) || t == plain(gyro ? Variable::Wo : Variable::Ao)) continue;
+      candidate_terms.push_back(t);
+      add(t);
     }
-    if (terms_[j].is_output_multiplied()) output_multiplied_.push_back(static_cast<Index>(j));
-    max_lag_ = std::max<Index>(max_lag_, terms_[j].max_lag());
   }
-  factors_.resize(static_cast<Index>(output_multiplied_.size()));
+  for (const Term& t : std::vector<Term>(all))
+    if (t.is_output_multiplied()) add(t.denominator_factor());
+  s.basis = std::make_unique<LiveBasis>(all, squares);
+  for (const Term& t : s.model_terms) s.model.push_back(s.basis->find(t));
+  for (const Term& t : candidate_terms) s.candidates.push_back(s.basis->find(t));
+  std::vector<Index> sens;
+  for (const Term& t : sensitivities) sens.push_back(s.basis->find(t));
+  s.solver = std::make_unique<LiveSolver>(*s.basis, s.model, sens, sensor, s.grid, search_corner, options.solver);
+  // No noise window, or no order to fit: white noise from the first row on.
+  s.noise_fitted = options.noise_window_s <= 0.0 || options.whitening_max_order <= 0 || s.rational;
 }
 
-void OnlineEstimator::push(const dataset::CaseData& chunk, bool continues_previous) {
-  const Index n = chunk.y.size();
-  if (n == 0) return;
-  if (chunk.a_e.rows() != n) throw InputError("online: chunk of case '" + chunk.name + "' has a_e and y of different lengths");
+OnlineEstimator::~OnlineEstimator() = default;
 
-  // The samples the regressors see: the kept history (lagged terms), then the chunk.
-  dataset::CaseData work;
-  work.name = chunk.name;
-  work.kind = chunk.kind;
-  work.m_ec = chunk.m_ec;
-  work.sample_period_s = chunk.sample_period_s;
-  work.a_e.resize(0, 3);
-  const bool continued = continues_previous && has_history_;
-  if (continued) append_rows(history_, 0, history_.y.size(), work);
-  const Index kept = work.y.size();
-  append_rows(chunk, 0, n, work);
-
-  // Keep the newest max_lag_ samples for the next chunk (a static model keeps none).
-  history_ = dataset::CaseData{};
-  history_.a_e.resize(0, 3);
-  const Index tail = std::min<Index>(max_lag_, work.y.size());
-  append_rows(work, work.y.size() - tail, tail, history_);
-  has_history_ = true;
-  if (!continued) highpass_state_.resize(0);
-
-  const Index first_row = continued ? kept : std::min<Index>(max_lag_, work.y.size());
-  if (work.y.size() <= first_row) return;
-  const Eigen::Matrix3d m_es = m_cs_ * chunk.m_ec;
-  const ident::SignalSet signals = ident::signals_from_case(work, m_es, t_ref_, "live stream");
-  ident::check_signals(terms_, signals);
-  const Index rows = work.y.size() - first_row;
-  Eigen::MatrixXd phi(rows, static_cast<Index>(terms_.size()));
-  ident::fill_regressors(terms_, signals, first_row, phi);
-
-  if (square_highpass_rad_s_) {
-    // One filter memory per square column, continued across chunks of one case.
-    if (highpass_state_.size() == 0) highpass_state_ = Eigen::VectorXd::Constant(3 * static_cast<Index>(terms_.size()), NAN);
-    for (std::size_t j = 0; j < terms_.size(); ++j) {
-      if (!procedure::is_square_term(terms_[j])) continue;
-      const Index s = 3 * static_cast<Index>(j);
-      procedure::HighpassState state;
-      if (!std::isnan(highpass_state_(s))) state = {highpass_state_(s), highpass_state_(s + 1), true};
-      procedure::highpass_in_place(phi.col(static_cast<Index>(j)), *square_highpass_rad_s_, chunk.sample_period_s, state);
-      highpass_state_(s) = state.previous_input;
-      highpass_state_(s + 1) = state.output;
-    }
-  }
-
-  Eigen::MatrixXd factor_values;
-  if (!output_multiplied_.empty()) {
-    std::vector<Term> factor_terms;
-    for (Index j : output_multiplied_) factor_terms.push_back(terms_[static_cast<std::size_t>(j)].denominator_factor());
-    factor_values.resize(rows, static_cast<Index>(factor_terms.size()));
-    ident::fill_regressors(factor_terms, signals, first_row, factor_values);
-  }
-  if (!uls_) {
-    // RMS of each column over these first rows; a column still zero (a dwell: a_p = 0) gets 1.
-    Eigen::VectorXd scale = (phi.colwise().squaredNorm() / static_cast<double>(rows)).cwiseSqrt().transpose();
-    for (Index j = 0; j < scale.size(); ++j) {
-      if (!(scale(j) > 0.0) || !std::isfinite(scale(j))) scale(j) = 1.0;
-    }
-    uls_.emplace(static_cast<Index>(terms_.size()), output_multiplied_, options_.uls, scale);
-  }
-  const Eigen::VectorXd& y = signals.get(Variable::Y);
-  for (Index r = 0; r < rows; ++r) {
-    if (!output_multiplied_.empty()) factors_ = factor_values.row(r).transpose();
-    uls_->update(phi.row(r).transpose(), y(first_row + r), factors_);
-  }
-}
-
-OnlineSnapshot OnlineEstimator::snapshot() {
-  OnlineSnapshot s;
-  for (const Term& t : terms_) s.terms.push_back(t.to_string());
-  s.samples_used = uls_ ? uls_->samples() : 0;
-  if (s.samples_used == 0) {
-    s.values = Eigen::VectorXd::Zero(static_cast<Index>(terms_.size()));
-    s.std_devs = Eigen::VectorXd::Constant(static_cast<Index>(terms_.size()), INFINITY);
-    return s;
-  }
-  const ident::RecursiveEstimate e = uls_->estimate();
-  const Index p = static_cast<Index>(terms_.size());
-  s.values = e.theta.head(p);
-  s.std_devs = e.std_dev.head(p);
-  s.residual_variance = e.residual_variance;
-  // Small-angle rotation of the sensitive axis from M_C^S: the output picks up K (theta_o a_p -
-  // theta_p a_o) when the axis tilts by theta_o towards p and theta_p away from o.
-  const double k = s.values(scale_term_);
-  s.misalignment_rad = Eigen::Vector3d(0.0, -s.values(cross_o_) / k, s.values(cross_p_) / k);
-
-  // Judged on the newest data only: a snapshot without new samples keeps the previous verdict
-  // (time passing proves nothing), one with new samples compares with the estimate before them.
-  if (s.samples_used != previous_samples_) {
-    const bool enough = s.samples_used >= static_cast<std::int64_t>(options_.min_samples_per_term) * p;
-    bool settled = previous_values_.has_value();
-    if (settled) {
-      for (Index j = 0; j < p; ++j) {
-        const double moved = std::abs(s.values(j) - (*previous_values_)(j));
-        if (!(moved <= options_.converged_sigmas * s.std_devs(j))) settled = false;
-      }
-    }
-    converged_ = enough && settled;
-    previous_values_ = s.values;
-    previous_samples_ = s.samples_used;
-  }
-  s.converged = converged_;
-  return s;
-}
+void OnlineEstimator::push(const fusion::FusedChunk& chunk, const config::TestCase& tc) { impl_->push(chunk, tc); }
+void OnlineEstimator::end_segment(const fusion::SegmentEnd& end) { impl_->end_segment(end); }
+OnlineSnapshot OnlineEstimator::snapshot() { return impl_->snapshot(); }
+std::int64_t OnlineEstimator::rows_pushed() const { return impl_->rows_total; }
+std::vector<std::string> OnlineEstimator::terms() const { return ident::to_strings(impl_->model_terms); }
 
 }  // namespace inertia::online

@@ -1,98 +1,131 @@
 #pragma once
 // The live half of the analyzer (design.md: "`online` subscribes, fuses the references into ground
-// truth and runs the recursive ULS per sensor under test, publishing estimates"): one estimator per
-// sensor under test, fed with fused chunks of consecutive samples as they arrive, answering at any
-// time with the coefficients, their standard deviations and the misalignment they imply.
+// truth and runs the recursive ULS per sensor under test, publishing estimates"): one estimator
+// per sensor under test, fed the fused rows as the stream assembler makes them final, answering
+// at any time with the same answer the batch procedure gives on the same rows.
 //
-// Model: the terms of a model file (a characterization's model.toml), else the paper's complete
-// static model (eq. 4 with r = 0: bias, scale factor, squares and cross-couplings; gyros: bias,
-// scale factor and g-sensitivity). Two linear cross-axis terms (a_p, a_o for accelerometers, w_p,
-// w_o for gyros) are always estimated beside them: their ratio to the scale factor is the small
-// rotation of the sensitive axis from the model's M_C^S, i.e. the live misalignment (about p and
-// o; the rotation about the sensitive axis itself does not change a single-axis output and is
-// reported as 0).
+// Recursive least squares in information form: the estimator updates the sufficient statistics
+// of the regression (information.hpp) with every row, per segment, case and mounting, in a basis
+// of case-frame monomials (live_basis.hpp) from which the statistics of the model for any
+// mounting misalignment follow exactly. At each snapshot it runs the procedure on them
+// (live_solver.hpp): algorithm 1 per mounting to its fixed point, the batch model over all
+// mountings, the squares' corner, the ULS bias correction of output-multiplied terms. The cost of
+// a row is O(b^2) for b basis columns (plus the noise filter), the cost of a snapshot does not
+// depend on the number of rows.
 //
-// The recursive ULS starts from the prior P0 = c I on columns scaled by their RMS over the first
-// chunk (not from a batch initialization): the first samples of a test are usually a dwell, where
-// the squares and the bias are collinear, and the prior keeps the estimator defined until the
-// motion separates them. Without the scaling, columns of 1 and (30 m/s^2)^2 under one P0 lose
-// digits in the first updates that an unforgetting RLS never recovers. With forgetting = 1 the
-// estimate is the batch least-squares answer on the same samples up to the prior's weight 1/c.
+// Model: the terms of a model file (a characterization's model.toml, with its squares' corner),
+// else the paper's complete static model (eq. 4 with r = 0: bias, scale factor, squares and
+// cross-couplings; gyros: bias, scale factor and g-sensitivity), with the squares' corner searched
+// on a log grid of corners as the batch pipeline searches it. The two cross-axis terms (a_p, a_o;
+// w_p, w_o) are left to the misalignment: each mounting's own M_C^S takes them.
+//
+// Noise: the first noise_window_s of rows are kept; then an autoregressive noise model is fitted
+// to the residuals of the fit on them (AIC order up to whitening_max_order, as the batch) and
+// every row from the first one on enters the statistics through it (GLS, honest sd under 1/f
+// noise). Models with output-multiplied terms keep white noise (the ULS correction is derived for
+// white noise on the output).
+//
+// Converged: defined in the README ("Live estimates"); see OnlineSnapshot::converged.
 #include <Eigen/Dense>
 
 #include <cstdint>
+#include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "analyzer/fusion/stream_assembler.hpp"
 #include "analyzer/ident/term.hpp"
-#include "analyzer/ident/uls_recursive.hpp"
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/online/information.hpp"
+#include "analyzer/online/live_basis.hpp"
+#include "analyzer/online/live_solver.hpp"
+#include "common/config/bench_config.hpp"
 #include "common/dataset/dataset.hpp"
 
 namespace inertia::online {
 
 struct OnlineOptions {
-  ident::RecursiveUlsOptions uls;   ///< forgetting factor, P0, ...
-  /// Convergence: the samples that arrived since the previous snapshot moved every coefficient by
-  /// less than this many of its own standard deviations, and at least min_samples_per_term *
-  /// terms samples were used. A snapshot with no new samples keeps the previous verdict.
-  double converged_sigmas = 2.0;
-  int min_samples_per_term = 100;
+  double forgetting = 1.0;            ///< lambda in (0, 1]: every row's weight decays by lambda per row
+  double noise_window_s = 2.0;        ///< rows that fit the noise model (s of sensor samples)
+  int whitening_max_order = 120;      ///< largest AR order of the noise model (0: white)
+  double min_segment_s = 0.5;         ///< an open segment counts once it is this long (the assembler's rule)
+  /// Convergence: family-wise level of the leave-one-case-out test (Bonferroni over cases and terms).
+  double convergence_alpha = 0.01;
+  double convergence_interval_s = 1.0;   ///< stream time between two convergence tests
+  bool structure_table = true;        ///< ERR and t of the candidate terms not in the model
+  bool temperature_candidates = false;   ///< include T terms among the candidates (the bench has temperature)
+  double nominal_sample_period_s = 0.0;  ///< the bench's; bounds the squares' corner grid below Nyquist
+  SolverOptions solver;
+};
+
+struct MountingEstimate {
+  std::string name;
+  std::vector<std::string> cases;
+  bool determined = false;
+  Eigen::Matrix3d m_cs = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d angles_rad = Eigen::Vector3d::Zero();     // rotation of F_S from the nominal case frame, about i, p, o
+  Eigen::Vector3d angles_sd_rad = Eigen::Vector3d::Zero();  // i: NaN (a single axis does not see it)
+  std::int64_t samples = 0;
+  std::string note;
+};
+
+struct CandidateEstimate {
+  std::string term;
+  std::string effect;                 // physical name (design.md)
+  double err = 0.0, value = 0.0, sd = 0.0, t = 0.0;
+  bool significant = false;
 };
 
 /// The live answer for one sensor (what model_estimate_t carries).
 struct OnlineSnapshot {
-  std::vector<std::string> terms;            // canonical names, in estimation order
-  Eigen::VectorXd values, std_devs;
-  double residual_variance = 0.0;
-  Eigen::Vector3d misalignment_rad = Eigen::Vector3d::Zero();   // about i, p, o of F_S
-  std::int64_t samples_used = 0;
+  std::vector<std::string> terms;            // canonical names of the model's terms
+  Eigen::VectorXd values, std_devs, t;       // NaN where the data does not determine the term yet
+  std::vector<std::string> undetermined;     // those terms
+  double residual_variance = 0.0;            // of the (whitened) residual
+  std::vector<MountingEstimate> mountings;
+  std::int64_t samples_used = 0;             // rows in the estimate
+  std::int64_t cases_used = 0;
+  /// Honest convergence (README): every term determined, at least two cases, and leaving any one
+  /// case out moves no coefficient by more than the noise allows (z of the nested difference below
+  /// the Bonferroni bound at convergence_alpha).
   bool converged = false;
+  std::string convergence;                   // why not, or the largest leave-one-case-out z
+  int noise_order = 0;                       // AR order of the noise model (0: white or not yet fitted)
+  bool noise_model_fitted = false;
+  std::optional<double> corner_rad_s;        // squares' high pass (none: static)
+  std::vector<CandidateEstimate> structure;  // candidates not in the model, by ERR
 };
 
 class OnlineEstimator {
  public:
-  /// `model`: terms, m_cs and the square high pass of a prior characterization; nullopt: the
-  /// default model of `sensor`. Throws InputError when a term needs a variable the live stream
-  /// cannot provide (lagged terms are accepted; e lags are not: the live estimator has no
-  /// residual history across gaps).
+  /// `model`: terms, m_cs and squares' corner of a prior characterization; nullopt: the default
+  /// model of `sensor`. Throws InputError when a term needs what the live stream cannot provide
+  /// (e lags: the live estimator keeps no residual history).
   OnlineEstimator(dataset::SensorKind sensor, const std::optional<model::ModelFile>& model, double t_ref,
                   const OnlineOptions& options);
+  ~OnlineEstimator();
+  OnlineEstimator(const OnlineEstimator&) = delete;
+  OnlineEstimator& operator=(const OnlineEstimator&) = delete;
 
-  /// The default term list of a sensor kind (without the two cross-axis terms).
+  /// The default term list of a sensor kind.
   static std::vector<ident::Term> default_terms(dataset::SensorKind sensor);
 
-  /// Feeds consecutive samples of one case: `chunk.a_e` (and w_e, temp when the model needs
-  /// them), `chunk.y`, `chunk.m_ec`, `chunk.sample_period_s`. `continues_previous` = the first
-  /// sample directly follows the last one fed (same case, no gap); otherwise lagged terms and the
-  /// high-pass state restart, and the first max-lag samples only fill the history.
-  /// Throws InputError when a column the terms need is missing.
-  void push(const dataset::CaseData& chunk, bool continues_previous);
+  /// Rows of one segment of test case `tc` (chunks of a segment arrive in order).
+  void push(const fusion::FusedChunk& chunk, const config::TestCase& tc);
+  /// The segment ended; not kept: its rows leave the estimate.
+  void end_segment(const fusion::SegmentEnd& end);
 
-  /// The current estimate. Allocates; call at the publishing rate, not per sample.
+  /// The current estimate. Allocates; call at the publishing rate, not per row.
   [[nodiscard]] OnlineSnapshot snapshot();
 
-  [[nodiscard]] const std::vector<ident::Term>& terms() const { return terms_; }
+  [[nodiscard]] std::vector<std::string> terms() const;
+  [[nodiscard]] std::int64_t rows_pushed() const;
 
  private:
-  dataset::SensorKind sensor_;
-  double t_ref_;
-  OnlineOptions options_;
-  frames::Dcm m_cs_;
-  std::optional<double> square_highpass_rad_s_;
-  std::vector<ident::Term> terms_;
-  Eigen::Index scale_term_ = -1, cross_p_ = -1, cross_o_ = -1;   // positions in terms_
-  Eigen::Index max_lag_ = 0;
-  std::vector<Eigen::Index> output_multiplied_;
-  std::optional<ident::UlsRecursive> uls_;   // created on the first rows, scaled by their column RMS
-  dataset::CaseData history_;       // the last max_lag_ samples, for lagged terms across chunks
-  bool has_history_ = false;
-  Eigen::VectorXd highpass_state_;  // per square term: previous input and output (2 per term)
-  Eigen::VectorXd factors_;         // p_b of each output-multiplied column, per sample
-  std::optional<Eigen::VectorXd> previous_values_;   // at the previous snapshot with new samples
-  std::int64_t previous_samples_ = 0;
-  bool converged_ = false;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace inertia::online

@@ -11,6 +11,8 @@ inline constexpr std::string_view kStatus = "INERTIA_STATUS";   // daq_status_t,
 inline constexpr std::string_view kBench = "INERTIA_BENCH";     // bench_config_t (extension, README)
 inline constexpr std::string_view kRawPrefix = "INERTIA_RAW_";           // + device: sample_block_t
 inline constexpr std::string_view kEstimatePrefix = "INERTIA_ESTIMATE_"; // + sensor: model_estimate_t
+inline constexpr std::string_view kStructurePrefix = "INERTIA_STRUCTURE_";  // + sensor: structure_table_t (extension)
+inline constexpr std::string_view kAnalyzerStatus = "INERTIA_ANALYZER_STATUS";  // analyzer_status_t, 1 Hz (extension)
 
 /// A bench name as a channel suffix: upper case, anything but [A-Z0-9_] becomes '_'
 /// ("ref_accel-1" -> "REF_ACCEL_1"), so channel names stay valid LCM regex literals.
@@ -27,6 +29,9 @@ inline std::string channel_suffix(std::string_view name) {
 inline std::string raw_channel(std::string_view device) { return std::string(kRawPrefix) + channel_suffix(device); }
 inline std::string estimate_channel(std::string_view sensor) {
   return std::string(kEstimatePrefix) + channel_suffix(sensor);
+}
+inline std::string structure_channel(std::string_view sensor) {
+  return std::string(kStructurePrefix) + channel_suffix(sensor);
 }
 
 }  // namespace inertia::channels

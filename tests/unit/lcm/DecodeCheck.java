@@ -132,6 +132,35 @@ public class DecodeCheck {
         checkArray("misalignment_rad", m.misalignment_rad, new double[] {1.0e-3, -2.0e-3, 5.0e-4});
         check("samples_used", m.samples_used, 200000L);
         check("converged", m.converged, true);
+        checkArray("t_values", m.t_values, new double[] {3440.0, 43850.0, 50.0, -5.0});
+        check("cases_used", m.cases_used, 4);
+        check("noise_ar_order", m.noise_ar_order, 12);
+        check("square_corner_rad_s", m.square_corner_rad_s, 502.2);
+        check("num_mountings", m.num_mountings, 2);
+        checkArray("mountings", m.mountings, new String[] {"rotation-table", "shaker-fixture"});
+        check("mounting_determined[1]", m.mounting_determined[1], false);
+        check("mounting_angles_rad[1][2]", m.mounting_angles_rad[1][2], -2.2e-2);
+        check("mounting_angles_rad[0][0] is NaN", Double.isNaN(m.mounting_angles_rad[0][0]), true);
+        check("mounting_samples[0]", m.mounting_samples[0], 370000L);
+    }
+
+    private static void checkStructureTable(inertia.structure_table_t m) {
+        check("sensor", m.sensor, "sut_accel_1");
+        check("num_candidates", m.num_candidates, 2);
+        checkArray("terms", m.terms, new String[] {"a_i*abs(a_i)", "a_i[k-1]"});
+        checkArray("effects", m.effects, new String[] {"odd quadratic", "dynamics"});
+        checkArray("t_values", m.t_values, new double[] {20.0, -0.33});
+        check("significant[0]", m.significant[0], true);
+    }
+
+    private static void checkAnalyzerStatus(inertia.analyzer_status_t m) {
+        check("bench", m.bench, "sim-paper");
+        check("received", m.received, 3303L);
+        check("skipped_malformed", m.skipped_malformed, 2L);
+        check("queue_drops", m.queue_drops, 8L);
+        check("latency_p99_ms", m.latency_p99_ms, 95.0);
+        checkArray("sensors", m.sensors, new String[] {"acc1"});
+        checkArray("notes", m.notes, new String[] {"INERTIA_RAW_ACCEL: valid_bytes 3 for 40 samples"});
     }
 
     public static void main(String[] args) throws Exception {
@@ -145,6 +174,8 @@ public class DecodeCheck {
         checkDaqStatus((inertia.daq_status_t) decode(db, dir, "daq_status_t"));
         checkPlanEvent((inertia.plan_event_t) decode(db, dir, "plan_event_t"));
         checkModelEstimate((inertia.model_estimate_t) decode(db, dir, "model_estimate_t"));
+        checkStructureTable((inertia.structure_table_t) decode(db, dir, "structure_table_t"));
+        checkAnalyzerStatus((inertia.analyzer_status_t) decode(db, dir, "analyzer_status_t"));
         if (failures > 0) {
             System.err.println(failures + " field(s) differ");
             System.exit(1);

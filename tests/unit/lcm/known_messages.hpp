@@ -1,4 +1,5 @@
 #pragma once
+#include <cmath>
 // One message of each inertia LCM type with known field values, shared by the C++ round-trip,
 // live and Java interop tests. DecodeCheck.java asserts the same values: change both together.
 // Doubles are written so that C++ and Java parse the same literal to the same bits.
@@ -9,7 +10,9 @@
 
 #include "common/lcm/sample_block_layout.hpp"
 #include "inertia/daq_status_t.hpp"
+#include "inertia/analyzer_status_t.hpp"
 #include "inertia/model_estimate_t.hpp"
+#include "inertia/structure_table_t.hpp"
 #include "inertia/plan_event_t.hpp"
 #include "inertia/sample_block_t.hpp"
 
@@ -120,6 +123,64 @@ inline model_estimate_t known_model_estimate() {
   m.misalignment_rad[2] = 5.0e-4;
   m.samples_used = 200000;
   m.converged = true;
+  m.t_values = {3440.0, 43850.0, 50.0, -5.0};
+  m.convergence = "largest leave-one-case-out z 1.20 (a_i^2 without case shaker-ia), bound 3.60";
+  m.cases_used = 4;
+  m.noise_ar_order = 12;
+  m.square_corner_rad_s = 502.2;
+  m.num_mountings = 2;
+  m.mountings = {"rotation-table", "shaker-fixture"};
+  m.mounting_determined = {true, false};
+  m.mounting_angles_rad = {{std::nan(""), 1.0e-3, 3.5e-2}, {std::nan(""), 2.1e-2, -2.2e-2}};
+  m.mounting_angles_sd_rad = {{std::nan(""), 1.0e-5, 2.0e-5}, {std::nan(""), 3.0e-6, 4.0e-6}};
+  m.mounting_samples = {370000, 105000};
+  m.mounting_notes = {"left out (IEEE 1293 12.3.5.7): a_p^2, a_o^2", ""};
+  return m;
+}
+
+inline structure_table_t known_structure_table() {
+  structure_table_t m;
+  m.utime = 1700000003000000;
+  m.mono_ns = 8000000000;
+  m.sensor = "sut_accel_1";
+  m.num_candidates = 2;
+  m.terms = {"a_i*abs(a_i)", "a_i[k-1]"};
+  m.effects = {"odd quadratic", "dynamics"};
+  m.err = {1.5e-3, 2.0e-6};
+  m.values = {2.0e-5, -1.0e-6};
+  m.std_devs = {1.0e-6, 3.0e-6};
+  m.t_values = {20.0, -0.33};
+  m.significant = {true, false};
+  return m;
+}
+
+inline analyzer_status_t known_analyzer_status() {
+  analyzer_status_t m;
+  m.utime = 1700000004000000;
+  m.mono_ns = 9000000000;
+  m.uptime_s = 12.5;
+  m.bench = "sim-paper";
+  m.bench_restarts = 1;
+  m.received = 3303;
+  m.skipped_malformed = 2;
+  m.skipped_oversized = 3;
+  m.skipped_invalid = 4;
+  m.skipped_refused = 5;
+  m.invalid_values = 6;
+  m.gaps = 7;
+  m.queue_drops = 8;
+  m.queue_high_water = 9;
+  m.cpu_percent = 12.5;
+  m.latency_p50_ms = 40.0;
+  m.latency_p99_ms = 95.0;
+  m.latency_max_ms = 120.0;
+  m.num_sensors = 1;
+  m.sensors = {"acc1"};
+  m.rows_fused = {470000};
+  m.rows_estimated = {469000};
+  m.exclusions = {2};
+  m.num_notes = 1;
+  m.notes = {"INERTIA_RAW_ACCEL: valid_bytes 3 for 40 samples"};
   return m;
 }
 
@@ -210,6 +271,61 @@ inline void expect_equal(const model_estimate_t& a, const model_estimate_t& b) {
   for (int i = 0; i < 3; ++i) EXPECT_EQ(a.misalignment_rad[i], b.misalignment_rad[i]) << "angle " << i;
   EXPECT_EQ(a.samples_used, b.samples_used);
   EXPECT_EQ(a.converged, b.converged);
+  EXPECT_EQ(a.t_values, b.t_values);
+  EXPECT_EQ(a.convergence, b.convergence);
+  EXPECT_EQ(a.cases_used, b.cases_used);
+  EXPECT_EQ(a.noise_ar_order, b.noise_ar_order);
+  EXPECT_EQ(a.square_corner_rad_s, b.square_corner_rad_s);
+  EXPECT_EQ(a.num_mountings, b.num_mountings);
+  EXPECT_EQ(a.mountings, b.mountings);
+  EXPECT_EQ(a.mounting_determined, b.mounting_determined);
+  ASSERT_EQ(a.mounting_angles_rad.size(), b.mounting_angles_rad.size());
+  for (std::size_t m = 0; m < a.mounting_angles_rad.size(); ++m) {
+    for (std::size_t i = 0; i < 3; ++i) {
+      // NaN (the turn about i) must come back as NaN: compare the bits' meaning, not ==.
+      EXPECT_TRUE(a.mounting_angles_rad[m][i] == b.mounting_angles_rad[m][i] ||
+                  (std::isnan(a.mounting_angles_rad[m][i]) && std::isnan(b.mounting_angles_rad[m][i])));
+      EXPECT_TRUE(a.mounting_angles_sd_rad[m][i] == b.mounting_angles_sd_rad[m][i] ||
+                  (std::isnan(a.mounting_angles_sd_rad[m][i]) && std::isnan(b.mounting_angles_sd_rad[m][i])));
+    }
+  }
+  EXPECT_EQ(a.mounting_samples, b.mounting_samples);
+  EXPECT_EQ(a.mounting_notes, b.mounting_notes);
+}
+
+inline void expect_equal(const structure_table_t& a, const structure_table_t& b) {
+  EXPECT_EQ(a.utime, b.utime);
+  EXPECT_EQ(a.mono_ns, b.mono_ns);
+  EXPECT_EQ(a.sensor, b.sensor);
+  EXPECT_EQ(a.num_candidates, b.num_candidates);
+  EXPECT_EQ(a.terms, b.terms);
+  EXPECT_EQ(a.effects, b.effects);
+  EXPECT_EQ(a.err, b.err);
+  EXPECT_EQ(a.values, b.values);
+  EXPECT_EQ(a.std_devs, b.std_devs);
+  EXPECT_EQ(a.t_values, b.t_values);
+  EXPECT_EQ(a.significant, b.significant);
+}
+
+inline void expect_equal(const analyzer_status_t& a, const analyzer_status_t& b) {
+  EXPECT_EQ(a.utime, b.utime);
+  EXPECT_EQ(a.bench, b.bench);
+  EXPECT_EQ(a.bench_restarts, b.bench_restarts);
+  EXPECT_EQ(a.received, b.received);
+  EXPECT_EQ(a.skipped_malformed, b.skipped_malformed);
+  EXPECT_EQ(a.skipped_oversized, b.skipped_oversized);
+  EXPECT_EQ(a.skipped_invalid, b.skipped_invalid);
+  EXPECT_EQ(a.skipped_refused, b.skipped_refused);
+  EXPECT_EQ(a.invalid_values, b.invalid_values);
+  EXPECT_EQ(a.gaps, b.gaps);
+  EXPECT_EQ(a.queue_drops, b.queue_drops);
+  EXPECT_EQ(a.cpu_percent, b.cpu_percent);
+  EXPECT_EQ(a.latency_p99_ms, b.latency_p99_ms);
+  EXPECT_EQ(a.sensors, b.sensors);
+  EXPECT_EQ(a.rows_fused, b.rows_fused);
+  EXPECT_EQ(a.rows_estimated, b.rows_estimated);
+  EXPECT_EQ(a.exclusions, b.exclusions);
+  EXPECT_EQ(a.notes, b.notes);
 }
 
 }  // namespace inertia::test

@@ -38,6 +38,8 @@ TEST(LcmTypes, SampleBlockRoundTrips) { expect_round_trip(test::known_sample_blo
 TEST(LcmTypes, DaqStatusRoundTrips) { expect_round_trip(test::known_daq_status()); }
 TEST(LcmTypes, PlanEventRoundTrips) { expect_round_trip(test::known_plan_event()); }
 TEST(LcmTypes, ModelEstimateRoundTrips) { expect_round_trip(test::known_model_estimate()); }
+TEST(LcmTypes, StructureTableRoundTrips) { expect_round_trip(test::known_structure_table()); }
+TEST(LcmTypes, AnalyzerStatusRoundTrips) { expect_round_trip(test::known_analyzer_status()); }
 
 TEST(LcmTypes, DecodingAsTheWrongTypeFailsOnTheFingerprint) {
   const std::vector<std::uint8_t> bytes = encode(test::known_plan_event());
@@ -152,6 +154,8 @@ TEST(JavaInterop, WritesEncodedMessagesForDecodeCheck) {
   write_encoded(dir, test::known_daq_status());
   write_encoded(dir, test::known_plan_event());
   write_encoded(dir, test::known_model_estimate());
+  write_encoded(dir, test::known_structure_table());
+  write_encoded(dir, test::known_analyzer_status());
   EXPECT_TRUE(std::filesystem::exists(dir / "sample_block_t.bin"));
 }
 

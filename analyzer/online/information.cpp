@@ -1,0 +1,166 @@
+#include "analyzer/online/information.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace inertia::online {
+
+using Eigen::Index;
+
+Information::Information(Index base, Index filtered, std::size_t nodes)
+    : gram_(base), cross_(nodes, Eigen::MatrixXd::Zero(filtered, base + 1)), pairs_(nodes) {
+  for (std::size_t k = 0; k < nodes; ++k)
+    for (std::size_t d = 0; d < CornerGrid::kStencil && k + d < nodes; ++d) pairs_[k].push_back(Eigen::MatrixXd::Zero(filtered, filtered));
+}
+
+void Information::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
+                      const Eigen::Ref<const Eigen::VectorXd>& y) {
+  const Index n = base.rows();
+  if (n == 0) return;
+  gram_.add(base, y);
+  const Index b = base.cols();
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    const auto f = filtered[k].topRows(n);
+    cross_[k].leftCols(b).noalias() += f.transpose() * base;
+    cross_[k].col(b).noalias() += f.transpose() * y;
+    for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d].noalias() += f.transpose() * filtered[k + d].topRows(n);
+  }
+  samples_ += n;
+  weight_ += static_cast<double>(n);
+}
+
+void Information::add(const Information& other) {
+  if (other.samples_ == 0) return;
+  if (samples_ == 0 && weight_ == 0.0 && gram_.matrix().size() == 0) {
+    *this = other;
+    return;
+  }
+  gram_.matrix() += other.gram_.matrix();
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    cross_[k] += other.cross_[k];
+    for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d] += other.pairs_[k][d];
+  }
+  samples_ += other.samples_;
+  weight_ += other.weight_;
+}
+
+void Information::subtract(const Information& other) {
+  gram_.matrix() -= other.gram_.matrix();
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    cross_[k] -= other.cross_[k];
+    for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d] -= other.pairs_[k][d];
+  }
+  samples_ -= other.samples_;
+  weight_ -= other.weight_;
+}
+
+void Information::scale(double factor) {
+  gram_.matrix() *= factor;
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    cross_[k] *= factor;
+    for (auto& m : pairs_[k]) m *= factor;
+  }
+  weight_ *= factor;
+}
+
+void Information::clear() {
+  gram_.matrix().setZero();
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    cross_[k].setZero();
+    for (auto& m : pairs_[k]) m.setZero();
+  }
+  samples_ = 0;
+  weight_ = 0.0;
+}
+
+Eigen::MatrixXd Information::pair(int a, int b) const {
+  if (a <= b) return pairs_[static_cast<std::size_t>(a)][static_cast<std::size_t>(b - a)];
+  return pairs_[static_cast<std::size_t>(b)][static_cast<std::size_t>(a - b)].transpose();
+}
+
+Eigen::MatrixXd Information::model_gram(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                        const CornerWeights& corner) const {
+  const Eigen::MatrixXd& g = gram_.matrix();
+  const Index b = g.rows() - 1;
+  const Index p = t_base.rows();
+  Eigen::MatrixXd out(p + 1, p + 1);
+  const Eigen::MatrixXd tg = t_base * g.topLeftCorner(b, b);
+  out.topLeftCorner(p, p).noalias() = tg * t_base.transpose();
+  out.topRightCorner(p, 1).noalias() = t_base * g.topRightCorner(b, 1);
+  out(p, p) = g(b, b);
+  if (corner.filtered() && t_filtered.cols() > 0) {
+    // F = sum_j w_j F_j: its products with [B y] and with itself from the nodes' products.
+    const Index f = t_filtered.cols();
+    Eigen::MatrixXd fby = Eigen::MatrixXd::Zero(f, b + 1);
+    Eigen::MatrixXd ff = Eigen::MatrixXd::Zero(f, f);
+    for (const auto& [j, wj] : corner.nodes) {
+      fby += wj * cross_[static_cast<std::size_t>(j)];
+      for (const auto& [l, wl] : corner.nodes) ff += wj * wl * pair(j, l);
+    }
+    const Eigen::MatrixXd mixed = t_filtered * fby.leftCols(b) * t_base.transpose();
+    out.topLeftCorner(p, p) += mixed + mixed.transpose();
+    out.topLeftCorner(p, p).noalias() += t_filtered * ff * t_filtered.transpose();
+    out.topRightCorner(p, 1).noalias() += t_filtered * fby.col(b);
+  }
+  out.bottomLeftCorner(1, p) = out.topRightCorner(p, 1).transpose();
+  return out;
+}
+
+Eigen::VectorXd Information::model_constant_products(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                                     const CornerWeights& corner) const {
+  const Eigen::MatrixXd& g = gram_.matrix();
+  const Index b = g.rows() - 1;
+  const Index p = t_base.rows();
+  Eigen::VectorXd out(p + 1);
+  out.head(p).noalias() = t_base * g.col(0).head(b);
+  out(p) = g(b, 0);
+  if (corner.filtered() && t_filtered.cols() > 0) {
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(t_filtered.cols());
+    for (const auto& [j, wj] : corner.nodes) f += wj * cross_[static_cast<std::size_t>(j)].col(0);
+    out.head(p).noalias() += t_filtered * f;
+  }
+  return out;
+}
+
+SegmentPipeline::SegmentPipeline(Eigen::VectorXd ar, std::vector<Index> filtered_sources, std::vector<double> corners,
+                                 double sample_period_s)
+    : ar_(std::move(ar)), sources_(std::move(filtered_sources)), corners_(std::move(corners)), period_(sample_period_s),
+      highpass_(corners_.size(), std::vector<procedure::HighpassState>(sources_.size())),
+      filtered_(corners_.size()) {}
+
+void SegmentPipeline::push(const Eigen::Ref<const Eigen::MatrixXd>& base, const Eigen::Ref<const Eigen::VectorXd>& y,
+                           Information& info) {
+  const Index n = base.rows();
+  if (n == 0) return;
+  const Index b = base.cols();
+  const Index m = ar_.size();
+  // [history; block] of [B y], then A(q) on every column: z(k) = x(k) - sum a_j x(k - j).
+  const Index have = std::min<Index>(m, rows_in_);
+  raw_.resize(have + n, b + 1);
+  if (have > 0) raw_.topRows(have) = history_.bottomRows(have);
+  raw_.bottomRows(n).leftCols(b) = base;
+  raw_.bottomRows(n).col(b) = y;
+  // Rows whose whole A(q) window lies in the segment: the first m rows of a segment are lost.
+  const Index first = std::max<Index>(0, m - rows_in_);   // first usable row of the block
+  const Index out = n - std::min(first, n);
+  rows_in_ += n;
+  if (m > 0) {
+    history_.resize(std::min<Index>(m, have + n), b + 1);
+    history_ = raw_.bottomRows(history_.rows());
+  }
+  if (out == 0) return;
+  const Index at = have + (n - out);   // position in raw_ of the first output row
+  white_ = raw_.middleRows(at, out);
+  for (Index j = 1; j <= m; ++j) white_.noalias() -= ar_(j - 1) * raw_.middleRows(at - j, out);
+  for (std::size_t k = 0; k < corners_.size(); ++k) {
+    Eigen::MatrixXd& f = filtered_[k];
+    f.resize(out, static_cast<Index>(sources_.size()));
+    for (std::size_t s = 0; s < sources_.size(); ++s) {
+      f.col(static_cast<Index>(s)) = white_.col(sources_[s]);
+      procedure::highpass_in_place(f.col(static_cast<Index>(s)), corners_[k], period_, highpass_[k][s]);
+    }
+  }
+  info.add(white_.leftCols(b), filtered_, white_.col(b));
+}
+
+}  // namespace inertia::online

@@ -1,0 +1,94 @@
+#pragma once
+// Sufficient statistics of the live regression, and the per-segment pipeline that feeds them.
+//
+// Least squares needs only inner products of its columns and the output. The live estimator keeps
+// them over the basis (live_basis.hpp) instead of over the model's own columns, so the model's
+// statistics for any mounting misalignment and squares' corner follow exactly:
+//     Phi = B T' + F_k U'   =>   Phi'Phi = T B'B T' + T B'F_k U' + U F_k'B T' + U F_k'F_k U',
+// with B the base columns, F_k the filtered columns at corner k, and T, U the coefficient rows
+// of the model's terms. Statistics add over samples, so segments, cases and mountings combine
+// by addition and a case can be taken out again (the convergence test leaves cases out).
+//
+// The noise: least squares on coloured noise is inefficient and its classical covariance too
+// small (procedure/prewhitening.hpp). The pipeline filters every base column and the output with
+// the noise model's A(q) (AR prewhitening, GLS) before they enter the statistics, then passes the
+// squares' monomials through each corner's high pass. Both filters are linear and time-invariant,
+// so the order does not matter except in the filters' start-up at a segment's first rows (the
+// batch fit high-passes first); each segment loses its first order() rows, as in the batch.
+#include <Eigen/Dense>
+
+#include <cstdint>
+#include <vector>
+
+#include "analyzer/ident/err.hpp"
+#include "analyzer/online/corner_grid.hpp"
+#include "analyzer/procedure/square_highpass.hpp"
+
+namespace inertia::online {
+
+class Information {
+ public:
+  Information() = default;
+  /// `nodes`: filtered column sets (one per corner-grid node).
+  Information(Eigen::Index base, Eigen::Index filtered, std::size_t nodes);
+
+  /// Adds rows: base (n x b), the filtered columns at each node (n x f each), the output.
+  void add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
+           const Eigen::Ref<const Eigen::VectorXd>& y);
+  void add(const Information& other);
+  void subtract(const Information& other);
+  /// Exponential forgetting: every sample so far weighs `factor` less.
+  void scale(double factor);
+  void clear();
+
+  [[nodiscard]] std::int64_t samples() const { return samples_; }
+  [[nodiscard]] double weight() const { return weight_; }   // sum of sample weights
+  [[nodiscard]] const Eigen::MatrixXd& base_gram() const { return gram_.matrix(); }   // [B y]'[B y]
+
+  /// [Phi y]'[Phi y] of the model whose columns are B t_base' + F(corner) t_filtered', with
+  /// F(corner) = sum_j w_j F_j over the corner's nodes (static squares: t_filtered ignored).
+  [[nodiscard]] Eigen::MatrixXd model_gram(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                           const CornerWeights& corner) const;
+  /// [Phi y]' c, c the (filtered) constant base column 0: with the noise model A(q), c = A(1) on
+  /// every row, so this over A(1) sums the model's columns and the output over the rows.
+  [[nodiscard]] Eigen::VectorXd model_constant_products(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                                        const CornerWeights& corner) const;
+
+ private:
+  /// F_a' F_b for nodes a, b at most kStencil - 1 apart.
+  [[nodiscard]] Eigen::MatrixXd pair(int a, int b) const;
+
+  ident::ErrGram gram_{0};
+  std::vector<Eigen::MatrixXd> cross_;                // per node: F_k' [B y]   (f x (b + 1))
+  std::vector<std::vector<Eigen::MatrixXd>> pairs_;   // per node k, per d: F_k' F_{k+d}
+  std::int64_t samples_ = 0;
+  double weight_ = 0.0;
+};
+
+/// A segment's rows on their way into the statistics: the noise model's A(q), then each corner's
+/// high pass on the squares' monomials. Keeps the filters' memory between chunks of the segment.
+class SegmentPipeline {
+ public:
+  /// `ar`: a_1..a_m of A(q) = 1 - sum a_j q^-j (empty: white noise, no filtering);
+  /// `filtered_sources`: base positions of the squares' monomials; `corners`: the grid's nodes, rad/s.
+  SegmentPipeline(Eigen::VectorXd ar, std::vector<Eigen::Index> filtered_sources, std::vector<double> corners,
+                  double sample_period_s);
+
+  /// The next raw rows of the segment (base columns and output, in order) into `info`.
+  void push(const Eigen::Ref<const Eigen::MatrixXd>& base, const Eigen::Ref<const Eigen::VectorXd>& y, Information& info);
+  [[nodiscard]] std::int64_t rows_in() const { return rows_in_; }
+
+ private:
+  Eigen::VectorXd ar_;
+  std::vector<Eigen::Index> sources_;
+  std::vector<double> corners_;
+  double period_;
+  std::int64_t rows_in_ = 0;
+  Eigen::MatrixXd history_;   // the last order() raw rows of [B y]
+  std::vector<std::vector<procedure::HighpassState>> highpass_;   // per corner, per source
+  // Work buffers, kept between chunks.
+  Eigen::MatrixXd raw_, white_;
+  std::vector<Eigen::MatrixXd> filtered_;
+};
+
+}  // namespace inertia::online

@@ -1,0 +1,500 @@
+#include "analyzer/online/live_solver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <boost/math/tools/minima.hpp>
+
+#include "analyzer/ident/err.hpp"
+#include "analyzer/ident/statistics.hpp"
+#include "analyzer/procedure/misalignment.hpp"
+#include "common/frames.hpp"
+
+namespace inertia::online {
+
+using Eigen::Index;
+using ident::Term;
+using ident::Variable;
+
+namespace {
+
+Term plain(Variable v, int power = 1) {
+  return Term::from_factors({ident::Factor{v, 0, ident::FactorFunction::Plain, power}});
+}
+
+bool contains(const std::vector<Index>& v, Index x) { return std::find(v.begin(), v.end(), x) != v.end(); }
+
+/// The rows and columns `keep` (positions) of an augmented Gram matrix, with y (last) kept last.
+Eigen::MatrixXd select(const Eigen::MatrixXd& g, const std::vector<Index>& keep) {
+  const auto p = static_cast<Index>(keep.size());
+  const Index y = g.rows() - 1;
+  Eigen::MatrixXd out(p + 1, p + 1);
+  for (Index i = 0; i <= p; ++i)
+    for (Index j = 0; j <= p; ++j)
+      out(i, j) = g(i < p ? keep[static_cast<std::size_t>(i)] : y, j < p ? keep[static_cast<std::size_t>(j)] : y);
+  return out;
+}
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+}  // namespace
+
+std::optional<double> StatFit::value(Index term) const {
+  for (std::size_t j = 0; j < terms.size(); ++j)
+    if (terms[j] == term) return theta(static_cast<Index>(j));
+  return std::nullopt;
+}
+
+Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& m_cs) {
+  // frames::frame_rotation(axis, angle) is the transpose of the active rotation.
+  const Eigen::AngleAxisd aa(Eigen::Matrix3d(m_cs.transpose()));
+  return aa.angle() * aa.axis();
+}
+
+LiveSolver::LiveSolver(const LiveBasis& basis, std::vector<Index> model, std::vector<Index> sensitivities,
+                       dataset::SensorKind sensor, CornerGrid grid, bool static_option, SolverOptions options)
+    : basis_(basis), model_(std::move(model)), sensitivities_(std::move(sensitivities)), sensor_(sensor),
+      grid_(std::move(grid)), static_option_(static_option || grid_.empty()), options_(std::move(options)) {
+  bias_ = basis_.find(Term());
+  factor_of_.assign(basis_.terms().size(), -1);
+  for (std::size_t j = 0; j < basis_.terms().size(); ++j) {
+    const Term& t = basis_.terms()[j];
+    if (t.is_output_multiplied()) factor_of_[j] = basis_.find(t.denominator_factor());
+  }
+}
+
+template <class FitAt>
+StatFit LiveSolver::best_corner(FitAt&& fit_at) const {
+  StatFit best;
+  const auto consider = [&best](StatFit f) {
+    if (f.ok && (!best.ok || f.rss < best.rss)) best = std::move(f);
+    else if (!best.ok && !f.ok && best.why.empty()) best = std::move(f);
+  };
+  if (static_option_) consider(fit_at(std::nullopt));
+  if (grid_.empty()) return best;
+  const std::vector<double>& nodes = grid_.nodes();
+  std::optional<std::size_t> best_node;
+  double best_node_rss = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    StatFit f = fit_at(nodes[k]);
+    if (f.ok && f.rss < best_node_rss) {
+      best_node_rss = f.rss;
+      best_node = k;
+    }
+    consider(std::move(f));
+  }
+  if (!best_node || nodes.size() < 2) return best;
+  // Brent's method on log b inside the best node's neighbours (as SquareCornerSearch::best).
+  const double a = std::log(nodes[*best_node == 0 ? 0 : *best_node - 1]);
+  const double b = std::log(nodes[std::min(nodes.size() - 1, *best_node + 1)]);
+  const auto [x, fx] = boost::math::tools::brent_find_minima(
+      [&](double log_b) {
+        const StatFit f = fit_at(std::exp(log_b));
+        return f.ok ? f.rss : std::numeric_limits<double>::infinity();
+      },
+      a, b, 14);
+  if (fx < best.rss) consider(fit_at(std::exp(x)));
+  return best;
+}
+
+Eigen::MatrixXd LiveSolver::gram(const std::vector<Index>& terms, const std::vector<const Information*>& infos,
+                                 const std::vector<Eigen::Matrix3d>& m_cs, std::optional<double> corner) const {
+  const auto p = static_cast<Index>(terms.size());
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(p + 1, p + 1);
+  Eigen::MatrixXd tb, tf;
+  const CornerWeights weights = corner ? grid_.at(*corner) : CornerWeights{};
+  for (std::size_t i = 0; i < infos.size(); ++i) {
+    if (infos[i]->samples() == 0) continue;
+    basis_.transform(terms, m_cs[i], weights.filtered(), tb, tf);
+    g += infos[i]->model_gram(tb, tf, weights);
+  }
+  return g;
+}
+
+void LiveSolver::factor_statistics(const std::vector<Index>& terms, const std::vector<const Information*>& infos,
+                                   const std::vector<Eigen::Matrix3d>& m_cs, std::vector<Index>& positions,
+                                   Eigen::MatrixXd& factor_gram, Eigen::VectorXd& factor_sum) const {
+  positions.clear();
+  std::vector<Index> factors;
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    const Index f = factor_of_[static_cast<std::size_t>(terms[j])];
+    if (f < 0) continue;
+    positions.push_back(static_cast<Index>(j));
+    factors.push_back(f);
+  }
+  const auto q = static_cast<Index>(factors.size());
+  factor_gram = Eigen::MatrixXd::Zero(q, q);
+  factor_sum = Eigen::VectorXd::Zero(q);
+  if (q == 0) return;
+  Eigen::MatrixXd tb, tf;
+  for (std::size_t i = 0; i < infos.size(); ++i) {
+    if (infos[i]->samples() == 0) continue;
+    basis_.transform(factors, m_cs[i], false, tb, tf);
+    const Eigen::MatrixXd& g = infos[i]->base_gram();
+    const Index b = g.rows() - 1;
+    factor_gram.noalias() += tb * g.topLeftCorner(b, b) * tb.transpose();
+    factor_sum.noalias() += tb * g.col(0).head(b);   // base column 0 is the constant
+  }
+}
+
+StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vector<Index>& terms,
+                        const std::vector<Index>& forced, const std::vector<const Information*>& infos,
+                        const std::vector<Eigen::Matrix3d>& m_cs) const {
+  StatFit out;
+  out.weight = weight;
+  // Rank as the batch pipeline does: the forced terms first, the rest by ERR; columns with no
+  // energy left after the ones before them are not determined by this data.
+  ident::ErrOptions eo;
+  eo.reference = ident::ErrReference::AfterForced;
+  for (Index f : forced) {
+    const auto it = std::find(terms.begin(), terms.end(), f);
+    if (it != terms.end()) eo.forced.push_back(static_cast<Index>(it - terms.begin()));
+  }
+  if (bias_ >= 0 && !contains(forced, bias_)) {
+    const auto it = std::find(terms.begin(), terms.end(), bias_);
+    if (it != terms.end()) eo.forced.push_back(static_cast<Index>(it - terms.begin()));
+  }
+  const ident::ErrRanking ranking = ident::err_rank(g, eo);
+  std::vector<Index> columns = ranking.order;   // positions into terms
+  for (Index d : ranking.dependent) out.undetermined.push_back(terms[static_cast<std::size_t>(d)]);
+  std::vector<Index> all_positions;
+  Eigen::MatrixXd all_factor_gram;
+  Eigen::VectorXd all_factor_sum;
+  factor_statistics(terms, infos, m_cs, all_positions, all_factor_gram, all_factor_sum);
+  for (;;) {
+    if (columns.empty()) {
+      out.why = "no term is determined by the data";
+      return out;
+    }
+    std::vector<Index> sorted = columns;
+    std::sort(sorted.begin(), sorted.end());
+    std::vector<Index> den;
+    std::vector<Index> factor_rows;
+    for (std::size_t j = 0; j < sorted.size(); ++j) {
+      const auto it = std::find(all_positions.begin(), all_positions.end(), sorted[j]);
+      if (it == all_positions.end()) continue;
+      den.push_back(static_cast<Index>(j));
+      factor_rows.push_back(static_cast<Index>(it - all_positions.begin()));
+    }
+    Eigen::MatrixXd fg(den.size(), den.size());
+    Eigen::VectorXd fs(den.size());
+    for (std::size_t a = 0; a < den.size(); ++a) {
+      fs(static_cast<Index>(a)) = all_factor_sum(factor_rows[a]);
+      for (std::size_t b = 0; b < den.size(); ++b) fg(static_cast<Index>(a), static_cast<Index>(b)) = all_factor_gram(factor_rows[a], factor_rows[b]);
+    }
+    const Eigen::MatrixXd sub = select(g, sorted);
+    const auto samples = static_cast<Index>(std::llround(weight));
+    const ident::UlsStatistics stats = ident::UlsStatistics::from_gram(sub, samples, den, fg, fs);
+    std::vector<std::string> labels;
+    for (Index j : sorted) labels.push_back(basis_.terms()[static_cast<std::size_t>(terms[static_cast<std::size_t>(j)])].to_string());
+    try {
+      const ident::UlsSolution sol = ident::solve_uls(stats, labels, options_.uls);
+      out.ok = true;
+      out.terms.clear();
+      for (Index j : sorted) out.terms.push_back(terms[static_cast<std::size_t>(j)]);
+      out.theta = sol.theta;
+      out.rss = sol.zeta_energy;
+      const double dof = std::max(weight - static_cast<double>(sorted.size()), 1.0);
+      out.s2 = out.rss / dof;
+      out.covariance = out.s2 * (den.empty() ? sol.gram_inverse : sol.corrected_inverse);
+      out.sd = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+      out.conditional_sd = out.sd;
+      out.gram_inverse = sol.gram_inverse;
+      return out;
+    } catch (const ident::IdentifiabilityError& e) {
+      // Leave out the named column ranked last that is not forced, as the batch pipeline does.
+      auto victim = columns.end();
+      for (auto it = columns.begin(); it != columns.end(); ++it) {
+        const Index term = terms[static_cast<std::size_t>(*it)];
+        const std::string label = basis_.terms()[static_cast<std::size_t>(term)].to_string();
+        const bool is_forced = std::find(eo.forced.begin(), eo.forced.end(), *it) != eo.forced.end();
+        if (!is_forced && std::find(e.labels().begin(), e.labels().end(), label) != e.labels().end()) victim = it;
+      }
+      if (victim == columns.end()) {
+        out.why = e.what();
+        return out;
+      }
+      out.undetermined.push_back(terms[static_cast<std::size_t>(*victim)]);
+      columns.erase(victim);
+    } catch (const std::runtime_error& e) {
+      out.why = e.what();
+      return out;
+    }
+  }
+}
+
+MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double> known_bias) const {
+  MountingFit out;
+  out.m_cs = m.m_cs;
+  if (m.info.samples() == 0) {
+    out.note = "no samples";
+    return out;
+  }
+  // The external-frame form (eq. 1): sensitivities split over the case axes, the rest in F_S.
+  const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
+  const std::vector<Term> axis_terms = gyro ? std::vector<Term>{plain(Variable::Wi), plain(Variable::Wp), plain(Variable::Wo)}
+                                            : std::vector<Term>{plain(Variable::Ai), plain(Variable::Ap), plain(Variable::Ao)};
+  std::vector<Index> es = sensitivities_;
+  std::vector<std::string> excluded;
+  for (Index t : model_) {
+    const Term& term = basis_.terms()[static_cast<std::size_t>(t)];
+    if (std::find(axis_terms.begin(), axis_terms.end(), term) != axis_terms.end()) continue;
+    if (m.rotation_table && options_.ieee_rotation_table_exclusions &&
+        (term == plain(Variable::Ap, 2) || term == plain(Variable::Ao, 2))) {
+      excluded.push_back(term.to_string());
+      continue;
+    }
+    // IEEE 1293: on the shaker the bias is confounded with the other parameters; it is left out
+    // when another mounting supplies it. Without one (a shaker-only plan) it stays, and the
+    // data's rank decides whether it is determined.
+    if (m.shaker_only && options_.ieee_shaker_exclusions && known_bias && term.is_bias()) {
+      excluded.push_back(term.to_string());
+      continue;
+    }
+    es.push_back(t);
+  }
+  // A known bias is subtracted through the constant's column: y - b 1.
+  const bool fold_bias = known_bias.has_value() && bias_ >= 0 && !contains(es, bias_);
+  std::vector<Index> with_bias = es;
+  if (fold_bias) with_bias.push_back(bias_);
+  const std::vector<const Information*> infos{&m.info};
+  const auto gram_at = [&](const Eigen::Matrix3d& m_cs, std::optional<double> corner) {
+    Eigen::MatrixXd g = gram(with_bias, infos, {m_cs}, corner);
+    if (!fold_bias) return g;
+    const auto p = static_cast<Index>(es.size());
+    const Index one = p, y = p + 1;
+    const double b = *known_bias;
+    Eigen::MatrixXd folded(p + 1, p + 1);
+    folded.topLeftCorner(p, p) = g.topLeftCorner(p, p);
+    folded.topRightCorner(p, 1) = g.col(y).head(p) - b * g.col(one).head(p);
+    folded.bottomLeftCorner(1, p) = folded.topRightCorner(p, 1).transpose();
+    folded(p, p) = g(y, y) - 2.0 * b * g(one, y) + b * b * g(one, one);
+    return folded;
+  };
+  const double weight = m.info.weight();
+  // The corner: the one with the least residual, searched again after the first step of the
+  // fixed point (as the batch pipeline does; it hardly moves with M_C^S after that).
+  std::optional<double> corner;
+  StatFit f;
+  for (out.refinements = 0; out.refinements < options_.max_refinements; ++out.refinements) {
+    if (out.refinements < 2) {
+      corner = best_corner([&](std::optional<double> b) {
+                 StatFit g = fit(gram_at(out.m_cs, b), weight, es, sensitivities_, infos, {out.m_cs});
+                 g.corner_rad_s = b;
+                 return g;
+               }).corner_rad_s;
+    }
+    f = fit(gram_at(out.m_cs, corner), weight, es, sensitivities_, infos, {out.m_cs});
+    f.corner_rad_s = corner;
+    Eigen::Vector3d theta = Eigen::Vector3d::Zero();
+    bool have = f.ok;
+    for (int c = 0; c < 3 && have; ++c) {
+      const auto v = f.value(sensitivities_[static_cast<std::size_t>(c)]);
+      if (!v) have = false;
+      else theta(c) = *v;
+    }
+    if (!have || !(theta.norm() > 0.0) || !theta.allFinite()) {
+      out.fit = f;
+      out.note = f.ok ? "no excitation along the sensitive axis in this mounting" : f.why;
+      return out;
+    }
+    const frames::Dcm next = procedure::misalignment_from_sensitivities(theta, frames::Dcm::Identity());
+    const double change = frames::angle_between(next, out.m_cs);
+    out.m_cs = next;
+    out.determined = true;
+    if (change < options_.refinement_tolerance_rad) break;
+  }
+  out.fit = f;
+  if (!excluded.empty()) {
+    std::string list;
+    for (const std::string& e : excluded) list += (list.empty() ? "" : ", ") + e;
+    out.note = "left out (IEEE 1293 12.3.5.7): " + list;
+  }
+  // The bias other mountings take: from the F_S fit of this mounting with its M_C^S (algorithm
+  // 2's step 7, as the batch pipeline takes it), the sensitivities merged into the axis term.
+  if (bias_ >= 0 && !fold_bias) {
+    std::vector<Index> s_terms;
+    const Index axis = basis_.find(axis_terms.front());
+    if (axis >= 0) s_terms.push_back(axis);
+    for (Index t : es)
+      if (!contains(sensitivities_, t)) s_terms.push_back(t);
+    const StatFit sf = fit(gram(s_terms, infos, {out.m_cs}, corner), weight, s_terms, {axis}, infos, {out.m_cs});
+    out.bias = sf.value(bias_);
+  }
+  // Angles and their sd by the delta method through algorithm 1.
+  out.angles = rotation_vector(out.m_cs);
+  Eigen::Vector3d theta;
+  Eigen::Matrix3d c;
+  std::vector<Index> pos;
+  for (Index s : sensitivities_)
+    for (std::size_t j = 0; j < f.terms.size(); ++j)
+      if (f.terms[j] == s) pos.push_back(static_cast<Index>(j));
+  for (int a = 0; a < 3; ++a) {
+    theta(a) = f.theta(pos[static_cast<std::size_t>(a)]);
+    for (int b = 0; b < 3; ++b) c(a, b) = f.covariance(pos[static_cast<std::size_t>(a)], pos[static_cast<std::size_t>(b)]);
+  }
+  Eigen::Matrix3d jac;
+  for (int a = 0; a < 3; ++a) {
+    const double h = 1e-6 * theta.norm();
+    Eigen::Vector3d up = theta, down = theta;
+    up(a) += h;
+    down(a) -= h;
+    jac.col(a) = (rotation_vector(procedure::misalignment_from_sensitivities(up, frames::Dcm::Identity())) -
+                  rotation_vector(procedure::misalignment_from_sensitivities(down, frames::Dcm::Identity()))) /
+                 (2.0 * h);
+  }
+  out.angles_covariance = jac * c * jac.transpose();
+  out.angles_sd = out.angles_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  // The turn about the sensitive axis does not change a single-axis output.
+  out.angles(0) = kNaN;
+  out.angles_sd(0) = kNaN;
+  return out;
+}
+
+StatFit LiveSolver::fit_batch_at(const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs,
+                                 std::optional<double> corner) const {
+  double weight = 0.0;
+  for (const Information* i : infos) weight += i->weight();
+  const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
+  const Index axis = basis_.find(plain(gyro ? Variable::Wi : Variable::Ai));
+  std::vector<Index> forced;
+  if (axis >= 0) forced.push_back(axis);
+  StatFit f = fit(gram(model_, infos, m_cs, corner), weight, model_, forced, infos, m_cs);
+  f.corner_rad_s = corner;
+  return f;
+}
+
+void LiveSolver::add_misalignment_uncertainty(StatFit& batch, const std::vector<const Information*>& infos,
+                                              const std::vector<Eigen::Matrix3d>& m_cs,
+                                              const std::vector<Eigen::Matrix3d>& angle_covariances) const {
+  if (!batch.ok) return;
+  const auto p = static_cast<Index>(batch.terms.size());
+  Eigen::MatrixXd added = Eigen::MatrixXd::Zero(p, p);
+  for (std::size_t m = 0; m < m_cs.size(); ++m) {
+    if (infos[m]->samples() == 0 || !angle_covariances[m].allFinite()) continue;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(angle_covariances[m]);
+    const Eigen::Vector3d phi = rotation_vector(m_cs[m]);
+    for (int k = 0; k < 3; ++k) {
+      const double lambda = eig.eigenvalues()(k);
+      if (!(lambda > 0.0)) continue;
+      const Eigen::Vector3d step = std::sqrt(lambda) * eig.eigenvectors().col(k);
+      std::vector<Eigen::Matrix3d> plus = m_cs, minus = m_cs;
+      const auto turned = [](const Eigen::Vector3d& v) {
+        const double a = v.norm();
+        return a > 0.0 ? frames::frame_rotation(v / a, a) : frames::Dcm::Identity();
+      };
+      plus[m] = turned(phi + step);
+      minus[m] = turned(phi - step);
+      const StatFit a = fit_batch_at(infos, plus, batch.corner_rad_s);
+      const StatFit b = fit_batch_at(infos, minus, batch.corner_rad_s);
+      if (!a.ok || !b.ok || a.terms != batch.terms || b.terms != batch.terms) continue;
+      const Eigen::VectorXd d = 0.5 * (a.theta - b.theta);
+      added.noalias() += d * d.transpose();
+    }
+  }
+  batch.covariance += added;
+  batch.sd = batch.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
+CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
+                                         const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const {
+  CaseScatter out;
+  if (!batch.ok || !(noise_gain > 0.0)) return out;
+  const auto p = static_cast<Index>(batch.terms.size());
+  const CornerWeights weights = batch.corner_rad_s ? grid_.at(*batch.corner_rad_s) : CornerWeights{};
+  std::vector<Eigen::VectorXd> responses;
+  Eigen::MatrixXd tb, tf;
+  double excess = 0.0;
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    const double n = static_cast<double>(cases[c]->samples());
+    if (n < 2.0) continue;
+    basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
+    const Eigen::VectorXd v = cases[c]->model_constant_products(tb, tf, weights) / noise_gain;   // row sums
+    // A constant offset d of the case's output adds A(1) d to each whitened row.
+    const double offset = (v(p) - batch.theta.dot(v.head(p))) / (n * noise_gain);
+    const double sd = std::sqrt(batch.s2 / n) / noise_gain;
+    out.offsets.push_back(offset);
+    out.offset_sd.push_back(sd);
+    out.chi_square += (offset / sd) * (offset / sd);
+    excess += offset * offset - sd * sd;
+    responses.push_back(batch.gram_inverse * v.head(p) * noise_gain);
+  }
+  const int consumed = bias_ >= 0 && std::find(batch.terms.begin(), batch.terms.end(), bias_) != batch.terms.end() ? 1 : 0;
+  out.dof = static_cast<int>(out.offsets.size()) - consumed;
+  if (out.dof < 1) return out;
+  out.tau2 = std::max(0.0, excess / out.dof);
+  if (out.tau2 == 0.0) return out;
+  for (const Eigen::VectorXd& r : responses) batch.covariance.noalias() += out.tau2 * r * r.transpose();
+  batch.sd = batch.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  return out;
+}
+
+StatFit LiveSolver::fit_batch(const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs) const {
+  double weight = 0.0;
+  for (const Information* i : infos) weight += i->weight();
+  const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
+  const Index axis = basis_.find(plain(gyro ? Variable::Wi : Variable::Ai));
+  std::vector<Index> forced;
+  if (axis >= 0) forced.push_back(axis);
+  if (weight <= 0.0) {
+    StatFit none;
+    none.why = "no samples";
+    return none;
+  }
+  return best_corner([&](std::optional<double> b) {
+    StatFit f = fit(gram(model_, infos, m_cs, b), weight, model_, forced, infos, m_cs);
+    f.corner_rad_s = b;
+    return f;
+  });
+}
+
+std::vector<CandidateStat> LiveSolver::structure(const std::vector<Index>& candidates, const StatFit& batch,
+                                                 const std::vector<const Information*>& infos,
+                                                 const std::vector<Eigen::Matrix3d>& m_cs) const {
+  std::vector<CandidateStat> out;
+  if (!batch.ok || candidates.empty()) return out;
+  std::vector<Index> terms = batch.terms;
+  terms.insert(terms.end(), candidates.begin(), candidates.end());
+  const Eigen::MatrixXd g = gram(terms, infos, m_cs, batch.corner_rad_s);
+  const auto p = static_cast<Index>(batch.terms.size());
+  const Index y = g.rows() - 1;
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(g.topLeftCorner(p, p));
+  const Eigen::VectorXd bm = g.col(y).head(p);
+  // The output's energy about its mean (the bias alone), the reference of the ERR.
+  double reference = g(y, y);
+  if (const auto b = std::find(terms.begin(), terms.end(), bias_); bias_ >= 0 && b != terms.end()) {
+    const auto j = static_cast<Index>(b - terms.begin());
+    if (g(j, j) > 0.0) reference -= g(j, y) * g(j, y) / g(j, j);
+  }
+  const double dof = batch.weight - static_cast<double>(p) - 1.0;
+  const double alpha = options_.structure_alpha / static_cast<double>(candidates.size());
+  for (std::size_t c = 0; c < candidates.size(); ++c) {
+    const Index j = p + static_cast<Index>(c);
+    CandidateStat s;
+    s.term = candidates[c];
+    const Eigen::VectorXd gmc = g.col(j).head(p);
+    const Eigen::VectorXd v = ldlt.solve(gmc);
+    const double d = g(j, j) - gmc.dot(v);
+    if (!(d > 1e-10 * g(j, j)) || dof <= 0.0) {
+      s.t = kNaN;   // in the span of the model's columns, or no excitation: nothing to tell
+      s.value = kNaN;
+      s.sd = kNaN;
+      out.push_back(s);
+      continue;
+    }
+    const double r = g(j, y) - v.dot(bm);
+    s.value = r / d;
+    const double gain = r * r / d;
+    s.err = reference > 0.0 ? gain / reference : 0.0;
+    const double s2 = std::max(batch.rss - gain, 0.0) / dof;
+    s.sd = std::sqrt(s2 / d);
+    s.t = s.sd > 0.0 ? s.value / s.sd : kNaN;
+    s.p_value = std::isfinite(s.t) ? ident::student_t_two_sided_p(s.t, dof) : 1.0;
+    s.significant = s.p_value < alpha;
+    out.push_back(s);
+  }
+  return out;
+}
+
+}  // namespace inertia::online

@@ -1,0 +1,167 @@
+#pragma once
+// The live estimator's answer from its sufficient statistics (information.hpp), re-derived at
+// every publish: the paper's procedure on statistics instead of samples.
+//  - Per mounting (blocks 5-6): the model in its external-frame form (eq. 1: the scale factor
+//    split over a_x a_y a_z of the mounting's nominal case frame, the other terms in F_S) fitted
+//    with M_C^S from algorithm 1 on its own sensitivities, to the fixed point. The mountings'
+//    rules are the batch pipeline's (procedure/pipeline.hpp): on a rotation table a_p^2 and a_o^2
+//    are left out (IEEE 1293 12.3.5.7), a mounting of shaker cases only takes the bias from the
+//    mountings that determine it.
+//  - The batch (blocks 10-11): the model in F_S over every mounting, each with its M_C^S.
+//  - The squares' corner b of eq. 12: the corner (or static squares) with the least residual sum
+//    of squares, found as the batch pipeline finds it (the grid's nodes, then Brent's method
+//    between the best node's neighbours), on columns interpolated between the grid's nodes
+//    (corner_grid.hpp).
+//  - What the data cannot determine (a column in the span of the others, or no excitation at
+//    all) is left out of the fit and named, never guessed.
+// Every step is a few small dense solves: the cost does not depend on how many samples came in.
+#include <Eigen/Dense>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "analyzer/ident/uls_batch.hpp"
+#include "analyzer/online/corner_grid.hpp"
+#include "analyzer/online/information.hpp"
+#include "analyzer/online/live_basis.hpp"
+#include "common/dataset/dataset.hpp"
+
+namespace inertia::online {
+
+/// A least-squares fit on statistics.
+struct StatFit {
+  bool ok = false;
+  std::vector<Eigen::Index> terms;          // basis term indices fitted, in the order given
+  Eigen::VectorXd theta, sd;                // per fitted term
+  Eigen::VectorXd conditional_sd;           // sd with every M_C^S taken as known
+  Eigen::MatrixXd gram_inverse;             // (Phi'Phi)^-1 of the fitted terms
+  Eigen::MatrixXd covariance;
+  std::vector<Eigen::Index> undetermined;   // basis term indices the data did not determine
+  double rss = 0.0;                         // sum of squared (whitened) residuals
+  double weight = 0.0;                      // samples
+  double s2 = 0.0;                          // residual variance rss / (weight - p)
+  std::optional<double> corner_rad_s;       // the squares' high pass (none: static squares)
+  std::string why;                          // when !ok
+  [[nodiscard]] std::optional<double> value(Eigen::Index term) const;
+};
+
+/// A mounting's statistics and what is known of its misalignment.
+struct MountingData {
+  std::string name;
+  Information info;
+  bool rotation_table = false;
+  bool shaker_only = true;
+  Eigen::Matrix3d m_cs = Eigen::Matrix3d::Identity();   // warm start of algorithm 1
+};
+
+struct MountingFit {
+  bool determined = false;                  // the data fixed M_C^S
+  Eigen::Matrix3d m_cs = Eigen::Matrix3d::Identity();
+  /// Rotation of F_S from the nominal case frame (rotation vector, case axes ~ i, p, o), rad; the
+  /// component about the sensitive axis is not observable from one axis and is NaN.
+  Eigen::Vector3d angles = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector3d angles_sd = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Matrix3d angles_covariance = Eigen::Matrix3d::Zero();   // of the rotation vector (rank 2: no twist)
+  std::optional<double> bias;               // the external-frame fit's bias, when it has one
+  int refinements = 0;
+  StatFit fit;
+  std::string note;
+};
+
+/// Offsets between cases that the noise model does not explain: 1/f noise below an AR model's
+/// reach (it is flat below its resolution), a fixture remounted between cases. Each case's mean
+/// residual is set against the sd the noise model gives a mean over that many rows; their excess
+/// variance tau^2 (method of moments, one dof to the bias) is what every estimate's covariance
+/// gains through the estimate's response to an offset of each case.
+struct CaseScatter {
+  std::vector<double> offsets;      // per case, output unit (the noise model undone)
+  std::vector<double> offset_sd;    // what the noise model gives a case mean
+  double tau2 = 0.0;                // excess offset variance between cases
+  double chi_square = 0.0;          // sum (offset / offset_sd)^2
+  int dof = 0;
+};
+
+struct CandidateStat {
+  Eigen::Index term = -1;                   // basis term index
+  double err = 0.0;                         // share of the output energy (about its mean) the term explains
+  double value = 0.0, sd = 0.0, t = 0.0;
+  double p_value = 1.0;
+  bool significant = false;                 // p below alpha over the number of candidates
+};
+
+struct SolverOptions {
+  ident::UlsOptions uls;
+  int max_refinements = 50;                 // algorithm 1's fixed point
+  double refinement_tolerance_rad = 1e-10;
+  bool ieee_rotation_table_exclusions = true;
+  bool ieee_shaker_exclusions = true;
+  double structure_alpha = 0.01;
+};
+
+class LiveSolver {
+ public:
+  /// `model`: basis term indices of the model (F_S); `sensitivities`: of a_x a_y a_z (w_x w_y
+  /// w_z for a gyroscope); `grid`: the nodes the filtered statistics were kept at (empty: static
+  /// squares only); `static_option`: static squares compete with the high pass.
+  LiveSolver(const LiveBasis& basis, std::vector<Eigen::Index> model, std::vector<Eigen::Index> sensitivities,
+             dataset::SensorKind sensor, CornerGrid grid, bool static_option, SolverOptions options);
+
+  /// Blocks 5-6 on one mounting; `known_bias` is subtracted first (shaker-only mountings).
+  [[nodiscard]] MountingFit fit_mounting(const MountingData& m, std::optional<double> known_bias) const;
+  /// Blocks 10-11: the model over the mountings, each with its M_C^S.
+  [[nodiscard]] StatFit fit_batch(const std::vector<const Information*>& infos,
+                                  const std::vector<Eigen::Matrix3d>& m_cs) const;
+  /// The same at a given corner (none: static squares).
+  [[nodiscard]] StatFit fit_batch_at(const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs,
+                                     std::optional<double> corner) const;
+  /// What the mountings' misalignment uncertainty adds to the batch's covariance: the batch refitted
+  /// with each M_C^S turned by +-1 sd along each principal direction of its angles' covariance
+  /// (the batch's own covariance treats M_C^S as known). Added to batch.covariance and sd.
+  void add_misalignment_uncertainty(StatFit& batch, const std::vector<const Information*>& infos,
+                                    const std::vector<Eigen::Matrix3d>& m_cs,
+                                    const std::vector<Eigen::Matrix3d>& angle_covariances) const;
+  /// Adds the case scatter to batch.covariance and sd (see CaseScatter). `cases`: each case's
+  /// statistics and its mounting's M_C^S; `noise_gain`: A(1) = 1 - sum a_j of the noise model.
+  CaseScatter add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
+                               const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const;
+  /// ERR and t of each candidate (basis term indices) added alone to the batch fit `batch`.
+  [[nodiscard]] std::vector<CandidateStat> structure(const std::vector<Eigen::Index>& candidates, const StatFit& batch,
+                                                     const std::vector<const Information*>& infos,
+                                                     const std::vector<Eigen::Matrix3d>& m_cs) const;
+
+  [[nodiscard]] const std::vector<Eigen::Index>& model() const { return model_; }
+  [[nodiscard]] const CornerGrid& grid() const { return grid_; }
+
+ private:
+  /// [Phi y]'[Phi y] of `terms` summed over the mountings, at `corner` (none: static squares).
+  Eigen::MatrixXd gram(const std::vector<Eigen::Index>& terms, const std::vector<const Information*>& infos,
+                       const std::vector<Eigen::Matrix3d>& m_cs, std::optional<double> corner) const;
+  /// The fit at the corner with the least residual: `fit_at(corner)` for static squares (when
+  /// allowed), every node, then Brent's method in log b between the best node's neighbours.
+  template <class FitAt>
+  StatFit best_corner(FitAt&& fit_at) const;
+  /// ULS on `gram` (over `terms`), leaving out what the data does not determine; `forced`
+  /// (basis term indices) are ranked first and never left out.
+  [[nodiscard]] StatFit fit(const Eigen::MatrixXd& gram, double weight, const std::vector<Eigen::Index>& terms,
+                            const std::vector<Eigen::Index>& forced, const std::vector<const Information*>& infos,
+                            const std::vector<Eigen::Matrix3d>& m_cs) const;
+  /// Factor statistics of output-multiplied terms among `terms` (p_b sums, unwhitened).
+  void factor_statistics(const std::vector<Eigen::Index>& terms, const std::vector<const Information*>& infos,
+                         const std::vector<Eigen::Matrix3d>& m_cs, std::vector<Eigen::Index>& positions,
+                         Eigen::MatrixXd& factor_gram, Eigen::VectorXd& factor_sum) const;
+
+  const LiveBasis& basis_;
+  std::vector<Eigen::Index> model_, sensitivities_;
+  dataset::SensorKind sensor_;
+  CornerGrid grid_;
+  bool static_option_ = true;
+  SolverOptions options_;
+  Eigen::Index bias_ = -1;
+  std::vector<Eigen::Index> factor_of_;   // per basis term: its denominator factor's term index (-1: none)
+};
+
+/// The rotation vector of M_C^S (rad, case axes): M_C^S = frame_rotation(v / |v|, |v|).
+Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& m_cs);
+
+}  // namespace inertia::online
