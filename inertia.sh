@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # inertia quick start. Each command installs missing Debian packages, configures and builds first.
 #   ./inertia.sh demo   simulate the paper's bench (config/sim-paper.toml) and characterize the sensor on it;
-#                       then record a shortened paper bench with inertia-daqd and characterize its log
+#                       then run a shortened paper bench through inertia-daqd in real time with the live
+#                       analyzer beside it, characterize the daemon's log, print the live estimate beside it
 #   ./inertia.sh test   run the whole test suite (what CI runs)
 #   ./inertia.sh build  only install, configure and build
 set -euo pipefail
@@ -47,16 +48,29 @@ case "${1:-}" in
     out="${2:-$here/out/sim-paper}"
     "$build_dir/bin/inertia-analyze" simulate --bench "$here/config/sim-paper.toml" --out "$out/dataset"
     "$build_dir/bin/inertia-analyze" characterize --dataset "$out/dataset" --out "$out/characterization"
-    # The same sensor through the acquisition daemon: inertia-daqd records a shortened paper bench
-    # (config/sim-paper-daq.toml; every encoder step is a simulated GPIO edge) as fast as it can,
-    # and characterize reads its event log.
+    # The same sensor through the acquisition daemon, live: inertia-daqd plays a shortened paper
+    # bench in real time (config/sim-paper-daq.toml, 10.5 s; every encoder step is a simulated
+    # GPIO edge) while inertia-analyze online estimates from its stream; then characterize reads
+    # the daemon's log, and the live estimate is printed beside it with when each coefficient settled.
     ensure_multicast_route
-    rm -rf "$out/daq-log"
-    "$build_dir/bin/inertia-daqd" --config "$here/config/sim-paper-daq.toml" --fast --log "$out/daq-log"
+    rm -rf "$out/daq-log" "$out/live" "$out/characterization-from-log"
+    mkdir -p "$out/live"
+    "$build_dir/bin/inertia-analyze" online --config "$here/config/sim-paper-daq.toml" \
+      --history "$out/live/history.csv" --compare "$out/characterization-from-log/model.toml" \
+      > "$out/live/online.txt" 2>&1 &
+    online_pid=$!
+    sleep 1
+    "$build_dir/bin/inertia-daqd" --config "$here/config/sim-paper-daq.toml" --log "$out/daq-log"
     log_file="$(ls "$out/daq-log"/*.lcmlog | head -n 1)"
     "$build_dir/bin/inertia-analyze" characterize --log "$log_file" --out "$out/characterization-from-log"
+    sleep 1
+    kill -TERM "$online_pid"
+    wait "$online_pid"
+    echo "inertia: the live estimate (inertia-analyze online, INERTIA_ESTIMATE_ACC1) of the run above:"
+    sed -n '/live estimate history/,$p' "$out/live/online.txt"
     echo "inertia: dataset in $out/dataset, model and report in $out/characterization (report.md, model.toml, plots/);"
-    echo "inertia: daemon log in $out/daq-log, its characterization in $out/characterization-from-log"
+    echo "inertia: daemon log in $out/daq-log, its characterization in $out/characterization-from-log,"
+    echo "inertia: the live run's output and every published estimate in $out/live (online.txt, history.csv)"
     ;;
   test)
     configure_and_build

@@ -119,6 +119,7 @@ int run(int argc, char** argv) {
   online->add_option("--noise-window", online_options.noise_window_s, "seconds of rows that fit the noise model (0: white noise)")->capture_default_str();
   online->add_option("--history", online_options.history, "write every published estimate to this CSV file");
   online->add_option("--replay", online_options.replay, "run on a recorded event log instead of the live stream")->check(CLI::ExistingFile);
+  online->add_option("--compare", online_options.compare, "at the end, print the live estimate beside this model file (read then)");
 
   try {
     app.parse(argc, argv);

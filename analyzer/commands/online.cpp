@@ -525,6 +525,33 @@ std::string with_receive_buffer(const std::string& url) {
 
 /// When each coefficient settled: the first publish after which every estimate stayed within
 /// 3 of its own sd of the final value.
+/// The live answer beside a characterization's (model.toml with [std]): per common term both
+/// values and z = difference / combined sd.
+void print_comparison(const online::OnlineSnapshot& last, const std::filesystem::path& file, std::ostream& out) {
+  model::ModelFile offline;
+  try {
+    offline = model::read_model(file);
+  } catch (const InputError& e) {
+    fmt::print(out, "  (no comparison: {})\n", e.what());
+    return;
+  }
+  fmt::print(out, "  live beside {} (z = difference / combined sd):\n", file.string());
+  fmt::print(out, "  {:<14} {:>16} {:>10} {:>16} {:>10} {:>7}\n", "term", "live", "sd", "offline", "sd", "z");
+  for (std::size_t j = 0; j < last.terms.size(); ++j) {
+    const auto jj = static_cast<Eigen::Index>(j);
+    const ident::Term term = ident::parse_term(last.terms[j]);
+    const auto it = std::find_if(offline.terms.begin(), offline.terms.end(), [&](const model::ModelTerm& t) { return t.term == term; });
+    if (it == offline.terms.end()) {
+      fmt::print(out, "  {:<14} {:>16.9g} {:>10.3g} {:>16} {:>10} {:>7}\n", last.terms[j], last.values(jj), last.std_devs(jj), "-", "-", "-");
+      continue;
+    }
+    const double sd = it->std.value_or(std::nan(""));
+    const double z = (last.values(jj) - it->coefficient) / std::hypot(last.std_devs(jj), sd);
+    fmt::print(out, "  {:<14} {:>16.9g} {:>10.3g} {:>16.9g} {:>10.3g} {:>+7.2f}\n", last.terms[j], last.values(jj),
+               last.std_devs(jj), it->coefficient, sd, z);
+  }
+}
+
 void print_settling(const SensorPipeline& p, const online::OnlineSnapshot& last, std::ostream& out) {
   if (p.history.empty()) return;
   fmt::print(out, "online: {}: live estimate history ({} estimates with samples; times from the first fused sample)\n",
@@ -637,7 +664,11 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
       }
     }
     worker.finish_replay();
-    for (const auto& p : pipelines) print_settling(*p, p->estimator->snapshot(), out);
+    for (const auto& p : pipelines) {
+      const online::OnlineSnapshot last = p->estimator->snapshot();
+      print_settling(*p, last, out);
+      if (!options.compare.empty()) print_comparison(last, options.compare, out);
+    }
     return 0;
   }
 
@@ -706,6 +737,8 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
   ::sigaction(SIGTERM, &old_term, nullptr);
   if (worker_error) std::rethrow_exception(worker_error);
 
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  fmt::print(out, "online: CPU {:.2f} s over {:.2f} s ({:.1f} % of one core)\n", cpu_seconds(), wall, 100.0 * cpu_seconds() / wall);
   const Counters& c = worker.counters();
   fmt::print(out, "online: received {} message(s); skipped {} malformed, {} oversized, {} invalid, {} refused; {} queue drop(s); {} NaN value(s) taken as invalid\n",
              c.received, c.malformed, c.oversized, c.invalid, c.refused, inbox.drops(), c.invalid_values);
@@ -719,7 +752,9 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
     fmt::print(out, "online: {}: {} fused rows, {} gap(s), {} exclusion(s), {} block(s) before the bench\n", p->name,
                p->rows_fused, p->assembler->gaps().size(), p->assembler->exclusions().size(), p->assembler->skipped_blocks());
     if (!p->assembler->has_bench()) fmt::print(out, "online: {}: no INERTIA_BENCH received (is inertia-daqd running on this LCM URL?)\n", p->name);
-    print_settling(*p, p->estimator->snapshot(), out);
+    const online::OnlineSnapshot last = p->estimator->snapshot();
+    print_settling(*p, last, out);
+    if (!options.compare.empty()) print_comparison(last, options.compare, out);
   }
   return status;
 }

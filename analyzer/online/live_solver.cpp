@@ -346,7 +346,8 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
   }
   out.angles_covariance = jac * c * jac.transpose();
   out.angles_sd = out.angles_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
-  // The turn about the sensitive axis does not change a single-axis output.
+  // The turn about the sensitive axis does not change a single-axis output's linear part:
+  // algorithm 1 leaves it at its convention (README, "The paper's section 3, reproduced").
   out.angles(0) = kNaN;
   out.angles_sd(0) = kNaN;
   return out;

@@ -651,7 +651,7 @@ OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional
   for (const Term& t : candidate_terms) s.candidates.push_back(s.basis->find(t));
   std::vector<Index> sens;
   for (const Term& t : sensitivities) sens.push_back(s.basis->find(t));
-  s.solver = std::make_unique<LiveSolver>(*s.basis, s.model, sens, sensor, s.grid, search_corner, options.solver);
+  s.solver = std::make_unique<LiveSolver>(*s.basis, s.model, sens, sensor, s.grid, search_corner, s.options.solver);
   // No noise window, or no order to fit: white noise from the first row on.
   s.noise_fitted = options.noise_window_s <= 0.0 || options.whitening_max_order <= 0 || s.rational;
 }
