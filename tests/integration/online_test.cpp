@@ -11,6 +11,8 @@
 #include "common/config/bench_config.hpp"
 #include "daqd_harness.hpp"
 #include "inertia/analyzer_status_t.hpp"
+#include "inertia/bench_config_t.hpp"
+#include "inertia/plan_event_t.hpp"
 #include "inertia/model_estimate_t.hpp"
 #include "inertia/structure_table_t.hpp"
 
@@ -226,6 +228,128 @@ TEST(OnlineLive, BadInputExitsTwoNamingIt) {
                            {}, tmp.path / "b.txt", analyze_binary());
   EXPECT_EQ(wrong_sensor.wait(30), 2);
   EXPECT_NE(wrong_sensor.output().find("accX"), std::string::npos) << wrong_sensor.output();
+}
+
+}  // namespace
+}  // namespace inertia::daq::testing
+
+namespace inertia::daq::testing {
+namespace {
+
+std::vector<std::uint8_t> encode_message(const auto& msg) {
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(msg.getEncodedSize()));
+  msg.encode(out.data(), 0, static_cast<int>(out.size()));
+  return out;
+}
+
+TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) {
+  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  TempDir tmp;
+  const std::string config = source_path("config/sim-paper-daq.toml");
+  // A clean recording of the bench, and the analyzer's answer for it.
+  DaqdProcess record({"--config", config, "--fast", "--lcm-url", private_lcm_url(), "--log", (tmp.path / "log").string()}, {},
+                     tmp.path / "record.txt");
+  ASSERT_EQ(record.wait(120), 0) << record.output();
+  std::size_t files = 0;
+  const std::vector<LogEvent> events = read_log_dir(tmp.path / "log", &files);
+  ASSERT_EQ(files, 1u);
+  fs::path log;
+  for (const auto& e : fs::directory_iterator(tmp.path / "log")) log = e.path();
+  DaqdProcess clean({"online", "--config", config, "--replay", log.string()}, {}, tmp.path / "clean.txt", analyze_binary());
+  ASSERT_EQ(clean.wait(120), 0) << clean.output();
+
+  // The same messages live, with every kind of bad message among them.
+  const std::string url = private_lcm_url();
+  LcmCollector live(url);
+  DaqdProcess online({"online", "--config", config, "--lcm-url", url, "--publish-hz", "10"}, {}, tmp.path / "online.txt",
+                     analyze_binary());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  lcm::LCM out(url);
+  ASSERT_TRUE(out.good());
+  int sent_malformed = 0, sent_oversized = 0, sent_invalid = 0, sent_refused = 0;
+  std::optional<sample_block_t> old_block;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const LogEvent& e = events[i];
+    out.publish(e.channel, e.data.data(), static_cast<unsigned>(e.data.size()));
+    std::this_thread::sleep_for(std::chrono::microseconds(700));
+    if (e.channel != "INERTIA_RAW_ACCEL" || i % 97 != 0) continue;
+    sample_block_t b;
+    ASSERT_GE(b.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    // Garbage, and a message of another type (wrong fingerprint), on a RAW channel.
+    const std::vector<std::uint8_t> garbage(173, 0xA5);
+    out.publish("INERTIA_RAW_ACCEL", garbage.data(), static_cast<unsigned>(garbage.size()));
+    plan_event_t other{};
+    const auto wrong = encode_message(other);
+    out.publish("INERTIA_RAW_ACCEL", wrong.data(), static_cast<unsigned>(wrong.size()));
+    sent_malformed += 2;
+    // Longer than any sample block.
+    const std::vector<std::uint8_t> huge(1u << 21, 1);
+    out.publish("INERTIA_RAW_ACCEL", huge.data(), static_cast<unsigned>(huge.size()));
+    ++sent_oversized;
+    // A bitmap that does not match num_samples, and a NaN period.
+    sample_block_t bad = b;
+    bad.valid_bytes += 3;
+    for (auto& v : bad.valid) v.resize(static_cast<std::size_t>(bad.valid_bytes), 0xff);
+    const auto bad_bytes = encode_message(bad);
+    out.publish("INERTIA_RAW_ACCEL", bad_bytes.data(), static_cast<unsigned>(bad_bytes.size()));
+    sample_block_t nan_period = b;
+    nan_period.sample_period_s = std::nan("");
+    const auto nan_bytes = encode_message(nan_period);
+    out.publish("INERTIA_RAW_ACCEL", nan_bytes.data(), static_cast<unsigned>(nan_bytes.size()));
+    sent_invalid += 2;
+    // An old block again (out of order, NaN-laden), a marker of a case the plan lacks, another bench.
+    if (old_block) {
+      sample_block_t again = *old_block;
+      for (auto& v : again.values) std::fill(v.begin(), v.end(), std::nan(""));
+      const auto again_bytes = encode_message(again);
+      out.publish("INERTIA_RAW_ACCEL", again_bytes.data(), static_cast<unsigned>(again_bytes.size()));
+      ++sent_refused;
+    }
+    old_block = b;
+    plan_event_t unknown{};
+    unknown.mark = plan_event_t::MARK_CASE_START;
+    unknown.case_name = "no-such-case";
+    const auto unknown_bytes = encode_message(unknown);
+    out.publish("INERTIA_EVENT", unknown_bytes.data(), static_cast<unsigned>(unknown_bytes.size()));
+    ++sent_refused;
+    bench_config_t stranger{};
+    stranger.bench_name = "another-bench";
+    const auto stranger_bytes = encode_message(stranger);
+    out.publish("INERTIA_BENCH", stranger_bytes.data(), static_cast<unsigned>(stranger_bytes.size()));
+    ++sent_refused;
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  online.signal(SIGTERM);
+  ASSERT_EQ(online.wait(30), 0) << online.output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  live.stop();
+  const auto received = live.take();
+  const auto status = decoded<analyzer_status_t>(received, "INERTIA_ANALYZER_STATUS");
+  ASSERT_FALSE(status.empty()) << online.output();
+  const analyzer_status_t& s = status.back().second;
+  ASSERT_GT(sent_malformed, 20);
+  EXPECT_EQ(s.skipped_malformed, sent_malformed) << online.output();
+  EXPECT_EQ(s.skipped_oversized, sent_oversized);
+  EXPECT_EQ(s.skipped_invalid, sent_invalid);
+  EXPECT_EQ(s.skipped_refused, sent_refused);
+  EXPECT_GT(s.invalid_values, 0) << "the NaN-laden block's values were seen as invalid before it was refused";
+  EXPECT_FALSE(s.notes.empty());
+
+  // Unmixed: the live estimate equals the clean log's.
+  const auto estimates = decoded<model_estimate_t>(received, "INERTIA_ESTIMATE_ACC1");
+  ASSERT_FALSE(estimates.empty());
+  const model_estimate_t& last = estimates.back().second;
+  const std::string clean_out = clean.output();
+  for (std::int32_t j = 0; j < last.num_terms; ++j) {
+    const std::string& term = last.terms[static_cast<std::size_t>(j)];
+    const auto at = clean_out.find("\n  " + term + " ");
+    ASSERT_NE(at, std::string::npos) << term << "\n" << clean_out;
+    std::istringstream line(clean_out.substr(at + 3 + term.size()));
+    double value = 0.0;
+    line >> value;
+    EXPECT_NEAR(last.values[static_cast<std::size_t>(j)], value, 1e-6 * std::abs(value) + 1e-3 * last.std_devs[static_cast<std::size_t>(j)])
+        << term;
+  }
 }
 
 }  // namespace
