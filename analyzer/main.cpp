@@ -17,6 +17,7 @@
 
 #include "analyzer/commands/characterize.hpp"
 #include "analyzer/commands/diagnose.hpp"
+#include "analyzer/commands/noise.hpp"
 #include "analyzer/commands/online.hpp"
 #include "analyzer/commands/reproduce_paper.hpp"
 #include "common/input_error.hpp"
@@ -107,6 +108,16 @@ int run(int argc, char** argv) {
   diagnose->add_option("--summary", diagnose_options.log, "also write the console summary to this file");
   diagnose->add_option("--alpha", diagnose_options.alpha, "family-wise significance level of each search step")->capture_default_str();
 
+  inertia::commands::NoiseCommandOptions noise_options;
+  auto* noise = app.add_subcommand("noise", "the sensor's noise at rest: Allan deviation, Q N B K R with intervals, PSD");
+  auto* noise_dataset = noise->add_option("--dataset", noise_options.dataset, "dataset folder")->check(CLI::ExistingDirectory);
+  auto* noise_log = noise->add_option("--log", noise_options.event_log, "inertia-daqd event log instead of --dataset");
+  noise_dataset->excludes(noise_log);
+  noise->add_option("--sensor", noise_options.sensor, "with --log: the sensor under test (when the bench has several)");
+  noise->add_option("--case", noise_options.case_name, "only this case, all its rows (default: every static stretch)");
+  noise->add_option("--tau-max", noise_options.tau_max_s, "fit averaging times up to this (s; default: as far as the data go)");
+  noise->add_option("--out", noise_options.out, "output folder (noise.toml, report.md, plots)")->required();
+
   inertia::commands::OnlineCommandOptions online_options;
   std::vector<std::string> online_models;
   auto* online = app.add_subcommand("online", "live: fuse the daemon's stream, recursive ULS per sensor, publish INERTIA_ESTIMATE_*");
@@ -130,6 +141,7 @@ int run(int argc, char** argv) {
 
   if (simulate->parsed()) return inertia::sim::run_simulate(bench_path, out_dir, std::cout);
   if (diagnose->parsed()) return inertia::commands::run_diagnose(diagnose_options, std::cout);
+  if (noise->parsed()) return inertia::commands::run_noise(noise_options, std::cout);
   if (online->parsed()) {
     online_options.models = parse_models(online_models);
     return inertia::commands::run_online(online_options, std::cout);

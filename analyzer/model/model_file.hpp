@@ -11,6 +11,10 @@
 //   "a_i" = 2.1e-6
 //   [noise]                                   # optional
 //   white_sd = 1.0e-4
+//   N = 1.0e-6                                # optional noise terms of IEEE 952 Annex C (inertia-analyze
+//   B = 2.0e-5                                #   noise): Q quantization (unit s), N white (unit s^1/2),
+//   K = 3.0e-7                                #   B bias instability (unit), K rate random walk
+//                                             #   (unit s^-1/2), R rate ramp (unit s^-1)
 //
 // Meaning of the coefficients: y (1 + sum_b c_b p_b) = sum_a c_a term_a, where the output-multiplied
 // terms y*p_b (rational models, paper eq. 5: y*T, y*w_i) carry their denominator coefficient c_b
@@ -41,6 +45,11 @@ struct ModelFile {
   frames::Dcm m_cs = frames::Dcm::Identity();
   std::vector<ModelTerm> terms;     // in file order
   std::optional<double> white_sd;   // [noise] white_sd, output unit
+  /// [noise] Q, N, B, K, R (IEEE 952 Annex C, the units above), when a noise analysis gave them.
+  struct NoiseTerms {
+    std::optional<double> q, n, b, k, r;
+    [[nodiscard]] bool any() const { return q || n || b || k || r; }
+  } noise;
   /// square_highpass_rad_s (top level, optional): the squares a_i^2, a_p^2, a_o^2 pass eq. 12's
   /// first-order high pass s / (s + b) with this corner; absent: they act statically.
   std::optional<double> square_highpass_rad_s;

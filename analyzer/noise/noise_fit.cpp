@@ -28,6 +28,38 @@ double octave_correlation(int alpha, int octaves) {
   return t[2] * std::pow(0.7, octaves - 3);
 }
 
+struct SubsetFit {
+  bool ok = false;
+  Eigen::VectorXd z;
+  Eigen::MatrixXd covariance;
+  double rss = 0.0;
+};
+
+/// Weighted least squares of v on the columns `s` of a (weights w); the covariance of the
+/// estimate the sandwich (A'WA)^-1 A'W C W A (A'WA)^-1 with C the estimates' full covariance.
+SubsetFit fit_subset(const Eigen::MatrixXd& a, const Eigen::VectorXd& v, const Eigen::VectorXd& w,
+                     const Eigen::MatrixXd& c, const std::vector<int>& s) {
+  SubsetFit out;
+  const Eigen::Index m = a.rows();
+  Eigen::MatrixXd as(m, static_cast<Eigen::Index>(s.size()));
+  for (std::size_t k = 0; k < s.size(); ++k) as.col(static_cast<Eigen::Index>(k)) = a.col(s[k]);
+  // Columns scaled to unit weighted norm: their magnitudes span tens of decades.
+  const Eigen::MatrixXd wa = w.cwiseSqrt().asDiagonal() * as;
+  const Eigen::VectorXd scale = wa.colwise().norm().transpose();
+  if ((scale.array() <= 0.0).any()) return out;
+  const Eigen::MatrixXd was = wa * scale.cwiseInverse().asDiagonal();
+  const Eigen::VectorXd wv = w.cwiseSqrt().cwiseProduct(v);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(was, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  if (svd.singularValues().minCoeff() < 1e-10 * svd.singularValues().maxCoeff()) return out;
+  out.z = svd.solve(wv).cwiseQuotient(scale);
+  out.rss = (wv - wa * out.z).squaredNorm();
+  const Eigen::MatrixXd bread = (as.transpose() * w.asDiagonal() * as).inverse();
+  const Eigen::MatrixXd wav = w.asDiagonal() * as;
+  out.covariance = bread * (wav.transpose() * c * wav) * bread;
+  out.ok = true;
+  return out;
+}
+
 Eigen::Matrix<double, 1, kNoiseTerms> basis_row(double tau) {
   Eigen::Matrix<double, 1, kNoiseTerms> a;
   a << 3.0 / (tau * tau), 1.0 / tau, kFlicker, tau / 3.0, tau * tau / 2.0;
@@ -86,6 +118,8 @@ NoiseFit fit_noise(const std::vector<AllanPoint>& points, const NoiseFitOptions&
   Eigen::MatrixXd covariance;
   double chi2 = 0.0;
   std::vector<Eigen::Index> used;
+  Eigen::MatrixXd au, cov;
+  Eigen::VectorXd vu, w;
   for (int iteration = 0; iteration < 6; ++iteration) {
     used.clear();
     for (Eigen::Index i = 0; i < n; ++i)
@@ -95,10 +129,10 @@ NoiseFit fit_noise(const std::vector<AllanPoint>& points, const NoiseFitOptions&
     if (static_cast<int>(used.size()) < std::min(enabled, 2) + 1)
       throw std::invalid_argument("noise fit: " + std::to_string(used.size()) + " octave(s) with enough degrees of freedom");
     const auto m = static_cast<Eigen::Index>(used.size());
-    Eigen::MatrixXd au(m, kNoiseTerms);
-    Eigen::VectorXd vu(m);
+    au.resize(m, kNoiseTerms);
+    vu.resize(m);
     // The estimates' covariance: variance 2 sigma^4 / edf, correlation between octaves.
-    Eigen::MatrixXd cov(m, m);
+    cov.resize(m, m);
     for (Eigen::Index r = 0; r < m; ++r) {
       const Eigen::Index i = used[static_cast<std::size_t>(r)];
       au.row(r) = a.row(i);
@@ -129,7 +163,7 @@ NoiseFit fit_noise(const std::vector<AllanPoint>& points, const NoiseFitOptions&
     // Weights: each octave's own variance (generalized least squares with the full covariance
     // leans on the strongly correlated long octaves and bends the random-walk term); the
     // correlation enters the estimate's covariance (sandwich) below.
-    const Eigen::VectorXd w = cov.diagonal().cwiseInverse();
+    w = cov.diagonal().cwiseInverse();
     // The best non-negative subset (32 at most: exhaustive is exact and cheap).
     double best = std::numeric_limits<double>::infinity();
     Eigen::VectorXd best_z;
@@ -145,28 +179,13 @@ NoiseFit fit_noise(const std::vector<AllanPoint>& points, const NoiseFitOptions&
         }
       }
       if (!allowed || static_cast<Eigen::Index>(s.size()) >= m) continue;
-      Eigen::MatrixXd as(m, static_cast<Eigen::Index>(s.size()));
-      for (std::size_t c = 0; c < s.size(); ++c) as.col(static_cast<Eigen::Index>(c)) = au.col(s[c]);
-      // Whitened by the covariance's Cholesky factor; columns scaled to unit norm (their
-      // magnitudes span tens of decades).
-      const Eigen::MatrixXd wa = w.cwiseSqrt().asDiagonal() * as;
-      const Eigen::VectorXd scale = wa.colwise().norm().transpose();
-      if ((scale.array() <= 0.0).any()) continue;
-      const Eigen::MatrixXd was = wa * scale.cwiseInverse().asDiagonal();
-      const Eigen::VectorXd wv = w.cwiseSqrt().cwiseProduct(vu);
-      Eigen::JacobiSVD<Eigen::MatrixXd> svd(was, Eigen::ComputeThinU | Eigen::ComputeThinV);
-      if (svd.singularValues().minCoeff() < 1e-10 * svd.singularValues().maxCoeff()) continue;
-      const Eigen::VectorXd zs = svd.solve(wv).cwiseQuotient(scale);
-      if ((zs.array() <= 0.0).any()) continue;
-      const double rss = (wv - wa * zs).squaredNorm();
-      if (rss < best) {
-        best = rss;
-        best_z = zs;
+      const SubsetFit f = fit_subset(au, vu, w, cov, s);
+      if (!f.ok || (f.z.array() <= 0.0).any()) continue;
+      if (f.rss < best) {
+        best = f.rss;
+        best_z = f.z;
         best_subset = s;
-        // Sandwich: (A'WA)^-1 A'W C W A (A'WA)^-1 with C the estimates' full covariance.
-        const Eigen::MatrixXd bread = (as.transpose() * w.asDiagonal() * as).inverse();
-        const Eigen::MatrixXd wav = w.asDiagonal() * as;
-        best_cov = bread * (wav.transpose() * cov * wav) * bread;
+        best_cov = f.covariance;
       }
     }
     if (best_subset.empty()) throw std::invalid_argument("noise fit: no non-negative combination of the terms fits");
@@ -210,6 +229,15 @@ NoiseFit fit_noise(const std::vector<AllanPoint>& points, const NoiseFitOptions&
       c.lower = std::sqrt(std::max(0.0, value - zq * sd));
       c.upper = std::sqrt(value + zq * sd);
       c.determined = value - zq * sd > 0.0;
+    } else if (options.terms[static_cast<std::size_t>(j)]) {
+      // Not in the best non-negative fit: its upper bound from the fit that adds it unconstrained.
+      std::vector<int> with = subset;
+      with.push_back(j);
+      const SubsetFit f = fit_subset(au, vu, w, cov, with);
+      if (f.ok) {
+        const auto k = static_cast<Eigen::Index>(with.size() - 1);
+        c.upper = std::sqrt(std::max(0.0, f.z(k) + zq * std::sqrt(f.covariance(k, k))));
+      }
     }
     // The taus where this term carries at least half of the model.
     double lo = std::numeric_limits<double>::infinity(), hi = 0.0;

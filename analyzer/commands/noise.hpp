@@ -1,0 +1,25 @@
+#pragma once
+// `inertia-analyze noise --dataset DIR | --log FILE [--sensor S] [--case NAME] [--tau-max S] --out DIR`:
+// the sensor's noise from the static stretches of a dataset or an event log (noise/noise_analysis.hpp):
+// Allan and modified Allan deviation with 95 % intervals, the fit of Q, N, B, K, R with their
+// intervals and tau ranges, the Welch PSD with the fitted model. Writes noise.toml (its [noise]
+// table is a model file's, design.md "Model file"), report.md and plots/ (adev.png, psd.png).
+#include <filesystem>
+#include <iosfwd>
+#include <string>
+
+namespace inertia::commands {
+
+struct NoiseCommandOptions {
+  std::filesystem::path dataset;
+  std::filesystem::path event_log;
+  std::string sensor;        // with --log
+  std::string case_name;     // only this case (all its rows)
+  double tau_max_s = 0.0;    // > 0: fit up to this tau
+  std::filesystem::path out;
+  bool plots = true;
+};
+
+int run_noise(const NoiseCommandOptions& options, std::ostream& out);
+
+}  // namespace inertia::commands
