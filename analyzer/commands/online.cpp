@@ -166,6 +166,7 @@ class SensorPipeline final : public fusion::FusionSink {
     fusion::AssemblerOptions ao;
     ao.sensor = name;
     ao.min_segment_s = estimator_options_.min_segment_s;
+    ao.max_wait_s = 0.5;   // live: a late or silent device is waited for this long (stream time)
     assembler = std::make_unique<fusion::StreamAssembler>(ao, *this);
     newest_mono_ns = 0;
     last_published_newest_ns = 0;

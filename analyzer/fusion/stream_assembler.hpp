@@ -23,14 +23,15 @@
 // Delay: a row is final once every device it reads has passed its time, the plan markers have
 // passed it (or its phase's planned end lies beyond it), and the differences it needs have their
 // next sample: one sample on the table and the shaker, four at a segment's start. A device or a
-// marker that stays behind the sensor output by more than max_wait_s is given up on for those
-// rows (missing, or labelled with what is known), so a silent device never stalls the rest.
-// The same code serves the event log (offline) and the live stream: messages in the same order
-// give the same rows.
+// marker that stays behind the sensor output by more than max_wait_s (live) is given up on for
+// those rows (missing, or labelled with what is known), so a silent device never stalls the rest.
+// The same code serves the event log (offline) and the live stream: the same messages give the
+// same rows, except where the live stream gave up waiting.
 // Memory: samples are kept from the oldest row not yet final; one thread, not real-time.
 #include <Eigen/Dense>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -135,9 +136,11 @@ struct AssemblerOptions {
   double min_segment_s = 0.5;          // shorter valid stretches are dropped (counted)
   double crossover_hz = 5.0;           // shaker: encoder below, monitors above
   /// How far (stream time) a device or the plan markers may stay behind the sensor output before
-  /// its rows are fused without it (missing samples; phase as known). Live: the bound on the
-  /// fusion's wait for a late or silent device.
-  double max_wait_s = 0.5;
+  /// its rows are fused without it (missing samples; phase as known): the live bound on the
+  /// fusion's wait for a late or silent device (`online` sets 0.5 s). A log holds every message,
+  /// so reading one waits for all of them (the default): its answer must not depend on how the
+  /// devices' messages happened to interleave.
+  double max_wait_s = std::numeric_limits<double>::infinity();
 };
 
 class StreamAssembler {
