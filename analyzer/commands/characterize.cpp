@@ -39,6 +39,13 @@ procedure::PipelineOptions pipeline_options(const CharacterizeOptions& options) 
   return p;
 }
 
+namespace {
+std::string angle_text(double angle_rad, double sd_rad) {
+  if (sd_rad == 0.0) return fmt::format("{:+.5f} deg (held)", rad_to_deg(angle_rad));
+  return fmt::format("{:+.5f} +- {:.5f} deg", rad_to_deg(angle_rad), rad_to_deg(sd_rad));
+}
+}  // namespace
+
 int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   if (options.dataset.empty() == options.event_log.empty())
     throw InputError("characterize: give exactly one of --dataset DIR and --log FILE");
@@ -60,9 +67,17 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
 
   fmt::print(out, "{} {}: {} {} case(s)\n", from_log ? "log" : "dataset", source.string(), data.cases.size(),
              dataset::to_string(data.sensor));
+  for (const std::string& note : result.notes) fmt::print(out, "note: {}\n", note);
   for (const procedure::MountingResult& m : result.mountings) {
-    fmt::print(out, "mounting {}: algorithm 2 tried {} models, {} refinement(s); selected {}\n", m.mounting,
-               m.candidates_tried, m.refinements, fmt::join(m.s_terms, " "));
+    if (m.aligned) {
+      fmt::print(out, "mounting {}: algorithm 2 tried {} models, {} refinement(s); selected {}\n", m.mounting,
+                 m.candidates_tried, m.refinements, fmt::join(m.s_terms, " "));
+      fmt::print(out, "  angles of F_S from the nominal case frame: about p {}, about o {}\n",
+                 angle_text(m.angles(1), m.angles_sd(1)), angle_text(m.angles(2), m.angles_sd(2)));
+    } else {
+      fmt::print(out, "mounting {}: not aligned\n", m.mounting);
+    }
+    for (const std::string& h : m.held) fmt::print(out, "  {}\n", h);
     for (std::size_t index : m.cases) {
       const dataset::CaseData& c = data.cases[index];
       const frames::Dcm& m_es = result.cases[index].m_es;
@@ -75,6 +90,7 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
                  m_es(0, 2), score);
     }
   }
+  for (const procedure::UndeterminedTerm& u : result.undetermined) fmt::print(out, "{}: {}\n", u.term, u.reason);
   fmt::print(out, "batch model ({} rows, residual sd {:.4g} {}):\n", result.fit.residuals.size(),
              std::sqrt(result.fit.residual_variance), data.output_unit);
   // The truth column of the summary's tables: empty without truth.toml, "-" for a term it lacks.

@@ -286,7 +286,7 @@ ColumnFit fit_columns(const Workspace& w, const std::vector<Index>& fit,
     if (rational_cols.empty() && options.max_ar_order > 0) {
       const procedure::ArWhitener whitener = procedure::ArWhitener::fit(r.residuals, s.cases, options.max_ar_order);
       if (whitener.order() > 0) {
-        procedure::StackedRegression ws{std::move(phi), std::move(y), s.cases, labels};
+        procedure::StackedRegression ws{std::move(phi), std::move(y), s.cases, labels, {}};
         whitener.apply(ws);
         const ident::UlsResult g = ident::uls_batch(ws.phi, ws.y, labels, {}, ident::UlsOptions{});
         out.theta = g.process_theta();

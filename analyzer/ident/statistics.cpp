@@ -1,5 +1,8 @@
 #include "analyzer/ident/statistics.hpp"
 
+#include <map>
+#include <stdexcept>
+
 #include <boost/math/distributions/binomial.hpp>
 #include <boost/math/distributions/normal.hpp>
 #include <boost/math/distributions/students_t.hpp>
@@ -165,6 +168,31 @@ WhitenessReport residual_whiteness(const Eigen::Ref<const Eigen::VectorXd>& resi
     out.pass = out.pass && out.cross.back().pass;
   }
   return out;
+}
+
+Eigen::MatrixXd cluster_robust_covariance(const Eigen::Ref<const Eigen::MatrixXd>& x,
+                                          const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                                          const std::vector<int>& cluster, int* clusters) {
+  const Eigen::Index n = x.rows(), p = x.cols();
+  if (residuals.size() != n || static_cast<Eigen::Index>(cluster.size()) != n)
+    throw std::invalid_argument("cluster_robust_covariance: x, residuals and cluster ids differ in length");
+  std::map<int, Eigen::VectorXd> scores;   // per cluster: X_g' e_g
+  for (Eigen::Index k = 0; k < n; ++k) {
+    auto [it, fresh] = scores.try_emplace(cluster[static_cast<std::size_t>(k)]);
+    if (fresh) it->second = Eigen::VectorXd::Zero(p);
+    it->second.noalias() += x.row(k).transpose() * residuals(k);
+  }
+  const auto g = static_cast<int>(scores.size());
+  if (clusters != nullptr) *clusters = g;
+  if (g < 2 || n <= p) throw std::invalid_argument("cluster_robust_covariance: needs at least two clusters and N > p");
+  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(p, p);
+  for (const auto& [id, score] : scores) meat.noalias() += score * score.transpose();
+  const Eigen::LDLT<Eigen::MatrixXd> bread(x.transpose() * x);
+  const Eigen::MatrixXd left = bread.solve(meat);
+  const Eigen::MatrixXd v = bread.solve(left.transpose()).transpose();
+  const double correction = static_cast<double>(g) / static_cast<double>(g - 1) * static_cast<double>(n - 1) /
+                            static_cast<double>(n - p);
+  return correction * 0.5 * (v + v.transpose());
 }
 
 }  // namespace inertia::ident

@@ -53,6 +53,20 @@ struct ResidualMeanTest {
 ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& residuals,
                                     bool effective_size = true);
 
+/// Cluster-robust (CR1) covariance of least-squares coefficients: samples within a cluster may be
+/// correlated in any way, clusters are independent. With x the regression columns (in the linear
+/// form the fit used) and e the residuals,
+///   V = (X'X)^-1 (sum_g X_g' e_g e_g' X_g) (X'X)^-1 * G / (G - 1) * (N - 1) / (N - p).
+/// Why: a bench's residual is not white within a test case (1/f noise below an AR model's reach,
+/// placement error of a pose, slow drift), and offsets between cases are not sensor effects;
+/// the classical covariance treats every sample as independent information. Clusters are the
+/// contiguous phases of each case: the level that carries independent information. Inference
+/// on it uses Student's t with G - 1 dof. `cluster` holds one id per row (any integers; rows of
+/// one id need not be contiguous). Needs G >= 2.
+Eigen::MatrixXd cluster_robust_covariance(const Eigen::Ref<const Eigen::MatrixXd>& x,
+                                          const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                                          const std::vector<int>& cluster, int* clusters = nullptr);
+
 /// fitness = p_res * p_AIC (section 2.7).
 inline double fitness(double p_res, double p_aic) { return p_res * p_aic; }
 

@@ -46,12 +46,6 @@ std::optional<double> StatFit::value(Index term) const {
   return std::nullopt;
 }
 
-Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& m_cs) {
-  // frames::frame_rotation(axis, angle) is the transpose of the active rotation.
-  const Eigen::AngleAxisd aa(Eigen::Matrix3d(m_cs.transpose()));
-  return aa.angle() * aa.axis();
-}
-
 LiveSolver::LiveSolver(const LiveBasis& basis, std::vector<Index> model, std::vector<Index> sensitivities,
                        dataset::SensorKind sensor, CornerGrid grid, bool static_option, SolverOptions options)
     : basis_(basis), model_(std::move(model)), sensitivities_(std::move(sensitivities)), sensor_(sensor),
@@ -323,7 +317,6 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
     out.bias = sf.value(bias_);
   }
   // Angles and their sd by the delta method through algorithm 1.
-  out.angles = rotation_vector(out.m_cs);
   Eigen::Vector3d theta;
   Eigen::Matrix3d c;
   std::vector<Index> pos;
@@ -334,22 +327,11 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
     theta(a) = f.theta(pos[static_cast<std::size_t>(a)]);
     for (int b = 0; b < 3; ++b) c(a, b) = f.covariance(pos[static_cast<std::size_t>(a)], pos[static_cast<std::size_t>(b)]);
   }
-  Eigen::Matrix3d jac;
-  for (int a = 0; a < 3; ++a) {
-    const double h = 1e-6 * theta.norm();
-    Eigen::Vector3d up = theta, down = theta;
-    up(a) += h;
-    down(a) -= h;
-    jac.col(a) = (rotation_vector(procedure::misalignment_from_sensitivities(up, frames::Dcm::Identity())) -
-                  rotation_vector(procedure::misalignment_from_sensitivities(down, frames::Dcm::Identity()))) /
-                 (2.0 * h);
-  }
-  out.angles_covariance = jac * c * jac.transpose();
-  out.angles_sd = out.angles_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
-  // The turn about the sensitive axis does not change a single-axis output's linear part:
-  // algorithm 1 leaves it at its convention (README, "The paper's section 3, reproduced").
+  const procedure::MisalignmentAngles angles = procedure::misalignment_angles(theta, c);
+  out.angles = rotation_vector(out.m_cs);
   out.angles(0) = kNaN;
-  out.angles_sd(0) = kNaN;
+  out.angles_covariance = angles.covariance;
+  out.angles_sd = angles.sd;
   return out;
 }
 

@@ -25,6 +25,7 @@
 #include "analyzer/online/corner_grid.hpp"
 #include "analyzer/online/information.hpp"
 #include "analyzer/online/live_basis.hpp"
+#include "analyzer/procedure/misalignment.hpp"
 #include "common/dataset/dataset.hpp"
 
 namespace inertia::online {
@@ -161,7 +162,6 @@ class LiveSolver {
   std::vector<Eigen::Index> factor_of_;   // per basis term: its denominator factor's term index (-1: none)
 };
 
-/// The rotation vector of M_C^S (rad, case axes): M_C^S = frame_rotation(v / |v|, |v|).
-Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& m_cs);
+using procedure::rotation_vector;
 
 }  // namespace inertia::online

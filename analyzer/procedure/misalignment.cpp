@@ -24,6 +24,33 @@ frames::Dcm misalignment_from_sensitivities(const Eigen::Vector3d& theta, const 
   return m_es;
 }
 
+Eigen::Vector3d rotation_vector(const frames::Dcm& m_cs) {
+  // frames::frame_rotation(axis, angle) is the transpose of the active rotation.
+  const Eigen::AngleAxisd aa(Eigen::Matrix3d(m_cs.transpose()));
+  return aa.angle() * aa.axis();
+}
+
+MisalignmentAngles misalignment_angles(const Eigen::Vector3d& theta, const Eigen::Matrix3d& theta_covariance) {
+  MisalignmentAngles out;
+  const frames::Dcm identity = frames::Dcm::Identity();
+  out.angles = rotation_vector(misalignment_from_sensitivities(theta, identity));
+  Eigen::Matrix3d jacobian;
+  for (int a = 0; a < 3; ++a) {
+    const double h = 1e-6 * theta.norm();
+    Eigen::Vector3d up = theta, down = theta;
+    up(a) += h;
+    down(a) -= h;
+    jacobian.col(a) = (rotation_vector(misalignment_from_sensitivities(up, identity)) -
+                       rotation_vector(misalignment_from_sensitivities(down, identity))) /
+                      (2.0 * h);
+  }
+  out.covariance = jacobian * theta_covariance * jacobian.transpose();
+  out.sd = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  out.angles(0) = std::nan("");
+  out.sd(0) = std::nan("");
+  return out;
+}
+
 double input_axis_error(const frames::Dcm& m_es_true, const frames::Dcm& m_es_estimated) {
   return frames::axis_angle_between(m_es_true.row(0).transpose(), m_es_estimated.row(0).transpose());
 }

@@ -20,6 +20,20 @@ inline frames::Dcm gyro_test_misalignment(const frames::Dcm& m_cs, const frames:
 /// M_C^S implied by a test's M_E^S and its nominal M_E^C (M_C^S = M_E^S (M_E^C)^T).
 inline frames::Dcm case_to_sensor(const frames::Dcm& m_es, const frames::Dcm& m_ec) { return m_es * m_ec.transpose(); }
 
+/// The rotation vector of M_C^S (rad, case axes): M_C^S = frame_rotation(v / |v|, |v|). Its
+/// components are the angles of F_S from the nominal case frame about IRA, XRA, YRA (i, p, o).
+Eigen::Vector3d rotation_vector(const frames::Dcm& m_cs);
+
+/// Angles of the M_C^S algorithm 1 makes of the case-frame sensitivities theta (IRA, XRA, YRA),
+/// with their covariance by the delta method from theta's. The turn about i does not change a
+/// single-axis output's linear part (algorithm 1 fixes it by convention): it is NaN.
+struct MisalignmentAngles {
+  Eigen::Vector3d angles = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d sd = Eigen::Vector3d::Zero();
+};
+MisalignmentAngles misalignment_angles(const Eigen::Vector3d& theta, const Eigen::Matrix3d& theta_covariance);
+
 /// The error figure of the paper's table 2: the angle, in radians, between the true and the
 /// estimated input axis n_i (the first rows). The twist about n_i is not observable from a
 /// single-axis sensor's F_E sensitivities, so it is reported separately by full_dcm_error.

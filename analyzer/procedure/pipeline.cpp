@@ -1,5 +1,8 @@
 #include "analyzer/procedure/pipeline.hpp"
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -15,6 +18,7 @@
 #include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
 #include "common/input_error.hpp"
+#include "common/units.hpp"
 
 namespace inertia::procedure {
 namespace {
@@ -26,22 +30,56 @@ double weight_of(const PipelineOptions& options, const std::string& case_name) {
   return it == options.case_weights.end() ? 1.0 : it->second;
 }
 
-/// The F_E-and-F_S sensitivities theta_x, theta_y, theta_z of a fit (zero where a term is absent).
-std::optional<Eigen::Vector3d> external_sensitivities(const std::vector<std::string>& labels,
-                                                      const Eigen::VectorXd& theta) {
+/// The names of the external-frame sensitivity terms: a_x a_y a_z, or w_x w_y w_z for a gyroscope
+/// (eq. 5: its misalignment is read from the rate sensitivities, paper section 2.2).
+std::array<const char*, 3> sensitivity_names(dataset::SensorKind sensor) {
+  if (sensor == dataset::SensorKind::Gyroscope) return {"w_x", "w_y", "w_z"};
+  return {"a_x", "a_y", "a_z"};
+}
+
+/// The F_E-and-F_S sensitivities theta_x, theta_y, theta_z of a fit (zero where a term is absent),
+/// and their covariance (zero rows and columns for absent terms).
+std::optional<Eigen::Vector3d> external_sensitivities(const std::vector<std::string>& labels, const Eigen::VectorXd& theta,
+                                                      dataset::SensorKind sensor,
+                                                      const Eigen::MatrixXd* covariance = nullptr,
+                                                      Eigen::Matrix3d* theta_covariance = nullptr) {
   Eigen::Vector3d s = Eigen::Vector3d::Zero();
   bool any = false;
-  const char* names[3] = {"a_x", "a_y", "a_z"};
+  const std::array<const char*, 3> names = sensitivity_names(sensor);
+  std::array<Eigen::Index, 3> at{-1, -1, -1};
   for (std::size_t j = 0; j < labels.size(); ++j) {
     for (int c = 0; c < 3; ++c) {
-      if (labels[j] == names[c]) {
+      if (labels[j] == names[static_cast<std::size_t>(c)]) {
         s(c) = theta(static_cast<Eigen::Index>(j));
+        at[static_cast<std::size_t>(c)] = static_cast<Eigen::Index>(j);
         any = true;
       }
     }
   }
   if (!any || s.norm() == 0.0) return std::nullopt;
+  if (covariance != nullptr && theta_covariance != nullptr) {
+    theta_covariance->setZero();
+    for (std::size_t a = 0; a < 3; ++a)
+      for (std::size_t b = 0; b < 3; ++b)
+        if (at[a] >= 0 && at[b] >= 0) (*theta_covariance)(Eigen::Index(a), Eigen::Index(b)) = (*covariance)(at[a], at[b]);
+  }
   return s;
+}
+
+/// Gram matrix of [IRA XRA YRA 1] over a mounting's rows (specific force, or rate for a
+/// gyroscope; a case without rates has none): what excitation.hpp judges.
+Eigen::Matrix4d input_gram(const std::vector<dataset::CaseData>& cases, dataset::SensorKind sensor) {
+  Eigen::Matrix4d g = Eigen::Matrix4d::Zero();
+  for (const dataset::CaseData& c : cases) {
+    const bool gyro = sensor == dataset::SensorKind::Gyroscope;
+    if (gyro && !c.w_e) continue;
+    const auto& x = gyro ? *c.w_e : c.a_e;
+    Eigen::MatrixXd rows(x.rows(), 4);
+    rows.leftCols(3) = x;
+    rows.col(3).setOnes();
+    g.noalias() += rows.transpose() * rows;
+  }
+  return g;
 }
 
 std::vector<Term> parse_fixed(const std::vector<std::string>& texts, const char* what) {
@@ -95,7 +133,8 @@ bool is_sensitivity_label(const std::string& label) {
 
 /// ERR order of the columns of a stacked problem (sensitivities forced first, the bias after
 /// them), without the columns the data cannot separate from the ones before them.
-std::vector<Eigen::Index> identifiable_ranking(const StackedRegression& s, const ident::ErrOptions& base) {
+std::vector<Eigen::Index> identifiable_ranking(const StackedRegression& s, const ident::ErrOptions& base,
+                                               const std::vector<Eigen::Index>& nuisance = {}) {
   ident::ErrOptions options = base;
   options.forced.clear();
   for (std::size_t j = 0; j < s.labels.size(); ++j) {
@@ -104,6 +143,7 @@ std::vector<Eigen::Index> identifiable_ranking(const StackedRegression& s, const
   for (std::size_t j = 0; j < s.labels.size(); ++j) {
     if (s.labels[j] == "1") options.forced.push_back(static_cast<Eigen::Index>(j));
   }
+  options.forced.insert(options.forced.end(), nuisance.begin(), nuisance.end());
   options.reference = ident::ErrReference::AfterForced;
   return ident::err_rank(s.phi, s.y, options).order;
 }
@@ -116,7 +156,7 @@ ident::UlsResult fit_identifiable(const StackedRegression& s, std::vector<Eigen:
     std::vector<Eigen::Index> sorted = columns;
     std::sort(sorted.begin(), sorted.end());
     try {
-      return ident::uls_batch(s.phi, s.y, s.labels, {}, uls, sorted);
+      return ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, sorted);
     } catch (const ident::IdentifiabilityError& e) {
       auto victim = columns.end();
       for (auto it = columns.begin(); it != columns.end(); ++it) {
@@ -180,16 +220,46 @@ bool uses_cross_axes(const std::vector<Term>& terms) {
 /// The F_S terms a tilt of the input axis adds to the sensitivity term when `s_terms` has it
 /// (a_i; w_i for gyroscopes) and lacks them: to first order in the tilt (d_p, d_o),
 /// theta_i (n_i + d_p n_p + d_o n_o) . a = theta_i a_i + theta_i d_p a_p + theta_i d_o a_o.
-std::vector<Term> tilt_terms(const std::vector<Term>& s_terms, dataset::SensorKind sensor) {
+/// Only axes the mounting's excitation determines get one (`axes`: XRA, YRA).
+std::vector<Term> tilt_terms(const std::vector<Term>& s_terms, dataset::SensorKind sensor, std::array<bool, 2> axes) {
   using ident::Variable;
   const bool gyro = sensor == dataset::SensorKind::Gyroscope;
   const auto plain = [](Variable v) { return Term::from_factors({ident::Factor{v, 0, ident::FactorFunction::Plain, 1}}); };
   if (std::find(s_terms.begin(), s_terms.end(), plain(gyro ? Variable::Wi : Variable::Ai)) == s_terms.end()) return {};
   std::vector<Term> out;
-  for (Variable v : gyro ? std::array{Variable::Wp, Variable::Wo} : std::array{Variable::Ap, Variable::Ao}) {
-    if (std::find(s_terms.begin(), s_terms.end(), plain(v)) == s_terms.end()) out.push_back(plain(v));
+  const auto variables = gyro ? std::array{Variable::Wp, Variable::Wo} : std::array{Variable::Ap, Variable::Ao};
+  for (std::size_t a = 0; a < 2; ++a) {
+    if (axes[a] && std::find(s_terms.begin(), s_terms.end(), plain(variables[a])) == s_terms.end()) out.push_back(plain(variables[a]));
   }
   return out;
+}
+
+/// The span of the fixture temperature over the dataset (degC; NaN when a case has none).
+double temperature_span(const dataset::Dataset& data) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const dataset::CaseData& c : data.cases) {
+    if (!c.temp || c.temp->size() == 0) return std::nan("");
+    lo = std::min(lo, c.temp->minCoeff());
+    hi = std::max(hi, c.temp->maxCoeff());
+  }
+  return hi - lo;
+}
+
+ident::CandidateOptions with_measured_temperature(ident::CandidateOptions candidates, const dataset::Dataset& data,
+                                                 const PipelineOptions& options) {
+  if (options.temperature_when_measured && temperature_span(data) >= kMinTemperatureSpanC) candidates.include_temperature = true;
+  return candidates;
+}
+
+/// The mounting's angles from its M_C^S, with `sd` (about i, p, o); an angle held at the nominal
+/// frame has sd 0 (XRA without excitation holds the angle about o, YRA the one about p).
+void set_angles(MountingResult& result, const Eigen::Vector3d& sd) {
+  result.angles = rotation_vector(result.m_cs);
+  result.angles_sd = sd;
+  if (!result.excitation.determined[1]) result.angles_sd(2) = 0.0;
+  if (!result.excitation.determined[2]) result.angles_sd(1) = 0.0;
+  result.angles(0) = std::nan("");
+  result.angles_sd(0) = std::nan("");
 }
 
 /// Algorithm 2 steps 6-8 as a selection hook: the misalignment from the step-5 fit, then the F_S
@@ -198,9 +268,10 @@ class MisalignmentHook final : public ident::FitHook {
  public:
   MisalignmentHook(const MountingData& m, const std::vector<std::size_t>& cases, const std::vector<Term>& es_terms,
                    const dataset::Dataset& data, std::string_view label, Eigen::Index first_row,
-                   const ArWhitener& whitener, std::optional<double> square_corner, double twist)
+                   const ArWhitener& whitener, std::optional<double> square_corner, double twist,
+                   std::array<bool, 2> tilt_axes)
       : m_(m), cases_(cases), es_terms_(es_terms), data_(data), label_(label), first_row_(first_row),
-        whitener_(whitener), square_corner_(square_corner), twist_(twist) {}
+        whitener_(whitener), square_corner_(square_corner), twist_(twist), tilt_axes_(tilt_axes) {}
 
   /// The tilt terms kept in the stage of j ranked terms (empty: none).
   [[nodiscard]] std::vector<std::string> tilts(std::size_t j) const {
@@ -208,7 +279,7 @@ class MisalignmentHook final : public ident::FitHook {
   }
 
   bool transform(std::size_t j, const ident::UlsResult& ranked_fit, ident::StageProblem& stage) override {
-    const auto theta = external_sensitivities(ranked_fit.labels, ranked_fit.theta);
+    const auto theta = external_sensitivities(ranked_fit.labels, ranked_fit.theta, data_.sensor);
     if (misalignments_.size() < j) misalignments_.resize(j);
     if (!theta) return false;   // no a_x, a_y, a_z yet: nothing to align; score the F_E problem
     const frames::Dcm m_cs = with_twist(misalignment_from_sensitivities(*theta, frames::Dcm::Identity()), twist_);
@@ -220,7 +291,7 @@ class MisalignmentHook final : public ident::FitHook {
     // t-tests would credit its error to terms that share its directions (under gravity a tilt
     // error is a per-orientation offset, which 1, abs(a_i), sign(a_i) and the squares can fit).
     const std::size_t model_terms = s_terms.size();
-    std::vector<Term> tilts = tilt_terms(s_terms, data_.sensor);
+    std::vector<Term> tilts = tilt_terms(s_terms, data_.sensor, tilt_axes_);
     s_terms.insert(s_terms.end(), tilts.begin(), tilts.end());
     stage.kept.clear();
     for (std::size_t c = model_terms; c < s_terms.size(); ++c) stage.kept.push_back(static_cast<Eigen::Index>(c));
@@ -231,7 +302,7 @@ class MisalignmentHook final : public ident::FitHook {
     stage.phi = std::move(s.phi);
     stage.y = std::move(s.y);
     stage.labels = std::move(s.labels);
-    stage.rational = {};
+    stage.rational = std::move(s.rational);
     return true;
   }
 
@@ -249,9 +320,69 @@ class MisalignmentHook final : public ident::FitHook {
   const ArWhitener& whitener_;
   std::optional<double> square_corner_;
   double twist_;
+  std::array<bool, 2> tilt_axes_;
   std::vector<std::optional<frames::Dcm>> misalignments_;
   std::vector<std::vector<std::string>> tilts_;
 };
+
+/// One angle a mounting's excitation does not determine (excitation.hpp), held at the nominal
+/// frame in blocks 5-6 and estimated in the batch with the tolerance as prior.
+struct HeldColumn {
+  std::size_t mounting = 0;                 // into the result's mountings
+  int axis = 1;                             // 1: tilt of n_i toward p (turn about o), 2: toward o (about p)
+};
+
+std::vector<HeldColumn> held_columns(const std::vector<MountingResult>& mountings) {
+  std::vector<HeldColumn> held;
+  for (std::size_t m = 0; m < mountings.size(); ++m) {
+    for (int axis = 1; axis < 3; ++axis) {
+      if (!mountings[m].excitation.determined[static_cast<std::size_t>(axis)]) held.push_back({m, axis});
+    }
+  }
+  return held;
+}
+
+/// One id per batch row: the contiguous runs of one phase label within a case (the whole case
+/// when it has no phase column). The clusters of cluster-robust inference.
+std::vector<int> phase_clusters(const StackedRegression& batch, const dataset::Dataset& data) {
+  std::vector<int> ids(static_cast<std::size_t>(batch.phi.rows()), -1);
+  int next = 0;
+  for (const CaseRows& rows : batch.cases) {
+    const dataset::CaseData& c = data.cases[rows.case_index];
+    int previous_phase = -1;
+    for (Eigen::Index r = 0; r < rows.rows; ++r) {
+      const auto sample = static_cast<std::size_t>(rows.first_sample + r);
+      const int phase = c.phase.empty() ? 0 : static_cast<int>(c.phase[sample]);
+      if (r == 0 || phase != previous_phase) ++next;
+      previous_phase = phase;
+      ids[static_cast<std::size_t>(rows.begin + r)] = next;
+    }
+  }
+  return ids;
+}
+
+/// M_C^S of a mounting turned by its held angles: `tilt` = (toward p, toward o) in rad.
+frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector2d& tilt) {
+  // A frame turned by +a about o tilts n_i toward p; by -b about p tilts it toward o.
+  return frames::about_second_axis(-tilt(1)) * frames::about_third_axis(tilt(0)) * m_cs;
+}
+
+/// The batch's stacked inputs with every mounting's M_C^S (held angles applied).
+std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const PipelineOptions& options,
+                                     const std::vector<MountingResult>& mountings, const std::vector<Eigen::Vector2d>& tilts,
+                                     std::vector<CaseOutcome>& cases) {
+  for (std::size_t m = 0; m < mountings.size(); ++m) {
+    for (std::size_t index : mountings[m].cases) {
+      cases[index].case_index = index;
+      cases[index].m_es = turned(mountings[m].m_cs, tilts[m]) * data.cases[index].m_ec;   // M_E^S = M_C^S M_E^C
+    }
+  }
+  std::vector<StackInput> inputs;
+  for (std::size_t i = 0; i < data.cases.size(); ++i) {
+    inputs.push_back({i, &data.cases[i], cases[i].m_es, weight_of(options, data.cases[i].name)});
+  }
+  return inputs;
+}
 
 }  // namespace
 
@@ -278,11 +409,38 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   result.cases = cases;
   const MountingData m = mounting_data(data, cases, options, known_bias);
   result.known_bias = known_bias;
+  const bool gyro = data.sensor == dataset::SensorKind::Gyroscope;
+
+  // What this mounting's inputs can determine; an axis without its own excitation keeps the
+  // nominal case frame (excitation.hpp).
+  result.excitation = axis_excitation(input_gram(m.cases, data.sensor), !known_bias.has_value());
+  if (!result.excitation.scale_determined() || !(result.excitation.determined[1] || result.excitation.determined[2])) {
+    // Nothing to align: both angles are held (algorithm 2 would only fit the scale factor).
+    result.aligned = false;
+    result.angles(0) = std::nan("");
+    result.angles_sd(0) = std::nan("");
+    if (!result.excitation.scale_determined()) {
+      result.held.push_back(fmt::format(
+          "M_C^S held at the nominal case frame: no {} along IRA varies on its own in this mounting ({:.1e} of its "
+          "input energy, at least {:.0e} needed){}",
+          gyro ? "rate" : "specific force", result.excitation.share[0], kMinExcitationShare,
+          known_bias ? "" : "; a constant input is a bias"));
+    } else {
+      for (int axis = 1; axis < 3; ++axis) {
+        result.held.push_back(fmt::format("angle about {} held at the nominal case frame ({:.1e} of the input energy varies "
+                                          "on its own along {}): {}",
+                                          axis == 1 ? "o" : "p", result.excitation.share[static_cast<std::size_t>(axis)],
+                                          axis == 1 ? "XRA" : "YRA", missing_excitation(axis, gyro)));
+      }
+    }
+    result.excitation.determined[1] = result.excitation.determined[2] = false;
+    return result;
+  }
 
   // The F_E-and-F_S candidates (eq. 2), or the fixed model.
   std::vector<Term> es_terms = options.misalignment.select
                                    ? ident::candidate_terms(data.sensor, ident::ModelFrame::ExternalAndSensor,
-                                                            options.misalignment.candidates)
+                                                            with_measured_temperature(options.misalignment.candidates, data, options))
                                    : parse_fixed(options.misalignment.fixed_terms, "misalignment");
   if (m.rotation_table && options.ieee_rotation_table_exclusions) {
     const auto ieee_excluded = [](const Term& t) {
@@ -303,6 +461,19 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     }
     std::erase_if(es_terms, [](const Term& t) { return t.is_bias(); });
   }
+  {
+    const std::array<const char*, 3> names = sensitivity_names(data.sensor);
+    for (int axis = 1; axis < 3; ++axis) {
+      if (result.excitation.determined[static_cast<std::size_t>(axis)]) continue;
+      const Term undetermined = ident::parse_term(names[static_cast<std::size_t>(axis)]);
+      std::erase(es_terms, undetermined);
+      result.held.push_back(fmt::format("angle about {} held at the nominal case frame ({:.1e} of the input energy varies "
+                                        "on its own along {}): {}",
+                                        axis == 1 ? "o" : "p", result.excitation.share[static_cast<std::size_t>(axis)],
+                                        axis == 1 ? "XRA" : "YRA", missing_excitation(axis, gyro)));
+    }
+  }
+  const std::array<bool, 2> tilt_axes{result.excitation.determined[1], result.excitation.determined[2]};
   const Eigen::Index first_row = max_lag_of(es_terms);
 
   // Step 1 with a fixed point: the nonlinear F_S terms of eq. 2 need M_C^S, which the fit gives.
@@ -313,6 +484,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   double twist = 0.0;
   const bool twist_matters = uses_cross_axes(es_terms);
   std::vector<Eigen::Index> usable;
+  Eigen::Vector3d full_sensitivities = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d full_sensitivity_covariance = Eigen::Matrix3d::Zero();
   for (result.refinements = 0; result.refinements < std::max(1, options.max_refinements); ++result.refinements) {
     es = stack_regressions(es_terms, stack_inputs(m, cases, m_cs), data.t_ref, dataset_label, first_row);
     if (options.square_highpass) {
@@ -333,8 +506,12 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     whitener = ArWhitener::fit(ols.residuals, es.cases, options.whitening_max_order);
     whitener.apply(es);
     const ident::UlsResult full = fit_identifiable(es, usable, uls, dropped);
-    const auto theta = external_sensitivities(full.labels, full.theta);
-    if (!theta) throw std::runtime_error("mounting '" + mounting + "': the model has no a_x, a_y, a_z sensitivity");
+    const auto theta = external_sensitivities(full.labels, full.theta, data.sensor, &full.covariance, &full_sensitivity_covariance);
+    if (!theta) {
+      throw std::runtime_error(fmt::format("mounting '{}': the model has no {} sensitivity", mounting,
+                                           fmt::join(sensitivity_names(data.sensor), ", ")));
+    }
+    full_sensitivities = *theta;
     const frames::Dcm aligned = misalignment_from_sensitivities(*theta, frames::Dcm::Identity());
     if (options.estimate_twist && twist_matters) {
       // One parabolic step on the residual sum of squares as a function of the twist.
@@ -376,12 +553,13 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     result.s_fit = fit_identifiable(s, columns, options.selection.uls, result.excluded);
     result.s_terms = s.labels;
     result.candidates_tried = 1;
+    set_angles(result, misalignment_angles(full_sensitivities, full_sensitivity_covariance).sd);
     return result;
   }
 
   // Steps 2-15 on the converged F_E problem.
-  MisalignmentHook hook(m, cases, es_terms, data, dataset_label, first_row, whitener, square_corner, twist);
-  ident::SelectionProblem problem{es.phi, es.y, es.labels, {}, {}};
+  MisalignmentHook hook(m, cases, es_terms, data, dataset_label, first_row, whitener, square_corner, twist, tilt_axes);
+  ident::SelectionProblem problem{es.phi, es.y, es.labels, es.rational, {}};
   ident::SelectionOptions selection = options.selection;
   selection.uls.noise_lags = 0;
   problem.ranking = usable;   // identifiable columns in ERR order, sensitivities first
@@ -391,7 +569,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   result.fitness = best.fitness;
   const auto best_misalignment = hook.misalignment(best.ranked_terms);
   if (!best.transformed || !best_misalignment) {
-    throw std::runtime_error("mounting '" + mounting + "': the selected model has no a_x, a_y, a_z sensitivity");
+    throw std::runtime_error(fmt::format("mounting '{}': the selected model has no {} sensitivity", mounting,
+                                         fmt::join(sensitivity_names(data.sensor), ", ")));
   }
   result.m_cs = *best_misalignment;
   for (std::size_t i = 0; i < best.ranked_terms; ++i) {
@@ -402,9 +581,26 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   // with the corrected M_E^S.
   const std::vector<std::string> tilts = hook.tilts(best.ranked_terms);
   result.s_fit = best.fit;
+  {
+    // The angles' sd: the kept tilts' in the selected model (the tilt of n_i toward p and o, over
+    // theta_i), by the delta method through algorithm 1.
+    const std::string axes[3] = {gyro ? "w_i" : "a_i", gyro ? "w_p" : "a_p", gyro ? "w_o" : "a_o"};
+    Eigen::Vector3d theta = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+    std::array<Eigen::Index, 3> at{-1, -1, -1};
+    for (std::size_t i = 0; i < best.fit.labels.size(); ++i)
+      for (std::size_t a = 0; a < 3; ++a)
+        if (best.fit.labels[i] == axes[a]) at[a] = static_cast<Eigen::Index>(i);
+    for (std::size_t a = 0; a < 3; ++a) {
+      if (at[a] < 0) continue;
+      theta(Eigen::Index(a)) = best.fit.theta(at[a]);
+      for (std::size_t b = 0; b < 3; ++b)
+        if (at[b] >= 0) covariance(Eigen::Index(a), Eigen::Index(b)) = best.fit.covariance(at[a], at[b]);
+    }
+    if (theta(0) != 0.0) set_angles(result, misalignment_angles(theta, covariance).sd);
+  }
   if (!tilts.empty()) {
-    const bool gyro = data.sensor == dataset::SensorKind::Gyroscope;
-    const std::string axes[3] = {gyro ? "w_i" : "a_i", tilts.front(), tilts.back()};
+    const std::string axes[3] = {gyro ? "w_i" : "a_i", gyro ? "w_p" : "a_p", gyro ? "w_o" : "a_o"};
     Eigen::Vector3d theta = Eigen::Vector3d::Zero();   // theta_i, theta_p, theta_o
     std::vector<Term> s_terms;
     for (std::size_t i = 0; i < best.fit.labels.size(); ++i) {
@@ -414,8 +610,9 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
       }
       if (std::find(tilts.begin(), tilts.end(), label) == tilts.end()) s_terms.push_back(ident::parse_term(label));
     }
-    if (tilts.size() == 2 && theta(0) != 0.0) {
+    if (theta(0) != 0.0) {
       result.m_cs = with_twist(misalignment_from_sensitivities(result.m_cs.transpose() * theta, frames::Dcm::Identity()), twist);
+      set_angles(result, result.angles_sd);
     }
     StackedRegression s =
         whitened_regression(s_terms, m, cases, result.m_cs, data, dataset_label, first_row, square_corner, whitener);
@@ -435,6 +632,18 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
 
   // Blocks 5-6. Mountings that can estimate the bias go first, so shaker-only mountings can use it.
   auto groups = mountings_of(data);
+  if (data.sensor == dataset::SensorKind::Gyroscope) {
+    // Paper section 2.2: a gyroscope's vibration sensitivity is not tied to a sensor frame, so its
+    // misalignment is the sensor's own M_C^S, read from the rate sensitivities over every case at
+    // once (M_E^C must be known accurately), and M_E^S = M_C^S M_E^C for every case.
+    std::vector<std::size_t> all(data.cases.size());
+    for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+    if (groups.size() > 1) {
+      result.notes.push_back("gyroscope: one M_C^S for every case, from the rate sensitivities of all cases together (paper "
+                             "section 2.2: M_E^C of each case must be known accurately); mounting labels are not used");
+    }
+    groups = {{"all cases", all}};
+  }
   const auto shaker_only = [&](const std::vector<std::size_t>& cases) {
     return std::all_of(cases.begin(), cases.end(),
                        [&](std::size_t i) { return data.cases[i].kind == dataset::CaseKind::Shaker; });
@@ -456,19 +665,35 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     result.mountings.push_back(std::move(m));
   }
   result.m_cs = result.mountings.front().m_cs;
+  for (const MountingResult& m : result.mountings) {
+    if (m.aligned) {
+      result.m_cs = m.m_cs;   // the model file's M_C^S: the first mounting the data aligned
+      break;
+    }
+  }
 
   // Blocks 7-9.
+  if (options.temperature_when_measured) {
+    const double span = temperature_span(data);
+    if (std::isfinite(span) && span < kMinTemperatureSpanC) {
+      result.notes.push_back(fmt::format("temperature terms not determined by this plan: the fixture temperature spans "
+                                         "{:.3f} degC (at least {:.0f} degC needed; a thermal_step phase gives it)",
+                                         span, kMinTemperatureSpanC));
+    }
+  }
   std::vector<Term> candidates;
   if (options.batch.select) {
-    candidates = ident::candidate_terms(data.sensor, ident::ModelFrame::Sensor, options.batch.candidates);
+    candidates = ident::candidate_terms(data.sensor, ident::ModelFrame::Sensor,
+                                        with_measured_temperature(options.batch.candidates, data, options));
   } else {
     candidates = parse_fixed(options.batch.fixed_terms, "batch");
   }
-  std::vector<StackInput> inputs;
-  for (std::size_t i = 0; i < data.cases.size(); ++i) {
-    inputs.push_back({i, &data.cases[i], result.cases[i].m_es, weight_of(options, data.cases[i].name)});
-  }
-  StackedRegression batch = stack_regressions(candidates, inputs, data.t_ref, dataset_label);
+  // Held angles (excitation.hpp) stay at the nominal frame; after the selection their tolerance
+  // is propagated into the coefficients' covariance (below).
+  const std::vector<HeldColumn> held = held_columns(result.mountings);
+  const std::vector<Eigen::Vector2d> nominal(result.mountings.size(), Eigen::Vector2d::Zero());
+  StackedRegression batch = stack_regressions(candidates, batch_inputs(data, options, result.mountings, nominal, result.cases),
+                                              data.t_ref, dataset_label);
   if (options.square_highpass && options.batch_square_highpass) {
     // The squares' high pass (eq. 12), its corner estimated on the whole batch as in blocks 5-6.
     const std::vector<Eigen::Index> squares = square_columns(batch.labels);
@@ -479,6 +704,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
       apply_square_model(batch, data, result.square_corner_rad_s);
     }
   }
+  ArWhitener whitener;
   {
     // The noise model from the residuals of the full candidate set (dependent columns left out).
     std::vector<Eigen::Index> usable = identifiable_ranking(batch, options.selection.err);
@@ -486,7 +712,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     uls.noise_lags = 0;
     std::vector<std::string> dropped;
     const ident::UlsResult ols = fit_identifiable(batch, usable, uls, dropped);
-    const ArWhitener whitener = ArWhitener::fit(ols.residuals, batch.cases, options.whitening_max_order);
+    whitener = ArWhitener::fit(ols.residuals, batch.cases, options.whitening_max_order);
     whitener.apply(batch);
     result.whitening = whitener.coefficients();
   }
@@ -501,21 +727,99 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   ident::UlsOptions uls = options.selection.uls;
   uls.noise_lags = options.batch.noise_lags;
   std::vector<Eigen::Index> columns;
+  const std::vector<Eigen::Index> ranking = identifiable_ranking(batch, options.selection.err);
   if (options.batch.select) {
     ident::SelectionOptions selection = options.selection;
     selection.uls.noise_lags = 0;   // structure first; the noise model joins the final fit
-    ident::SelectionProblem problem{batch.phi, batch.y, batch.labels, {}, identifiable_ranking(batch, selection.err)};
+    ident::SelectionProblem problem{batch.phi, batch.y, batch.labels, batch.rational, ranking};
     const ident::SelectionResult selected = ident::select_model(problem, selection, nullptr);
     columns = selected.best_model().columns;
   } else {
-    columns = identifiable_ranking(batch, options.selection.err);
+    columns = ranking;
   }
   std::vector<std::string> dropped;
   result.fit = fit_identifiable(batch, columns, uls, dropped);
+  // Honest inference on the selected model (the selection's t-tests take every sample as
+  // independent): (1) the cluster-robust covariance over the cases' contiguous phases, where it is
+  // larger (coloured residual within a phase, offsets between phases and cases, a model error
+  // that repeats per phase), with Student's t on G - 1 dof; (2) each held angle turned by the
+  // mounting tolerance moves the coefficients by d (the exact refit, nonlinear terms included),
+  // and the covariance gains d d'. A term whose t then falls below the selection's level is not
+  // determined by this plan: it leaves and the rest is refitted.
+  const std::vector<int> clusters = phase_clusters(batch, data);
+  const double threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
+  for (;;) {
+    const Eigen::Index p = result.fit.process_terms;
+    std::vector<Term> terms;
+    for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(result.fit.labels[std::size_t(j)]));
+    Eigen::MatrixXd covariance = result.fit.covariance;
+    int groups = 0;
+    Eigen::MatrixXd x(batch.phi.rows(), p);
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const auto column = static_cast<Eigen::Index>(
+          std::find(batch.labels.begin(), batch.labels.end(), result.fit.labels[std::size_t(j)]) - batch.labels.begin());
+      const bool rational = std::find(batch.rational.columns.begin(), batch.rational.columns.end(), column) !=
+                            batch.rational.columns.end();
+      x.col(j) = rational ? Eigen::VectorXd(-batch.phi.col(column)) : Eigen::VectorXd(batch.phi.col(column));
+    }
+    bool robust = false;
+    if (x.rows() == result.fit.residuals.size()) {
+      const Eigen::MatrixXd cr = ident::cluster_robust_covariance(x, result.fit.residuals, clusters, &groups);
+      Eigen::VectorXd inflation = Eigen::VectorXd::Ones(covariance.rows());
+      for (Eigen::Index j = 0; j < p; ++j) {
+        if (cr(j, j) > covariance(j, j) && covariance(j, j) > 0.0) {
+          inflation(j) = std::sqrt(cr(j, j) / covariance(j, j));
+          robust = true;
+        }
+      }
+      covariance = inflation.asDiagonal() * covariance * inflation.asDiagonal();
+    }
+    if (!held.empty() && options.mounting_tolerance_rad > 0.0) {
+      for (const HeldColumn& h : held) {
+        std::vector<Eigen::Vector2d> tilts = nominal;
+        tilts[h.mounting](h.axis - 1) = options.mounting_tolerance_rad;
+        std::vector<CaseOutcome> turned_cases = result.cases;
+        StackedRegression s = stack_regressions(terms, batch_inputs(data, options, result.mountings, tilts, turned_cases),
+                                                data.t_ref, dataset_label, ident::first_usable_row(candidates));
+        apply_square_model(s, data, result.square_corner_rad_s);
+        whitener.apply(s);
+        std::vector<Eigen::Index> all(terms.size());
+        for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
+        const ident::UlsResult moved = ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all);
+        const Eigen::VectorXd d = moved.theta.head(p) - result.fit.theta.head(p);
+        covariance.topLeftCorner(p, p) += d * d.transpose();
+      }
+    }
+    result.fit.covariance = covariance;
+    result.fit.std_dev = covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    result.inference_clusters = robust ? groups : 0;
+    ident::ParameterTTest tt = ident::parameter_t_test(result.fit.process_theta(), result.fit.std_dev.head(p),
+                                                       robust ? groups : result.fit.residuals.size());
+    Eigen::Index worst = -1;
+    for (Eigen::Index j = 0; j < p; ++j) {
+      if (is_sensitivity_label(result.fit.labels[std::size_t(j)]) || !(tt.p_value(j) > threshold)) continue;
+      if (worst < 0 || tt.p_value(j) > tt.p_value(worst)) worst = j;
+    }
+    if (worst < 0 || !options.batch.select) break;
+    const std::string label = result.fit.labels[std::size_t(worst)];
+    result.undetermined.push_back(
+        {label, fmt::format("left out after selection: t {:.1f} ({}) is below the selection's level", tt.t(worst),
+                            !held.empty() ? fmt::format("cluster-robust over {} phases, and the held angles within +-{:.2f} deg",
+                                                        groups, rad_to_deg(options.mounting_tolerance_rad))
+                                          : fmt::format("cluster-robust over {} phases", groups))});
+    const auto at = std::find(batch.labels.begin(), batch.labels.end(), label);
+    std::erase(columns, static_cast<Eigen::Index>(at - batch.labels.begin()));
+    result.fit = fit_identifiable(batch, columns, uls, dropped);
+  }
+  if (!held.empty() && options.mounting_tolerance_rad > 0.0) {
+    result.notes.push_back(fmt::format("{} mounting angle(s) held at the nominal case frame; each is assumed within "
+                                       "+-{:.2f} deg (--mounting-tolerance-deg), and what that moves is in the sd",
+                                       held.size(), rad_to_deg(options.mounting_tolerance_rad)));
+  }
   for (const std::string& label : result.fit.labels) {
     if (result.terms.size() < static_cast<std::size_t>(result.fit.process_terms)) result.terms.push_back(ident::parse_term(label));
   }
-  const Eigen::Index n = result.fit.residuals.size();
+  const Eigen::Index n = result.inference_clusters > 0 ? result.inference_clusters : result.fit.residuals.size();
   result.t_test = ident::parameter_t_test(result.fit.process_theta(), result.fit.std_dev.head(result.fit.process_terms), n);
   result.residual_mean = ident::residual_mean_test(result.fit.residuals);
   result.aic = ident::aic(result.fit.residuals, result.fit.theta.size());

@@ -22,6 +22,7 @@
 #include "analyzer/ident/selection.hpp"
 #include "analyzer/ident/term.hpp"
 #include "analyzer/ident/uls_batch.hpp"
+#include "analyzer/procedure/excitation.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/frames.hpp"
 
@@ -88,6 +89,20 @@ struct PipelineOptions {
   /// shaker error from 0.003 to 0.00002 deg, but with table 1's noise the residual is nearly flat
   /// in the twist (5e-6 relative over +-6 deg) and the steps wander (shaker error 0.019 deg).
   bool estimate_twist = false;
+  /// Temperature terms join the candidates (T, a_i*T; gyros T, T[k-1], y*T) whenever every case
+  /// has a temperature column: a thermal plan's effects must be offered to be found, and a plan
+  /// whose temperature does not vary says so (the terms are then not determined).
+  bool temperature_when_measured = true;
+  /// An angle a mounting's excitation does not determine is held at the nominal case frame, but
+  /// the sensor is not exactly there: each held angle is taken to lie within this tolerance (one
+  /// sd), and what it moves in the batch model is added to the coefficients' covariance.
+  double mounting_tolerance_rad = 0.017453292519943295;   // 1 deg
+};
+
+/// A candidate term the plan does not determine, and why (for the report and the summary).
+struct UndeterminedTerm {
+  std::string term;
+  std::string reason;
 };
 
 struct MountingResult {
@@ -105,6 +120,16 @@ struct MountingResult {
   std::optional<double> known_bias;         // removed from the output before the fit
   std::optional<double> square_corner_rad_s;   // b of the squares' high pass (none: static squares)
   double twist_rad = 0.0;                   // estimated twist about n_i added to algorithm 1's M_C^S
+  /// What the mounting's inputs determine (excitation.hpp): an axis without its own excitation
+  /// keeps its angle at the nominal case frame; without excitation along IRA the mounting is not
+  /// aligned at all (M_C^S = I, or for a gyroscope the rate cases' M_C^S).
+  AxisExcitation excitation;
+  bool aligned = true;
+  /// Angles of F_S from the nominal case frame about i, p, o (rad) and their sd; about i NaN (a
+  /// single-axis sensor does not see it); an angle held at nominal has sd 0 and `held` says why.
+  Eigen::Vector3d angles = Eigen::Vector3d::Zero();
+  Eigen::Vector3d angles_sd = Eigen::Vector3d::Zero();
+  std::vector<std::string> held;            // what was held at the nominal frame, and why (for the user)
 };
 
 struct CaseOutcome {
@@ -128,6 +153,13 @@ struct PipelineResult {
   /// s/(s + b) a_j^2, so their coefficients are the high-frequency gains K_jj of eq. 12);
   /// none: static squares. A model file must carry it to mean the same model.
   std::optional<double> square_corner_rad_s;
+  std::vector<UndeterminedTerm> undetermined;
+  /// Phase clusters of the cluster-robust covariance when it was larger than the classical one
+  /// for some coefficient (0: classical); t-tests then use G - 1 dof.
+  int inference_clusters = 0;
+  /// Plan-level statements for the user: what was pooled or inferred, what the plan does not
+  /// determine and what excitation it would need.
+  std::vector<std::string> notes;
 };
 
 /// Runs blocks 5-11 on `data`. Throws InputError for bad input (missing columns, bad options) and

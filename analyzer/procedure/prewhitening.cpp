@@ -86,11 +86,15 @@ void ArWhitener::apply(StackedRegression& s) const {
     };
     filter_into(s.y);
     for (Eigen::Index col = 0; col < s.phi.cols(); ++col) filter_into(s.phi.col(col));
+    // The factors of output-multiplied columns are not filtered (stacked_regression.hpp): they
+    // only lose the same first rows.
+    if (s.rational.factors.rows() > 0) s.rational.factors.middleRows(out, rows) = s.rational.factors.middleRows(c.begin + m, rows).eval();
     cases.push_back(CaseRows{c.case_index, out, rows, c.first_sample + m});
     out += rows;
   }
   s.phi.conservativeResize(out, Eigen::NoChange);
   s.y.conservativeResize(out);
+  if (s.rational.factors.rows() > 0) s.rational.factors.conservativeResize(out, Eigen::NoChange);
   s.cases = std::move(cases);
 }
 

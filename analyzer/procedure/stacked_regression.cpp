@@ -21,6 +21,13 @@ StackedRegression stack_regressions(std::span<const ident::Term> terms, std::spa
   const auto columns = static_cast<Eigen::Index>(terms.size());
   out.phi.resize(total, columns);
   out.y.resize(total);
+  std::vector<ident::Term> factor_terms;
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    if (!terms[j].is_output_multiplied()) continue;
+    out.rational.columns.push_back(static_cast<Eigen::Index>(j));
+    factor_terms.push_back(terms[j].denominator_factor());
+  }
+  out.rational.factors.resize(factor_terms.empty() ? 0 : total, static_cast<Eigen::Index>(factor_terms.size()));
   Eigen::Index row = 0;
   for (const StackInput& in : inputs) {
     const ident::SignalSet signals = ident::signals_from_case(*in.data, in.m_es, t_ref, dataset_label);
@@ -29,6 +36,7 @@ StackedRegression stack_regressions(std::span<const ident::Term> terms, std::spa
     // Fill straight into the stack: no per-case copy of a matrix that can be hundreds of MB.
     ident::fill_regressors(terms, signals, first_row, out.phi.middleRows(row, rows));
     out.y.segment(row, rows) = in.data->y.tail(rows);
+    if (!factor_terms.empty()) ident::fill_regressors(factor_terms, signals, first_row, out.rational.factors.middleRows(row, rows));
     if (in.weight != 1.0) {
       const double w = std::sqrt(in.weight);
       out.phi.middleRows(row, rows) *= w;

@@ -9,6 +9,7 @@
 
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/ident/term.hpp"
+#include "analyzer/ident/uls_batch.hpp"
 #include "common/dataset/dataset.hpp"
 
 namespace inertia::procedure {
@@ -26,6 +27,10 @@ struct StackedRegression {
   Eigen::VectorXd y;
   std::vector<CaseRows> cases;
   std::vector<std::string> labels;   // canonical term names, one per column
+  /// Output-multiplied columns (y*w_i, y*T: rational denominator terms, fitted by ULS with its
+  /// bias correction) with their factors p_b per row, unweighted and never filtered: the noise
+  /// the correction allows for is the one on y, whatever filter the rows pass (uls_batch.hpp).
+  ident::OutputMultiplied rational;
 };
 
 /// One case of the stack: its data, the M_E^S that maps its references into F_S, its weight.
