@@ -84,6 +84,9 @@ int run(int argc, char** argv) {
   std::vector<std::string> weights;
   characterize->add_option("--weight", weights, "CASE=WEIGHT, per-case batch weight (section 3.4)")->delimiter(',');
   characterize->add_option("--alpha", characterize_options.alpha, "t-test significance level")->capture_default_str();
+  characterize->add_option("--mounting-tolerance-deg", characterize_options.mounting_tolerance_deg,
+                           "a mounting angle the plan cannot determine is held at nominal and taken within this (1 sd)")
+      ->capture_default_str();
 
   inertia::commands::ReproducePaperOptions paper_options;
   paper_options.bench = std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-paper.toml";

@@ -33,6 +33,9 @@ procedure::PipelineOptions pipeline_options(const CharacterizeOptions& options) 
   }
   p.batch.noise_lags = options.noise_lags < 0 ? options.order : options.noise_lags;
   p.case_weights = options.weights;
+  if (!(options.mounting_tolerance_deg >= 0.0 && options.mounting_tolerance_deg <= 30.0))
+    throw InputError(fmt::format("--mounting-tolerance-deg {}: expected 0..30 degrees", options.mounting_tolerance_deg));
+  p.mounting_tolerance_rad = deg_to_rad(options.mounting_tolerance_deg);
   p.selection.alpha = options.alpha;
   std::string why;
   if (!p.selection.is_valid(&why)) throw InputError("--alpha: " + why);

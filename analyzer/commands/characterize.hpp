@@ -24,6 +24,7 @@ struct CharacterizeOptions {
   std::vector<std::string> misalignment_model;  // non-empty: blocks 5-6 fixed on these F_E-and-F_S terms
   std::map<std::string, double> weights;
   double alpha = ident::SelectionOptions{}.alpha;
+  double mounting_tolerance_deg = 1.0;  // a held mounting angle is within this (1 sd)
   bool plots = true;
 };
 

@@ -190,10 +190,7 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
         if (scored_samples >= 0 && base.samples() != scored_samples)
           throw std::invalid_argument("selection: models scored on different sample counts");
         scored_samples = base.samples();
-        std::vector<Index> with_kept = ranked;
-        for (Index k : problem.kept)
-          if (std::find(with_kept.begin(), with_kept.end(), k) == with_kept.end()) with_kept.push_back(k);
-        const std::vector<Index> kept = prune(base, std::move(with_kept), options, threshold, model, problem.kept);
+        const std::vector<Index> kept = prune(base, ranked, options, threshold, model);
         std::vector<Index> key = kept;
         std::sort(key.begin(), key.end());
         const auto seen = scored.find(key);

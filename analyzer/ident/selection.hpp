@@ -40,9 +40,6 @@ struct SelectionProblem {
   /// Candidate columns in ranked order. Empty: the ERR ranking of phi with options.err (plain
   /// ERR; for output-multiplied candidates pass a ranking from bias_corrected_gram instead).
   std::vector<Index> ranking;
-  /// Columns in every candidate model, never pruned (nuisance parameters such as a held
-  /// mounting angle; see StageProblem::kept). Without a hook only.
-  std::vector<Index> kept;
 };
 
 /// A regression problem owned by the engine and filled by a FitHook (algorithm 2 steps 6-7).

@@ -19,28 +19,39 @@ namespace inertia::report {
 namespace {
 
 struct CaseTraces {
-  Eigen::VectorXd t;             // s, of each row
-  Eigen::VectorXd residual;      // one-step-ahead: y - Phi theta (measured y in the lags)
-  Eigen::VectorXd verification;  // free-run model output - measured y
-  Eigen::VectorXd a_i;           // the input, for the independence check
-  std::vector<std::uint16_t> phase;
+  // The batch fit's residual on this case's rows: the one-step-ahead prediction error of the
+  // model with its noise model (the AR-whitened innovation the t-tests and AIC use).
+  Eigen::VectorXd t_innovation, innovation;
+  // Free run: the model driven by the case's references alone (noise terms zero) minus the
+  // measured output, as the paper's Fig. 7. A case-to-case offset or a slow misfit shows here,
+  // where the noise model cannot absorb it.
+  Eigen::VectorXd t, verification;
+  Eigen::VectorXd a_i;           // the input at the innovation's rows, for the independence check
+  std::vector<std::uint16_t> phase;   // of the free-run rows
 };
 
-CaseTraces traces_of(const dataset::Dataset& data, std::size_t index, const procedure::PipelineResult& r,
+CaseTraces traces_of(const dataset::Dataset& data, const procedure::CaseOutcome& outcome, const procedure::PipelineResult& r,
                      const std::string& label) {
-  const dataset::CaseData& c = data.cases[index];
-  const ident::SignalSet signals = ident::signals_from_case(c, r.cases[index].m_es, data.t_ref, label);
+  const dataset::CaseData& c = data.cases[outcome.case_index];
+  const ident::SignalSet signals = ident::signals_from_case(c, outcome.m_es, data.t_ref, label);
   const Eigen::VectorXd theta = r.fit.process_theta();
-  const ident::Regression reg = ident::build_regression(r.terms, signals);
   CaseTraces tr;
-  const Eigen::Index first = reg.first_row, rows = reg.y.size();
-  tr.residual = reg.y - reg.phi * theta;
-  tr.verification = procedure::simulate_model(r.terms, theta, signals, first, r.square_corner_rad_s, c.sample_period_s) -
-                    c.y.tail(rows);
+  const Eigen::Index first = ident::first_usable_row(r.terms), rows = c.size() - first;
+  tr.verification =
+      procedure::simulate_model(r.terms, theta, signals, first, r.square_corner_rad_s, c.sample_period_s) - c.y.tail(rows);
   tr.t = c.t.tail(rows);
-  tr.a_i = signals.get(ident::Variable::Ai).tail(rows);
   if (!c.phase.empty()) tr.phase.assign(c.phase.end() - rows, c.phase.end());
+  tr.innovation = r.fit.residuals.segment(outcome.begin, outcome.rows);
+  tr.t_innovation = c.t.segment(outcome.first_row, outcome.rows);
+  tr.a_i = signals.get(data.sensor == dataset::SensorKind::Gyroscope ? ident::Variable::Wi : ident::Variable::Ai)
+               .segment(outcome.first_row, outcome.rows);
   return tr;
+}
+
+std::string angle_cell(double angle_rad, double sd_rad) {
+  if (std::isnan(angle_rad)) return "not observable (single axis)";
+  if (sd_rad == 0.0) return fmt::format("{:+.4f} (held)", rad_to_deg(angle_rad));
+  return fmt::format("{:+.4f} +- {:.4f}", rad_to_deg(angle_rad), rad_to_deg(sd_rad));
 }
 
 double rms(const Eigen::VectorXd& v) { return v.size() ? std::sqrt(v.squaredNorm() / static_cast<double>(v.size())) : NAN; }
@@ -86,15 +97,44 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   md << fmt::format("Output unit: {}. Temperature reference t_ref = {} degC. {} test case(s).\n\n", data.output_unit,
                     data.t_ref, data.cases.size());
 
-  md << "## Misalignment (blocks 5-6, algorithm 2)\n\n";
+  if (!r.notes.empty()) {
+    md << "## What this plan determines\n\n";
+    for (const std::string& note : r.notes) md << "- " << note << "\n";
+    md << "\n";
+  }
+  md << "## Misalignment (blocks 5-6, algorithm 2)\n\n"
+        "Angles of the sensor frame F_S from each mounting's nominal case frame (deg; a turn about o tilts the input "
+        "axis toward p, a negative turn about p tilts it toward o). The turn about i does not change a single-axis "
+        "output's linear part: algorithm 1 fixes it by convention. An angle the mounting's excitation does not "
+        "determine is held at the nominal frame; the tolerance assumed for it is in the batch's sd.\n\n";
+  md << "| mounting | cases | aligned | about p | about o | AR order | bias |\n|---|---|---|---|---|---|---|\n";
   for (const procedure::MountingResult& m : r.mountings) {
-    md << fmt::format("Mounting **{}**: {} candidate model(s) tried, fitness {:.3g}, AR noise model order {}{}.\n\n",
-                      m.mounting, m.candidates_tried, m.fitness, m.whitening_order,
-                      m.known_bias ? fmt::format(", bias {:.6g} taken from the other mountings", *m.known_bias) : "");
-    md << fmt::format("- F_E-and-F_S model: `{}`\n- its F_S model: `{}`\n", fmt::join(m.es_terms, " "),
-                      fmt::join(m.s_terms, " "));
+    std::string cases;
+    for (std::size_t index : m.cases) cases += (cases.empty() ? "" : ", ") + data.cases[index].name;
+    md << fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", m.mounting, cases, m.aligned ? "yes" : "no (held)",
+                      angle_cell(m.angles(1), m.aligned ? m.angles_sd(1) : 0.0),
+                      angle_cell(m.angles(2), m.aligned ? m.angles_sd(2) : 0.0), m.whitening_order,
+                      m.known_bias ? fmt::format("{:.6g} from the other mountings", *m.known_bias) : "estimated");
+  }
+  md << "\n";
+  for (const procedure::MountingResult& m : r.mountings) {
+    if (m.aligned) {
+      md << fmt::format("Mounting **{}**: {} candidate model(s) tried, fitness {:.3g}.\n\n", m.mounting, m.candidates_tried,
+                        m.fitness);
+      md << fmt::format("- F_E-and-F_S model: `{}`\n- its F_S model: `{}`\n", fmt::join(m.es_terms, " "),
+                        fmt::join(m.s_terms, " "));
+    } else {
+      md << fmt::format("Mounting **{}**: not aligned.\n\n", m.mounting);
+    }
+    for (const std::string& h : m.held) md << "- " << h << "\n";
     if (!m.excluded.empty()) md << fmt::format("- left out (not identifiable here): `{}`\n", fmt::join(m.excluded, " "));
     md << "\n";
+  }
+  {
+    const Eigen::Vector3d a = procedure::rotation_vector(r.m_cs);
+    md << fmt::format("The sensor's M_C^S (model file): about p {:+.4f} deg, about o {:+.4f} deg, from the first aligned "
+                      "mounting.\n\n",
+                      rad_to_deg(a(1)), rad_to_deg(a(2)));
   }
   md << "| case | kind | M_E^S input axis | angle to nominal IRA (deg) |" << (in.truth ? " error vs truth (deg) |" : "") << "\n";
   md << "|---|---|---|---|" << (in.truth ? "---|" : "") << "\n";
@@ -111,10 +151,21 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     md << "\n";
   }
 
-  md << fmt::format("\n## Model (blocks 9-11)\n\n{} rows; residual standard deviation {:.4g} {}; residual mean test p = {:.3g} "
-                    "(effective N {:.0f}); AIC {:.6g}; AR noise model order {}.\n\n",
-                    r.fit.residuals.size(), std::sqrt(r.fit.residual_variance), data.output_unit, r.residual_mean.p_value,
-                    r.residual_mean.effective_samples, r.aic, r.whitening.size());
+  md << fmt::format("\n## Model (blocks 9-11)\n\n{} rows; innovation standard deviation {:.4g} {} (the residual after "
+                    "the AR({}) noise model); AIC {:.6g}.\n\n",
+                    r.fit.residuals.size(), std::sqrt(r.fit.residual_variance), data.output_unit, r.whitening.size(), r.aic);
+  md << (r.inference_clusters > 0
+             ? fmt::format("Inference: standard deviations are cluster-robust over {} contiguous phases where that is larger "
+                           "than the classical ones (samples within a phase are not independent, and offsets between "
+                           "phases and cases are not sensor effects); t-tests on {} degrees of freedom.\n\n",
+                           r.inference_clusters, r.inference_clusters - 1)
+             : std::string("Inference: the classical standard deviations of the whitened fit (the cluster-robust ones over "
+                           "the phases were not larger).\n\n"));
+  if (!r.undetermined.empty()) {
+    md << "Not determined by this plan:\n\n";
+    for (const procedure::UndeterminedTerm& u : r.undetermined) md << fmt::format("- `{}`: {}\n", u.term, u.reason);
+    md << "\n";
+  }
   // A dynamic model's coefficients are not the sensor's gains; its truth is scored on the static
   // gains below instead.
   const std::vector<ident::StaticGain> gains = sensor_static_gains(r);
@@ -151,53 +202,51 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   }
 
   md << "\n## Residuals and verification per case and phase\n\n"
-        "Residual: one-step-ahead prediction error with the measured output in the lags. Verification: the model run "
-        "free on the case's references (noise terms zero) minus the measured output, as the paper's Fig. 7. Whiteness: "
-        "residual autocorrelation, lags 1-20, and cross-correlation with a_i, lags -20..20, against 95% bands.\n\n";
-  md << "| case | phase | samples | residual RMS | residual mean | verification RMS | whiteness | independent of a_i |\n";
-  md << "|---|---|---|---|---|---|---|---|\n";
+        "Free run: the model driven by the case's references alone (noise terms zero) minus the measured output, as "
+        "the paper's Fig. 7; its mean per case is tested against its own long-run variance (effective N from the lag-1 "
+        "autocorrelation), so an offset between cases shows here even where the noise model absorbs it. Innovation: "
+        "the batch fit's one-step residual after the AR noise model; whiteness: its autocorrelation, lags 1-20, and "
+        "its cross-correlation with the sensitive input, lags -20..20, against 95% bands.\n\n";
+  md << "| case | phase | samples | free-run RMS | free-run mean | mean test p | innovation RMS | whiteness | independent of input |\n";
+  md << "|---|---|---|---|---|---|---|---|---|\n";
   std::ostringstream gp;
   if (in.plots) {
     gp << "set terminal pngcairo size 1200," << 260 * std::max<std::size_t>(1, data.cases.size()) << "\n";
     gp << "set output '" << (plots / "verification.png").string() << "'\n";
-    gp << "set multiplot layout " << data.cases.size() << ",1 title 'Verification error per case (model - measured, "
+    gp << "set multiplot layout " << data.cases.size() << ",1 title 'Free-run error per case (model - measured, "
        << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";
   }
   std::ostringstream gp_res;
   if (in.plots) {
     gp_res << "set terminal pngcairo size 1200," << 260 * std::max<std::size_t>(1, data.cases.size()) << "\n";
     gp_res << "set output '" << (plots / "residuals.png").string() << "'\n";
-    gp_res << "set multiplot layout " << data.cases.size() << ",1 title 'One-step-ahead residual per case ("
+    gp_res << "set multiplot layout " << data.cases.size() << ",1 title 'Innovation per case (one-step residual after the noise model, "
            << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";
   }
   for (const procedure::CaseOutcome& c : r.cases) {
     const dataset::CaseData& cd = data.cases[c.case_index];
-    const CaseTraces tr = traces_of(data, c.case_index, r, in.dataset_label);
-    const auto white = ident::residual_autocorrelation(tr.residual, 20);
-    const auto indep = ident::residual_input_correlation(tr.residual, tr.a_i, 20);
-    md << fmt::format("| {} | all | {} | {:.4g} | {:+.3g} | {:.4g} | {} ({}/{} lags out) | {} ({}/{}) |\n", cd.name,
-                      tr.residual.size(), rms(tr.residual), tr.residual.mean(), rms(tr.verification),
+    const CaseTraces tr = traces_of(data, c, r, in.dataset_label);
+    const auto white = ident::residual_autocorrelation(tr.innovation, 20);
+    const auto indep = ident::residual_input_correlation(tr.innovation, tr.a_i, 20);
+    const ident::ResidualMeanTest mean = ident::residual_mean_test(tr.verification);
+    md << fmt::format("| {} | all | {} | {:.4g} | {:+.3g} | {:.2g} | {:.4g} | {} ({}/{} lags out) | {} ({}/{}) |\n", cd.name,
+                      tr.verification.size(), rms(tr.verification), tr.verification.mean(), mean.p_value, rms(tr.innovation),
                       white.pass ? "pass" : "fail", white.outside, white.lags.size(), indep.pass ? "pass" : "fail",
                       indep.outside, indep.lags.size());
     for (std::size_t p = 0; p < cd.phase_names.size() && !tr.phase.empty(); ++p) {
-      std::vector<double> res, ver;
+      std::vector<double> ver;
       for (std::size_t k = 0; k < tr.phase.size(); ++k) {
-        if (tr.phase[k] == p) {
-          res.push_back(tr.residual(static_cast<Eigen::Index>(k)));
-          ver.push_back(tr.verification(static_cast<Eigen::Index>(k)));
-        }
+        if (tr.phase[k] == p) ver.push_back(tr.verification(static_cast<Eigen::Index>(k)));
       }
-      if (res.empty()) continue;
-      const Eigen::Map<Eigen::VectorXd> rv(res.data(), static_cast<Eigen::Index>(res.size()));
+      if (ver.empty()) continue;
       const Eigen::Map<Eigen::VectorXd> vv(ver.data(), static_cast<Eigen::Index>(ver.size()));
-      md << fmt::format("| {} | {} | {} | {:.4g} | {:+.3g} | {:.4g} | | |\n", cd.name, cd.phase_names[p], res.size(),
-                        rms(rv), rv.mean(), rms(vv));
+      md << fmt::format("| {} | {} | {} | {:.4g} | {:+.3g} | | | | |\n", cd.name, cd.phase_names[p], ver.size(), rms(vv), vv.mean());
     }
     if (in.plots) {
       const std::filesystem::path ver_file = plots / ("verification_" + slug(cd.name) + ".dat");
       const std::filesystem::path res_file = plots / ("residual_" + slug(cd.name) + ".dat");
       write_trace(ver_file, tr.t, tr.verification);
-      write_trace(res_file, tr.t, tr.residual);
+      write_trace(res_file, tr.t_innovation, tr.innovation);
       gp << "set title '" << cd.name << "'\nplot '" << ver_file.string() << "' with lines notitle\n";
       gp_res << "set title '" << cd.name << "'\nplot '" << res_file.string() << "' with lines notitle\n";
     }
