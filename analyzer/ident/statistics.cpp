@@ -170,29 +170,89 @@ WhitenessReport residual_whiteness(const Eigen::Ref<const Eigen::VectorXd>& resi
   return out;
 }
 
-Eigen::MatrixXd cluster_robust_covariance(const Eigen::Ref<const Eigen::MatrixXd>& x,
-                                          const Eigen::Ref<const Eigen::VectorXd>& residuals,
-                                          const std::vector<int>& cluster, int* clusters) {
+ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                               double sigma2, const std::vector<int>& cluster, int estimated_elsewhere,
+                               const Eigen::VectorXd& loading) {
   const Eigen::Index n = x.rows(), p = x.cols();
-  if (residuals.size() != n || static_cast<Eigen::Index>(cluster.size()) != n)
-    throw std::invalid_argument("cluster_robust_covariance: x, residuals and cluster ids differ in length");
-  std::map<int, Eigen::VectorXd> scores;   // per cluster: X_g' e_g
-  for (Eigen::Index k = 0; k < n; ++k) {
-    auto [it, fresh] = scores.try_emplace(cluster[static_cast<std::size_t>(k)]);
-    if (fresh) it->second = Eigen::VectorXd::Zero(p);
-    it->second.noalias() += x.row(k).transpose() * residuals(k);
+  if (residuals.size() != n || static_cast<Eigen::Index>(cluster.size()) != n || (loading.size() != 0 && loading.size() != n))
+    throw std::invalid_argument("cluster_offsets: x, residuals, loading and cluster ids differ in length");
+  struct Part {
+    Eigen::VectorXd column_sums;
+    double residual_sum = 0.0, loading_sum = 0.0, rows = 0.0;
+  };
+  std::map<int, Part> parts;
+  for (Eigen::Index begin = 0; begin < n;) {   // runs of one id as blocks
+    Eigen::Index end = begin + 1;
+    while (end < n && cluster[static_cast<std::size_t>(end)] == cluster[static_cast<std::size_t>(begin)]) ++end;
+    auto [it, fresh] = parts.try_emplace(cluster[static_cast<std::size_t>(begin)]);
+    if (fresh) it->second.column_sums = Eigen::VectorXd::Zero(p);
+    it->second.column_sums += x.middleRows(begin, end - begin).colwise().sum().transpose();
+    it->second.residual_sum += residuals.segment(begin, end - begin).sum();
+    if (loading.size() != 0) it->second.loading_sum += loading.segment(begin, end - begin).sum();
+    it->second.rows += static_cast<double>(end - begin);
+    begin = end;
   }
-  const auto g = static_cast<int>(scores.size());
-  if (clusters != nullptr) *clusters = g;
-  if (g < 2 || n <= p) throw std::invalid_argument("cluster_robust_covariance: needs at least two clusters and N > p");
-  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(p, p);
-  for (const auto& [id, score] : scores) meat.noalias() += score * score.transpose();
-  const Eigen::LDLT<Eigen::MatrixXd> bread(x.transpose() * x);
-  const Eigen::MatrixXd left = bread.solve(meat);
-  const Eigen::MatrixXd v = bread.solve(left.transpose()).transpose();
-  const double correction = static_cast<double>(g) / static_cast<double>(g - 1) * static_cast<double>(n - 1) /
-                            static_cast<double>(n - p);
-  return correction * 0.5 * (v + v.transpose());
+  ClusterOffsets out;
+  out.clusters = static_cast<int>(parts.size());
+  const Eigen::Index g_count = out.clusters;
+  Eigen::MatrixXd means(g_count, p);
+  Eigen::VectorXd excess(g_count), q(g_count);
+  std::vector<const Part*> ordered;
+  for (const auto& [id, part] : parts) {
+    const auto g = static_cast<Eigen::Index>(ordered.size());
+    ordered.push_back(&part);
+    means.row(g) = part.column_sums.transpose() / part.rows;
+    const double m = part.residual_sum / part.rows;
+    excess(g) = m * m - sigma2 / part.rows;
+    q(g) = part.loading_sum / part.rows;
+  }
+  // Rank of the cluster-mean design in RMS-scaled columns.
+  Eigen::VectorXd scale = means.colwise().norm().transpose();
+  for (Eigen::Index j = 0; j < p; ++j)
+    if (!(scale(j) > 0.0)) scale(j) = 1.0;
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(means * scale.cwiseInverse().asDiagonal());
+  const Eigen::VectorXd sv = svd.singularValues();
+  int rank = 0;
+  for (Eigen::Index k = 0; k < sv.size(); ++k)
+    if (sv(k) > 1e-6 * sv(0)) ++rank;
+  out.between_dof = out.clusters - rank - estimated_elsewhere;
+  const Eigen::LDLT<Eigen::MatrixXd> xx(x.transpose() * x);
+  const Eigen::MatrixXd inverse = xx.solve(Eigen::MatrixXd::Identity(p, p));
+  out.covariance = sigma2 * inverse;
+  if (out.between_dof > 0) {
+    const double inflate = static_cast<double>(out.clusters) / static_cast<double>(out.between_dof);
+    // Non-negative least squares of excess on [1 q]: both, or the better single one.
+    double t0 = std::max(0.0, excess.mean()), t1 = 0.0;
+    const bool varying = loading.size() != 0 && out.between_dof >= 2 && (q.array() - q.mean()).abs().maxCoeff() > 0.0;
+    if (varying) {
+      Eigen::MatrixXd a(g_count, 2);
+      a.col(0).setOnes();
+      a.col(1) = q;
+      const Eigen::Vector2d both = a.colPivHouseholderQr().solve(excess);
+      const double only1 = std::max(0.0, q.dot(excess) / q.squaredNorm());
+      const auto misfit = [&](double c0, double c1) { return (excess - a * Eigen::Vector2d(c0, c1)).squaredNorm(); };
+      if (both(0) >= 0.0 && both(1) >= 0.0) {
+        t0 = both(0);
+        t1 = both(1);
+      } else if (misfit(0.0, only1) < misfit(t0, 0.0)) {
+        t0 = 0.0;
+        t1 = only1;
+      }
+    }
+    out.tau2_common = inflate * t0;
+    out.tau2_per_loading = inflate * t1;
+    Eigen::MatrixXd between = Eigen::MatrixXd::Zero(p, p);
+    double total = 0.0;
+    for (Eigen::Index g = 0; g < g_count; ++g) {
+      const double tau_g = out.tau2_common + out.tau2_per_loading * q(g);
+      total += tau_g;
+      between.noalias() += tau_g * ordered[std::size_t(g)]->column_sums * ordered[std::size_t(g)]->column_sums.transpose();
+    }
+    out.tau2 = total / static_cast<double>(g_count);
+    out.covariance += inverse * between * inverse;
+  }
+  out.covariance = 0.5 * (out.covariance + out.covariance.transpose()).eval();
+  return out;
 }
 
 }  // namespace inertia::ident

@@ -53,19 +53,39 @@ struct ResidualMeanTest {
 ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& residuals,
                                     bool effective_size = true);
 
-/// Cluster-robust (CR1) covariance of least-squares coefficients: samples within a cluster may be
-/// correlated in any way, clusters are independent. With x the regression columns (in the linear
-/// form the fit used) and e the residuals,
-///   V = (X'X)^-1 (sum_g X_g' e_g e_g' X_g) (X'X)^-1 * G / (G - 1) * (N - 1) / (N - p).
-/// Why: a bench's residual is not white within a test case (1/f noise below an AR model's reach,
-/// placement error of a pose, slow drift), and offsets between cases are not sensor effects;
-/// the classical covariance treats every sample as independent information. Clusters are the
-/// contiguous phases of each case: the level that carries independent information. Inference
-/// on it uses Student's t with G - 1 dof. `cluster` holds one id per row (any integers; rows of
-/// one id need not be contiguous). Needs G >= 2.
-Eigen::MatrixXd cluster_robust_covariance(const Eigen::Ref<const Eigen::MatrixXd>& x,
-                                          const Eigen::Ref<const Eigen::VectorXd>& residuals,
-                                          const std::vector<int>& cluster, int* clusters = nullptr);
+/// Offsets between clusters that the noise model does not explain, and what they do to a
+/// least-squares estimate (a variance-components model: y = X theta + u_g + e, u_g ~ N(0, tau^2)
+/// one per cluster, e white with variance sigma^2).
+/// Why: a bench's cases and phases are not exchangeable samples: a tumble's pose carries its
+/// placement error, a slow drift or 1/f noise below an AR model's reach shifts a whole phase, and
+/// the classical covariance takes every sample as independent information, so a term that only
+/// moves between clusters (a square that is constant within each static pose) looks determined
+/// by thousands of samples when it is determined by a handful of cluster means. Here such terms
+/// are tested against the scatter of the cluster means, on their degrees of freedom, as a
+/// lack-of-fit test against replicates does.
+///   r = rank of the cluster-mean design (G x p), dof = G - r between-cluster degrees of freedom;
+///   tau_g^2 = tau_0^2 + tau_1^2 q_g: an offset common to all clusters plus one that grows with
+///   the cluster's `loading` q_g (mean over its rows; a pose's placement tilt moves the output in
+///   proportion to the specific force across the input axis, so q = a_p^2 + a_o^2 there);
+///   tau_0, tau_1 by non-negative least squares of mean_g(e)^2 - sigma^2 / n_g on [1 q_g], scaled
+///   by G / dof for the means the fit absorbed (method of moments);
+///   V = sigma^2 (X'X)^-1 + (X'X)^-1 (sum_g tau_g^2 s_g s_g') (X'X)^-1,  s_g = X_g' 1,
+/// the covariance of the (ordinary, here AR-whitened) least-squares estimate under that model.
+struct ClusterOffsets {
+  int clusters = 0;                 ///< G
+  int between_dof = 0;              ///< G - r; <= 0: the offsets cannot be told from the model
+  double tau2 = 0.0;                ///< mean variance of the cluster offsets (0 when dof <= 0)
+  double tau2_common = 0.0, tau2_per_loading = 0.0;   ///< tau_0^2, tau_1^2
+  Eigen::MatrixXd covariance;       ///< V above (p x p); with dof <= 0 the classical part only
+};
+/// x: the regression columns in the linear form of the fit, residuals of that fit, sigma2 its
+/// white-noise variance, cluster: one id per row (rows of one id need not be contiguous).
+/// `estimated_elsewhere`: parameters fitted to the same cluster means outside this model (a
+/// mounting's angles, estimated in an earlier stage), taken off the between-cluster dof.
+/// `loading`: one value per row (empty: none, tau_1 = 0).
+ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                               double sigma2, const std::vector<int>& cluster, int estimated_elsewhere = 0,
+                               const Eigen::VectorXd& loading = Eigen::VectorXd());
 
 /// fitness = p_res * p_AIC (section 2.7).
 inline double fitness(double p_res, double p_aic) { return p_res * p_aic; }

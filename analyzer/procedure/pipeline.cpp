@@ -6,9 +6,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <optional>
+#include <set>
 #include <span>
 #include <stdexcept>
 #include <string_view>
@@ -415,7 +418,7 @@ std::string why_not_determined(const StackedRegression& s, Eigen::Index j, const
 }
 
 /// One id per batch row: the contiguous runs of one phase label within a case (the whole case
-/// when it has no phase column). The clusters of cluster-robust inference.
+/// when it has no phase column). The clusters of the jackknife inference.
 std::vector<int> phase_clusters(const StackedRegression& batch, const dataset::Dataset& data) {
   std::vector<int> ids(static_cast<std::size_t>(batch.phi.rows()), -1);
   int next = 0;
@@ -431,6 +434,138 @@ std::vector<int> phase_clusters(const StackedRegression& batch, const dataset::D
     }
   }
   return ids;
+}
+
+/// Honest inference after a selection (whose t-tests take every sample as independent), on a
+/// fitted model of a stacked problem. The cases' contiguous phases are clusters; offsets between
+/// them that the noise model does not explain (a pose's placement, drift, 1/f noise below the AR
+/// model's reach, a model error that repeats per phase) are a variance component
+/// (statistics.hpp, cluster_offsets), and every coefficient's covariance includes what they do to
+/// it. A term that varies within the phases is determined there and tested on the samples' dof; a
+/// term constant within each phase (a square in static poses, the bias) is determined only by
+/// the phases' means and is tested on the between-phase dof, after the parameters estimated
+/// elsewhere from the same means (mounting angles) are taken off. When the model has as many
+/// phase-level parameters as phases the offsets cannot be told from it: the weakest removable
+/// phase-level term leaves first. Then, one at a time, the term whose test falls below
+/// `threshold` leaves and the model is refitted. `extra` may add to the covariance (held angles).
+struct HonestPrune {
+  const StackedRegression* s = nullptr;
+  const std::vector<int>* clusters = nullptr;
+  const Eigen::VectorXd* loading = nullptr;    // per row: a_p^2 + a_o^2 (the placement tilt's reach)
+  int estimated_elsewhere = 0;              // phase-level parameters fitted outside this model
+  double threshold = 0.01;
+  bool may_remove = true;
+  std::function<bool(const std::string&)> protect;
+  std::function<void(const ident::UlsResult&, Eigen::MatrixXd&)> extra;
+};
+
+struct HonestResult {
+  ident::ClusterOffsets offsets;
+  Eigen::VectorXd dof;
+};
+
+HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& columns, ident::UlsResult& fit,
+                          const ident::UlsOptions& uls, std::vector<UndeterminedTerm>* removed, std::string_view what) {
+  const StackedRegression& s = *h.s;
+  std::vector<std::string> dropped;
+  for (;;) {
+    HonestResult out;
+    const Eigen::Index p = fit.process_terms;
+    out.dof = Eigen::VectorXd::Constant(p, static_cast<double>(fit.residuals.size() - p - 1));
+    if (s.phi.rows() != fit.residuals.size() || p == 0) return out;
+    Eigen::MatrixXd x(s.phi.rows(), p);
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const auto column = static_cast<Eigen::Index>(std::find(s.labels.begin(), s.labels.end(), fit.labels[std::size_t(j)]) -
+                                                    s.labels.begin());
+      const bool rational = std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end();
+      x.col(j) = rational ? Eigen::VectorXd(-s.phi.col(column)) : Eigen::VectorXd(s.phi.col(column));   // the linear form
+    }
+    out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, *h.clusters, h.estimated_elsewhere,
+                                         h.loading != nullptr ? *h.loading : Eigen::VectorXd());
+    // Which terms live between the phases: little of their column varies within one.
+    std::vector<bool> phase_level(static_cast<std::size_t>(p), false);
+    {
+      std::map<int, std::pair<Eigen::VectorXd, double>> sums;
+      for (Eigen::Index k = 0; k < x.rows(); ++k) {
+        auto [it, fresh] = sums.try_emplace((*h.clusters)[static_cast<std::size_t>(k)]);
+        if (fresh) it->second = {Eigen::VectorXd::Zero(p), 0.0};
+        it->second.first += x.row(k).transpose();
+        it->second.second += 1.0;
+      }
+      Eigen::VectorXd between = Eigen::VectorXd::Zero(p);
+      for (const auto& [id, sum] : sums) between += sum.first.cwiseAbs2() / sum.second;
+      const Eigen::VectorXd total = x.colwise().squaredNorm().transpose();
+      for (Eigen::Index j = 0; j < p; ++j) phase_level[std::size_t(j)] = total(j) > 0.0 && total(j) - between(j) < 1e-2 * total(j);
+    }
+    Eigen::MatrixXd covariance = fit.covariance.topLeftCorner(p, p);
+    if (out.offsets.tau2 > 0.0) {
+      const Eigen::MatrixXd classical = fit.residual_variance * (x.transpose() * x).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
+      covariance += out.offsets.covariance - classical;
+      for (Eigen::Index j = 0; j < p; ++j)
+        if (out.offsets.covariance(j, j) > 2.0 * classical(j, j)) out.dof(j) = std::max(1, out.offsets.between_dof);
+    }
+    if (h.extra) h.extra(fit, covariance);
+    fit.covariance.topLeftCorner(p, p) = covariance;
+    fit.std_dev = fit.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    const bool saturated = out.offsets.clusters >= 2 && out.offsets.between_dof <= 0;
+    Eigen::Index worst = -1;
+    double worst_p = -1.0, worst_t = 0.0;
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const std::string& label = fit.labels[std::size_t(j)];
+      if (h.protect && h.protect(label)) continue;
+      const double t = fit.theta(j) / fit.std_dev(j);
+      double pv = 0.0;
+      if (saturated) {
+        if (!phase_level[std::size_t(j)]) continue;
+        pv = 1.0 / (1.0 + std::abs(t));   // the weakest phase-level term by its classical t
+      } else {
+        pv = ident::student_t_two_sided_p(t, out.dof(j));
+        if (!(pv > h.threshold)) continue;
+      }
+      if (pv > worst_p) {
+        worst = j;
+        worst_p = pv;
+        worst_t = t;
+      }
+    }
+    if (worst < 0 || !h.may_remove) return out;
+    const std::string label = fit.labels[std::size_t(worst)];
+    if (removed != nullptr) {
+      removed->push_back(
+          {label, saturated ? fmt::format("left out of the {} after selection: it had as many parameters at the level of the "
+                                          "{} phases' means as there are phases, so the offsets between them (placement, "
+                                          "drift) could not be told from it; this was its weakest (t {:.1f})",
+                                          what, out.offsets.clusters, worst_t)
+                            : fmt::format("left out of the {} after selection: t {:.1f} on {:.0f} dof, with the offsets "
+                                          "between its {} phases{}, is below the selection's level",
+                                          what, worst_t, out.dof(worst), out.offsets.clusters,
+                                          h.extra ? " and the held angles" : "")});
+    }
+    const auto at = std::find(s.labels.begin(), s.labels.end(), label);
+    std::erase(columns, static_cast<Eigen::Index>(at - s.labels.begin()));
+    fit = fit_identifiable(s, columns, uls, dropped);
+  }
+}
+
+/// Per row of a whitened stacked problem: a_p^2 + a_o^2 (gyros w_p^2 + w_o^2) unfiltered, the
+/// reach of a small tilt of the input axis (the loading of placement offsets, cluster_offsets).
+Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<const Term> candidates, const dataset::Dataset& data,
+                                   const std::vector<CaseOutcome>& cases, const ArWhitener& whitener, std::string_view label) {
+  const bool gyro = data.sensor == dataset::SensorKind::Gyroscope;
+  const std::vector<Term> cross = ident::parse_terms(gyro ? std::vector<std::string>{"w_p", "w_o"} : std::vector<std::string>{"a_p", "a_o"});
+  std::vector<StackInput> inputs;
+  for (const CaseRows& rows : whitened.cases) inputs.push_back({rows.case_index, &data.cases[rows.case_index], cases[rows.case_index].m_es, 1.0});
+  const StackedRegression raw = stack_regressions(cross, inputs, data.t_ref, label, ident::first_usable_row(candidates));
+  Eigen::VectorXd out(whitened.phi.rows());
+  for (std::size_t c = 0; c < whitened.cases.size(); ++c) {
+    const CaseRows& w = whitened.cases[c];
+    const CaseRows& r = raw.cases[c];
+    const Eigen::Index skip = r.rows - w.rows;   // the whitener's first rows
+    if (skip < 0 || r.case_index != w.case_index) throw std::logic_error("cross_axis_loading: layouts differ");
+    out.segment(w.begin, w.rows) = raw.phi.middleRows(r.begin + skip, w.rows).rowwise().squaredNorm();
+  }
+  (void)whitener;
+  return out;
 }
 
 /// M_C^S of a mounting turned by its held angles: `tilt` = (toward p, toward o) in rad.
@@ -654,20 +789,50 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   const std::vector<std::string> tilts = hook.tilts(best.ranked_terms);
   result.s_fit = best.fit;
   {
+    // Honest inference on the selected model (as the batch's, run_pipeline): offsets between the
+    // mounting's phases (a pose's placement) are not information about its terms.
+    std::vector<Term> selected_terms;
+    for (const std::string& label : best.fit.labels) selected_terms.push_back(ident::parse_term(label));
+    const StackedRegression stage = whitened_regression(selected_terms, m, cases, *best_misalignment, data, dataset_label,
+                                                        first_row, square_corner, whitener);
+    std::vector<CaseOutcome> outcomes(data.cases.size());
+    for (std::size_t index : cases) outcomes[index].m_es = *best_misalignment * data.cases[index].m_ec;
+    const std::vector<int> clusters = phase_clusters(stage, data);
+    const Eigen::VectorXd loading = cross_axis_loading(stage, selected_terms, data, outcomes, whitener, dataset_label);
+    HonestPrune honest;
+    honest.s = &stage;
+    honest.clusters = &clusters;
+    honest.loading = &loading;
+    honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, selected.ranking.size()));
+    honest.protect = [&](const std::string& label) {
+      return is_sensitivity_label(label) || label == "1" || std::find(tilts.begin(), tilts.end(), label) != tilts.end();
+    };
+    std::vector<Eigen::Index> columns(selected_terms.size());
+    for (std::size_t i = 0; i < columns.size(); ++i) columns[i] = static_cast<Eigen::Index>(i);
+    result.s_fit = fit_identifiable(stage, columns, options.selection.uls, result.excluded);
+    const HonestResult inference = honest_prune(honest, columns, result.s_fit, options.selection.uls, &result.pruned, "mounting's model");
+    // The angles' test dof: the tilts' (between the mounting's phases when their offsets dominate).
+    for (Eigen::Index j = 0; j < inference.dof.size(); ++j) {
+      const std::string& label = result.s_fit.labels[static_cast<std::size_t>(j)];
+      if (std::find(tilts.begin(), tilts.end(), label) != tilts.end()) result.angles_dof = std::min(result.angles_dof, inference.dof(j));
+    }
+  }
+  const ident::UlsResult selected_fit = result.s_fit;
+  {
     // The angles' sd: the kept tilts' in the selected model (the tilt of n_i toward p and o, over
     // theta_i), by the delta method through algorithm 1.
     const std::string axes[3] = {gyro ? "w_i" : "a_i", gyro ? "w_p" : "a_p", gyro ? "w_o" : "a_o"};
     Eigen::Vector3d theta = Eigen::Vector3d::Zero();
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
     std::array<Eigen::Index, 3> at{-1, -1, -1};
-    for (std::size_t i = 0; i < best.fit.labels.size(); ++i)
+    for (std::size_t i = 0; i < selected_fit.labels.size(); ++i)
       for (std::size_t a = 0; a < 3; ++a)
-        if (best.fit.labels[i] == axes[a]) at[a] = static_cast<Eigen::Index>(i);
+        if (selected_fit.labels[i] == axes[a]) at[a] = static_cast<Eigen::Index>(i);
     for (std::size_t a = 0; a < 3; ++a) {
       if (at[a] < 0) continue;
-      theta(Eigen::Index(a)) = best.fit.theta(at[a]);
+      theta(Eigen::Index(a)) = selected_fit.theta(at[a]);
       for (std::size_t b = 0; b < 3; ++b)
-        if (at[b] >= 0) covariance(Eigen::Index(a), Eigen::Index(b)) = best.fit.covariance(at[a], at[b]);
+        if (at[b] >= 0) covariance(Eigen::Index(a), Eigen::Index(b)) = selected_fit.covariance(at[a], at[b]);
     }
     if (theta(0) != 0.0) set_angles(result, misalignment_angles(theta, covariance).sd);
   }
@@ -675,10 +840,10 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     const std::string axes[3] = {gyro ? "w_i" : "a_i", gyro ? "w_p" : "a_p", gyro ? "w_o" : "a_o"};
     Eigen::Vector3d theta = Eigen::Vector3d::Zero();   // theta_i, theta_p, theta_o
     std::vector<Term> s_terms;
-    for (std::size_t i = 0; i < best.fit.labels.size(); ++i) {
-      const std::string& label = best.fit.labels[i];
+    for (std::size_t i = 0; i < selected_fit.labels.size(); ++i) {
+      const std::string& label = selected_fit.labels[i];
       for (int a = 0; a < 3; ++a) {
-        if (label == axes[a]) theta(a) = best.fit.theta(static_cast<Eigen::Index>(i));
+        if (label == axes[a]) theta(a) = selected_fit.theta(static_cast<Eigen::Index>(i));
       }
       if (std::find(tilts.begin(), tilts.end(), label) == tilts.end()) s_terms.push_back(ident::parse_term(label));
     }
@@ -716,6 +881,27 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
 
   // Blocks 5-6. Mountings that can estimate the bias go first, so shaker-only mountings can use it.
   auto groups = mountings_of(data);
+  {
+    // A tumble: unlabelled static poses are the sensor in one fixture turned between them (the
+    // way every multi-position test is run), so they share one mounting. Said, and a label in
+    // dataset.toml overrides it.
+    const bool labelled = std::any_of(data.cases.begin(), data.cases.end(), [](const dataset::CaseData& c) { return !c.mounting.empty(); });
+    std::vector<std::size_t> poses;
+    for (std::size_t i = 0; i < data.cases.size(); ++i) {
+      const dataset::CaseKind kind = data.cases[i].kind;
+      if (kind == dataset::CaseKind::Static || kind == dataset::CaseKind::Thermal) poses.push_back(i);
+    }
+    if (!labelled && poses.size() >= 2 && data.sensor == dataset::SensorKind::Accelerometer) {
+      std::erase_if(groups, [&](const auto& g) { return std::find(poses.begin(), poses.end(), g.second.front()) != poses.end(); });
+      groups.insert(groups.begin(), {"poses", poses});
+      std::vector<std::string> names;
+      for (std::size_t i : poses) names.push_back(data.cases[i].name);
+      result.notes.push_back(fmt::format("inferred: the {} static poses ({}) share one mounting 'poses' (the sensor stays in "
+                                         "its fixture, which is turned between them); give each case a `mounting` label "
+                                         "in dataset.toml to say otherwise",
+                                         poses.size(), fmt::join(names, ", ")));
+    }
+  }
   if (data.sensor == dataset::SensorKind::Gyroscope) {
     // Paper section 2.2: a gyroscope's vibration sensitivity is not tied to a sensor frame, so its
     // misalignment is the sensor's own M_C^S, read from the rate sensitivities over every case at
@@ -829,41 +1015,28 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   std::vector<std::string> dropped;
   result.fit = fit_identifiable(batch, columns, uls, dropped);
   // Honest inference on the selected model (the selection's t-tests take every sample as
-  // independent): (1) the cluster-robust covariance over the cases' contiguous phases, where it is
-  // larger (coloured residual within a phase, offsets between phases and cases, a model error
-  // that repeats per phase), with Student's t on G - 1 dof; (2) each held angle turned by the
+  // independent): (1) the cluster jackknife covariance over the cases' contiguous phases, where
+  // it is larger (coloured residual within a phase, offsets between phases and cases, a model
+  // error that repeats per phase, a term only a few phases carry), with Student's t on G - 1 dof; (2) each held angle turned by the
   // mounting tolerance moves the coefficients by d (the exact refit, nonlinear terms included),
   // and the covariance gains d d'. A term whose t then falls below the selection's level is not
   // determined by this plan: it leaves and the rest is refitted.
   const std::vector<int> clusters = phase_clusters(batch, data);
-  const double threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
-  for (;;) {
-    const Eigen::Index p = result.fit.process_terms;
-    std::vector<Term> terms;
-    for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(result.fit.labels[std::size_t(j)]));
-    Eigen::MatrixXd covariance = result.fit.covariance;
-    int groups = 0;
-    Eigen::MatrixXd x(batch.phi.rows(), p);
-    for (Eigen::Index j = 0; j < p; ++j) {
-      const auto column = static_cast<Eigen::Index>(
-          std::find(batch.labels.begin(), batch.labels.end(), result.fit.labels[std::size_t(j)]) - batch.labels.begin());
-      const bool rational = std::find(batch.rational.columns.begin(), batch.rational.columns.end(), column) !=
-                            batch.rational.columns.end();
-      x.col(j) = rational ? Eigen::VectorXd(-batch.phi.col(column)) : Eigen::VectorXd(batch.phi.col(column));
-    }
-    bool robust = false;
-    if (x.rows() == result.fit.residuals.size()) {
-      const Eigen::MatrixXd cr = ident::cluster_robust_covariance(x, result.fit.residuals, clusters, &groups);
-      Eigen::VectorXd inflation = Eigen::VectorXd::Ones(covariance.rows());
-      for (Eigen::Index j = 0; j < p; ++j) {
-        if (cr(j, j) > covariance(j, j) && covariance(j, j) > 0.0) {
-          inflation(j) = std::sqrt(cr(j, j) / covariance(j, j));
-          robust = true;
-        }
-      }
-      covariance = inflation.asDiagonal() * covariance * inflation.asDiagonal();
-    }
-    if (!held.empty() && options.mounting_tolerance_rad > 0.0) {
+  const Eigen::VectorXd loading = cross_axis_loading(batch, candidates, data, result.cases, whitener, dataset_label);
+  HonestPrune honest;
+  honest.s = &batch;
+  honest.clusters = &clusters;
+  honest.loading = &loading;
+  for (const MountingResult& m : result.mountings)
+    honest.estimated_elsewhere += static_cast<int>(m.excitation.determined[1]) + static_cast<int>(m.excitation.determined[2]);
+  honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
+  honest.may_remove = options.batch.select;
+  honest.protect = [](const std::string& label) { return is_sensitivity_label(label) || label == "1"; };
+  if (!held.empty() && options.mounting_tolerance_rad > 0.0) {
+    honest.extra = [&](const ident::UlsResult& fit, Eigen::MatrixXd& covariance) {
+      const Eigen::Index p = fit.process_terms;
+      std::vector<Term> terms;
+      for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
       for (const HeldColumn& h : held) {
         std::vector<Eigen::Vector2d> tilts = nominal;
         tilts[h.mounting](h.axis - 1) = options.mounting_tolerance_rad;
@@ -875,31 +1048,66 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
         std::vector<Eigen::Index> all(terms.size());
         for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
         const ident::UlsResult moved = ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all);
-        const Eigen::VectorXd d = moved.theta.head(p) - result.fit.theta.head(p);
-        covariance.topLeftCorner(p, p) += d * d.transpose();
+        const Eigen::VectorXd d = moved.theta.head(p) - fit.theta.head(p);
+        covariance += d * d.transpose();
+      }
+    };
+  }
+  HonestResult inference = honest_prune(honest, columns, result.fit, uls, &result.undetermined, "batch model");
+  if (!held.empty() && options.batch.select) {
+    // Held angles leave the model in a frame that is not the sensor's. A turn within the tolerance
+    // is allowed for above; a misfit the model cannot absorb shows as an innovation that still
+    // follows the sensitive input. Then the frame-dependent terms (everything but the bias, the
+    // scale factor and temperature terms) are not determined by this plan: they leave.
+    const auto input_column = std::find_if(batch.labels.begin(), batch.labels.end(),
+                                           [](const std::string& l) { return l == "a_i" || l == "w_i"; });
+    const bool none_aligned =
+        std::none_of(result.mountings.begin(), result.mountings.end(), [](const MountingResult& m) { return m.aligned; });
+    if (input_column != batch.labels.end() && batch.phi.rows() == result.fit.residuals.size()) {
+      const ident::CorrelationCheck check = ident::residual_input_correlation(
+          result.fit.residuals, batch.phi.col(input_column - batch.labels.begin()), 20);
+      if (!check.pass || none_aligned) {
+        // Linear in the sensitive input (times temperature, output or lags) holds in any frame near
+        // the sensor's; squares, |a_i|, sign and the cross-axis inputs do not.
+        const auto frame_free = [](const std::string& label) {
+          const Term t = ident::parse_term(label);
+          return std::all_of(t.factors().begin(), t.factors().end(), [](const ident::Factor& f) {
+            using ident::Variable;
+            const bool input = f.variable == Variable::Ai || f.variable == Variable::Wi;
+            return (input && f.power == 1 && f.function == ident::FactorFunction::Plain) || f.variable == Variable::T ||
+                   f.variable == Variable::Y || f.variable == Variable::E;
+          });
+        };
+        std::vector<Eigen::Index> kept;
+        for (Eigen::Index c : columns) {
+          const std::string& label = batch.labels[static_cast<std::size_t>(c)];
+          if (frame_free(label)) {
+            kept.push_back(c);
+          } else {
+            result.undetermined.push_back(
+                {label, none_aligned
+                            ? std::string("not determined by this plan: no mounting is aligned, so the sensor frame's p and o "
+                                          "axes are not known in any case and a term that depends on them has no frame; an "
+                                          "aligned mounting (a table or tumble case, or one mounting label shared by the "
+                                          "shaker orientations) determines them")
+                            : fmt::format("not determined by this plan: the held mounting angles leave a misfit the model "
+                                          "cannot absorb (the innovation still follows the sensitive input: {} of {} lags "
+                                          "outside the 95 % band), so the terms that depend on the sensor frame's p and o "
+                                          "axes are not known; an aligned mounting determines them",
+                                          check.outside, check.lags.size())});
+          }
+        }
+        if (kept.size() < columns.size()) {
+          columns = kept;
+          result.fit = fit_identifiable(batch, columns, uls, dropped);
+          honest.may_remove = false;
+          inference = honest_prune(honest, columns, result.fit, uls, nullptr, "batch model");
+        }
       }
     }
-    result.fit.covariance = covariance;
-    result.fit.std_dev = covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
-    result.inference_clusters = robust ? groups : 0;
-    ident::ParameterTTest tt = ident::parameter_t_test(result.fit.process_theta(), result.fit.std_dev.head(p),
-                                                       robust ? groups : result.fit.residuals.size());
-    Eigen::Index worst = -1;
-    for (Eigen::Index j = 0; j < p; ++j) {
-      if (is_sensitivity_label(result.fit.labels[std::size_t(j)]) || !(tt.p_value(j) > threshold)) continue;
-      if (worst < 0 || tt.p_value(j) > tt.p_value(worst)) worst = j;
-    }
-    if (worst < 0 || !options.batch.select) break;
-    const std::string label = result.fit.labels[std::size_t(worst)];
-    result.undetermined.push_back(
-        {label, fmt::format("left out after selection: t {:.1f} ({}) is below the selection's level", tt.t(worst),
-                            !held.empty() ? fmt::format("cluster-robust over {} phases, and the held angles within +-{:.2f} deg",
-                                                        groups, rad_to_deg(options.mounting_tolerance_rad))
-                                          : fmt::format("cluster-robust over {} phases", groups))});
-    const auto at = std::find(batch.labels.begin(), batch.labels.end(), label);
-    std::erase(columns, static_cast<Eigen::Index>(at - batch.labels.begin()));
-    result.fit = fit_identifiable(batch, columns, uls, dropped);
   }
+  result.inference = inference.offsets;
+  result.test_dof = inference.dof;
   if (!held.empty() && options.mounting_tolerance_rad > 0.0) {
     result.notes.push_back(fmt::format("{} mounting angle(s) held at the nominal case frame; each is assumed within "
                                        "+-{:.2f} deg (--mounting-tolerance-deg), and what that moves is in the sd",
@@ -908,8 +1116,11 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   for (const std::string& label : result.fit.labels) {
     if (result.terms.size() < static_cast<std::size_t>(result.fit.process_terms)) result.terms.push_back(ident::parse_term(label));
   }
-  const Eigen::Index n = result.inference_clusters > 0 ? result.inference_clusters : result.fit.residuals.size();
-  result.t_test = ident::parameter_t_test(result.fit.process_theta(), result.fit.std_dev.head(result.fit.process_terms), n);
+  result.t_test = ident::parameter_t_test(result.fit.process_theta(), result.fit.std_dev.head(result.fit.process_terms),
+                                          result.fit.residuals.size());
+  for (Eigen::Index j = 0; j < result.t_test.p_value.size() && j < result.test_dof.size(); ++j) {
+    result.t_test.p_value(j) = ident::student_t_two_sided_p(result.t_test.t(j), result.test_dof(j));
+  }
   result.residual_mean = ident::residual_mean_test(result.fit.residuals);
   result.aic = ident::aic(result.fit.residuals, result.fit.theta.size());
   return result;

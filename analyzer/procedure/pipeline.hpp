@@ -13,6 +13,7 @@
 // (a_C = M_E^C a_E), where the shared misalignment is one rotation, and algorithm 2 runs on the
 // concatenated cases. A case without a mounting label is a mounting of its own.
 #include <Eigen/Dense>
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -129,7 +130,11 @@ struct MountingResult {
   /// single-axis sensor does not see it); an angle held at nominal has sd 0 and `held` says why.
   Eigen::Vector3d angles = Eigen::Vector3d::Zero();
   Eigen::Vector3d angles_sd = Eigen::Vector3d::Zero();
+  /// Degrees of freedom of the angles' sd (few when the offsets between the mounting's phases
+  /// dominate them, as a tumble's placement errors do): intervals use Student's t with them.
+  double angles_dof = std::numeric_limits<double>::infinity();
   std::vector<std::string> held;            // what was held at the nominal frame, and why (for the user)
+  std::vector<UndeterminedTerm> pruned;     // selected terms the honest inference took out, and why
 };
 
 struct CaseOutcome {
@@ -154,9 +159,11 @@ struct PipelineResult {
   /// none: static squares. A model file must carry it to mean the same model.
   std::optional<double> square_corner_rad_s;
   std::vector<UndeterminedTerm> undetermined;
-  /// Phase clusters of the cluster-robust covariance when it was larger than the classical one
-  /// for some coefficient (0: classical); t-tests then use G - 1 dof.
-  int inference_clusters = 0;
+  /// The offsets between the cases' phases (statistics.hpp, cluster_offsets) that the batch's
+  /// covariance includes, and each process term's test dof (between-phase where the offsets
+  /// carry most of its variance).
+  ident::ClusterOffsets inference;
+  Eigen::VectorXd test_dof;
   /// Plan-level statements for the user: what was pooled or inferred, what the plan does not
   /// determine and what excitation it would need.
   std::vector<std::string> notes;

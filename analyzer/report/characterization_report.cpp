@@ -154,13 +154,12 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   md << fmt::format("\n## Model (blocks 9-11)\n\n{} rows; innovation standard deviation {:.4g} {} (the residual after "
                     "the AR({}) noise model); AIC {:.6g}.\n\n",
                     r.fit.residuals.size(), std::sqrt(r.fit.residual_variance), data.output_unit, r.whitening.size(), r.aic);
-  md << (r.inference_clusters > 0
-             ? fmt::format("Inference: standard deviations are cluster-robust over {} contiguous phases where that is larger "
-                           "than the classical ones (samples within a phase are not independent, and offsets between "
-                           "phases and cases are not sensor effects); t-tests on {} degrees of freedom.\n\n",
-                           r.inference_clusters, r.inference_clusters - 1)
-             : std::string("Inference: the classical standard deviations of the whitened fit (the cluster-robust ones over "
-                           "the phases were not larger).\n\n"));
+  md << fmt::format("Inference: the cases' contiguous phases are {} clusters; the offsets between them that the noise model "
+                    "does not explain (placement of a pose, drift, 1/f noise below the AR model's reach) have sd {:.3g} {} "
+                    "(between-phase dof {}), and every standard deviation includes what they do to the estimate; a term "
+                    "they dominate is tested on the between-phase dof (samples within a phase are not independent "
+                    "information).\n\n",
+                    r.inference.clusters, std::sqrt(r.inference.tau2), data.output_unit, r.inference.between_dof);
   if (!r.undetermined.empty()) {
     md << "Not determined by this plan:\n\n";
     for (const procedure::UndeterminedTerm& u : r.undetermined) md << fmt::format("- `{}`: {}\n", u.term, u.reason);

@@ -1,5 +1,7 @@
 #include "common/config/bench_config.hpp"
 
+#include <numbers>
+
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -336,6 +338,11 @@ TestCase read_case(const TableReader& t, double alpha_rad, double sample_rate_hz
   c.fixture_misalignment = read_axis_angle(t, "fixture_misalignment");
   c.case_misalignment = read_axis_angle(t, "case_misalignment");
   c.start_attitude = read_axis_angle(t, "start_attitude");
+  if (t.has("placement_error_deg")) {
+    const double deg = t.number("placement_error_deg");
+    if (!(deg >= 0.0 && deg <= 10.0)) t.fail_key("placement_error_deg", "must be within 0..10 degrees");
+    c.placement_error_rad = deg * std::numbers::pi / 180.0;
+  }
   if (c.kind != CaseKind::RotationTable && t.has("start_attitude")) {
     t.fail_key("start_attitude", "only a rotation_table case has a table attitude");
   }

@@ -33,7 +33,8 @@ SensorCase simulate_sensor(const config::BenchConfig& bench, const SensorParams&
   const config::SensorUnderTest& sensor = bench.sensors.at(sensor_index);
   const config::TestCase& tc = bench.cases.at(case_index);
   SensorCase out;
-  out.mounting = mounting_truth(tc, sensor);
+  // The placement is the case's, the same for every sensor on the fixture.
+  out.mounting = mounting_truth(tc, sensor, derive_seed(bench.seed, {static_cast<std::uint64_t>(Stream::Placement), case_index}));
   const frames::Dcm m_ec = out.mounting.true_m_ec;
   const auto n = static_cast<Eigen::Index>(motion.size());
   const bool lever_arm = !sensor.position_m.isZero();

@@ -14,20 +14,27 @@
 //   `axis`, the axis written in nominal case coordinates (the paper's "2 deg about case Y").
 //   R_C = R_slot * R_case: [[case]] case_misalignment (this mounting) first, then the sensor's
 //   own [[sensor]] case_misalignment (its fit in the slot), both frame rotations.
+// - R_P, placement error ([[case]] placement_error_deg): a random rotation of this case's
+//   placement (rotation vector with independent N(0, sd^2) components in F_E, drawn from the
+//   placement seed), composed with R_F: a tumble's pose is never exactly its nominal one.
 // - M_C^S, sensor misalignment alpha_p, alpha_o: inside the truth model (m_cs()).
 // Every R is frames::frame_rotation(axis, angle), i.e. a DCM from the unrotated to the rotated frame.
 #include "common/config/bench_config.hpp"
 #include "common/frames.hpp"
 
+#include <cstdint>
+
 namespace inertia::sim {
 
 struct MountingTruth {
   frames::Dcm nominal_m_ec;   // M_nom
-  frames::Dcm fixture;        // R_F
+  frames::Dcm fixture;        // R_F R_P (placement error included)
   frames::Dcm case_rotation;  // R_C
   frames::Dcm true_m_ec;      // R_C M_nom R_F
 };
 
-MountingTruth mounting_truth(const config::TestCase& test_case, const config::SensorUnderTest& sensor);
+/// `placement_seed` draws the case's placement error (unused when it is zero).
+MountingTruth mounting_truth(const config::TestCase& test_case, const config::SensorUnderTest& sensor,
+                             std::uint64_t placement_seed = 0);
 
 }  // namespace inertia::sim

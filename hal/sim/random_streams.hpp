@@ -27,7 +27,7 @@ inline std::uint64_t derive_seed(std::uint64_t seed, std::initializer_list<std::
 }
 
 /// Stream ids for derive_seed (fixed: changing one changes every simulated dataset).
-enum class Stream : std::uint64_t { RandomVibration = 1, Monitor = 2, Control = 3, Thermal = 4, Sensor = 5 };
+enum class Stream : std::uint64_t { RandomVibration = 1, Monitor = 2, Control = 3, Thermal = 4, Sensor = 5, Placement = 6 };
 
 /// Uniform and standard-normal draws. Real-time safe (no allocation).
 class RandomSource {
