@@ -15,6 +15,7 @@
 #include "common/config/bench_config.hpp"
 #include "common/input_error.hpp"
 #include "common/lcm/channels.hpp"
+#include "daq/journal.hpp"
 #include "daq/log_writer.hpp"
 #include "daq/publisher.hpp"
 #include "daq/real_bench.hpp"
@@ -310,7 +311,9 @@ int run_daemon(const DaemonOptions& command_line) {
   const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0;
   const std::int64_t watchdog_ns = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
   std::vector<std::uint64_t> beats(samplers.size(), 0);
-  std::vector<std::uint32_t> faults_seen(samplers.size(), 0);
+  std::vector<const DeviceSlot*> watched_slots;
+  for (auto& s : samplers) watched_slots.push_back(&s->slot());
+  FaultJournal fault_journal(std::move(watched_slots), hal::monotonic_now_ns());
   // invalid-samples: raised while a device pushed samples marked invalid within the last second.
   std::vector<std::uint64_t> invalid_seen(samplers.size(), 0);
   std::vector<std::int64_t> invalid_last_ns(samplers.size(), 0);
@@ -357,15 +360,8 @@ int run_daemon(const DaemonOptions& command_line) {
       last_ping = now;
     }
     if (now - last_status >= 1'000'000'000) {
-      // Fault transitions go to the journal (stderr under systemd) as well as INERTIA_STATUS.
-      for (std::size_t i = 0; i < samplers.size(); ++i) {
-        const std::uint32_t f = samplers[i]->slot().faults.load(std::memory_order_relaxed);
-        if (f != faults_seen[i]) {
-          for (const auto& name : fault_names(f & ~faults_seen[i])) std::cerr << "inertia-daqd: " << samplers[i]->slot().name << ": fault " << name << "\n";
-          for (const auto& name : fault_names(faults_seen[i] & ~f)) std::cerr << "inertia-daqd: " << samplers[i]->slot().name << ": cleared " << name << "\n";
-          faults_seen[i] = f;
-        }
-      }
+      // Fault transitions go to the journal as structured entries as well as INERTIA_STATUS.
+      fault_journal.update(now);
       std::uint64_t samples = 0, drops = 0;
       for (auto& s : samplers) {
         samples += s->slot().samples.load(std::memory_order_relaxed);
@@ -382,6 +378,7 @@ int run_daemon(const DaemonOptions& command_line) {
   // Graceful stop: nothing that was sampled is lost. The simulator stops writing, each sampler
   // drains its wire into its ring, the publisher drains the rings, the writer drains its queue.
   sd_notify(0, "STOPPING=1\nSTATUS=stopping: flushing rings and log");
+  fault_journal.finish(hal::monotonic_now_ns());
   if (sim) sim->stop();
   for (auto& s : samplers) s->stop();
   publisher.stop();
