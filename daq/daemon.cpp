@@ -74,6 +74,13 @@ volatile sig_atomic_t g_unused = 0;
 
 const char* usage() {
   return "usage: inertia-daqd --config FILE [--duration S] [--log DIR] [options]\n"
+         "       inertia-daqd --check --config FILE\n"
+         "  --check              open every device of the bench file without sampling and print one\n"
+         "                       table: CAN interface up at the bench's bit rates, GPIO lines free,\n"
+         "                       Modbus registers readable and in range; each failure with its\n"
+         "                       bench-file line and the command that fixes it. Exit 0 when every\n"
+         "                       required device is ready, 2 otherwise (optional = true devices are\n"
+         "                       marked and do not count)\n"
          "  --config FILE        bench file (config/*.toml); its [daemon] table sets defaults for\n"
          "                       --log, --lcm-url, --block-ms, --rotate-mb, --fsync-ms, --log-queue,\n"
          "                       --ring, --fifo-priority, --cpu, --mlock (the command line wins)\n"
@@ -107,6 +114,7 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
       return args[++i];
     };
     if (a == "--help" || a == "-h") *help = true;
+    else if (a == "--check") o.check = true;
     else if (a == "--config") o.config = value();
     else if (a == "--duration") o.duration_s = to_number(a, value());
     else if (a == "--log") o.log_dir = value();
@@ -190,6 +198,7 @@ int run_daemon(const DaemonOptions& command_line) {
   // Devices.
   std::unique_ptr<SimBench> sim;
   std::vector<std::unique_ptr<Sampler>> samplers;
+  std::vector<std::string> absent;  // optional devices the bench runs without
   std::string why;
   if (bench.simulated) {
     // Threads the simulator starts here (its Modbus server) inherit this name, so CPU accounting
@@ -208,10 +217,16 @@ int run_daemon(const DaemonOptions& command_line) {
     samplers = sim->take_samplers();
     ::pthread_setname_np(::pthread_self(), "inertia-daqd");
   } else {
-    samplers = open_real_bench(bench, o.ring, &why);
-    if (samplers.empty()) {
+    RealBench real = open_real_bench(bench, o.ring, &why);
+    if (real.samplers.empty()) {
       std::cerr << "inertia-daqd: " << why << "\n";
       return kExitBadInput;
+    }
+    samplers = std::move(real.samplers);
+    for (const LeftOutDevice& d : real.left_out) {
+      absent.push_back(d.name);
+      journal_fault({d.name, "absent", "absent", d.name + ": optional device left out, running degraded: " + d.why, 4,
+                     std::nullopt, std::nullopt});
     }
   }
   for (auto& s : samplers) {
@@ -281,8 +296,9 @@ int run_daemon(const DaemonOptions& command_line) {
   po.sim_t0_ns = hal::monotonic_now_ns() + 20'000'000;  // 20 ms for the threads to start
   if (sim) po.describe_mark = [&sim](const PlanMark& m, plan_event_t& e) { sim->describe(m, e); };
   LogWriter* log_ptr = log.get();
-  po.daemon_faults = [log_ptr] {
+  po.daemon_faults = [log_ptr, absent] {
     std::vector<std::string> f;
+    for (const std::string& name : absent) f.push_back("absent:" + name);
     if (log_ptr == nullptr) f.emplace_back("log-off");
     else if (log_ptr->disk_full()) f.emplace_back("disk-full");
     return f;
@@ -302,6 +318,7 @@ int run_daemon(const DaemonOptions& command_line) {
   std::ostringstream ready;
   ready << "READY=1\nSTATUS=sampling " << samplers.size() << " devices of bench " << bench.name
         << (bench.simulated ? (o.fast ? " (simulated, fast)" : " (simulated, paced)") : "");
+  if (!absent.empty()) ready << " (degraded: " << absent.size() << " optional device" << (absent.size() > 1 ? "s" : "") << " absent)";
   sd_notify(0, ready.str().c_str());
   std::cerr << "inertia-daqd: " << ready.str().substr(15) << "; log "
             << (log ? log->current_path() : std::string("off")) << "\n";

@@ -187,14 +187,17 @@ TEST(DaqdService, BadConfigExitsTwoNamingFileAndLine) {
 
 TEST(DaqdService, AbsentDeviceOnARealBenchExitsTwoNamingIt) {
   // The bench template wires CAN interfaces this machine does not have (no AF_CAN here, or no
-  // can0 elsewhere): the daemon names the device and exits 2. The bench file has no "optional"
-  // flag, so every configured device is required.
+  // can0 elsewhere): the daemon names the required device at its interface key, with the fix,
+  // and exits 2 (daqd_check_test.cpp: optional devices).
   if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
   TempDir tmp;
   DaqdProcess daqd({"--config", source_path("config/bench-template.toml"), "--lcm-url", private_lcm_url()}, {},
                    tmp.path / "stderr.txt");
   EXPECT_EQ(daqd.wait(20), 2);
-  EXPECT_NE(daqd.output().find("device '"), std::string::npos) << daqd.output();
+  const std::string out = daqd.output();
+  EXPECT_NE(out.find("config/bench-template.toml:"), std::string::npos) << out;
+  EXPECT_NE(out.find(": device 'adc0' (CAN)"), std::string::npos) << out;
+  EXPECT_NE(out.find("  fix: "), std::string::npos) << out;
 }
 
 TEST(DaqdService, UnitFilePassesSystemdAnalyzeVerify) {
