@@ -15,6 +15,7 @@
 #include "common/config/bench_config.hpp"
 #include "common/input_error.hpp"
 #include "common/lcm/channels.hpp"
+#include "daq/journal.hpp"
 #include "daq/log_writer.hpp"
 #include "daq/publisher.hpp"
 #include "daq/real_bench.hpp"
@@ -73,6 +74,13 @@ volatile sig_atomic_t g_unused = 0;
 
 const char* usage() {
   return "usage: inertia-daqd --config FILE [--duration S] [--log DIR] [options]\n"
+         "       inertia-daqd --check --config FILE\n"
+         "  --check              open every device of the bench file without sampling and print one\n"
+         "                       table: CAN interface up at the bench's bit rates, GPIO lines free,\n"
+         "                       Modbus registers readable and in range; each failure with its\n"
+         "                       bench-file line and the command that fixes it. Exit 0 when every\n"
+         "                       required device is ready, 2 otherwise (optional = true devices are\n"
+         "                       marked and do not count)\n"
          "  --config FILE        bench file (config/*.toml); its [daemon] table sets defaults for\n"
          "                       --log, --lcm-url, --block-ms, --rotate-mb, --fsync-ms, --log-queue,\n"
          "                       --ring, --fifo-priority, --cpu, --mlock (the command line wins)\n"
@@ -106,6 +114,7 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
       return args[++i];
     };
     if (a == "--help" || a == "-h") *help = true;
+    else if (a == "--check") o.check = true;
     else if (a == "--config") o.config = value();
     else if (a == "--duration") o.duration_s = to_number(a, value());
     else if (a == "--log") o.log_dir = value();
@@ -189,6 +198,7 @@ int run_daemon(const DaemonOptions& command_line) {
   // Devices.
   std::unique_ptr<SimBench> sim;
   std::vector<std::unique_ptr<Sampler>> samplers;
+  std::vector<std::string> absent;  // optional devices the bench runs without
   std::string why;
   if (bench.simulated) {
     // Threads the simulator starts here (its Modbus server) inherit this name, so CPU accounting
@@ -207,10 +217,16 @@ int run_daemon(const DaemonOptions& command_line) {
     samplers = sim->take_samplers();
     ::pthread_setname_np(::pthread_self(), "inertia-daqd");
   } else {
-    samplers = open_real_bench(bench, o.ring, &why);
-    if (samplers.empty()) {
+    RealBench real = open_real_bench(bench, o.ring, &why);
+    if (real.samplers.empty()) {
       std::cerr << "inertia-daqd: " << why << "\n";
       return kExitBadInput;
+    }
+    samplers = std::move(real.samplers);
+    for (const LeftOutDevice& d : real.left_out) {
+      absent.push_back(d.name);
+      journal_fault({d.name, "absent", "absent", d.name + ": optional device left out, running degraded: " + d.why, 4,
+                     std::nullopt, std::nullopt});
     }
   }
   for (auto& s : samplers) {
@@ -280,8 +296,9 @@ int run_daemon(const DaemonOptions& command_line) {
   po.sim_t0_ns = hal::monotonic_now_ns() + 20'000'000;  // 20 ms for the threads to start
   if (sim) po.describe_mark = [&sim](const PlanMark& m, plan_event_t& e) { sim->describe(m, e); };
   LogWriter* log_ptr = log.get();
-  po.daemon_faults = [log_ptr] {
+  po.daemon_faults = [log_ptr, absent] {
     std::vector<std::string> f;
+    for (const std::string& name : absent) f.push_back("absent:" + name);
     if (log_ptr == nullptr) f.emplace_back("log-off");
     else if (log_ptr->disk_full()) f.emplace_back("disk-full");
     return f;
@@ -301,6 +318,7 @@ int run_daemon(const DaemonOptions& command_line) {
   std::ostringstream ready;
   ready << "READY=1\nSTATUS=sampling " << samplers.size() << " devices of bench " << bench.name
         << (bench.simulated ? (o.fast ? " (simulated, fast)" : " (simulated, paced)") : "");
+  if (!absent.empty()) ready << " (degraded: " << absent.size() << " optional device" << (absent.size() > 1 ? "s" : "") << " absent)";
   sd_notify(0, ready.str().c_str());
   std::cerr << "inertia-daqd: " << ready.str().substr(15) << "; log "
             << (log ? log->current_path() : std::string("off")) << "\n";
@@ -310,7 +328,9 @@ int run_daemon(const DaemonOptions& command_line) {
   const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0;
   const std::int64_t watchdog_ns = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
   std::vector<std::uint64_t> beats(samplers.size(), 0);
-  std::vector<std::uint32_t> faults_seen(samplers.size(), 0);
+  std::vector<const DeviceSlot*> watched_slots;
+  for (auto& s : samplers) watched_slots.push_back(&s->slot());
+  FaultJournal fault_journal(std::move(watched_slots), hal::monotonic_now_ns());
   // invalid-samples: raised while a device pushed samples marked invalid within the last second.
   std::vector<std::uint64_t> invalid_seen(samplers.size(), 0);
   std::vector<std::int64_t> invalid_last_ns(samplers.size(), 0);
@@ -357,15 +377,8 @@ int run_daemon(const DaemonOptions& command_line) {
       last_ping = now;
     }
     if (now - last_status >= 1'000'000'000) {
-      // Fault transitions go to the journal (stderr under systemd) as well as INERTIA_STATUS.
-      for (std::size_t i = 0; i < samplers.size(); ++i) {
-        const std::uint32_t f = samplers[i]->slot().faults.load(std::memory_order_relaxed);
-        if (f != faults_seen[i]) {
-          for (const auto& name : fault_names(f & ~faults_seen[i])) std::cerr << "inertia-daqd: " << samplers[i]->slot().name << ": fault " << name << "\n";
-          for (const auto& name : fault_names(faults_seen[i] & ~f)) std::cerr << "inertia-daqd: " << samplers[i]->slot().name << ": cleared " << name << "\n";
-          faults_seen[i] = f;
-        }
-      }
+      // Fault transitions go to the journal as structured entries as well as INERTIA_STATUS.
+      fault_journal.update(now);
       std::uint64_t samples = 0, drops = 0;
       for (auto& s : samplers) {
         samples += s->slot().samples.load(std::memory_order_relaxed);
@@ -382,6 +395,7 @@ int run_daemon(const DaemonOptions& command_line) {
   // Graceful stop: nothing that was sampled is lost. The simulator stops writing, each sampler
   // drains its wire into its ring, the publisher drains the rings, the writer drains its queue.
   sd_notify(0, "STOPPING=1\nSTATUS=stopping: flushing rings and log");
+  fault_journal.finish(hal::monotonic_now_ns());
   if (sim) sim->stop();
   for (auto& s : samplers) s->stop();
   publisher.stop();

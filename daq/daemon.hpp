@@ -30,6 +30,7 @@ struct DaemonOptions {
   int fifo_priority = 0;
   int cpu = -1;
   bool mlock = false;
+  bool check = false;           // --check: open every device without sampling, print the table, exit
   double log_stall_after_s = -1.0;
   int log_stall_ms = 0;
   SimFaults faults;

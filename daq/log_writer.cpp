@@ -12,6 +12,7 @@
 #include <iostream>
 #include <system_error>
 
+#include "daq/journal.hpp"
 #include "hal/device.hpp"
 
 namespace inertia::daq {
@@ -261,9 +262,11 @@ void LogWriter::run() noexcept {
           bytes_.fetch_add(28u + slot.channel_len + slot.data_len, std::memory_order_relaxed);
           if (disk_full_.load(std::memory_order_relaxed)) {
             disk_full_.store(false, std::memory_order_relaxed);
-            std::cerr << "inertia-daqd: log: writing again to " << current_path() << " after "
-                      << disk_full_lost_.load(std::memory_order_relaxed) - full_since_lost_
-                      << " messages lost to the full disk\n";
+            const std::uint64_t n = disk_full_lost_.load(std::memory_order_relaxed) - full_since_lost_;
+            journal_fault({"log", "disk-full", "cleared",
+                           "log: writing again to " + current_path() + " after " + std::to_string(n) +
+                               " messages lost to the full disk",
+                           6, std::nullopt, n});
           }
         } else if (err == ENOSPC || err == EDQUOT) {
           lost_.fetch_add(1, std::memory_order_relaxed);
@@ -271,8 +274,10 @@ void LogWriter::run() noexcept {
           if (!disk_full_.load(std::memory_order_relaxed)) {
             disk_full_.store(true, std::memory_order_relaxed);
             full_since_lost_ = disk_full_lost_.load(std::memory_order_relaxed) - 1;
-            std::cerr << "inertia-daqd: log: disk full writing " << current_path() << " (" << std::strerror(err)
-                      << "); sampling and publishing go on, messages that cannot be written are counted until space is back\n";
+            journal_fault({"log", "disk-full", "raised",
+                           "log: disk full writing " + current_path() + " (" + std::strerror(err) +
+                               "); sampling and publishing go on, messages that cannot be written are counted until space is back",
+                           3, std::nullopt, std::nullopt});
           }
         } else {
           write_errors_.fetch_add(1, std::memory_order_relaxed);

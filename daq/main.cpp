@@ -5,6 +5,7 @@
 
 #include "common/input_error.hpp"
 #include "daq/daemon.hpp"
+#include "daq/device_check.hpp"
 
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
@@ -15,6 +16,7 @@ int main(int argc, char** argv) {
       std::cout << inertia::daq::usage();
       return inertia::kExitOk;
     }
+    if (options.check) return inertia::daq::run_device_check(options.config, std::cout);
     return inertia::daq::run_daemon(options);
   } catch (const inertia::InputError& e) {
     std::cerr << "inertia-daqd: " << e.what() << "\n";

@@ -1,7 +1,8 @@
 #include "daq/real_bench.hpp"
 
+#include "daq/device_check.hpp"
+
 namespace inertia::daq {
-namespace {
 
 hal::socketcan::CanDeviceConfig to_hal(const config::CanDevice& d) {
   hal::socketcan::CanDeviceConfig c;
@@ -31,6 +32,13 @@ hal::modbus::ModbusConfig to_hal(const config::ModbusDevice& d) {
   c.name = d.name;
   c.host = d.host;
   c.port = d.port;
+  if (d.transport == config::ModbusTransport::Rtu) {
+    c.serial.device = d.serial_port;
+    c.serial.baud = d.baud;
+    c.serial.parity = d.parity == config::SerialParity::None ? 'N' : d.parity == config::SerialParity::Odd ? 'O' : 'E';
+    c.serial.data_bits = d.data_bits;
+    c.serial.stop_bits = d.stop_bits;
+  }
   c.unit_id = d.unit_id;
   c.response_timeout_s = d.response_timeout_s;
   c.reconnect_initial_s = d.reconnect_initial_s;
@@ -62,44 +70,74 @@ hal::modbus::ModbusConfig to_hal(const config::ModbusDevice& d) {
   return c;
 }
 
+hal::gpiod::QuadratureConfig to_hal(const config::GpiodEncoder& e, double bench_sample_rate_hz) {
+  hal::gpiod::QuadratureConfig q;
+  q.name = e.name;
+  q.chip = e.chip;
+  q.line_a = static_cast<unsigned>(e.line_a);
+  q.line_b = static_cast<unsigned>(e.line_b);
+  q.line_marker = e.line_marker;
+  q.line_trigger = e.line_trigger;
+  q.active_low = e.active_low;
+  q.resolution = e.resolution;
+  q.edge_latency_ns = e.edge_latency_ns;
+  // Without a trigger line the device samples itself on the bench's rate (zero-order hold).
+  q.sample_rate_hz = e.line_trigger >= 0 ? 0.0 : bench_sample_rate_hz;
+  return q;
+}
+
+namespace {
+
+/// The start-up message for a device that did not open: the device check's first failure for
+/// it (bench-file position, what, fix) when the check finds one, else the open call's reason.
+std::string diagnose(const std::vector<CheckRow>& rows, const std::string& fallback) {
+  for (const CheckRow& row : rows)
+    if (row.status == CheckStatus::Fail) return format_failure(row);
+  return fallback;
+}
+
 }  // namespace
 
-std::vector<std::unique_ptr<Sampler>> open_real_bench(const config::BenchConfig& bench, std::size_t ring_capacity,
-                                                      std::string* why) {
-  std::vector<std::unique_ptr<Sampler>> out;
+RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_capacity, std::string* why) {
+  RealBench out;
+  // Channel ids stay those of the full bench when an optional device is left out.
   std::int32_t next_id = 1;
-  auto fail = [&](const std::string& what) {
-    if (why) *why = what;
-    out.clear();
-    return std::move(out);
+  // false: a required device failed (out is cleared, why says which).
+  auto left_out = [&](const config::DeviceAvailability& availability, const std::string& name, std::string reason) {
+    if (availability.optional) {
+      out.left_out.push_back({name, std::move(reason)});
+      return true;
+    }
+    if (why) *why = std::move(reason);
+    out.samplers.clear();
+    out.left_out.clear();
+    return false;
   };
   for (const auto& d : bench.can_devices) {
     std::string reason;
     auto dev = hal::socketcan::CanDevice::open_interface(to_hal(d), &reason);
-    if (!dev) return fail("device '" + d.name + "' (CAN " + d.interface + "): " + reason);
+    if (!dev) {
+      if (!left_out(d.availability, d.name, diagnose(check_can_device(d), "device '" + d.name + "' (CAN " + d.interface + "): " + reason)))
+        return out;
+      next_id += static_cast<std::int32_t>(d.signals.size());
+      continue;
+    }
     std::vector<ChannelInfo> info;
     for (const auto& s : d.signals) info.push_back({s.name, s.unit, next_id++});
     auto slot = std::make_shared<DeviceSlot>(d.name, std::move(info), d.sample_rate_hz > 0 ? d.sample_rate_hz : bench.sample_rate_hz,
                                              ring_capacity);
     const int fd = dev->wait_fd();
-    out.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::vector<int>{fd}, slot, false));
+    out.samplers.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::vector<int>{fd}, slot, false));
   }
   for (const auto& e : bench.gpiod_encoders) {
-    hal::gpiod::QuadratureConfig q;
-    q.name = e.name;
-    q.chip = e.chip;
-    q.line_a = static_cast<unsigned>(e.line_a);
-    q.line_b = static_cast<unsigned>(e.line_b);
-    q.line_marker = e.line_marker;
-    q.line_trigger = e.line_trigger;
-    q.active_low = e.active_low;
-    q.resolution = e.resolution;
-    q.edge_latency_ns = e.edge_latency_ns;
-    // Without a trigger line the device samples itself on the bench's rate (zero-order hold).
-    q.sample_rate_hz = e.line_trigger >= 0 ? 0.0 : bench.sample_rate_hz;
     std::string reason;
-    auto dev = hal::gpiod::GpiodEncoderDevice::open(q, &reason);
-    if (!dev) return fail("device '" + e.name + "' (GPIO " + e.chip + "): " + reason);
+    auto dev = hal::gpiod::GpiodEncoderDevice::open(to_hal(e, bench.sample_rate_hz), &reason);
+    if (!dev) {
+      if (!left_out(e.availability, e.name, diagnose(check_gpiod_encoder(e), "device '" + e.name + "' (GPIO " + e.chip + "): " + reason)))
+        return out;
+      next_id += 2;
+      continue;
+    }
     std::vector<int> fds;
     for (int fd : dev->event_fds())
       if (fd >= 0) fds.push_back(fd);
@@ -109,18 +147,31 @@ std::vector<std::unique_ptr<Sampler>> open_real_bench(const config::BenchConfig&
     std::vector<ChannelInfo> info{{"count", "1", next_id}, {"position", e.rotary ? "rad" : "m", next_id + 1}};
     next_id += 2;
     auto slot = std::make_shared<DeviceSlot>(e.name, std::move(info), bench.sample_rate_hz, ring_capacity);
-    out.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::move(fds), slot, rows));
+    out.samplers.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::move(fds), slot, rows));
   }
   for (const auto& m : bench.modbus_devices) {
     std::string reason;
-    auto controller = hal::modbus::ModbusController::connect(to_hal(m), &reason);
-    if (!controller) return fail("device '" + m.name + "' (Modbus " + m.host + ":" + std::to_string(m.port) + "): " + reason);
+    const hal::modbus::ModbusConfig config = to_hal(m);
+    auto controller = hal::modbus::ModbusController::connect(config, &reason);
+    if (!controller) {
+      const std::string fallback = "device '" + m.name + "' (Modbus " + config.endpoint() + "): " + reason;
+      if (!left_out(m.availability, m.name, diagnose(check_modbus_device(m), fallback))) return out;
+      next_id += static_cast<std::int32_t>(m.registers.size());
+      continue;
+    }
     std::vector<ChannelInfo> info;
     for (const auto& r : m.registers) info.push_back({r.name, r.unit, next_id++});
     auto slot = std::make_shared<DeviceSlot>(m.name, std::move(info), 1000.0 / m.poll_interval_ms, ring_capacity);
-    out.push_back(std::make_unique<ModbusSampler>(std::move(controller), m.poll_interval_ms, slot));
+    out.samplers.push_back(std::make_unique<ModbusSampler>(std::move(controller), m.poll_interval_ms, slot));
   }
-  if (out.empty() && why) *why = bench.file.string() + ": backend = \"real\" but no [[can_device]], [[gpiod_encoder]] or [[modbus_device]]";
+  if (out.samplers.empty() && why) {
+    if (out.left_out.empty()) {
+      *why = bench.file.string() + ": backend = \"real\" but no [[can_device]], [[gpiod_encoder]] or [[modbus_device]]";
+    } else {
+      *why = "no device of the bench could be opened (all are optional):";
+      for (const LeftOutDevice& d : out.left_out) *why += "\n  " + d.why;
+    }
+  }
   return out;
 }
 

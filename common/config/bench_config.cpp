@@ -115,11 +115,23 @@ SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64
   return s;
 }
 
+DeviceAvailability read_availability(const TableReader& t) {
+  return DeviceAvailability{t.boolean_or("optional", false), t.where()};
+}
+
 CanDevice read_can_device(const TableReader& t) {
   CanDevice d;
   d.name = t.string("name");
   d.interface = t.string_or("interface", d.interface);
+  d.interface_at = t.where("interface");
+  d.availability = read_availability(t);
   d.sample_rate_hz = t.number_in("sample_rate_hz", 0.0, 0.0, 1e6);
+  d.fd = t.boolean_or("fd", false);
+  // ISO 11898: up to 1 Mbit/s in the arbitration phase; CAN FD data phases reach 8-12 Mbit/s.
+  d.bitrate = static_cast<std::uint32_t>(t.integer_in("bitrate", 0, 0, 1'000'000));
+  d.dbitrate = static_cast<std::uint32_t>(t.integer_in("dbitrate", 0, 0, 15'000'000));
+  if (d.dbitrate != 0 && !d.fd) t.fail_key("dbitrate", "a data-phase bit rate needs fd = true (CAN FD)");
+  const unsigned payload_bytes = d.fd ? 64 : 8;
   for (const TableReader& s : t.tables("signal")) {
     CanSignal c;
     c.name = s.string("name");
@@ -128,8 +140,11 @@ CanDevice read_can_device(const TableReader& t) {
     c.byte_offset = static_cast<unsigned>(s.integer_in("byte_offset", 0, 0, 63));
     c.bit_offset = static_cast<unsigned>(s.integer_in("bit_offset", 0, 0, 7));
     c.bit_length = static_cast<unsigned>(s.integer_in("bit_length", 16, 1, 64));
-    if (c.byte_offset * 8 + c.bit_offset + c.bit_length > 64 * 8) {
-      s.fail_key("bit_length", "the signal runs past a 64-byte payload");
+    if (c.byte_offset * 8 + c.bit_offset + c.bit_length > payload_bytes * 8) {
+      s.fail_key("bit_length", "the signal (bits " + std::to_string(c.byte_offset * 8 + c.bit_offset) + ".." +
+                                   std::to_string(c.byte_offset * 8 + c.bit_offset + c.bit_length - 1) +
+                                   ") runs past the " + std::to_string(payload_bytes) + "-byte payload of " +
+                                   (d.fd ? "a CAN FD frame" : "a classic CAN frame (fd = true on the device for CAN FD)"));
     }
     c.byte_order = s.choice_or("byte_order", {"little", "big"}, 0) == 0 ? ByteOrder::LittleEndian
                                                                          : ByteOrder::BigEndian;
@@ -162,6 +177,10 @@ GpiodEncoder read_gpiod_encoder(const TableReader& t) {
   GpiodEncoder e;
   e.name = t.string("name");
   e.chip = t.string_or("chip", e.chip);
+  e.chip_at = t.where("chip");
+  e.availability = read_availability(t);
+  const char* line_keys[4] = {"line_a", "line_b", "line_marker", "line_trigger"};
+  for (int i = 0; i < 4; ++i) e.line_at[i] = t.where(line_keys[i]);
   e.line_a = static_cast<int>(t.integer_in("line_a", -1, 0, 1023));
   e.line_b = static_cast<int>(t.integer_in("line_b", -1, 0, 1023));
   if (e.line_a == e.line_b) t.fail_key("line_b", "must differ from line_a");
@@ -194,13 +213,52 @@ DaemonSettings read_daemon(const TableReader& t) {
   return d;
 }
 
+int register_words(RegisterType type) { return type == RegisterType::U16 || type == RegisterType::I16 ? 1 : 2; }
+
+// Two registers of one kind sharing an address would be two readings of the same words: a typo
+// in an address, or a 32-bit value whose second word was forgotten.
+void fail_on_overlap(const TableReader& r, const ModbusRegister& reg, const std::vector<ModbusRegister>& before) {
+  const int end = reg.address + register_words(reg.type);
+  for (const ModbusRegister& other : before) {
+    const int other_end = other.address + register_words(other.type);
+    if (other.kind != reg.kind || end <= other.address || other_end <= reg.address) continue;
+    auto words = [](int from, int to) {
+      return to - from == 1 ? "address " + std::to_string(from)
+                            : "addresses " + std::to_string(from) + ".." + std::to_string(to - 1);
+    };
+    r.fail_key("address", "register '" + reg.name + "' (" + words(reg.address, end) + ") overlaps register '" +
+                              other.name + "' (" + words(other.address, other_end) + ", line " +
+                              std::to_string(other.where.line) + ") in the " +
+                              (reg.kind == RegisterKind::Input ? "input" : "holding") + " registers");
+  }
+}
+
 ModbusDevice read_modbus_device(const TableReader& t) {
   ModbusDevice d;
   d.name = t.string("name");
   d.role = static_cast<ControllerRole>(t.choice("role", {"thermal", "table", "shaker"}));
-  d.host = t.string_or("host", d.host);
-  d.port = static_cast<int>(t.integer_in("port", d.port, 1, 65535));
-  d.unit_id = static_cast<int>(t.integer_in("unit_id", d.unit_id, 0, 255));
+  d.availability = read_availability(t);
+  d.transport = t.choice_or("transport", {"tcp", "rtu"}, 0) == 0 ? ModbusTransport::Tcp : ModbusTransport::Rtu;
+  if (d.transport == ModbusTransport::Tcp) {
+    for (const char* serial_key : {"serial_port", "baud", "parity", "data_bits", "stop_bits"})
+      if (t.has(serial_key)) t.fail_key(serial_key, "is a serial-line setting; it needs transport = \"rtu\"");
+    d.host = t.string_or("host", d.host);
+    d.endpoint_at = t.where("host");
+    d.port = static_cast<int>(t.integer_in("port", d.port, 1, 65535));
+  } else {
+    for (const char* tcp_key : {"host", "port"})
+      if (t.has(tcp_key)) t.fail_key(tcp_key, "is a TCP setting; a transport = \"rtu\" device has serial_port instead");
+    d.serial_port = t.string("serial_port");
+    if (d.serial_port.empty()) t.fail_key("serial_port", "must name the serial device, e.g. /dev/ttyUSB0");
+    d.endpoint_at = t.where("serial_port");
+    d.baud = static_cast<int>(t.integer_in("baud", d.baud, 50, 4'000'000));
+    d.parity = static_cast<SerialParity>(t.choice_or("parity", {"none", "even", "odd"}, 1));
+    d.data_bits = static_cast<int>(t.integer_in("data_bits", d.data_bits, 5, 8));
+    d.stop_bits = static_cast<int>(t.integer_in("stop_bits", d.stop_bits, 1, 2));
+  }
+  // On a serial line the unit id is the slave address: 1..247 (0 is broadcast, never answered).
+  d.unit_id = d.transport == ModbusTransport::Tcp ? static_cast<int>(t.integer_in("unit_id", d.unit_id, 0, 255))
+                                                  : static_cast<int>(t.integer_in("unit_id", d.unit_id, 1, 247));
   d.poll_interval_ms = static_cast<int>(t.integer_in("poll_interval_ms", d.poll_interval_ms, 1, 60000));
   d.response_timeout_s = t.positive_or("response_timeout_s", d.response_timeout_s);
   d.reconnect_initial_s = t.positive_or("reconnect_initial_s", d.reconnect_initial_s);
@@ -211,6 +269,7 @@ ModbusDevice read_modbus_device(const TableReader& t) {
   std::set<std::string> names;
   for (const TableReader& r : t.tables("register")) {
     ModbusRegister reg;
+    reg.where = r.where();
     reg.name = r.string("name");
     reg.address = static_cast<int>(r.integer_in("address", -1, 0, 65535));
     reg.kind = r.choice_or("kind", {"holding", "input"}, 0) == 0 ? RegisterKind::Holding : RegisterKind::Input;
@@ -228,10 +287,17 @@ ModbusDevice read_modbus_device(const TableReader& t) {
       reg.max = r.number("max");
       if (!(reg.min < reg.max)) r.fail_key("max", "must be greater than min");
     } else if (r.has("min") || r.has("max")) {
-      r.fail_key(r.has("min") ? "min" : "max", "limits apply to writable registers only");
+      r.fail_key(r.has("min") ? "min" : "max", "limits apply to writable registers only (a reading's plausible range is `range`)");
+    }
+    if (r.has("range")) {
+      const std::vector<double> range = r.numbers("range");
+      if (range.size() != 2 || !(range[0] < range[1])) r.fail_key("range", "must be [lo, hi] with lo < hi");
+      reg.range_min = range[0];
+      reg.range_max = range[1];
     }
     r.finish();
     if (!names.insert(reg.name).second) r.fail_key("name", "duplicate register name '" + reg.name + "'");
+    fail_on_overlap(r, reg, d.registers);
     d.registers.push_back(std::move(reg));
   }
   t.finish();

@@ -25,6 +25,7 @@
 #include <Eigen/Dense>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -104,6 +105,13 @@ struct ThermalController {
 // copies them across one to one; common/ cannot include hal/ (dependencies point one way).
 enum class ByteOrder { LittleEndian, BigEndian };
 
+/// Every real device has it. `optional = true`: when it cannot be opened the daemon starts
+/// without it (degraded, said on the journal and INERTIA_STATUS) instead of exiting 2.
+struct DeviceAvailability {
+  bool optional = false;
+  SourcePosition where;             // the device's table ([[can_device]], ...)
+};
+
 struct CanSignal {
   std::string name;                 // channel name within the device
   std::uint32_t id = 0;             // 11-bit (standard) or 29-bit (extended) identifier
@@ -127,10 +135,20 @@ struct CanDevice {
   std::string interface = "can0";
   double sample_rate_hz = 0.0;      // expected frame rate, for health (0: not checked)
   std::vector<CanSignal> signals;
+  // What the interface must be set to (inertia-daqd --check compares; 0: not checked). fd: CAN FD
+  // frames, payloads up to 64 bytes; classic CAN carries 8, and every signal must fit its frame.
+  bool fd = false;
+  std::uint32_t bitrate = 0;        // nominal (arbitration) bit rate, bit/s
+  std::uint32_t dbitrate = 0;       // CAN FD data-phase bit rate, bit/s (needs fd)
+  DeviceAvailability availability;
+  SourcePosition interface_at;      // the `interface` key (the table when it is left out)
 };
 
 struct GpiodEncoder {
   std::string name;
+  DeviceAvailability availability;
+  SourcePosition chip_at;           // the `chip` key (the table when it is left out)
+  SourcePosition line_at[4];        // line_a, line_b, line_marker, line_trigger
   std::string chip = "gpiochip0";
   int line_a = 0;
   int line_b = 0;
@@ -160,15 +178,30 @@ struct ModbusRegister {
   bool writable = false;            // a setpoint: needs min/max and the device's writes_enabled
   double min = 0.0;                 // write limits (clamped), SI; set when writable
   double max = 0.0;
+  // Plausible readings, SI (`range = [lo, hi]`): inertia-daqd --check reports a value outside.
+  double range_min = -std::numeric_limits<double>::infinity();
+  double range_max = std::numeric_limits<double>::infinity();
+  SourcePosition where;
 };
 
 enum class ControllerRole { Thermal, Table, Shaker };
 
+enum class ModbusTransport { Tcp, Rtu };
+enum class SerialParity { None, Even, Odd };
+
 struct ModbusDevice {
   std::string name;
   ControllerRole role = ControllerRole::Thermal;
-  std::string host = "127.0.0.1";
+  ModbusTransport transport = ModbusTransport::Tcp;
+  std::string host = "127.0.0.1";   // tcp
   int port = 502;
+  std::string serial_port;          // rtu: the device file, e.g. /dev/ttyUSB0 or /dev/serial/by-id/...
+  int baud = 19200;
+  SerialParity parity = SerialParity::Even;   // Modbus over serial line, section 2.5.1: even by default
+  int data_bits = 8;
+  int stop_bits = 1;
+  DeviceAvailability availability;
+  SourcePosition endpoint_at;       // `host` (tcp) or `serial_port` (rtu)
   int unit_id = 1;
   int poll_interval_ms = 100;
   double response_timeout_s = 0.5;

@@ -20,8 +20,10 @@ void set_timeout(modbus_t* ctx, double s) {
 
 bool is_exception(int err) { return err >= EMBXILFUN && err <= EMBXGTAR; }
 bool is_link_error(int err) {
+  // ENXIO/ENODEV: a serial adapter unplugged under an open descriptor.
   return err == ECONNRESET || err == EPIPE || err == EBADF || err == ENOTCONN || err == ECONNREFUSED ||
-         err == ECONNABORTED || err == EHOSTUNREACH || err == ENETUNREACH || err == EIO;
+         err == ECONNABORTED || err == EHOSTUNREACH || err == ENETUNREACH || err == EIO || err == ENXIO ||
+         err == ENODEV;
 }
 
 }  // namespace
@@ -31,10 +33,20 @@ bool ModbusConfig::is_valid(std::string* why) const {
     if (why) *why = "modbus device '" + name + "': " + what;
     return false;
   };
-  in_addr addr{};
-  if (::inet_pton(AF_INET, host.c_str(), &addr) != 1) return fail("host '" + host + "' is not an IPv4 address");
-  if (port < 1 || port > 65535) return fail("port " + std::to_string(port) + " is outside 1..65535");
-  if (unit_id < 0 || unit_id > 247) return fail("unit_id " + std::to_string(unit_id) + " is outside 0..247");
+  if (is_rtu()) {
+    if (serial.baud <= 0) return fail("baud " + std::to_string(serial.baud) + " must be positive");
+    if (serial.parity != 'N' && serial.parity != 'E' && serial.parity != 'O')
+      return fail(std::string("parity '") + serial.parity + "' is not N, E or O");
+    if (serial.data_bits < 5 || serial.data_bits > 8) return fail("data_bits must be 5..8");
+    if (serial.stop_bits != 1 && serial.stop_bits != 2) return fail("stop_bits must be 1 or 2");
+    // Address 0 is the broadcast: slaves never answer it, so every read would time out.
+    if (unit_id < 1 || unit_id > 247) return fail("unit_id " + std::to_string(unit_id) + " is outside 1..247 (RTU slave address)");
+  } else {
+    in_addr addr{};
+    if (::inet_pton(AF_INET, host.c_str(), &addr) != 1) return fail("host '" + host + "' is not an IPv4 address");
+    if (port < 1 || port > 65535) return fail("port " + std::to_string(port) + " is outside 1..65535");
+    if (unit_id < 0 || unit_id > 247) return fail("unit_id " + std::to_string(unit_id) + " is outside 0..247");
+  }
   if (!(response_timeout_s > 0.0 && response_timeout_s < 60.0)) return fail("response_timeout_s must be in (0, 60)");
   if (!(reconnect_initial_s > 0.0 && reconnect_initial_s <= reconnect_max_s))
     return fail("need 0 < reconnect_initial_s <= reconnect_max_s");
@@ -44,12 +56,20 @@ bool ModbusConfig::is_valid(std::string* why) const {
   return true;
 }
 
+std::string ModbusConfig::endpoint() const {
+  if (!is_rtu()) return host + ":" + std::to_string(port);
+  return serial.device + " " + std::to_string(serial.baud) + " " + std::to_string(serial.data_bits) + serial.parity +
+         std::to_string(serial.stop_bits);
+}
+
 std::unique_ptr<ModbusLink> ModbusLink::connect(const ModbusConfig& config, std::string* why) {
   if (!config.is_valid(why)) return nullptr;
-  const std::string where = "modbus " + config.host + ":" + std::to_string(config.port);
-  modbus_t* ctx = modbus_new_tcp(config.host.c_str(), config.port);
+  const std::string where = "modbus " + config.endpoint();
+  modbus_t* ctx = config.is_rtu() ? modbus_new_rtu(config.serial.device.c_str(), config.serial.baud, config.serial.parity,
+                                                   config.serial.data_bits, config.serial.stop_bits)
+                                   : modbus_new_tcp(config.host.c_str(), config.port);
   if (ctx == nullptr) {
-    if (why) *why = where + ": modbus_new_tcp: " + modbus_strerror(errno);
+    if (why) *why = where + (config.is_rtu() ? ": modbus_new_rtu: " : ": modbus_new_tcp: ") + modbus_strerror(errno);
     return nullptr;
   }
   std::unique_ptr<ModbusLink> link(new ModbusLink(ctx, config));  // owns ctx from here on

@@ -1,9 +1,13 @@
 #pragma once
-// Modbus TCP client link: one owning wrapper of libmodbus' modbus_t (style §10) that reconnects
-// by itself. Recovery is ours, not libmodbus': MODBUS_ERROR_RECOVERY_LINK makes 3.1.x loop
-// "until successful" inside a call (libmodbus issues #39, #199, #618; daq.md §3), so the mode
-// stays NONE and a dropped link is closed, then reconnected on a later call after an
-// exponential, capped back-off. Calls never wait for the back-off: they fail at once (ENOTCONN).
+// Modbus client link, TCP or RTU (serial line): one owning wrapper of libmodbus' modbus_t
+// (style §10) that reconnects by itself. Recovery is ours, not libmodbus':
+// MODBUS_ERROR_RECOVERY_LINK makes 3.1.x loop "until successful" inside a call (libmodbus
+// issues #39, #199, #618; daq.md §3), so the mode stays NONE and a dropped link is closed, then
+// reconnected on a later call after an exponential, capped back-off. Calls never wait for the
+// back-off: they fail at once (ENOTCONN).
+// On a serial line there is no connection to lose: a controller that stops answering shows as
+// timeouts, and after timeouts_before_reconnect of them the port is closed and opened again
+// (a USB adapter unplugged and plugged back gets a new descriptor; /dev/serial/by-id names it).
 // Thread: one thread (the daemon's Modbus thread; libmodbus contexts are not thread-safe).
 // Not real-time: every call may block up to the response timeout. Never in a sampling thread.
 #include <modbus/modbus.h>
@@ -18,11 +22,21 @@
 
 namespace inertia::hal::modbus {
 
+/// Modbus RTU: the serial line (libmodbus modbus_new_rtu). An empty device means Modbus TCP.
+struct SerialLine {
+  std::string device;                 // e.g. /dev/ttyUSB0; empty: TCP
+  int baud = 19200;
+  char parity = 'E';                  // 'N', 'E' or 'O' (libmodbus' letters)
+  int data_bits = 8;                  // 5..8
+  int stop_bits = 1;                  // 1 or 2
+};
+
 struct ModbusConfig {
   std::string name = "modbus";        // device name; values are "<name>.<register>"
-  std::string host = "127.0.0.1";     // IPv4 literal (modbus_new_tcp)
+  std::string host = "127.0.0.1";     // TCP: IPv4 literal (modbus_new_tcp)
   int port = 502;
-  int unit_id = 1;
+  SerialLine serial;                  // RTU when serial.device is set (host and port unused)
+  int unit_id = 1;                    // TCP unit identifier; RTU slave address (1..247)
   double response_timeout_s = 0.5;    // also bounds connect()
   double reconnect_initial_s = 0.5;   // first back-off after the link drops
   double reconnect_max_s = 8.0;       // back-off doubles up to this
@@ -30,6 +44,9 @@ struct ModbusConfig {
   bool writes_enabled = false;        // setpoint writes are off unless the bench config says so
   RegisterMap map;
   bool is_valid(std::string* why) const;
+  [[nodiscard]] bool is_rtu() const noexcept { return !serial.device.empty(); }
+  /// "127.0.0.1:502" or "/dev/ttyUSB0 19200 8E1", for messages.
+  [[nodiscard]] std::string endpoint() const;
 };
 
 struct ModbusHealth {
@@ -47,8 +64,9 @@ class ModbusLink {
  public:
   using Clock = std::chrono::steady_clock;
 
-  /// Opens the TCP connection; nullptr with the reason ("modbus 127.0.0.1:1502: connect:
-  /// Connection refused") when it cannot.
+  /// Opens the TCP connection or the serial port; nullptr with the reason ("modbus
+  /// 127.0.0.1:1502: connect: Connection refused", "modbus /dev/ttyUSB0 19200 8E1: connect: No
+  /// such file or directory") when it cannot.
   static std::unique_ptr<ModbusLink> connect(const ModbusConfig& config, std::string* why);
   ~ModbusLink();
   ModbusLink(const ModbusLink&) = delete;

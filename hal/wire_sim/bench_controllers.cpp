@@ -88,10 +88,24 @@ modbus::RegisterMap bench_controller_register_map() {
 
 std::unique_ptr<BenchControllerServer> BenchControllerServer::start(int port, std::string* why,
                                                                     const BenchControllerState& initial) {
-  std::unique_ptr<BenchControllerServer> sim(new BenchControllerServer());
-  sim->state_ = initial;
   ModbusServerOptions options;
   options.port = port;
+  return start_with(options, why, initial);
+}
+
+std::unique_ptr<BenchControllerServer> BenchControllerServer::start_rtu(const std::string& link, int slave_id,
+                                                                        std::string* why,
+                                                                        const BenchControllerState& initial) {
+  ModbusServerOptions options;
+  options.rtu_link = link;
+  options.rtu_slave_id = slave_id;
+  return start_with(options, why, initial);
+}
+
+std::unique_ptr<BenchControllerServer> BenchControllerServer::start_with(ModbusServerOptions options, std::string* why,
+                                                                         const BenchControllerState& initial) {
+  std::unique_ptr<BenchControllerServer> sim(new BenchControllerServer());
+  sim->state_ = initial;
   options.holding_start = r::kHoldingStart;
   options.holding_count = r::kHoldingCount;
   options.input_start = r::kInputStart;

@@ -63,6 +63,10 @@ class BenchControllerServer {
   /// port 0: a free port. nullptr with the reason on failure.
   static std::unique_ptr<BenchControllerServer> start(int port, std::string* why,
                                                       const BenchControllerState& initial = {});
+  /// The same controllers on a Modbus RTU line: a pseudo-terminal whose slave side `link`
+  /// names (see ModbusServerOptions::rtu_link), answering as slave `slave_id`.
+  static std::unique_ptr<BenchControllerServer> start_rtu(const std::string& link, int slave_id, std::string* why,
+                                                          const BenchControllerState& initial = {});
   [[nodiscard]] int port() const noexcept { return server_->port(); }
   /// The server goes away (connections closed) / comes back on the same port; state is kept.
   void stop() { server_->stop(); }
@@ -75,6 +79,8 @@ class BenchControllerServer {
 
  private:
   BenchControllerServer() = default;
+  static std::unique_ptr<BenchControllerServer> start_with(ModbusServerOptions options, std::string* why,
+                                                           const BenchControllerState& initial);
   void tick(modbus_mapping_t& registers, double dt_s);  // server thread, register lock held
   static void publish(const BenchControllerState& s, modbus_mapping_t& registers, bool setpoints);
 

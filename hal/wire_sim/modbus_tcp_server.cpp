@@ -3,12 +3,15 @@
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <poll.h>
+#include <pty.h>
+#include <termios.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <filesystem>
 #include <vector>
 
 namespace inertia::hal::wire_sim {
@@ -35,7 +38,43 @@ ModbusTcpServer::~ModbusTcpServer() {
   modbus_mapping_free(mapping_);
 }
 
+bool ModbusTcpServer::open_pty(std::string* why) {
+  // Raw from the start: a slave in cooked mode would echo the replies back to the master, which
+  // would read them as requests (the client sets raw mode too, but only once it opens).
+  termios raw{};
+  ::cfmakeraw(&raw);
+  int master = -1, slave = -1;
+  char name[128] = {};
+  if (::openpty(&master, &slave, name, &raw, nullptr) != 0) {
+    if (why) *why = std::string("openpty: ") + std::strerror(errno);
+    return false;
+  }
+  listen_fd_.reset(master);
+  pty_slave_.reset(slave);
+  (void)::fcntl(master, F_SETFD, FD_CLOEXEC);
+  (void)::fcntl(slave, F_SETFD, FD_CLOEXEC);
+  tty_path_ = name;
+  std::error_code ec;
+  std::filesystem::remove(options_.rtu_link, ec);
+  std::filesystem::create_symlink(tty_path_, options_.rtu_link, ec);
+  if (ec) {
+    if (why) *why = "symlink " + options_.rtu_link + " -> " + tty_path_ + ": " + ec.message();
+    return false;
+  }
+  // libmodbus only reads and writes the descriptor we hand it; the device name and line settings
+  // are never used on this side (a pty has no baud rate).
+  ctx_ = modbus_new_rtu(tty_path_.c_str(), 115200, 'N', 8, 1);
+  if (ctx_ == nullptr) {
+    if (why) *why = std::string("modbus_new_rtu: ") + modbus_strerror(errno);
+    return false;
+  }
+  modbus_set_slave(ctx_, options_.rtu_slave_id);
+  modbus_set_socket(ctx_, master);
+  return true;
+}
+
 bool ModbusTcpServer::listen(std::string* why) {
+  if (!options_.rtu_link.empty()) return open_pty(why);
   ctx_ = modbus_new_tcp(options_.host.c_str(), port_);
   if (ctx_ == nullptr) {
     if (why) *why = std::string("modbus_new_tcp: ") + modbus_strerror(errno);
@@ -77,6 +116,7 @@ void ModbusTcpServer::stop() {
   (void)!::write(wake_write_.get(), &byte, 1);
   thread_.join();
   listen_fd_.reset();
+  pty_slave_.reset();
   // The connections were closed by the thread; the context must not close a stale socket.
   modbus_set_socket(ctx_, -1);
   modbus_free(ctx_);
@@ -88,7 +128,43 @@ void ModbusTcpServer::with_registers(const std::function<void(modbus_mapping_t&)
   f(*mapping_);
 }
 
+void ModbusTcpServer::tick_when_due(std::chrono::steady_clock::time_point& last_tick) {
+  const auto now = std::chrono::steady_clock::now();
+  const double dt = std::chrono::duration<double>(now - last_tick).count();
+  if (dt * 1000.0 < options_.tick_ms) return;
+  last_tick = now;
+  if (tick_) {
+    std::lock_guard lock(mutex_);
+    tick_(*mapping_, dt);
+  }
+}
+
+void ModbusTcpServer::serve_rtu() {
+  std::uint8_t query[MODBUS_RTU_MAX_ADU_LENGTH];
+  auto last_tick = std::chrono::steady_clock::now();
+  while (!stop_) {
+    pollfd fds[2] = {{wake_read_.get(), POLLIN, 0}, {listen_fd_.get(), POLLIN, 0}};
+    const int ready = ::poll(fds, 2, options_.tick_ms);
+    if (stop_) break;
+    if (ready > 0 && (fds[1].revents & POLLIN) != 0) {
+      // > 0: a request for this slave; 0: one for another address (ignored, as on a shared
+      // RS-485 line); < 0: a broken frame (CRC, timeout between bytes), already discarded.
+      const int rc = modbus_receive(ctx_, query);
+      if (rc > 0 && !silent_) {
+        std::lock_guard lock(mutex_);
+        modbus_reply(ctx_, query, rc, mapping_);
+        ++served_;
+      }
+    }
+    tick_when_due(last_tick);
+  }
+}
+
 void ModbusTcpServer::run() {
+  if (!options_.rtu_link.empty()) {
+    serve_rtu();
+    return;
+  }
   std::vector<int> clients;
   std::vector<pollfd> fds;
   std::uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
@@ -122,15 +198,7 @@ void ModbusTcpServer::run() {
         }
       }
     }
-    const auto now = std::chrono::steady_clock::now();
-    const double dt = std::chrono::duration<double>(now - last_tick).count();
-    if (dt * 1000.0 >= options_.tick_ms) {
-      last_tick = now;
-      if (tick_) {
-        std::lock_guard lock(mutex_);
-        tick_(*mapping_, dt);
-      }
-    }
+    tick_when_due(last_tick);
   }
   for (int c : clients) ::close(c);
 }

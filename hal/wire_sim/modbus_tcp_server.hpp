@@ -4,9 +4,17 @@
 // talks to it over a real socket. Several clients at once (poll loop, as libmodbus'
 // bandwidth-server-many-up example). Faults: stop()/restart() (server gone and back on the same
 // port) and silence (requests read, never answered -> client timeouts).
+//
+// With options.rtu_link set the same server speaks Modbus RTU instead, on the master side of a
+// pseudo-terminal pair (openpty): the client opens the slave side by a path, as it opens
+// /dev/ttyUSB0, and the bytes cross a real tty with its termios. rtu_link is a symbolic link to
+// that slave, as udev's /dev/serial/by-id names an adapter: stop() closes the pty (the adapter
+// is unplugged: the client's descriptor fails and the device file goes), restart() opens a new
+// one behind the same link (plugged back).
 #include <modbus/modbus.h>
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -24,6 +32,8 @@ struct ModbusServerOptions {
   int holding_start = 0, holding_count = 16;
   int input_start = 0, input_count = 16;
   int tick_ms = 20;                   // period of the tick hook (device physics)
+  std::string rtu_link;               // non-empty: Modbus RTU on a pty, this symlink names it
+  int rtu_slave_id = 1;               // RTU: the address this server answers (others are ignored)
 };
 
 class ModbusTcpServer {
@@ -44,6 +54,8 @@ class ModbusTcpServer {
   bool restart(std::string* why);
   [[nodiscard]] bool running() const noexcept { return thread_.joinable(); }
   [[nodiscard]] int port() const noexcept { return port_; }
+  /// RTU: the pty slave the link points to now (changes at every restart()).
+  [[nodiscard]] const std::string& tty_path() const noexcept { return tty_path_; }
 
   /// Runs f on the registers with the lock held (the hook to set or read values). Thread: any.
   void with_registers(const std::function<void(modbus_mapping_t&)>& f);
@@ -54,14 +66,19 @@ class ModbusTcpServer {
  private:
   ModbusTcpServer(const ModbusServerOptions& options, Tick tick, modbus_mapping_t* mapping);
   bool listen(std::string* why);
+  bool open_pty(std::string* why);
   void run();
+  void serve_rtu();
+  void tick_when_due(std::chrono::steady_clock::time_point& last_tick);
 
   ModbusServerOptions options_;
   Tick tick_;
   modbus_mapping_t* mapping_;         // owned
   std::mutex mutex_;                  // guards mapping_
   modbus_t* ctx_ = nullptr;           // owned; used by the server thread only while it runs
-  UniqueFd listen_fd_;
+  UniqueFd listen_fd_;                // TCP: the listening socket; RTU: the pty master
+  UniqueFd pty_slave_;                // RTU: held open so the master never reads a hang-up between clients
+  std::string tty_path_;
   UniqueFd wake_read_, wake_write_;
   std::thread thread_;
   std::atomic<bool> stop_{false};

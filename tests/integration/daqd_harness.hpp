@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <mutex>
@@ -55,11 +56,14 @@ inline constexpr const char* kNoRouteMessage =
 class DaqdProcess {
  public:
   /// `binary`: another build of the daemon (the benchmark's peer), default this build's.
+  /// `in_child`: runs in the child before exec (e.g. a private mount namespace); the child
+  /// exits 126 when it returns false.
   DaqdProcess(const std::vector<std::string>& args, const std::vector<std::string>& extra_env, const fs::path& stderr_file,
-              const std::string& binary = daqd_binary())
+              const std::string& binary = daqd_binary(), const std::function<bool()>& in_child = {})
       : stderr_file_(stderr_file) {
     pid_ = ::fork();
     if (pid_ == 0) {
+      if (in_child && !in_child()) ::_exit(126);
       const int fd = ::open(stderr_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       if (fd >= 0) {
         ::dup2(fd, 2);
