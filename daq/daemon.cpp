@@ -396,7 +396,11 @@ int run_daemon(const DaemonOptions& command_line) {
   // drains its wire into its ring, the publisher drains the rings, the writer drains its queue.
   sd_notify(0, "STOPPING=1\nSTATUS=stopping: flushing rings and log");
   fault_journal.finish(hal::monotonic_now_ns());
-  if (sim) sim->stop();
+  if (sim) {
+    sim->stop();
+    if (sim->real_timing())
+      std::cerr << "inertia-daqd: simulated bench: " << sim->frames_lost() << " CAN frame(s) lost on purpose ([bench.sim_timing] frame_loss)\n";
+  }
   for (auto& s : samplers) s->stop();
   publisher.stop();
   if (log) log->stop();

@@ -18,6 +18,7 @@ struct RingSample {
   double value = 0.0;
   std::uint32_t channel = 0;    // index into DeviceSlot::channels
   std::uint32_t valid = 0;      // 1 valid, 0 invalid
+  std::int64_t index = -1;      // the sample's number on the device's clock; -1: not numbered
 };
 
 /// Faults a device can report (bits), published as short kebab-case codes in device_status_t.

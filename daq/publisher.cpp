@@ -59,6 +59,9 @@ bool Publisher::configure(std::string* why) {
     p.channel_seq.assign(static_cast<std::size_t>(nch), 0);
     p.last_value.assign(static_cast<std::size_t>(nch), std::numeric_limits<double>::quiet_NaN());
     p.run.assign(static_cast<std::size_t>(nch), 0);
+    p.present.assign(static_cast<std::size_t>(nch), std::vector<std::uint8_t>(p.capacity, 0));
+    p.block_present.assign(p.capacity / static_cast<std::size_t>(p.block_len), 0);
+    if (!slot.sim_time_base && slot.nominal_rate_hz > 0) p.clock.emplace(1.0 / slot.nominal_rate_hz);
     largest = std::max(largest, static_cast<std::size_t>(p.block.getEncodedSize()));
   }
   buffer_.resize(std::max<std::size_t>(largest, 1 << 16) * 2);
@@ -117,7 +120,56 @@ void Publisher::emit(Packer& p, std::int32_t n) noexcept {
                              ? p.block.values[static_cast<std::size_t>(slot.time_index_channel)][0]
                              : static_cast<double>(p.block.channel_seq[0]);
     p.block.t0_mono_ns = options_.sim_t0_ns + std::llround(index * 1e9 / slot.nominal_rate_hz);
+  } else if (p.clock) {
+    // Its own clock: the samples' count mapped to CLOCK_MONOTONIC (clock_fit.hpp).
+    p.block.t0_mono_ns = std::llround(p.clock->time_ns(p.block.channel_seq[0]));
+    p.block.sample_period_s = p.clock->period_s();
   }
+  send_block(p);
+}
+
+void Publisher::emit_numbered(Packer& p, std::int32_t n) noexcept {
+  DeviceSlot& slot = *p.slot;
+  const auto nch = static_cast<std::int32_t>(slot.channels.size());
+  const auto len = static_cast<std::size_t>(p.block_len);
+  // A block of which no sample arrived is not sent: the numbers jump (a gap, as for bus-off).
+  const bool any = p.block_present[0] > 0;
+  if (any) {
+    if (p.block.num_samples != n) shape_sample_block(p.block, nch, n);
+    for (std::int32_t c = 0; c < nch; ++c) {
+      const auto cc = static_cast<std::size_t>(c);
+      std::fill(p.block.valid[cc].begin(), p.block.valid[cc].end(), std::uint8_t{0});
+      for (std::int32_t s = 0; s < n; ++s) {
+        const auto ss = static_cast<std::size_t>(s);
+        if (p.present[cc][ss] == 0) {
+          p.block.values[cc][ss] = std::numeric_limits<double>::quiet_NaN();
+          ++p.lost;
+          continue;
+        }
+        p.block.values[cc][ss] = p.values[cc][ss];
+        if (p.valid[cc][ss] != 0) set_sample_valid(p.block, c, s, true);
+      }
+      p.block.channel_seq[cc] = p.base;   // every channel's sample s of the block is number base + s
+    }
+    p.block.t0_mono_ns = std::llround(p.clock->time_ns(p.base));
+    p.block.sample_period_s = p.clock->period_s();
+    send_block(p);
+  }
+  // The window moves on by one block.
+  for (std::size_t c = 0; c < static_cast<std::size_t>(nch); ++c) {
+    std::memmove(p.values[c].data(), p.values[c].data() + len, sizeof(double) * (p.capacity - len));
+    std::memmove(p.valid[c].data(), p.valid[c].data() + len, p.capacity - len);
+    std::memmove(p.present[c].data(), p.present[c].data() + len, p.capacity - len);
+    std::fill(p.present[c].end() - static_cast<std::ptrdiff_t>(len), p.present[c].end(), std::uint8_t{0});
+  }
+  std::rotate(p.block_present.begin(), p.block_present.begin() + 1, p.block_present.end());
+  p.block_present.back() = 0;
+  p.base += p.block_len;
+}
+
+void Publisher::send_block(Packer& p) noexcept {
+  DeviceSlot& slot = *p.slot;
+  const auto nch = static_cast<std::int32_t>(slot.channels.size());
   p.block.t0_utime = (p.block.t0_mono_ns + options_.mono_to_wall_ns) / 1000;
   p.block.seq = p.seq++;
   const int size = p.block.getEncodedSize();
@@ -150,6 +202,10 @@ void Publisher::mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept {
 
 void Publisher::take(Packer& p, const RingSample& s) noexcept {
   DeviceSlot& slot = *p.slot;
+  if (s.index >= 0 && p.clock) {
+    take_numbered(p, s);
+    return;
+  }
   const std::size_t c = s.channel;
   if (c >= p.fill.size()) return;
   std::size_t& f = p.fill[c];
@@ -157,7 +213,11 @@ void Publisher::take(Packer& p, const RingSample& s) noexcept {
     p.values[c][f] = s.value;
     p.valid[c][f] = static_cast<std::uint8_t>(s.valid);
     if (slot.stuck_samples > 0 && static_cast<int>(c) != slot.time_index_channel) mark_stuck(p, c, f);
-    if (c == 0) p.t_first[f] = s.t_ns;
+    if (c == 0) {
+      p.t_first[f] = s.t_ns;
+      // Without numbers the count of a channel's samples is the device's clock.
+      if (p.clock) p.clock->add(p.channel_seq[0] + static_cast<std::int64_t>(f), s.t_ns);
+    }
     ++f;
     if (f >= static_cast<std::size_t>(p.block_len) &&
         *std::min_element(p.fill.begin(), p.fill.end()) >= static_cast<std::size_t>(p.block_len))
@@ -166,6 +226,52 @@ void Publisher::take(Packer& p, const RingSample& s) noexcept {
     ++slot.misaligned;
     slot.faults.fetch_or(kFaultMisaligned, std::memory_order_relaxed);
   }
+}
+
+void Publisher::take_numbered(Packer& p, const RingSample& s) noexcept {
+  DeviceSlot& slot = *p.slot;
+  const std::size_t c = s.channel;
+  if (c >= p.present.size()) return;
+  const std::int64_t len = p.block_len;
+  p.numbered = true;
+  if (p.base < 0) p.base = s.index - s.index % len;
+  const auto window = static_cast<std::int64_t>(p.capacity);
+  if (s.index < p.base - window) {
+    // Numbers from the start again: the device restarted. What is held goes out; a new clock.
+    for (std::size_t b = 0; b < p.block_present.size(); ++b) emit_numbered(p, p.block_len);
+    p.base = s.index - s.index % len;
+    p.newest = -1;
+    p.clock.emplace(1.0 / slot.nominal_rate_hz);
+    p.clock_fed = -1;
+  }
+  if (s.index < p.base) {
+    ++p.late;   // its block has gone out (with it invalid)
+    return;
+  }
+  if (s.index >= p.base + 2 * window) {
+    // A jump of more than the window (bus-off, a silent device): what is held goes out, and the
+    // window starts at the new number (the gap shows as a jump of numbers and time).
+    for (std::size_t b = 0; b < p.block_present.size(); ++b) emit_numbered(p, p.block_len);
+    p.base = s.index - s.index % len;
+  }
+  while (s.index >= p.base + window) emit_numbered(p, p.block_len);
+  const auto pos = static_cast<std::size_t>(s.index - p.base);
+  if (p.present[c][pos] == 0) {
+    p.present[c][pos] = 1;
+    ++p.block_present[pos / static_cast<std::size_t>(len)];
+  }
+  p.values[c][pos] = s.value;
+  p.valid[c][pos] = static_cast<std::uint8_t>(s.valid);
+  if (slot.stuck_samples > 0 && static_cast<int>(c) != slot.time_index_channel) mark_stuck(p, c, pos);
+  if (s.index > p.clock_fed) {
+    p.clock->add(s.index, s.t_ns);
+    p.clock_fed = s.index;
+  }
+  p.newest = std::max(p.newest, s.index);
+  // A block is complete when every channel has every sample, or lost what it lacks once a whole
+  // block of later samples has arrived (frames of one sample arrive together, never a block apart).
+  const std::uint32_t whole = static_cast<std::uint32_t>(p.present.size()) * static_cast<std::uint32_t>(len);
+  while (p.block_present[0] == whole || p.newest >= p.base + 2 * len) emit_numbered(p, p.block_len);
 }
 
 std::size_t Publisher::drain(Packer& p) noexcept {
@@ -229,6 +335,12 @@ void Publisher::publish_status(double dt_s) {
     d.read_time_max_us = static_cast<double>(s.read_time_max_ns.exchange(0, std::memory_order_relaxed)) * 1e-3;
     d.faults = fault_names(s.faults.load(std::memory_order_relaxed));
     d.num_faults = static_cast<std::int32_t>(d.faults.size());
+    if (p.clock && p.clock->points() > 0) {
+      d.clock_drift_ppm = p.clock->drift_ppm();
+      d.clock_residual_us = p.clock->residual_us();
+    }
+    d.lost_samples = static_cast<std::int64_t>(p.lost);
+    d.late_samples = static_cast<std::int64_t>(p.late);
     st.devices.push_back(std::move(d));
   }
   st.num_devices = static_cast<std::int32_t>(st.devices.size());
@@ -288,6 +400,11 @@ void Publisher::run(RealtimeOptions rt) noexcept {
   }
   // Samplers have finished: send what is left as a last, shorter block per device.
   for (Packer& p : packers_) {
+    if (p.numbered) {
+      while (p.base >= 0 && p.newest >= p.base)
+        emit_numbered(p, static_cast<std::int32_t>(std::min<std::int64_t>(p.block_len, p.newest - p.base + 1)));
+      continue;
+    }
     const std::size_t least = *std::min_element(p.fill.begin(), p.fill.end());
     if (least > 0) emit(p, static_cast<std::int32_t>(least));
     const std::size_t most = *std::max_element(p.fill.begin(), p.fill.end());

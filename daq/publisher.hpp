@@ -13,12 +13,14 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "common/lcm/channels.hpp"
 #include "common/spsc_ring.hpp"
+#include "daq/clock_fit.hpp"
 #include "daq/device_slot.hpp"
 #include "daq/log_writer.hpp"
 #include "daq/sampler.hpp"
@@ -99,11 +101,25 @@ class Publisher {
     std::vector<double> last_value;      // stuck detection: previous value and run length per channel
     std::vector<std::uint32_t> run;
     std::uint32_t stuck_channels = 0;
+    // The device's time base (clock_fit.hpp), for devices not on the simulator's exact clock.
+    std::optional<ClockFit> clock;
+    std::int64_t clock_fed = -1;         // newest sample number fed to the fit
+    // Numbered samples (a frame counter): slots by sample number, `base` the number of slot 0,
+    // blocks aligned to multiples of block_len. A sample whose number is missing when a block of
+    // later ones has arrived is lost: its block goes out with it invalid (value NaN).
+    bool numbered = false;
+    std::int64_t base = -1, newest = -1;
+    std::vector<std::vector<std::uint8_t>> present;
+    std::vector<std::uint32_t> block_present;   // present samples (all channels) per block of the window
+    std::uint64_t lost = 0, late = 0;
   };
   void run(RealtimeOptions rt) noexcept;
   std::size_t drain(Packer& p) noexcept;
   void take(Packer& p, const RingSample& s) noexcept;
+  void take_numbered(Packer& p, const RingSample& s) noexcept;
   void emit(Packer& p, std::int32_t n) noexcept;
+  void emit_numbered(Packer& p, std::int32_t n) noexcept;
+  void send_block(Packer& p) noexcept;
   void mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept;
   void publish_status(double dt_s);
   void publish_marks();

@@ -22,6 +22,7 @@ hal::socketcan::CanDeviceConfig to_hal(const config::CanDevice& d) {
     h.scale = s.scale;
     h.offset = s.offset;
     h.invalid_raw = s.invalid_raw;
+    h.counter = s.counter;
     c.map.signals.push_back(h);
   }
   return c;

@@ -20,9 +20,9 @@ namespace {
 class RingSink final : public hal::SampleSink {
  public:
   explicit RingSink(DeviceSlot& slot) : slot_(slot) {}
-  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid, std::int64_t sample_index) noexcept override {
     if (!valid) ++invalid_;
-    if (!slot_.ring.try_stage(RingSample{t_ns, value, channel, valid ? 1u : 0u})) {
+    if (!slot_.ring.try_stage(RingSample{t_ns, value, channel, valid ? 1u : 0u, sample_index})) {
       ++drops_;
       return false;
     }
@@ -50,7 +50,7 @@ class RingSink final : public hal::SampleSink {
 class TriggerRowSink final : public hal::SampleSink {
  public:
   TriggerRowSink(hal::SampleSink& inner, int trigger_channel) : inner_(inner), trigger_(trigger_channel) {}
-  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid, std::int64_t sample_index) noexcept override {
     if (channel == hal::gpiod::GpiodEncoderDevice::kCountChannel) {
       count_ = value;
       return true;
@@ -60,8 +60,8 @@ class TriggerRowSink final : public hal::SampleSink {
       return true;
     }
     if (static_cast<int>(channel) != trigger_) return true;  // marker: counted by the device
-    const bool a = inner_.push(0, t_ns, count_, valid);
-    const bool b = inner_.push(1, t_ns, position_, valid);
+    const bool a = inner_.push(0, t_ns, count_, valid, sample_index);
+    const bool b = inner_.push(1, t_ns, position_, valid, sample_index);
     return a && b;
   }
 
@@ -271,7 +271,8 @@ void ModbusSampler::run() noexcept {
     for (std::size_t i = 0; i < values.size(); ++i) {
       any_valid = any_valid || values[i].valid;
       // One row per poll, all stamped with the poll's start so the row stays aligned.
-      (void)sink.push(static_cast<std::uint32_t>(i), t0, values[i].valid ? values[i].value : 0.0, values[i].valid);
+      (void)sink.push(static_cast<std::uint32_t>(i), t0, values[i].valid ? values[i].value : 0.0, values[i].valid,
+                      hal::kNoSampleIndex);
     }
     sink.flush();
     const auto& h = controller_->link().health();

@@ -18,6 +18,7 @@
 #include <limits>
 
 #include "hal/sim/bench_motion.hpp"
+#include "hal/sim/random_streams.hpp"
 
 namespace inertia::daq {
 namespace {
@@ -62,6 +63,10 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
                         ? static_cast<std::size_t>(std::llround(options.duration_s * s->rate_hz_))
                         : s->plan_samples();
   std::int32_t next_id = 1;
+  s->real_timing_ = bench.sim_timing.enabled && !options.fast;
+  if (bench.sim_timing.enabled && options.fast)
+    std::cerr << "inertia-daqd: note: [bench.sim_timing] needs a paced run (receive stamps of a run as fast as possible "
+                 "mean nothing): the simulator's exact clock is used with --fast\n";
 
   // --- CAN: every accelerometer channel on one bus ---
   for (std::size_t i = 0; i < bench.sensors.size(); ++i)
@@ -83,6 +88,8 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
       sig.is_signed = i < n;
       sig.scale = i < n ? kSimCanScale : 1.0;
       if (i < n) sig.invalid_raw = kSimCanNoReading;
+      // Real timing: the sample number is the frame's counter (one frame carries every signal).
+      sig.counter = i == n && s->real_timing_;
       cfg.map.signals.push_back(sig);
       info.push_back({sig.name, i < n ? s->can_channels_[i].unit : "1", next_id++});
     }
@@ -99,8 +106,13 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     auto device = hal::socketcan::CanDevice::from_fd(hal::UniqueFd(sv[1]), cfg, why);
     if (!device) return nullptr;
     const int fd = device->wait_fd();
+    if (s->real_timing_ && n + 1 > kSignalsPerFrame) {
+      if (why) *why = "[bench.sim_timing]: the simulated CAN device numbers its samples with one counter per frame; more "
+                      "than " + std::to_string(kSignalsPerFrame - 1) + " channels need a second frame";
+      return nullptr;
+    }
     auto slot = std::make_shared<DeviceSlot>("accel", std::move(info), s->rate_hz_, ring_capacity);
-    slot->sim_time_base = true;
+    slot->sim_time_base = !s->real_timing_;
     slot->backpressure = options.fast;
     slot->time_index_channel = static_cast<int>(n);
     slot->stuck_samples = kSimStuckSamples;
@@ -135,7 +147,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     std::vector<ChannelInfo> info{{"count", "1", next_id}, {"position", table ? "rad" : "m", next_id + 1}};
     next_id += 2;
     auto slot = std::make_shared<DeviceSlot>(name, std::move(info), s->rate_hz_, ring_capacity);
-    slot->sim_time_base = true;
+    slot->sim_time_base = !s->real_timing_;   // real timing: the edges' stamps, through its clock fit
     slot->backpressure = options.fast;
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::move(fds), slot, true));
     s->encoders_.push_back(std::move(e));
@@ -322,7 +334,10 @@ void SimBench::run() noexcept {
   bool bus_off = false, modbus_gone = false;
   std::int64_t stuck_raw = 0;
   bool stuck = false;
-  auto time_of = [&](std::size_t n) { return t0_ns_ + static_cast<std::int64_t>(std::llround(n * period_ns)); };
+  // Real timing: the bench's sample clock runs clock_ppm fast against CLOCK_MONOTONIC.
+  const double host_period_ns = real_timing_ ? period_ns * (1.0 + 1e-6 * bench_.sim_timing.clock_ppm) : period_ns;
+  auto time_of = [&](std::size_t n) { return t0_ns_ + static_cast<std::int64_t>(std::llround(n * host_period_ns)); };
+  sim::RandomSource timing_draws(sim::derive_seed(bench_.seed, {0x71AE5ull}));
   auto mark = [&](std::int64_t t, std::size_t c, std::int32_t phase, std::int8_t what, std::int64_t b, std::int64_t e) {
     if (marks_) (void)marks_->try_push(PlanMark{t, b, e, static_cast<std::int32_t>(c), phase, what});
   };
@@ -416,12 +431,25 @@ void SimBench::run() noexcept {
         p[2] = static_cast<std::uint8_t>(u >> 16);
         p[3] = static_cast<std::uint8_t>(u >> 24);
       }
-      for (std::size_t g = 0; g < frames; ++g)
+      for (std::size_t g = 0; g < frames; ++g) {
+        if (real_timing_ && timing_draws.uniform() < bench_.sim_timing.frame_loss) {
+          ++frames_lost_;   // lost on the bus: its samples never arrive
+          continue;
+        }
         write_can_frame(kSimCanBaseId + static_cast<std::uint32_t>(g), payload.data() + 64 * g, 64, true);
+      }
     }
     // Paced: the batch's newest sample is due now (the sleep above), so the whole batch goes out
     // together, as before, only in one call.
-    if ((n + 1) % batch == 0 || n + 1 == run_samples_) flush_can_frames();
+    if ((n + 1) % batch == 0 || n + 1 == run_samples_) {
+      if (real_timing_ && bench_.sim_timing.jitter_s > 0.0 && !can_pending_.empty()) {
+        // The batch waits a while longer (an ADC's transfer, a driver, a busy host): its software
+        // receive stamps carry that, as real ones do. Exponential: one-sided, a long tail.
+        const double u = std::max(timing_draws.uniform(), 1e-12);
+        sleep_until_ns(hal::monotonic_now_ns() + static_cast<std::int64_t>(-std::log(u) * bench_.sim_timing.jitter_s * 1e9));
+      }
+      flush_can_frames();
+    }
 
     // Encoders: the edges since the previous sample, then the sample clock's trigger edge,
     // queued and written a batch at a time (about 1 ms, at most ~2000 edges a line). The wire's

@@ -90,6 +90,9 @@ class SimBench {
   /// Samples in one pass of the plan / in this run.
   [[nodiscard]] std::size_t plan_samples() const noexcept { return case_begin_.back(); }
   [[nodiscard]] std::size_t run_samples() const noexcept { return run_samples_; }
+  /// CAN frames the simulated bus lost on purpose ([bench.sim_timing] frame_loss), after stop().
+  [[nodiscard]] std::uint64_t frames_lost() const noexcept { return frames_lost_; }
+  [[nodiscard]] bool real_timing() const noexcept { return real_timing_; }
 
  private:
   SimBench(const config::BenchConfig& bench, SimOptions options);
@@ -133,6 +136,10 @@ class SimBench {
     std::size_t size;                     // CAN_MTU or CANFD_MTU
   };
   std::vector<PendingFrame> can_pending_; // written by flush_can_frames()
+  // [bench.sim_timing] in a paced run: the real timing path (numbered frames, the daemon's own
+  // clock fits); otherwise the simulator's exact clock.
+  bool real_timing_ = false;
+  std::uint64_t frames_lost_ = 0;         // CAN frames dropped on purpose (frame_loss)
   std::shared_ptr<DeviceSlot> can_slot_;
   std::vector<EncoderSim> encoders_;
   std::unique_ptr<hal::wire_sim::BenchControllerServer> controllers_;

@@ -16,14 +16,21 @@ namespace inertia::hal {
 /// Fatal (the device cannot work; the daemon marks it Failed and carries on with the others).
 enum class Step { Ok, Retry, Fatal };
 
+/// SampleSink::push's sample_index for a device that does not number its samples.
+inline constexpr std::int64_t kNoSampleIndex = -1;
+
 /// Receives samples from read_into(). Implemented by the daemon (ring writer) and by tests.
 /// Thread: the device's sampling thread. Real-time: push() must not allocate, lock or block.
 class SampleSink {
  public:
-  /// channel: index into Device::channel_names(); t_ns: CLOCK_MONOTONIC nanoseconds;
-  /// valid == false marks a value that could not be decoded (the value is then meaningless).
+  /// channel: index into Device::channel_names(); t_ns: CLOCK_MONOTONIC nanoseconds (the host's
+  /// receive stamp, or a kernel edge stamp); valid == false marks a value that could not be
+  /// decoded (the value is then meaningless); sample_index: the sample's number on the device's
+  /// own clock when the device sends one (a frame counter, unwrapped), so that a lost frame leaves
+  /// exactly its samples missing; kNoSampleIndex when it does not.
   /// Returns false when the sample was dropped (full ring); the device counts it in sink_drops.
-  virtual bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept = 0;
+  virtual bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid,
+                    std::int64_t sample_index) noexcept = 0;
 
  protected:
   ~SampleSink() = default;

@@ -153,6 +153,8 @@ CanDevice read_can_device(const TableReader& t) {
     if (c.scale == 0.0) s.fail_key("scale", "must not be 0");
     c.offset = s.number_or("offset", 0.0);
     c.unit = s.string_or("unit", "");
+    c.counter = s.boolean_or("counter", false);
+    if (c.counter && c.is_signed) s.fail_key("counter", "a frame counter is unsigned (signed = false)");
     if (s.has("invalid_raw")) {
       // TOML integers are 64-bit signed: a 64-bit code above INT64_MAX is written negative.
       const bool all64 = c.bit_length == 64;
@@ -471,6 +473,13 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
   cfg.sample_rate_hz = bench.positive("sample_rate_hz");
   cfg.t_ref_c = bench.number_in("t_ref_c", cfg.t_ref_c, -100.0, 200.0);
   cfg.seed = read_seed(bench, "seed", cfg.seed);
+  if (const auto timing = bench.optional_table("sim_timing")) {
+    cfg.sim_timing.enabled = true;
+    cfg.sim_timing.jitter_s = 1e-6 * timing->number_in("jitter_us", 0.0, 0.0, 1e5);
+    cfg.sim_timing.clock_ppm = timing->number_in("clock_ppm", 0.0, -1000.0, 1000.0);
+    cfg.sim_timing.frame_loss = timing->number_in("frame_loss", 0.0, 0.0, 0.5);
+    timing->finish();
+  }
   bench.finish();
 
   cfg.alpha_rad = deg_to_rad(kDefaultAlphaDeg);

@@ -128,6 +128,9 @@ struct CanSignal {
   // are marked invalid (value NaN), never a number. The bench file may give a signed signal's
   // code as its negative value (-32768 for 0x8000 in 16 bits). Unset: every raw is a reading.
   std::optional<std::uint64_t> invalid_raw;
+  // The frame's sample counter (hal/socketcan/frame_map.hpp): the device is timed by its own
+  // clock and a lost frame leaves exactly its samples missing.
+  bool counter = false;
 };
 
 struct CanDevice {
@@ -214,6 +217,19 @@ struct ModbusDevice {
 
 /// [daemon]: settings of inertia-daqd on this bench, each the default of the command-line option
 /// of the same meaning (named in the comment), which overrides it. Unset: the daemon's default.
+/// [bench.sim_timing] (simulated benches, paced runs): what real hardware does to the time
+/// base, so that the daemon's real timing path (its own clocks, daq/clock_fit.hpp; numbered
+/// frames) runs on the simulator: the CAN device's frames carry a counter and arrive with
+/// software receive stamps, a batch late by an exponential delay of mean jitter_us; the bench's
+/// sample clock runs clock_ppm fast against CLOCK_MONOTONIC; each CAN frame is lost with
+/// probability frame_loss.
+struct SimTiming {
+  double jitter_s = 0.0;
+  double clock_ppm = 0.0;
+  double frame_loss = 0.0;
+  bool enabled = false;            // the table is present
+};
+
 struct DaemonSettings {
   std::optional<std::string> log_dir;      // --log: durable event log directory
   std::optional<std::string> lcm_url;      // --lcm-url
@@ -294,6 +310,7 @@ struct BenchConfig {
   double sample_rate_hz = 1000.0;
   double t_ref_c = 25.0;
   std::uint64_t seed = 1;
+  SimTiming sim_timing;
   double alpha_rad = 0.0;           // Fig. 2 slot angle (default 25 deg)
   std::vector<SensorUnderTest> sensors;
   std::vector<MonitorAccelerometer> monitors;

@@ -225,7 +225,7 @@ EncoderStatus GpiodEncoderDevice::status() const noexcept {
 }
 
 bool GpiodEncoderDevice::push(std::uint32_t channel, std::int64_t t_ns, double value, SampleSink& sink) noexcept {
-  if (sink.push(channel, t_ns, value, true)) {
+  if (sink.push(channel, t_ns, value, true, kNoSampleIndex)) {
     ++health_.samples;
     return true;
   }

@@ -109,7 +109,10 @@ CanDevice::CanDevice(UniqueFd fd, CanDeviceConfig config, bool is_can_socket)
       map_(config_.map),
       batch_receive_(config_.batch_receive) {
   channels_.reserve(config_.map.signals.size());
-  for (const CanSignal& s : config_.map.signals) channels_.push_back(config_.name + "." + s.name);
+  for (const CanSignal& s : config_.map.signals) {
+    channels_.push_back(config_.name + "." + s.name);
+    if (s.counter) counters_.push_back(CounterState{frame_key(s.id, s.extended)});
+  }
   for (std::size_t i = 0; i < kReceiveBatch; ++i) {
     iov_[i] = iovec{batch_[i].record.data(), batch_[i].record.size()};
     headers_[i].msg_hdr.msg_iov = &iov_[i];
@@ -300,6 +303,23 @@ std::size_t CanDevice::handle_record(const std::uint8_t* bytes, std::size_t size
     return 0;
   }
   const std::span<const std::uint8_t> payload(data, len);
+  // The frame's sample number, when the map gives it a counter.
+  std::int64_t index = kNoSampleIndex;
+  for (const CompiledFrameMap::Entry& e : entries) {
+    if (!e.signal.counter || bytes_needed(e.signal) > len) continue;
+    const std::uint64_t raw = extract_raw(payload, e.signal);
+    const std::uint32_t key = e.key;
+    auto state = std::find_if(counters_.begin(), counters_.end(), [key](const CounterState& c) { return c.key == key; });
+    if (state == counters_.end()) break;   // sized in configure(): every counter's key is there
+    const int bits = e.signal.bit_length;
+    const std::uint64_t modulus_mask = bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1;
+    if (state->seen && bits < 63 && raw < state->last_raw && state->last_raw - raw > (modulus_mask >> 1)) ++state->epoch;
+    state->seen = true;
+    state->last_raw = raw;
+    index = bits < 63 ? state->epoch * static_cast<std::int64_t>(modulus_mask + 1) + static_cast<std::int64_t>(raw)
+                      : static_cast<std::int64_t>(raw & (~std::uint64_t{0} >> 1));
+    break;
+  }
   std::size_t pushed = 0;
   for (const CompiledFrameMap::Entry& e : entries) {
     bool valid = true;
@@ -312,7 +332,7 @@ std::size_t CanDevice::handle_record(const std::uint8_t* bytes, std::size_t size
       valid = !is_invalid_raw(raw, e.signal);  // the sender said "no reading": marked, never a number
       value = valid ? to_value(raw, e.signal) : kNoReading;
     }
-    if (sink.push(e.channel, t_ns, value, valid)) {
+    if (sink.push(e.channel, t_ns, value, valid, index)) {
       ++health_.samples;
       ++pushed;
     } else {

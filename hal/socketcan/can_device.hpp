@@ -104,6 +104,15 @@ class CanDevice final : public Device {
   bool configured_ = false;
   bool active_ = false;
   CompiledFrameMap map_;
+  // Per frame key with a counter signal: the last raw counter and the unwrapped count of
+  // rollovers before it (sampling thread).
+  struct CounterState {
+    std::uint32_t key = 0;
+    bool seen = false;
+    std::uint64_t last_raw = 0;
+    std::int64_t epoch = 0;
+  };
+  std::vector<CounterState> counters_;
   std::vector<std::string> channels_;
   CanStatus status_;
   bool batch_receive_ = true;

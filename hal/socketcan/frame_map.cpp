@@ -100,6 +100,12 @@ bool CanFrameMap::is_valid(std::string* why) const {
                          (s.extended ? "29" : "11") + "-bit identifier");
     if (!std::isfinite(s.scale) || s.scale == 0.0 || !std::isfinite(s.offset))
       return fail(s, "scale must be finite and non-zero, offset finite");
+    if (s.counter) {
+      if (s.is_signed) return fail(s, "a frame counter is unsigned");
+      for (std::size_t k = 0; k < i; ++k)
+        if (signals[k].counter && signals[k].id == s.id && signals[k].extended == s.extended)
+          return fail(s, "a second counter in frame " + std::to_string(s.id) + " (one per frame)");
+    }
   }
   return true;
 }

@@ -43,6 +43,11 @@ struct CanSignal {
   // NaN or out of range; e.g. 0x80000000 in a signed 32-bit signal). Such a sample is pushed
   // marked invalid with the value kNoReading. Unset: every raw value is a reading.
   std::optional<std::uint64_t> invalid_raw;
+  // The frame's sample counter: every signal of this frame is that sample of the device's clock
+  // (the decoder unwraps the counter when it rolls over at 2^bit_length). At most one per frame.
+  // With it a lost frame leaves exactly its samples missing and the device is timed by its own
+  // clock (daq/clock_fit.hpp) instead of by the order frames arrive in.
+  bool counter = false;
 };
 
 /// The value of a sample whose raw value was the signal's invalid_raw.

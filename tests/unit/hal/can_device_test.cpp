@@ -22,13 +22,14 @@ struct Sample {
   std::int64_t t_ns;
   double value;
   bool valid;
+  std::int64_t index = kNoSampleIndex;
 };
 
 class RecordingSink final : public SampleSink {
  public:
-  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid, std::int64_t sample_index) noexcept override {
     if (refuse) return false;
-    samples.push_back({channel, t_ns, value, valid});
+    samples.push_back({channel, t_ns, value, valid, sample_index});
     return true;
   }
   std::vector<Sample> samples;

@@ -29,8 +29,9 @@ struct Sample {
 
 class RecordingSink final : public SampleSink {
  public:
-  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid) noexcept override {
+  bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid, std::int64_t sample_index) noexcept override {
     EXPECT_TRUE(valid);
+    EXPECT_EQ(sample_index, kNoSampleIndex);
     samples.push_back({channel, t_ns, value});
     return true;
   }

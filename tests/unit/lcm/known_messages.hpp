@@ -59,6 +59,10 @@ inline daq_status_t known_daq_status() {
   d0.resyncs = 1;
   d0.read_time_max_us = 42.5;
   d0.num_faults = 0;
+  d0.clock_drift_ppm = -37.25;
+  d0.clock_residual_us = 3.5;
+  d0.lost_samples = 12;
+  d0.late_samples = 1;
   device_status_t d1;
   d1.device = "modbus_thermal";
   d1.state = device_status_t::STATE_FAILED;
@@ -218,6 +222,10 @@ inline void expect_equal(const device_status_t& a, const device_status_t& b) {
   EXPECT_EQ(a.read_time_max_us, b.read_time_max_us);
   EXPECT_EQ(a.num_faults, b.num_faults);
   EXPECT_EQ(a.faults, b.faults);
+  EXPECT_EQ(a.clock_drift_ppm, b.clock_drift_ppm);
+  EXPECT_EQ(a.clock_residual_us, b.clock_residual_us);
+  EXPECT_EQ(a.lost_samples, b.lost_samples);
+  EXPECT_EQ(a.late_samples, b.late_samples);
 }
 
 inline void expect_equal(const daq_status_t& a, const daq_status_t& b) {
