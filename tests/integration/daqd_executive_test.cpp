@@ -338,6 +338,59 @@ TEST_F(Executive, AControllerThatNeverConfirmsFailsThePhaseAndThePlanStopsSafely
   EXPECT_NE(out.find("plan: abort (phase failed: table.rate_setpoint"), std::string::npos) << out;
 }
 
+TEST_F(Executive, AControllerThatNeverSettlesFailsThePhaseAtItsTimeout) {
+  INERTIA_REQUIRE_LCM_ROUTE();
+  // The fixture takes the setpoint but its temperature hardly moves: never within tolerance.
+  controllers_->update([](BenchControllerState& s) { s.thermal_time_constant_s = 1e6; });
+  std::string devices = controllers(controllers_->port());
+  const std::string thermal_timeout = "settle_timeout_s = 5.0\n[[modbus_device.register]]\nname = \"temperature\"";
+  devices.replace(devices.find(thermal_timeout), 23, "settle_timeout_s = 0.5\n");
+  const fs::path bench = write(bench_head("plan") + devices + kThermalCase + kTableCase);
+  TempDir tmp;
+  DaqdProcess daqd({"--config", bench.string(), "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+                   {}, tmp.path / "stderr.txt");
+  ASSERT_TRUE(wait_for(daqd, "plan: abort (phase failed", 30)) << daqd.output();
+  daqd.signal(SIGTERM);
+  ASSERT_EQ(daqd.wait(20), 0) << daqd.output();
+  const std::string out = daqd.output();
+  EXPECT_NE(out.find("plan: phase failed: case warm phase 0 (thermal_step): thermal.setpoint = 27 degC confirmed, but not settled "
+                     "(temperature within 0.1 degC of 27 degC for 0.10 s) within settle_timeout_s = 0.5 s; last reading of "
+                     "temperature: 25 degC; the plan stops"),
+            std::string::npos)
+      << out;
+  const auto marks = decode_all<plan_event_t>(read_log_dir(tmp.path / "log"), "INERTIA_EVENT");
+  ASSERT_EQ(marks.size(), 3u);
+  EXPECT_EQ(marks[0].mark, plan_event_t::MARK_CASE_START);
+  EXPECT_EQ(marks[1].mark, plan_event_t::MARK_PHASE_FAILED);
+  EXPECT_GE(marks[1].end_mono_ns - marks[1].start_mono_ns, 500'000'000) << "given up at the timeout, not before";
+  EXPECT_EQ(marks[2].mark, plan_event_t::MARK_ABORT);
+  EXPECT_DOUBLE_EQ(controllers_->state().temperature_setpoint_degC, 25.0);
+}
+
+TEST_F(Executive, AControllerFaultMidPhaseAbortsThePlan) {
+  INERTIA_REQUIRE_LCM_ROUTE();
+  const std::string long_turn =
+      "\n[[case]]\nname = \"table\"\nkind = \"rotation_table\"\nm_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n"
+      "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 0.0, 1.0]\nrate_deg_s = 30.0\nduration_s = 60.0\n";
+  const fs::path bench = write(bench_head("plan") + controllers(controllers_->port()) + long_turn);
+  TempDir tmp;
+  DaqdProcess daqd({"--config", bench.string(), "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+                   {}, tmp.path / "stderr.txt");
+  ASSERT_TRUE(wait_for(daqd, "plan: case table phase 0 (rotation) started", 30)) << daqd.output();
+  const std::int64_t raised = mono_now_ns();
+  controllers_->update([](BenchControllerState& s) { s.shaker_status |= reg::kShakerFault; });  // e.g. over-current
+  ASSERT_TRUE(wait_for(daqd, "plan: abort (device fault: shaker.status = 0x2 (fault bits 0x2)) during case table phase 0 (rotation)", 10))
+      << daqd.output();
+  daqd.signal(SIGTERM);
+  ASSERT_EQ(daqd.wait(20), 0) << daqd.output();
+  const auto marks = decode_all<plan_event_t>(read_log_dir(tmp.path / "log"), "INERTIA_EVENT");
+  ASSERT_FALSE(marks.empty());
+  EXPECT_EQ(marks.back().mark, plan_event_t::MARK_ABORT);
+  // Seen at the next poll (20 ms) and the executive's next turn (5 ms).
+  EXPECT_LT(marks.back().mono_ns - raised, 100'000'000);
+  EXPECT_DOUBLE_EQ(controllers_->state().table_rate_setpoint_rad_s, 0.0);
+}
+
 TEST_F(Executive, APlanBeyondAControllersLimitsIsRefusedAtLoadWithFileAndLine) {
   const std::string text = bench_head("plan") + controllers(controllers_->port()) +
                            [] {
