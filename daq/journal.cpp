@@ -32,7 +32,8 @@ void send_entry(const std::string& text, int priority, std::vector<std::string> 
   for (std::string& f : fields) iov.push_back(iovec{f.data(), f.size()});
   // Fails (without a journal socket) quietly: the stderr line below is then the record.
   (void)sd_journal_sendv(iov.data(), static_cast<int>(iov.size()));
-  if (!stderr_is_journal()) std::cerr << message << "\n";
+  // One insertion: lines from the executive's thread and the supervisor's do not interleave.
+  if (!stderr_is_journal()) std::cerr << (message + "\n") << std::flush;
 }
 
 }  // namespace
