@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <lcm/lcm-cpp.hpp>
 #include <sstream>
 
@@ -18,7 +19,9 @@
 #include "daq/journal.hpp"
 #include "daq/log_writer.hpp"
 #include "daq/publisher.hpp"
+#include "daq/plan_mark.hpp"
 #include "daq/real_bench.hpp"
+#include "daq/test_executive.hpp"
 #include "hal/device.hpp"
 #include "inertia/bench_config_t.hpp"
 
@@ -75,6 +78,7 @@ volatile sig_atomic_t g_unused = 0;
 const char* usage() {
   return "usage: inertia-daqd --config FILE [--duration S] [--log DIR] [options]\n"
          "       inertia-daqd --check --config FILE\n"
+         "       inertia-daqd mark --case NAME [--phase KIND] | --end | --stop [--lcm-url URL]  (mark --help)\n"
          "  --check              open every device of the bench file without sampling and print one\n"
          "                       table: CAN interface up at the bench's bit rates, GPIO lines free,\n"
          "                       Modbus registers readable and in range; each failure with its\n"
@@ -199,6 +203,7 @@ int run_daemon(const DaemonOptions& command_line) {
   std::unique_ptr<SimBench> sim;
   std::vector<std::unique_ptr<Sampler>> samplers;
   std::vector<std::string> absent;  // optional devices the bench runs without
+  std::map<std::string, std::shared_ptr<ControllerPort>> controller_ports;  // real benches: for the test executive
   std::string why;
   if (bench.simulated) {
     // Threads the simulator starts here (its Modbus server) inherit this name, so CPU accounting
@@ -223,6 +228,7 @@ int run_daemon(const DaemonOptions& command_line) {
       return kExitBadInput;
     }
     samplers = std::move(real.samplers);
+    controller_ports = std::move(real.ports);
     for (const LeftOutDevice& d : real.left_out) {
       absent.push_back(d.name);
       journal_fault({d.name, "absent", "absent", d.name + ": optional device left out, running degraded: " + d.why, 4,
@@ -294,7 +300,9 @@ int run_daemon(const DaemonOptions& command_line) {
   ::clock_gettime(CLOCK_MONOTONIC, &mono);
   po.mono_to_wall_ns = (static_cast<std::int64_t>(wall.tv_sec) - mono.tv_sec) * 1'000'000'000LL + (wall.tv_nsec - mono.tv_nsec);
   po.sim_t0_ns = hal::monotonic_now_ns() + 20'000'000;  // 20 ms for the threads to start
-  if (sim) po.describe_mark = [&sim](const PlanMark& m, plan_event_t& e) { sim->describe(m, e); };
+  // Markers come from the simulator on a sim bench and from the test executive on a real one;
+  // either way their names and setpoints are the plan's.
+  po.describe_mark = [&bench](const PlanMark& m, plan_event_t& e) { describe_plan_mark(bench, m, e); };
   LogWriter* log_ptr = log.get();
   po.daemon_faults = [log_ptr, absent] {
     std::vector<std::string> f;
@@ -308,17 +316,30 @@ int run_daemon(const DaemonOptions& command_line) {
     std::cerr << "inertia-daqd: " << why << "\n";
     return kExitBadInput;
   }
+  // A real bench's plan: run by the test executive on the controllers, or marked by the operator.
+  std::unique_ptr<TestExecutive> executive;
+  if (!sim) {
+    executive = std::make_unique<TestExecutive>(bench, controller_ports, publisher.plan_marks(), url);
+    if (!executive->ready(&why)) {
+      std::cerr << "inertia-daqd: " << why << "\n";
+      return kExitBadInput;
+    }
+  }
 
   if (log) log->start();
   const RealtimeOptions rt{o.fifo_priority, o.cpu};
   publisher.start(rt);
   for (auto& s : samplers) s->start(rt);
   if (sim) sim->start(po.sim_t0_ns, &publisher.plan_marks());
+  if (executive) executive->start();
 
   std::ostringstream ready;
   ready << "READY=1\nSTATUS=sampling " << samplers.size() << " devices of bench " << bench.name
         << (bench.simulated ? (o.fast ? " (simulated, fast)" : " (simulated, paced)") : "");
   if (!absent.empty()) ready << " (degraded: " << absent.size() << " optional device" << (absent.size() > 1 ? "s" : "") << " absent)";
+  if (executive)
+    ready << (bench.executive == config::Executive::Plan ? "; the test executive runs the plan on the controllers"
+                                                          : "; phases marked by the operator (inertia-daqd mark)");
   sd_notify(0, ready.str().c_str());
   std::cerr << "inertia-daqd: " << ready.str().substr(15) << "; log "
             << (log ? log->current_path() : std::string("off")) << "\n";
@@ -394,6 +415,12 @@ int run_daemon(const DaemonOptions& command_line) {
 
   // Graceful stop: nothing that was sampled is lost. The simulator stops writing, each sampler
   // drains its wire into its ring, the publisher drains the rings, the writer drains its queue.
+  // The controllers go to their safe state first, while their polling threads still run: a
+  // running case is aborted (MARK_ABORT), and nothing is left moving after the daemon.
+  if (executive) {
+    sd_notify(0, "STATUS=stopping: controllers to their safe state");
+    executive->stop(exit_signal == SIGTERM ? "SIGTERM" : exit_signal == SIGINT ? "SIGINT" : "--duration reached");
+  }
   sd_notify(0, "STOPPING=1\nSTATUS=stopping: flushing rings and log");
   fault_journal.finish(hal::monotonic_now_ns());
   if (sim) {

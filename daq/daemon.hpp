@@ -2,8 +2,9 @@
 // inertia-daqd: command line, start-up checks, the thread layout and the service protocol.
 //
 // Threads: one sampling thread per device (sampler.hpp), the simulator's driver on simulated
-// benches (sim_bench.hpp), the publisher (publisher.hpp), the log writer (log_writer.hpp), and
-// the main thread as supervisor: signals (SIGTERM/SIGINT stop, SIGHUP rotates the log),
+// benches (sim_bench.hpp), the test executive on real ones (test_executive.hpp: the plan on the
+// controllers, or the operator's marks), the publisher (publisher.hpp), the log writer
+// (log_writer.hpp), and the main thread as supervisor: signals (SIGTERM/SIGINT stop, SIGHUP rotates the log),
 // sd_notify READY/STATUS/WATCHDOG/STOPPING. WATCHDOG=1 is sent only when every sampling thread's
 // heartbeat moved since the previous ping, so a hung sampler gets the daemon restarted.
 #include <set>

@@ -21,21 +21,36 @@ bool stderr_is_journal() {
   return static_cast<unsigned long long>(st.st_dev) == dev && static_cast<unsigned long long>(st.st_ino) == ino;
 }
 
-void journal_fault(const FaultEntry& e) {
-  const std::string message = "inertia-daqd: " + e.message;
-  std::vector<std::string> fields{"MESSAGE=" + message,
-                                  "PRIORITY=" + std::to_string(e.priority),
-                                  "SYSLOG_IDENTIFIER=inertia-daqd",
-                                  "DEVICE=" + e.device,
-                                  "FAULT=" + e.fault,
-                                  "FAULT_STATE=" + e.state};
-  if (e.samples_lost) fields.push_back("SAMPLES_LOST=" + std::to_string(*e.samples_lost));
-  if (e.messages_lost) fields.push_back("MESSAGES_LOST=" + std::to_string(*e.messages_lost));
+namespace {
+
+/// One structured entry (MESSAGE, PRIORITY, SYSLOG_IDENTIFIER first, then `fields`) and its
+/// stderr line unless stderr is the journal.
+void send_entry(const std::string& text, int priority, std::vector<std::string> fields) {
+  const std::string message = "inertia-daqd: " + text;
+  fields.insert(fields.begin(), {"MESSAGE=" + message, "PRIORITY=" + std::to_string(priority), "SYSLOG_IDENTIFIER=inertia-daqd"});
   std::vector<iovec> iov;
   for (std::string& f : fields) iov.push_back(iovec{f.data(), f.size()});
   // Fails (without a journal socket) quietly: the stderr line below is then the record.
   (void)sd_journal_sendv(iov.data(), static_cast<int>(iov.size()));
-  if (!stderr_is_journal()) std::cerr << message << "\n";
+  // One insertion: lines from the executive's thread and the supervisor's do not interleave.
+  if (!stderr_is_journal()) std::cerr << (message + "\n") << std::flush;
+}
+
+}  // namespace
+
+void journal_fault(const FaultEntry& e) {
+  std::vector<std::string> fields{"DEVICE=" + e.device, "FAULT=" + e.fault, "FAULT_STATE=" + e.state};
+  if (e.samples_lost) fields.push_back("SAMPLES_LOST=" + std::to_string(*e.samples_lost));
+  if (e.messages_lost) fields.push_back("MESSAGES_LOST=" + std::to_string(*e.messages_lost));
+  send_entry(e.message, e.priority, std::move(fields));
+}
+
+void journal_plan(const PlanEntry& e) {
+  std::vector<std::string> fields{"PLAN_EVENT=" + e.event};
+  if (!e.case_name.empty()) fields.push_back("CASE=" + e.case_name);
+  if (!e.phase.empty()) fields.push_back("PHASE=" + e.phase);
+  if (!e.device.empty()) fields.push_back("DEVICE=" + e.device);
+  send_entry(e.message, e.priority, std::move(fields));
 }
 
 FaultJournal::FaultJournal(std::vector<const DeviceSlot*> slots, std::int64_t now_ns) {

@@ -33,6 +33,20 @@ struct FaultEntry {
 /// Writes the entry to the journal and, unless stderr is the journal, the line to stderr.
 void journal_fault(const FaultEntry& entry);
 
+/// What the test executive does, on the journal (issue 13) the same way: MESSAGE, PRIORITY,
+/// PLAN_EVENT (command, settled, phase-start, phase-end, phase-failed, abort, safe-state,
+/// operator-mark, refused, plan-end), and where known CASE, PHASE (its 0-based index and label,
+/// "1 rotation") and DEVICE. `journalctl -u inertia-daqd PLAN_EVENT=abort` finds every abort.
+struct PlanEntry {
+  std::string event{};                // PLAN_EVENT=
+  std::string message{};              // MESSAGE= and the stderr line (without the "inertia-daqd: " prefix)
+  int priority = 6;                   // 6 info; 4 a failed phase or an abort; 3 a safe state not reached
+  std::string case_name{};            // CASE=, empty: none
+  std::string phase{};                // PHASE=, empty: none
+  std::string device{};               // DEVICE=, empty: none
+};
+void journal_plan(const PlanEntry& entry);
+
 /// Whether fd 2 is the journal stream systemd connected (JOURNAL_STREAM names its device:inode).
 bool stderr_is_journal();
 

@@ -1,4 +1,5 @@
 // inertia-daqd --config FILE [--duration S] [--log DIR] [options]: see daemon.hpp.
+// inertia-daqd mark ...: the operator's phase marks to a running daemon (operator_mark.hpp).
 #include <iostream>
 #include <string>
 #include <vector>
@@ -6,10 +7,12 @@
 #include "common/input_error.hpp"
 #include "daq/daemon.hpp"
 #include "daq/device_check.hpp"
+#include "daq/operator_mark.hpp"
 
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
   try {
+    if (!args.empty() && args[0] == "mark") return inertia::daq::run_mark({args.begin() + 1, args.end()});
     bool help = false;
     const auto options = inertia::daq::parse_options(args, &help);
     if (help) {

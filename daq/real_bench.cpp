@@ -65,6 +65,7 @@ hal::modbus::ModbusConfig to_hal(const config::ModbusDevice& d) {
     if (r.writable) {
       s.min = r.min;
       s.max = r.max;
+      s.max_rate = r.max_rate;
     }
     c.map.registers.push_back(s);
   }
@@ -112,6 +113,7 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     if (why) *why = std::move(reason);
     out.samplers.clear();
     out.left_out.clear();
+    out.ports.clear();
     return false;
   };
   for (const auto& d : bench.can_devices) {
@@ -163,7 +165,12 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     std::vector<ChannelInfo> info;
     for (const auto& r : m.registers) info.push_back({r.name, r.unit, next_id++});
     auto slot = std::make_shared<DeviceSlot>(m.name, std::move(info), 1000.0 / m.poll_interval_ms, ring_capacity);
-    out.samplers.push_back(std::make_unique<ModbusSampler>(std::move(controller), m.poll_interval_ms, slot));
+    std::vector<ControllerPort::SafeValue> safe;
+    for (std::size_t r = 0; r < m.registers.size(); ++r)
+      if (m.writes_enabled && m.registers[r].safe) safe.push_back({r, *m.registers[r].safe});
+    auto port = std::make_shared<ControllerPort>(m.name, std::move(safe));
+    out.ports[m.name] = port;
+    out.samplers.push_back(std::make_unique<ModbusSampler>(std::move(controller), m.poll_interval_ms, slot, port));
   }
   if (out.samplers.empty() && why) {
     if (out.left_out.empty()) {

@@ -4,11 +4,13 @@
 // cannot be opened stops the start: it is named with its bench-file position, the reason and
 // the command that fixes it (the diagnosis of inertia-daqd --check, device_check.hpp), exit 2.
 // An `optional = true` device that cannot be opened is left out and the bench runs degraded.
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "common/config/bench_config.hpp"
+#include "daq/controller_port.hpp"
 #include "daq/sampler.hpp"
 #include "hal/gpiod/encoder_device.hpp"
 #include "hal/modbus/modbus_link.hpp"
@@ -25,6 +27,9 @@ struct LeftOutDevice {
 struct RealBench {
   std::vector<std::unique_ptr<Sampler>> samplers;   // every device that opened
   std::vector<LeftOutDevice> left_out;              // optional devices that did not
+  /// Per Modbus device that opened (by name): the test executive's way to it, served by its
+  /// polling thread. Safe values are those of registers with `safe` on a device with writes enabled.
+  std::map<std::string, std::shared_ptr<ControllerPort>> ports;
 };
 
 /// The opened bench, or empty samplers + why naming the required device that failed (or that

@@ -239,8 +239,8 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
 }
 
 ModbusSampler::ModbusSampler(std::unique_ptr<hal::modbus::ModbusController> controller, int poll_interval_ms,
-                             std::shared_ptr<DeviceSlot> slot)
-    : controller_(std::move(controller)), poll_interval_ms_(poll_interval_ms), slot_(std::move(slot)) {}
+                             std::shared_ptr<DeviceSlot> slot, std::shared_ptr<ControllerPort> port)
+    : controller_(std::move(controller)), poll_interval_ms_(poll_interval_ms), slot_(std::move(slot)), port_(std::move(port)) {}
 
 bool ModbusSampler::bring_up(std::string*) {
   // ModbusController::connect() already connected (or the device was refused at creation).
@@ -275,6 +275,7 @@ void ModbusSampler::run() noexcept {
                       hal::kNoSampleIndex);
     }
     sink.flush();
+    if (port_) port_->publish(values, controller_->link().connected());
     const auto& h = controller_->link().health();
     // Every failed request (timeout, refused, exception, bad data) left its values invalid.
     slot_->decode_errors.store(h.errors, std::memory_order_relaxed);
@@ -295,15 +296,24 @@ void ModbusSampler::run() noexcept {
     timespec now{};
     ::clock_gettime(CLOCK_MONOTONIC, &now);
     if (now.tv_sec > next.tv_sec || (now.tv_sec == next.tv_sec && now.tv_nsec > next.tv_nsec)) next = now;
-    // Sleep in slices so stop() is seen within 20 ms.
+    // Sleep in slices so stop() is seen within 20 ms; the executive's commands wake it at once.
     for (;;) {
+      if (port_) port_->serve(*controller_);
       ::clock_gettime(CLOCK_MONOTONIC, &now);
       const std::int64_t left = (next.tv_sec - now.tv_sec) * 1'000'000'000LL + (next.tv_nsec - now.tv_nsec);
       if (left <= 0 || stop_.load(std::memory_order_acquire)) break;
-      timespec slice{0, static_cast<long>(std::min<std::int64_t>(left, 20'000'000))};
-      ::nanosleep(&slice, nullptr);
+      const std::int64_t slice = std::min<std::int64_t>(left, 20'000'000);
+      if (port_) {
+        port_->wait_until(hal::monotonic_now_ns() + slice);
+      } else {
+        timespec ts{0, static_cast<long>(slice)};
+        ::nanosleep(&ts, nullptr);
+      }
     }
   }
+  // A safe state asked for while stopping still goes out (the daemon stops the pollers only
+  // after the executive has its answer, but never leave one unserved).
+  if (port_) port_->serve(*controller_);
   slot_->finished.store(true, std::memory_order_release);
 }
 

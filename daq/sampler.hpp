@@ -14,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "daq/controller_port.hpp"
 #include "daq/device_slot.hpp"
 #include "hal/device.hpp"
 #include "hal/gpiod/encoder_device.hpp"
@@ -73,10 +74,12 @@ class DeviceSampler final : public Sampler {
 /// A Modbus controller polled at its interval. Thread: its own, NOT real-time (each request may
 /// block up to the response timeout; daq.md section 3 says never in a sampling thread of a
 /// fast device, so it has a thread of its own and a ring like every device).
+/// With a ControllerPort the same thread also carries the test executive's commands to the
+/// device (the only thread that talks to it), between polls and at once when posted.
 class ModbusSampler final : public Sampler {
  public:
   ModbusSampler(std::unique_ptr<hal::modbus::ModbusController> controller, int poll_interval_ms,
-                std::shared_ptr<DeviceSlot> slot);
+                std::shared_ptr<DeviceSlot> slot, std::shared_ptr<ControllerPort> port = nullptr);
   ~ModbusSampler() override { stop(); }
   bool bring_up(std::string* why) override;
   void start(const RealtimeOptions& rt) override;
@@ -88,6 +91,7 @@ class ModbusSampler final : public Sampler {
   std::unique_ptr<hal::modbus::ModbusController> controller_;
   int poll_interval_ms_;
   std::shared_ptr<DeviceSlot> slot_;
+  std::shared_ptr<ControllerPort> port_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -84,8 +84,6 @@ class SimBench {
   void stop();
   [[nodiscard]] bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
   [[nodiscard]] std::uint64_t samples_written() const noexcept { return written_.load(std::memory_order_relaxed); }
-  /// Names and setpoints of a marker (publisher thread).
-  void describe(const PlanMark& mark, plan_event_t& event) const;
 
   /// Samples in one pass of the plan / in this run.
   [[nodiscard]] std::size_t plan_samples() const noexcept { return case_begin_.back(); }

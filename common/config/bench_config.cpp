@@ -10,6 +10,8 @@
 #include <sstream>
 #include <utility>
 
+#include "common/config/controller_plan.hpp"
+#include "common/config/register_role.hpp"
 #include "common/config/toml_reader.hpp"
 #include "common/units.hpp"
 
@@ -269,7 +271,8 @@ ModbusDevice read_modbus_device(const TableReader& t) {
       static_cast<int>(t.integer_in("timeouts_before_reconnect", d.timeouts_before_reconnect, 1, 1000));
   d.writes_enabled = t.boolean_or("writes_enabled", false);
   std::set<std::string> names;
-  for (const TableReader& r : t.tables("register")) {
+  const std::vector<TableReader> registers = t.tables("register");
+  for (const TableReader& r : registers) {
     ModbusRegister reg;
     reg.where = r.where();
     reg.name = r.string("name");
@@ -297,11 +300,13 @@ ModbusDevice read_modbus_device(const TableReader& t) {
       reg.range_min = range[0];
       reg.range_max = range[1];
     }
+    read_register_role(r, reg);
     r.finish();
     if (!names.insert(reg.name).second) r.fail_key("name", "duplicate register name '" + reg.name + "'");
     fail_on_overlap(r, reg, d.registers);
     d.registers.push_back(std::move(reg));
   }
+  check_register_references(registers, d);
   t.finish();
   return d;
 }
@@ -321,6 +326,7 @@ bool phase_allowed(CaseKind c, PhaseKind p) {
 Phase read_phase(const TableReader& t, CaseKind case_kind, double sample_rate_hz) {
   Phase p;
   p.where = t.where();
+  p.command_at = p.where;
   p.kind = static_cast<PhaseKind>(
       t.choice("kind", {"dwell", "rotation", "sine", "random", "shock", "thermal_step"}));
   if (!phase_allowed(case_kind, p.kind)) {
@@ -339,6 +345,7 @@ Phase read_phase(const TableReader& t, CaseKind case_kind, double sample_rate_hz
       }
       if (t.has("rate_deg_s")) p.rate_rad_s = deg_to_rad(t.number("rate_deg_s"));
       if (t.has("angle_deg")) p.angle_rad = deg_to_rad(t.number("angle_deg"));
+      p.command_at = t.where(t.has("rate_deg_s") ? "rate_deg_s" : "angle_deg");
       break;
     case PhaseKind::Sine:
       p.frequency_hz = t.positive("frequency_hz");
@@ -378,7 +385,14 @@ Phase read_phase(const TableReader& t, CaseKind case_kind, double sample_rate_hz
     case PhaseKind::ThermalStep:
       if (!t.has("setpoint_c")) t.fail_here("missing key 'setpoint_c' (expected a number)");
       p.setpoint_c = t.number_in("setpoint_c", 0.0, -100.0, 200.0);
+      p.command_at = t.where("setpoint_c");
       break;
+  }
+  if (p.kind == PhaseKind::Sine || p.kind == PhaseKind::Random || p.kind == PhaseKind::Shock) {
+    if (t.has("profile")) {
+      p.profile = static_cast<int>(t.integer_in("profile", 0, 0, 65535));
+      p.command_at = t.where("profile");
+    }
   }
   t.finish();
   return p;
@@ -470,6 +484,11 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
   const TableReader bench = root.table("bench");
   cfg.name = bench.string("name");
   cfg.simulated = bench.choice_or("backend", {"sim", "real"}, 0) == 0;
+  cfg.executive_at = bench.where("executive");
+  if (bench.has("executive")) {
+    if (cfg.simulated) bench.fail_key("executive", "is for real benches: a simulated bench runs its plan in the simulator");
+    cfg.executive = bench.choice("executive", {"operator", "plan"}) == 0 ? Executive::Operator : Executive::Plan;
+  }
   cfg.sample_rate_hz = bench.positive("sample_rate_hz");
   cfg.t_ref_c = bench.number_in("t_ref_c", cfg.t_ref_c, -100.0, 200.0);
   cfg.seed = read_seed(bench, "seed", cfg.seed);
@@ -523,6 +542,7 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
   read_cases(root, cfg, case_names, 0, fetch);
   if (cfg.simulated && cfg.cases.empty()) root.fail_here("a simulated bench needs a test plan ([[case]] tables)");
   root.finish();
+  check_plan_against_controllers(cfg);
   return cfg;
 }
 
@@ -568,6 +588,19 @@ const char* to_string(PhaseKind kind) {
 
 const char* to_string(SensorType type) {
   return type == SensorType::Accelerometer ? "accelerometer" : "gyroscope";
+}
+
+const char* to_string(RegisterRole role) {
+  switch (role) {
+    case RegisterRole::None: return "none";
+    case RegisterRole::TableRate: return "table_rate";
+    case RegisterRole::TableAngle: return "table_angle";
+    case RegisterRole::ShakerRun: return "shaker_run";
+    case RegisterRole::ShakerProfile: return "shaker_profile";
+    case RegisterRole::ThermalSetpoint: return "thermal_setpoint";
+    case RegisterRole::Fault: return "fault";
+  }
+  return "?";
 }
 
 const char* to_string(Orientation orientation) {

@@ -4,7 +4,8 @@
 // shaker's control accelerometer, encoders, thermal controller), seeds, and a test plan.
 //
 // File layout (every shipped config/*.toml repeats this summary in its header comment):
-//   [bench]                    name, backend ("sim" | "real"), sample_rate_hz, t_ref_c, seed
+//   [bench]                    name, backend ("sim" | "real"), sample_rate_hz, t_ref_c, seed,
+//                              executive ("operator" | "plan": who runs a real bench's plan)
 //   [fixture]                  alpha_deg (Fig. 2 slot angle), thermal controller in [fixture.thermal]
 //   [[sensor]]                 sensors under test: name, type, output_unit, slot, position_m, seed,
 //                              channel, optional case_misalignment; [sensor.truth] = the fields of
@@ -169,6 +170,11 @@ enum class RegisterKind { Holding, Input };
 enum class RegisterType { U16, I16, U32, I32, F32 };
 enum class WordOrder { ABCD, CDAB, BADC, DCBA };
 
+/// What the test executive (daq/test_executive.hpp, issue 13) does with a register. None: a
+/// reading only. The command roles are setpoints the plan's phases write (config/controller_plan.hpp
+/// says which phase writes what); Fault is a status word whose set bits abort the plan.
+enum class RegisterRole { None, TableRate, TableAngle, ShakerRun, ShakerProfile, ThermalSetpoint, Fault };
+
 struct ModbusRegister {
   std::string name;
   int address = 0;
@@ -185,6 +191,25 @@ struct ModbusRegister {
   double range_min = -std::numeric_limits<double>::infinity();
   double range_max = std::numeric_limits<double>::infinity();
   SourcePosition where;
+  // ---- test executive (a register with a role; every key below needs one) ----
+  RegisterRole role = RegisterRole::None;
+  SourcePosition role_at;           // the `role` key
+  // Written on every abort and at the plan's end, at once (not ramped: the controller's own
+  // deceleration applies), clamped to [min, max]. Unset: the register is left as it is.
+  std::optional<double> safe;
+  // A commanded value moves toward its target by at most max_rate per second (SI/s), in steps
+  // written every ramp tick; infinity: in one write (discrete roles: run, profile).
+  double max_rate = std::numeric_limits<double>::infinity();
+  // Settled: the reading of register `measured` (same device) within `tolerance` of the target,
+  // or the status word of register `settled_by` with every bit of `settled_mask` set (0: any
+  // bit), continuously for settle_s. Neither: settled as soon as the write is read back.
+  std::string measured;
+  double tolerance = 0.0;
+  std::string settled_by;
+  std::uint32_t settled_mask = 0;
+  double settle_s = 0.0;
+  double settle_timeout_s = 60.0;   // not settled by then: the phase fails and the plan stops
+  std::uint32_t fault_mask = 0;     // role fault: a fault when reading & fault_mask != 0 (0: any bit)
 };
 
 enum class ControllerRole { Thermal, Table, Shaker };
@@ -273,7 +298,11 @@ struct Phase {
   double compensation = 8.0;
   // thermal_step: new controller setpoint, held for duration_s.
   double setpoint_c = 0.0;
+  // sine/random/shock on a bench whose shaker controller has a register with role
+  // shaker_profile: the number of the stored profile that runs this phase.
+  std::optional<int> profile;
   SourcePosition where;
+  SourcePosition command_at;        // the key of what the phase commands (rate_deg_s, angle_deg, setpoint_c, profile)
 };
 
 struct TestCase {
@@ -300,6 +329,11 @@ struct SourceFile {
   std::string text;
 };
 
+/// Who runs the plan on a real bench (issue 13). Operator: the operator moves the bench and marks
+/// the phases (`inertia-daqd mark`); the daemon commands nothing but the safe state. Plan: the
+/// daemon's test executive commands the controllers phase by phase and marks each phase itself.
+enum class Executive { Operator, Plan };
+
 struct BenchConfig {
   std::filesystem::path file;
   /// The bench file and every file it included, in load order: what the daemon publishes on
@@ -307,6 +341,8 @@ struct BenchConfig {
   std::vector<SourceFile> sources;
   std::string name;
   bool simulated = true;            // backend = "sim"
+  Executive executive = Executive::Operator;   // [bench] executive (real benches; the simulator runs its plan itself)
+  SourcePosition executive_at;
   double sample_rate_hz = 1000.0;
   double t_ref_c = 25.0;
   std::uint64_t seed = 1;
@@ -350,5 +386,6 @@ using inertia::to_string;
 const char* to_string(PhaseKind kind);
 const char* to_string(SensorType type);
 const char* to_string(Orientation orientation);
+const char* to_string(RegisterRole role);   // as in the bench file: "table_rate", ...
 
 }  // namespace inertia::config

@@ -9,6 +9,9 @@ namespace inertia::channels {
 inline constexpr std::string_view kEvent = "INERTIA_EVENT";     // plan_event_t
 inline constexpr std::string_view kStatus = "INERTIA_STATUS";   // daq_status_t, 1 Hz
 inline constexpr std::string_view kBench = "INERTIA_BENCH";     // bench_config_t (extension, README)
+// Operator requests to the daemon (`inertia-daqd mark`) and its answers: plan_command_t (extension, README).
+inline constexpr std::string_view kCommand = "INERTIA_COMMAND";
+inline constexpr std::string_view kCommandReply = "INERTIA_COMMAND_REPLY";
 inline constexpr std::string_view kRawPrefix = "INERTIA_RAW_";           // + device: sample_block_t
 inline constexpr std::string_view kEstimatePrefix = "INERTIA_ESTIMATE_"; // + sensor: model_estimate_t
 inline constexpr std::string_view kStructurePrefix = "INERTIA_STRUCTURE_";  // + sensor: structure_table_t (extension)

@@ -15,6 +15,7 @@ const char* to_string(WriteStatus status) noexcept {
     case WriteStatus::UnknownRegister: return "no such register";
     case WriteStatus::NotFinite: return "value is not finite";
     case WriteStatus::LinkError: return "link error";
+    case WriteStatus::NotConfirmed: return "not confirmed: the register read back holds another value";
   }
   return "?";
 }
@@ -52,6 +53,8 @@ ModbusController::ModbusController(ModbusConfig config, std::unique_ptr<ModbusLi
   values_.resize(regs.size());
   for (std::size_t i = 0; i < regs.size(); ++i) values_[i].name = regs[i].name;
   words_.resize(kMaxWordsPerRequest);
+  last_written_.resize(regs.size());
+  last_write_ns_.resize(regs.size(), 0);
 }
 
 std::span<const PolledValue> ModbusController::poll() {
@@ -70,14 +73,23 @@ std::span<const PolledValue> ModbusController::poll() {
   return values_;
 }
 
-WriteResult ModbusController::write(std::string_view name, double value) {
-  WriteResult result;
+WriteResult ModbusController::write(std::string_view name, double value, Ramp ramp) {
   const int index = config_.map.find(name);
   if (index < 0) {
+    WriteResult result;
     result.status = WriteStatus::UnknownRegister;
     return result;
   }
-  const RegisterSpec& r = config_.map.registers[static_cast<std::size_t>(index)];
+  return write(static_cast<std::size_t>(index), value, ramp);
+}
+
+WriteResult ModbusController::write(std::size_t index, double value, Ramp ramp) {
+  WriteResult result;
+  if (index >= config_.map.registers.size()) {
+    result.status = WriteStatus::UnknownRegister;
+    return result;
+  }
+  const RegisterSpec& r = config_.map.registers[index];
   if (!config_.writes_enabled) {
     result.status = WriteStatus::Disabled;
     return result;
@@ -90,9 +102,29 @@ WriteResult ModbusController::write(std::string_view name, double value) {
     result.status = WriteStatus::NotFinite;
     return result;
   }
-  const double limited = std::clamp(value, r.min, r.max);
+  const int n = word_count(r.type);
+  double limited = std::clamp(value, r.min, r.max);
   result.clamped = limited != value;
   std::uint16_t words[2] = {0, 0};
+  const std::int64_t now_ns = monotonic_now_ns();
+  std::optional<double> from;
+  if (ramp == Ramp::Limited && std::isfinite(r.max_rate)) {
+    from = last_written_[index];
+    if (!from) {  // first write: ramp from what the device holds now
+      if (link_->read_registers(r.kind, r.address, std::span<std::uint16_t>(words, static_cast<std::size_t>(n))) != n) {
+        result.status = WriteStatus::LinkError;
+        return result;
+      }
+      from = decode(r, std::span<const std::uint16_t>(words, static_cast<std::size_t>(n)));
+    }
+    const double dt_s = last_written_[index] ? std::min(static_cast<double>(now_ns - last_write_ns_[index]) * 1e-9, kMaxRampStepS)
+                                             : kMaxRampStepS;
+    const double step = r.max_rate * dt_s;
+    if (std::abs(limited - *from) > step) {
+      limited = *from + (limited > *from ? step : -step);
+      result.rate_limited = true;
+    }
+  }
   result.written = encode(r, limited, words);
   // Rounding to the register's resolution may land just past a limit that lies between two
   // steps: take the step on the inside instead.
@@ -105,11 +137,29 @@ WriteResult ModbusController::write(std::string_view name, double value) {
                             : result.written + inward * std::abs(r.scale);
     result.written = encode(r, next, words);
   }
-  const int n = word_count(r.type);
+  // A ramp step smaller than the register's resolution rounds back to where it was: move one
+  // count instead (the rate limit is then exceeded by less than one count), or it never arrives.
+  if (result.rate_limited && from && result.written == encode(r, *from, std::span<std::uint16_t>(words_.data(), 2)) &&
+      r.type != DataType::Float32) {
+    result.written = encode(r, result.written + (value > *from ? 1.0 : -1.0) * std::abs(r.scale), words);
+  }
   if (link_->write_registers(r.address, std::span<const std::uint16_t>(words, static_cast<std::size_t>(n))) != n) {
+    last_written_[index].reset();  // what the device holds is unknown now
     result.status = WriteStatus::LinkError;
     return result;
   }
+  // Confirmation: the device holds what was written, word for word (a controller that refuses or
+  // overrides a value shows it here, and a later read of that register would too).
+  std::uint16_t back[2] = {0, 0};
+  const bool read = link_->read_registers(RegisterKind::Holding, r.address, std::span<std::uint16_t>(back, static_cast<std::size_t>(n))) == n;
+  result.read_back = read ? decode(r, std::span<const std::uint16_t>(back, static_cast<std::size_t>(n))) : NAN;
+  if (!read || back[0] != words[0] || (n == 2 && back[1] != words[1])) {
+    last_written_[index].reset();
+    result.status = WriteStatus::NotConfirmed;
+    return result;
+  }
+  last_written_[index] = result.written;
+  last_write_ns_[index] = now_ns;
   result.status = WriteStatus::Written;
   return result;
 }

@@ -102,6 +102,7 @@ bool RegisterMap::is_valid(std::string* why) const {
       return fail("scale must be finite and non-zero, offset finite");
     if (r.writable && r.kind == RegisterKind::Input) return fail("writable, but input registers are read-only");
     if (r.writable && !(r.min <= r.max)) return fail("min must not exceed max");
+    if (!(r.max_rate > 0.0)) return fail("max_rate must be positive");
   }
   return true;
 }

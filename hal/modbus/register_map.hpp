@@ -29,6 +29,9 @@ struct RegisterSpec {
   bool writable = false;           // a setpoint; also needs ModbusConfig::writes_enabled
   double min = -std::numeric_limits<double>::infinity();  // write limits, SI
   double max = std::numeric_limits<double>::infinity();
+  // Rate limit of a setpoint, SI per second: a write moves the register toward the value asked
+  // by at most max_rate x the time since its previous write (ModbusController::write).
+  double max_rate = std::numeric_limits<double>::infinity();
 };
 
 struct RegisterMap {

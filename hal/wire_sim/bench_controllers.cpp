@@ -1,5 +1,7 @@
 #include "hal/wire_sim/bench_controllers.hpp"
 
+#include <time.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -114,6 +116,9 @@ std::unique_ptr<BenchControllerServer> BenchControllerServer::start_with(ModbusS
   sim->server_ = ModbusTcpServer::start(
       options, [self](modbus_mapping_t& regs, double dt) { self->tick(regs, dt); }, why);
   if (!sim->server_) return nullptr;
+  sim->server_->on_written([self](modbus_mapping_t& regs, int address, int count, const std::uint16_t* before) {
+    self->written(regs, address, count, before);
+  });
   sim->server_->with_registers([&](modbus_mapping_t& regs) {
     std::lock_guard lock(sim->state_mutex_);
     publish(sim->state_, regs, true);
@@ -139,30 +144,76 @@ BenchControllerState BenchControllerServer::state() {
   return copy;
 }
 
+void BenchControllerServer::take_setpoints(BenchControllerState& s, const modbus_mapping_t& regs) {
+  auto& m = const_cast<modbus_mapping_t&>(regs);
+  s.temperature_setpoint_degC = static_cast<std::int16_t>(*holding(m, r::kTemperatureSetpoint)) * 0.01;
+  s.table_rate_setpoint_rad_s = bits_float(get32(holding(m, r::kTableRateSetpoint), WordOrder::ABCD));
+  s.table_angle_setpoint_rad = bits_float(get32(holding(m, r::kTableAngleSetpoint), WordOrder::ABCD));
+  s.shaker_enable = *holding(m, r::kShakerEnable) != 0;
+  s.shaker_profile = *holding(m, r::kShakerProfile);
+}
+
+void BenchControllerServer::written(modbus_mapping_t& regs, int address, int count, const std::uint16_t* before) {
+  std::lock_guard lock(state_mutex_);
+  BenchControllerState& s = state_;
+  timespec now{};
+  ::clock_gettime(CLOCK_MONOTONIC, &now);
+  const std::int64_t now_ns = static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
+  for (int i = 0; i < count; ++i) {
+    const int offset = address + i - r::kHoldingStart;
+    if (offset < 0 || offset >= r::kHoldingCount) continue;
+    if ((s.ignore_writes >> offset) & 1u) {
+      *holding(regs, address + i) = before[i];  // answered, not taken
+      continue;
+    }
+    s.written_ns[static_cast<std::size_t>(offset)] = now_ns;
+  }
+  // The last setpoint written chooses the table's mode, as on rate tables with a rate and a
+  // position loop.
+  auto touches = [&](int reg, int words) { return address < reg + words && reg < address + count; };
+  if (touches(r::kTableAngleSetpoint, 2) && ((s.ignore_writes >> (r::kTableAngleSetpoint - r::kHoldingStart)) & 1u) == 0)
+    s.table_position_mode = true;
+  if (touches(r::kTableRateSetpoint, 2) && ((s.ignore_writes >> (r::kTableRateSetpoint - r::kHoldingStart)) & 1u) == 0)
+    s.table_position_mode = false;
+  take_setpoints(s, regs);
+  publish(s, regs, false);  // status words judge the new setpoint from the first read on
+}
+
 void BenchControllerServer::tick(modbus_mapping_t& regs, double dt) {
   std::lock_guard lock(state_mutex_);
   BenchControllerState& s = state_;
   if (!published_) return;  // the first ticks may come before start() wrote the registers
-  // Setpoints as the clients left them.
-  s.temperature_setpoint_degC = static_cast<std::int16_t>(*holding(regs, r::kTemperatureSetpoint)) * 0.01;
-  s.table_rate_setpoint_rad_s = bits_float(get32(holding(regs, r::kTableRateSetpoint), WordOrder::ABCD));
-  s.shaker_enable = *holding(regs, r::kShakerEnable) != 0;
+  take_setpoints(s, regs);  // as the clients left them
   if (s.frozen) return;
 
   const double error = s.temperature_setpoint_degC - s.temperature_degC;
   s.peltier_power_w = std::clamp(s.peltier_gain_w_per_k * error, -s.peltier_max_w, s.peltier_max_w);
   s.temperature_degC += error * std::min(1.0, dt / s.thermal_time_constant_s);
 
-  const double dv = std::clamp(s.table_rate_setpoint_rad_s - s.table_rate_rad_s, -s.table_max_accel_rad_s2 * dt,
-                               s.table_max_accel_rad_s2 * dt);
+  constexpr double kTwoPi = 6.283185307179586;
+  const double accel = s.table_max_accel_rad_s2;
+  double wanted_rate = s.table_rate_setpoint_rad_s;
+  if (s.table_position_mode) {
+    // To the target on the braking curve (v^2 = 2 a d), landing on it in the last tick.
+    const double to_go = s.table_angle_setpoint_rad - (s.table_turns * kTwoPi + s.table_angle_rad);
+    const double speed = std::min({s.table_max_rate_rad_s, std::sqrt(2.0 * accel * std::abs(to_go)), std::abs(to_go) / dt});
+    wanted_rate = to_go >= 0.0 ? speed : -speed;
+  }
+  const double dv = std::clamp(wanted_rate - s.table_rate_rad_s, -accel * dt, accel * dt);
   s.table_rate_rad_s += dv;
   s.table_angle_rad += s.table_rate_rad_s * dt;
-  constexpr double kTwoPi = 6.283185307179586;
   while (s.table_angle_rad >= kTwoPi) { s.table_angle_rad -= kTwoPi; ++s.table_turns; }
   while (s.table_angle_rad < 0.0) { s.table_angle_rad += kTwoPi; --s.table_turns; }
 
-  if (s.shaker_enable && (s.shaker_status & 0x2) == 0) s.shaker_status |= 0x1;
-  if (!s.shaker_enable) s.shaker_status &= static_cast<std::uint16_t>(~0x1);
+  s.shaker_enabled_for_s = s.shaker_enable ? s.shaker_enabled_for_s + dt : 0.0;
+  if (s.shaker_enable && (s.shaker_status & r::kShakerFault) == 0 && s.shaker_enabled_for_s >= s.shaker_start_s) {
+    s.shaker_status |= r::kShakerRunning;
+    s.shaker_frequency_hz = 10.0 * s.shaker_profile;  // each stored profile runs at its own frequency
+  }
+  if (!s.shaker_enable) {
+    s.shaker_status &= static_cast<std::uint16_t>(~r::kShakerRunning);
+    s.shaker_frequency_hz = 0.0;
+  }
   publish(s, regs, false);
 }
 
@@ -172,7 +223,22 @@ void BenchControllerServer::publish(const BenchControllerState& s, modbus_mappin
     put32(holding(regs, r::kTableRateSetpoint), float_bits(static_cast<float>(s.table_rate_setpoint_rad_s)),
           WordOrder::ABCD);
     *holding(regs, r::kShakerEnable) = s.shaker_enable ? 1 : 0;
+    put32(holding(regs, r::kTableAngleSetpoint), float_bits(static_cast<float>(s.table_angle_setpoint_rad)),
+          WordOrder::ABCD);
+    *holding(regs, r::kShakerProfile) = s.shaker_profile;
   }
+  constexpr double kTwoPi = 6.283185307179586;
+  const double position = s.table_turns * kTwoPi + s.table_angle_rad;
+  std::uint16_t table_status = 0;
+  if (!s.table_position_mode && std::abs(s.table_rate_rad_s - s.table_rate_setpoint_rad_s) < r::kTableRateTolerance)
+    table_status |= r::kTableAtRate;
+  if (s.table_position_mode && std::abs(position - s.table_angle_setpoint_rad) < r::kTablePositionTolerance &&
+      std::abs(s.table_rate_rad_s) < r::kTableRateTolerance)
+    table_status |= r::kTableInPosition;
+  *input(regs, r::kTableStatus) = table_status;
+  *input(regs, r::kThermalStatus) =
+      std::abs(s.temperature_degC - s.temperature_setpoint_degC) < r::kThermalTolerance ? r::kThermalAtSetpoint : 0;
+  put32(input(regs, r::kTablePosition), float_bits(static_cast<float>(position)), WordOrder::ABCD);
   *input(regs, r::kTemperature) = s16(s.temperature_degC * 100.0);
   *input(regs, r::kPeltierPower) = s16(s.peltier_power_w * 10.0);
   put32(input(regs, r::kTableAngle), float_bits(static_cast<float>(s.table_angle_rad)), WordOrder::CDAB);

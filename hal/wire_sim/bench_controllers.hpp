@@ -7,14 +7,25 @@
 //   0x1000 temperature_setpoint int16  0.01 degC     0x2000 temperature      int16   0.01 degC
 //   0x1001 table_rate_setpoint  float32 ABCD rad/s   0x2001 peltier_power    int16   0.1 W
 //   0x1003 shaker_enable        uint16  0/1          0x2002 table_angle      float32 CDAB rad
-//                                                    0x2004 table_rate       float32 BADC rad/s
-//                                                    0x2006 shaker_status    uint16  bits
+//   0x1004 table_angle_setpoint float32 ABCD rad     0x2004 table_rate       float32 BADC rad/s
+//   0x1006 shaker_profile       uint16               0x2006 shaker_status    uint16  bits
 //                                                    0x2007 shaker_frequency uint32 DCBA 0.001 Hz
 //                                                    0x2009 table_turns      int32  ABCD
+//                                                    0x200B table_status     uint16  bits
+//                                                    0x200C thermal_status   uint16  bits
+//                                                    0x200D table_position   float32 ABCD rad
+// The controllers take a setpoint the moment it is written (the server's write hook) and move
+// toward it at their own rate, reporting settled in their status words, as the test executive
+// (daq/test_executive.hpp) expects of real ones: table_status bit 0 at rate (rate mode), bit 1
+// in position (position mode: entered by writing table_angle_setpoint, left by writing
+// table_rate_setpoint); thermal_status bit 0 at setpoint; shaker_status bit 0 running (after
+// shaker_start_s), bit 1 fault. bench_controller_register_map() is what the simulated benches
+// poll; the registers added for the executive (0x1004.., 0x200B..) are described in bench files.
 // The words are composed here byte by byte from the documented order, independently of
 // hal/modbus/register_map.cpp, so the client's decoding is checked against a second reading of
 // the same convention. (libmodbus 3.1.6's modbus_set_float_abcd() is not used: on this machine
 // it writes 0x4049 0x0FDB (pi) as 0x4940 0xDB0F, and its get_float_abcd() does not invert it.)
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -40,18 +51,40 @@ struct BenchControllerState {
   double table_rate_setpoint_rad_s = 0.0;
   double table_max_accel_rad_s2 = 2.0;
   std::int32_t table_turns = 0;
+  // Position mode (after a write of table_angle_setpoint): to the continuous angle
+  // table_turns * 2 pi + table_angle at up to table_max_rate_rad_s, within the acceleration limit.
+  bool table_position_mode = false;
+  double table_angle_setpoint_rad = 0.0;
+  double table_max_rate_rad_s = 3.5;
   // Shaker controller status.
   bool shaker_enable = false;
   std::uint16_t shaker_status = 0;      // bit0 running, bit1 fault, bit2 over-travel
   double shaker_frequency_hz = 0.0;
+  std::uint16_t shaker_profile = 0;
+  double shaker_start_s = 0.1;          // enable -> running
+  double shaker_enabled_for_s = 0.0;
+  // Faults of the controllers themselves: bit i set, a write to holding register
+  // kHoldingStart + i is answered but not taken (the register keeps its words): a controller
+  // that never confirms a command. A 32-bit setpoint has two registers (two bits).
+  std::uint16_t ignore_writes = 0;
+  // CLOCK_MONOTONIC (ns) of the last write taken, per holding register kHoldingStart + i: when
+  // the controller got each setpoint, seen from its side.
+  std::array<std::int64_t, 8> written_ns{};
 };
 
 namespace bench_registers {
 inline constexpr int kHoldingStart = 0x1000, kHoldingCount = 8;
 inline constexpr int kInputStart = 0x2000, kInputCount = 16;
-inline constexpr int kTemperatureSetpoint = 0x1000, kTableRateSetpoint = 0x1001, kShakerEnable = 0x1003;
+inline constexpr int kTemperatureSetpoint = 0x1000, kTableRateSetpoint = 0x1001, kShakerEnable = 0x1003,
+                     kTableAngleSetpoint = 0x1004, kShakerProfile = 0x1006;
 inline constexpr int kTemperature = 0x2000, kPeltierPower = 0x2001, kTableAngle = 0x2002, kTableRate = 0x2004,
-                     kShakerStatus = 0x2006, kShakerFrequency = 0x2007, kTableTurns = 0x2009;
+                     kShakerStatus = 0x2006, kShakerFrequency = 0x2007, kTableTurns = 0x2009, kTableStatus = 0x200B,
+                     kThermalStatus = 0x200C, kTablePosition = 0x200D;
+// Status bits.
+inline constexpr std::uint16_t kTableAtRate = 0x1, kTableInPosition = 0x2, kThermalAtSetpoint = 0x1,
+                               kShakerRunning = 0x1, kShakerFault = 0x2;
+// Within these the controllers report settled.
+inline constexpr double kTableRateTolerance = 1e-3, kTablePositionTolerance = 1e-3, kThermalTolerance = 0.05;
 }  // namespace bench_registers
 
 /// The client-side map of the simulated controllers (limits: setpoint 10..60 degC, table rate
@@ -82,6 +115,8 @@ class BenchControllerServer {
   static std::unique_ptr<BenchControllerServer> start_with(ModbusServerOptions options, std::string* why,
                                                            const BenchControllerState& initial);
   void tick(modbus_mapping_t& registers, double dt_s);  // server thread, register lock held
+  void written(modbus_mapping_t& registers, int address, int count, const std::uint16_t* before);  // likewise
+  static void take_setpoints(BenchControllerState& s, const modbus_mapping_t& registers);
   static void publish(const BenchControllerState& s, modbus_mapping_t& registers, bool setpoints);
 
   std::mutex state_mutex_;             // taken inside the register lock, never the other way

@@ -128,6 +128,30 @@ void ModbusTcpServer::with_registers(const std::function<void(modbus_mapping_t&)
   f(*mapping_);
 }
 
+void ModbusTcpServer::on_written(Written hook) {
+  std::lock_guard lock(mutex_);
+  written_ = std::move(hook);
+}
+
+void ModbusTcpServer::reply(const std::uint8_t* query, int length) {
+  // Modbus application data unit after libmodbus' header (MBAP on TCP, slave address on RTU):
+  // function code, start address (big-endian), and for FC16 the register count.
+  const int at = modbus_get_header_length(ctx_);
+  const int function = length > at ? query[at] : 0;
+  int address = -1, count = 0;
+  if ((function == MODBUS_FC_WRITE_SINGLE_REGISTER || function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS) && length >= at + 5) {
+    address = (query[at + 1] << 8) | query[at + 2];
+    count = function == MODBUS_FC_WRITE_SINGLE_REGISTER ? 1 : ((query[at + 3] << 8) | query[at + 4]);
+  }
+  std::lock_guard lock(mutex_);
+  const int first = address - mapping_->start_registers;
+  const bool in_map = address >= 0 && count > 0 && first >= 0 && first + count <= mapping_->nb_registers;
+  std::vector<std::uint16_t> before;
+  if (in_map && written_) before.assign(mapping_->tab_registers + first, mapping_->tab_registers + first + count);
+  modbus_reply(ctx_, query, length, mapping_);
+  if (in_map && written_) written_(*mapping_, address, count, before.data());
+}
+
 void ModbusTcpServer::tick_when_due(std::chrono::steady_clock::time_point& last_tick) {
   const auto now = std::chrono::steady_clock::now();
   const double dt = std::chrono::duration<double>(now - last_tick).count();
@@ -151,8 +175,7 @@ void ModbusTcpServer::serve_rtu() {
       // RS-485 line); < 0: a broken frame (CRC, timeout between bytes), already discarded.
       const int rc = modbus_receive(ctx_, query);
       if (rc > 0 && !silent_) {
-        std::lock_guard lock(mutex_);
-        modbus_reply(ctx_, query, rc, mapping_);
+        reply(query, rc);
         ++served_;
       }
     }
@@ -188,8 +211,7 @@ void ModbusTcpServer::run() {
         const int rc = modbus_receive(ctx_, query);
         if (rc > 0) {
           if (!silent_) {
-            std::lock_guard lock(mutex_);
-            modbus_reply(ctx_, query, rc, mapping_);
+            reply(query, rc);
             ++served_;
           }
         } else if (rc < 0) {

@@ -40,6 +40,10 @@ class ModbusTcpServer {
  public:
   /// Called every tick_ms in the server thread with the register lock held; dt_s since last.
   using Tick = std::function<void(modbus_mapping_t& registers, double dt_s)>;
+  /// Called in the server thread, register lock held, right after a write request (FC6, FC16)
+  /// to holding registers [address, address + count) was answered; `before` holds their words
+  /// from before the write (a device model may take the value at once, or put them back).
+  using Written = std::function<void(modbus_mapping_t& registers, int address, int count, const std::uint16_t* before)>;
 
   /// Listens and starts the thread; nullptr with the reason on failure.
   static std::unique_ptr<ModbusTcpServer> start(const ModbusServerOptions& options, Tick tick, std::string* why);
@@ -61,6 +65,8 @@ class ModbusTcpServer {
   void with_registers(const std::function<void(modbus_mapping_t&)>& f);
   /// While silent the server reads requests but answers none.
   void set_silent(bool silent) noexcept { silent_ = silent; }
+  /// The write hook (see Written). Thread: any; takes the register lock.
+  void on_written(Written hook);
   [[nodiscard]] std::uint64_t requests_served() const noexcept { return served_.load(); }
 
  private:
@@ -70,9 +76,12 @@ class ModbusTcpServer {
   void run();
   void serve_rtu();
   void tick_when_due(std::chrono::steady_clock::time_point& last_tick);
+  /// modbus_reply under the lock, then the write hook for a write request. Server thread.
+  void reply(const std::uint8_t* query, int length);
 
   ModbusServerOptions options_;
   Tick tick_;
+  Written written_;                   // guarded by mutex_
   modbus_mapping_t* mapping_;         // owned
   std::mutex mutex_;                  // guards mapping_
   modbus_t* ctx_ = nullptr;           // owned; used by the server thread only while it runs

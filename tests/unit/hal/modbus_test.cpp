@@ -1,7 +1,11 @@
 // Modbus: register words <-> values, then ModbusController against the simulated bench
 // controllers served by a real libmodbus TCP server on 127.0.0.1.
 #include <chrono>
+#include <time.h>
+
 #include <cmath>
+#include <functional>
+#include <limits>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -171,6 +175,130 @@ TEST_F(BenchModbus, SetpointWritesAreOffUnlessEnabledThenClamped) {
   const auto deadline = Clock::now() + 3s;
   while (sim_->state().temperature_setpoint_degC != 25.0 && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
   EXPECT_DOUBLE_EQ(sim_->state().temperature_setpoint_degC, 25.0);
+}
+
+TEST_F(BenchModbus, AWriteIsConfirmedByReadingItBackAndAControllerThatDoesNotTakeItIsCaught) {
+  namespace r = wire_sim::bench_registers;
+  BenchControllerState s;
+  s.frozen = true;
+  s.ignore_writes = 3u << (r::kTableRateSetpoint - r::kHoldingStart);  // answers, never takes it (both words)
+  start(s);
+  config_.writes_enabled = true;
+  auto c = connect();
+  ASSERT_NE(c, nullptr);
+  const std::uint64_t before = c->link().health().requests;
+  WriteResult w = c->write("temperature_setpoint", 40.0);
+  EXPECT_EQ(w.status, WriteStatus::Written);
+  EXPECT_DOUBLE_EQ(w.read_back, 40.0);
+  EXPECT_EQ(c->link().health().requests - before, 2u) << "the write and the read back";
+  w = c->write("table_rate_setpoint", 1.0);
+  EXPECT_EQ(w.status, WriteStatus::NotConfirmed);
+  EXPECT_DOUBLE_EQ(w.written, 1.0);
+  EXPECT_DOUBLE_EQ(w.read_back, 0.0) << "the register still holds the old value";
+  EXPECT_DOUBLE_EQ(sim_->state().table_rate_setpoint_rad_s, 0.0);
+  EXPECT_STREQ(to_string(w.status), "not confirmed: the register read back holds another value");
+}
+
+TEST_F(BenchModbus, ARateLimitedSetpointMovesInStepsAndAnImmediateWriteAtOnce) {
+  BenchControllerState s;
+  s.frozen = true;
+  start(s);
+  config_.writes_enabled = true;
+  const double max_rate = 2.0;  // rad/s per second
+  config_.map.registers[1].max_rate = max_rate;
+  auto c = connect();
+  ASSERT_NE(c, nullptr);
+  // First write: a tenth of a second's worth from what the device holds (0).
+  auto t_prev = Clock::now();
+  WriteResult w = c->write("table_rate_setpoint", 1.0);
+  ASSERT_EQ(w.status, WriteStatus::Written);
+  EXPECT_TRUE(w.rate_limited);
+  EXPECT_NEAR(w.written, max_rate * ModbusController::kMaxRampStepS, 1e-6);
+  double prev = w.written;
+  int steps = 1;
+  const auto t0 = t_prev;
+  while (w.rate_limited && steps < 100) {
+    std::this_thread::sleep_for(30ms);
+    const auto t = Clock::now();
+    w = c->write("table_rate_setpoint", 1.0);
+    ASSERT_EQ(w.status, WriteStatus::Written);
+    const double dt = std::min(std::chrono::duration<double>(t - t_prev).count() + 0.002, ModbusController::kMaxRampStepS);
+    EXPECT_LE(w.written - prev, max_rate * dt + 1e-6) << "step " << steps;
+    EXPECT_GT(w.written, prev);
+    prev = w.written;
+    t_prev = t;
+    ++steps;
+  }
+  EXPECT_FALSE(w.rate_limited);
+  EXPECT_DOUBLE_EQ(w.written, 1.0);
+  EXPECT_GE(std::chrono::duration<double>(Clock::now() - t0).count(), (1.0 - 0.2) / max_rate - 0.01);
+  EXPECT_GE(steps, 5);
+  // The safe value goes out in one write, whatever the rate limit.
+  w = c->write("table_rate_setpoint", 0.0, Ramp::Immediate);
+  EXPECT_EQ(w.status, WriteStatus::Written);
+  EXPECT_FALSE(w.rate_limited);
+  EXPECT_DOUBLE_EQ(w.written, 0.0);
+}
+
+TEST_F(BenchModbus, SimulatedControllersTakeSetpointsMoveAtTheirRateAndReportSettled) {
+  namespace r = wire_sim::bench_registers;
+  BenchControllerState s;
+  s.thermal_time_constant_s = 0.2;
+  s.table_max_accel_rad_s2 = 4.0;
+  s.table_max_rate_rad_s = 2.0;
+  start(s);
+  config_.writes_enabled = true;
+  const double inf = std::numeric_limits<double>::infinity();
+  auto add = [&](const char* name, int address, RegisterKind kind, DataType type, bool writable, double lo, double hi) {
+    config_.map.registers.push_back({name, address, kind, type, WordOrder::ABCD, 1.0, 0.0, writable, lo, hi, inf});
+  };
+  add("table_angle_setpoint", r::kTableAngleSetpoint, RegisterKind::Holding, DataType::Float32, true, -20.0, 20.0);
+  add("shaker_profile", r::kShakerProfile, RegisterKind::Holding, DataType::UInt16, true, 0.0, 8.0);
+  add("table_status", r::kTableStatus, RegisterKind::Input, DataType::UInt16, false, -inf, inf);
+  add("thermal_status", r::kThermalStatus, RegisterKind::Input, DataType::UInt16, false, -inf, inf);
+  add("table_position", r::kTablePosition, RegisterKind::Input, DataType::Float32, false, -inf, inf);
+  auto c = connect();
+  ASSERT_NE(c, nullptr);
+  auto poll_until = [&](const std::function<bool()>& done, double timeout_s) {
+    const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
+    while (Clock::now() < deadline) {
+      c->poll();
+      if (done()) return true;
+      std::this_thread::sleep_for(10ms);
+    }
+    return false;
+  };
+  auto bits = [&](const char* name) { return static_cast<unsigned>(value(*c, name)); };
+
+  // Position mode: to 1.5 rad at no more than 2 rad/s, then "in position".
+  timespec t0{};
+  ::clock_gettime(CLOCK_MONOTONIC, &t0);
+  ASSERT_EQ(c->write("table_angle_setpoint", 1.5).status, WriteStatus::Written);
+  EXPECT_GE(sim_->state().written_ns[r::kTableAngleSetpoint - r::kHoldingStart], t0.tv_sec * 1'000'000'000LL + t0.tv_nsec);
+  double fastest = 0.0;
+  ASSERT_TRUE(poll_until([&] {
+    fastest = std::max(fastest, std::abs(value(*c, "table_rate")));
+    return (bits("table_status") & r::kTableInPosition) != 0;
+  }, 5.0));
+  EXPECT_NEAR(value(*c, "table_position"), 1.5, r::kTablePositionTolerance);
+  EXPECT_LE(fastest, 2.0 + 1e-6);
+  EXPECT_GT(fastest, 1.0);
+  // Rate mode: the rate setpoint takes over; "at rate" once there.
+  ASSERT_EQ(c->write("table_rate_setpoint", 1.0).status, WriteStatus::Written);
+  ASSERT_TRUE(poll_until([&] { return (bits("table_status") & r::kTableAtRate) != 0; }, 5.0));
+  EXPECT_NEAR(value(*c, "table_rate"), 1.0, r::kTableRateTolerance);
+  EXPECT_EQ(bits("table_status") & r::kTableInPosition, 0u);
+  // Shaker: a profile, then enable: running after its start time, at the profile's frequency.
+  ASSERT_EQ(c->write("shaker_profile", 3.0).status, WriteStatus::Written);
+  ASSERT_EQ(c->write("shaker_enable", 1.0).status, WriteStatus::Written);
+  ASSERT_TRUE(poll_until([&] { return (bits("shaker_status") & r::kShakerRunning) != 0; }, 3.0));
+  EXPECT_DOUBLE_EQ(value(*c, "shaker_frequency"), 30.0);
+  ASSERT_EQ(c->write("shaker_enable", 0.0).status, WriteStatus::Written);
+  ASSERT_TRUE(poll_until([&] { return (bits("shaker_status") & r::kShakerRunning) == 0; }, 3.0));
+  // Thermal: at setpoint once within its tolerance.
+  ASSERT_EQ(c->write("temperature_setpoint", 30.0).status, WriteStatus::Written);
+  ASSERT_TRUE(poll_until([&] { return (bits("thermal_status") & r::kThermalAtSetpoint) != 0; }, 5.0));
+  EXPECT_NEAR(value(*c, "temperature"), 30.0, r::kThermalTolerance + 0.01);
 }
 
 TEST_F(BenchModbus, ThermalControllerFollowsAWrittenSetpoint) {

@@ -1,0 +1,570 @@
+#include "daq/test_executive.hpp"
+
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <lcm/lcm-cpp.hpp>
+#include <sstream>
+
+#include "common/lcm/channels.hpp"
+#include "daq/journal.hpp"
+#include "hal/device.hpp"
+#include "hal/sim/bench_motion.hpp"
+#include "inertia/plan_event_t.hpp"
+
+namespace inertia::daq {
+namespace {
+
+using config::RegisterRole;
+
+constexpr std::int64_t kNsPerS = 1'000'000'000;
+
+std::int64_t seconds_ns(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
+std::string ms_text(std::int64_t ns) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(1) << static_cast<double>(ns) * 1e-6 << " ms";
+  return s.str();
+}
+
+std::string s_text(std::int64_t ns) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(2) << static_cast<double>(ns) * 1e-9 << " s";
+  return s.str();
+}
+
+std::uint32_t bits_of(double reading) { return static_cast<std::uint32_t>(std::llround(std::max(0.0, reading))); }
+
+/// A phase named by the operator: its 0-based index, a kind of the bench file (rotation,
+/// thermal_step) or a marker label (static, thermal). The first such phase after `after`.
+std::optional<std::size_t> find_phase(const config::TestCase& c, const std::string& name, std::optional<std::size_t> after) {
+  if (!name.empty() && std::all_of(name.begin(), name.end(), [](char ch) { return ch >= '0' && ch <= '9'; })) {
+    const std::size_t i = std::stoul(name);
+    return i < c.phases.size() ? std::optional<std::size_t>(i) : std::nullopt;
+  }
+  const std::size_t from = after ? *after + 1 : 0;
+  for (std::size_t pass = 0; pass < 2; ++pass) {  // after the open phase first, then from the start
+    for (std::size_t i = pass == 0 ? from : 0; i < c.phases.size(); ++i) {
+      const config::PhaseKind k = c.phases[i].kind;
+      if (name == config::to_string(k) || name == sim::phase_label(k)) return i;
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+TestExecutive::TestExecutive(const config::BenchConfig& bench, std::map<std::string, std::shared_ptr<ControllerPort>> ports,
+                             SpscRing<PlanMark>& marks, std::string lcm_url)
+    : bench_(bench), ports_(std::move(ports)), marks_(marks), lcm_url_(std::move(lcm_url)) {
+  for (const config::ModbusDevice& device : bench_.modbus_devices) {
+    const auto port = ports_.find(device.name);
+    for (std::size_t r = 0; r < device.registers.size(); ++r) {
+      const config::ModbusRegister& reg = device.registers[r];
+      if (reg.role == RegisterRole::None) continue;
+      Binding b{&device, &reg, r, port == ports_.end() ? nullptr : port->second};
+      if (reg.role == RegisterRole::Fault) {
+        if (b.port) faults_.push_back(b);
+      } else {
+        bindings_[reg.role] = b;
+      }
+    }
+  }
+}
+
+TestExecutive::~TestExecutive() { stop("daemon stopping"); }
+
+bool TestExecutive::ready(std::string* why) const {
+  if (bench_.executive != config::Executive::Plan) return true;
+  for (const auto& [role, b] : bindings_) {
+    if (b.port) continue;
+    if (why)
+      *why = b.reg->role_at.file + ":" + std::to_string(b.reg->role_at.line) + ": executive = \"plan\" commands register '" +
+             b.reg->name + "' (role = \"" + config::to_string(role) + "\") of device '" + b.device->name +
+             "', which did not open: the plan cannot run without it (make the device available, or run with "
+             "executive = \"operator\")";
+    return false;
+  }
+  return true;
+}
+
+void TestExecutive::start() {
+  thread_ = std::thread([this] { run(); });
+}
+
+void TestExecutive::stop(const std::string& reason) {
+  {
+    std::lock_guard lock(stop_mutex_);
+    if (stop_reason_.empty()) {
+      stop_reason_ = reason;
+      stop_ns_ = hal::monotonic_now_ns();
+    }
+  }
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The thread
+
+void TestExecutive::run() noexcept {
+  ::pthread_setname_np(::pthread_self(), "executive");
+  lcm_ = std::make_unique<lcm::LCM>(lcm_url_);
+  if (lcm_->good()) {
+    lcm_->subscribe(std::string(channels::kCommand), &TestExecutive::on_command, this);
+  } else {
+    journal_plan({"refused", "plan: LCM did not start on '" + lcm_url_ + "': operator commands (inertia-daqd mark) are not heard", 4});
+  }
+  try {
+    if (bench_.executive == config::Executive::Plan) {
+      try {
+        run_plan();
+        plan_finished_.store(true, std::memory_order_release);
+        int priority = 6;
+        const std::string account = apply_safe_state(hal::monotonic_now_ns(), &priority);
+        journal_plan({"plan-end", "plan: finished: every case ran; " + account, priority});
+      } catch (const Aborted& a) {
+        abort(a.reason, a.t_ns);
+      }
+    }
+    // Then (and in operator mode throughout): operator commands until the daemon stops.
+    while (!stop_.load(std::memory_order_acquire)) {
+      try {
+        pump(false);
+      } catch (const Aborted& a) {
+        abort(a.reason, a.t_ns);
+      }
+    }
+  } catch (const std::exception& e) {
+    abort(std::string("error in the test executive: ") + e.what(), hal::monotonic_now_ns());
+  }
+  lcm_.reset();
+}
+
+void TestExecutive::wait_for_first_polls() {
+  // Settling and faults are judged on polls: every controller the plan uses answers first.
+  std::set<ControllerPort*> needed;
+  for (const auto& [role, b] : bindings_) needed.insert(b.port.get());
+  for (const Binding& b : faults_) needed.insert(b.port.get());
+  needed.erase(nullptr);
+  const std::int64_t deadline = hal::monotonic_now_ns() + 10 * kNsPerS;
+  for (;;) {
+    bool all = true;
+    for (ControllerPort* p : needed) all = all && p->latest().last_valid_ns > 0;
+    if (all) return;
+    if (hal::monotonic_now_ns() > deadline) {
+      for (ControllerPort* p : needed)
+        if (p->latest().last_valid_ns == 0) throw Aborted{"device '" + p->device() + "' gave no valid reading in 10 s", hal::monotonic_now_ns()};
+    }
+    pump(false);
+  }
+}
+
+void TestExecutive::run_plan() {
+  wait_for_first_polls();
+  journal_plan({"plan-start", "plan: running the plan of bench " + bench_.name + " (" + std::to_string(bench_.cases.size()) +
+                                  " cases) on its controllers (executive = \"plan\")"});
+  for (std::size_t c = 0; c < bench_.cases.size(); ++c) {
+    begin_case(c, hal::monotonic_now_ns());
+    const config::TestCase& tc = bench_.cases[c];
+    for (std::size_t p = 0; p < tc.phases.size(); ++p) {
+      pump(true);
+      const std::int64_t commanded = hal::monotonic_now_ns();
+      if (open_->phase) end_phase(commanded);
+      std::int64_t start = commanded;
+      try {
+        for (const config::PhaseCommand& command : config::phase_commands(tc, p))
+          if (bindings_.count(command.role) != 0) start = std::max(start, execute(command, c, p, commanded));
+      } catch (const PhaseFailed& f) {
+        const std::int64_t now = hal::monotonic_now_ns();
+        mark(plan_event_t::MARK_PHASE_FAILED, c, static_cast<std::int32_t>(p), now, commanded, now);
+        journal_plan({"phase-failed", "plan: phase failed: " + phase_text(c, p) + ": " + f.reason + "; the plan stops", 4, tc.name,
+                      std::to_string(p) + " " + sim::phase_label(tc.phases[p].kind), f.device});
+        throw Aborted{"phase failed: " + f.reason, now};
+      }
+      begin_phase(p, start);
+      journal_plan({"phase-start", "plan: " + phase_text(c, p) + " started" +
+                                       (start > commanded ? ", settled " + s_text(start - commanded) + " after its command" : ""),
+                    6, tc.name, std::to_string(p) + " " + sim::phase_label(tc.phases[p].kind)});
+      const std::int64_t end = start + seconds_ns(tc.phases[p].duration_s);
+      while (hal::monotonic_now_ns() < end) pump(true);
+    }
+    end_case(hal::monotonic_now_ns());
+  }
+}
+
+std::int64_t TestExecutive::execute(const config::PhaseCommand& command, std::size_t c, std::size_t p, std::int64_t commanded_ns) {
+  const Binding& b = bindings_.at(command.role);
+  const auto held = holds_.find(command.role);
+  if (held != holds_.end() && held->second == command.value) return commanded_ns;  // already there, settled
+  holds_.erase(command.role);
+  const std::string what = b.device->name + "." + b.reg->name + " = " + value_text(b, command.value);
+  const std::int64_t answer_ns = seconds_ns(b.device->response_timeout_s * 3 + kAnswerMarginS);
+  int steps = 0;
+  ControllerPort::Outcome outcome;
+  for (;;) {
+    const std::int64_t posted = hal::monotonic_now_ns();
+    const std::uint64_t ticket = b.port->post(b.index, command.value);
+    std::optional<ControllerPort::Outcome> answer;
+    while (!(answer = b.port->take_outcome(ticket))) {
+      if (hal::monotonic_now_ns() - posted > answer_ns)
+        throw PhaseFailed{what + ": the controller's polling thread gave no answer in " + s_text(answer_ns), b.device->name};
+      pump(true);
+    }
+    outcome = *answer;
+    ++steps;
+    const auto& r = outcome.result;
+    if (r.status != hal::modbus::WriteStatus::Written) {
+      std::string why = what + ": " + hal::modbus::to_string(r.status);
+      if (r.status == hal::modbus::WriteStatus::NotConfirmed)
+        why = what + ": written as " + value_text(b, r.written) + " but read back " +
+              (std::isnan(r.read_back) ? std::string("nothing (the read failed)") : value_text(b, r.read_back)) +
+              ": the controller did not confirm the command";
+      throw PhaseFailed{why, b.device->name};
+    }
+    if (!r.rate_limited) break;
+    // Ramping: the next step one tick after this one was posted.
+    while (hal::monotonic_now_ns() < posted + seconds_ns(kRampTickS)) pump(true);
+  }
+  const auto& r = outcome.result;
+  std::ostringstream line;
+  line << "plan: " << phase_text(c, p) << ": " << b.device->name << "." << b.reg->name << " = " << value_text(b, r.written)
+       << " confirmed (read back " << value_text(b, r.read_back) << ")";
+  if (steps > 1) line << ", ramped in " << steps << " steps over " << s_text(outcome.t_ns - commanded_ns);
+  if (r.clamped) line << ", clamped from " << value_text(b, command.value);
+  journal_plan({"command", line.str(), 6, bench_.cases[c].name, std::to_string(p), b.device->name});
+  const std::int64_t settled = settle(b, r.written, outcome.t_ns, c, p);
+  holds_[command.role] = command.value;
+  return settled;
+}
+
+std::int64_t TestExecutive::settle(const Binding& b, double target, std::int64_t confirmed_ns, std::size_t c, std::size_t p) {
+  const config::ModbusRegister& reg = *b.reg;
+  std::optional<std::size_t> reading;
+  if (!reg.measured.empty()) reading = config::find_register(*b.device, reg.measured);
+  if (!reg.settled_by.empty()) reading = config::find_register(*b.device, reg.settled_by);
+  if (!reading) return confirmed_ns;  // no settling criterion: the confirmed write is the start
+  const std::string criterion =
+      !reg.measured.empty()
+          ? reg.measured + " within " + value_text(b, reg.tolerance) + " of " + value_text(b, target)
+          : reg.settled_by + (reg.role == RegisterRole::ShakerRun ? (target != 0.0 ? " reporting running" : " reporting stopped")
+                                                                   : " reporting settled");
+  auto settled_now = [&](double value) {
+    if (!reg.measured.empty()) return std::abs(value - target) <= reg.tolerance;
+    const std::uint32_t bits = bits_of(value);
+    const std::uint32_t mask = reg.settled_mask;
+    // A run command's status mirrors it: the running bits set while it runs, clear once stopped.
+    if (reg.role == RegisterRole::ShakerRun) return ((mask == 0 ? bits != 0 : (bits & mask) != 0)) == (target != 0.0);
+    return mask == 0 ? bits != 0 : (bits & mask) == mask;
+  };
+  const std::int64_t deadline = confirmed_ns + seconds_ns(reg.settle_timeout_s);
+  const std::int64_t hold_ns = seconds_ns(reg.settle_s);
+  bool holding = false;            // the criterion has held since since_ns
+  std::int64_t since_ns = 0;
+  std::uint64_t seen = 0;
+  double last = NAN;
+  for (;;) {
+    const ControllerPort::Poll poll = b.port->latest();
+    if (poll.count != seen && poll.t_ns > confirmed_ns) {
+      seen = poll.count;
+      const bool valid = *reading < poll.valid.size() && poll.valid[*reading];
+      if (valid) last = poll.values[*reading];
+      if (valid && settled_now(last)) {
+        if (!holding) since_ns = poll.t_ns;
+        holding = true;
+        if (poll.t_ns - since_ns >= hold_ns) {
+          journal_plan({"settled", "plan: " + phase_text(c, p) + ": " + b.device->name + " settled (" + criterion + " for " +
+                                       s_text(poll.t_ns - since_ns) + ") " + s_text(poll.t_ns - confirmed_ns) + " after the command",
+                        6, bench_.cases[c].name, std::to_string(p), b.device->name});
+          return poll.t_ns;
+        }
+      } else {
+        holding = false;
+      }
+    }
+    if (hal::monotonic_now_ns() > deadline) {
+      std::ostringstream why;
+      why << b.device->name << "." << reg.name << " = " << value_text(b, target) << " confirmed, but not settled ("
+          << criterion << (reg.settle_s > 0 ? " for " + s_text(hold_ns) : std::string()) << ") within settle_timeout_s = "
+          << reg.settle_timeout_s << " s; last reading of " << (reg.measured.empty() ? reg.settled_by : reg.measured) << ": ";
+      if (std::isnan(last)) why << "none valid";
+      else if (reg.measured.empty()) why << "0x" << std::hex << bits_of(last);
+      else why << value_text(b, last);
+      throw PhaseFailed{why.str(), b.device->name};
+    }
+    pump(true);
+  }
+}
+
+void TestExecutive::pump(bool plan_running) {
+  if (lcm_ && lcm_->good()) {
+    (void)lcm_->handleTimeout(static_cast<int>(kLoopS * 1000));
+  } else {
+    timespec ts{0, static_cast<long>(kLoopS * 1e9)};
+    ::nanosleep(&ts, nullptr);
+  }
+  std::vector<plan_command_t> inbox;
+  inbox.swap(inbox_);
+  for (const plan_command_t& c : inbox) handle(c);
+  if (stop_.load(std::memory_order_acquire)) {
+    std::lock_guard lock(stop_mutex_);
+    throw Aborted{stop_reason_, stop_ns_};
+  }
+  if (stop_request_) throw Aborted{"operator stop by " + stop_request_->sender, hal::monotonic_now_ns()};
+  if (plan_running) {
+    if (auto fault = controller_fault()) throw Aborted{*fault, hal::monotonic_now_ns()};
+  }
+}
+
+std::optional<std::string> TestExecutive::controller_fault() const {
+  for (const Binding& f : faults_) {
+    const ControllerPort::Poll poll = f.port->latest();
+    if (f.index >= poll.valid.size() || !poll.valid[f.index]) continue;
+    const std::uint32_t bits = bits_of(poll.values[f.index]);
+    const std::uint32_t set = f.reg->fault_mask == 0 ? bits : bits & f.reg->fault_mask;
+    if (set != 0) {
+      std::ostringstream s;
+      s << "device fault: " << f.device->name << "." << f.reg->name << " = 0x" << std::hex << bits << " (fault bits 0x" << set << ")";
+      return s.str();
+    }
+  }
+  const std::int64_t now = hal::monotonic_now_ns();
+  for (const auto& [role, b] : bindings_) {
+    const ControllerPort::Poll poll = b.port->latest();
+    // Silent: no valid answer for three polls and two response timeouts (one slow request is not a fault).
+    const std::int64_t silent_ns = 3 * static_cast<std::int64_t>(b.device->poll_interval_ms) * 1'000'000 +
+                                   seconds_ns(2 * b.device->response_timeout_s);
+    if (!poll.connected || now - poll.last_valid_ns > silent_ns)
+      return "device fault: controller " + b.device->name + (poll.connected ? " gave no valid reading for " + s_text(now - poll.last_valid_ns)
+                                                                              : std::string(" link down"));
+  }
+  return std::nullopt;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Abort and safe state
+
+std::string TestExecutive::apply_safe_state(std::int64_t since_ns, int* priority) {
+  std::vector<ControllerPort*> ports;
+  for (auto& [name, port] : ports_)
+    if (port->has_safe_state()) {
+      port->request_safe_state();
+      ports.push_back(port.get());
+    }
+  if (ports.empty()) return "no controller has a safe state the daemon can write (no `safe` register on a device with writes enabled)";
+  // Each device's thread writes at once; one with a dead link gives up after its response timeouts.
+  double longest_s = 0.0;
+  for (const auto& d : bench_.modbus_devices) longest_s = std::max(longest_s, d.response_timeout_s);
+  const std::int64_t deadline = hal::monotonic_now_ns() + seconds_ns(4 * longest_s + 1.0);
+  for (;;) {
+    bool all = true;
+    for (ControllerPort* p : ports) all = all && p->safe_state().done;
+    if (all || hal::monotonic_now_ns() > deadline) break;
+    timespec ts{0, 200'000};
+    ::nanosleep(&ts, nullptr);
+  }
+  std::ostringstream s;
+  std::int64_t last = since_ns;
+  bool complete = true;
+  std::ostringstream parts;
+  for (ControllerPort* p : ports) {
+    const ControllerPort::SafeState st = p->safe_state();
+    parts << "; " << p->device() << ": ";
+    if (!st.done) {
+      parts << "NO ANSWER";
+      complete = false;
+      continue;
+    }
+    last = std::max(last, st.done_ns);
+    for (std::size_t i = 0; i < st.written.size(); ++i) parts << (i ? ", " : "") << st.written[i];
+    for (std::size_t i = 0; i < st.failures.size(); ++i) parts << (i || !st.written.empty() ? ", " : "") << "FAILED " << st.failures[i];
+    complete = complete && st.failures.empty();
+  }
+  if (complete) {
+    s << "controllers in their safe state " << ms_text(last - since_ns) << " after it" << parts.str();
+  } else {
+    s << "SAFE STATE NOT CONFIRMED on every controller (check the bench by hand)" << parts.str();
+    *priority = 3;
+  }
+  return s.str();
+}
+
+void TestExecutive::abort(const std::string& reason, std::int64_t t_ns) {
+  int priority = open_ ? 4 : 6;
+  const bool any_safe = std::any_of(ports_.begin(), ports_.end(), [](const auto& p) { return p.second->has_safe_state(); });
+  const std::string account = apply_safe_state(t_ns, &priority);
+  std::string where = "no case was running";
+  if (open_) {
+    const config::TestCase& tc = bench_.cases[open_->index];
+    where = open_->phase ? phase_text(open_->index, *open_->phase) : "case " + tc.name;
+    mark(plan_event_t::MARK_ABORT, open_->index, open_->phase ? static_cast<std::int32_t>(*open_->phase) : -1, t_ns,
+         open_->start_ns, t_ns);
+    journal_plan({"abort", "plan: abort (" + reason + ") during " + where + ": " + account, priority, tc.name});
+  } else if (any_safe || stop_request_) {
+    // Nothing was cut short: the daemon stopping after the plan, or a stop between cases.
+    journal_plan({"safe-state", "plan: " + reason + ", " + where + ": " + account, priority});
+  }
+  open_.reset();
+  holds_.clear();
+  if (stop_request_) {
+    reply(*stop_request_, true, "stopped (" + where + "): " + account);
+    stop_request_.reset();
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Markers
+
+void TestExecutive::mark(std::int8_t what, std::size_t case_index, std::int32_t phase_index, std::int64_t t_ns,
+                         std::int64_t start_ns, std::int64_t end_ns) {
+  if (!marks_.try_push(PlanMark{t_ns, start_ns, end_ns, static_cast<std::int32_t>(case_index), phase_index, what}))
+    journal_plan({"refused", "plan: the marker ring is full: a marker of case " + bench_.cases[case_index].name + " was lost", 3});
+}
+
+void TestExecutive::begin_case(std::size_t case_index, std::int64_t t_ns) {
+  open_ = OpenCase{case_index, t_ns, std::nullopt, 0};
+  mark(plan_event_t::MARK_CASE_START, case_index, -1, t_ns, t_ns, 0);  // end unknown: phases start when settled
+}
+
+void TestExecutive::begin_phase(std::size_t phase_index, std::int64_t t_ns) {
+  open_->phase = phase_index;
+  open_->phase_start_ns = t_ns;
+  const double duration = bench_.cases[open_->index].phases[phase_index].duration_s;
+  mark(plan_event_t::MARK_PHASE_START, open_->index, static_cast<std::int32_t>(phase_index), t_ns, t_ns, t_ns + seconds_ns(duration));
+}
+
+void TestExecutive::end_phase(std::int64_t t_ns) {
+  if (!open_ || !open_->phase) return;
+  mark(plan_event_t::MARK_PHASE_END, open_->index, static_cast<std::int32_t>(*open_->phase), t_ns, open_->phase_start_ns, t_ns);
+  open_->phase.reset();
+}
+
+void TestExecutive::end_case(std::int64_t t_ns) {
+  if (!open_) return;
+  end_phase(t_ns);
+  mark(plan_event_t::MARK_CASE_END, open_->index, -1, t_ns, open_->start_ns, t_ns);
+  journal_plan({"case-end", "plan: case " + bench_.cases[open_->index].name + " ended after " + s_text(t_ns - open_->start_ns), 6,
+                bench_.cases[open_->index].name});
+  open_.reset();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Operator commands (INERTIA_COMMAND)
+
+void TestExecutive::on_command(const lcm::ReceiveBuffer*, const std::string&, const plan_command_t* command) {
+  if (command->status == plan_command_t::STATUS_REQUEST) inbox_.push_back(*command);
+}
+
+void TestExecutive::handle(const plan_command_t& command) {
+  const auto key = std::make_pair(command.sender, command.id);
+  if (const auto seen = answered_.find(key); seen != answered_.end()) {
+    // A repeat of a request already acted on (the sender did not hear the answer): answer again.
+    if (lcm_ && lcm_->good()) lcm_->publish(std::string(channels::kCommandReply), &seen->second);
+    return;
+  }
+  if (stop_request_ && stop_request_->sender == command.sender && stop_request_->id == command.id) return;
+  switch (command.command) {
+    case plan_command_t::COMMAND_STOP:
+      // Carried out by pump() through the abort path (the plan may be in the middle of a phase).
+      journal_plan({"operator-mark", "plan: operator stop requested by " + command.sender, 4});
+      stop_request_ = command;
+      return;
+    case plan_command_t::COMMAND_MARK: {
+      const auto [ok, detail] = operator_mark(command);
+      reply(command, ok, detail);
+      return;
+    }
+    case plan_command_t::COMMAND_END_CASE: {
+      const auto [ok, detail] = operator_end_case();
+      reply(command, ok, detail);
+      return;
+    }
+    default: reply(command, false, "unknown command " + std::to_string(command.command));
+  }
+}
+
+std::pair<bool, std::string> TestExecutive::operator_mark(const plan_command_t& command) {
+  if (bench_.executive == config::Executive::Plan)
+    return {false, "the test executive runs this bench's plan (executive = \"plan\") and marks its phases itself; "
+                   "`inertia-daqd mark --stop` aborts it"};
+  std::size_t c = bench_.cases.size();
+  for (std::size_t i = 0; i < bench_.cases.size(); ++i)
+    if (bench_.cases[i].name == command.case_name) c = i;
+  if (c == bench_.cases.size()) {
+    std::string known;
+    for (const auto& tc : bench_.cases) known += (known.empty() ? "" : ", ") + tc.name;
+    return {false, "no case '" + command.case_name + "' in the plan of bench " + bench_.name +
+                       (known.empty() ? " (it has no [[case]])" : " (cases: " + known + ")")};
+  }
+  std::optional<std::size_t> phase;
+  if (!command.phase.empty()) {
+    const std::optional<std::size_t> after = open_ && open_->index == c ? open_->phase : std::nullopt;
+    phase = find_phase(bench_.cases[c], command.phase, after);
+    if (!phase) {
+      std::string known;
+      for (std::size_t i = 0; i < bench_.cases[c].phases.size(); ++i)
+        known += (i ? ", " : "") + std::to_string(i) + " " + config::to_string(bench_.cases[c].phases[i].kind);
+      return {false, "case " + command.case_name + " has no phase '" + command.phase + "' (its phases: " + known + ")"};
+    }
+  }
+  // Stamped at receipt, on the daemon's clock: the marker lines up with the samples.
+  const std::int64_t now = hal::monotonic_now_ns();
+  std::string detail;
+  if (!open_ || open_->index != c) {
+    if (open_) {
+      detail = "case " + bench_.cases[open_->index].name + " ended; ";
+      end_case(now);
+    }
+    begin_case(c, now);
+    detail += "case " + command.case_name + " started";
+  }
+  if (phase) {
+    end_phase(now);
+    begin_phase(*phase, now);
+    detail += std::string(detail.empty() ? "" : "; ") + phase_text(c, *phase) + " started";
+  }
+  if (detail.empty()) detail = "case " + command.case_name + " is already running: nothing marked";
+  journal_plan({"operator-mark", "plan: operator " + command.sender + ": " + detail, 6, command.case_name,
+                phase ? std::to_string(*phase) + " " + sim::phase_label(bench_.cases[c].phases[*phase].kind) : std::string()});
+  return {true, detail};
+}
+
+std::pair<bool, std::string> TestExecutive::operator_end_case() {
+  if (bench_.executive == config::Executive::Plan)
+    return {false, "the test executive runs this bench's plan (executive = \"plan\") and ends its cases itself"};
+  if (!open_) return {false, "no case is running"};
+  const std::string name = bench_.cases[open_->index].name;
+  end_case(hal::monotonic_now_ns());
+  return {true, "case " + name + " ended"};
+}
+
+void TestExecutive::reply(const plan_command_t& request, bool accepted, const std::string& detail) {
+  plan_command_t answer = request;
+  answer.status = accepted ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED;
+  answer.detail = detail;
+  timespec now{};
+  ::clock_gettime(CLOCK_REALTIME, &now);
+  answer.utime = static_cast<std::int64_t>(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
+  if (!accepted) journal_plan({"refused", "plan: refused " + request.sender + "'s request: " + detail, 4, request.case_name});
+  answered_[std::make_pair(request.sender, request.id)] = answer;
+  if (lcm_ && lcm_->good()) lcm_->publish(std::string(channels::kCommandReply), &answer);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+std::string TestExecutive::phase_text(std::size_t c, std::size_t p) const {
+  const config::TestCase& tc = bench_.cases[c];
+  return "case " + tc.name + " phase " + std::to_string(p) + " (" + config::to_string(tc.phases[p].kind) + ")";
+}
+
+std::string TestExecutive::value_text(const Binding& b, double value) const {
+  std::ostringstream s;
+  s << value;
+  if (!b.reg->unit.empty()) s << " " << b.reg->unit;
+  return s.str();
+}
+
+}  // namespace inertia::daq
