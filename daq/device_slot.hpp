@@ -31,6 +31,7 @@ enum FaultBit : std::uint32_t {
   kFaultMisaligned = 1u << 5,
   kFaultInvalidSamples = 1u << 6,
   kFaultStuck = 1u << 7,
+  kFaultSilent = 1u << 8,
 };
 std::vector<std::string> fault_names(std::uint32_t bits);
 
@@ -58,6 +59,8 @@ struct DeviceSlot {
   // its samples are marked invalid until the value moves (0: off; only for channels that always
   // carry noise, e.g. accelerometers digitised below their noise floor).
   std::uint32_t stuck_samples = 0;
+  // No sample for this long is the fault "silent" (the publisher watches; 0: not watched).
+  std::int64_t silent_timeout_ns = 0;
   // Fast simulated runs only: the sampling thread waits for room in the ring instead of dropping,
   // which backs up into the wire and paces the simulator (a bench that waits for the reader).
   // Never on real devices: their hot path counts a full ring as a drop and never waits.

@@ -309,6 +309,22 @@ void Publisher::publish_marks() {
   }
 }
 
+// A device that stopped sending (a pulled cable, a module that hung) raises "silent" once its
+// timeout has passed without a sample; the journal and the status channel carry it like any
+// fault, and it clears with the next sample.
+void Publisher::watch_silence(Packer& p, std::int64_t now_ns) noexcept {
+  DeviceSlot& slot = *p.slot;
+  if (slot.silent_timeout_ns <= 0) return;
+  const std::uint64_t samples = slot.samples.load(std::memory_order_relaxed);
+  if (p.heard_ns == 0 || samples != p.heard_samples) {
+    p.heard_samples = samples;
+    p.heard_ns = now_ns;
+    if (samples != 0) slot.faults.fetch_and(~kFaultSilent, std::memory_order_relaxed);
+  } else if (now_ns - p.heard_ns > slot.silent_timeout_ns) {
+    slot.faults.fetch_or(kFaultSilent, std::memory_order_relaxed);
+  }
+}
+
 void Publisher::publish_status(double dt_s) {
   daq_status_t st{};
   const std::int64_t now = hal::monotonic_now_ns();
@@ -387,6 +403,7 @@ void Publisher::run(RealtimeOptions rt) noexcept {
     publish_marks();
     for (Packer& p : packers_) n += drain(p);
     const std::int64_t now = hal::monotonic_now_ns();
+    for (Packer& p : packers_) watch_silence(p, now);
     if (now - last_status >= period_ns) {
       publish_status(static_cast<double>(now - last_status) * 1e-9);
       last_status = now;

@@ -98,6 +98,8 @@ class Publisher {
     std::int64_t seq = 0;
     std::vector<std::int64_t> channel_seq;
     std::uint64_t status_samples = 0;    // for the measured rate
+    std::uint64_t heard_samples = 0;     // the slot's sample count when it last moved ...
+    std::int64_t heard_ns = 0;           // ... and when (the silent-device watch)
     std::vector<double> last_value;      // stuck detection: previous value and run length per channel
     std::vector<std::uint32_t> run;
     std::uint32_t stuck_channels = 0;
@@ -132,6 +134,7 @@ class Publisher {
   SpscRing<PlanMark> marks_{1024};
   std::vector<std::uint8_t> buffer_;
   std::thread thread_;
+  void watch_silence(Packer& p, std::int64_t now_ns) noexcept;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> messages_{0}, failures_{0};
   std::int64_t start_ns_ = 0;

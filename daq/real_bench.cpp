@@ -1,5 +1,7 @@
 #include "daq/real_bench.hpp"
 
+#include <cmath>
+
 #include "daq/device_check.hpp"
 
 namespace inertia::daq {
@@ -90,6 +92,8 @@ hal::gpiod::QuadratureConfig to_hal(const config::GpiodEncoder& e, double bench_
 
 namespace {
 
+std::int64_t seconds_to_ns(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
 /// The start-up message for a device that did not open: the device check's first failure for
 /// it (bench-file position, what, fix) when the check finds one, else the open call's reason.
 std::string diagnose(const std::vector<CheckRow>& rows, const std::string& fallback) {
@@ -129,6 +133,7 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     for (const auto& s : d.signals) info.push_back({s.name, s.unit, next_id++});
     auto slot = std::make_shared<DeviceSlot>(d.name, std::move(info), d.sample_rate_hz > 0 ? d.sample_rate_hz : bench.sample_rate_hz,
                                              ring_capacity);
+    slot->silent_timeout_ns = seconds_to_ns(d.availability.silent_timeout_s);
     const int fd = dev->wait_fd();
     out.samplers.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::vector<int>{fd}, slot, false));
   }
@@ -150,6 +155,7 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     std::vector<ChannelInfo> info{{"count", "1", next_id}, {"position", e.rotary ? "rad" : "m", next_id + 1}};
     next_id += 2;
     auto slot = std::make_shared<DeviceSlot>(e.name, std::move(info), bench.sample_rate_hz, ring_capacity);
+    slot->silent_timeout_ns = seconds_to_ns(e.availability.silent_timeout_s);
     out.samplers.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::move(fds), slot, rows));
   }
   for (const auto& m : bench.modbus_devices) {
@@ -165,6 +171,7 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     std::vector<ChannelInfo> info;
     for (const auto& r : m.registers) info.push_back({r.name, r.unit, next_id++});
     auto slot = std::make_shared<DeviceSlot>(m.name, std::move(info), 1000.0 / m.poll_interval_ms, ring_capacity);
+    slot->silent_timeout_ns = seconds_to_ns(m.availability.silent_timeout_s);
     std::vector<ControllerPort::SafeValue> safe;
     for (std::size_t r = 0; r < m.registers.size(); ++r)
       if (m.writes_enabled && m.registers[r].safe) safe.push_back({r, *m.registers[r].safe});

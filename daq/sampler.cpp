@@ -84,7 +84,7 @@ std::vector<std::string> fault_names(std::uint32_t bits) {
       {kFaultBusOff, "bus-off"},        {kFaultBusPassive, "bus-passive"},   {kFaultModbusGone, "modbus-gone"},
       {kFaultPeerClosed, "peer-closed"}, {kFaultGlitches, "encoder-glitch"}, {kFaultMisaligned, "misaligned"},
       {kFaultInvalidSamples, "invalid-samples"},
-      {kFaultStuck, "stuck"}};
+      {kFaultStuck, "stuck"},           {kFaultSilent, "silent"}};
   std::vector<std::string> out;
   for (const auto& [bit, name] : kNames)
     if ((bits & bit) != 0) out.emplace_back(name);

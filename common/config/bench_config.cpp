@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "common/config/controller_plan.hpp"
+#include "common/config/link_capacity.hpp"
 #include "common/config/register_role.hpp"
 #include "common/config/toml_reader.hpp"
 #include "common/units.hpp"
@@ -118,7 +119,7 @@ SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64
 }
 
 DeviceAvailability read_availability(const TableReader& t) {
-  return DeviceAvailability{t.boolean_or("optional", false), t.where()};
+  return DeviceAvailability{t.boolean_or("optional", false), t.where(), t.number_in("silent_timeout_s", 1.0, 1e-3, 3600.0)};
 }
 
 CanDevice read_can_device(const TableReader& t) {
@@ -543,6 +544,7 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
   if (cfg.simulated && cfg.cases.empty()) root.fail_here("a simulated bench needs a test plan ([[case]] tables)");
   root.finish();
   check_plan_against_controllers(cfg);
+  if (!cfg.simulated) check_link_capacity(cfg);
   return cfg;
 }
 

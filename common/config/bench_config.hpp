@@ -111,6 +111,9 @@ enum class ByteOrder { LittleEndian, BigEndian };
 struct DeviceAvailability {
   bool optional = false;
   SourcePosition where;             // the device's table ([[can_device]], ...)
+  // No sample for this long while the daemon runs is the device's fault "silent" (status channel
+  // and journal): a cable pulled or a module that stopped sending is never just a rate of 0.
+  double silent_timeout_s = 1.0;
 };
 
 struct CanSignal {

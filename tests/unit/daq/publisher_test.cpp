@@ -1,7 +1,10 @@
 // Publisher: rings in, sample_block_t out, over LCM's in-process memq:// provider (deterministic).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <chrono>
 #include <lcm/lcm-cpp.hpp>
+#include <thread>
 
 #include "common/lcm/sample_block_layout.hpp"
 #include "daq/publisher.hpp"
@@ -111,6 +114,35 @@ TEST(Publisher, BlockLengthIsCappedToOneDatagram) {
   ASSERT_TRUE(pub.configure(&why));
   EXPECT_GT(pub.block_samples(0), 400);
   EXPECT_LT(pub.block_samples(0), 512);
+}
+
+TEST(Publisher, ADeviceWithoutSamplesForItsTimeoutIsSilentUntilTheNextOne) {
+  lcm::LCM lcm("memq://");
+  Collector got;
+  lcm.subscribe("INERTIA_STATUS", &Collector::on_status, &got);
+  auto slot = make_slot(1, 1000.0);
+  slot->silent_timeout_ns = 150'000'000;
+  slot->samples.store(5);
+  PublisherOptions options;
+  options.block_s = 0.01;
+  options.status_period_s = 0.02;
+  Publisher pub(lcm, nullptr, {slot}, options);
+  std::string why;
+  ASSERT_TRUE(pub.configure(&why));
+  pub.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));   // silent from 150 ms on
+  slot->samples.store(10);                                       // it speaks again
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  pub.stop();
+  pump(lcm);
+  const auto silent = [](const daq_status_t& s) {
+    const auto& f = s.devices.at(0).faults;
+    return std::find(f.begin(), f.end(), "silent") != f.end();
+  };
+  const auto first = std::find_if(got.status.begin(), got.status.end(), silent);
+  ASSERT_NE(first, got.status.end()) << "no status said silent in 400 ms without a sample";
+  EXPECT_FALSE(silent(got.status.front())) << "not silent before its timeout";
+  EXPECT_FALSE(silent(got.status.back())) << "a sample clears it";
 }
 
 }  // namespace
