@@ -2,12 +2,15 @@
 // and what was expected; Fig. 2 slot orientations against independently built rotations.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
 #include "common/config/bench_config.hpp"
+#include "common/config/link_capacity.hpp"
 #include "common/input_error.hpp"
 #include "common/units.hpp"
 
@@ -125,15 +128,24 @@ TEST(ShippedConfigs, PaperExperimentIsSection3) {
 TEST(ShippedConfigs, TemplateKeepsRealBenchWiring) {
   const BenchConfig b = load_bench_config(kConfigDir / "bench-template.toml");
   EXPECT_FALSE(b.simulated);
-  ASSERT_EQ(b.can_devices.size(), 2u);
+  // Issue 13: every 10 kHz adapter on CAN FD, one frame per sample with a frame counter; the
+  // encoders through a counter on CAN FD, none on GPIO (their edge rates would not fit).
+  ASSERT_EQ(b.can_devices.size(), 3u);
   EXPECT_EQ(b.can_devices[0].signals[1].byte_offset, 3u);
-  EXPECT_EQ(b.can_devices[1].signals[0].id, 0x18FF1001u);
-  EXPECT_TRUE(b.can_devices[1].signals[0].extended);
+  EXPECT_EQ(b.can_devices[1].signals[0].id, 0x201u);
+  EXPECT_FALSE(b.can_devices[1].signals[0].extended);
   EXPECT_EQ(b.can_devices[1].signals[0].byte_order, ByteOrder::BigEndian);
-  ASSERT_EQ(b.gpiod_encoders.size(), 2u);
-  EXPECT_TRUE(b.gpiod_encoders[1].rotary);
   EXPECT_EQ(*b.can_devices[0].signals[0].invalid_raw, 0x800000u);  // -8388608 in 24 signed bits
-  EXPECT_EQ(b.gpiod_encoders[0].edge_latency_ns, 1'000'000);
+  EXPECT_DOUBLE_EQ(b.can_devices[0].availability.silent_timeout_s, 0.5);
+  EXPECT_DOUBLE_EQ(b.can_devices[1].availability.silent_timeout_s, 1.0);  // the default
+  for (const CanDevice& d : b.can_devices) {
+    EXPECT_TRUE(d.fd) << d.name;
+    EXPECT_EQ(std::count_if(d.signals.begin(), d.signals.end(), [](const CanSignal& s) { return s.counter; }), 1) << d.name;
+  }
+  for (const CanBusLoad& l : can_bus_loads(b)) EXPECT_LT(l.load, kMaxCanBusLoad) << l.interface;
+  EXPECT_TRUE(b.gpiod_encoders.empty());
+  EXPECT_EQ(b.table_encoder.channel, "enc.table");
+  EXPECT_EQ(b.linear_encoder.channel, "enc.armature");
   ASSERT_EQ(b.modbus_devices.size(), 3u);
   EXPECT_FALSE(b.modbus_devices[0].writes_enabled);   // off by default
   const ModbusRegister& sp = b.modbus_devices[0].registers[1];
