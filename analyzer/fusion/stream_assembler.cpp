@@ -8,6 +8,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "analyzer/fusion/channel_ref.hpp"
 #include "analyzer/fusion/reference_fusion.hpp"
 #include "common/frames.hpp"
 #include "common/input_error.hpp"
@@ -62,20 +63,6 @@ namespace {
 
 // What a needed channel is to the fusion of the sensor under test.
 enum class Role { Output, Monitor, LinearEncoder, TableEncoder };
-
-struct ChannelRef {
-  std::string device;
-  std::string signal;
-  [[nodiscard]] std::string label() const { return device + "." + signal; }
-};
-
-// "<device>.<signal>" from the bench file, or the simulator's device and signal names.
-ChannelRef channel_of(const std::string& configured, const std::string& sim_device, const std::string& sim_signal) {
-  if (configured.empty()) return {sim_device, sim_signal};
-  const auto dot = configured.find('.');
-  if (dot == std::string::npos) return {configured, sim_signal};
-  return {configured.substr(0, dot), configured.substr(dot + 1)};
-}
 
 struct Need {
   Role role;
@@ -206,6 +193,8 @@ struct StreamAssembler::Impl {
     std::map<std::int32_t, frames::Dcm> attitude;
     std::map<std::int32_t, double> base;
     std::int32_t phases_seen = -1;            // highest phase index with a row
+    bool attitude_pending = false;            // that phase's attitude not fixed yet
+    std::optional<ComplementaryFilter> filter_before_break;   // the shaker filter of the last segment
     std::int32_t attitude_lost_from = std::numeric_limits<std::int32_t>::max();
     Eigen::Vector3d prev_axis = Eigen::Vector3d::UnitZ();
     std::optional<double> prev_base;
@@ -663,25 +652,34 @@ struct StreamAssembler::Impl {
   }
 
   /// The table's attitude at the row's phase (tracked through the encoder from the case's start
-  /// attitude): false when it is unknown (a phase whose first row had no angle, or any phase after it).
+  /// attitude): false when it is unknown (a rotation whose first row had no angle, or any phase
+  /// after it). A phase at rest (not a rotation) may fix it at its first usable row instead: the
+  /// table has not turned since the phase began, so any of its angles is the phase's start angle
+  /// (on a real time base a device's first sample can come a fraction of a period after another's).
   bool table_attitude(Fuser& f, const RawRow& row, bool usable) {
     const std::int32_t p = row.phase_index;
     if (p < 0) return false;
     const config::TestCase& tc = bench->cases[f.case_index];
+    const bool rotation = static_cast<std::size_t>(p) < tc.phases.size() &&
+                          tc.phases[static_cast<std::size_t>(p)].kind == config::PhaseKind::Rotation;
     if (p > f.phases_seen) {
       // The phase's first row: its start angle fixes the attitude (the phases turn about
       // different axes, so one angle does not give it). Skipped phases lose it for good.
       if (p > f.phases_seen + 1) f.attitude_lost_from = std::min(f.attitude_lost_from, f.phases_seen + 1);
       f.phases_seen = p;
-      if (!usable) f.attitude_lost_from = std::min(f.attitude_lost_from, p);
-      if (p < f.attitude_lost_from) {
+      f.attitude_pending = true;
+    }
+    if (f.attitude_pending && p < f.attitude_lost_from) {
+      if (usable) {
         if (f.prev_base) f.running_attitude = frames::frame_rotation(f.prev_axis, row.encoder - *f.prev_base) * f.running_attitude;
         f.attitude[p] = f.running_attitude;
         f.base[p] = row.encoder;
-        const bool rotation = static_cast<std::size_t>(p) < tc.phases.size() &&
-                              tc.phases[static_cast<std::size_t>(p)].kind == config::PhaseKind::Rotation;
         f.prev_axis = rotation ? tc.phases[static_cast<std::size_t>(p)].axis.normalized() : Eigen::Vector3d::UnitZ();
         f.prev_base = row.encoder;
+        f.attitude_pending = false;
+      } else if (rotation) {
+        f.attitude_lost_from = std::min(f.attitude_lost_from, p);
+        f.attitude_pending = false;
       }
     }
     return p < f.attitude_lost_from && f.attitude.count(p) != 0;
@@ -757,8 +755,19 @@ struct StreamAssembler::Impl {
     s.has_temp = with_temp;
     const double dt = output_period_ns() * 1e-9;
     s.differences = CentralDifferences(dt);
-    if (f.kind == CaseKind::Shaker && f.encoder_need && 1.0 / dt > 2.0 * options.crossover_hz)
-      s.filter.emplace(dt, options.crossover_hz);
+    if (f.kind == CaseKind::Shaker && f.encoder_need && 1.0 / dt > 2.0 * options.crossover_hz) {
+      // After a break within the case the filter goes on from its state before it: what its low
+      // paths hold (the monitors' slow error against the encoder) does not change over a gap,
+      // while a filter started afresh in mid-vibration would settle on one sample of the
+      // encoder's second difference, whose error at high frequency is a large fraction of the
+      // vibration, and ring on it for a few tenths of a second.
+      if (f.filter_before_break) {
+        s.filter = std::move(f.filter_before_break);
+        f.filter_before_break.reset();
+      } else {
+        s.filter.emplace(dt, options.crossover_hz);
+      }
+    }
     f.segment = std::move(s);
   }
 
@@ -850,6 +859,7 @@ struct StreamAssembler::Impl {
                             s.rows_in});
     }
     sink->on_segment_end({f.case_index, f.name, s.number, s.rows_in, kept});
+    if (s.filter) f.filter_before_break = std::move(s.filter);
     f.segment.reset();
   }
 
