@@ -1,6 +1,6 @@
 #include "daq/plan_mark.hpp"
 
-#include "hal/sim/bench_motion.hpp"
+#include "common/config/phase_label.hpp"
 
 namespace inertia::daq {
 
@@ -11,7 +11,7 @@ void describe_plan_mark(const config::BenchConfig& bench, const PlanMark& mark, 
   ev.kind = config::to_string(tc.kind);
   if (mark.phase_index < 0 || static_cast<std::size_t>(mark.phase_index) >= tc.phases.size()) return;
   const auto& p = tc.phases[static_cast<std::size_t>(mark.phase_index)];
-  ev.phase = sim::phase_label(p.kind);
+  ev.phase = config::phase_label(p.kind);
   auto add = [&](const char* name, double v, const char* unit) {
     ev.setpoint_names.emplace_back(name);
     ev.setpoint_values.push_back(v);

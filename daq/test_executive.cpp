@@ -9,10 +9,10 @@
 #include <lcm/lcm-cpp.hpp>
 #include <sstream>
 
+#include "common/config/phase_label.hpp"
 #include "common/lcm/channels.hpp"
 #include "daq/journal.hpp"
 #include "hal/device.hpp"
-#include "hal/sim/bench_motion.hpp"
 #include "inertia/plan_event_t.hpp"
 
 namespace inertia::daq {
@@ -49,7 +49,7 @@ std::optional<std::size_t> find_phase(const config::TestCase& c, const std::stri
   for (std::size_t pass = 0; pass < 2; ++pass) {  // after the open phase first, then from the start
     for (std::size_t i = pass == 0 ? from : 0; i < c.phases.size(); ++i) {
       const config::PhaseKind k = c.phases[i].kind;
-      if (name == config::to_string(k) || name == sim::phase_label(k)) return i;
+      if (name == config::to_string(k) || name == config::phase_label(k)) return i;
     }
   }
   return std::nullopt;
@@ -182,13 +182,13 @@ void TestExecutive::run_plan() {
         const std::int64_t now = hal::monotonic_now_ns();
         mark(plan_event_t::MARK_PHASE_FAILED, c, static_cast<std::int32_t>(p), now, commanded, now);
         journal_plan({"phase-failed", "plan: phase failed: " + phase_text(c, p) + ": " + f.reason + "; the plan stops", 4, tc.name,
-                      std::to_string(p) + " " + sim::phase_label(tc.phases[p].kind), f.device});
+                      std::to_string(p) + " " + config::phase_label(tc.phases[p].kind), f.device});
         throw Aborted{"phase failed: " + f.reason, now};
       }
       begin_phase(p, start);
       journal_plan({"phase-start", "plan: " + phase_text(c, p) + " started" +
                                        (start > commanded ? ", settled " + s_text(start - commanded) + " after its command" : ""),
-                    6, tc.name, std::to_string(p) + " " + sim::phase_label(tc.phases[p].kind)});
+                    6, tc.name, std::to_string(p) + " " + config::phase_label(tc.phases[p].kind)});
       const std::int64_t end = start + seconds_ns(tc.phases[p].duration_s);
       while (hal::monotonic_now_ns() < end) pump(true);
     }
@@ -528,7 +528,7 @@ std::pair<bool, std::string> TestExecutive::operator_mark(const plan_command_t& 
   }
   if (detail.empty()) detail = "case " + command.case_name + " is already running: nothing marked";
   journal_plan({"operator-mark", "plan: operator " + command.sender + ": " + detail, 6, command.case_name,
-                phase ? std::to_string(*phase) + " " + sim::phase_label(bench_.cases[c].phases[*phase].kind) : std::string()});
+                phase ? std::to_string(*phase) + " " + config::phase_label(bench_.cases[c].phases[*phase].kind) : std::string()});
   return {true, detail};
 }
 

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "common/config/phase_label.hpp"
 #include "common/frames.hpp"
 #include "common/units.hpp"
 #include "hal/sim/random_streams.hpp"
@@ -34,18 +35,6 @@ Angle rotation_angle(const config::Phase& p, double t) {
 
 }  // namespace
 
-const char* phase_label(config::PhaseKind kind) {
-  switch (kind) {
-    case PhaseKind::Dwell: return "static";
-    case PhaseKind::Rotation: return "rotation";
-    case PhaseKind::Sine: return "sine";
-    case PhaseKind::Random: return "random";
-    case PhaseKind::Shock: return "shock";
-    case PhaseKind::ThermalStep: return "thermal";
-  }
-  return "?";
-}
-
 CaseMotion simulate_motion(const config::BenchConfig& bench, std::size_t case_index, ThermalModel& thermal) {
   const config::TestCase& tc = bench.cases.at(case_index);
   const double fs = bench.sample_rate_hz;
@@ -75,7 +64,7 @@ CaseMotion simulate_motion(const config::BenchConfig& bench, std::size_t case_in
     const config::Phase& p = tc.phases[pi];
     const std::size_t count = counts[pi];
     m.spans.push_back({p.kind, k0, k0 + count});
-    const std::uint16_t label = label_index(m, phase_label(p.kind));
+    const std::uint16_t label = label_index(m, config::phase_label(p.kind));
     if (p.kind == PhaseKind::ThermalStep) thermal.set_setpoint(p.setpoint_c);
 
     ShakerSegment shaker;

@@ -48,9 +48,6 @@ struct CaseMotion {
   [[nodiscard]] std::size_t size() const { return static_cast<std::size_t>(t.size()); }
 };
 
-/// Dataset label of a phase kind (design.md: static, rotation, sine, random, shock, thermal).
-const char* phase_label(config::PhaseKind kind);
-
 /// Simulates case `case_index` of the plan. `thermal` is advanced one step per sample.
 /// Not real-time (allocates the case's arrays).
 CaseMotion simulate_motion(const config::BenchConfig& bench, std::size_t case_index, ThermalModel& thermal);

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/config/phase_label.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/input_error.hpp"
 #include "common/units.hpp"
@@ -163,7 +164,7 @@ void print_summary(const config::BenchConfig& bench, const BenchSimulation& sim,
                static_cast<double>(m.size()) / bench.sample_rate_hz);
     std::string phases;
     for (const PhaseSpan& span : m.spans) {
-      phases += fmt::format("{}{} {:.3g} s", phases.empty() ? "" : ", ", phase_label(span.kind),
+      phases += fmt::format("{}{} {:.3g} s", phases.empty() ? "" : ", ", config::phase_label(span.kind),
                             static_cast<double>(span.end - span.begin) / bench.sample_rate_hz);
     }
     fmt::print(os, "  phases: {}\n", phases);
