@@ -14,9 +14,11 @@
 // 0.1 deg (the paper's table 4 level on 1/10 of its samples).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
@@ -224,6 +226,69 @@ TEST(LogCharacterize, RealStyleTimingLogEqualsTheSimulatorsOwnDataset) {
     EXPECT_NEAR(it->coefficient, t.coefficient, 3.0 * combined) << name;
   }
   EXPECT_GE(common, 2);
+}
+
+// Issue 13: a log without a single plan marker (a real bench nobody marked) is cut into the
+// plan's cases and phases from the references' motion; the model equals the marked log's within
+// 3 combined sd, and the output says where it cut.
+TEST(LogCharacterize, ALogWithoutMarkersIsSegmentedFromTheReferences) {
+  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  TempDir tmp;
+  DaqdProcess daqd({"--config", source_path("config/sim-paper-daq.toml"), "--fast", "--log", (tmp.path / "log").string(),
+                    "--lcm-url", private_lcm_url()},
+                   {}, tmp.path / "daqd.txt");
+  ASSERT_EQ(daqd.wait(900.0), 0) << daqd.output();
+  std::vector<fs::path> logs;
+  for (const auto& e : fs::directory_iterator(tmp.path / "log")) logs.push_back(e.path());
+  ASSERT_EQ(logs.size(), 1u);
+  const fs::path unmarked = tmp.path / "unmarked.lcmlog";
+  int markers = 0;
+  {
+    lcm::LogFile in(logs[0].string(), "r");
+    lcm::LogFile out(unmarked.string(), "w");
+    ASSERT_TRUE(in.good() && out.good());
+    for (const lcm::LogEvent* e = in.readNextEvent(); e != nullptr; e = in.readNextEvent()) {
+      if (e->channel == "INERTIA_EVENT") {
+        ++markers;
+        continue;
+      }
+      out.writeEvent(const_cast<lcm::LogEvent*>(e));
+    }
+  }
+  ASSERT_GT(markers, 0);
+  ASSERT_EQ(run_command(analyze_binary() + " characterize --log " + logs[0].string() + " --out " + (tmp.path / "marked").string(),
+                        tmp.path / "marked.txt"),
+            0)
+      << read_text(tmp.path / "marked.txt");
+  const model::ModelFile marked = model::read_model(tmp.path / "marked" / "model.toml");
+  // The same model on the cut log: a selection that differs on the boundary rows would make the
+  // coefficients incomparable; what is tested is the cut.
+  std::string terms;
+  for (const model::ModelTerm& t : marked.terms) terms += (terms.empty() ? "" : ",") + t.term.to_string();
+  ASSERT_EQ(run_command(analyze_binary() + " characterize --log " + unmarked.string() + " --fixed-model " + terms + " --out " +
+                            (tmp.path / "unmarked").string(),
+                        tmp.path / "unmarked.txt"),
+            0)
+      << read_text(tmp.path / "unmarked.txt");
+  const std::string out = read_text(tmp.path / "unmarked.txt");
+  std::cout << out.substr(0, out.find("\n\n"));
+  EXPECT_NE(out.find("no plan markers in this log"), std::string::npos) << out;
+  for (const char* c : {"rotation-table", "shaker-ia", "shaker-pa", "shaker-oa"})
+    EXPECT_NE(out.find(std::string("  case ") + c + ": static"), std::string::npos) << c << "\n" << out;
+
+  const model::ModelFile cut = model::read_model(tmp.path / "unmarked" / "model.toml");
+  int common = 0;
+  for (const model::ModelTerm& t : marked.terms) {
+    const std::string name = t.term.to_string();
+    const auto it = std::find_if(cut.terms.begin(), cut.terms.end(), [&](const model::ModelTerm& f) { return f.term.to_string() == name; });
+    if (it == cut.terms.end() || !t.std || !it->std) continue;
+    ++common;
+    const double combined = std::hypot(*t.std, *it->std);
+    std::cout << "[ figures ] " << name << ": unmarked " << it->coefficient << ", marked " << t.coefficient << " +- " << *t.std
+              << ", z " << (it->coefficient - t.coefficient) / combined << "\n";
+    EXPECT_NEAR(it->coefficient, t.coefficient, 3.0 * combined) << name;
+  }
+  EXPECT_EQ(common, static_cast<int>(marked.terms.size()));
 }
 
 }  // namespace
