@@ -181,7 +181,8 @@ int run_daemon(const DaemonOptions& command_line) {
   ::signal(SIGPIPE, SIG_IGN);
   (void)g_unused;
 
-  if (o.mlock && ::mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
+  const bool mlock_refused = o.mlock && ::mlockall(MCL_CURRENT | MCL_FUTURE) != 0;
+  if (mlock_refused)
     std::cerr << "inertia-daqd: warning: mlockall: " << std::strerror(errno) << " (needs CAP_IPC_LOCK or LimitMEMLOCK); running without it\n";
 
   // LCM self-check: udpm needs a multicast route even on one host (daq.md section 1).
@@ -304,9 +305,10 @@ int run_daemon(const DaemonOptions& command_line) {
   // either way their names and setpoints are the plan's.
   po.describe_mark = [&bench](const PlanMark& m, plan_event_t& e) { describe_plan_mark(bench, m, e); };
   LogWriter* log_ptr = log.get();
-  po.daemon_faults = [log_ptr, absent] {
+  po.daemon_faults = [log_ptr, absent, mlock_refused] {
     std::vector<std::string> f;
     for (const std::string& name : absent) f.push_back("absent:" + name);
+    if (mlock_refused) f.emplace_back("mlock-refused");
     if (log_ptr == nullptr) f.emplace_back("log-off");
     else if (log_ptr->disk_full()) f.emplace_back("disk-full");
     return f;

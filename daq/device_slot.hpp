@@ -32,6 +32,7 @@ enum FaultBit : std::uint32_t {
   kFaultInvalidSamples = 1u << 6,
   kFaultStuck = 1u << 7,
   kFaultSilent = 1u << 8,
+  kFaultRealtimeRefused = 1u << 9,   // the sampling thread runs without its SCHED_FIFO or CPU pin
 };
 std::vector<std::string> fault_names(std::uint32_t bits);
 

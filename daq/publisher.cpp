@@ -374,6 +374,7 @@ void Publisher::publish_status(double dt_s) {
     if (log_->write_errors() > 0) st.faults.emplace_back("log-write");
   }
   if (failures_.load(std::memory_order_relaxed) > 0) st.faults.emplace_back("lcm-publish");
+  if (realtime_refused_.load(std::memory_order_relaxed)) st.faults.emplace_back("publisher-realtime-refused");
   if (options_.daemon_faults)
     for (auto& f : options_.daemon_faults()) st.faults.push_back(std::move(f));
   st.num_faults = static_cast<std::int32_t>(st.faults.size());
@@ -387,7 +388,10 @@ void Publisher::run(RealtimeOptions rt) noexcept {
   if (rt.fifo_priority > 0 || rt.cpu >= 0) {
     rt.fifo_priority = rt.fifo_priority > 1 ? rt.fifo_priority - 1 : rt.fifo_priority;
     std::string why;
-    if (!apply_realtime(rt, &why)) std::cerr << "inertia-daqd: warning: publisher: " << why << "running without it\n";
+    if (!apply_realtime(rt, &why)) {
+      std::cerr << "inertia-daqd: warning: publisher: " << why << "running without it\n";
+      realtime_refused_.store(true, std::memory_order_relaxed);
+    }
     // The idle wait below is 1 ms; the default 50 us of timer slack would be 5 % of it.
     if (rt.fifo_priority > 0) ::prctl(PR_SET_TIMERSLACK, 1000UL, 0UL, 0UL, 0UL);
   }

@@ -136,6 +136,7 @@ class Publisher {
   std::thread thread_;
   void watch_silence(Packer& p, std::int64_t now_ns) noexcept;
   std::atomic<bool> stop_{false};
+  std::atomic<bool> realtime_refused_{false};   // its SCHED_FIFO / CPU pin was refused
   std::atomic<std::uint64_t> messages_{0}, failures_{0};
   std::int64_t start_ns_ = 0;
 };

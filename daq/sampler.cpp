@@ -84,7 +84,7 @@ std::vector<std::string> fault_names(std::uint32_t bits) {
       {kFaultBusOff, "bus-off"},        {kFaultBusPassive, "bus-passive"},   {kFaultModbusGone, "modbus-gone"},
       {kFaultPeerClosed, "peer-closed"}, {kFaultGlitches, "encoder-glitch"}, {kFaultMisaligned, "misaligned"},
       {kFaultInvalidSamples, "invalid-samples"},
-      {kFaultStuck, "stuck"},           {kFaultSilent, "silent"}};
+      {kFaultStuck, "stuck"},           {kFaultSilent, "silent"},         {kFaultRealtimeRefused, "realtime-refused"}};
   std::vector<std::string> out;
   for (const auto& [bit, name] : kNames)
     if ((bits & bit) != 0) out.emplace_back(name);
@@ -178,8 +178,12 @@ void DeviceSampler::mirror_health() noexcept {
 void DeviceSampler::run(RealtimeOptions rt) noexcept {
   ::pthread_setname_np(::pthread_self(), ("smp-" + slot_->name).substr(0, 15).c_str());
   std::string why;
-  if ((rt.fifo_priority > 0 || rt.cpu >= 0) && !apply_realtime(rt, &why))
+  if ((rt.fifo_priority > 0 || rt.cpu >= 0) && !apply_realtime(rt, &why)) {
+    // Said once on stderr and for the whole run on INERTIA_STATUS and the journal (a fault that
+    // stays raised): a bench running without its real-time settings is not the bench configured.
     std::cerr << "inertia-daqd: warning: " << slot_->name << ": " << why << "running without it\n";
+    slot_->faults.fetch_or(kFaultRealtimeRefused, std::memory_order_relaxed);
+  }
   RingSink ring_sink(*slot_);
   // Room for what one read_into() call can push (bounded by the device's records per call; a
   // quarter ring is well above that for the simulated devices that use backpressure).

@@ -3,7 +3,9 @@
 // fault on INERTIA_STATUS, recovers when it clears, and the log shows exactly which samples are
 // missing or invalid.
 #include <gtest/gtest.h>
+#include <grp.h>
 #include <sys/mount.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -302,6 +304,35 @@ TEST(DaqdFaults, FullDiskKeepsSamplingAndPublishingCountsTheMissingBlocksAndResu
   EXPECT_LE(missing_blocks, lost) << "the rest of the lost messages are statuses and markers";
   std::cout << "full disk: " << lost << " messages lost (" << missing_blocks << " accel/encoder blocks), " << written
             << " written\n";
+}
+
+// Issue 13: a refused SCHED_FIFO or mlock is on INERTIA_STATUS for the whole run, not one stderr
+// line. The daemon runs as nobody with RLIMIT_RTPRIO 0 and a 64 KiB RLIMIT_MEMLOCK, so the
+// kernel refuses both, as it would on a bench PC without the unit's limits.
+TEST(DaqdFaults, RefusedRealTimeSettingsAreFaultsOnTheStatusChannel) {
+  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (::geteuid() != 0) GTEST_SKIP() << "not root: cannot run the daemon as another user";
+  TempDir tmp;
+  fs::permissions(tmp.path, fs::perms::all);
+  const auto drop = [] {
+    const rlimit none{0, 0}, small{64 * 1024, 64 * 1024};
+    return ::setrlimit(RLIMIT_RTPRIO, &none) == 0 && ::setrlimit(RLIMIT_MEMLOCK, &small) == 0 && ::setgroups(0, nullptr) == 0 &&
+           ::setgid(65534) == 0 && ::setuid(65534) == 0;
+  };
+  DaqdProcess daqd({"--config", kSmall, "--duration", "2", "--fifo-priority", "20", "--mlock", "--log",
+                    (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+                   {}, tmp.path / "stderr.txt", daqd_binary(), drop);
+  ASSERT_EQ(daqd.wait(30), 0) << daqd.output();
+  const std::string out = daqd.output();
+  EXPECT_NE(out.find("mlockall"), std::string::npos) << out;
+  const auto st = statuses(read_log_dir(tmp.path / "log"));
+  ASSERT_FALSE(st.empty());
+  const daq_status_t& last = st.back();
+  EXPECT_NE(std::find(last.faults.begin(), last.faults.end(), "mlock-refused"), last.faults.end());
+  EXPECT_NE(std::find(last.faults.begin(), last.faults.end(), "publisher-realtime-refused"), last.faults.end());
+  ASSERT_FALSE(last.devices.empty());
+  // Every sampling thread asked for SCHED_FIFO; the Modbus poller ("controller") never does.
+  for (const auto& d : last.devices) EXPECT_EQ(has_fault(d, "realtime-refused"), d.device != "controller") << d.device;
 }
 
 }  // namespace
