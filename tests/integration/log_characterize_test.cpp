@@ -16,6 +16,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <csignal>
+#include <chrono>
+#include <thread>
 #include <cstdlib>
 #include <fstream>
 #include <lcm/lcm-cpp.hpp>
@@ -177,9 +180,23 @@ TEST(LogCharacterize, RealStyleTimingLogEqualsTheSimulatorsOwnDataset) {
     out << read_text(source_path("config/sim-paper-daq.toml"))
         << "\n[bench.sim_timing]\njitter_us = 200.0\nclock_ppm = 50.0\nframe_loss = 0.001\n";
   }
-  DaqdProcess daqd({"--config", config.string(), "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()}, {},
+  // The live analyzer beside the daemon, as an engineer runs it: it must take the real-style
+  // stream without a gap or a refused block.
+  const std::string url = private_lcm_url();
+  DaqdProcess online({"online", "--config", config.string(), "--publish-hz", "10", "--lcm-url", url}, {},
+                     tmp.path / "online.txt", analyze_binary());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  DaqdProcess daqd({"--config", config.string(), "--log", (tmp.path / "log").string(), "--lcm-url", url}, {},
                    tmp.path / "daqd.txt");
   ASSERT_EQ(daqd.wait(120.0), 0) << daqd.output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  online.signal(SIGINT);
+  ASSERT_EQ(online.wait(30.0), 0) << online.output();
+  const std::string live = online.output();
+  std::cout << "[ figures ] online: " << live.substr(live.find("online: received")) << "\n";
+  EXPECT_NE(live.find("skipped 0 malformed, 0 oversized, 0 invalid, 0 refused; 0 queue drop(s)"), std::string::npos) << live;
+  EXPECT_NE(live.find(" 0 gap(s)"), std::string::npos) << live;
+  EXPECT_EQ(live.find("overlap"), std::string::npos) << live;
   const std::string daqd_out = daqd.output();
   std::smatch lost_match;
   ASSERT_TRUE(std::regex_search(daqd_out, lost_match, std::regex(R"((\d+) CAN frame\(s\) lost on purpose)"))) << daqd_out;
