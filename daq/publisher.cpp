@@ -154,6 +154,9 @@ void Publisher::emit_numbered(Packer& p, std::int32_t n) noexcept {
     p.block.t0_mono_ns = std::llround(p.clock->time_ns(p.base));
     p.block.sample_period_s = p.clock->period_s();
     send_block(p);
+  } else if (p.base <= p.newest) {
+    // Every sample of it is lost all the same (at 100 Hz a 10 ms block is one frame): counted.
+    p.lost += static_cast<std::uint64_t>(n) * static_cast<std::uint64_t>(nch);
   }
   // The window moves on by one block.
   for (std::size_t c = 0; c < static_cast<std::size_t>(nch); ++c) {
