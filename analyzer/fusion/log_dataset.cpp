@@ -3,67 +3,46 @@
 #include <fmt/format.h>
 #include <fmt/ostream.h>
 
-#include <cstdio>
-#include <cstring>
-#include <fstream>
-#include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <ostream>
 
 #include "common/input_error.hpp"
 #include "common/lcm/channels.hpp"
+#include "common/lcm/event_log_reader.hpp"
+#include "common/lcm/message_decode.hpp"
 
 namespace inertia::fusion {
 namespace {
 
-constexpr unsigned char kSyncWord[4] = {0xED, 0xA1, 0xDA, 0x01};   // lcm/eventlog.c, big-endian
-
 template <class Message>
-Message decode(const lcm::LogEvent& e, const std::string& where, const char* type) {
+Message decode(const LogRecord& r, const std::string& where, const char* type) {
   Message m;
-  if (m.decode(e.data, 0, e.datalen) != e.datalen)
-    throw InputError(where + ": " + e.channel + " does not decode as " + type);
+  if (const std::string why = decode_outside(r.data.data(), r.data.size(), m); !why.empty())
+    throw InputError(fmt::format("{}: {} does not decode as {}: {}", where, r.channel, type, why));
   return m;
 }
 
 }  // namespace
 
 void feed_log(const std::filesystem::path& file, StreamAssembler& assembler, std::ostream& messages) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(file, ec)) throw InputError(SourcePosition{file.string(), 0, 0}, "no such log file");
-  const auto size = static_cast<long>(std::filesystem::file_size(file, ec));
-  {
-    std::ifstream in(file, std::ios::binary);
-    unsigned char head[4] = {0, 0, 0, 0};
-    in.read(reinterpret_cast<char*>(head), 4);
-    if (!in || std::memcmp(head, kSyncWord, 4) != 0)
-      throw InputError(file.string() + ": byte 0: not an LCM event log (no LCM sync word 0xEDA1DA01)");
-  }
-  lcm::LogFile log(file.string(), "r");
-  if (!log.good()) throw InputError(SourcePosition{file.string(), 0, 0}, "cannot open the log");
-  std::int64_t index = 0;
-  for (;; ++index) {
-    const long offset = std::ftell(log.getFilePtr());
-    const lcm::LogEvent* e = log.readNextEvent();
-    if (e == nullptr) {
-      if (offset >= 0 && offset < size)
-        fmt::print(messages, "{}: the log ends inside event {} (byte {} of {}): read up to it\n", file.string(), index,
-                   offset, size);
-      break;
-    }
-    const std::string where = fmt::format("{}: event {} at byte {}", file.string(), index, offset);
-    if (e->channel == channels::kBench) {
-      assembler.push(decode<bench_config_t>(*e, where, "bench_config_t"), where);
-    } else if (e->channel == channels::kEvent) {
-      assembler.push(decode<plan_event_t>(*e, where, "plan_event_t"), where);
-    } else if (e->channel.rfind(channels::kRawPrefix, 0) == 0) {
-      assembler.push(decode<sample_block_t>(*e, where, "sample_block_t"), where);
+  EventLogReader log(file);
+  LogRecord record;
+  while (log.next(record)) {
+    const std::string where = fmt::format("{}: event {} at byte {}", file.string(), log.records_read() - 1, record.offset);
+    if (record.channel == channels::kBench) {
+      assembler.push(decode<bench_config_t>(record, where, "bench_config_t"), where);
+    } else if (record.channel == channels::kEvent) {
+      assembler.push(decode<plan_event_t>(record, where, "plan_event_t"), where);
+    } else if (record.channel.rfind(channels::kRawPrefix, 0) == 0) {
+      assembler.push(decode<sample_block_t>(record, where, "sample_block_t"), where);
     }
   }
+  if (!log.stop_reason().empty())
+    fmt::print(messages, "{}: {} (of {} bytes): read up to it\n", file.string(), log.stop_reason(), log.size());
   try {
     assembler.finish();
   } catch (const InputError& e) {
-    throw InputError(fmt::format("{} ({} events): {}", file.string(), index, e.what()));
+    throw InputError(fmt::format("{} ({} events): {}", file.string(), log.records_read(), e.what()));
   }
 }
 
