@@ -176,12 +176,13 @@ int main(int argc, char** argv) {
     write(corpus / "stream_assembler" / name, out);
   }
 
-  // event_log: a whole small log, and the same log torn inside its last record.
+  // event_log: a whole small log, and the same log torn inside its last record (no .lcmlog
+  // suffix: .gitignore keeps logs out of the repository).
   std::vector<std::pair<std::string, std::vector<std::uint8_t>>> log{{std::string(channels::kBench), bench_bytes}};
   log.insert(log.end(), shaker.messages.begin(), shaker.messages.end());
   std::vector<std::uint8_t> bytes = event_log(log);
-  write(corpus / "event_log/shaker.lcmlog", bytes);
+  write(corpus / "event_log/shaker-log", bytes);
   bytes.resize(bytes.size() - 100);
-  write(corpus / "event_log/shaker-torn.lcmlog", bytes);
+  write(corpus / "event_log/shaker-log-torn", bytes);
   return 0;
 }
