@@ -138,6 +138,10 @@ struct RawRow {
   double temp = 0.0;
 };
 
+// Largest sample index read() converts to an integer: block_shape_error keeps channel_seq below
+// 2^62 as well, so seq0 + index stays within int64.
+constexpr double kMaxSampleIndex = 0x1p62;
+
 // Values and validity of one need at one row time.
 enum class Read { Ok, Invalid, Missing, NotYet };
 
@@ -472,6 +476,9 @@ struct StreamAssembler::Impl {
     }
     if (b == nullptr) return d.newest_ns < t && !given_up(t) ? Read::NotYet : Read::Missing;
     const double x = (t - b->t0_ns) / b->period_ns;
+    // A sample index that no int64 holds (a period of 1e-300 s: the cast below would be undefined;
+    // found by fuzz_event_log) lies past every stored sample: as when the next block did not follow on.
+    if (!(x < kMaxSampleIndex)) return d.newest_ns < t && !given_up(t) ? Read::NotYet : Read::Missing;
     const double nearest = std::round(x);
     if (std::abs(x - nearest) <= 1e-3) {
       // The device samples at this instant (one clock, as on the simulated benches).

@@ -346,6 +346,32 @@ TEST(StreamAssembler, InvalidSamplesAreExcludedNeverFilled) {
   EXPECT_LT((last.a_e.row(100).transpose() - truth_at(2000 + 1601).a).norm(), 1e-6);
 }
 
+// Found by fuzz_event_log (issue 15): a linear-encoder block whose sample period is 5.4e-23 s put
+// the sample index of the next row past the int64 range (an undefined conversion, reported by
+// UBSan). Those rows have the encoder missing, as after a lost block; nothing is read for them.
+TEST(StreamAssembler, ReferenceWithAnAbsurdPeriodIsMissingNotRead) {
+  AssemblerOptions o;
+  o.sensor = "acc1";
+  o.min_segment_s = 0.0;
+  std::vector<FusedSegment> segments;
+  StreamAssembler a(o, [&segments](FusedSegment&& s) { segments.push_back(std::move(s)); });
+  a.push(bench_message(), "bench");
+  a.push(mark(plan_event_t::MARK_CASE_START, "shake", "shaker", -1, "", 0, kBlock), "start");
+  a.push(mark(plan_event_t::MARK_PHASE_START, "shake", "shaker", 0, "sine", 0, kBlock), "phase");
+  a.push(encoder_block("table_encoder", 0, kBlock), "table");
+  a.push(accel_block(0, kBlock), "accel");
+  sample_block_t encoder = encoder_block("linear_encoder", 0, kBlock);
+  encoder.sample_period_s = 5.421010862427522e-23;   // the fuzzer's period
+  a.push(encoder, "linear");
+  a.push(mark(plan_event_t::MARK_CASE_END, "shake", "shaker", -1, "", 0, kBlock - 1), "end");
+  a.finish();
+  std::int64_t missing = 0;
+  for (const Exclusion& x : a.exclusions())
+    if (x.reason.find("linear_encoder.position missing") != std::string::npos) missing += x.samples;
+  EXPECT_GE(missing, kBlock - 5);   // every row but those at the encoder's only real instant
+  EXPECT_LE(a.fused_rows(), 5);
+}
+
 TEST(StreamAssembler, BadInputIsNamed) {
   AssemblerOptions o;
   auto sink = [](FusedSegment&&) {};

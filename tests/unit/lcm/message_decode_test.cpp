@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <limits>
 #include <vector>
 
 #include "common/lcm/message_decode.hpp"
@@ -108,6 +109,44 @@ TEST(DecodeOutside, RefusesTruncatedTrailingAndForeignBytes) {
   EXPECT_NE(decode_outside(longer.data(), longer.size(), b).find("after the message's last field"), std::string::npos);
   plan_event_t e;   // a sample block is not a plan event: the fingerprint differs
   EXPECT_NE(decode_outside(bytes.data(), bytes.size(), e), "");
+}
+
+// The defects issue 15 names, pinned where every reader checks a decoded block (they were fixed
+// before this issue; fuzz_lcm_decode reads every validity bit of every block that passes).
+TEST(BlockShape, ValidBytesMustMatchNumSamples) {
+  sample_block_t b = two_channel_block();
+  EXPECT_EQ(block_shape_error(b), "");
+  b.num_samples = 100;   // sample_valid(b, c, 99) would read valid[c][12] of a 2-byte row
+  for (auto& v : b.values) v.resize(100);
+  EXPECT_NE(block_shape_error(b).find("valid_bytes 2 for 100 samples"), std::string::npos) << block_shape_error(b);
+  b = two_channel_block();
+  b.valid[1].resize(1);   // valid_bytes right, one row short
+  EXPECT_NE(block_shape_error(b), "");
+}
+
+TEST(BlockShape, NanInfiniteOrNonPositivePeriodIsRefused) {
+  sample_block_t b = two_channel_block();
+  for (double period : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(), 0.0, -1e-3}) {
+    b.sample_period_s = period;
+    EXPECT_NE(block_shape_error(b).find("sample period"), std::string::npos) << period;
+  }
+}
+
+// Clock and counters stay within [0, 2^62), so that readers' int64 arithmetic on them cannot
+// overflow (issue 15; see StreamAssembler.ReferenceWithAnAbsurdPeriodIsMissingNotRead).
+TEST(BlockShape, TimesAndCountersOutsideTheStreamRangeAreRefused) {
+  sample_block_t b = two_channel_block();
+  b.t0_mono_ns = -1;
+  EXPECT_NE(block_shape_error(b).find("t0_mono_ns"), std::string::npos);
+  b.t0_mono_ns = kMaxStreamCount - 1;   // starts in range, ends past it
+  EXPECT_NE(block_shape_error(b).find("ends past"), std::string::npos);
+  b = two_channel_block();
+  b.channel_seq[1] = std::numeric_limits<std::int64_t>::min();
+  EXPECT_NE(block_shape_error(b).find("channel_seq"), std::string::npos);
+  b.channel_seq[1] = kMaxStreamCount - 5;   // its last sample's counter past 2^62
+  EXPECT_NE(block_shape_error(b).find("channel_seq"), std::string::npos);
+  b.channel_seq[1] = 123456789;
+  EXPECT_EQ(block_shape_error(b), "");
 }
 
 }  // namespace
