@@ -751,7 +751,15 @@ struct StreamAssembler::Impl {
         layout.axes.push_back(m.misalignment.dcm().transpose() * m.axis.normalized());
         layout.noise_sd_mps2.push_back(std::max(m.noise_sd_mps2, 1e-12) / f.monitor_gain(j));
       }
-      f.monitors.emplace(layout);
+      // The geometry comes from the bench file in the stream (outside bytes): monitors whose
+      // axes do not span three dimensions, or a zero axis or noise figure, are bad input for
+      // this case, never an escaping std::invalid_argument (found by fuzz_event_log).
+      try {
+        f.monitors.emplace(layout);
+      } catch (const std::invalid_argument& e) {
+        throw InputError("case " + c.name + " (" + to_string(tc.kind) +
+                         "): the bench's [[monitor]] accelerometers cannot be fused: " + e.what());
+      }
     }
     f.running_attitude = tc.start_attitude.dcm();
     fuser = std::move(f);

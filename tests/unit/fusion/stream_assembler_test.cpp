@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "analyzer/fusion/stream_assembler.hpp"
@@ -370,6 +372,39 @@ TEST(StreamAssembler, ReferenceWithAnAbsurdPeriodIsMissingNotRead) {
     if (x.reason.find("linear_encoder.position missing") != std::string::npos) missing += x.samples;
   EXPECT_GE(missing, kBlock - 5);   // every row but those at the encoder's only real instant
   EXPECT_LE(a.fused_rows(), 5);
+}
+
+// fuzz_event_log found it: a bench whose monitors all lie in one plane let fusion's
+// std::invalid_argument escape the reader and end the process. It is the bench's fault, named
+// with the case, like any other bad input.
+TEST(StreamAssembler, MonitorsThatDoNotSpanThreeDimensionsAreBadInput) {
+  std::string text = kBench;
+  for (const auto& [from, to] : {std::pair<std::string, std::string>{"[0.70710678, 0.0, 0.70710678]", "[0.0, 1.0, 0.0]"},
+                                 {"[0.70710678, 0.0, -0.70710678]", "[1.0, 0.0, 0.0]"}}) {
+    const std::size_t at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);   // every monitor axis now in the x-y plane
+  }
+  bench_config_t bench = bench_message();
+  bench.texts = {text};
+  AssemblerOptions o;
+  o.sensor = "acc1";
+  o.min_segment_s = 0.0;
+  StreamAssembler a(o, [](FusedSegment&&) {});
+  try {
+    a.push(bench, "bench");
+    a.push(mark(plan_event_t::MARK_CASE_START, "shake", "shaker", -1, "", 0, kBlock), "start");
+    a.push(mark(plan_event_t::MARK_PHASE_START, "shake", "shaker", 0, "sine", 0, kBlock), "phase");
+    a.push(encoder_block("linear_encoder", 0, kBlock), "linear");
+    a.push(encoder_block("table_encoder", 0, kBlock), "table");
+    a.push(accel_block(0, kBlock), "accel");
+    a.push(mark(plan_event_t::MARK_CASE_END, "shake", "shaker", -1, "", 0, kBlock - 1), "end");
+    a.finish();
+    FAIL() << "coplanar monitors were fused";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("case shake (shaker)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("do not span three dimensions"), std::string::npos) << e.what();
+  }
 }
 
 TEST(StreamAssembler, BadInputIsNamed) {
