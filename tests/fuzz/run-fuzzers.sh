@@ -6,6 +6,8 @@
 # the repository are only read). Crashes, leaks, UBSan reports (built with
 # -fno-sanitize-recover) and timeouts are written to WORK_DIR/<target>/artifacts/ and fail the
 # run. One line per target: seconds, executions, corpus size, result. Exit 0 when none failed.
+# FUZZ_JOBS=N runs N targets at a time (default 1; .ci/run uses one per core): each target is
+# one process and still gets its SECONDS.
 set -uo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 build="${1:?usage: run-fuzzers.sh BUILD_DIR SECONDS [TARGET ...]}"
@@ -16,16 +18,18 @@ if [ "${#targets[@]}" -eq 0 ]; then
   targets=(dataset bench_config model_file event_log lcm_decode stream_assembler can_frame_map modbus_registers)
 fi
 work="${WORK_DIR:-$build/fuzz-corpus}"
-failed=0
-for t in "${targets[@]}"; do
-  bin="$build/fuzz/fuzz_$t"
-  if [ ! -x "$bin" ]; then
-    echo "fuzz $t: $bin is not built (cmake --build $build --target fuzz_$t)"
-    failed=1
-    continue
-  fi
+parallel="${FUZZ_JOBS:-1}"
+
+# run_one TARGET: fuzzes TARGET, writes its line to $work/TARGET/result; exit 1 when it failed.
+run_one() {
+  local t="$1"
+  local bin="$build/fuzz/fuzz_$t"
   mkdir -p "$work/$t/corpus" "$work/$t/artifacts"
-  log="$work/$t/fuzz.log"
+  if [ ! -x "$bin" ]; then
+    echo "fuzz $t: $bin is not built (cmake --build $build --target fuzz_$t)" > "$work/$t/result"
+    return 1
+  fi
+  local log="$work/$t/fuzz.log" start rc took execs corpus artifacts result
   start=$(date +%s)
   # -rss_limit_mb: a reader that allocates what a hostile length claims is a finding, not noise.
   # -timeout: one input taking 10 s is a hang. -print_final_stats: the figures below.
@@ -42,9 +46,27 @@ for t in "${targets[@]}"; do
     result=ok
   else
     result="FAILED (exit $rc; artifacts in $work/$t/artifacts; log $log)"
-    failed=1
-    grep -E "ERROR|SUMMARY|runtime error" "$log" | head -5
   fi
-  echo "fuzz $t: ${took} s, ${execs:-0} executions, corpus ${corpus} new inputs, ${artifacts} crashes: $result"
+  {
+    [ "$result" = ok ] || grep -E "ERROR|SUMMARY|runtime error" "$log" | head -5
+    echo "fuzz $t: ${took} s, ${execs:-0} executions, corpus ${corpus} new inputs, ${artifacts} crashes: $result"
+  } > "$work/$t/result"
+  [ "$result" = ok ]
+}
+
+failed=0
+running=0
+for t in "${targets[@]}"; do
+  if [ "$running" -ge "$parallel" ]; then
+    wait -n || failed=1
+    running=$((running - 1))
+  fi
+  run_one "$t" &
+  running=$((running + 1))
 done
+while [ "$running" -gt 0 ]; do
+  wait -n || failed=1
+  running=$((running - 1))
+done
+for t in "${targets[@]}"; do cat "$work/$t/result"; done
 exit "$failed"
