@@ -20,7 +20,7 @@ std::vector<std::uint8_t> encode(const Message& m) {
 }
 
 sample_block_t two_channel_block() {
-  sample_block_t b;
+  sample_block_t b{};   // LCM types leave scalars uninitialized: t0_mono_ns was stack garbage
   shape_sample_block(b, 2, 9);
   b.device = "accel";
   b.sample_period_s = 1e-3;
