@@ -19,7 +19,9 @@
 namespace inertia::commands {
 namespace {
 
-nlohmann::json rms_json(const diagnose::DiagnoseResult& r, const diagnose::ResidualSummary& s) {
+// Per case and phase: the detail that sits beside the contract's residual_rms number
+// (design.md, "Recorded extensions": residual_rms is the overall RMS, never an object).
+nlohmann::json rms_by_case_json(const diagnose::DiagnoseResult& r, const diagnose::ResidualSummary& s) {
   nlohmann::json cases = nlohmann::json::object();
   for (std::size_t c = 0; c < r.case_names.size(); ++c) {
     nlohmann::json phases = nlohmann::json::object();
@@ -30,7 +32,14 @@ nlohmann::json rms_json(const diagnose::DiagnoseResult& r, const diagnose::Resid
     }
     cases[r.case_names[c]] = {{"rms", s.per_case[c]}, {"phases", phases}};
   }
-  return {{"overall", s.overall}, {"cases", cases}};
+  return cases;
+}
+
+/// `residual_rms` (the free-run residual's overall RMS, output unit) and `residual_rms_by_case`
+/// into `step`.
+void put_rms(nlohmann::json& step, const diagnose::DiagnoseResult& r, const diagnose::ResidualSummary& s) {
+  step["residual_rms"] = s.overall;
+  step["residual_rms_by_case"] = rms_by_case_json(r, s);
 }
 
 /// location.bands / location.conditions: baseline and final side by side (same bands and bins).
@@ -100,9 +109,9 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
   j["alpha"] = options.alpha;
   j["library"] = r.library;
   j["held_fixed"] = r.held_fixed;
-  j["baseline"]["residual_rms"] = rms_json(r, r.steps.front());
-  j["final"]["residual_rms"] = rms_json(r, r.steps.back());
-  if (r.refit_only) j["refit_only"]["residual_rms"] = rms_json(r, *r.refit_only);
+  put_rms(j["baseline"], r, r.steps.front());
+  put_rms(j["final"], r, r.steps.back());
+  if (r.refit_only) put_rms(j["refit_only"], r, *r.refit_only);
   j["final"]["model_file"] = model_out.string();
   j["location"] = location_json(r);
   j["findings"] = nlohmann::json::array();
@@ -121,8 +130,8 @@ int run_diagnose(const DiagnoseCommandOptions& options, std::ostream& out) {
   }
   j["steps"] = nlohmann::json::array();
   for (const diagnose::ResidualSummary& s : r.steps) {
-    nlohmann::json step = rms_json(r, s);
-    step["label"] = s.label;
+    nlohmann::json step = {{"label", s.label}};
+    put_rms(step, r, s);
     j["steps"].push_back(step);
   }
   if (!options.json.parent_path().empty()) std::filesystem::create_directories(options.json.parent_path());

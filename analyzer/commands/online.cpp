@@ -25,6 +25,8 @@
 #include "common/config/bench_config.hpp"
 #include "common/input_error.hpp"
 #include "common/lcm/channels.hpp"
+#include "common/lcm/event_log_reader.hpp"
+#include "common/lcm/message_decode.hpp"
 #include "common/lcm/multicast_route.hpp"
 #include "common/lcm/sample_block_layout.hpp"
 #include "inertia/analyzer_status_t.hpp"
@@ -329,9 +331,10 @@ class Worker {
  private:
   template <class T>
   bool decode(const Message& m, T& msg) {
-    if (msg.decode(m.data.data(), 0, static_cast<int>(m.data.size())) != static_cast<int>(m.data.size())) {
+    // decode_outside: lcm-gen's own decode() allocates whatever counts a hostile message claims.
+    if (const std::string why = decode_outside(m.data.data(), m.data.size(), msg); !why.empty()) {
       ++counters_.malformed;
-      if (counters_.malformed <= 3) counters_.note(fmt::format("{}: message does not decode (wrong type or corrupt)", m.channel));
+      if (counters_.malformed <= 3) counters_.note(fmt::format("{}: message does not decode: {}", m.channel, why));
       return false;
     }
     return true;
@@ -644,26 +647,27 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
 
   if (!options.replay.empty()) {
     // The same worker on a recorded log, as fast as it reads: the live answer for that log.
-    lcm::LogFile log(options.replay.string(), "r");
-    if (!log.good()) throw InputError(options.replay.string() + ": cannot open the log");
+    EventLogReader log(options.replay);
     Inbox unused(1);
     Outbox outbox;
     Worker worker(pipelines, bench, unused, outbox, options.publish_hz, out, history ? &*history : nullptr);
     std::int64_t next_publish_us = 0;
-    while (const lcm::LogEvent* e = log.readNextEvent()) {
+    LogRecord record;
+    while (log.next(record)) {
       Message m;
-      m.channel = e->channel;
-      const auto* bytes = static_cast<const std::uint8_t*>(e->data);
-      m.data.assign(bytes, bytes + e->datalen);
-      m.arrival_ns = 1000 * e->timestamp;
+      m.channel = std::move(record.channel);
+      m.data = std::move(record.data);
+      m.arrival_ns = 1000 * record.utime;
       worker.ingest(m);
       // Estimates at the publishing rate, in the log's own time (as the live run would have).
-      if (e->timestamp >= next_publish_us) {
+      if (record.utime >= next_publish_us) {
         if (next_publish_us > 0) worker.publish_now();
-        next_publish_us = e->timestamp + static_cast<std::int64_t>(1e6 / options.publish_hz);
+        next_publish_us = record.utime + static_cast<std::int64_t>(1e6 / options.publish_hz);
         (void)outbox.take();
       }
     }
+    if (!log.stop_reason().empty())
+      fmt::print(out, "{}: {} (of {} bytes): read up to it\n", options.replay.string(), log.stop_reason(), log.size());
     worker.finish_replay();
     for (const auto& p : pipelines) {
       const online::OnlineSnapshot last = p->estimator->snapshot();

@@ -3,10 +3,6 @@
 #include <fmt/format.h>
 #include <fmt/ostream.h>
 
-#include <cstdio>
-#include <cstring>
-#include <fstream>
-#include <lcm/lcm-cpp.hpp>
 #include <limits>
 #include <map>
 #include <optional>
@@ -15,45 +11,29 @@
 #include "analyzer/fusion/log_segmenter.hpp"
 #include "common/input_error.hpp"
 #include "common/lcm/channels.hpp"
+#include "common/lcm/event_log_reader.hpp"
+#include "common/lcm/message_decode.hpp"
 
 namespace inertia::fusion {
 namespace {
 
-constexpr unsigned char kSyncWord[4] = {0xED, 0xA1, 0xDA, 0x01};   // lcm/eventlog.c, big-endian
-
 template <class Message>
-Message decode(const lcm::LogEvent& e, const std::string& where, const char* type) {
+Message decode(const LogRecord& r, const std::string& where, const char* type) {
   Message m;
-  if (m.decode(e.data, 0, e.datalen) != e.datalen)
-    throw InputError(where + ": " + e.channel + " does not decode as " + type);
+  if (const std::string why = decode_outside(r.data.data(), r.data.size(), m); !why.empty())
+    throw InputError(fmt::format("{}: {} does not decode as {}: {}", where, r.channel, type, why));
   return m;
 }
 
-}  // namespace
-
-namespace {
-
-// Walks the events of `file` in order, calling visit(event, where) until it returns false.
-// Returns the number of events read; a log cut inside its last event is read up to it.
+// Walks the records of `file` in order, calling visit(record, where) until it returns false.
+// Returns the reader, for its stop reason and count.
 template <class Visit>
-std::int64_t walk_log(const std::filesystem::path& file, std::ostream* messages, Visit&& visit) {
-  std::error_code ec;
-  const auto size = static_cast<long>(std::filesystem::file_size(file, ec));
-  lcm::LogFile log(file.string(), "r");
-  if (!log.good()) throw InputError(SourcePosition{file.string(), 0, 0}, "cannot open the log");
-  std::int64_t index = 0;
-  for (;; ++index) {
-    const long offset = std::ftell(log.getFilePtr());
-    const lcm::LogEvent* e = log.readNextEvent();
-    if (e == nullptr) {
-      if (messages != nullptr && offset >= 0 && offset < size)
-        fmt::print(*messages, "{}: the log ends inside event {} (byte {} of {}): read up to it\n", file.string(), index,
-                   offset, size);
-      break;
-    }
-    if (!visit(*e, fmt::format("{}: event {} at byte {}", file.string(), index, offset))) break;
+void walk_log(EventLogReader& log, const std::filesystem::path& file, Visit&& visit) {
+  LogRecord record;
+  while (log.next(record)) {
+    const std::string where = fmt::format("{}: event {} at byte {}", file.string(), log.records_read() - 1, record.offset);
+    if (!visit(record, where)) break;
   }
-  return index;
 }
 
 // A log without a single case start marker: the plan's cases and phases cut from the references'
@@ -61,14 +41,17 @@ std::int64_t walk_log(const std::filesystem::path& file, std::ostream* messages,
 std::optional<Segmentation> segment_unmarked(const std::filesystem::path& file) {
   bool marked = false;
   std::optional<bench_config_t> bench_msg;
-  walk_log(file, nullptr, [&](const lcm::LogEvent& e, const std::string& where) {
-    if (e.channel == channels::kEvent) {
-      marked = decode<plan_event_t>(e, where, "plan_event_t").mark == plan_event_t::MARK_CASE_START;
-    } else if (e.channel == channels::kBench && !bench_msg) {
-      bench_msg = decode<bench_config_t>(e, where, "bench_config_t");
-    }
-    return !marked;
-  });
+  {
+    EventLogReader log(file);
+    walk_log(log, file, [&](const LogRecord& r, const std::string& where) {
+      if (r.channel == channels::kEvent) {
+        marked = decode<plan_event_t>(r, where, "plan_event_t").mark == plan_event_t::MARK_CASE_START;
+      } else if (r.channel == channels::kBench && !bench_msg) {
+        bench_msg = decode<bench_config_t>(r, where, "bench_config_t");
+      }
+      return !marked;
+    });
+  }
   if (marked || !bench_msg) return std::nullopt;
   std::vector<config::SourceFile> sources;
   for (std::int32_t i = 0; i < bench_msg->num_files; ++i)
@@ -76,9 +59,10 @@ std::optional<Segmentation> segment_unmarked(const std::filesystem::path& file) 
   const config::BenchConfig bench = config::load_bench_config_from_sources(sources);
   MotionClassifier motion(bench);
   double origin_ns = std::numeric_limits<double>::infinity();
-  walk_log(file, nullptr, [&](const lcm::LogEvent& e, const std::string& where) {
-    if (e.channel.rfind(channels::kRawPrefix, 0) == 0) {
-      const auto block = decode<sample_block_t>(e, where, "sample_block_t");
+  EventLogReader log(file);
+  walk_log(log, file, [&](const LogRecord& r, const std::string& where) {
+    if (r.channel.rfind(channels::kRawPrefix, 0) == 0) {
+      const auto block = decode<sample_block_t>(r, where, "sample_block_t");
       origin_ns = std::min(origin_ns, static_cast<double>(block.t0_mono_ns));
       motion.push(block);
     }
@@ -88,25 +72,16 @@ std::optional<Segmentation> segment_unmarked(const std::filesystem::path& file) 
   seg.description.insert(
       seg.description.begin(),
       fmt::format("no plan markers in this log: cases and phases cut from the references' motion (rotation: table "
-                  "encoder above {:.2f} deg/s{}; vibration: a monitor's detrended sd above {:.4f} m/s^2 per {:.1f} s "
+                  "encoder above {:.2f} deg/s{}; vibration: a monitor's detrended sd above {:.4f} m/s^2 per {:.4g} s "
                   "window); times from the first sample:",
                   kRotationRate * 180.0 / 3.14159265358979323846, motion.has_table_encoder() ? "" : " (no table encoder)",
-                  motion.vibration_threshold(), kSegmentWindowS));
+                  motion.vibration_threshold(), motion.window_s()));
   return seg;
 }
 
 }  // namespace
 
 void feed_log(const std::filesystem::path& file, StreamAssembler& assembler, std::ostream& messages) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(file, ec)) throw InputError(SourcePosition{file.string(), 0, 0}, "no such log file");
-  {
-    std::ifstream in(file, std::ios::binary);
-    unsigned char head[4] = {0, 0, 0, 0};
-    in.read(reinterpret_cast<char*>(head), 4);
-    if (!in || std::memcmp(head, kSyncWord, 4) != 0)
-      throw InputError(file.string() + ": byte 0: not an LCM event log (no LCM sync word 0xEDA1DA01)");
-  }
   std::optional<Segmentation> segmentation;
   try {
     segmentation = segment_unmarked(file);
@@ -116,24 +91,27 @@ void feed_log(const std::filesystem::path& file, StreamAssembler& assembler, std
   if (segmentation)
     for (const std::string& line : segmentation->description) fmt::print(messages, "{}\n", line);
   bool markers_given = false;
-  const std::int64_t events = walk_log(file, &messages, [&](const lcm::LogEvent& e, const std::string& where) {
-    if (e.channel == channels::kBench) {
-      assembler.push(decode<bench_config_t>(e, where, "bench_config_t"), where);
+  EventLogReader log(file);
+  walk_log(log, file, [&](const LogRecord& r, const std::string& where) {
+    if (r.channel == channels::kBench) {
+      assembler.push(decode<bench_config_t>(r, where, "bench_config_t"), where);
       if (segmentation && !markers_given && assembler.has_bench()) {
         for (const plan_event_t& m : segmentation->markers) assembler.push(m, where + " (segmented)");
         markers_given = true;
       }
-    } else if (e.channel == channels::kEvent) {
-      assembler.push(decode<plan_event_t>(e, where, "plan_event_t"), where);
-    } else if (e.channel.rfind(channels::kRawPrefix, 0) == 0) {
-      assembler.push(decode<sample_block_t>(e, where, "sample_block_t"), where);
+    } else if (r.channel == channels::kEvent) {
+      assembler.push(decode<plan_event_t>(r, where, "plan_event_t"), where);
+    } else if (r.channel.rfind(channels::kRawPrefix, 0) == 0) {
+      assembler.push(decode<sample_block_t>(r, where, "sample_block_t"), where);
     }
     return true;
   });
+  if (!log.stop_reason().empty())
+    fmt::print(messages, "{}: {} (of {} bytes): read up to it\n", file.string(), log.stop_reason(), log.size());
   try {
     assembler.finish();
   } catch (const InputError& e) {
-    throw InputError(fmt::format("{} ({} events): {}", file.string(), events, e.what()));
+    throw InputError(fmt::format("{} ({} events): {}", file.string(), log.records_read(), e.what()));
   }
 }
 

@@ -125,6 +125,10 @@ struct RawRow {
   double temp = 0.0;
 };
 
+// Largest sample index read() converts to an integer: block_shape_error keeps channel_seq below
+// 2^62 as well, so seq0 + index stays within int64.
+constexpr double kMaxSampleIndex = 0x1p62;
+
 // Values and validity of one need at one row time.
 enum class Read { Ok, Invalid, Missing, NotYet };
 
@@ -461,6 +465,9 @@ struct StreamAssembler::Impl {
     }
     if (b == nullptr) return d.newest_ns < t && !given_up(t) ? Read::NotYet : Read::Missing;
     const double x = (t - b->t0_ns) / b->period_ns;
+    // A sample index that no int64 holds (a period of 1e-300 s: the cast below would be undefined;
+    // found by fuzz_event_log) lies past every stored sample: as when the next block did not follow on.
+    if (!(x < kMaxSampleIndex)) return d.newest_ns < t && !given_up(t) ? Read::NotYet : Read::Missing;
     const double nearest = std::round(x);
     if (std::abs(x - nearest) <= 1e-3) {
       // The device samples at this instant (one clock, as on the simulated benches).
@@ -742,7 +749,15 @@ struct StreamAssembler::Impl {
         layout.axes.push_back(m.misalignment.dcm().transpose() * m.axis.normalized());
         layout.noise_sd_mps2.push_back(std::max(m.noise_sd_mps2, 1e-12) / f.monitor_gain(j));
       }
-      f.monitors.emplace(layout);
+      // The geometry comes from the bench file in the stream (outside bytes): monitors whose
+      // axes do not span three dimensions, or a zero axis or noise figure, are bad input for
+      // this case, never an escaping std::invalid_argument (found by fuzz_event_log).
+      try {
+        f.monitors.emplace(layout);
+      } catch (const std::invalid_argument& e) {
+        throw InputError("case " + c.name + " (" + to_string(tc.kind) +
+                         "): the bench's [[monitor]] accelerometers cannot be fused: " + e.what());
+      }
     }
     f.running_attitude = tc.start_attitude.dcm();
     fuser = std::move(f);

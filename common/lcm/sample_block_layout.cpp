@@ -35,6 +35,17 @@ std::string block_shape_error(const sample_block_t& b) {
       return "sample arrays of another length than num_samples";
   }
   if (!(b.sample_period_s > 0.0) || !(b.sample_period_s < 1e6)) return "sample period " + std::to_string(b.sample_period_s) + " s";
+  // Clock and counters within [0, 2^62), the block's last sample too: then readers' sums and
+  // differences of two of them stay within int64 (issue 15: fuzz_event_log met a block whose
+  // sample times overflowed a conversion to int64).
+  if (b.t0_mono_ns < 0 || b.t0_mono_ns >= kMaxStreamCount)
+    return "t0_mono_ns " + std::to_string(b.t0_mono_ns) + " outside [0, 2^62)";
+  if (!(static_cast<double>(b.t0_mono_ns) + 1e9 * b.sample_period_s * static_cast<double>(b.num_samples) <
+        static_cast<double>(kMaxStreamCount)))
+    return "the block ends past 2^62 ns";
+  for (std::size_t c = 0; c < channels; ++c)
+    if (b.channel_seq[c] < 0 || b.channel_seq[c] >= kMaxStreamCount - b.num_samples)
+      return "channel_seq " + std::to_string(b.channel_seq[c]) + " outside [0, 2^62)";
   return {};
 }
 

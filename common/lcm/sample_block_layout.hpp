@@ -32,9 +32,14 @@ std::size_t udp_payload_size(const sample_block_t& block, std::string_view chann
 /// Returns 0 when not even one sample fits or the block has no channels. Not real-time.
 std::int32_t max_samples_per_block(const sample_block_t& header, std::string_view channel);
 
+/// Bound on t0_mono_ns (ns), the block's end time and channel_seq: CLOCK_MONOTONIC and sample
+/// counters since the daemon started stay far below it (2^62 ns is 146 years).
+inline constexpr std::int64_t kMaxStreamCount = std::int64_t{1} << 62;
+
 /// Why `block` cannot be read safely (empty when it can): a negative count, a valid_bytes that
 /// does not match num_samples (the bitmap would be read out of bounds), a non-finite or
-/// non-positive sample period. Every reader of blocks from outside (LCM, logs) checks this first.
+/// non-positive sample period, a t0_mono_ns, end time or channel_seq outside [0, 2^62).
+/// Every reader of blocks from outside (LCM, logs) checks this first.
 std::string block_shape_error(const sample_block_t& block);
 
 /// Validity bit of sample `s` of channel `c`: bit (s % 8) of valid[c][s / 8], LSB first

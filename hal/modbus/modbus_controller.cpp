@@ -65,9 +65,14 @@ std::span<const PolledValue> ModbusController::poll() {
     const std::int64_t t_ns = monotonic_now_ns();
     for (std::size_t i : b.registers) {
       PolledValue& v = values_[i];
-      v.valid = ok;
       v.t_ns = t_ns;
-      if (ok) v.value = decode(regs[i], words.subspan(static_cast<std::size_t>(regs[i].address - b.address)));
+      v.valid = false;
+      if (!ok) continue;
+      // A NaN or infinite register is no reading: marked invalid, as a failed request is.
+      if (const auto reading = decode_reading(regs[i], words.subspan(static_cast<std::size_t>(regs[i].address - b.address)))) {
+        v.value = *reading;
+        v.valid = true;
+      }
     }
   }
   return values_;

@@ -21,7 +21,8 @@ namespace inertia::hal::modbus {
 struct PolledValue {
   std::string_view name;   // the register's name (points into the controller's config)
   double value = 0.0;      // SI; meaningless when !valid
-  bool valid = false;      // false when its request failed (see link().health())
+  bool valid = false;      // false when its request failed (see link().health()) or it held no
+                           // reading (NaN or infinity, register_map.hpp decode_reading)
   std::int64_t t_ns = 0;   // CLOCK_MONOTONIC when the answer arrived
 };
 

@@ -57,6 +57,12 @@ double decode(const RegisterSpec& s, std::span<const std::uint16_t> w) noexcept 
   return s.scale * raw + s.offset;
 }
 
+std::optional<double> decode_reading(const RegisterSpec& s, std::span<const std::uint16_t> w) noexcept {
+  const double value = decode(s, w);
+  if (!std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
 double encode(const RegisterSpec& s, double value, std::span<std::uint16_t> w) noexcept {
   const double x = (value - s.offset) / s.scale;
   double raw = 0.0;

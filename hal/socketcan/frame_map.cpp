@@ -100,6 +100,12 @@ bool CanFrameMap::is_valid(std::string* why) const {
                          (s.extended ? "29" : "11") + "-bit identifier");
     if (!std::isfinite(s.scale) || s.scale == 0.0 || !std::isfinite(s.offset))
       return fail(s, "scale must be finite and non-zero, offset finite");
+    // Every raw value must give a finite value: an infinite one would be pushed as a valid
+    // sample (found by tests/fuzz/fuzz_can_frame_map: 64 bits at scale 1e300).
+    const double largest_counts = std::ldexp(1.0, s.is_signed ? s.bit_length - 1 : s.bit_length);
+    if (!std::isfinite(std::abs(s.scale) * largest_counts + std::abs(s.offset)))
+      return fail(s, "scale and offset take a " + std::to_string(s.bit_length) +
+                         "-bit raw value beyond the range of a double");
     if (s.counter) {
       if (s.is_signed) return fail(s, "a frame counter is unsigned");
       for (std::size_t k = 0; k < i; ++k)

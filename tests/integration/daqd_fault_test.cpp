@@ -61,7 +61,7 @@ bool has_fault(const device_status_t& d, const std::string& f) {
 }
 
 TEST(DaqdFaults, ModbusServerGoneFiveSecondsOtherDevicesKeepSamplingAndItRecovers) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   // Paced: 1.4 s plan run for 8 s (the plan repeats); the controller server is gone from 1 s to
   // 6 s, the 5 s outage, and the reconnect backoff must bring it back before the end.
   const DaqdRun r = run_daqd({"--duration", "8", "--fault", "modbus-gone@1+5"}, 40);
@@ -102,7 +102,7 @@ TEST(DaqdFaults, ModbusServerGoneFiveSecondsOtherDevicesKeepSamplingAndItRecover
 }
 
 TEST(DaqdFaults, CanBusOffIsReportedAndTheMissingSamplesAreExactlyVisible) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   // Paced 2.5 s; bus-off from 0.5 s for 1.2 s: 12000 samples never sent.
   const DaqdRun r = run_daqd({"--duration", "2.5", "--fault", "bus-off@0.5+1.2"}, 30);
   bool bus_off_seen = false;
@@ -130,7 +130,7 @@ TEST(DaqdFaults, CanBusOffIsReportedAndTheMissingSamplesAreExactlyVisible) {
 }
 
 TEST(DaqdFaults, EncoderGlitchesAreCountedAndTheCountStaysRight) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   const DaqdRun r = run_daqd({"--fast", "--fault", "encoder-glitch@50"}, 60);
   const config::BenchConfig bench = config::load_bench_config(kSmall);
   const auto truth = sim::simulate_bench(bench);
@@ -157,7 +157,7 @@ namespace inertia::daq::testing {
 namespace {
 
 TEST(DaqdFaults, StuckSensorIsMarkedInvalidExactlyFromDetectionOn) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   // Fast; the first sensor's output freezes from 0.5 s for 0.3 s (3000 samples at 10 kHz).
   const DaqdRun r = run_daqd({"--fast", "--fault", "stuck@0.5+0.3"}, 60);
   const auto blocks = decode_all<sample_block_t>(r.events, "INERTIA_RAW_ACCEL");
@@ -189,7 +189,7 @@ namespace inertia::daq::testing {
 namespace {
 
 TEST(DaqdFaults, NanSensorIsMarkedInvalidExactlyReportedAndRecovers) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   // Paced 3.5 s; the first sensor sends "no valid reading" from 0.5 s for 1 s: samples
   // 5000..14999 (10000 at 10 kHz) and no others.
   const DaqdRun r = run_daqd({"--duration", "3.5", "--fault", "nan@0.5+1"}, 30);
@@ -227,10 +227,10 @@ TEST(DaqdFaults, NanSensorIsMarkedInvalidExactlyReportedAndRecovers) {
 
 
 TEST(DaqdFaults, FullDiskKeepsSamplingAndPublishingCountsTheMissingBlocksAndResumes) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   SmallDisk disk(tmp.path / "disk", "6m");
-  if (!disk.why_not.empty()) GTEST_SKIP() << disk.why_not;
+  if (!disk.why_not.empty()) INERTIA_SKIP_OR_FAIL_IN_CI(disk.why_not);
   {  // 5 of the 6 MiB taken: the log (~1.3 MB/s) fills the rest within about a second
     std::ofstream filler(disk.path / "filler", std::ios::binary);
     const std::vector<char> chunk(1 << 20, 'f');
@@ -310,8 +310,8 @@ TEST(DaqdFaults, FullDiskKeepsSamplingAndPublishingCountsTheMissingBlocksAndResu
 // line. The daemon runs as nobody with RLIMIT_RTPRIO 0 and a 64 KiB RLIMIT_MEMLOCK, so the
 // kernel refuses both, as it would on a bench PC without the unit's limits.
 TEST(DaqdFaults, RefusedRealTimeSettingsAreFaultsOnTheStatusChannel) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
-  if (::geteuid() != 0) GTEST_SKIP() << "not root: cannot run the daemon as another user";
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
+  if (::geteuid() != 0) INERTIA_SKIP_OR_FAIL_IN_CI("not root: cannot run the daemon as another user");
   TempDir tmp;
   fs::permissions(tmp.path, fs::perms::all);
   const auto drop = [] {

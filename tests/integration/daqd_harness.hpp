@@ -31,6 +31,7 @@
 #include "inertia/daq_status_t.hpp"
 #include "inertia/plan_event_t.hpp"
 #include "inertia/sample_block_t.hpp"
+#include "tests/support/skip_or_fail.hpp"
 
 namespace inertia::daq::testing {
 
@@ -49,7 +50,7 @@ inline std::string private_lcm_url() {
   return "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0";
 }
 
-/// Skip message when LCM cannot work here (the CI script adds the route).
+/// LCM cannot work here: the test skips, or fails under CI=true (the CI script adds the route).
 inline bool lcm_route_missing() { return !has_multicast_route(); }
 inline constexpr const char* kNoRouteMessage =
     "no multicast route: LCM cannot run here (fix: ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo)";

@@ -96,7 +96,7 @@ std::string vcan_bench(const std::string& interface) {
 TEST(KernelCan, TheDaemonSamplesAVcanBusAndReportsABusOffFromErrorFrames) {
   VirtualCan vcan;
   if (!vcan.why_not.empty()) GTEST_SKIP() << vcan.why_not;
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const fs::path bench = tmp.path / "bench.toml";
   std::ofstream(bench) << vcan_bench(vcan.name);
@@ -216,7 +216,7 @@ TEST(KernelGpio, CheckFindsTheLinesFreeThenNamesTheOneAnotherProgramHolds) {
 TEST(KernelGpio, TheDaemonCountsQuadratureEdgesOnARealChip) {
   SimulatedChip sim(8);
   if (!sim.why_not.empty()) GTEST_SKIP() << sim.why_not;
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const fs::path bench = tmp.path / "bench.toml";
   std::ofstream(bench) << encoder_bench(sim.chip);

@@ -23,7 +23,7 @@ inline std::int64_t logged_samples(const std::vector<LogEvent>& events, const st
 }
 
 TEST(DaqdService, NotifiesReadyAndWatchdogThenStopsCleanlyOnSigterm) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   NotifySocket notify(tmp.path / "notify.sock");
   const std::string url = private_lcm_url();
@@ -73,7 +73,7 @@ TEST(DaqdService, NotifiesReadyAndWatchdogThenStopsCleanlyOnSigterm) {
 TEST(DaqdService, RunsWithoutSystemdAndSaysWhenNothingIsLogged) {
   // Without NOTIFY_SOCKET (started by hand) the daemon runs and exits as usual; without --log
   // it says that nothing is recorded durably.
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   DaqdProcess daqd({"--config", kSmall, "--fast", "--duration", "0.3", "--lcm-url", private_lcm_url()}, {},
                    tmp.path / "stderr.txt");
@@ -82,7 +82,7 @@ TEST(DaqdService, RunsWithoutSystemdAndSaysWhenNothingIsLogged) {
 }
 
 TEST(DaqdService, SighupStartsANewLogFileWithoutLosingAnything) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   NotifySocket notify(tmp.path / "notify.sock");
   DaqdProcess daqd({"--config", kSmall, "--duration", "600", "--log", (tmp.path / "log").string(), "--lcm-url",
@@ -161,12 +161,12 @@ void run_stall(std::size_t queue, bool expect_loss) {
 }
 
 TEST(DaqdService, DiskStallOfOneAndAHalfSecondsDoesNotStallSamplingOrPublishing) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   run_stall(512, false);
 }
 
 TEST(DaqdService, LogLossFromAStallLongerThanTheQueueIsCountedNotSilent) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   run_stall(16, true);
 }
 
@@ -189,7 +189,7 @@ TEST(DaqdService, AbsentDeviceOnARealBenchExitsTwoNamingIt) {
   // The bench template wires CAN interfaces this machine does not have (no AF_CAN here, or no
   // can0 elsewhere): the daemon names the required device at its interface key, with the fix,
   // and exits 2 (daqd_check_test.cpp: optional devices).
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   DaqdProcess daqd({"--config", source_path("config/bench-template.toml"), "--lcm-url", private_lcm_url()}, {},
                    tmp.path / "stderr.txt");
@@ -201,7 +201,7 @@ TEST(DaqdService, AbsentDeviceOnARealBenchExitsTwoNamingIt) {
 }
 
 TEST(DaqdService, UnitFilePassesSystemdAnalyzeVerify) {
-  if (std::system("command -v systemd-analyze > /dev/null 2>&1") != 0) GTEST_SKIP() << "systemd-analyze not installed";
+  if (std::system("command -v systemd-analyze > /dev/null 2>&1") != 0) INERTIA_SKIP_OR_FAIL_IN_CI("systemd-analyze not installed");
   TempDir tmp;
   std::ifstream in(source_path("systemd/inertia-daqd.service"));
   std::stringstream ss;
@@ -240,7 +240,7 @@ namespace inertia::daq::testing {
 namespace {
 
 TEST(DaqdService, WatchdogIsWithheldWhileASamplingThreadHangsAndResumesAfter) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   NotifySocket notify(tmp.path / "notify.sock");
   // Paced; the CAN sampling thread sleeps 1.5 s from 0.5 s (as if stuck in a driver).

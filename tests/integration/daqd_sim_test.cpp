@@ -16,7 +16,7 @@ namespace inertia::daq::testing {
 namespace {
 
 TEST(DaqdSim, LogAndStreamMatchSimulatorTruth) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const std::string config = source_path("tests/integration/configs/daq-small.toml");
   const std::string url = private_lcm_url();

@@ -74,7 +74,7 @@ double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 }
 
 TEST(LogCharacterize, DaqdLogToModelMatchesTheSimulatorTruth) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const std::string config = source_path("config/sim-paper-daq.toml");
   DaqdProcess daqd({"--config", config, "--fast", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
@@ -172,7 +172,7 @@ namespace {
 // `characterize --log` of the paced run then equals `characterize --dataset` of the simulator's
 // own output within 3 combined sd, and every lost frame is in the fusion's exclusions.
 TEST(LogCharacterize, RealStyleTimingLogEqualsTheSimulatorsOwnDataset) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const fs::path config = tmp.path / "bench.toml";
   {
@@ -249,7 +249,7 @@ TEST(LogCharacterize, RealStyleTimingLogEqualsTheSimulatorsOwnDataset) {
 // plan's cases and phases from the references' motion; the model equals the marked log's within
 // 3 combined sd, and the output says where it cut.
 TEST(LogCharacterize, ALogWithoutMarkersIsSegmentedFromTheReferences) {
-  if (lcm_route_missing()) GTEST_SKIP() << kNoRouteMessage;
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   DaqdProcess daqd({"--config", source_path("config/sim-paper-daq.toml"), "--fast", "--log", (tmp.path / "log").string(),
                     "--lcm-url", private_lcm_url()},

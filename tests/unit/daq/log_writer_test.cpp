@@ -18,6 +18,7 @@
 #include "daq/daemon.hpp"
 #include "daq/log_writer.hpp"
 #include "tests/support/scratch_dirs.hpp"
+#include "tests/support/skip_or_fail.hpp"
 
 namespace inertia::daq {
 namespace {
@@ -144,7 +145,7 @@ TEST(LogWriter, AStalledWriterNeverBlocksEnqueueAndCountsWhatItLost) {
 TEST(LogWriter, AFullDiskLeavesWholeRecordsCountsWhatItCouldNotWriteAndResumes) {
   TempDir tmp;
   SmallDisk disk(tmp.path / "disk", "2m");
-  if (!disk.why_not.empty()) GTEST_SKIP() << disk.why_not;
+  if (!disk.why_not.empty()) INERTIA_SKIP_OR_FAIL_IN_CI(disk.why_not);
   {  // 1.25 MiB of the 2 MiB taken by something else: about 75 messages fit
     std::ofstream filler(disk.path / "filler", std::ios::binary);
     const std::vector<char> chunk(1 << 16, 'f');
@@ -228,8 +229,8 @@ class Counter {
 };
 
 TEST(LogWriter, LcmLogplayerReplaysTheLog) {
-  if (std::system("command -v lcm-logplayer > /dev/null 2>&1") != 0) GTEST_SKIP() << "lcm-logplayer not installed";
-  if (!has_multicast_route()) GTEST_SKIP() << "no multicast route (ip route add 224.0.0.0/4 dev lo)";
+  if (std::system("command -v lcm-logplayer > /dev/null 2>&1") != 0) INERTIA_SKIP_OR_FAIL_IN_CI("lcm-logplayer not installed");
+  if (!has_multicast_route()) INERTIA_SKIP_OR_FAIL_IN_CI("no multicast route (ip route add 224.0.0.0/4 dev lo)");
   TempDir tmp;
   LogWriterOptions o;
   o.dir = tmp.path;

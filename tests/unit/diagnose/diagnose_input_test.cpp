@@ -2,6 +2,7 @@
 // term, wrong sensor kind, a missing column) as InputError naming what is wrong, and a small
 // synthetic case where the hidden term and its coefficient are known exactly.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
@@ -162,7 +163,15 @@ TEST_F(DiagnoseCommand, WritesJsonAugmentedModelAndReport) {
   const std::string text((std::istreambuf_iterator<char>(j)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("\"findings\""), std::string::npos);
   EXPECT_NE(text.find("\"a_i*a_p\""), std::string::npos);
-  EXPECT_NE(text.find("\"residual_rms\""), std::string::npos);
+  // The contract (design.md): residual_rms is a number, the per-case detail sits beside it.
+  const nlohmann::json parsed = nlohmann::json::parse(text);
+  for (const char* step : {"baseline", "final"}) {
+    ASSERT_TRUE(parsed[step]["residual_rms"].is_number()) << step << ": " << parsed[step]["residual_rms"].dump();
+    EXPECT_GT(parsed[step]["residual_rms"].get<double>(), 0.0) << step;
+    EXPECT_TRUE(parsed[step]["residual_rms_by_case"].is_object()) << step;
+  }
+  // The missing a_i*a_p is found, so the final residual is smaller than the baseline's.
+  EXPECT_LT(parsed["final"]["residual_rms"].get<double>(), parsed["baseline"]["residual_rms"].get<double>());
   const model::ModelFile m = model::read_model(o.report / "model-augmented.toml");
   ASSERT_TRUE(m.coefficient(ident::parse_term("a_i*a_p")).has_value());
   EXPECT_TRUE(fs::exists(o.report / "report.md"));

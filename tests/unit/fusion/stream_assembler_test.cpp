@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "analyzer/fusion/stream_assembler.hpp"
@@ -344,6 +346,65 @@ TEST(StreamAssembler, InvalidSamplesAreExcludedNeverFilled) {
   const FusedSegment& last = r.segments.back();
   EXPECT_NEAR(last.t(0), 1.501, 1e-12);
   EXPECT_LT((last.a_e.row(100).transpose() - truth_at(2000 + 1601).a).norm(), 1e-6);
+}
+
+// Found by fuzz_event_log (issue 15): a linear-encoder block whose sample period is 5.4e-23 s put
+// the sample index of the next row past the int64 range (an undefined conversion, reported by
+// UBSan). Those rows have the encoder missing, as after a lost block; nothing is read for them.
+TEST(StreamAssembler, ReferenceWithAnAbsurdPeriodIsMissingNotRead) {
+  AssemblerOptions o;
+  o.sensor = "acc1";
+  o.min_segment_s = 0.0;
+  std::vector<FusedSegment> segments;
+  StreamAssembler a(o, [&segments](FusedSegment&& s) { segments.push_back(std::move(s)); });
+  a.push(bench_message(), "bench");
+  a.push(mark(plan_event_t::MARK_CASE_START, "shake", "shaker", -1, "", 0, kBlock), "start");
+  a.push(mark(plan_event_t::MARK_PHASE_START, "shake", "shaker", 0, "sine", 0, kBlock), "phase");
+  a.push(encoder_block("table_encoder", 0, kBlock), "table");
+  a.push(accel_block(0, kBlock), "accel");
+  sample_block_t encoder = encoder_block("linear_encoder", 0, kBlock);
+  encoder.sample_period_s = 5.421010862427522e-23;   // the fuzzer's period
+  a.push(encoder, "linear");
+  a.push(mark(plan_event_t::MARK_CASE_END, "shake", "shaker", -1, "", 0, kBlock - 1), "end");
+  a.finish();
+  std::int64_t missing = 0;
+  for (const Exclusion& x : a.exclusions())
+    if (x.reason.find("linear_encoder.position missing") != std::string::npos) missing += x.samples;
+  EXPECT_GE(missing, kBlock - 5);   // every row but those at the encoder's only real instant
+  EXPECT_LE(a.fused_rows(), 5);
+}
+
+// fuzz_event_log found it: a bench whose monitors all lie in one plane let fusion's
+// std::invalid_argument escape the reader and end the process. It is the bench's fault, named
+// with the case, like any other bad input.
+TEST(StreamAssembler, MonitorsThatDoNotSpanThreeDimensionsAreBadInput) {
+  std::string text = kBench;
+  for (const auto& [from, to] : {std::pair<std::string, std::string>{"[0.70710678, 0.0, 0.70710678]", "[0.0, 1.0, 0.0]"},
+                                 {"[0.70710678, 0.0, -0.70710678]", "[1.0, 0.0, 0.0]"}}) {
+    const std::size_t at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);   // every monitor axis now in the x-y plane
+  }
+  bench_config_t bench = bench_message();
+  bench.texts = {text};
+  AssemblerOptions o;
+  o.sensor = "acc1";
+  o.min_segment_s = 0.0;
+  StreamAssembler a(o, [](FusedSegment&&) {});
+  try {
+    a.push(bench, "bench");
+    a.push(mark(plan_event_t::MARK_CASE_START, "shake", "shaker", -1, "", 0, kBlock), "start");
+    a.push(mark(plan_event_t::MARK_PHASE_START, "shake", "shaker", 0, "sine", 0, kBlock), "phase");
+    a.push(encoder_block("linear_encoder", 0, kBlock), "linear");
+    a.push(encoder_block("table_encoder", 0, kBlock), "table");
+    a.push(accel_block(0, kBlock), "accel");
+    a.push(mark(plan_event_t::MARK_CASE_END, "shake", "shaker", -1, "", 0, kBlock - 1), "end");
+    a.finish();
+    FAIL() << "coplanar monitors were fused";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("case shake (shaker)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("do not span three dimensions"), std::string::npos) << e.what();
+  }
 }
 
 TEST(StreamAssembler, BadInputIsNamed) {

@@ -6,6 +6,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstring>
 #include <random>
 #include <vector>
@@ -156,6 +157,23 @@ TEST(FrameMap, ValidationNamesTheSignal) {
   EXPECT_FALSE(map.is_valid(&why));
   map.signals[1].extended = true;
   EXPECT_TRUE(map.is_valid(&why)) << why;
+}
+
+// Found by tests/fuzz/fuzz_can_frame_map (issue 15): a map whose scale takes a raw value past the
+// double range decoded a valid sample as infinity. Such a map is refused at load, naming the signal.
+TEST(FrameMap, ScaleThatOverflowsADoubleIsRefused) {
+  CanFrameMap map{{sig("huge", 0x10, 0, 0, 64, ByteOrder::LittleEndian, false)}};
+  map.signals[0].scale = 1e300;
+  std::string why;
+  EXPECT_FALSE(map.is_valid(&why));
+  EXPECT_NE(why.find("'huge'"), std::string::npos) << why;
+  EXPECT_NE(why.find("beyond the range of a double"), std::string::npos) << why;
+  map.signals[0].bit_length = 16;   // 65535 * 1e300 is still a double
+  EXPECT_TRUE(map.is_valid(&why)) << why;
+  EXPECT_TRUE(std::isfinite(to_value(0xFFFF, map.signals[0])));
+  map.signals[0].offset = -1.7e308;   // the offset alone at the edge, plus the scaled counts
+  map.signals[0].scale = -1e304;
+  EXPECT_FALSE(map.is_valid(&why));
 }
 
 TEST_F(CanPair, DecodesClassicFrameWithHandWrittenBytes) {

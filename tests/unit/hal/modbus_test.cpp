@@ -74,6 +74,21 @@ TEST(RegisterMap, ValidationNamesTheRegister) {
   EXPECT_NE(why.find("twice"), std::string::npos) << why;
 }
 
+// Issue 15: a controller sends NaN (or infinity) in a float register for a broken sensor; such a
+// word is no reading, never a sample (tests/fuzz/fuzz_modbus_registers checks every word).
+TEST(RegisterMap, NonFiniteFloatRegistersAreNoReading) {
+  const RegisterSpec f = spec(DataType::Float32, WordOrder::ABCD);
+  const std::uint16_t nan_words[2] = {0x7FC0, 0x0000};
+  const std::uint16_t inf_words[2] = {0xFF80, 0x0000};
+  const std::uint16_t ten_words[2] = {0x4120, 0x0000};
+  EXPECT_FALSE(decode_reading(f, nan_words));
+  EXPECT_FALSE(decode_reading(f, inf_words));
+  EXPECT_EQ(decode_reading(f, ten_words), 10.0);
+  // A finite raw value that the scale carries past the double range is no reading either.
+  const std::uint16_t big[2] = {0x7F7F, 0xFFFF};   // FLT_MAX
+  EXPECT_FALSE(decode_reading(spec(DataType::Float32, WordOrder::ABCD, 1e300), big));
+}
+
 class BenchModbus : public ::testing::Test {
  protected:
   void start(const BenchControllerState& initial = {}) {
@@ -140,6 +155,24 @@ TEST_F(BenchModbus, PollReadsEveryRegisterThroughTheMap) {
   EXPECT_EQ(c->link().health().errors, 0u);
   // Contiguous registers share a request: 0x1000..0x1003 and 0x2000..0x200A.
   EXPECT_EQ(c->link().health().requests, 2u);
+}
+
+TEST_F(BenchModbus, NanAndInfiniteRegistersArePolledAsInvalidOthersStayValid) {
+  BenchControllerState s;
+  s.frozen = true;
+  s.temperature_degC = 31.25;
+  s.table_angle_rad = std::numeric_limits<double>::quiet_NaN();
+  s.table_rate_rad_s = std::numeric_limits<double>::infinity();
+  start(s);
+  auto c = connect();
+  ASSERT_NE(c, nullptr);
+  const auto values = c->poll();
+  const auto at = [&](std::string_view name) { return values[static_cast<std::size_t>(c->config().map.find(name))]; };
+  EXPECT_FALSE(at("table_angle").valid);
+  EXPECT_FALSE(at("table_rate").valid);
+  EXPECT_TRUE(at("temperature").valid);
+  EXPECT_DOUBLE_EQ(at("temperature").value, 31.25);
+  EXPECT_EQ(c->link().health().errors, 0u);   // the link is fine: the values are what is missing
 }
 
 TEST_F(BenchModbus, SetpointWritesAreOffUnlessEnabledThenClamped) {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "tests/unit/lcm/known_messages.hpp"
+#include "tests/support/skip_or_fail.hpp"
 
 namespace inertia {
 namespace {
@@ -37,9 +38,9 @@ std::string private_url() {
 TEST(LcmLive, SampleBlocksAndStatusArriveDecodedOverUdpMulticast) {
   lcm::LCM lcm(private_url());
   if (!lcm.good()) {
-    GTEST_SKIP() << "LCM could not open " << private_url()
-                 << " (no multicast route?). Fix: ip link set lo multicast on; "
-                    "ip route add 224.0.0.0/4 dev lo";
+    INERTIA_SKIP_OR_FAIL_IN_CI("LCM could not open " + private_url() +
+                               " (no multicast route?). Fix: ip link set lo multicast on; "
+                               "ip route add 224.0.0.0/4 dev lo");
   }
   Receiver receiver;
   lcm::Subscription* raw = lcm.subscribe("INERTIA_RAW_.*", &Receiver::on_block, &receiver);
