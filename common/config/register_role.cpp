@@ -74,7 +74,9 @@ void check_register_references(const std::vector<TableReader>& tables, const Mod
   for (std::size_t i = 0; i < d.registers.size(); ++i) {
     for (const auto& [key, target] : {std::pair{"measured", d.registers[i].measured}, std::pair{"settled_by", d.registers[i].settled_by}}) {
       if (target.empty()) continue;
-      const bool known = std::any_of(d.registers.begin(), d.registers.end(), [&](const ModbusRegister& x) { return x.name == target; });
+      // A named copy: clang 14 (the fuzz build) cannot capture a structured binding.
+      const std::string& name = target;
+      const bool known = std::any_of(d.registers.begin(), d.registers.end(), [&name](const ModbusRegister& x) { return x.name == name; });
       if (!known) tables[i].fail_key(key, "names no register of device '" + d.name + "' ('" + target + "')");
     }
   }
