@@ -68,7 +68,13 @@ std::optional<Segmentation> segment_unmarked(const std::filesystem::path& file) 
     }
     return true;
   });
-  Segmentation seg = segment_plan(bench, motion.runs(), origin_ns);
+  VibrationEdgeRefiner edges(motion, motion.runs());
+  EventLogReader again(file);
+  walk_log(again, file, [&](const LogRecord& r, const std::string& where) {
+    if (r.channel.rfind(channels::kRawPrefix, 0) == 0) edges.push(decode<sample_block_t>(r, where, "sample_block_t"));
+    return true;
+  });
+  Segmentation seg = segment_plan(bench, edges.runs(), origin_ns);
   seg.description.insert(
       seg.description.begin(),
       fmt::format("no plan markers in this log: cases and phases cut from the references' motion (rotation: table "

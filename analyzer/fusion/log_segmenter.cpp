@@ -19,6 +19,12 @@ namespace {
 // more than a tenth of a test at rest), and how far above it vibration stands.
 constexpr double kFloorPercentile = 0.10;
 constexpr double kVibrationOverFloor = 10.0;
+// How far (in -2 log-likelihood) a split between rest and vibration may lie from the best one and
+// still be where the change happened: 9, a 3 sd interval were the statistic chi-square with one
+// degree of freedom.
+constexpr double kEdgeLikelihoodRatio = 9.0;
+// Samples left out either side of a cut between two cases (see segment_plan).
+constexpr double kCaseGuardSamples = 10.0;
 
 MotionClass class_of(config::PhaseKind kind) {
   switch (kind) {
@@ -49,13 +55,26 @@ const char* to_string(MotionClass c) {
   return "?";
 }
 
-double MotionClassifier::Sums::detrended_sd() const {
-  if (n < 3) return 0.0;
-  // Residual sum of squares of the least-squares line y = a + b t.
-  const double stt = tt - t * t / n, sty = ty - t * y / n, syy = yy - y * y / n;
-  const double rss = stt > 0 ? syy - sty * sty / stt : syy;
-  return std::sqrt(std::max(0.0, rss) / (n - 2));
+void LineSums::add(double t_s, double value) {
+  n += 1;
+  t += t_s;
+  tt += t_s * t_s;
+  y += value;
+  ty += t_s * value;
+  yy += value * value;
 }
+
+LineSums LineSums::operator-(const LineSums& earlier) const {
+  return {n - earlier.n, t - earlier.t, tt - earlier.tt, y - earlier.y, ty - earlier.ty, yy - earlier.yy};
+}
+
+double LineSums::residual_ss() const {
+  if (n < 3) return 0.0;
+  const double stt = tt - t * t / n, sty = ty - t * y / n, syy = yy - y * y / n;
+  return std::max(0.0, stt > 0 ? syy - sty * sty / stt : syy);
+}
+
+double LineSums::detrended_sd() const { return n < 3 ? 0.0 : std::sqrt(residual_ss() / (n - 2)); }
 
 MotionClassifier::Window::Window()
     : move_first_ns(std::numeric_limits<double>::quiet_NaN()), move_last_ns(std::numeric_limits<double>::quiet_NaN()) {}
@@ -80,24 +99,18 @@ MotionClassifier::MotionClassifier(const config::BenchConfig& bench) {
 void MotionClassifier::push(const sample_block_t& block) {
   const double period_ns = block.sample_period_s * 1e9;
   if (!(period_ns > 0.0) || block.num_samples <= 0) return;
-  if (!have_origin_) {
-    origin_ns_ = static_cast<double>(block.t0_mono_ns);
-    have_origin_ = true;
-  }
   for (std::int32_t c = 0; c < block.num_channels; ++c) {
     const std::string& name = block.channel_names[static_cast<std::size_t>(c)];
     const bool table = block.device == table_device_ && name == table_signal_;
-    std::optional<std::size_t> monitor;
-    for (std::size_t m = 0; m < monitor_refs_.size(); ++m)
-      if (block.device == monitor_refs_[m].first && name == monitor_refs_[m].second) monitor = m;
+    const std::optional<std::size_t> monitor = monitor_of(block.device, name);
     if (!table && !monitor) continue;
     for (std::int32_t s = 0; s < block.num_samples; ++s) {
       const double v = block.values[static_cast<std::size_t>(c)][static_cast<std::size_t>(s)];
       if (!sample_valid(block, c, s) || !std::isfinite(v)) continue;
       const double t = static_cast<double>(block.t0_mono_ns) + period_ns * s;
-      const auto w = static_cast<std::int64_t>(std::floor((t - origin_ns_) / window_ns_));
+      const auto w = static_cast<std::int64_t>(std::floor(t / window_ns_));
       Window& win = windows_[w];
-      const double tw = (t - origin_ns_ - static_cast<double>(w) * window_ns_) * 1e-9;
+      const double tw = (t - static_cast<double>(w) * window_ns_) * 1e-9;
       if (table) {
         if (!win.turned_known || tw < win.first_t) {
           win.first_t = tw;
@@ -118,23 +131,23 @@ void MotionClassifier::push(const sample_block_t& block) {
         }
       } else {
         if (win.monitors.size() < monitor_refs_.size()) win.monitors.resize(monitor_refs_.size());
-        Sums& sm = win.monitors[*monitor];
-        sm.n += 1;
-        sm.t += tw;
-        sm.tt += tw * tw;
-        sm.y += v;
-        sm.ty += tw * v;
-        sm.yy += v * v;
+        win.monitors[*monitor].add(tw, v);
       }
     }
   }
+}
+
+std::optional<std::size_t> MotionClassifier::monitor_of(const std::string& device, const std::string& signal) const {
+  for (std::size_t m = 0; m < monitor_refs_.size(); ++m)
+    if (device == monitor_refs_[m].first && signal == monitor_refs_[m].second) return m;
+  return std::nullopt;
 }
 
 double MotionClassifier::vibration_threshold() const {
   std::vector<double> sds;
   for (const auto& [w, win] : windows_) {
     double sd = 0.0;
-    for (const Sums& s : win.monitors) sd = std::max(sd, s.detrended_sd());
+    for (const LineSums& s : win.monitors) sd = std::max(sd, s.detrended_sd());
     if (!win.monitors.empty()) sds.push_back(sd);
   }
   if (sds.empty()) return kVibrationFloor;
@@ -151,13 +164,13 @@ std::vector<MotionRun> MotionClassifier::runs() const {
     MotionClass c = MotionClass::Static;
     const double dt = win.last_t - win.first_t;
     double sd = 0.0;
-    for (const Sums& s : win.monitors) sd = std::max(sd, s.detrended_sd());
+    for (const LineSums& s : win.monitors) sd = std::max(sd, s.detrended_sd());
     if (win.turned_known && dt > 0 && std::abs(win.last_angle - win.first_angle) / dt > kRotationRate) {
       c = MotionClass::Rotation;
     } else if (sd > threshold) {
       c = MotionClass::Vibration;
     }
-    const double start = origin_ns_ + static_cast<double>(w) * window_ns_;
+    const double start = static_cast<double>(w) * window_ns_;
     if (!runs.empty() && runs.back().motion == c && runs.back().end_ns >= start - 0.5 * window_ns_) {
       runs.back().end_ns = start + window_ns_;
       span.back().second = w;
@@ -213,6 +226,102 @@ std::vector<MotionRun> MotionClassifier::runs() const {
     }
   }
   return runs;
+}
+
+VibrationEdgeRefiner::VibrationEdgeRefiner(const MotionClassifier& motion, std::vector<MotionRun> runs)
+    : motion_(motion), runs_(std::move(runs)) {
+  const auto vibration_edge = [](MotionClass a, MotionClass b) {
+    return (a == MotionClass::Static && b == MotionClass::Vibration) || (a == MotionClass::Vibration && b == MotionClass::Static);
+  };
+  for (std::size_t i = 0; i + 1 < runs_.size(); ++i) {
+    if (!vibration_edge(runs_[i].motion, runs_[i + 1].motion)) continue;
+    const double edge = runs_[i].end_ns;
+    edges_.push_back({i, std::max(runs_[i].start_ns, edge - motion.window_ns()), std::min(runs_[i + 1].end_ns, edge + motion.window_ns()),
+                      std::vector<std::vector<std::pair<double, double>>>(motion.monitor_count())});
+  }
+}
+
+void VibrationEdgeRefiner::push(const sample_block_t& block) {
+  const double period_ns = block.sample_period_s * 1e9;
+  if (edges_.empty() || !(period_ns > 0.0) || block.num_samples <= 0) return;
+  const double first = static_cast<double>(block.t0_mono_ns), last = first + period_ns * (block.num_samples - 1);
+  for (std::int32_t c = 0; c < block.num_channels; ++c) {
+    const std::optional<std::size_t> monitor = motion_.monitor_of(block.device, block.channel_names[static_cast<std::size_t>(c)]);
+    if (!monitor) continue;
+    for (Edge& e : edges_) {
+      if (last < e.from_ns || first >= e.to_ns) continue;
+      for (std::int32_t s = 0; s < block.num_samples; ++s) {
+        const double t = first + period_ns * s;
+        const double v = block.values[static_cast<std::size_t>(c)][static_cast<std::size_t>(s)];
+        if (t >= e.from_ns && t < e.to_ns && sample_valid(block, c, s) && std::isfinite(v)) e.samples[*monitor].emplace_back(t, v);
+      }
+    }
+  }
+}
+
+std::vector<MotionRun> VibrationEdgeRefiner::runs() const {
+  std::vector<MotionRun> out = runs_;
+  for (const Edge& e : edges_) {
+    // Per monitor, prefix sums of (t - from) in s and (y - its first value), so that the
+    // residual sum of squares of a line through any leading or trailing stretch is a difference.
+    struct Prefix {
+      std::vector<double> t;        // sample times (ns), sorted
+      std::vector<LineSums> sums;   // of the samples before sample k
+    };
+    std::vector<Prefix> prefix;
+    for (std::vector<std::pair<double, double>> samples : e.samples) {
+      if (samples.size() < 6) continue;
+      std::sort(samples.begin(), samples.end());
+      Prefix p;
+      p.sums.emplace_back();
+      // Offsets keep the sums' differences well conditioned (gravity dwarfs the noise).
+      const double y0 = samples.front().second;
+      for (const auto& [t, v] : samples) {
+        LineSums next = p.sums.back();
+        next.add((t - e.from_ns) * 1e-9, v - y0);
+        p.t.push_back(t);
+        p.sums.push_back(next);
+      }
+      prefix.push_back(std::move(p));
+    }
+    if (prefix.empty()) continue;
+    // A side of pure simulated rest has no noise: its variance is floored far below any real
+    // sensor's, so that the likelihood stays finite and still prefers the clean split.
+    double floor = std::numeric_limits<double>::min();
+    for (const Prefix& p : prefix) floor = std::max(floor, 1e-12 * (p.sums.back() - p.sums.front()).residual_ss() / p.sums.back().n);
+    std::vector<std::pair<double, double>> costs;   // (split, cost)
+    for (std::size_t k = 3; k + 3 <= prefix.front().t.size(); ++k) {
+      const double split = prefix.front().t[k];   // the first sample of the later run
+      double cost = 0.0;
+      bool usable = true;
+      for (const Prefix& p : prefix) {
+        const auto at = static_cast<std::size_t>(std::lower_bound(p.t.begin(), p.t.end(), split) - p.t.begin());
+        const std::size_t n = p.t.size();
+        if (at < 3 || n - at < 3) {
+          usable = false;
+          break;
+        }
+        const double n1 = static_cast<double>(at), n2 = static_cast<double>(n - at);
+        cost += n1 * std::log(std::max((p.sums[at] - p.sums.front()).residual_ss() / n1, floor)) +
+                n2 * std::log(std::max((p.sums.back() - p.sums[at]).residual_ss() / n2, floor));
+      }
+      if (usable) costs.emplace_back(split, cost);
+    }
+    if (costs.empty()) continue;
+    // The cost is -2 log-likelihood up to a constant: the splits within kEdgeLikelihoodRatio of
+    // the best are where the change may lie, and their rows belong to neither run.
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& [split, cost] : costs) best = std::min(best, cost);
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const auto& [split, cost] : costs) {
+      if (cost - best > kEdgeLikelihoodRatio) continue;
+      lo = std::min(lo, split);
+      hi = std::max(hi, split);
+    }
+    out[e.run].end_ns = lo;
+    out[e.run + 1].start_ns = hi;
+  }
+  return out;
 }
 
 Segmentation segment_plan(const config::BenchConfig& bench, const std::vector<MotionRun>& runs, double origin_ns) {
@@ -321,6 +430,17 @@ Segmentation segment_plan(const config::BenchConfig& bench, const std::vector<Mo
     std::vector<double>& cur = placed[k].bounds;
     const double next = placed[k + 1].bounds.front();
     for (double& x : cur) x = std::min(x, next);
+    // Where one case ends the other begins in the same rest (an instant remount) or at a change
+    // the references time only to a few samples (a sine starts at zero, a band-limited random may
+    // fall quiet before it ends), a row given the wrong case carries the other mounting's gravity:
+    // kCaseGuardSamples either side of the cut belong to neither case.
+    const double guard = kCaseGuardSamples * 1e9 / bench.sample_rate_hz;
+    std::vector<double>& following = placed[k + 1].bounds;
+    if (following.front() - cur.back() < 2.0 * guard) {
+      const double cut = 0.5 * (cur.back() + following.front());
+      for (double& x : cur) x = std::min(x, cut - guard);
+      for (double& x : following) x = std::max(x, cut + guard);
+    }
   }
   for (const Placed& pc : placed) {
     const config::TestCase& tc = bench.cases[pc.case_index];
@@ -328,7 +448,7 @@ Segmentation segment_plan(const config::BenchConfig& bench, const std::vector<Mo
     std::string line = "  case " + tc.name + ":";
     for (std::size_t i = 0; i < n; ++i) {
       const config::Phase& p = tc.phases[pc.phases[i]->phase_index];
-      line += fmt::format(" {} {:.2f}-{:.2f} s ({}{}){}", config::phase_label(p.kind), sec(pc.bounds[i]), sec(pc.bounds[i + 1]),
+      line += fmt::format(" {} {:.3f}-{:.3f} s ({}{}){}", config::phase_label(p.kind), sec(pc.bounds[i]), sec(pc.bounds[i + 1]),
                           pc.detected[i] ? "detected" : "plan duration", pc.detected[i + 1] ? ", detected end" : "",
                           i + 1 < n ? "," : "");
     }
