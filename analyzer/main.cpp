@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <charconv>
+#include <cmath>
 #include <map>
 #include <vector>
 #include <exception>
@@ -33,7 +34,8 @@ std::map<std::string, double> parse_weights(const std::vector<std::string>& pair
     double w = 0.0;
     const char* begin = pair.data() + (eq == std::string::npos ? 0 : eq + 1);
     const auto [end, ec] = std::from_chars(begin, pair.data() + pair.size(), w);
-    if (eq == std::string::npos || eq == 0 || ec != std::errc() || end != pair.data() + pair.size() || !(w > 0.0)) {
+    if (eq == std::string::npos || eq == 0 || ec != std::errc() || end != pair.data() + pair.size() || !(w > 0.0) ||
+        !std::isfinite(w)) {
       throw inertia::InputError("--weight '" + pair + "': expected CASE=WEIGHT with a positive weight");
     }
     weights[pair.substr(0, eq)] = w;
@@ -71,8 +73,10 @@ int run(int argc, char** argv) {
   auto* characterize_log = characterize->add_option("--log", characterize_options.event_log,
                                                     "inertia-daqd event log (LCM log file) instead of --dataset");
   characterize_dataset->excludes(characterize_log);
-  characterize->add_option("--sensor", characterize_options.sensor, "with --log: the sensor under test (when the bench has several)");
-  characterize->add_option("--dataset-out", characterize_options.dataset_out, "with --log: also write the converted dataset folder");
+  characterize->add_option("--sensor", characterize_options.sensor, "with --log: the sensor under test (when the bench has several)")
+      ->needs(characterize_log);
+  characterize->add_option("--dataset-out", characterize_options.dataset_out, "with --log: also write the converted dataset folder")
+      ->needs(characterize_log);
   characterize->add_option("--out", characterize_options.out, "output folder (model.toml, report.md, plots)")->required();
   characterize->add_option("--order", characterize_options.order, "model order r of the batch candidates")->capture_default_str();
   characterize->add_option("--misalignment-order", characterize_options.misalignment_order,
@@ -105,7 +109,8 @@ int run(int argc, char** argv) {
   auto* diagnose_log =
       diagnose->add_option("--log", diagnose_options.event_log, "inertia-daqd event log (LCM log file) instead of --dataset");
   diagnose_dataset->excludes(diagnose_log);
-  diagnose->add_option("--sensor", diagnose_options.sensor, "with --log: the sensor under test (when the bench has several)");
+  diagnose->add_option("--sensor", diagnose_options.sensor, "with --log: the sensor under test (when the bench has several)")
+      ->needs(diagnose_log);
   diagnose->add_option("--json", diagnose_options.json, "write the findings as JSON")->required();
   diagnose->add_option("--report", diagnose_options.report, "report folder (report.md, plots, augmented model)");
   diagnose->add_option("--summary", diagnose_options.log, "also write the console summary to this file");
@@ -116,7 +121,8 @@ int run(int argc, char** argv) {
   auto* noise_dataset = noise->add_option("--dataset", noise_options.dataset, "dataset folder")->check(CLI::ExistingDirectory);
   auto* noise_log = noise->add_option("--log", noise_options.event_log, "inertia-daqd event log instead of --dataset");
   noise_dataset->excludes(noise_log);
-  noise->add_option("--sensor", noise_options.sensor, "with --log: the sensor under test (when the bench has several)");
+  noise->add_option("--sensor", noise_options.sensor, "with --log: the sensor under test (when the bench has several)")
+      ->needs(noise_log);
   noise->add_option("--case", noise_options.case_name, "only this case, all its rows (default: every static stretch)");
   noise->add_option("--tau-max", noise_options.tau_max_s, "fit averaging times up to this (s; default: as far as the data go)");
   noise->add_option("--out", noise_options.out, "output folder (noise.toml, report.md, plots)")->required();

@@ -6,6 +6,9 @@
 #include <systemd/sd-daemon.h>
 #include <time.h>
 
+#include <fmt/format.h>
+
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -28,6 +31,8 @@
 namespace inertia::daq {
 namespace {
 
+using Limits = config::DaemonLimits;
+
 double to_number(const std::string& option, const std::string& text) {
   try {
     std::size_t used = 0;
@@ -36,6 +41,14 @@ double to_number(const std::string& option, const std::string& text) {
   } catch (const std::exception&) {
   }
   throw InputError("option " + option + ": '" + text + "' is not a number");
+}
+
+// A count or an index: a whole number within [low, high], so that no cast below is undefined.
+long long to_integer(const std::string& option, const std::string& text, long long low, long long high) {
+  const double v = to_number(option, text);
+  if (!(v == std::floor(v)) || v < static_cast<double>(low) || v > static_cast<double>(high))
+    throw InputError(fmt::format("option {}: '{}' is not a whole number in {}..{}", option, text, low, high));
+  return static_cast<long long>(v);
 }
 
 // "AT+DUR" -> (AT, DUR)
@@ -126,11 +139,11 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
     else if (a == "--fast") o.fast = true;
     else if (a == "--block-ms") o.block_ms = to_number(a, value());
     else if (a == "--rotate-mb") o.rotate_mb = to_number(a, value());
-    else if (a == "--fsync-ms") o.fsync_ms = static_cast<int>(to_number(a, value()));
-    else if (a == "--log-queue") o.log_queue = static_cast<std::size_t>(to_number(a, value()));
-    else if (a == "--ring") o.ring = static_cast<std::size_t>(to_number(a, value()));
-    else if (a == "--fifo-priority") o.fifo_priority = static_cast<int>(to_number(a, value()));
-    else if (a == "--cpu") o.cpu = static_cast<int>(to_number(a, value()));
+    else if (a == "--fsync-ms") o.fsync_ms = static_cast<int>(to_integer(a, value(), 1, Limits::kMaxFsyncMs));
+    else if (a == "--log-queue") o.log_queue = static_cast<std::size_t>(to_integer(a, value(), 4, Limits::kMaxLogQueue));
+    else if (a == "--ring") o.ring = static_cast<std::size_t>(to_integer(a, value(), 1024, Limits::kMaxRingSamples));
+    else if (a == "--fifo-priority") o.fifo_priority = static_cast<int>(to_integer(a, value(), 0, Limits::kMaxFifoPriority));
+    else if (a == "--cpu") o.cpu = static_cast<int>(to_integer(a, value(), -1, Limits::kMaxCpu));
     else if (a == "--mlock") {
       o.mlock = true;
       o.given.insert(a);
@@ -140,9 +153,16 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
   }
   if (*help) return o;
   if (o.config.empty()) throw InputError(std::string("--config FILE is required\n") + usage());
-  if (o.duration_s < 0) throw InputError("option --duration: must be >= 0");
-  if (o.block_ms <= 0) throw InputError("option --block-ms: must be > 0");
-  if (o.rotate_mb <= 0) throw InputError("option --rotate-mb: must be > 0");
+  if (o.check) {
+    // --check opens the devices and samples nothing: a sampling option beside it would be ignored.
+    for (const std::string& given : o.given)
+      if (given != "--config") throw InputError("option " + given + ": --check samples nothing; give it --config FILE only");
+    if (o.fast) throw InputError("option --fast: --check samples nothing; give it --config FILE only");
+  }
+  if (!(o.duration_s >= 0) || !std::isfinite(o.duration_s)) throw InputError("option --duration: must be >= 0 and finite");
+  if (!(o.block_ms > 0) || o.block_ms > Limits::kMaxBlockMs)
+    throw InputError(fmt::format("option --block-ms: must be in (0, {}]", Limits::kMaxBlockMs));
+  if (!(o.rotate_mb > 0) || !std::isfinite(o.rotate_mb)) throw InputError("option --rotate-mb: must be > 0 and finite");
   if (o.fsync_ms < 1) throw InputError("option --fsync-ms: must be >= 1");
   if (o.log_queue < 4) throw InputError("option --log-queue: must be >= 4");
   if (o.ring < 1024) throw InputError("option --ring: must be >= 1024");
@@ -169,6 +189,11 @@ int run_daemon(const DaemonOptions& command_line) {
   const config::BenchConfig bench = config::load_bench_config(command_line.config);  // InputError -> exit 2
   DaemonOptions o = command_line;
   apply_bench_settings(o, bench.daemon);
+  // What only a simulator can do is refused on a real bench rather than ignored.
+  if (!bench.simulated && o.fast)
+    throw InputError("option --fast: bench " + bench.name + " is real (backend = \"real\"): it samples in real time");
+  if (!bench.simulated && o.given.count("--fault") != 0)
+    throw InputError("option --fault: bench " + bench.name + " is real: faults are injected into the simulator only");
 
   // Signals are taken synchronously by the supervisor: block them before any thread starts so
   // every thread inherits the mask.

@@ -28,10 +28,16 @@ namespace {
 
 using ident::Term;
 
-double weight_of(const PipelineOptions& options, const std::string& case_name) {
-  const auto it = options.case_weights.find(case_name);
-  return it == options.case_weights.end() ? 1.0 : it->second;
+// A weight names a case of the plan; a log that lost samples splits a case into pieces named
+// CASE-segN (log_dataset.cpp), and the case's weight is each piece's.
+bool weight_names(const std::string& key, const std::string& case_name) {
+  if (case_name == key) return true;
+  const std::string piece = key + "-seg";
+  if (case_name.size() <= piece.size() || case_name.compare(0, piece.size(), piece) != 0) return false;
+  return std::all_of(case_name.begin() + static_cast<std::ptrdiff_t>(piece.size()), case_name.end(),
+                     [](char c) { return c >= '0' && c <= '9'; });
 }
+
 
 /// The names of the external-frame sensitivity terms: a_x a_y a_z, or w_x w_y w_z for a gyroscope
 /// (eq. 5: its misalignment is read from the rate sensitivities, paper section 2.2).
@@ -110,7 +116,7 @@ MountingData mounting_data(const dataset::Dataset& data, const std::vector<std::
     if (known_bias) c.y.array() -= *known_bias;
     m.rotation_table = m.rotation_table || c.kind == dataset::CaseKind::RotationTable;
     m.shaker_only = m.shaker_only && c.kind == dataset::CaseKind::Shaker;
-    m.weights.push_back(weight_of(options, c.name));
+    m.weights.push_back(case_weight(options, c.name));
     m.cases.push_back(std::move(c));
   }
   return m;
@@ -586,7 +592,7 @@ std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const Pipelin
   }
   std::vector<StackInput> inputs;
   for (std::size_t i = 0; i < data.cases.size(); ++i) {
-    inputs.push_back({i, &data.cases[i], cases[i].m_es, weight_of(options, data.cases[i].name)});
+    inputs.push_back({i, &data.cases[i], cases[i].m_es, case_weight(options, data.cases[i].name)});
   }
   return inputs;
 }
@@ -861,9 +867,28 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   return result;
 }
 
+double case_weight(const PipelineOptions& options, const std::string& case_name) {
+  for (const auto& [key, weight] : options.case_weights)
+    if (weight_names(key, case_name)) return weight;
+  return 1.0;
+}
+
+// A weight for a case the dataset does not have would be silently ignored: a typo in a case name
+// must not pass for a weighted fit.
+void check_case_weights(const dataset::Dataset& data, const PipelineOptions& options) {
+  std::vector<std::string> names;
+  for (const dataset::CaseData& c : data.cases) names.push_back(c.name);
+  for (const auto& [key, weight] : options.case_weights) {
+    if (std::none_of(names.begin(), names.end(), [&](const std::string& n) { return weight_names(key, n); }))
+      throw InputError(fmt::format("--weight {}={}: the dataset has no case '{}' (its cases: {})", key, weight, key,
+                                   fmt::join(names, ", ")));
+  }
+}
+
 PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions& options,
                             std::string_view dataset_label) {
   if (data.cases.empty()) throw InputError("the dataset has no cases");
+  check_case_weights(data, options);
   if (data.sensor == dataset::SensorKind::Gyroscope) {
     std::vector<std::string> without;
     for (const dataset::CaseData& c : data.cases)

@@ -206,13 +206,17 @@ DaemonSettings read_daemon(const TableReader& t) {
     if (d.log_dir->empty()) t.fail_key("log_dir", "must not be empty (leave the key out for no log)");
   }
   if (t.has("lcm_url")) d.lcm_url = t.string("lcm_url");
-  if (t.has("block_ms")) d.block_ms = t.positive("block_ms");
+  if (t.has("block_ms")) {
+    d.block_ms = t.positive("block_ms");
+    if (*d.block_ms > DaemonLimits::kMaxBlockMs) t.fail_key("block_ms", "must be at most " + std::to_string(static_cast<int>(DaemonLimits::kMaxBlockMs)) + " ms");
+  }
   if (t.has("rotate_mb")) d.rotate_mb = t.positive("rotate_mb");
-  if (t.has("fsync_ms")) d.fsync_ms = static_cast<int>(t.integer_in("fsync_ms", 1000, 1, 3'600'000));
-  if (t.has("log_queue")) d.log_queue = static_cast<int>(t.integer_in("log_queue", 512, 4, 1 << 20));
-  if (t.has("ring_samples")) d.ring_samples = static_cast<int>(t.integer_in("ring_samples", 1 << 17, 1024, 1 << 28));
-  if (t.has("fifo_priority")) d.fifo_priority = static_cast<int>(t.integer_in("fifo_priority", 0, 0, 99));
-  if (t.has("cpu_affinity")) d.cpu_affinity = static_cast<int>(t.integer_in("cpu_affinity", -1, -1, 4095));
+  if (t.has("fsync_ms")) d.fsync_ms = static_cast<int>(t.integer_in("fsync_ms", 1000, 1, DaemonLimits::kMaxFsyncMs));
+  if (t.has("log_queue")) d.log_queue = static_cast<int>(t.integer_in("log_queue", 512, 4, DaemonLimits::kMaxLogQueue));
+  if (t.has("ring_samples"))
+    d.ring_samples = static_cast<int>(t.integer_in("ring_samples", 1 << 17, 1024, DaemonLimits::kMaxRingSamples));
+  if (t.has("fifo_priority")) d.fifo_priority = static_cast<int>(t.integer_in("fifo_priority", 0, 0, DaemonLimits::kMaxFifoPriority));
+  if (t.has("cpu_affinity")) d.cpu_affinity = static_cast<int>(t.integer_in("cpu_affinity", -1, -1, DaemonLimits::kMaxCpu));
   if (t.has("mlock")) d.mlock = t.boolean_or("mlock", false);
   t.finish();
   return d;

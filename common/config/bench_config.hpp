@@ -258,6 +258,17 @@ struct SimTiming {
   bool enabled = false;            // the table is present
 };
 
+// The daemon's settings' ranges, one place for the bench file's [daemon] table and the command
+// line: a value outside one is bad input, never an undefined cast.
+struct DaemonLimits {
+  static constexpr double kMaxBlockMs = 1000.0;
+  static constexpr int kMaxFsyncMs = 3'600'000;
+  static constexpr int kMaxLogQueue = 1 << 20;
+  static constexpr int kMaxRingSamples = 1 << 28;
+  static constexpr int kMaxFifoPriority = 99;   // SCHED_FIFO's range on Linux is 1..99; 0 is off
+  static constexpr int kMaxCpu = 4095;
+};
+
 struct DaemonSettings {
   std::optional<std::string> log_dir;      // --log: durable event log directory
   std::optional<std::string> lcm_url;      // --lcm-url

@@ -241,5 +241,17 @@ TEST_F(DeviceCheck, TheDaemonNamesARequiredDeviceThatIsNotThereWithFileLineAndFi
   EXPECT_NE(out.find("  fix: "), std::string::npos) << out;
 }
 
+TEST_F(DeviceCheck, WhatOnlyTheSimulatorDoesIsRefusedOnARealBenchNotIgnored) {
+  const fs::path bench = write(kRealBench + tcp_device("thermal", tcp_->port()));
+  for (const std::vector<std::string>& extra : {std::vector<std::string>{"--fast"}, std::vector<std::string>{"--fault", "stuck@1+1"}}) {
+    TempDir tmp;
+    std::vector<std::string> args{"--config", bench.string(), "--duration", "1", "--lcm-url", private_lcm_url()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    DaqdProcess daqd(args, {}, tmp.path / "stderr.txt");
+    EXPECT_EQ(daqd.wait(30), 2) << extra[0];
+    EXPECT_NE(daqd.output().find("option " + extra[0] + ": bench"), std::string::npos) << daqd.output();
+  }
+}
+
 }  // namespace
 }  // namespace inertia::daq::testing

@@ -323,5 +323,16 @@ TEST(LogCharacterize, ALogWithoutMarkersIsSegmentedFromTheReferences) {
   EXPECT_EQ(common, static_cast<int>(marked.terms.size()));
 }
 
+TEST(LogCharacterize, OptionsForALogAloneAreRefusedWithADataset) {
+  TempDir tmp;
+  for (const std::string& command : {std::string("characterize --dataset ") + tmp.path.string() + " --sensor acc1 --out " + (tmp.path / "o").string(),
+                                     std::string("characterize --dataset ") + tmp.path.string() + " --dataset-out " + (tmp.path / "d").string() +
+                                         " --out " + (tmp.path / "o").string(),
+                                     std::string("noise --dataset ") + tmp.path.string() + " --sensor acc1 --out " + (tmp.path / "o").string()}) {
+    EXPECT_EQ(run_command(analyze_binary() + " " + command, tmp.path / "out.txt"), 2) << command;
+    EXPECT_NE(read_text(tmp.path / "out.txt").find("requires --log"), std::string::npos) << read_text(tmp.path / "out.txt");
+  }
+}
+
 }  // namespace
 }  // namespace inertia::daq::testing

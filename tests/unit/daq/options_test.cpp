@@ -100,5 +100,37 @@ TEST(DaemonOptions, BadInputNamesTheOption) {
   EXPECT_NE(message({"--config", "b", "--fault", "nan@1"}).find("AT+DURATION"), std::string::npos);
 }
 
+TEST(DaemonOptions, CountsAndIndicesAreWholeNumbersInRangeNeverAnUndefinedCast) {
+  bool help = false;
+  auto message = [&](const std::vector<std::string>& args) {
+    try {
+      (void)parse_options(args, &help);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  for (const char* option : {"--fifo-priority", "--cpu", "--ring", "--log-queue", "--fsync-ms"}) {
+    for (const char* value : {"-5", "1e30", "2.5", "nan", "inf"}) {
+      const std::string m = message({"--config", "b", option, value});
+      EXPECT_NE(m.find(option), std::string::npos) << option << " " << value << ": " << m;
+    }
+  }
+  for (const char* value : {"nan", "inf", "5000"}) {
+    EXPECT_NE(message({"--config", "b", "--block-ms", value}).find("--block-ms"), std::string::npos) << value;
+  }
+  EXPECT_NE(message({"--config", "b", "--duration", "inf"}).find("--duration"), std::string::npos);
+  EXPECT_NE(message({"--config", "b", "--rotate-mb", "nan"}).find("--rotate-mb"), std::string::npos);
+  // The bench file's ranges (config::DaemonLimits), both ends accepted.
+  EXPECT_EQ(message({"--config", "b", "--fifo-priority", "99", "--cpu", "4095", "--ring", "268435456", "--log-queue", "4"}),
+            "(accepted)");
+  EXPECT_EQ(message({"--config", "b", "--fifo-priority", "0", "--cpu", "-1", "--ring", "1024", "--fsync-ms", "3600000"}),
+            "(accepted)");
+  // --check samples nothing: a sampling option beside it would be ignored, so it is refused.
+  EXPECT_NE(message({"--check", "--config", "b", "--log", "/tmp/x"}).find("--log"), std::string::npos);
+  EXPECT_NE(message({"--check", "--config", "b", "--fast"}).find("--fast"), std::string::npos);
+  EXPECT_EQ(message({"--check", "--config", "b"}), "(accepted)");
+}
+
 }  // namespace
 }  // namespace inertia::daq
