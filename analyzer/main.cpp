@@ -132,13 +132,17 @@ int run(int argc, char** argv) {
   auto* online = app.add_subcommand("online", "live: fuse the daemon's stream, recursive ULS per sensor, publish INERTIA_ESTIMATE_*");
   online->add_option("--config", online_options.config, "the bench file inertia-daqd runs")->required();
   online->add_option("--model", online_models, "[SENSOR=]MODEL.toml: terms and M_C^S to track (default: the paper's complete static model)");
-  online->add_option("--duration", online_options.duration_s, "stop after S seconds (default: until SIGINT/SIGTERM)");
+  auto* online_duration = online->add_option("--duration", online_options.duration_s, "stop after S seconds (default: until SIGINT/SIGTERM)");
   online->add_option("--publish-hz", online_options.publish_hz, "estimate publishing rate")->capture_default_str();
   online->add_option("--forgetting", online_options.forgetting, "forgetting factor lambda in (0, 1] per sample")->capture_default_str();
-  online->add_option("--lcm-url", online_options.lcm_url, "LCM provider (default: $LCM_DEFAULT_URL or LCM's default)");
+  auto* online_url = online->add_option("--lcm-url", online_options.lcm_url, "LCM provider (default: $LCM_DEFAULT_URL or LCM's default)");
   online->add_option("--noise-window", online_options.noise_window_s, "seconds of rows that fit the noise model (0: white noise)")->capture_default_str();
   online->add_option("--history", online_options.history, "write every published estimate to this CSV file");
-  online->add_option("--replay", online_options.replay, "run on a recorded event log instead of the live stream")->check(CLI::ExistingFile);
+  // A replay reads a file to its end and publishes nothing: a duration or a provider would be ignored.
+  online->add_option("--replay", online_options.replay, "run on a recorded event log instead of the live stream")
+      ->check(CLI::ExistingFile)
+      ->excludes(online_duration)
+      ->excludes(online_url);
   online->add_option("--compare", online_options.compare, "at the end, print the live estimate beside this model file (read then)");
 
   try {

@@ -4,6 +4,8 @@
 // daemon's own log and against the simulator's truth (truth.toml of `simulate` on the same bench).
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include <cmath>
 #include <map>
 
@@ -228,6 +230,16 @@ TEST(OnlineLive, BadInputExitsTwoNamingIt) {
                            {}, tmp.path / "b.txt", analyze_binary());
   EXPECT_EQ(wrong_sensor.wait(30), 2);
   EXPECT_NE(wrong_sensor.output().find("accX"), std::string::npos) << wrong_sensor.output();
+  // A replay publishes nothing and reads to the log's end: --duration and --lcm-url would be ignored.
+  const fs::path log = tmp.path / "empty.lcmlog";
+  std::ofstream(log).put('\0');
+  for (const char* option : {"--duration", "--lcm-url"}) {
+    DaqdProcess replay({"online", "--config", source_path("tests/integration/configs/online-shaker.toml"), "--replay", log.string(), option,
+                        option == std::string("--duration") ? "5" : private_lcm_url()},
+                       {}, tmp.path / "c.txt", analyze_binary());
+    EXPECT_EQ(replay.wait(30), 2) << option;
+    EXPECT_NE(replay.output().find(std::string(option) + " excludes --replay"), std::string::npos) << replay.output();
+  }
 }
 
 }  // namespace
