@@ -64,7 +64,10 @@ bool LogWriter::open_next(std::string* why) {
     if (why) *why = "log file " + path.string() + ": " + std::strerror(errno);
     return false;
   }
-  log_ = log;
+  {
+    std::lock_guard lock(file_mutex_);   // the syncer reads log_
+    log_ = log;
+  }
   file_bytes_ = 0;
   direct_ = false;
   if (!header_channel_.empty()) {
@@ -91,13 +94,29 @@ bool LogWriter::open_next(std::string* why) {
 }
 
 void LogWriter::close_file() noexcept {
+  std::lock_guard lock(file_mutex_);
   if (log_ == nullptr) return;
-  sync();
+  sync_locked();
   lcm_eventlog_destroy(log_);
   log_ = nullptr;
 }
 
 void LogWriter::sync() noexcept {
+  std::lock_guard lock(file_mutex_);
+  sync_locked();
+}
+
+void LogWriter::sync_loop() noexcept {
+  ::pthread_setname_np(::pthread_self(), "log-sync");
+  std::unique_lock lock(syncer_mutex_);
+  while (!syncer_wake_.wait_for(lock, std::chrono::milliseconds(options_.fsync_interval_ms), [this] { return syncer_stop_; })) {
+    lock.unlock();
+    sync();
+    lock.lock();
+  }
+}
+
+void LogWriter::sync_locked() noexcept {
   if (log_ == nullptr) return;
   const std::int64_t t0 = hal::monotonic_now_ns();
   if (std::fflush(log_->f) != 0 || ::fsync(::fileno(log_->f)) != 0) write_errors_.fetch_add(1, std::memory_order_relaxed);
@@ -118,11 +137,18 @@ std::vector<std::filesystem::path> LogWriter::files() const {
 
 void LogWriter::start() {
   thread_ = std::thread([this] { run(); });
+  syncer_ = std::thread([this] { sync_loop(); });
 }
 
 void LogWriter::stop() {
+  {
+    std::lock_guard lock(syncer_mutex_);
+    syncer_stop_ = true;
+  }
+  syncer_wake_.notify_all();
+  if (syncer_.joinable()) syncer_.join();
   stop_.store(true, std::memory_order_release);
-  if (thread_.joinable()) thread_.join();
+  if (thread_.joinable()) thread_.join();   // drains the queue, then syncs once more
 }
 
 bool LogWriter::enqueue(std::string_view channel, const void* data, std::size_t size, std::int64_t utime) noexcept {
@@ -235,7 +261,6 @@ void LogWriter::rotate() noexcept {
 void LogWriter::run() noexcept {
   ::pthread_setname_np(::pthread_self(), "log-writer");
   const std::int64_t start_ns = hal::monotonic_now_ns();
-  std::int64_t last_sync_ns = start_ns;
   bool stalled_once = false;
   for (;;) {
     const bool stopping = stop_.load(std::memory_order_acquire);
@@ -290,11 +315,6 @@ void LogWriter::run() noexcept {
       full_.pop();
       (void)free_.try_push(i);
       if (++done >= 64) break;  // look at rotation/sync requests between batches
-    }
-    const std::int64_t now = hal::monotonic_now_ns();
-    if (now - last_sync_ns >= static_cast<std::int64_t>(options_.fsync_interval_ms) * 1'000'000) {
-      sync();
-      last_sync_ns = now;
     }
     if (done == 0) {
       if (stopping) break;  // queue empty after stop: the publisher has finished, all written

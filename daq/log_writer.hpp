@@ -2,8 +2,14 @@
 // The durable event log (design.md: "UDP can drop; the log cannot: the log is the record").
 // Every message the publisher sends is copied into a slot of a preallocated pool and handed to
 // the writer thread through an SPSC ring; the writer appends it in LCM's log format
-// (lcm_eventlog, so lcm-logplayer replays it and lcm-spy decodes it), flushes and fsyncs
-// periodically, rotates the file at a size limit or on request (SIGHUP).
+// (lcm_eventlog, so lcm-logplayer replays it and lcm-spy decodes it) with one write() per
+// record, and rotates the file at a size limit or on request (SIGHUP). A syncer thread fsyncs
+// every fsync_interval_ms beside it.
+//
+// Crash bounds (README "Crash safety"): a record is in the kernel once written, so a SIGKILL of
+// the daemon loses only what waits in the queue: the writer drains it every 2 ms and never
+// waits on an fsync, so about one block. A power cut loses what the last fsync did not cover:
+// one fsync interval, plus the fsync in progress.
 //
 // A disk stall blocks only the writer thread: the publisher never waits. While the writer is
 // stuck, slots fill; when none is free the message is counted in messages_lost() (reported on
@@ -19,6 +25,7 @@
 #include <lcm/eventlog.h>
 
 #include <atomic>
+#include <condition_variable>
 #include <cstdint>
 #include <filesystem>
 #include <mutex>
@@ -35,7 +42,7 @@ struct LogWriterOptions {
   std::filesystem::path dir;            // where the files go; created if missing
   std::string base_name = "inertia";    // files: <base>-<YYYYmmdd-HHMMSS>-<NNN>.lcmlog
   std::uint64_t rotate_bytes = 256ull << 20;  // start a new file past this size
-  int fsync_interval_ms = 1000;         // fflush + fsync at least this often
+  int fsync_interval_ms = 1000;         // fflush + fsync this often, on a thread of its own
   std::size_t queue_slots = 512;        // messages in flight between publisher and writer
   // Fault injection (tests, --fault log-stall): the writer sleeps stall_ms once, stall_after_s
   // after start, as a disk that stops answering would hold it.
@@ -110,6 +117,11 @@ class LogWriter {
   int append(const Slot& slot) noexcept;
   bool open_next(std::string* why);
   void sync() noexcept;
+  void sync_locked() noexcept;   // file_mutex_ held
+  /// The syncer thread: fflush + fsync every fsync_interval_ms, beside the writer, so that a slow
+  /// fsync (a busy disk can take a second) never holds records in the queue, where a SIGKILL
+  /// would lose them; what reached write() survives the process.
+  void sync_loop() noexcept;
   void rotate() noexcept;
   void close_file() noexcept;
 
@@ -126,6 +138,12 @@ class LogWriter {
   mutable std::mutex path_mutex_;  // guards files_ (writer appends on rotation; status reads)
   std::vector<std::filesystem::path> files_;
   std::thread thread_;
+  std::thread syncer_;
+  // Guards log_ between the writer (which alone changes it, on open and close) and the syncer.
+  std::mutex file_mutex_;
+  std::mutex syncer_mutex_;
+  std::condition_variable syncer_wake_;
+  bool syncer_stop_ = false;   // guarded by syncer_mutex_
   std::atomic<bool> stop_{false};
   std::atomic<bool> rotate_requested_{false};
   std::atomic<bool> in_write_{false};
