@@ -21,6 +21,7 @@
 #include "analyzer/commands/noise.hpp"
 #include "analyzer/commands/online.hpp"
 #include "analyzer/commands/reproduce_paper.hpp"
+#include "analyzer/commands/simulate_model.hpp"
 #include "common/input_error.hpp"
 #include "hal/sim/simulate.hpp"
 
@@ -43,7 +44,7 @@ std::map<std::string, double> parse_weights(const std::vector<std::string>& pair
   return weights;
 }
 
-/// --model values of `online`: "SENSOR=FILE" or "FILE" (the bench's only sensor).
+/// --model values of `online` and `simulate`: "SENSOR=FILE" or "FILE" (the bench's only sensor).
 std::map<std::string, std::filesystem::path> parse_models(const std::vector<std::string>& values) {
   std::map<std::string, std::filesystem::path> models;
   for (const std::string& v : values) {
@@ -61,10 +62,13 @@ int run(int argc, char** argv) {
   CLI::App app{"inertia-analyze: identify nonlinear dynamic models of inertial sensors"};
   app.require_subcommand(1);
 
-  std::filesystem::path bench_path, out_dir;
+  inertia::commands::SimulateOptions simulate_options;
+  std::vector<std::string> simulate_models;
   auto* simulate = app.add_subcommand("simulate", "simulate a bench's test plan into a dataset folder");
-  simulate->add_option("--bench", bench_path, "bench configuration (TOML)")->required();
-  simulate->add_option("--out", out_dir, "dataset folder to write")->required();
+  simulate->add_option("--bench", simulate_options.bench, "bench configuration (TOML)")->required();
+  simulate->add_option("--out", simulate_options.out, "dataset folder to write")->required();
+  simulate->add_option("--model", simulate_models,
+                       "[SENSOR=]MODEL.toml: that sensor's output from this model file instead of the bench's truth parameters");
 
   inertia::commands::CharacterizeOptions characterize_options;
   auto* characterize = app.add_subcommand("characterize", "the paper's Fig. 1 procedure on a dataset: model.toml and a report");
@@ -152,7 +156,10 @@ int run(int argc, char** argv) {
     return code == 0 ? inertia::kExitOk : inertia::kExitBadInput;
   }
 
-  if (simulate->parsed()) return inertia::sim::run_simulate(bench_path, out_dir, std::cout);
+  if (simulate->parsed()) {
+    simulate_options.models = parse_models(simulate_models);
+    return inertia::commands::run_simulate(simulate_options, std::cout);
+  }
   if (diagnose->parsed()) return inertia::commands::run_diagnose(diagnose_options, std::cout);
   if (noise->parsed()) return inertia::commands::run_noise(noise_options, std::cout);
   if (online->parsed()) {

@@ -1,0 +1,117 @@
+#include "analyzer/commands/simulate_model.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+#include <toml++/toml.h>
+
+#include <fstream>
+#include <random>
+
+#include "analyzer/ident/regressors.hpp"
+#include "analyzer/model/model_file.hpp"
+#include "analyzer/procedure/model_simulation.hpp"
+#include "common/config/bench_config.hpp"
+#include "common/dataset/dataset.hpp"
+#include "common/input_error.hpp"
+#include "hal/sim/simulate.hpp"
+
+namespace inertia::commands {
+namespace {
+
+frames::Dcm dcm_of(const toml::node* node, const std::string& file, const std::string& what) {
+  const toml::array* rows = node != nullptr ? node->as_array() : nullptr;
+  if (rows == nullptr || rows->size() != 3) throw InputError(file + ": " + what + " must be a 3x3 array");
+  frames::Dcm m;
+  for (std::size_t r = 0; r < 3; ++r) {
+    const toml::array* row = (*rows)[r].as_array();
+    if (row == nullptr || row->size() != 3) throw InputError(file + ": " + what + " must be a 3x3 array");
+    for (std::size_t c = 0; c < 3; ++c) {
+      const auto v = (*row)[c].value<double>();
+      if (!v) throw InputError(file + ": " + what + " holds a non-number");
+      m(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = *v;
+    }
+  }
+  return m;
+}
+
+toml::array dcm_array(const frames::Dcm& m) {
+  toml::array rows;
+  for (Eigen::Index r = 0; r < 3; ++r) rows.push_back(toml::array{m(r, 0), m(r, 1), m(r, 2)});
+  return rows;
+}
+
+// One sensor's folder: its output from `model`, its truth.toml the model's.
+void apply_model(const std::filesystem::path& dir, const std::filesystem::path& model_file, std::ostream& summary) {
+  const model::ModelFile model = model::read_model(model_file);
+  dataset::Dataset data = dataset::read_dataset(dir);
+  if (model.sensor != data.sensor)
+    throw InputError(fmt::format("{}: a model of an {} for the bench's {} in {}", model_file.string(), dataset::to_string(model.sensor),
+                                 dataset::to_string(data.sensor), dir.string()));
+  const std::string truth_file = (dir / "truth.toml").string();
+  toml::table truth = toml::parse_file(truth_file);
+  // The bench's fixture misalignment of each case stays: M_E^C = (M_C^S true)^T M_E^S true.
+  const frames::Dcm m_cs_true = dcm_of(truth.get("m_cs"), truth_file, "m_cs");
+  std::map<std::string, toml::table*> case_tables;
+  if (toml::array* cases = truth["case"].as_array())
+    for (toml::node& node : *cases)
+      if (toml::table* t = node.as_table(); t != nullptr && t->get("name") != nullptr)
+        case_tables[t->get("name")->value_or(std::string())] = t;
+
+  std::vector<ident::Term> terms;
+  Eigen::VectorXd theta(static_cast<Eigen::Index>(model.terms.size()));
+  for (const model::ModelTerm& t : model.terms) {
+    theta(static_cast<Eigen::Index>(terms.size())) = t.coefficient;
+    terms.push_back(t.term);
+  }
+  const Eigen::Index first = ident::first_usable_row(terms);
+  const double white_sd = model.white_sd.value_or(0.0);
+  std::mt19937_64 rng(static_cast<std::uint64_t>(truth["seed"].value_or(std::int64_t{1})) ^ 0x6d6f64656c66696cULL);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  for (dataset::CaseData& c : data.cases) {
+    const auto it = case_tables.find(c.name);
+    if (it == case_tables.end() || it->second->get("m_es_true") == nullptr)
+      throw InputError(truth_file + ": no m_es_true for case " + c.name);
+    const frames::Dcm m_es_true = dcm_of(it->second->get("m_es_true"), truth_file, "m_es_true of " + c.name);
+    const frames::Dcm m_es = model.m_cs * m_cs_true.transpose() * m_es_true;
+    const ident::SignalSet signals = ident::signals_from_case(c, m_es, data.t_ref, dir.string());
+    if (first >= c.y.size()) throw InputError(fmt::format("case {}: {} rows, fewer than the model's lags need", c.name, c.y.size()));
+    // The first rows seed the output lags: they keep the bench's own output.
+    const Eigen::VectorXd y = procedure::simulate_model(terms, theta, signals, first, model.square_highpass_rad_s, c.sample_period_s);
+    for (Eigen::Index k = 0; k < y.size(); ++k) c.y(first + k) = y(k) + white_sd * noise(rng);
+    it->second->insert_or_assign("m_es_true", dcm_array(m_es));
+  }
+  dataset::write_dataset(dir, data);
+
+  toml::table terms_table;
+  for (const model::ModelTerm& t : model.terms) terms_table.insert_or_assign(t.term.to_string(), t.coefficient);
+  truth.insert_or_assign("terms", std::move(terms_table));
+  truth.insert_or_assign("m_cs", dcm_array(model.m_cs));
+  truth.insert_or_assign("model", model_file.string());
+  // The bench's parameters describe a sensor this output no longer comes from.
+  truth.erase("params");
+  if (toml::table* n = truth["noise"].as_table()) n->insert_or_assign("white_sd", white_sd);
+  std::ofstream(truth_file) << "# truth of `simulate --model`: the output below comes from the model file named here\n" << truth << "\n";
+  fmt::print(summary, "{}: output from model {} ({} terms, white sd {:.4g}; first {} row(s) per case from the bench)\n", dir.string(),
+             model_file.string(), terms.size(), white_sd, first);
+}
+
+}  // namespace
+
+int run_simulate(const SimulateOptions& options, std::ostream& summary) {
+  const config::BenchConfig bench = config::load_bench_config(options.bench);
+  std::map<std::string, std::filesystem::path> by_sensor;
+  for (const auto& [sensor, file] : options.models) {
+    if (sensor.empty() && bench.sensors.size() != 1)
+      throw InputError("simulate: the bench has several sensors; give --model SENSOR=FILE");
+    const std::string name = sensor.empty() ? bench.sensors.front().name : sensor;
+    if (std::none_of(bench.sensors.begin(), bench.sensors.end(), [&](const config::SensorUnderTest& s) { return s.name == name; }))
+      throw InputError("simulate: --model names sensor '" + name + "', which the bench lacks");
+    (void)model::read_model(file);   // bad input before the simulation runs
+    by_sensor[name] = file;
+  }
+  const int rc = sim::run_simulate(options.bench, options.out, summary);
+  for (const auto& [name, file] : by_sensor) apply_model(bench.sensors.size() == 1 ? options.out : options.out / name, file, summary);
+  return rc;
+}
+
+}  // namespace inertia::commands
