@@ -175,8 +175,8 @@ void ModbusTcpServer::serve_rtu() {
       // RS-485 line); < 0: a broken frame (CRC, timeout between bytes), already discarded.
       const int rc = modbus_receive(ctx_, query);
       if (rc > 0 && !silent_) {
+        ++served_;   // before the answer leaves: a client holding it sees it counted
         reply(query, rc);
-        ++served_;
       }
     }
     tick_when_due(last_tick);
@@ -211,8 +211,8 @@ void ModbusTcpServer::run() {
         const int rc = modbus_receive(ctx_, query);
         if (rc > 0) {
           if (!silent_) {
-            reply(query, rc);
             ++served_;
+            reply(query, rc);
           }
         } else if (rc < 0) {
           ::close(c);

@@ -67,6 +67,8 @@ class ModbusTcpServer {
   void set_silent(bool silent) noexcept { silent_ = silent; }
   /// The write hook (see Written). Thread: any; takes the register lock.
   void on_written(Written hook);
+  /// Requests answered, counted before each answer is written (a client that has its answer
+  /// sees it counted). Thread: any.
   [[nodiscard]] std::uint64_t requests_served() const noexcept { return served_.load(); }
 
  private:
