@@ -50,60 +50,64 @@ void ClockFit::close_window() noexcept {
 }
 
 void ClockFit::refit() noexcept {
-  // Least squares of (stamp - anchor_stamp) on (index - anchor_index), centred; then once more
-  // without the points far above the line: a window whose every sample came late (a stalled
-  // reader) is not the floor. Its excess over the line, not below: a latency is never negative.
-  double cut = std::numeric_limits<double>::infinity();
-  for (int pass = 0; pass < 2; ++pass) {
-    double mx = 0.0, my = 0.0, n = 0.0;
-    for (std::size_t k = 0; k < count_; ++k) {
-      const double x = static_cast<double>(index_[k] - anchor_index_);
-      const double y = static_cast<double>(stamp_[k] - anchor_stamp_);
-      if (pass > 0 && y - (offset_ns_ + period_ns_ * x) > cut) continue;
-      mx += x;
-      my += y;
-      n += 1.0;
-    }
-    if (n == 0.0) return;
-    mx /= n;
-    my /= n;
-    double sxx = 0.0, sxy = 0.0;
-    for (std::size_t k = 0; k < count_; ++k) {
-      const double x = static_cast<double>(index_[k] - anchor_index_);
-      const double y = static_cast<double>(stamp_[k] - anchor_stamp_);
-      if (pass > 0 && y - (offset_ns_ + period_ns_ * x) > cut) continue;
-      sxx += (x - mx) * (x - mx);
-      sxy += (x - mx) * (y - my);
-    }
-    // One point (or points at one index) fixes the offset only: keep the period.
-    if (n >= 2.0 && sxx > 0.0) period_ns_ = sxy / sxx;
-    offset_ns_ = my - period_ns_ * mx;
-    // Residuals about this line; the cut for the second pass from their median absolute value.
-    std::array<double, 512> r{};
-    const std::size_t m = std::min(count_, r.size());
-    double ss = 0.0;
-    for (std::size_t k = 0; k < m; ++k) {
-      const double x = static_cast<double>(index_[k] - anchor_index_);
-      r[k] = static_cast<double>(stamp_[k] - anchor_stamp_) - (offset_ns_ + period_ns_ * x);
-      ss += r[k] * r[k];
-    }
-    residual_ns_ = std::sqrt(ss / static_cast<double>(std::max<std::size_t>(1, m)));
-    if (pass > 0) break;
-    std::array<double, 512> a{};
-    for (std::size_t k = 0; k < m; ++k) a[k] = std::abs(r[k]);
-    std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(m / 2), a.begin() + static_cast<std::ptrdiff_t>(m));
-    cut = std::max(5.0 * 1.4826 * a[m / 2], 20e3);   // 5 robust sd, at least 20 us
+  // The floor of the kept points: the line below every point that lies closest to them in sum
+  // (a linear programme whose optimum is the edge of their lower convex hull over the points'
+  // mean index). A latency is never negative, so a point above the floor is only later, whatever
+  // made it so: a stretch of windows whose every sample waited (a loaded PC, a stalled reader)
+  // lies above the line and does not tilt it, where a least-squares line would follow it.
+  if (count_ == 0) return;
+  const std::size_t first = count_ < capacity_ ? 0 : head_;   // the oldest point, indices increasing
+  std::array<double, 512> xs{}, ys{};
+  double mean_x = 0.0;
+  for (std::size_t k = 0; k < count_; ++k) {
+    const std::size_t at = (first + k) % capacity_;
+    xs[k] = static_cast<double>(index_[at] - anchor_index_);
+    ys[k] = static_cast<double>(stamp_[at] - anchor_stamp_);
+    mean_x += xs[k];
   }
-  // The residual reported is of the kept points.
+  mean_x /= static_cast<double>(count_);
+  // Andrew's monotone chain, lower half (x increasing; equal x keeps the lower point).
+  std::array<std::size_t, 512> hull{};
+  std::size_t h = 0;
+  for (std::size_t k = 0; k < count_; ++k) {
+    if (h > 0 && xs[hull[h - 1]] == xs[k]) {
+      if (ys[k] >= ys[hull[h - 1]]) continue;
+      --h;
+    }
+    while (h >= 2) {
+      const std::size_t o = hull[h - 2], m = hull[h - 1];
+      const double cross = (xs[m] - xs[o]) * (ys[k] - ys[o]) - (ys[m] - ys[o]) * (xs[k] - xs[o]);
+      if (cross > 0.0) break;   // a left turn: m stays on the lower hull
+      --h;
+    }
+    hull[h++] = k;
+  }
+  if (h >= 2) {
+    // The hull edge over the mean index (the last one when the mean lies at or past its end).
+    std::size_t e = 0;
+    while (e + 2 < h && xs[hull[e + 1]] < mean_x) ++e;
+    const std::size_t p = hull[e], q = hull[e + 1];
+    period_ns_ = (ys[q] - ys[p]) / (xs[q] - xs[p]);
+    offset_ns_ = ys[p] - period_ns_ * xs[p];
+  } else {
+    offset_ns_ = ys[hull[0]] - period_ns_ * xs[hull[0]];   // one point fixes the offset only
+  }
+  // The residual reported: the rms excess over the floor of the points that are not late
+  // outright (within 5 robust sd of the median excess, at least 20 us): the fit's own scatter,
+  // not how long a loaded stretch waited.
+  std::array<double, 512> excess{};
+  for (std::size_t k = 0; k < count_; ++k) excess[k] = ys[k] - (offset_ns_ + period_ns_ * xs[k]);
+  std::array<double, 512> sorted = excess;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(count_ / 2),
+                   sorted.begin() + static_cast<std::ptrdiff_t>(count_));
+  const double cut = std::max(5.0 * 1.4826 * sorted[count_ / 2], 20e3);
   double ss = 0.0, n = 0.0;
   for (std::size_t k = 0; k < count_; ++k) {
-    const double x = static_cast<double>(index_[k] - anchor_index_);
-    const double r = static_cast<double>(stamp_[k] - anchor_stamp_) - (offset_ns_ + period_ns_ * x);
-    if (r > cut) continue;
-    ss += r * r;
+    if (excess[k] > cut) continue;
+    ss += excess[k] * excess[k];
     n += 1.0;
   }
-  if (n > 0.0) residual_ns_ = std::sqrt(ss / n);
+  residual_ns_ = n > 0.0 ? std::sqrt(ss / n) : 0.0;
 }
 
 double ClockFit::time_ns(std::int64_t index) const noexcept {
