@@ -7,6 +7,7 @@
 #include <fstream>
 #include <random>
 
+#include "analyzer/commands/truth_file.hpp"
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
@@ -17,22 +18,6 @@
 
 namespace inertia::commands {
 namespace {
-
-frames::Dcm dcm_of(const toml::node* node, const std::string& file, const std::string& what) {
-  const toml::array* rows = node != nullptr ? node->as_array() : nullptr;
-  if (rows == nullptr || rows->size() != 3) throw InputError(file + ": " + what + " must be a 3x3 array");
-  frames::Dcm m;
-  for (std::size_t r = 0; r < 3; ++r) {
-    const toml::array* row = (*rows)[r].as_array();
-    if (row == nullptr || row->size() != 3) throw InputError(file + ": " + what + " must be a 3x3 array");
-    for (std::size_t c = 0; c < 3; ++c) {
-      const auto v = (*row)[c].value<double>();
-      if (!v) throw InputError(file + ": " + what + " holds a non-number");
-      m(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = *v;
-    }
-  }
-  return m;
-}
 
 toml::array dcm_array(const frames::Dcm& m) {
   toml::array rows;
@@ -48,9 +33,9 @@ void apply_model(const std::filesystem::path& dir, const std::filesystem::path& 
     throw InputError(fmt::format("{}: a model of an {} for the bench's {} in {}", model_file.string(), dataset::to_string(model.sensor),
                                  dataset::to_string(data.sensor), dir.string()));
   const std::string truth_file = (dir / "truth.toml").string();
-  toml::table truth = toml::parse_file(truth_file);
-  // The bench's fixture misalignment of each case stays: M_E^C = (M_C^S true)^T M_E^S true.
-  const frames::Dcm m_cs_true = dcm_of(truth.get("m_cs"), truth_file, "m_cs");
+  const std::optional<Truth> read = read_truth(dir);
+  if (!read) throw InputError(truth_file + ": missing (simulate writes it)");
+  toml::table truth = toml::parse_file(truth_file);   // rewritten below, the bench's keys kept
   std::map<std::string, toml::table*> case_tables;
   if (toml::array* cases = truth["case"].as_array())
     for (toml::node& node : *cases)
@@ -69,10 +54,9 @@ void apply_model(const std::filesystem::path& dir, const std::filesystem::path& 
   std::normal_distribution<double> noise(0.0, 1.0);
   for (dataset::CaseData& c : data.cases) {
     const auto it = case_tables.find(c.name);
-    if (it == case_tables.end() || it->second->get("m_es_true") == nullptr)
-      throw InputError(truth_file + ": no m_es_true for case " + c.name);
-    const frames::Dcm m_es_true = dcm_of(it->second->get("m_es_true"), truth_file, "m_es_true of " + c.name);
-    const frames::Dcm m_es = model.m_cs * m_cs_true.transpose() * m_es_true;
+    if (it == case_tables.end() || read->m_es.count(c.name) == 0) throw InputError(truth_file + ": no m_es_true for case " + c.name);
+    // The bench's fixture misalignment of the case stays: M_E^C = (M_C^S true)^T M_E^S true.
+    const frames::Dcm m_es = model.m_cs * read->m_cs.transpose() * read->m_es.at(c.name);
     const ident::SignalSet signals = ident::signals_from_case(c, m_es, data.t_ref, dir.string());
     if (first >= c.y.size()) throw InputError(fmt::format("case {}: {} rows, fewer than the model's lags need", c.name, c.y.size()));
     // The first rows seed the output lags: they keep the bench's own output.
