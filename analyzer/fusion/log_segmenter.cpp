@@ -97,8 +97,10 @@ MotionClassifier::MotionClassifier(const config::BenchConfig& bench) {
 }
 
 void MotionClassifier::push(const sample_block_t& block) {
+  // A block the assembler would refuse (sample_block_layout.hpp) is no motion either: its times
+  // could lie anywhere (issue 15: fuzz_event_log met one whose window index overflowed int64).
+  if (block.num_samples <= 0 || !block_shape_error(block).empty()) return;
   const double period_ns = block.sample_period_s * 1e9;
-  if (!(period_ns > 0.0) || block.num_samples <= 0) return;
   for (std::int32_t c = 0; c < block.num_channels; ++c) {
     const std::string& name = block.channel_names[static_cast<std::size_t>(c)];
     const bool table = block.device == table_device_ && name == table_signal_;
@@ -242,8 +244,8 @@ VibrationEdgeRefiner::VibrationEdgeRefiner(const MotionClassifier& motion, std::
 }
 
 void VibrationEdgeRefiner::push(const sample_block_t& block) {
+  if (edges_.empty() || block.num_samples <= 0 || !block_shape_error(block).empty()) return;
   const double period_ns = block.sample_period_s * 1e9;
-  if (edges_.empty() || !(period_ns > 0.0) || block.num_samples <= 0) return;
   const double first = static_cast<double>(block.t0_mono_ns), last = first + period_ns * (block.num_samples - 1);
   for (std::int32_t c = 0; c < block.num_channels; ++c) {
     const std::optional<std::size_t> monitor = motion_.monitor_of(block.device, block.channel_names[static_cast<std::size_t>(c)]);

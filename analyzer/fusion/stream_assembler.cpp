@@ -861,7 +861,10 @@ struct StreamAssembler::Impl {
     finalize_ready(true);
     flush_chunk();
     Segment& s = *f.segment;
-    const auto min_len = static_cast<std::int64_t>(std::ceil(options.min_segment_s / (output_period_ns() * 1e-9)));
+    // In rows of the output's period; a hostile period (1e-150 s) would make the count overflow
+    // int64 (issue 15: fuzz_stream_assembler): no segment is that long, so it keeps none.
+    const double min_rows = std::ceil(options.min_segment_s / (output_period_ns() * 1e-9));
+    const std::int64_t min_len = min_rows < 9.0e18 ? static_cast<std::int64_t>(min_rows) : std::numeric_limits<std::int64_t>::max();
     const bool kept = s.rows_in >= std::max<std::int64_t>(min_len, 3);
     if (kept) {
       rows_kept += s.rows_in;

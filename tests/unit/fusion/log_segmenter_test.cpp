@@ -143,6 +143,24 @@ TEST(LogSegmenter, RunsDoNotDependOnTheOrderTheLogHoldsTheBlocksIn) {
   EXPECT_NEAR(forward.vibration_threshold(), shuffled.vibration_threshold(), 1e-6 * forward.vibration_threshold());
 }
 
+TEST(LogSegmenter, ABlockTheAssemblerWouldRefuseIsNoMotion) {
+  // fuzz_event_log's finding: a block whose times lie past int64 overflowed the window index.
+  MotionClassifier motion(bench());
+  feed(motion);
+  const std::vector<MotionRun> before = motion.runs();
+  sample_block_t hostile = block("ref", "mon1", kOrigin, std::vector<double>(50, 100.0));
+  hostile.sample_period_s = 1e70;
+  motion.push(hostile);
+  hostile.sample_period_s = 1e-3;
+  hostile.valid_bytes = 1;   // malformed: another length than its samples need
+  motion.push(hostile);
+  VibrationEdgeRefiner edges(motion, motion.runs());
+  edges.push(hostile);
+  const std::vector<MotionRun> after = motion.runs();
+  ASSERT_EQ(after.size(), before.size());
+  for (std::size_t i = 0; i < after.size(); ++i) EXPECT_EQ(after[i].start_ns, before[i].start_ns) << i;
+}
+
 TEST(LogSegmenter, VibrationEdgesArePlacedToTheSample) {
   MotionClassifier motion(bench());
   feed(motion);

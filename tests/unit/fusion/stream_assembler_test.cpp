@@ -374,6 +374,27 @@ TEST(StreamAssembler, ReferenceWithAnAbsurdPeriodIsMissingNotRead) {
   EXPECT_LE(a.fused_rows(), 5);
 }
 
+TEST(StreamAssembler, AnOutputWithAnAbsurdPeriodKeepsNoSegment) {
+  // fuzz_stream_assembler found it: the shortest segment kept, in rows of a 1e-150 s period,
+  // overflowed int64 (UB, seed stream_assembler/tiny-sample-period). No segment is that long.
+  AssemblerOptions o;
+  o.sensor = "acc1";
+  o.min_segment_s = 0.5;
+  std::vector<FusedSegment> segments;
+  StreamAssembler a(o, [&segments](FusedSegment&& s) { segments.push_back(std::move(s)); });
+  a.push(bench_message(), "bench");
+  a.push(mark(plan_event_t::MARK_CASE_START, "shake", "shaker", -1, "", 0, kBlock), "start");
+  a.push(mark(plan_event_t::MARK_PHASE_START, "shake", "shaker", 0, "sine", 0, kBlock), "phase");
+  a.push(encoder_block("table_encoder", 0, kBlock), "table");
+  a.push(encoder_block("linear_encoder", 0, kBlock), "linear");
+  sample_block_t accel = accel_block(0, kBlock);
+  accel.sample_period_s = 1e-150;
+  a.push(accel, "accel");
+  a.push(mark(plan_event_t::MARK_CASE_END, "shake", "shaker", -1, "", 0, kBlock - 1), "end");
+  EXPECT_NO_THROW(a.finish());
+  EXPECT_TRUE(segments.empty());
+}
+
 // fuzz_event_log found it: a bench whose monitors all lie in one plane let fusion's
 // std::invalid_argument escape the reader and end the process. It is the bench's fault, named
 // with the case, like any other bad input.
