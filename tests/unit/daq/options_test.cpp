@@ -79,16 +79,18 @@ TEST(DaemonOptions, BenchFileDaemonTableFillsWhatTheCommandLineDidNotSay) {
   EXPECT_TRUE(c.log_dir.empty());
 }
 
-TEST(DaemonOptions, BadInputNamesTheOption) {
+// What parse_options says of `args`: its InputError's text, or "(accepted)".
+std::string message(const std::vector<std::string>& args) {
   bool help = false;
-  auto message = [&](const std::vector<std::string>& args) {
-    try {
-      (void)parse_options(args, &help);
-    } catch (const InputError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(accepted)");
-  };
+  try {
+    (void)parse_options(args, &help);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(accepted)";
+}
+
+TEST(DaemonOptions, BadInputNamesTheOption) {
   EXPECT_NE(message({}).find("--config"), std::string::npos);
   EXPECT_NE(message({"--config", "b", "--duration", "x"}).find("--duration"), std::string::npos);
   EXPECT_NE(message({"--config", "b", "--duration", "-1"}).find("--duration"), std::string::npos);
@@ -101,15 +103,6 @@ TEST(DaemonOptions, BadInputNamesTheOption) {
 }
 
 TEST(DaemonOptions, CountsAndIndicesAreWholeNumbersInRangeNeverAnUndefinedCast) {
-  bool help = false;
-  auto message = [&](const std::vector<std::string>& args) {
-    try {
-      (void)parse_options(args, &help);
-    } catch (const InputError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(accepted)");
-  };
   for (const char* option : {"--fifo-priority", "--cpu", "--ring", "--log-queue", "--fsync-ms"}) {
     for (const char* value : {"-5", "1e30", "2.5", "nan", "inf"}) {
       const std::string m = message({"--config", "b", option, value});

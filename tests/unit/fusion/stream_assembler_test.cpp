@@ -351,16 +351,22 @@ TEST(StreamAssembler, InvalidSamplesAreExcludedNeverFilled) {
 // Found by fuzz_event_log (issue 15): a linear-encoder block whose sample period is 5.4e-23 s put
 // the sample index of the next row past the int64 range (an undefined conversion, reported by
 // UBSan). Those rows have the encoder missing, as after a lost block; nothing is read for them.
+// The bench, a shaker case with its sine phase open, and the table encoder's first block: what
+// the two absurd-period tests below share before their own blocks.
+void open_sine_phase(StreamAssembler& a) {
+  a.push(bench_message(), "bench");
+  a.push(mark(plan_event_t::MARK_CASE_START, "shake", "shaker", -1, "", 0, kBlock), "start");
+  a.push(mark(plan_event_t::MARK_PHASE_START, "shake", "shaker", 0, "sine", 0, kBlock), "phase");
+  a.push(encoder_block("table_encoder", 0, kBlock), "table");
+}
+
 TEST(StreamAssembler, ReferenceWithAnAbsurdPeriodIsMissingNotRead) {
   AssemblerOptions o;
   o.sensor = "acc1";
   o.min_segment_s = 0.0;
   std::vector<FusedSegment> segments;
   StreamAssembler a(o, [&segments](FusedSegment&& s) { segments.push_back(std::move(s)); });
-  a.push(bench_message(), "bench");
-  a.push(mark(plan_event_t::MARK_CASE_START, "shake", "shaker", -1, "", 0, kBlock), "start");
-  a.push(mark(plan_event_t::MARK_PHASE_START, "shake", "shaker", 0, "sine", 0, kBlock), "phase");
-  a.push(encoder_block("table_encoder", 0, kBlock), "table");
+  open_sine_phase(a);
   a.push(accel_block(0, kBlock), "accel");
   sample_block_t encoder = encoder_block("linear_encoder", 0, kBlock);
   encoder.sample_period_s = 5.421010862427522e-23;   // the fuzzer's period
@@ -382,10 +388,7 @@ TEST(StreamAssembler, AnOutputWithAnAbsurdPeriodKeepsNoSegment) {
   o.min_segment_s = 0.5;
   std::vector<FusedSegment> segments;
   StreamAssembler a(o, [&segments](FusedSegment&& s) { segments.push_back(std::move(s)); });
-  a.push(bench_message(), "bench");
-  a.push(mark(plan_event_t::MARK_CASE_START, "shake", "shaker", -1, "", 0, kBlock), "start");
-  a.push(mark(plan_event_t::MARK_PHASE_START, "shake", "shaker", 0, "sine", 0, kBlock), "phase");
-  a.push(encoder_block("table_encoder", 0, kBlock), "table");
+  open_sine_phase(a);
   a.push(encoder_block("linear_encoder", 0, kBlock), "linear");
   sample_block_t accel = accel_block(0, kBlock);
   accel.sample_period_s = 1e-150;
