@@ -39,6 +39,9 @@ class ClockFit {
   [[nodiscard]] double period_s() const noexcept { return period_ns_ * 1e-9; }
   /// (period / nominal - 1) in ppm: the device clock's error against the host's.
   [[nodiscard]] double drift_ppm() const noexcept { return (period_ns_ / nominal_ns_ - 1.0) * 1e6; }
+  /// Standard deviation of drift_ppm(): a line through the kept points scattering by the
+  /// residual (0 before two points).
+  [[nodiscard]] double drift_sd_ppm() const noexcept { return drift_sd_ppm_; }
   /// RMS of the kept points about the line (us): the floor's wander, what the fit cannot follow.
   [[nodiscard]] double residual_us() const noexcept { return residual_ns_ * 1e-3; }
   /// Kept points in the current fit (0: nominal period, no drift estimate yet).
@@ -64,6 +67,37 @@ class ClockFit {
   std::int64_t anchor_index_ = 0, anchor_stamp_ = 0;
   double offset_ns_ = 0.0, period_ns_;
   double residual_ns_ = 0.0;
+  double drift_sd_ppm_ = 0.0;
+};
+
+/// The times a device's blocks carry: sample k of a block at t0 + k * period (sample_block_t),
+/// continuous from one block to the next while the sample numbers are. The fit's line moves when
+/// it refits (a late first window tilts its first edges; an edge gives way to the next one); a
+/// step between two blocks reads downstream as lost samples (forward) or overlapping blocks
+/// (backward), and as a spike in every difference of an encoder read at those times. So a
+/// correction is slewed in, as a clock discipline does: each block starts where the previous one
+/// ended and ends on the fit's line, its period within max_slew of the fit's (2 %: a 2 ms
+/// start-up correction is in after 0.1 s). A jump of the numbers (samples that never arrived)
+/// starts on the fit again. Thread: the publisher's; O(1), no allocation.
+class SlewedTimeBase {
+ public:
+  explicit SlewedTimeBase(double max_slew = 0.02) : max_slew_(max_slew) {}
+
+  struct BlockTime {
+    std::int64_t t0_ns = 0;
+    double period_s = 0.0;
+  };
+  /// Times of the block of samples [first, first + n) of a device timed by `fit`.
+  [[nodiscard]] BlockTime block(const ClockFit& fit, std::int64_t first, std::int32_t n) noexcept;
+  /// The largest correction met between two blocks (us): what a step would have been.
+  [[nodiscard]] double largest_correction_us() const noexcept { return largest_correction_ns_ * 1e-3; }
+
+ private:
+  double max_slew_;
+  bool started_ = false;
+  std::int64_t next_index_ = 0;   // the number after the last block's ...
+  double next_ns_ = 0.0;          // ... and its time on the published line
+  double largest_correction_ns_ = 0.0;
 };
 
 }  // namespace inertia::daq

@@ -473,6 +473,7 @@ int run_daemon(const DaemonOptions& command_line) {
   std::cerr << "  run: seconds " << run_s << ", channel-samples " << channel_samples << ", per second "
             << static_cast<std::uint64_t>(static_cast<double>(channel_samples) / run_s) << "\n";
   std::cerr << "  lcm: messages " << publisher.messages() << ", publish failures " << publisher.publish_failures() << "\n";
+  for (const std::string& line : publisher.clock_report()) std::cerr << "  " << line << "\n";
   if (log)
     std::cerr << "  log: messages " << log->messages_written() << ", lost " << log->messages_lost() << ", file headers "
               << log->headers_written() << ", bytes "

@@ -10,6 +10,8 @@
 #include <iostream>
 #include <limits>
 
+#include <fmt/format.h>
+
 #include "common/lcm/channels.hpp"
 #include "common/lcm/sample_block_layout.hpp"
 #include "hal/device.hpp"
@@ -122,8 +124,9 @@ void Publisher::emit(Packer& p, std::int32_t n) noexcept {
     p.block.t0_mono_ns = options_.sim_t0_ns + std::llround(index * 1e9 / slot.nominal_rate_hz);
   } else if (p.clock) {
     // Its own clock: the samples' count mapped to CLOCK_MONOTONIC (clock_fit.hpp).
-    p.block.t0_mono_ns = std::llround(p.clock->time_ns(p.block.channel_seq[0]));
-    p.block.sample_period_s = p.clock->period_s();
+    const SlewedTimeBase::BlockTime bt = p.timebase.block(*p.clock, p.block.channel_seq[0], n);
+    p.block.t0_mono_ns = bt.t0_ns;
+    p.block.sample_period_s = bt.period_s;
   }
   send_block(p);
 }
@@ -151,8 +154,9 @@ void Publisher::emit_numbered(Packer& p, std::int32_t n) noexcept {
       }
       p.block.channel_seq[cc] = p.base;   // every channel's sample s of the block is number base + s
     }
-    p.block.t0_mono_ns = std::llround(p.clock->time_ns(p.base));
-    p.block.sample_period_s = p.clock->period_s();
+    const SlewedTimeBase::BlockTime bt = p.timebase.block(*p.clock, p.base, n);
+    p.block.t0_mono_ns = bt.t0_ns;
+    p.block.sample_period_s = bt.period_s;
     send_block(p);
   } else if (p.base <= p.newest) {
     // Every sample of it is lost all the same (at 100 Hz a 10 ms block is one frame): counted.
@@ -245,6 +249,7 @@ void Publisher::take_numbered(Packer& p, const RingSample& s) noexcept {
     p.base = s.index - s.index % len;
     p.newest = -1;
     p.clock.emplace(1.0 / slot.nominal_rate_hz);
+    p.timebase = SlewedTimeBase{};
     p.clock_fed = -1;
   }
   if (s.index < p.base) {
@@ -275,6 +280,18 @@ void Publisher::take_numbered(Packer& p, const RingSample& s) noexcept {
   // block of later samples has arrived (frames of one sample arrive together, never a block apart).
   const std::uint32_t whole = static_cast<std::uint32_t>(p.present.size()) * static_cast<std::uint32_t>(len);
   while (p.block_present[0] == whole || p.newest >= p.base + 2 * len) emit_numbered(p, p.block_len);
+}
+
+std::vector<std::string> Publisher::clock_report() const {
+  std::vector<std::string> lines;
+  for (const Packer& p : packers_) {
+    if (!p.clock || p.clock->points() == 0) continue;
+    lines.push_back(fmt::format("{}: clock drift {:+.2f} +- {:.2f} ppm, floor residual {:.1f} us, largest correction slewed in "
+                                "{:.1f} us, samples lost {}, late {}",
+                                p.slot->name, p.clock->drift_ppm(), p.clock->drift_sd_ppm(), p.clock->residual_us(),
+                                p.timebase.largest_correction_us(), p.lost, p.late));
+  }
+  return lines;
 }
 
 std::size_t Publisher::drain(Packer& p) noexcept {

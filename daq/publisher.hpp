@@ -83,6 +83,9 @@ class Publisher {
   [[nodiscard]] std::uint64_t messages() const noexcept { return messages_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t publish_failures() const noexcept { return failures_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::int32_t block_samples(std::size_t device) const { return packers_.at(device).block_len; }
+  /// After stop(): a line per device timed by its own clock (clock_fit.hpp): its drift, the
+  /// floor's residual, the largest correction slewed in, samples lost and late.
+  [[nodiscard]] std::vector<std::string> clock_report() const;
 
  private:
   struct Packer {
@@ -105,6 +108,7 @@ class Publisher {
     std::uint32_t stuck_channels = 0;
     // The device's time base (clock_fit.hpp), for devices not on the simulator's exact clock.
     std::optional<ClockFit> clock;
+    SlewedTimeBase timebase;             // the fit's times as the blocks carry them (continuous)
     std::int64_t clock_fed = -1;         // newest sample number fed to the fit
     // Numbered samples (a frame counter): slots by sample number, `base` the number of slot 0,
     // blocks aligned to multiples of block_len. A sample whose number is missing when a block of

@@ -756,6 +756,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
   for (const auto& p : pipelines) {
     fmt::print(out, "online: {}: {} fused rows, {} gap(s), {} exclusion(s), {} block(s) before the bench\n", p->name,
                p->rows_fused, p->assembler->gaps().size(), p->assembler->exclusions().size(), p->assembler->skipped_blocks());
+    for (const fusion::StreamGap& g : p->assembler->gaps()) fmt::print(out, "online: {}: gap: {}\n", p->name, describe(g));
     if (!p->assembler->has_bench()) fmt::print(out, "online: {}: no INERTIA_BENCH received (is inertia-daqd running on this LCM URL?)\n", p->name);
     const online::OnlineSnapshot last = p->estimator->snapshot();
     print_settling(*p, last, out);

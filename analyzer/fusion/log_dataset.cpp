@@ -176,8 +176,7 @@ dataset::Dataset log_dataset(const std::filesystem::path& file, const std::strin
   if (assembler.skipped_blocks() > 0)
     fmt::print(messages, "  {} sample block(s) recorded before INERTIA_BENCH skipped\n", assembler.skipped_blocks());
   for (const StreamGap& g : assembler.gaps())
-    fmt::print(messages, "  gap: {} missing {} sample(s) (channel_seq jump {}) before {}\n", g.device,
-               g.missing_samples, g.missing_seq, g.where);
+    fmt::print(messages, "  gap: {}\n", describe(g));
   std::map<std::pair<std::string, std::string>, std::pair<std::int64_t, double>> excluded;   // total, first t
   for (const Exclusion& x : assembler.exclusions()) {
     auto [it, fresh] = excluded.try_emplace({x.case_name, x.reason}, 0, x.t_s);

@@ -965,6 +965,11 @@ const config::BenchConfig& StreamAssembler::bench() const {
 std::size_t StreamAssembler::sensor_index() const { return impl_->sensor; }
 const std::vector<Exclusion>& StreamAssembler::exclusions() const noexcept { return impl_->exclusions; }
 const std::vector<StreamGap>& StreamAssembler::gaps() const noexcept { return impl_->gaps; }
+
+std::string describe(const StreamGap& gap) {
+  return fmt::format("{} missing {} sample(s) (channel_seq jump {}) before {}", gap.device, gap.missing_samples,
+                     gap.missing_seq, gap.where);
+}
 std::int64_t StreamAssembler::skipped_blocks() const noexcept { return impl_->skipped; }
 std::int64_t StreamAssembler::fused_rows() const noexcept { return impl_->rows_kept; }
 std::int64_t StreamAssembler::rows_out() const noexcept { return impl_->rows_out; }

@@ -131,6 +131,9 @@ struct StreamGap {
   std::int64_t missing_seq = 0;        // by channel_seq (0: the device sampled nothing, e.g. bus-off)
 };
 
+/// One line for a report: which device, how many samples by time and by number, where.
+[[nodiscard]] std::string describe(const StreamGap& gap);
+
 struct AssemblerOptions {
   std::string sensor;                  // sensor under test; empty: the bench's only one
   double min_segment_s = 0.5;          // shorter valid stretches are dropped (counted)
