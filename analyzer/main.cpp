@@ -17,6 +17,7 @@
 #include <string>
 
 #include "analyzer/commands/characterize.hpp"
+#include "analyzer/commands/plan_check.hpp"
 #include "analyzer/commands/diagnose.hpp"
 #include "analyzer/commands/noise.hpp"
 #include "analyzer/commands/online.hpp"
@@ -131,6 +132,18 @@ int run(int argc, char** argv) {
   noise->add_option("--tau-max", noise_options.tau_max_s, "fit averaging times up to this (s; default: as far as the data go)");
   noise->add_option("--out", noise_options.out, "output folder (noise.toml, report.md, plots)")->required();
 
+  inertia::commands::PlanCheckOptions plan_options;
+  auto* plan_check = app.add_subcommand("plan-check", "before a test: what the bench's plan will determine, and each parameter's predicted sd");
+  plan_check->add_option("--bench", plan_options.bench, "bench file (backend sim, [sensor.truth]: the sensor's expected values and noise)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  plan_check->add_option("--sensor", plan_options.sensor, "the sensor under test (default: the bench's first)");
+  plan_check->add_option("--fixed-model", plan_options.fixed_model, "predict for these F_S terms (default: the model characterize selects)")
+      ->delimiter(',');
+  plan_check->add_option("--seeds", plan_options.seeds, "check the predicted sd against the spread over this many simulated runs")
+      ->capture_default_str();
+  plan_check->add_option("--alpha", plan_options.alpha, "t-test significance level of the selection")->capture_default_str();
+
   inertia::commands::OnlineCommandOptions online_options;
   std::vector<std::string> online_models;
   auto* online = app.add_subcommand("online", "live: fuse the daemon's stream, recursive ULS per sensor, publish INERTIA_ESTIMATE_*");
@@ -167,6 +180,7 @@ int run(int argc, char** argv) {
     return inertia::commands::run_online(online_options, std::cout);
   }
   if (paper->parsed()) return inertia::commands::run_reproduce_paper(paper_options, std::cout);
+  if (plan_check->parsed()) return inertia::commands::run_plan_check(plan_options, std::cout);
   if (characterize->parsed()) {
     characterize_options.weights = parse_weights(weights);
     return inertia::commands::run_characterize(characterize_options, std::cout);

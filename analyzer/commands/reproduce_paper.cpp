@@ -201,10 +201,7 @@ int run_reproduce_paper(const ReproducePaperOptions& options, std::ostream& out)
   // case name -> per-seed scores; "simple" is the misalignment with the simple model on all cases.
   std::map<std::string, std::vector<CaseScore>> scores;
   for (std::uint64_t seed : options.seeds) {
-    // The sensors' noise seeds are derived when the bench is loaded; set them too, or every seed
-    // would share one sensor noise realization.
-    bench.seed = seed;
-    for (std::size_t i = 0; i < bench.sensors.size(); ++i) bench.sensors[i].seed = seed * 1000003 + 17 * (i + 1);
+    config::reseed(bench, seed);
     const sim::BenchSimulation sim = sim::simulate_bench(bench);
     const dataset::Dataset data = sim::sensor_dataset(bench, sim, 0);
     const SeedTruth truth = truth_of(bench, sim);

@@ -109,8 +109,7 @@ SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64
   s.output_unit = t.string_or("output_unit", s.output_unit);
   s.slot = t.string_or("slot", "");
   s.position_m = t.vec3_or("position_m", Eigen::Vector3d::Zero());
-  // Each sensor gets its own stream so adding a sensor does not change the others' noise.
-  s.seed = read_seed(t, "seed", bench_seed * 1000003u + 17u * (index + 1));
+  s.seed = read_seed(t, "seed", derived_sensor_seed(bench_seed, index));
   s.channel = t.string_or("channel", "");
   s.case_misalignment = read_axis_angle(t, "case_misalignment");
   if (const auto truth = t.optional_table("truth")) s.truth = read_truth(*truth);
@@ -562,6 +561,15 @@ frames::Dcm slot_orientation(Orientation orientation, double alpha_rad) {
   m.row((k + 1) % 3) << 0.0, 0.0, 1.0;
   m.row((k + 2) % 3) << s, -c, 0.0;   // = row k x row k+1: right-handed (det +1)
   return m;
+}
+
+std::uint64_t derived_sensor_seed(std::uint64_t bench_seed, std::size_t index) {
+  return bench_seed * 1000003u + 17u * (index + 1);
+}
+
+void reseed(BenchConfig& bench, std::uint64_t seed) {
+  bench.seed = seed;
+  for (std::size_t i = 0; i < bench.sensors.size(); ++i) bench.sensors[i].seed = derived_sensor_seed(seed, i);
 }
 
 BenchConfig load_bench_config(const std::filesystem::path& path) {

@@ -390,6 +390,15 @@ frames::Dcm slot_orientation(Orientation orientation, double alpha_rad);
 /// unknown phase kinds. Not real-time: allocates, reads files.
 BenchConfig load_bench_config(const std::filesystem::path& path);
 
+/// The noise seed of sensor `index` when its table gives none: its own stream, so that adding a
+/// sensor does not change the others' noise.
+[[nodiscard]] std::uint64_t derived_sensor_seed(std::uint64_t bench_seed, std::size_t index);
+
+/// Another run of the same bench: every random stream from `seed`, the sensors' included (their
+/// seeds are derived when the file is read, so setting `seed` alone would leave their noise as it
+/// was).
+void reseed(BenchConfig& bench, std::uint64_t seed);
+
 /// The same from texts in memory (an INERTIA_BENCH message): sources[0] is the bench file, the
 /// others are the files its includes name, looked up by path (resolved as load_bench_config
 /// resolves them). Same validation and errors, positions naming the recorded paths; an include

@@ -55,8 +55,7 @@ int seeds_from_environment(int fallback) {
 
 /// As if the bench file said `seed = <seed>` (the loader derives the sensors' seeds from it).
 inertia::config::BenchConfig with_seed(inertia::config::BenchConfig bench, std::uint64_t seed) {
-  bench.seed = seed;
-  for (std::size_t i = 0; i < bench.sensors.size(); ++i) bench.sensors[i].seed = seed * 1000003U + 17U * (i + 1);
+  inertia::config::reseed(bench, seed);
   return bench;
 }
 

@@ -85,11 +85,7 @@ TEST(PaperMisalignment, CompleteModelReachesTheNoiseFloorAndBeatsTheSimpleOne) {
       inertia::config::load_bench_config(std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-paper.toml");
   std::vector<double> table_complete, table_simple;
   for (const std::uint64_t seed : {1U, 2U, 3U}) {
-    // As if the bench file said `seed = <seed>`: the loader derives the sensors' noise seeds from
-    // the bench seed (common/config/bench_config.cpp), so setting bench.seed alone would keep the
-    // sensor noise of the file's seed.
-    bench.seed = seed;
-    for (std::size_t i = 0; i < bench.sensors.size(); ++i) bench.sensors[i].seed = seed * 1000003U + 17U * (i + 1);
+    inertia::config::reseed(bench, seed);   // as if the bench file said `seed = <seed>`
     const inertia::sim::BenchSimulation sim = inertia::sim::simulate_bench(bench);
     const inertia::dataset::Dataset data = inertia::sim::sensor_dataset(bench, sim, 0);
     std::vector<inertia::frames::Dcm> truth;
@@ -112,8 +108,7 @@ TEST(PaperMisalignment, CompleteModelReachesTheNoiseFloorAndBeatsTheSimpleOne) {
 TEST(PaperMisalignment, BatchRecoversTheQuadraticCoefficients) {
   inertia::config::BenchConfig bench =
       inertia::config::load_bench_config(std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-paper.toml");
-  bench.seed = 1;
-  for (std::size_t i = 0; i < bench.sensors.size(); ++i) bench.sensors[i].seed = 1000003U + 17U * (i + 1);
+  inertia::config::reseed(bench, 1);
   const inertia::sim::BenchSimulation sim = inertia::sim::simulate_bench(bench);
   const inertia::dataset::Dataset data = inertia::sim::sensor_dataset(bench, sim, 0);
   const auto* truth = std::get_if<inertia::sim::AccelerometerParams>(&sim.params.at(0));

@@ -1,0 +1,169 @@
+#include "analyzer/commands/plan_check.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+#include <fmt/ranges.h>
+
+#include <boost/math/distributions/chi_squared.hpp>
+
+#include <cmath>
+#include <map>
+#include <ostream>
+#include <stdexcept>
+
+#include "analyzer/commands/characterize.hpp"
+#include "analyzer/procedure/pipeline.hpp"
+#include "common/config/bench_config.hpp"
+#include "common/input_error.hpp"
+#include "common/units.hpp"
+#include "hal/sim/simulate.hpp"
+
+namespace inertia::commands {
+namespace {
+
+/// The parameters a run reports, by name: the batch model's process terms and the mountings'
+/// determined angles ("mounting M about p").
+std::map<std::string, std::pair<double, double>> reported_parameters(const procedure::PipelineResult& r) {
+  std::map<std::string, std::pair<double, double>> out;
+  for (Eigen::Index j = 0; j < r.fit.theta.size(); ++j) {
+    const std::string& name = r.fit.labels[static_cast<std::size_t>(j)];
+    if (name.rfind("e[", 0) == 0) continue;   // the noise model's MA terms
+    out[name] = {r.fit.theta(j), r.fit.std_dev(j)};
+  }
+  for (const procedure::MountingResult& m : r.mountings) {
+    if (!m.aligned) continue;
+    for (int axis = 1; axis <= 2; ++axis)
+      if (m.angles_sd(axis) > 0.0)
+        out[fmt::format("mounting {} about {} (deg)", m.mounting, axis == 1 ? "p" : "o")] = {
+            rad_to_deg(m.angles(axis)), rad_to_deg(m.angles_sd(axis))};
+  }
+  return out;
+}
+
+std::size_t sensor_index(const config::BenchConfig& bench, const std::string& name) {
+  if (bench.sensors.empty()) throw InputError("plan-check: the bench has no [[sensor]] under test");
+  if (name.empty()) return 0;
+  for (std::size_t i = 0; i < bench.sensors.size(); ++i)
+    if (bench.sensors[i].name == name) return i;
+  std::vector<std::string> names;
+  for (const auto& s : bench.sensors) names.push_back(s.name);
+  throw InputError(fmt::format("plan-check: --sensor {}: the bench's sensors are {}", name, fmt::join(names, ", ")));
+}
+
+procedure::PipelineResult run_once(const config::BenchConfig& bench, std::size_t sensor,
+                                   const procedure::PipelineOptions& options) {
+  const sim::BenchSimulation simulation = sim::simulate_bench(bench);
+  const dataset::Dataset data = sim::sensor_dataset(bench, simulation, sensor);
+  return procedure::run_pipeline(data, options, bench.name);
+}
+
+}  // namespace
+
+std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::ostream& out) {
+  config::BenchConfig bench = config::load_bench_config(options.bench);
+  if (!bench.simulated) {
+    throw InputError(SourcePosition{options.bench.string(), 0, 0},
+                     "plan-check predicts by simulating the plan with the sensor's expected parameters and noise: "
+                     "copy the bench file with backend = \"sim\" and a [sensor.truth] holding the datasheet's values "
+                     "(k_i, k_b, white_sd_g, pink_sd_g, ...)");
+  }
+  if (options.seeds < 0 || options.seeds > 10000) throw InputError(fmt::format("plan-check: --seeds {}: expected 0..10000", options.seeds));
+  const std::size_t sensor = sensor_index(bench, options.sensor);
+  const config::SensorUnderTest& sut = bench.sensors[sensor];
+  if (sut.truth.empty())
+    throw InputError(sut.where, fmt::format("plan-check: sensor {} has no [sensor.truth]: the prediction needs its expected "
+                                            "parameters and noise",
+                                            sut.name));
+
+  CharacterizeOptions co;
+  co.fixed_model = options.fixed_model;
+  co.alpha = options.alpha;
+  procedure::PipelineOptions pipeline = pipeline_options(co);
+  procedure::PipelineResult predicted;
+  try {
+    predicted = run_once(bench, sensor, pipeline);
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::runtime_error& e) {
+    // The pipeline's "nothing can be identified" (it names the terms and the excitation missing):
+    // here a property of the plan, which the user changes.
+    throw InputError(fmt::format("plan-check: this plan determines no model of sensor {}: {}", sut.name, e.what()));
+  }
+
+  double seconds = 0.0;
+  for (const config::TestCase& c : bench.cases)
+    for (const config::Phase& ph : c.phases) seconds += ph.duration_s;
+  fmt::print(out, "plan-check: bench {}, sensor {} ({}), {} case(s), {:.1f} s at {:g} Hz\n", bench.name, sut.name,
+             sut.type == config::SensorType::Gyroscope ? "gyroscope" : "accelerometer", bench.cases.size(), seconds,
+             bench.sample_rate_hz);
+  fmt::print(out, "  predicted from one simulated run of the plan (seed {}) with the sensor's [sensor.truth] and "
+                  "characterize's options\n",
+             bench.seed);
+  for (const std::string& note : predicted.notes) fmt::print(out, "note: {}\n", note);
+  for (const procedure::MountingResult& m : predicted.mountings) {
+    fmt::print(out, "mounting {} ({} case(s)): own excitation of IRA {:.3g}, XRA {:.3g}, YRA {:.3g} of its energy{}\n",
+               m.mounting, m.cases.size(), m.excitation.share[0], m.excitation.share[1], m.excitation.share[2],
+               m.aligned ? "" : "; not aligned");
+    for (const std::string& h : m.held) fmt::print(out, "  {}\n", h);
+  }
+  for (const procedure::UndeterminedTerm& u : predicted.undetermined) fmt::print(out, "{}: {}\n", u.term, u.reason);
+
+  std::vector<PlannedParameter> planned;
+  for (const auto& [name, v] : reported_parameters(predicted)) planned.push_back({name, v.first, v.second});
+  fmt::print(out, "determined by this plan ({} batch rows, residual sd {:.4g} {}):\n", predicted.fit.residuals.size(),
+             std::sqrt(predicted.fit.residual_variance), sut.output_unit);
+  if (options.seeds == 0) {
+    fmt::print(out, "  {:<32} {:>14} {:>12}\n", "parameter", "one run", "predicted sd");
+    for (const PlannedParameter& p : planned) fmt::print(out, "  {:<32} {:>14.6g} {:>12.3g}\n", p.name, p.value, p.predicted_sd);
+    return planned;
+  }
+
+  // The check: the same model on more runs of the plan, each with its own noise.
+  procedure::PipelineOptions fixed = pipeline;
+  fixed.batch.select = false;
+  fixed.batch.fixed_terms.clear();
+  for (Eigen::Index j = 0; j < predicted.fit.theta.size(); ++j) {
+    const std::string& name = predicted.fit.labels[static_cast<std::size_t>(j)];
+    if (name.rfind("e[", 0) != 0) fixed.batch.fixed_terms.push_back(name);
+  }
+  std::map<std::string, std::vector<double>> values;
+  const std::uint64_t first_seed = bench.seed;
+  for (int s = 1; s <= options.seeds; ++s) {
+    config::reseed(bench, first_seed + static_cast<std::uint64_t>(s));
+    for (const auto& [name, v] : reported_parameters(run_once(bench, sensor, fixed))) values[name].push_back(v.first);
+  }
+  fmt::print(out, "  {:<32} {:>14} {:>12} {:>12} {:>7} {:>17}\n", "parameter", "one run", "predicted sd",
+             fmt::format("sd over {}", options.seeds), "ratio", "95 % of the ratio");
+  int outside = 0;
+  for (PlannedParameter& p : planned) {
+    const auto it = values.find(p.name);
+    if (it == values.end() || it->second.size() < 2) {
+      fmt::print(out, "  {:<32} {:>14.6g} {:>12.3g} {:>12}\n", p.name, p.value, p.predicted_sd, "not in every run");
+      continue;
+    }
+    const std::vector<double>& x = it->second;
+    const double n = static_cast<double>(x.size());
+    double mean = 0.0, ss = 0.0;
+    for (double xi : x) mean += xi / n;
+    for (double xi : x) ss += (xi - mean) * (xi - mean);
+    p.runs = static_cast<int>(x.size());
+    p.spread = std::sqrt(ss / (n - 1.0));
+    // A sample sd over the true sd is distributed as sqrt(chi2(n-1) / (n-1)).
+    const boost::math::chi_squared chi(n - 1.0);
+    p.ratio_low = std::sqrt(boost::math::quantile(chi, 0.025) / (n - 1.0));
+    p.ratio_high = std::sqrt(boost::math::quantile(chi, 0.975) / (n - 1.0));
+    outside += p.consistent() ? 0 : 1;
+    fmt::print(out, "  {:<32} {:>14.6g} {:>12.3g} {:>12.3g} {:>7.2f} {:>8.2f} .. {:<5.2f}{}\n", p.name, p.value,
+               p.predicted_sd, p.spread, p.ratio(), p.ratio_low, p.ratio_high, p.consistent() ? "" : "  outside");
+  }
+  fmt::print(out, "plan-check: {} of {} predicted sd outside the 95 % interval of the spread over {} seeds\n", outside,
+             planned.size(), options.seeds);
+  return planned;
+}
+
+int run_plan_check(const PlanCheckOptions& options, std::ostream& out) {
+  (void)plan_check(options, out);
+  return kExitOk;
+}
+
+}  // namespace inertia::commands

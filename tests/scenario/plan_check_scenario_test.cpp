@@ -1,0 +1,133 @@
+// Issue 12, "excitation check before the test": inertia-analyze plan-check predicts from the bench
+// file alone what the plan determines and each parameter's sd, and with --seeds checks that
+// prediction against the spread over simulated runs, as the bench would.
+#include <gtest/gtest.h>
+
+#include <boost/math/distributions/chi_squared.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+
+#include "analyzer/commands/plan_check.hpp"
+#include "common/input_error.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using inertia::commands::PlanCheckOptions;
+using inertia::commands::PlannedParameter;
+
+fs::path config_path(const std::string& name) { return fs::path(INERTIA_SOURCE_DIR) / "config" / name; }
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// The ratio's two-sided interval at `level` for a sample sd over `runs` runs: sqrt(chi2(n-1)/(n-1)).
+std::pair<double, double> ratio_interval(int runs, double level) {
+  const double dof = runs - 1.0;
+  const boost::math::chi_squared chi(dof);
+  return {std::sqrt(boost::math::quantile(chi, (1.0 - level) / 2.0) / dof),
+          std::sqrt(boost::math::quantile(chi, 1.0 - (1.0 - level) / 2.0) / dof)};
+}
+
+// The sim-paper-daq plan (a table mounting, a three-orientation shaker mounting): every parameter
+// characterize reports is in the prediction and varies over the check's runs by the sensor's noise
+// (each run reseeds the sensor too: with the bench seed alone the table's angles came out identical
+// to 1e-15 over the runs). The table mounting's angles are predicted within the 99 % interval of
+// the spread. The batch coefficients' sd are not yet: under the bench's 1/f noise the spread is 5
+// to 10 times the sd characterize reports (white noise alone: within 0.5 to 1.5 times); that is
+// the honest-inference work of issues 12 and 16, printed here and not asserted.
+TEST(PlanCheck, ThePaperPlansPredictionAgainstTheSpreadOverSeeds) {
+  PlanCheckOptions options;
+  options.bench = config_path("sim-paper-daq.toml");
+  options.seeds = 20;
+  std::ostringstream out;
+  const std::vector<PlannedParameter> planned = inertia::commands::plan_check(options, out);
+  std::cout << out.str();
+  const auto [low, high] = ratio_interval(options.seeds, 0.99);
+  int table_angles = 0;
+  for (const std::string term : {"1", "a_i", "a_i*a_p", "a_i*a_o", "a_p*a_o", "a_i^2", "a_p^2", "a_o^2"})
+    EXPECT_TRUE(std::any_of(planned.begin(), planned.end(), [&](const PlannedParameter& p) { return p.name == term; })) << term;
+  for (const PlannedParameter& p : planned) {
+    EXPECT_EQ(p.runs, options.seeds) << p.name;
+    EXPECT_GT(p.predicted_sd, 0.0) << p.name;
+    EXPECT_GT(p.ratio(), 0.1) << p.name << ": the runs do not carry the noise";
+    if (p.name.rfind("mounting rotation-table", 0) == 0) {
+      ++table_angles;
+      EXPECT_GE(p.ratio(), low) << p.name;
+      EXPECT_LE(p.ratio(), high) << p.name;
+    }
+  }
+  EXPECT_EQ(table_angles, 2);
+}
+
+TEST(PlanCheck, WhatItCannotPredictFromExitsTwoSayingWhy) {
+  PlanCheckOptions real;
+  real.bench = config_path("bench-template.toml");
+  std::ostringstream sink;
+  try {
+    (void)inertia::commands::plan_check(real, sink);
+    ADD_FAILURE() << "a real bench was predicted";
+  } catch (const inertia::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("[sensor.truth]"), std::string::npos) << e.what();
+  }
+
+  PlanCheckOptions unknown;
+  unknown.bench = config_path("sim-rotation-table.toml");
+  unknown.sensor = "acc9";
+  try {
+    (void)inertia::commands::plan_check(unknown, sink);
+    ADD_FAILURE() << "an unknown sensor was predicted";
+  } catch (const inertia::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("acc1, fog1"), std::string::npos) << e.what();
+  }
+
+  // One static pose determines nothing: the message names the case and the excitation missing.
+  const fs::path one_pose = fs::temp_directory_path() / "plan-check-one-pose.toml";
+  {
+    const std::string tumble = read_text(config_path("sim-tumble.toml"));
+    const std::size_t second_case = tumble.find("[[case]]", tumble.find("[[case]]") + 1);
+    std::ofstream(one_pose) << tumble.substr(0, second_case);
+  }
+  PlanCheckOptions nothing;
+  nothing.bench = one_pose;
+  try {
+    (void)inertia::commands::plan_check(nothing, sink);
+    ADD_FAILURE() << "one pose was predicted";
+  } catch (const inertia::InputError& e) {
+    const std::string why = e.what();
+    EXPECT_NE(why.find("determines nothing"), std::string::npos) << why;
+    EXPECT_NE(why.find("ira-up"), std::string::npos) << why;
+  }
+  fs::remove(one_pose);
+}
+
+// Every shipped simulated bench gets a prediction with default options (what characterize would
+// determine there, and what not): the gyro on the rate table, the shaker-only and thermal plans.
+TEST(PlanCheck, EveryShippedSimulatedBenchGetsAPrediction) {
+  for (const std::string name : {"sim-rotation-table.toml", "sim-shaker.toml", "sim-thermal.toml", "sim-tumble.toml"}) {
+    PlanCheckOptions options;
+    options.bench = config_path(name);
+    std::ostringstream out;
+    const std::vector<PlannedParameter> planned = inertia::commands::plan_check(options, out);
+    std::cout << "[ figures ] " << name << ": " << planned.size() << " parameter(s) determined\n";
+    EXPECT_FALSE(planned.empty()) << name << "\n" << out.str();
+    EXPECT_NE(out.str().find("determined by this plan"), std::string::npos) << name;
+  }
+  PlanCheckOptions gyro;
+  gyro.bench = config_path("sim-rotation-table.toml");
+  gyro.sensor = "fog1";
+  std::ostringstream out;
+  EXPECT_FALSE(inertia::commands::plan_check(gyro, out).empty()) << out.str();
+  std::cout << out.str();
+}
+
+}  // namespace
