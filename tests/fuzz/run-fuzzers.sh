@@ -29,8 +29,11 @@ run_one() {
     echo "fuzz $t: $bin is not built (cmake --build $build --target fuzz_$t)" > "$work/$t/result"
     return 1
   fi
-  local log="$work/$t/fuzz.log" start rc took execs corpus artifacts result
+  local log="$work/$t/fuzz.log" stamp="$work/$t/started" start rc took execs corpus artifacts result
   start=$(date +%s)
+  # Only what this run writes counts: a WORK_DIR used before keeps the artifacts of earlier runs
+  # (findings since fixed, their inputs kept as seeds), which must not fail this one.
+  touch "$stamp"
   # -rss_limit_mb: a reader that allocates what a hostile length claims is a finding, not noise.
   # -timeout: one input taking 10 s is a hang. -print_final_stats: the figures below.
   ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:${ASAN_OPTIONS:-}" \
@@ -41,7 +44,7 @@ run_one() {
   took=$(( $(date +%s) - start ))
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   corpus=$(ls "$work/$t/corpus" | wc -l)
-  artifacts=$(ls "$work/$t/artifacts" | wc -l)
+  artifacts=$(find "$work/$t/artifacts" -type f -newer "$stamp" | wc -l)
   if [ "$rc" -eq 0 ] && [ "$artifacts" -eq 0 ]; then
     result=ok
   else
