@@ -172,8 +172,10 @@ WhitenessReport residual_whiteness(const Eigen::Ref<const Eigen::VectorXd>& resi
 
 ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
                                double sigma2, const std::vector<int>& cluster, int estimated_elsewhere,
-                               const Eigen::VectorXd& loading) {
+                               const Eigen::VectorXd& loading, const ColouredNoise* noise) {
   const Eigen::Index n = x.rows(), p = x.cols();
+  if (noise != nullptr && (noise->meat.rows() != p || noise->meat.cols() != p))
+    throw std::invalid_argument("cluster_offsets: the coloured noise's meat is not p x p");
   if (residuals.size() != n || static_cast<Eigen::Index>(cluster.size()) != n || (loading.size() != 0 && loading.size() != n))
     throw std::invalid_argument("cluster_offsets: x, residuals, loading and cluster ids differ in length");
   struct Part {
@@ -203,7 +205,13 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
     ordered.push_back(&part);
     means.row(g) = part.column_sums.transpose() / part.rows;
     const double m = part.residual_sum / part.rows;
-    excess(g) = m * m - sigma2 / part.rows;
+    double expected = sigma2 / part.rows;
+    if (noise != nullptr) {
+      const auto at = noise->mean_variance.find(id);
+      if (at == noise->mean_variance.end()) throw std::invalid_argument("cluster_offsets: no noise variance for a cluster's mean");
+      expected = at->second;
+    }
+    excess(g) = m * m - expected;
     q(g) = part.loading_sum / part.rows;
   }
   // Rank of the cluster-mean design in RMS-scaled columns.
@@ -218,7 +226,9 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
   out.between_dof = out.clusters - rank - estimated_elsewhere;
   const Eigen::LDLT<Eigen::MatrixXd> xx(x.transpose() * x);
   const Eigen::MatrixXd inverse = xx.solve(Eigen::MatrixXd::Identity(p, p));
-  out.covariance = sigma2 * inverse;
+  out.within = noise != nullptr ? Eigen::MatrixXd(inverse * noise->meat * inverse) : Eigen::MatrixXd(sigma2 * inverse);
+  out.within = 0.5 * (out.within + out.within.transpose()).eval();
+  out.covariance = out.within;
   if (out.between_dof > 0) {
     const double inflate = static_cast<double>(out.clusters) / static_cast<double>(out.between_dof);
     // Non-negative least squares of excess on [1 q]: both, or the better single one.

@@ -3,6 +3,7 @@
 // residual diagnostics. All functions are pure and thread-safe; none is real-time (they allocate).
 #include <Eigen/Dense>
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -71,12 +72,21 @@ ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& res
 ///   by G / dof for the means the fit absorbed (method of moments);
 ///   V = sigma^2 (X'X)^-1 + (X'X)^-1 (sum_g tau_g^2 s_g s_g') (X'X)^-1,  s_g = X_g' 1,
 /// the covariance of the (ordinary, here AR-whitened) least-squares estimate under that model.
+/// With a coloured noise model (the whitened residual is not white where the AR model stops
+/// following the sensor's noise: noise/coloured_noise.hpp) its meat X'RX replaces sigma^2 X'X,
+/// and each cluster mean's variance under it replaces sigma^2 / n_g: the offsets are then what
+/// that noise model does not explain.
+struct ColouredNoise {
+  Eigen::MatrixXd meat;                 ///< X'RX (p x p), R the residual's covariance
+  std::map<int, double> mean_variance;  ///< per cluster id: the variance of its mean under R
+};
 struct ClusterOffsets {
   int clusters = 0;                 ///< G
   int between_dof = 0;              ///< G - r; <= 0: the offsets cannot be told from the model
   double tau2 = 0.0;                ///< mean variance of the cluster offsets (0 when dof <= 0)
   double tau2_common = 0.0, tau2_per_loading = 0.0;   ///< tau_0^2, tau_1^2
-  Eigen::MatrixXd covariance;       ///< V above (p x p); with dof <= 0 the classical part only
+  Eigen::MatrixXd within;           ///< the noise's part: sigma^2 (X'X)^-1, or (X'X)^-1 X'RX (X'X)^-1
+  Eigen::MatrixXd covariance;       ///< V above (p x p); with dof <= 0 `within` only
 };
 /// x: the regression columns in the linear form of the fit, residuals of that fit, sigma2 its
 /// white-noise variance, cluster: one id per row (rows of one id need not be contiguous).
@@ -85,7 +95,7 @@ struct ClusterOffsets {
 /// `loading`: one value per row (empty: none, tau_1 = 0).
 ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
                                double sigma2, const std::vector<int>& cluster, int estimated_elsewhere = 0,
-                               const Eigen::VectorXd& loading = Eigen::VectorXd());
+                               const Eigen::VectorXd& loading = Eigen::VectorXd(), const ColouredNoise* noise = nullptr);
 
 /// fitness = p_res * p_AIC (section 2.7).
 inline double fitness(double p_res, double p_aic) { return p_res * p_aic; }

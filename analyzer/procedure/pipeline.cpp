@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
@@ -474,6 +475,14 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
                           const ident::UlsOptions& uls, std::vector<UndeterminedTerm>* removed, std::string_view what) {
   const StackedRegression& s = *h.s;
   std::vector<std::string> dropped;
+  // The whitened residual's own noise model per case (its low-frequency colour: coloured_noise.hpp),
+  // fitted once on the selected model's residual, and the meat X'RX of its columns: a term that
+  // leaves takes its row and column with it, and the residual it leaves behind differs by a term
+  // that tested as nothing.
+  std::vector<noise::SegmentSpectrum> spectra;
+  Eigen::MatrixXd full_meat;
+  std::vector<std::string> meat_labels;
+  ident::ColouredNoise coloured;
   for (;;) {
     HonestResult out;
     const Eigen::Index p = fit.process_terms;
@@ -486,8 +495,37 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
       const bool rational = std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end();
       x.col(j) = rational ? Eigen::VectorXd(-s.phi.col(column)) : Eigen::VectorXd(s.phi.col(column));   // the linear form
     }
+    if (spectra.empty()) {
+      full_meat = Eigen::MatrixXd::Zero(p, p);
+      for (const CaseRows& rows : s.cases) {
+        spectra.push_back(noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows)));
+        full_meat += noise::quadratic_form(spectra.back(), x.middleRows(rows.begin, rows.rows));
+        // Each phase's mean under its case's noise (a phase is one run of rows within a case).
+        for (Eigen::Index begin = rows.begin, end = rows.begin + rows.rows; begin < end;) {
+          const int id = (*h.clusters)[static_cast<std::size_t>(begin)];
+          Eigen::Index run = 1;
+          while (begin + run < end && (*h.clusters)[static_cast<std::size_t>(begin + run)] == id) ++run;
+          coloured.mean_variance[id] += noise::sum_variance(spectra.back(), run);
+          begin += run;
+        }
+      }
+      std::map<int, Eigen::Index> cluster_rows;
+      for (const int id : *h.clusters) ++cluster_rows[id];
+      for (auto& [id, v] : coloured.mean_variance) v /= static_cast<double>(cluster_rows[id] * cluster_rows[id]);
+      meat_labels = fit.labels;
+      meat_labels.resize(static_cast<std::size_t>(p));
+    }
+    coloured.meat.resize(p, p);
+    std::vector<Eigen::Index> in_meat(static_cast<std::size_t>(p));
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const auto at = std::find(meat_labels.begin(), meat_labels.end(), fit.labels[std::size_t(j)]);
+      if (at == meat_labels.end()) throw std::logic_error("honest_prune: a refit brought a term the first fit did not have");
+      in_meat[std::size_t(j)] = at - meat_labels.begin();
+    }
+    for (Eigen::Index a = 0; a < p; ++a)
+      for (Eigen::Index b = 0; b < p; ++b) coloured.meat(a, b) = full_meat(in_meat[std::size_t(a)], in_meat[std::size_t(b)]);
     out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, *h.clusters, h.estimated_elsewhere,
-                                         h.loading != nullptr ? *h.loading : Eigen::VectorXd());
+                                         h.loading != nullptr ? *h.loading : Eigen::VectorXd(), &coloured);
     // Which terms live between the phases: little of their column varies within one.
     std::vector<bool> phase_level(static_cast<std::size_t>(p), false);
     {
@@ -503,12 +541,14 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
       const Eigen::VectorXd total = x.colwise().squaredNorm().transpose();
       for (Eigen::Index j = 0; j < p; ++j) phase_level[std::size_t(j)] = total(j) > 0.0 && total(j) - between(j) < 1e-2 * total(j);
     }
+    // The fit's covariance (ULS's, with its bias correction) takes the residual as white: what the
+    // residual's colour and the offsets between phases add to that is added to it.
     Eigen::MatrixXd covariance = fit.covariance.topLeftCorner(p, p);
+    const Eigen::MatrixXd classical = fit.residual_variance * (x.transpose() * x).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
+    covariance += out.offsets.covariance - classical;
     if (out.offsets.tau2 > 0.0) {
-      const Eigen::MatrixXd classical = fit.residual_variance * (x.transpose() * x).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
-      covariance += out.offsets.covariance - classical;
       for (Eigen::Index j = 0; j < p; ++j)
-        if (out.offsets.covariance(j, j) > 2.0 * classical(j, j)) out.dof(j) = std::max(1, out.offsets.between_dof);
+        if (out.offsets.covariance(j, j) > 2.0 * out.offsets.within(j, j)) out.dof(j) = std::max(1, out.offsets.between_dof);
     }
     if (h.extra) h.extra(fit, covariance);
     fit.covariance.topLeftCorner(p, p) = covariance;

@@ -212,8 +212,11 @@ TEST(OnlineEstimator, EqualsTheBatchPipelineOnTheSameRows) {
     const auto b = static_cast<Index>(std::find(batch.fit.labels.begin(), batch.fit.labels.end(), kModel[j]) - batch.fit.labels.begin());
     EXPECT_NEAR(live.values(jj), batch.fit.theta(b), 1e-6 * batch.fit.std_dev(b)) << kModel[j];
     // The live sd adds what the mountings' misalignment uncertainty does to the batch (the
-    // batch pipeline takes M_C^S as known): never less.
-    EXPECT_GE(live.std_devs(jj), batch.fit.std_dev(b) * (1.0 - 1e-9)) << kModel[j];
+    // batch pipeline takes M_C^S as known): never less, but for the batch's noise model. The
+    // live estimator takes the whitened noise as white; the batch fits each case's residual
+    // spectrum (coloured_noise.hpp), whose white level on this white noise is an estimate from a
+    // case's 3000 rows: about 1/sqrt(3000) in variance, half that in sd; three of it here.
+    EXPECT_GE(live.std_devs(jj), batch.fit.std_dev(b) * (1.0 - 1.5 / std::sqrt(3000.0))) << kModel[j];
   }
   // And the truth within the noise: coefficients and each mounting's misalignment.
   const Eigen::VectorXd truth = truth_values();

@@ -1,0 +1,114 @@
+#include "analyzer/noise/coloured_noise.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <complex>
+#include <stdexcept>
+#include <unsupported/Eigen/FFT>
+#include <vector>
+
+#include "analyzer/noise/allan.hpp"
+#include "analyzer/noise/noise_analysis.hpp"
+
+namespace inertia::noise {
+namespace {
+
+Eigen::Index padded_length(Eigen::Index rows) {
+  Eigen::Index length = 2;
+  while (length < 2 * rows) length *= 2;
+  return length;
+}
+
+}  // namespace
+
+SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double)>& density) {
+  if (rows < 1) throw std::invalid_argument("spectrum_of: no rows");
+  SegmentSpectrum out;
+  out.rows = rows;
+  out.length = padded_length(rows);
+  const Eigen::Index half = out.length / 2;
+  out.density.resize(half + 1);
+  for (Eigen::Index k = 0; k <= half; ++k) out.density(k) = density(static_cast<double>(k) / static_cast<double>(out.length));
+  // A flicker or random-walk spectrum is infinite at DC: there it is taken at half a bin, and what
+  // lies below the record's lowest frequency is the offsets between cases (cluster_offsets).
+  if (!std::isfinite(out.density(0))) out.density(0) = density(0.5 / static_cast<double>(out.length));
+  std::vector<std::complex<double>> bins(static_cast<std::size_t>(half + 1));
+  for (Eigen::Index k = 0; k <= half; ++k) bins[static_cast<std::size_t>(k)] = out.density(k);
+  Eigen::FFT<double> fft;
+  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+  std::vector<double> r;
+  fft.inv(r, bins, static_cast<std::size_t>(out.length));   // (1/L) sum_k S_k e^{2 pi i k tau / L}
+  out.autocovariance = Eigen::Map<const Eigen::VectorXd>(r.data(), rows);
+  return out;
+}
+
+SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual) {
+  const Eigen::Index n = residual.size();
+  std::optional<NoiseFit> fit;
+  if (n >= 64) {
+    AllanAccumulator allan(1.0);
+    allan.push(residual);
+    NoiseFitOptions options;
+    // A rate ramp is a drift, not a stationary noise: its spectrum (1/f^3) would put an unbounded
+    // variance on the DC bin. The offsets between cases carry what drift there is.
+    options.terms[static_cast<std::size_t>(NoiseTerm::R)] = false;
+    try {
+      fit = fit_noise(allan.points(), options);
+    } catch (const std::invalid_argument&) {
+      fit.reset();   // too few octaves: white below
+    }
+  }
+  SegmentSpectrum out;
+  if (fit) {
+    // Below the record's lowest frequency (one cycle in n samples) the residual cannot tell a
+    // flicker or random walk from an offset of the whole stretch: there only the white part, and
+    // the offsets between stretches are the cluster offsets' (ident::cluster_offsets).
+    NoiseFit white = *fit;
+    for (const NoiseTerm t : {NoiseTerm::B, NoiseTerm::K, NoiseTerm::R}) white.terms[static_cast<std::size_t>(t)].value = 0.0;
+    const double lowest = 1.0 / static_cast<double>(n);
+    out = spectrum_of(n, [&](double f) { return 0.5 * model_psd(f < lowest ? white : *fit, f, 1.0); });
+    std::string terms;
+    for (int t = 0; t < kNoiseTerms; ++t) {
+      const NoiseCoefficient& c = fit->terms[static_cast<std::size_t>(t)];
+      if (c.value > 0.0) terms += fmt::format("{}{} {:.3g}", terms.empty() ? "" : ", ", noise_term_name(NoiseTerm(t)), c.value);
+    }
+    out.model = terms.empty() ? std::string("no noise") : terms;
+    out.fit = std::move(fit);
+  } else {
+    const double variance = n > 0 ? residual.squaredNorm() / static_cast<double>(n) : 0.0;
+    out = spectrum_of(std::max<Eigen::Index>(n, 1), [&](double) { return variance; });
+    out.model = fmt::format("white {:.3g} (too short for the Allan fit)", variance);
+  }
+  return out;
+}
+
+Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x) {
+  if (x.rows() != spectrum.rows) throw std::invalid_argument("quadratic_form: rows differ from the spectrum's");
+  const Eigen::Index p = x.cols(), half = spectrum.length / 2;
+  Eigen::MatrixXcd weighted(half + 1, p);
+  Eigen::FFT<double> fft;
+  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+  std::vector<double> column(static_cast<std::size_t>(spectrum.length), 0.0);
+  std::vector<std::complex<double>> bins;
+  // Each bin k in 1 .. L/2-1 stands for k and L-k (a real column's spectrum is symmetric).
+  Eigen::VectorXd weight(half + 1);
+  for (Eigen::Index k = 0; k <= half; ++k)
+    weight(k) = std::sqrt((k == 0 || k == half ? 1.0 : 2.0) * spectrum.density(k) / static_cast<double>(spectrum.length));
+  for (Eigen::Index j = 0; j < p; ++j) {
+    Eigen::Map<Eigen::VectorXd>(column.data(), x.rows()) = x.col(j);
+    fft.fwd(bins, column);
+    weighted.col(j) = Eigen::Map<const Eigen::VectorXcd>(bins.data(), half + 1).cwiseProduct(weight);
+  }
+  Eigen::MatrixXd out = (weighted.adjoint() * weighted).real();
+  return 0.5 * (out + out.transpose());
+}
+
+double sum_variance(const SegmentSpectrum& spectrum, Eigen::Index m) {
+  if (m < 1 || m > spectrum.rows) throw std::invalid_argument("sum_variance: m outside 1 .. rows");
+  double v = static_cast<double>(m) * spectrum.autocovariance(0);
+  for (Eigen::Index tau = 1; tau < m; ++tau) v += 2.0 * static_cast<double>(m - tau) * spectrum.autocovariance(tau);
+  return v;
+}
+
+}  // namespace inertia::noise

@@ -1,0 +1,54 @@
+#pragma once
+// The noise an AR prewhitening leaves behind, and what it does to a least-squares estimate.
+//
+// The identification whitens each case with an AR model chosen by AIC. At a bench's sample rates
+// that model follows the noise down to a few tens of Hz; below, 1/f (flicker) and random-walk
+// noise keep rising while the AR model's spectrum is flat. The whitened residual is then white
+// at high frequency and coloured at low frequency, and the classical covariance sigma^2 (X'X)^-1
+// weighs the low-frequency information (gravity in a pose, the table's slow rotation, the shaker's
+// static orientation) as if the noise there were as quiet as at high frequency: 5 to 11 times
+// optimistic on the paper-daq bench (plan-check --seeds 20).
+//
+// Here the whitened residual of each case gets a noise model of its own, the sensor-noise terms
+// of noise_fit.hpp (Q, N, B, K, R: white, flicker, random walk ..) fitted to its Allan variance,
+// whose spectrum S(f) gives the covariance R of the residual; the estimate's covariance is then
+// the sandwich (X'X)^-1 X'RX (X'X)^-1 (ident::ColouredNoise). X'RX is computed in the frequency
+// domain: sum over the bins f_k of a zero-padded DFT of length L >= 2n of S(f_k) X_k^H X_k / L,
+// the circulant that equals the Toeplitz R wherever R's correlation has decayed within n lags.
+// Below the record's lowest frequency (one cycle per record), where a flicker or random-walk
+// spectrum rises without bound, a fitted spectrum keeps its white part only: a stretch's offset
+// is the offsets between stretches' business (ident::cluster_offsets), measured from their scatter.
+#include <Eigen/Dense>
+
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "analyzer/noise/noise_fit.hpp"
+
+namespace inertia::noise {
+
+/// One contiguous stretch's stationary noise, on the bins of the DFT of length `length`.
+struct SegmentSpectrum {
+  Eigen::Index rows = 0;              // n
+  Eigen::Index length = 0;            // L: a power of two >= 2n
+  Eigen::VectorXd density;            // two-sided S(f_k), k = 0 .. L/2 (the rest by symmetry), per sample
+  Eigen::VectorXd autocovariance;     // r(tau), tau = 0 .. n-1, of the same spectrum
+  std::optional<NoiseFit> fit;        // the terms fitted (tau0 = one sample); none: white (too short to fit)
+  std::string model;                  // one line: which terms, for the report
+};
+
+/// The spectrum of `residual`'s noise: its Allan variance's terms (fit_noise, tau0 = 1 sample), or
+/// white with its mean square when the stretch is too short for the fit.
+SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual);
+
+/// A stationary noise of two-sided density `density(f)` (f in cycles per sample, 0..0.5) on n rows.
+SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double)>& density);
+
+/// x' R x for the rows of x under the spectrum (x.rows() == spectrum.rows).
+Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x);
+
+/// The variance of the sum of `m` consecutive samples (m <= rows) under the spectrum.
+double sum_variance(const SegmentSpectrum& spectrum, Eigen::Index m);
+
+}  // namespace inertia::noise
