@@ -53,7 +53,10 @@ endfunction()
 function(inertia_add_gtest name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPENDS;LABELS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
-  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/tests)
+  # UNITY_BUILD OFF: each test file reads alone, its helpers in an anonymous namespace under the
+  # names that suit it (kSmall, line_of in several daemon tests), so the files of one test binary
+  # are never merged into one unity source (CI builds the sanitizer jobs' libraries that way).
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/tests UNITY_BUILD OFF)
   target_link_libraries(${name} PRIVATE ${ARG_DEPENDS} GTest::gtest_main inertia_warnings)
   target_compile_definitions(${name} PRIVATE INERTIA_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
                              INERTIA_BINARY_DIR="${PROJECT_BINARY_DIR}")

@@ -13,7 +13,7 @@ namespace {
 // Noise streams of one sensor, drawn from the one config seed (gaussian_source.hpp).
 constexpr std::uint64_t kWhiteStream = 1, kPinkStream = 2, kBrownStream = 3;
 
-void require(bool ok, const std::string& message) {
+void require_accelerometer(bool ok, const std::string& message) {
   if (!ok) throw std::invalid_argument("AccelerometerParams: " + message);
 }
 
@@ -26,8 +26,8 @@ void require(bool ok, const std::string& message) {
 // K_jj at Nyquist (the continuous filter's high-frequency gain), -3 dB at b rad/s.
 DiscreteFilter<1> high_pass(double k, double b_rad_s, double sample_rate_hz, const char* field) {
   if (k == 0.0) return {};   // term off; its corner is irrelevant
-  require(std::isfinite(k), std::string(field) + " gain is not finite");
-  require(b_rad_s > 0.0 && b_rad_s < kPi * sample_rate_hz,
+  require_accelerometer(std::isfinite(k), std::string(field) + " gain is not finite");
+  require_accelerometer(b_rad_s > 0.0 && b_rad_s < kPi * sample_rate_hz,
           std::string(field) + " = " + std::to_string(b_rad_s) +
               " rad/s must lie in (0, pi * sample_rate_hz) (corner below Nyquist)");
   const double c = b_rad_s / std::tan(b_rad_s / (2.0 * sample_rate_hz));
@@ -37,13 +37,13 @@ DiscreteFilter<1> high_pass(double k, double b_rad_s, double sample_rate_hz, con
 }
 
 double checked_rate(double sample_rate_hz) {
-  require(std::isfinite(sample_rate_hz) && sample_rate_hz > 0.0,
+  require_accelerometer(std::isfinite(sample_rate_hz) && sample_rate_hz > 0.0,
           "sample_rate_hz = " + std::to_string(sample_rate_hz) + " must be finite and > 0");
   return sample_rate_hz;
 }
 
 double checked_sd(double sd, const char* field) {
-  require(std::isfinite(sd) && sd >= 0.0, std::string(field) + " = " + std::to_string(sd) + " must be finite and >= 0");
+  require_accelerometer(std::isfinite(sd) && sd >= 0.0, std::string(field) + " = " + std::to_string(sd) + " must be finite and >= 0");
   return sd;
 }
 
@@ -63,7 +63,7 @@ AccelerometerModel::AccelerometerModel(const AccelerometerParams& p, double samp
       brown_draws_(seed, kBrownStream),
       brown_step_sd_g_(checked_sd(p.brown_sd_g, "brown_sd_g") / std::sqrt(sample_rate_hz)) {
   checked_sd(p.white_sd_g, "white_sd_g");
-  require(m_cs_.allFinite(), "alpha_p_rad / alpha_o_rad must be finite");
+  require_accelerometer(m_cs_.allFinite(), "alpha_p_rad / alpha_o_rad must be finite");
 }
 
 double AccelerometerModel::step(const Eigen::Vector3d& a_case, double temp_delta_c) noexcept {

@@ -12,7 +12,7 @@ namespace {
 
 constexpr std::uint64_t kNoiseStream = 11;   // distinct from the accelerometer's streams
 
-void require(bool ok, const std::string& message) {
+void require_fog(bool ok, const std::string& message) {
   if (!ok) throw std::invalid_argument("FogParams: " + message);
 }
 
@@ -28,13 +28,13 @@ FogModel::FogModel(const FogParams& p, double sample_rate_hz, std::uint64_t seed
       draws_(seed, kNoiseStream) {
   // The sample rate does not enter equation 5 (its filters are already discrete), but a caller
   // passing a nonsense rate has mixed up its arguments.
-  require(std::isfinite(sample_rate_hz) && sample_rate_hz > 0.0,
+  require_fog(std::isfinite(sample_rate_hz) && sample_rate_hz > 0.0,
           "sample_rate_hz = " + std::to_string(sample_rate_hz) + " must be finite and > 0");
-  require(std::isfinite(p.s0) && p.s0 != 0.0, "s0 = " + std::to_string(p.s0) + " must be finite and non-zero");
-  require(std::isfinite(p.noise_sd_rad_s) && p.noise_sd_rad_s >= 0.0,
+  require_fog(std::isfinite(p.s0) && p.s0 != 0.0, "s0 = " + std::to_string(p.s0) + " must be finite and non-zero");
+  require_fog(std::isfinite(p.noise_sd_rad_s) && p.noise_sd_rad_s >= 0.0,
           "noise_sd_rad_s = " + std::to_string(p.noise_sd_rad_s) + " must be finite and >= 0");
   for (double v : {p.eps_t_ppm_per_degc, p.c_f1, p.c_i, p.alpha_p_rad, p.alpha_o_rad, p.c_t1, p.c_t2, p.drift_rad_s})
-    require(std::isfinite(v), "a coefficient is not finite");
+    require_fog(std::isfinite(v), "a coefficient is not finite");
   if (p.noise_sd_rad_s > 0.0) {
     DiscreteFilter<3>::StateMatrix a;
     DiscreteFilter<3>::StateVector b;
