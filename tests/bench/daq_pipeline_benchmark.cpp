@@ -3,6 +3,11 @@
 //    channels + sample counter on CAN, encoder, thermal controller; 10 kHz) paced in real time for
 //    DAQ_BENCH_PACED_S seconds (default 60): ring overflows, sequence gaps in the log, live LCM
 //    loss, sample-to-LCM-receive latency p50/p99 of each block's newest sample, daemon CPU %.
+//    It prints the latency distribution (percentiles to p99.99 and a histogram), the longest
+//    interval between two blocks' arrivals and where in the run it fell, and whether the daemon
+//    got SCHED_FIFO (issue 15: "where FIFO is not permitted, say so"). DAQ_BENCH_HOG=1 runs a
+//    process spinning on the last CPU beside it for the whole run (issue 15's "one CPU hog on the
+//    other core"); DAQ_BENCH_FIFO=0 runs the daemon without SCHED_FIFO.
 //  * FastNominal / FastWide: as fast as possible for 20 simulated seconds: channel-samples per
 //    second into the log (from READY to exit, the daemon's own count checked against the log).
 // Counters carry the figures; each benchmark runs once (Iterations(1)). The machine may be
@@ -16,9 +21,12 @@
 //    ours/peer of channel-samples per second and of CPU per channel-sample, a figure that a
 //    busy machine shifts far less than either absolute number.
 #include <benchmark/benchmark.h>
+#include <sched.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
+#include <memory>
 
 #include "tests/integration/daqd_harness.hpp"
 
@@ -92,6 +100,54 @@ class ThreadCpu {
   std::thread thread_;
 };
 
+/// A process spinning on one CPU for as long as this object lives: the other load of a latency
+/// measurement. Forked before any thread of the benchmark starts, so the child only spins.
+class CpuHog {
+ public:
+  explicit CpuHog(int cpu) : pid_(::fork()) {
+    if (pid_ != 0) return;
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(cpu, &set);
+    ::sched_setaffinity(0, sizeof set, &set);
+    volatile std::uint64_t spins = 0;
+    for (;;) spins = spins + 1;
+  }
+  ~CpuHog() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+  }
+  CpuHog(const CpuHog&) = delete;
+  CpuHog& operator=(const CpuHog&) = delete;
+
+ private:
+  pid_t pid_;
+};
+
+/// Percentiles and a histogram of sorted latencies, one line each, for the run's record.
+void print_distribution(const char* what, const std::vector<double>& sorted_ms) {
+  if (sorted_ms.empty()) {
+    std::printf("%s: no samples\n", what);
+    return;
+  }
+  auto at = [&](double p) { return sorted_ms[static_cast<std::size_t>(p * static_cast<double>(sorted_ms.size() - 1))]; };
+  std::printf("%s (%zu blocks): p50 %.3f, p90 %.3f, p99 %.3f, p99.9 %.3f, p99.99 %.3f, max %.3f ms\n", what,
+              sorted_ms.size(), at(0.5), at(0.9), at(0.99), at(0.999), at(0.9999), sorted_ms.back());
+  static constexpr double kEdgesMs[] = {0.25, 0.5, 1, 2, 5, 10, 20, 50, 100, 1000};
+  std::printf("%s histogram:", what);
+  double lower = 0.0;
+  auto first = sorted_ms.begin();
+  for (double edge : kEdgesMs) {
+    const auto last = std::lower_bound(first, sorted_ms.end(), edge);
+    if (last != first) std::printf(" [%g, %g) ms %td;", lower, edge, last - first);
+    first = last;
+    lower = edge;
+  }
+  if (first != sorted_ms.end()) std::printf(" >= %g ms %td;", lower, sorted_ms.end() - first);
+  std::printf("\n");
+}
+
 struct LogCheck {
   std::int64_t gaps = 0, channel_samples = 0, raw_blocks = 0;
 };
@@ -118,10 +174,15 @@ void BM_PacedNominal(benchmark::State& state) {
   }
   const double seconds = env_or("DAQ_BENCH_PACED_S", 60.0);
   const int fifo = static_cast<int>(env_or("DAQ_BENCH_FIFO", 20));
+  const bool hog = env_or("DAQ_BENCH_HOG", 0) > 0;
   state.counters["load1"] = load1();
   state.counters["fifo_priority"] = fifo;
+  state.counters["cpu_hog"] = hog ? 1 : 0;
   const std::int64_t wall_offset_ns = wall_minus_mono_ns();
   for (auto _ : state) {
+    const long cpus = ::sysconf(_SC_NPROCESSORS_ONLN);
+    std::unique_ptr<CpuHog> spinning;
+    if (hog) spinning = std::make_unique<CpuHog>(static_cast<int>(std::max(cpus, 1L) - 1));
     TempDir tmp;
     const std::string url = private_lcm_url();
     LcmCollector live(url);
@@ -134,6 +195,7 @@ void BM_PacedNominal(benchmark::State& state) {
     ThreadCpu threads(daqd.pid());
     const int rc = daqd.wait(seconds + 60);
     threads.stop();
+    spinning.reset();
     double sim_cpu = 0, daemon_cpu = 0;
     threads.split(&sim_cpu, &daemon_cpu);
     std::this_thread::sleep_for(std::chrono::milliseconds(300));
@@ -158,15 +220,30 @@ void BM_PacedNominal(benchmark::State& state) {
     std::sort(publish_ms.begin(), publish_ms.end());
     std::vector<double> latency_ms, arrival_ms;
     std::int64_t raw_received = 0;
+    // The longest wait between two blocks' arrivals (a stall of the daemon, LCM or the receiver)
+    // and where in the run it fell; the block period is the wait when nothing stalls.
+    std::int64_t first_arrival_ns = -1, previous_arrival_ns = -1, longest_gap_ns = 0, longest_gap_at_ns = 0;
+    double block_period_ms = 0.0, worst_latency_ms = -1.0, worst_latency_at_s = 0.0;
     for (const auto& r : live.take()) {
       if (r.channel.rfind("INERTIA_RAW_", 0) != 0) continue;
       ++raw_received;
       if (r.channel != "INERTIA_RAW_ACCEL") continue;
       sample_block_t b;
       if (b.decode(r.data.data(), 0, static_cast<int>(r.data.size())) < 0) continue;
+      if (first_arrival_ns < 0) first_arrival_ns = r.mono_ns;
+      if (previous_arrival_ns >= 0 && r.mono_ns - previous_arrival_ns > longest_gap_ns) {
+        longest_gap_ns = r.mono_ns - previous_arrival_ns;
+        longest_gap_at_ns = previous_arrival_ns - first_arrival_ns;
+      }
+      previous_arrival_ns = r.mono_ns;
+      block_period_ms = b.num_samples * b.sample_period_s * 1e3;
       // Paced: the simulated time base is CLOCK_MONOTONIC, so the newest sample was due then.
       const double newest = static_cast<double>(b.t0_mono_ns) + (b.num_samples - 1) * b.sample_period_s * 1e9;
       latency_ms.push_back((static_cast<double>(r.mono_ns) - newest) * 1e-6);
+      if (latency_ms.back() > worst_latency_ms) {
+        worst_latency_ms = latency_ms.back();
+        worst_latency_at_s = static_cast<double>(r.mono_ns - first_arrival_ns) * 1e-9;
+      }
       arrival_ms.push_back((static_cast<double>(r.recv_utime * 1000 - wall_offset_ns) - newest) * 1e-6);
     }
     std::sort(latency_ms.begin(), latency_ms.end());
@@ -176,6 +253,23 @@ void BM_PacedNominal(benchmark::State& state) {
     };
     auto pct = [&](double p) { return pct_of(latency_ms, p); };
     const double run_s = summary_number(out, "  run:", "seconds");
+    // The daemon says so on stderr (and on INERTIA_STATUS) when the kernel refuses SCHED_FIFO.
+    const bool fifo_granted = fifo > 0 && out.find("running without it") == std::string::npos;
+    std::printf("paced %.0f s, %s, %s\n", run_s,
+                fifo <= 0        ? "SCHED_FIFO not asked for"
+                : fifo_granted   ? "SCHED_FIFO granted"
+                                 : "SCHED_FIFO refused by this kernel or user: the latency is measured without it",
+                hog ? "one process spinning on the last CPU throughout" : "no added load");
+    print_distribution("sample-to-LCM-receive latency (receiving thread's clock)", latency_ms);
+    print_distribution("sample-to-LCM-receive latency (LCM's receive stamp)", arrival_ms);
+    print_distribution("sample-to-publish latency (the daemon's part)", publish_ms);
+    std::printf("longest interval between two blocks' arrivals: %.3f ms at %.1f s into the run (block period %.3f ms); "
+                "worst latency %.3f ms at %.1f s\n",
+                static_cast<double>(longest_gap_ns) * 1e-6, static_cast<double>(longest_gap_at_ns) * 1e-9, block_period_ms,
+                worst_latency_ms, worst_latency_at_s);
+    std::fflush(stdout);
+    state.counters["fifo_granted"] = fifo_granted ? 1 : 0;
+    state.counters["longest_arrival_gap_ms"] = static_cast<double>(longest_gap_ns) * 1e-6;
     long long drops = 0;
     for (const char* d : {"  accel:", "  linear_encoder:", "  controller:"}) drops += summary_value(out, d, "ring drops");
     state.counters["seconds"] = run_s;
