@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/spsc_ring.hpp"
+#include "daq/doorbell.hpp"
 
 namespace inertia::daq {
 
@@ -67,6 +68,8 @@ struct DeviceSlot {
   // Never on real devices: their hot path counts a full ring as a drop and never waits.
   bool backpressure = false;
   SpscRing<RingSample> ring;
+  // Rung by the sampling thread after it pushed samples (set by the publisher; null: nobody waits).
+  std::shared_ptr<Doorbell> doorbell;
 
   // Written by the sampling thread (relaxed: counters, read for status only).
   std::atomic<std::uint64_t> samples{0};

@@ -23,6 +23,7 @@ Publisher::Publisher(lcm::LCM& lcm, LogWriter* log, std::vector<std::shared_ptr<
     : lcm_(lcm), log_(log), options_(std::move(options)) {
   for (auto& s : slots) {
     Packer p;
+    s->doorbell = doorbell_;
     p.slot = std::move(s);
     packers_.push_back(std::move(p));
   }
@@ -437,7 +438,8 @@ void Publisher::run(RealtimeOptions rt) noexcept {
       last_bench = now;
     }
     if (stopping && n == 0) break;
-    if (n == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    // Until a sampling thread has pushed samples; at most 1 ms (status, silence, markers).
+    if (n == 0) (void)doorbell_->wait(1);
   }
   // Samplers have finished: send what is left as a last, shorter block per device.
   for (Packer& p : packers_) {

@@ -136,6 +136,7 @@ class Publisher {
   PublisherOptions options_;
   std::vector<Packer> packers_;
   SpscRing<PlanMark> marks_{1024};
+  std::shared_ptr<Doorbell> doorbell_ = std::make_shared<Doorbell>();   // the samplers ring it
   std::vector<std::uint8_t> buffer_;
   std::thread thread_;
   void watch_silence(Packer& p, std::int64_t now_ns) noexcept;

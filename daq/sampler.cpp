@@ -224,6 +224,7 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
       got += n;
       if (n == 0) break;
     }
+    if (got != 0 && slot_->doorbell) slot_->doorbell->ring();
     if (++loops % 16 == 0 || got == 0) mirror_health();
     slot_->heartbeat.fetch_add(1, std::memory_order_relaxed);
     if (stopping && got == 0) break;  // stop requested and nothing left: every sample is in the ring
@@ -279,6 +280,7 @@ void ModbusSampler::run() noexcept {
                       hal::kNoSampleIndex);
     }
     sink.flush();
+    if (slot_->doorbell) slot_->doorbell->ring();
     if (port_) port_->publish(values, controller_->link().connected());
     const auto& h = controller_->link().health();
     // Every failed request (timeout, refused, exception, bad data) left its values invalid.
