@@ -226,7 +226,8 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
   out.between_dof = out.clusters - rank - estimated_elsewhere;
   const Eigen::LDLT<Eigen::MatrixXd> xx(x.transpose() * x);
   const Eigen::MatrixXd inverse = xx.solve(Eigen::MatrixXd::Identity(p, p));
-  out.within = noise != nullptr ? Eigen::MatrixXd(inverse * noise->meat * inverse) : Eigen::MatrixXd(sigma2 * inverse);
+  out.classical = sigma2 * 0.5 * (inverse + inverse.transpose());
+  out.within = noise != nullptr ? Eigen::MatrixXd(inverse * noise->meat * inverse) : out.classical;
   out.within = 0.5 * (out.within + out.within.transpose()).eval();
   out.covariance = out.within;
   if (out.between_dof > 0) {

@@ -86,6 +86,7 @@ struct ClusterOffsets {
   double tau2 = 0.0;                ///< mean variance of the cluster offsets (0 when dof <= 0)
   double tau2_common = 0.0, tau2_per_loading = 0.0;   ///< tau_0^2, tau_1^2
   Eigen::MatrixXd within;           ///< the noise's part: sigma^2 (X'X)^-1, or (X'X)^-1 X'RX (X'X)^-1
+  Eigen::MatrixXd classical;        ///< sigma^2 (X'X)^-1: what a fit that takes the residual as white reports
   Eigen::MatrixXd covariance;       ///< V above (p x p); with dof <= 0 `within` only
 };
 /// x: the regression columns in the linear form of the fit, residuals of that fit, sigma2 its

@@ -479,7 +479,7 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
   // fitted once on the selected model's residual, and the meat X'RX of its columns: a term that
   // leaves takes its row and column with it, and the residual it leaves behind differs by a term
   // that tested as nothing.
-  std::vector<noise::SegmentSpectrum> spectra;
+  bool noise_fitted = false;
   Eigen::MatrixXd full_meat;
   std::vector<std::string> meat_labels;
   ident::ColouredNoise coloured;
@@ -495,17 +495,18 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
       const bool rational = std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end();
       x.col(j) = rational ? Eigen::VectorXd(-s.phi.col(column)) : Eigen::VectorXd(s.phi.col(column));   // the linear form
     }
-    if (spectra.empty()) {
+    if (!noise_fitted) {
+      noise_fitted = true;
       full_meat = Eigen::MatrixXd::Zero(p, p);
       for (const CaseRows& rows : s.cases) {
-        spectra.push_back(noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows)));
-        full_meat += noise::quadratic_form(spectra.back(), x.middleRows(rows.begin, rows.rows));
+        const noise::SegmentSpectrum spectrum = noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows));
+        full_meat += noise::quadratic_form(spectrum, x.middleRows(rows.begin, rows.rows));
         // Each phase's mean under its case's noise (a phase is one run of rows within a case).
         for (Eigen::Index begin = rows.begin, end = rows.begin + rows.rows; begin < end;) {
           const int id = (*h.clusters)[static_cast<std::size_t>(begin)];
           Eigen::Index run = 1;
           while (begin + run < end && (*h.clusters)[static_cast<std::size_t>(begin + run)] == id) ++run;
-          coloured.mean_variance[id] += noise::sum_variance(spectra.back(), run);
+          coloured.mean_variance[id] += noise::sum_variance(spectrum, run);
           begin += run;
         }
       }
@@ -515,15 +516,13 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
       meat_labels = fit.labels;
       meat_labels.resize(static_cast<std::size_t>(p));
     }
-    coloured.meat.resize(p, p);
     std::vector<Eigen::Index> in_meat(static_cast<std::size_t>(p));
     for (Eigen::Index j = 0; j < p; ++j) {
       const auto at = std::find(meat_labels.begin(), meat_labels.end(), fit.labels[std::size_t(j)]);
       if (at == meat_labels.end()) throw std::logic_error("honest_prune: a refit brought a term the first fit did not have");
       in_meat[std::size_t(j)] = at - meat_labels.begin();
     }
-    for (Eigen::Index a = 0; a < p; ++a)
-      for (Eigen::Index b = 0; b < p; ++b) coloured.meat(a, b) = full_meat(in_meat[std::size_t(a)], in_meat[std::size_t(b)]);
+    coloured.meat = full_meat(in_meat, in_meat);
     out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, *h.clusters, h.estimated_elsewhere,
                                          h.loading != nullptr ? *h.loading : Eigen::VectorXd(), &coloured);
     // Which terms live between the phases: little of their column varies within one.
@@ -544,8 +543,7 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
     // The fit's covariance (ULS's, with its bias correction) takes the residual as white: what the
     // residual's colour and the offsets between phases add to that is added to it.
     Eigen::MatrixXd covariance = fit.covariance.topLeftCorner(p, p);
-    const Eigen::MatrixXd classical = fit.residual_variance * (x.transpose() * x).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
-    covariance += out.offsets.covariance - classical;
+    covariance += out.offsets.covariance - out.offsets.classical;
     if (out.offsets.tau2 > 0.0) {
       for (Eigen::Index j = 0; j < p; ++j)
         if (out.offsets.covariance(j, j) > 2.0 * out.offsets.within(j, j)) out.dof(j) = std::max(1, out.offsets.between_dof);
