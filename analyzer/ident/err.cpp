@@ -3,16 +3,9 @@
 #include <algorithm>
 #include <stdexcept>
 
-namespace inertia::ident {
-namespace {
+#include "analyzer/ident/symmetric.hpp"
 
-// Copies the lower triangle onto the upper one (after a SYRK rankUpdate), element by element so
-// no aliasing question arises.
-void mirror_lower(Eigen::MatrixXd& m) {
-  for (Eigen::Index j = 1; j < m.cols(); ++j)
-    for (Eigen::Index i = 0; i < j; ++i) m(i, j) = m(j, i);
-}
-}  // namespace
+namespace inertia::ident {
 
 ErrGram::ErrGram(Eigen::Index terms) : gram_(Eigen::MatrixXd::Zero(terms + 1, terms + 1)) {}
 

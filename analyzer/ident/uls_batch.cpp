@@ -6,15 +6,10 @@
 #include <limits>
 #include <numeric>
 
+#include "analyzer/ident/symmetric.hpp"
+
 namespace inertia::ident {
 namespace {
-
-// Copies the lower triangle onto the upper one (after a SYRK rankUpdate), element by element so
-// no aliasing question arises.
-void mirror_lower(Eigen::MatrixXd& m) {
-  for (Eigen::Index j = 1; j < m.cols(); ++j)
-    for (Eigen::Index i = 0; i < j; ++i) m(i, j) = m(j, i);
-}
 
 std::string format_double(double v) {
   char buf[32];

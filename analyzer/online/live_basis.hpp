@@ -14,6 +14,7 @@
 //    the model's corner, or the grid a continuous corner is interpolated on).
 #include <Eigen/Dense>
 
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -22,6 +23,14 @@
 #include "analyzer/ident/term.hpp"
 
 namespace inertia::online {
+
+/// What the live estimate publishes for a value the data does not determine yet.
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// The unlagged term v^power (a_i, a_p^2, T): the monomials the live terms are built from.
+inline ident::Term plain_term(ident::Variable v, int power = 1) {
+  return ident::Term::from_factors({ident::Factor{v, 0, ident::FactorFunction::Plain, power}});
+}
 
 class LiveBasis {
  public:

@@ -19,10 +19,6 @@ using ident::Variable;
 
 namespace {
 
-Term plain(Variable v, int power = 1) {
-  return Term::from_factors({ident::Factor{v, 0, ident::FactorFunction::Plain, power}});
-}
-
 bool contains(const std::vector<Index>& v, Index x) { return std::find(v.begin(), v.end(), x) != v.end(); }
 
 /// The rows and columns `keep` (positions) of an augmented Gram matrix, with y (last) kept last.
@@ -36,7 +32,6 @@ Eigen::MatrixXd select(const Eigen::MatrixXd& g, const std::vector<Index>& keep)
   return out;
 }
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 }  // namespace
 
@@ -227,15 +222,15 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
   }
   // The external-frame form (eq. 1): sensitivities split over the case axes, the rest in F_S.
   const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
-  const std::vector<Term> axis_terms = gyro ? std::vector<Term>{plain(Variable::Wi), plain(Variable::Wp), plain(Variable::Wo)}
-                                            : std::vector<Term>{plain(Variable::Ai), plain(Variable::Ap), plain(Variable::Ao)};
+  const std::vector<Term> axis_terms = gyro ? std::vector<Term>{plain_term(Variable::Wi), plain_term(Variable::Wp), plain_term(Variable::Wo)}
+                                            : std::vector<Term>{plain_term(Variable::Ai), plain_term(Variable::Ap), plain_term(Variable::Ao)};
   std::vector<Index> es = sensitivities_;
   std::vector<std::string> excluded;
   for (Index t : model_) {
     const Term& term = basis_.terms()[static_cast<std::size_t>(t)];
     if (std::find(axis_terms.begin(), axis_terms.end(), term) != axis_terms.end()) continue;
     if (m.rotation_table && options_.ieee_rotation_table_exclusions &&
-        (term == plain(Variable::Ap, 2) || term == plain(Variable::Ao, 2))) {
+        (term == plain_term(Variable::Ap, 2) || term == plain_term(Variable::Ao, 2))) {
       excluded.push_back(term.to_string());
       continue;
     }
@@ -340,7 +335,7 @@ StatFit LiveSolver::fit_batch_at(const std::vector<const Information*>& infos, c
   double weight = 0.0;
   for (const Information* i : infos) weight += i->weight();
   const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
-  const Index axis = basis_.find(plain(gyro ? Variable::Wi : Variable::Ai));
+  const Index axis = basis_.find(plain_term(gyro ? Variable::Wi : Variable::Ai));
   std::vector<Index> forced;
   if (axis >= 0) forced.push_back(axis);
   StatFit f = fit(gram(model_, infos, m_cs, corner), weight, model_, forced, infos, m_cs);
@@ -417,7 +412,7 @@ StatFit LiveSolver::fit_batch(const std::vector<const Information*>& infos, cons
   double weight = 0.0;
   for (const Information* i : infos) weight += i->weight();
   const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
-  const Index axis = basis_.find(plain(gyro ? Variable::Wi : Variable::Ai));
+  const Index axis = basis_.find(plain_term(gyro ? Variable::Wi : Variable::Ai));
   std::vector<Index> forced;
   if (axis >= 0) forced.push_back(axis);
   if (weight <= 0.0) {

@@ -22,11 +22,6 @@ using ident::Variable;
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-Term plain(Variable v, int power = 1) {
-  return Term::from_factors({ident::Factor{v, 0, ident::FactorFunction::Plain, power}});
-}
 Term product(Variable a, Variable b) { return Term::from_factors({ident::Factor{a}, ident::Factor{b}}); }
 
 /// The Bonferroni bound of a two-sided normal test: |z| above it has probability alpha / tests.
@@ -565,14 +560,14 @@ struct OnlineEstimator::Impl {
 std::vector<Term> OnlineEstimator::default_terms(dataset::SensorKind sensor) {
   if (sensor == dataset::SensorKind::Gyroscope) {
     // Bias, scale factor and the g-sensitivity of eq. 5 (static part).
-    return {Term(), plain(Variable::Wi), plain(Variable::Ai), plain(Variable::Ap), plain(Variable::Ao)};
+    return {Term(), plain_term(Variable::Wi), plain_term(Variable::Ai), plain_term(Variable::Ap), plain_term(Variable::Ao)};
   }
   // The paper's complete static model (eq. 4, r = 0, table 3's case 3).
   return {Term(),
-          plain(Variable::Ai),
-          plain(Variable::Ai, 2),
-          plain(Variable::Ap, 2),
-          plain(Variable::Ao, 2),
+          plain_term(Variable::Ai),
+          plain_term(Variable::Ai, 2),
+          plain_term(Variable::Ap, 2),
+          plain_term(Variable::Ao, 2),
           product(Variable::Ai, Variable::Ap),
           product(Variable::Ai, Variable::Ao),
           product(Variable::Ap, Variable::Ao)};
@@ -606,7 +601,7 @@ OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional
     s.model_max_lag = std::max<Index>(s.model_max_lag, t.max_lag());
   }
   const Variable axis = gyro ? Variable::Wi : Variable::Ai;
-  if (std::find(s.model_terms.begin(), s.model_terms.end(), plain(axis)) == s.model_terms.end()) {
+  if (std::find(s.model_terms.begin(), s.model_terms.end(), plain_term(axis)) == s.model_terms.end()) {
     throw InputError(std::string("online: the model has no scale-factor term '") + ident::variable_name(axis) +
                      "': algorithm 1 needs it to find the misalignment");
   }
@@ -625,8 +620,8 @@ OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional
   // Every term the estimator may be asked for: the model, its external-frame sensitivities, the
   // structure table's candidates, and the factors of output-multiplied terms.
   std::vector<Term> all = s.model_terms;
-  const std::vector<Term> sensitivities = gyro ? std::vector<Term>{plain(Variable::Wx), plain(Variable::Wy), plain(Variable::Wz)}
-                                               : std::vector<Term>{plain(Variable::Ax), plain(Variable::Ay), plain(Variable::Az)};
+  const std::vector<Term> sensitivities = gyro ? std::vector<Term>{plain_term(Variable::Wx), plain_term(Variable::Wy), plain_term(Variable::Wz)}
+                                               : std::vector<Term>{plain_term(Variable::Ax), plain_term(Variable::Ay), plain_term(Variable::Az)};
   const auto add = [&all](const Term& t) {
     if (std::find(all.begin(), all.end(), t) == all.end()) all.push_back(t);
   };
@@ -639,7 +634,7 @@ OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional
     for (const Term& t : diagnose::candidate_library(sensor, lo)) {
       if (t.is_noise_term() || std::find(s.model_terms.begin(), s.model_terms.end(), t) != s.model_terms.end()) continue;
       // Cross-axis terms are the misalignment's (algorithm 1 per mounting).
-      if (t == plain(gyro ? Variable::Wp : Variable::Ap) || t == plain(gyro ? Variable::Wo : Variable::Ao)) continue;
+      if (t == plain_term(gyro ? Variable::Wp : Variable::Ap) || t == plain_term(gyro ? Variable::Wo : Variable::Ao)) continue;
       candidate_terms.push_back(t);
       add(t);
     }
