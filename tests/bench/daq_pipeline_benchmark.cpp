@@ -125,13 +125,18 @@ class CpuHog {
   pid_t pid_;
 };
 
+/// The p-quantile of sorted values (the nearest rank below), -1 when there are none.
+double pct_of(const std::vector<double>& sorted, double p) {
+  return sorted.empty() ? -1.0 : sorted[static_cast<std::size_t>(p * static_cast<double>(sorted.size() - 1))];
+}
+
 /// Percentiles and a histogram of sorted latencies, one line each, for the run's record.
 void print_distribution(const char* what, const std::vector<double>& sorted_ms) {
   if (sorted_ms.empty()) {
     std::printf("%s: no samples\n", what);
     return;
   }
-  auto at = [&](double p) { return sorted_ms[static_cast<std::size_t>(p * static_cast<double>(sorted_ms.size() - 1))]; };
+  auto at = [&](double p) { return pct_of(sorted_ms, p); };
   std::printf("%s (%zu blocks): p50 %.3f, p90 %.3f, p99 %.3f, p99.9 %.3f, p99.99 %.3f, max %.3f ms\n", what,
               sorted_ms.size(), at(0.5), at(0.9), at(0.99), at(0.999), at(0.9999), sorted_ms.back());
   static constexpr double kEdgesMs[] = {0.25, 0.5, 1, 2, 5, 10, 20, 50, 100, 1000};
@@ -248,9 +253,6 @@ void BM_PacedNominal(benchmark::State& state) {
     }
     std::sort(latency_ms.begin(), latency_ms.end());
     std::sort(arrival_ms.begin(), arrival_ms.end());
-    auto pct_of = [](const std::vector<double>& v, double p) {
-      return v.empty() ? -1.0 : v[static_cast<std::size_t>(p * static_cast<double>(v.size() - 1))];
-    };
     auto pct = [&](double p) { return pct_of(latency_ms, p); };
     const double run_s = summary_number(out, "  run:", "seconds");
     // The daemon says so on stderr (and on INERTIA_STATUS) when the kernel refuses SCHED_FIFO.
