@@ -89,7 +89,7 @@ struct MountingState {
 MountingState mountings_of(const dataset::Dataset& data) {
   MountingState m;
   for (const dataset::CaseData& c : data.cases) {
-    const std::string name = c.mounting.empty() ? c.name : c.mounting;
+    const std::string& name = c.mounting_group();
     auto it = std::find(m.names.begin(), m.names.end(), name);
     if (it == m.names.end()) {
       m.names.push_back(name);
@@ -102,7 +102,7 @@ MountingState mountings_of(const dataset::Dataset& data) {
 }
 
 int mounting_index(const MountingState& m, const dataset::CaseData& c) {
-  const std::string name = c.mounting.empty() ? c.name : c.mounting;
+  const std::string& name = c.mounting_group();
   return static_cast<int>(std::find(m.names.begin(), m.names.end(), name) - m.names.begin());
 }
 

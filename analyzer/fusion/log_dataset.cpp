@@ -165,8 +165,7 @@ dataset::Dataset log_dataset(const std::filesystem::path& file, const std::strin
     dataset::CaseData cd = to_case_data(std::move(s), tc);
     cd.name = k == 0 ? tc.name : fmt::format("{}-seg{}", tc.name, k + 1);
     cd.file = cd.name + ".csv";
-    // Pieces of one case are one mounting of the sensor, whatever the plan says of the others.
-    if (tc.mounting.empty() && pieces[case_index] > 1) cd.mounting = tc.name;
+    if (pieces[case_index] > 1) cd.piece_of = tc.name;
     ds.cases.push_back(std::move(cd));
   }
   // A dataset is all temperature columns or none for a case: keep what each case has.

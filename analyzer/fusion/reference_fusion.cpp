@@ -87,9 +87,16 @@ double ComplementaryFilter::step(double accel_along_axis, double encoder_accel) 
   double low_encoder = encoder_accel, low_accel = accel_along_axis;
   for (auto& s : encoder_path_) low_encoder = s.step(low_encoder);
   for (auto& s : accel_path_) low_accel = s.step(low_accel);
+  low_encoder_ = low_encoder;
+  low_accel_ = low_accel;
   // low(encoder acceleration) + accel - low(accel): the same low-pass on both paths makes the pair
   // exactly complementary, so a consistent noise-free input passes unchanged.
   return low_encoder + accel_along_axis - low_accel;
+}
+
+void ComplementaryFilter::coast(double encoder_accel) {
+  if (!started_) return;   // nothing to carry: the first reading will settle the paths
+  (void)step(encoder_accel + (low_accel_ - low_encoder_), encoder_accel);
 }
 
 CentralDifferences::Value CentralDifferences::newest_central() const {

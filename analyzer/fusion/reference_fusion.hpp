@@ -68,8 +68,14 @@ class ComplementaryFilter {
   ComplementaryFilter(double dt_s, double crossover_hz);
   /// `encoder_accel` is the encoder displacement's second difference at the same sample.
   double step(double accel_along_axis, double encoder_accel);
+  /// One sample whose accelerometer reading is lost (the encoder's is there): both paths advance
+  /// with the reading predicted as the encoder's acceleration plus the paths' slow difference
+  /// (gravity along the axis and the accelerometers' slow error), so the filter goes on in step
+  /// with the signal. The sample itself has no output; a consistent input is carried exactly.
+  void coast(double encoder_accel);
 
  private:
+  double low_encoder_ = 0.0, low_accel_ = 0.0;   // the paths' last outputs
   struct Section {
     double b0, b1, b2, a1, a2;
     double s1 = 0.0, s2 = 0.0;

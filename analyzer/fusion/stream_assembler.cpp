@@ -123,6 +123,10 @@ struct RawRow {
   std::int32_t phase_index = -1;
   std::uint16_t phase_label = 0;
   double temp = 0.0;
+  // A hole: the sensor's output or a monitor is lost here while the encoder is not, so the
+  // fusion's state (differences, the shaker's filter, the table's attitude) goes on through the
+  // row; the row itself is excluded and ends the piece of the segment before it.
+  bool hole = false;
 };
 
 // Largest sample index read() converts to an integer: block_shape_error keeps channel_seq below
@@ -172,9 +176,13 @@ struct StreamAssembler::Impl {
   double last_row_ns = -std::numeric_limits<double>::infinity();    // time of the last row fused
 
   // ---- the case being fused ----
+  // A segment is a stretch of continuous fusion; holes cut its output into pieces, each handed to
+  // the sink as a segment of its own (number), so the sink's segments stay contiguous.
   struct Segment {
     int number = 0;
-    std::int64_t rows_in = 0;
+    std::int64_t piece_rows = 0;       // rows appended to the current piece
+    double piece_first_t_case = 0.0;
+    bool next_piece = false;           // a hole ended a piece: the next row starts another
     bool has_temp = false;
     CentralDifferences differences{1.0};
     std::optional<ComplementaryFilter> filter;
@@ -583,6 +591,7 @@ struct StreamAssembler::Impl {
 
     // Every input of the row, or the reason it has none.
     std::vector<std::string> reasons;
+    bool encoder_lost = false;   // the fusion's state cannot go on through this row
     const double y = ob.values[output_slot][static_cast<std::size_t>(s)];
     if (!ob.valid[output_slot][static_cast<std::size_t>(s)]) reasons.push_back(needs[0].ref.label() + " invalid");
     Eigen::Index m = 0;
@@ -594,6 +603,7 @@ struct StreamAssembler::Impl {
       if (r == Read::NotYet) return false;
       if (r == Read::Invalid) reasons.push_back(needs[k].ref.label() + " invalid");
       if (r == Read::Missing) reasons.push_back(needs[k].ref.label() + " missing (gap)");
+      if (r != Read::Ok && needs[k].role != Role::Monitor) encoder_lost = true;
       if (needs[k].role == Role::Monitor) {
         f.readings(m) = (v - f.monitor_bias(m)) / f.monitor_gain(m);
         ++m;
@@ -616,18 +626,23 @@ struct StreamAssembler::Impl {
     row.encoder = encoder;
     row.temp = temp;
     label_phase(f, *c, t, half, row);
-    if (f.kind == CaseKind::RotationTable && !table_attitude(f, row, reasons.empty()) && reasons.empty()) {
+    if (f.kind == CaseKind::RotationTable && !table_attitude(f, row, !encoder_lost) && !encoder_lost) {
       reasons.push_back("table attitude unknown (a phase without encoder data before it)");
+      encoder_lost = true;
     }
     count_exclusions(f, reasons, t_case);
     if (!reasons.empty()) {
-      if (f.segment) end_segment();
-      return true;
+      // Only the output or monitors lost (a lost frame of their device): the fusion goes on
+      // through the row, which cuts the output. Anything else breaks the fusion.
+      if (encoder_lost || !f.segment) {
+        if (f.segment) end_segment();
+        return true;
+      }
+      row.hole = true;
     }
-    if (f.monitors) row.monitors_a = f.monitors->fuse(f.readings);
+    if (f.monitors && !row.hole) row.monitors_a = f.monitors->fuse(f.readings);
     if (!f.segment) start_segment(with_temp);
     f.segment->pending.push_back(row);
-    ++f.segment->rows_in;
     f.segment->differences.push(row.encoder);
     finalize_ready(false);
     last_row_ns = t;
@@ -797,6 +812,11 @@ struct StreamAssembler::Impl {
       const CentralDifferences::Value d = s.differences.pop();
       const RawRow row = s.pending.front();
       s.pending.pop_front();
+      if (row.hole) {
+        if (s.filter) s.filter->coast(d.second);
+        end_piece();
+        continue;
+      }
       Eigen::Vector3d a = row.monitors_a;
       Eigen::Vector3d w = Eigen::Vector3d::Zero();
       if (f.kind == CaseKind::RotationTable) {
@@ -819,14 +839,20 @@ struct StreamAssembler::Impl {
     FusedChunk& out = s.out;
     if (out.rows() == 0) {
       Fuser& f = *fuser;
+      if (s.next_piece) {
+        s.number = f.segments_started++;
+        s.next_piece = false;
+      }
       out.case_index = f.case_index;
       out.case_name = f.name;
       out.kind = f.kind;
       out.segment = s.number;
       out.sample_period_s = output_period_ns() * 1e-9;
-      out.first_row = s.rows_in - static_cast<std::int64_t>(s.pending.size()) - 1;
+      out.first_row = s.piece_rows;
       out.phase.clear();
+      if (s.piece_rows == 0) s.piece_first_t_case = row.t_case_s;
     }
+    ++s.piece_rows;
     const Eigen::Index n = out.rows();
     out.t.conservativeResize(n + 1);
     out.t(n) = row.t_case_s;
@@ -855,28 +881,35 @@ struct StreamAssembler::Impl {
     out = FusedChunk{};
   }
 
-  void end_segment() {
+  /// The piece of output rows before a hole, or at the segment's end, ends: kept or dropped.
+  void end_piece() {
     Fuser& f = *fuser;
-    if (!f.segment) return;
-    finalize_ready(true);
-    flush_chunk();
     Segment& s = *f.segment;
+    flush_chunk();
+    if (s.piece_rows == 0) return;
     // In rows of the output's period; a hostile period (1e-150 s) would make the count overflow
     // int64 (issue 15: fuzz_stream_assembler): no segment is that long, so it keeps none.
     const double min_rows = std::ceil(options.min_segment_s / (output_period_ns() * 1e-9));
     const std::int64_t min_len = min_rows < 9.0e18 ? static_cast<std::int64_t>(min_rows) : std::numeric_limits<std::int64_t>::max();
-    const bool kept = s.rows_in >= std::max<std::int64_t>(min_len, 3);
+    const bool kept = s.piece_rows >= std::max<std::int64_t>(min_len, 3);
     if (kept) {
-      rows_kept += s.rows_in;
-      f.rows += s.rows_in;
+      rows_kept += s.piece_rows;
+      f.rows += s.piece_rows;
     } else {
-      // The segment's first row: rows_in rows back from the last one read.
       exclusions.push_back({f.name, fmt::format("valid stretch shorter than {} s", options.min_segment_s),
-                            (last_row_ns - f.marks->start_ns) * 1e-9 -
-                                static_cast<double>(s.rows_in - 1) * output_period_ns() * 1e-9,
-                            s.rows_in});
+                            s.piece_first_t_case, s.piece_rows});
     }
-    sink->on_segment_end({f.case_index, f.name, s.number, s.rows_in, kept});
+    sink->on_segment_end({f.case_index, f.name, s.number, s.piece_rows, kept});
+    s.piece_rows = 0;
+    s.next_piece = true;
+  }
+
+  void end_segment() {
+    Fuser& f = *fuser;
+    if (!f.segment) return;
+    finalize_ready(true);
+    end_piece();
+    Segment& s = *f.segment;
     if (s.filter) f.filter_before_break = std::move(s.filter);
     f.segment.reset();
   }

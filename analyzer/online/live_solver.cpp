@@ -32,7 +32,6 @@ Eigen::MatrixXd select(const Eigen::MatrixXd& g, const std::vector<Index>& keep)
   return out;
 }
 
-
 }  // namespace
 
 std::optional<double> StatFit::value(Index term) const {

@@ -29,17 +29,6 @@ namespace {
 
 using ident::Term;
 
-// A weight names a case of the plan; a log that lost samples splits a case into pieces named
-// CASE-segN (log_dataset.cpp), and the case's weight is each piece's.
-bool weight_names(const std::string& key, const std::string& case_name) {
-  if (case_name == key) return true;
-  const std::string piece = key + "-seg";
-  if (case_name.size() <= piece.size() || case_name.compare(0, piece.size(), piece) != 0) return false;
-  return std::all_of(case_name.begin() + static_cast<std::ptrdiff_t>(piece.size()), case_name.end(),
-                     [](char c) { return c >= '0' && c <= '9'; });
-}
-
-
 /// The names of the external-frame sensitivity terms: a_x a_y a_z, or w_x w_y w_z for a gyroscope
 /// (eq. 5: its misalignment is read from the rate sensitivities, paper section 2.2).
 std::array<const char*, 3> sensitivity_names(dataset::SensorKind sensor) {
@@ -117,7 +106,7 @@ MountingData mounting_data(const dataset::Dataset& data, const std::vector<std::
     if (known_bias) c.y.array() -= *known_bias;
     m.rotation_table = m.rotation_table || c.kind == dataset::CaseKind::RotationTable;
     m.shaker_only = m.shaker_only && c.kind == dataset::CaseKind::Shaker;
-    m.weights.push_back(case_weight(options, c.name));
+    m.weights.push_back(case_weight(options, c));
     m.cases.push_back(std::move(c));
   }
   return m;
@@ -424,23 +413,46 @@ std::string why_not_determined(const StackedRegression& s, Eigen::Index j, const
                      fmt::join(names, ", "));
 }
 
-/// One id per batch row: the contiguous runs of one phase label within a case (the whole case
-/// when it has no phase column). The clusters of the jackknife inference.
+/// One id per batch row: the contiguous runs of one phase label within a case of the plan (the
+/// whole case when it has no phase column). A phase cut by lost samples into two pieces of its
+/// case (CaseData::piece_of) is one run. The clusters of the jackknife inference.
 std::vector<int> phase_clusters(const StackedRegression& batch, const dataset::Dataset& data) {
   std::vector<int> ids(static_cast<std::size_t>(batch.phi.rows()), -1);
   int next = 0;
+  const std::string* previous_case = nullptr;
+  std::string previous_phase;
   for (const CaseRows& rows : batch.cases) {
     const dataset::CaseData& c = data.cases[rows.case_index];
-    int previous_phase = -1;
+    const bool continues = previous_case != nullptr && !c.piece_of.empty() && *previous_case == c.plan_case();
     for (Eigen::Index r = 0; r < rows.rows; ++r) {
       const auto sample = static_cast<std::size_t>(rows.first_sample + r);
-      const int phase = c.phase.empty() ? 0 : static_cast<int>(c.phase[sample]);
-      if (r == 0 || phase != previous_phase) ++next;
+      const std::string& phase = c.phase.empty() ? c.plan_case() : c.phase_names[c.phase[sample]];
+      if ((r == 0 && !continues) || phase != previous_phase) ++next;
       previous_phase = phase;
       ids[static_cast<std::size_t>(rows.begin + r)] = next;
     }
+    if (rows.rows > 0) previous_case = &c.plan_case();
   }
   return ids;
+}
+
+/// The stacked rows of each case of the plan: its pieces (CaseData::piece_of) are consecutive in
+/// the stack, and one noise process runs through them (a few lost samples do not restart it).
+std::vector<CaseRows> plan_case_rows(const StackedRegression& batch, const dataset::Dataset& data) {
+  std::vector<CaseRows> out;
+  const std::string* previous_case = nullptr;
+  for (const CaseRows& rows : batch.cases) {
+    const dataset::CaseData& c = data.cases[rows.case_index];
+    if (rows.rows == 0) continue;
+    if (previous_case != nullptr && !c.piece_of.empty() && *previous_case == c.plan_case() &&
+        out.back().begin + out.back().rows == rows.begin) {
+      out.back().rows += rows.rows;
+    } else {
+      out.push_back(rows);
+    }
+    previous_case = &c.plan_case();
+  }
+  return out;
 }
 
 /// Honest inference after a selection (whose t-tests take every sample as independent), on a
@@ -458,6 +470,7 @@ std::vector<int> phase_clusters(const StackedRegression& batch, const dataset::D
 struct HonestPrune {
   const StackedRegression* s = nullptr;
   const std::vector<int>* clusters = nullptr;
+  const std::vector<CaseRows>* noise_runs = nullptr;   // one noise process each (plan_case_rows)
   const Eigen::VectorXd* loading = nullptr;    // per row: a_p^2 + a_o^2 (the placement tilt's reach)
   int estimated_elsewhere = 0;              // phase-level parameters fitted outside this model
   double threshold = 0.01;
@@ -475,11 +488,10 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
                           const ident::UlsOptions& uls, std::vector<UndeterminedTerm>* removed, std::string_view what) {
   const StackedRegression& s = *h.s;
   std::vector<std::string> dropped;
-  // The whitened residual's own noise model per case (its low-frequency colour: coloured_noise.hpp),
+  // The whitened residual's own noise model per case of the plan (its low-frequency colour: coloured_noise.hpp),
   // fitted once on the selected model's residual, and the meat X'RX of its columns: a term that
   // leaves takes its row and column with it, and the residual it leaves behind differs by a term
   // that tested as nothing.
-  bool noise_fitted = false;
   Eigen::MatrixXd full_meat;
   std::vector<std::string> meat_labels;
   ident::ColouredNoise coloured;
@@ -495,13 +507,12 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
       const bool rational = std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end();
       x.col(j) = rational ? Eigen::VectorXd(-s.phi.col(column)) : Eigen::VectorXd(s.phi.col(column));   // the linear form
     }
-    if (!noise_fitted) {
-      noise_fitted = true;
+    if (full_meat.size() == 0) {   // the first fit: the noise and its meat, once
       full_meat = Eigen::MatrixXd::Zero(p, p);
-      for (const CaseRows& rows : s.cases) {
+      for (const CaseRows& rows : *h.noise_runs) {
         const noise::SegmentSpectrum spectrum = noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows));
         full_meat += noise::quadratic_form(spectrum, x.middleRows(rows.begin, rows.rows));
-        // Each phase's mean under its case's noise (a phase is one run of rows within a case).
+        // Each phase's mean under its case's noise (a phase is one run of rows within a plan case).
         for (Eigen::Index begin = rows.begin, end = rows.begin + rows.rows; begin < end;) {
           const int id = (*h.clusters)[static_cast<std::size_t>(begin)];
           Eigen::Index run = 1;
@@ -630,7 +641,7 @@ std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const Pipelin
   }
   std::vector<StackInput> inputs;
   for (std::size_t i = 0; i < data.cases.size(); ++i) {
-    inputs.push_back({i, &data.cases[i], cases[i].m_es, case_weight(options, data.cases[i].name)});
+    inputs.push_back({i, &data.cases[i], cases[i].m_es, case_weight(options, data.cases[i])});
   }
   return inputs;
 }
@@ -640,11 +651,10 @@ std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const Pipelin
 std::vector<std::pair<std::string, std::vector<std::size_t>>> mountings_of(const dataset::Dataset& data) {
   std::vector<std::pair<std::string, std::vector<std::size_t>>> groups;
   for (std::size_t i = 0; i < data.cases.size(); ++i) {
-    const std::string& label = data.cases[i].mounting;
-    auto it = label.empty() ? groups.end()
-                            : std::find_if(groups.begin(), groups.end(), [&](const auto& g) { return g.first == label; });
+    const std::string& label = data.cases[i].mounting_group();
+    auto it = std::find_if(groups.begin(), groups.end(), [&](const auto& g) { return g.first == label; });
     if (it == groups.end()) {
-      groups.emplace_back(label.empty() ? data.cases[i].name : label, std::vector<std::size_t>{i});
+      groups.emplace_back(label, std::vector<std::size_t>{i});
     } else {
       it->second.push_back(i);
     }
@@ -846,6 +856,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     HonestPrune honest;
     honest.s = &stage;
     honest.clusters = &clusters;
+    const std::vector<CaseRows> noise_runs = plan_case_rows(stage, data);
+    honest.noise_runs = &noise_runs;
     honest.loading = &loading;
     honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, selected.ranking.size()));
     honest.protect = [&](const std::string& label) {
@@ -905,9 +917,9 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   return result;
 }
 
-double case_weight(const PipelineOptions& options, const std::string& case_name) {
+double case_weight(const PipelineOptions& options, const dataset::CaseData& c) {
   for (const auto& [key, weight] : options.case_weights)
-    if (weight_names(key, case_name)) return weight;
+    if (key == c.plan_case()) return weight;
   return 1.0;
 }
 
@@ -915,9 +927,10 @@ double case_weight(const PipelineOptions& options, const std::string& case_name)
 // must not pass for a weighted fit.
 void check_case_weights(const dataset::Dataset& data, const PipelineOptions& options) {
   std::vector<std::string> names;
-  for (const dataset::CaseData& c : data.cases) names.push_back(c.name);
+  for (const dataset::CaseData& c : data.cases)
+    if (std::find(names.begin(), names.end(), c.plan_case()) == names.end()) names.push_back(c.plan_case());
   for (const auto& [key, weight] : options.case_weights) {
-    if (std::none_of(names.begin(), names.end(), [&](const std::string& n) { return weight_names(key, n); }))
+    if (std::find(names.begin(), names.end(), key) == names.end())
       throw InputError(fmt::format("--weight {}={}: the dataset has no case '{}' (its cases: {})", key, weight, key,
                                    fmt::join(names, ", ")));
   }
@@ -1089,6 +1102,8 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   HonestPrune honest;
   honest.s = &batch;
   honest.clusters = &clusters;
+  const std::vector<CaseRows> noise_runs = plan_case_rows(batch, data);
+  honest.noise_runs = &noise_runs;
   honest.loading = &loading;
   for (const MountingResult& m : result.mountings)
     honest.estimated_elsewhere += static_cast<int>(m.excitation.determined[1]) + static_cast<int>(m.excitation.determined[2]);

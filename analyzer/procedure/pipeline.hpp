@@ -180,9 +180,9 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
                                  const std::string& mounting, const PipelineOptions& options,
                                  std::string_view dataset_label, std::optional<double> known_bias = std::nullopt);
 
-/// A case's batch weight: the weight given for its name, or for the plan case it is a piece of
-/// (CASE-segN, a log split by lost samples); 1 otherwise.
-double case_weight(const PipelineOptions& options, const std::string& case_name);
+/// A case's batch weight: the weight given for its plan case (itself, or the case it is a piece
+/// of: a log split by lost samples); 1 otherwise.
+double case_weight(const PipelineOptions& options, const dataset::CaseData& c);
 
 /// InputError naming a weight whose case the dataset does not have (run_pipeline calls it).
 void check_case_weights(const dataset::Dataset& data, const PipelineOptions& options);

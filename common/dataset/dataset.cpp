@@ -496,6 +496,23 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
                                    "(tolerance {}); its rows must be the case axes IRA, XRA, YRA written in F_E",
                                    c.name, orth, c.m_ec.determinant(), kRotationTolerance));
     }
+    if (const toml::node* piece = table.get("piece_of")) {
+      const auto label = piece->value<std::string>();
+      if (!label || label->empty()) {
+        throw InputError(position_of(*piece, file), fmt::format("piece_of of case '{}' must be a non-empty string", c.name));
+      }
+      c.piece_of = *label;
+      // The pieces of one case are one case of the plan: the same kind, orientation and mounting.
+      for (const CaseData& other : data.cases) {
+        if (other.piece_of != c.piece_of) continue;
+        if (other.kind != c.kind || other.mounting != c.mounting || (other.m_ec - c.m_ec).cwiseAbs().maxCoeff() > kRotationTolerance) {
+          throw InputError(position_of(*piece, file),
+                           fmt::format("case '{}' is a piece of '{}' but differs from its piece '{}' in kind, mounting "
+                                       "or m_ec; the pieces of one case share all three",
+                                       c.name, c.piece_of, other.name));
+        }
+      }
+    }
     const std::filesystem::path csv = dir / c.file;
     if (!std::filesystem::is_regular_file(csv)) {
       throw InputError(position_of(*table.get("file"), file),
@@ -538,6 +555,7 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
     toml_text += "kind = " + toml_quote(to_string(c.kind)) + "\n";
     toml_text += "file = " + toml_quote(files.back()) + "\n";
     if (!c.mounting.empty()) toml_text += "mounting = " + toml_quote(c.mounting) + "\n";
+    if (!c.piece_of.empty()) toml_text += "piece_of = " + toml_quote(c.piece_of) + "\n";
     toml_text += "m_ec = [";
     for (int r = 0; r < 3; ++r) {
       toml_text += r == 0 ? "[" : ", [";

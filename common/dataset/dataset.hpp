@@ -32,6 +32,11 @@ struct CaseData {
   // mounting, so one unknown case misalignment (e.g. the three shaker orientations of the paper's
   // Fig. 2: the fixture is remounted, the sensor is not). Empty: a mounting of its own.
   std::string mounting;
+  // Optional (extension): this case is one contiguous piece of the plan's case `piece_of`, cut
+  // where samples were lost (characterize --log; a dataset's rows are uniform in time). The pieces
+  // of one case are one case of the plan: one mounting unless labelled otherwise, one weight, and
+  // a phase cut by a hole is still one phase (one offset between phases, not one per piece).
+  std::string piece_of;
   double sample_period_s = 0.0;                       // from the uniform `t` column
   Eigen::VectorXd t;                                  // s
   Matrix3Columns a_e;                                 // reference specific force in F_E, m/s^2
@@ -42,6 +47,10 @@ struct CaseData {
   std::vector<std::uint16_t> phase;                   // per sample index into phase_names; empty if no column
 
   [[nodiscard]] Eigen::Index size() const { return t.size(); }
+  /// The plan's case these rows belong to: `piece_of`, or the case itself.
+  [[nodiscard]] const std::string& plan_case() const { return piece_of.empty() ? name : piece_of; }
+  /// The sensor mounting the case shares with others: `mounting`, or its plan case alone.
+  [[nodiscard]] const std::string& mounting_group() const { return mounting.empty() ? plan_case() : mounting; }
 };
 
 struct Dataset {

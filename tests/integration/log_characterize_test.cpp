@@ -248,13 +248,12 @@ TEST_P(RealStyleTiming, LogAgainstTheSimulatorsOwnDataset) {
     const double combined = std::hypot(*t.std, *it->std);
     std::cout << "[ figures ] " << name << ": log " << it->coefficient << " +- " << *it->std << ", dataset " << t.coefficient
               << " +- " << *t.std << ", z " << (it->coefficient - t.coefficient) / combined << "\n";
-    // With lost frames the case is cut at each of them and stretches shorter than 0.5 s are
-    // dropped (~15 % of the shaker rows here): a different subset, whose differences reach
-    // |z| ~3.5 on a_i*a_o (the sd are optimistic under the bench's pink noise, issue 16). The
-    // time base alone must not move anything.
-    if (frame_loss == 0.0) {
-      EXPECT_NEAR(it->coefficient, t.coefficient, 3.0 * combined) << name;
-    }
+    // With lost frames the fusion goes on through each hole and only the output is cut there;
+    // the pieces are one case of the plan (one weight, and a phase cut by a hole is one offset
+    // cluster), and pieces shorter than 0.1 s are dropped (about 2 % of the rows here). Before
+    // that (the fusion restarted at every hole, 0.5 s pieces dropped, each piece its own case)
+    // 14 % of the rows were lost and |z| reached 3.5; now |z| <= 1.5 was seen.
+    EXPECT_NEAR(it->coefficient, t.coefficient, 3.0 * combined) << name;
   }
   EXPECT_GE(common, 2);
 }

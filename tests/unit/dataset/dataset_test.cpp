@@ -128,6 +128,7 @@ TEST(Dataset, RoundTripIsExactAndBytesAreDeterministic) {
     EXPECT_EQ(y.kind, x.kind);
     EXPECT_EQ(y.file, x.file);
     EXPECT_EQ(y.mounting, x.mounting);
+    EXPECT_EQ(y.piece_of, x.piece_of);
     EXPECT_EQ(y.m_ec, x.m_ec);   // bitwise: shortest round-trip digits
     EXPECT_EQ(y.t, x.t);
     EXPECT_EQ(y.a_e, x.a_e);
@@ -259,6 +260,34 @@ TEST(Dataset, MecThatIsNotARotationIsRejectedAtItsLine) {
   spit(dir / "dataset.toml", toml);
   std::ostringstream warnings;
   EXPECT_NO_THROW(read_dataset(dir, warnings));
+}
+
+// Pieces of one case (a log cut by lost samples) are one case of the plan: they round-trip, and
+// pieces that disagree in kind, mounting or orientation are refused at the second one's key.
+TEST(Dataset, PiecesOfACaseRoundTripAndMustAgree) {
+  Dataset d = sample_dataset();
+  d.cases[0].piece_of = "shaker-ia";
+  CaseData second = d.cases[0];
+  second.name = "shaker-ia-seg2";
+  second.file = "shaker-ia-seg2.csv";
+  d.cases.insert(d.cases.begin() + 1, second);
+  const fs::path dir = fresh_dir("pieces");
+  write_dataset(dir, d);
+  std::ostringstream warnings;
+  const Dataset r = read_dataset(dir, warnings);
+  ASSERT_EQ(r.cases.size(), 3u);
+  EXPECT_EQ(r.cases[1].piece_of, "shaker-ia");
+  EXPECT_EQ(r.cases[1].plan_case(), "shaker-ia");
+  EXPECT_EQ(r.cases[1].mounting_group(), "shaker fixture");
+  EXPECT_EQ(r.cases[2].plan_case(), "table");
+  EXPECT_EQ(r.cases[2].mounting_group(), "table");
+
+  d.cases[1].kind = CaseKind::Static;
+  write_dataset(dir, d);
+  const InputError e = read_error(dir);
+  EXPECT_EQ(e.where().file, (dir / "dataset.toml").string());
+  EXPECT_GT(e.where().line, 0u) << e.what();
+  EXPECT_NE(std::string(e.what()).find("'shaker-ia-seg2' is a piece of 'shaker-ia'"), std::string::npos) << e.what();
 }
 
 TEST(Dataset, BadTomlNamesTheKey) {

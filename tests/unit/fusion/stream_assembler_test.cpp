@@ -348,6 +348,49 @@ TEST(StreamAssembler, InvalidSamplesAreExcludedNeverFilled) {
   EXPECT_LT((last.a_e.row(100).transpose() - truth_at(2000 + 1601).a).norm(), 1e-6);
 }
 
+// Issue 13: a lost frame of the accel device (the output and every monitor invalid for three
+// samples, the encoders intact) cuts the output there, and nothing else: the fusion goes on
+// through the hole (the table's differences, the shaker's filter coasting on its encoder), so the
+// rows after it equal an unbroken stream's. Restarting the fusion there put a 2 m/s^2 offset on
+// the next shaker piece of a real-style log (the new differences' first values, extrapolated,
+// in the filter's low path) and one-sided differences on the table's.
+TEST(StreamAssembler, ALostFrameCutsTheOutputButNotTheFusion) {
+  const std::vector<std::int64_t> holes = {1400, 3300};   // mid-sine on the shaker; mid-rotation on the table
+  const auto lose = [&](sample_block_t& b) {
+    const std::int64_t first = (b.t0_mono_ns - kT0) / kPeriodNs;
+    for (std::int32_t s = 0; s < b.num_samples; ++s)
+      for (const std::int64_t h : holes)
+        if (first + s >= h && first + s < h + 3)
+          for (std::int32_t c = 0; c < b.num_channels; ++c) set_sample_valid(b, c, s, false);
+    return true;
+  };
+  const PlanRun whole = run_plan("acc1");
+  const PlanRun cut = run_plan("acc1", lose);
+  std::vector<std::size_t> sizes;
+  for (const auto& s : cut.segments) sizes.push_back(static_cast<std::size_t>(s.t.size()));
+  EXPECT_EQ(sizes, (std::vector<std::size_t>{1000, 400, 597, 1300, 697}));
+  EXPECT_EQ(cut.assembler->fused_rows(), 4000 - 6);
+  // Every row of every piece equals the unbroken stream's row at the same time.
+  double worst = 0.0;
+  for (const FusedSegment& piece : cut.segments) {
+    const FusedSegment& full = whole.segments[piece.case_index];
+    for (Eigen::Index k = 0; k < piece.t.size(); ++k) {
+      const auto at = static_cast<Eigen::Index>(std::llround(piece.t(k) * kRate));
+      ASSERT_LT(at, full.t.size());
+      worst = std::max(worst, (piece.a_e.row(k) - full.a_e.row(at)).cwiseAbs().maxCoeff());
+      EXPECT_EQ(piece.y(k), full.y(at));
+    }
+  }
+  // The coasting filter takes the encoder's second difference for the lost readings, which is
+  // (w T)^2 / 12 = 3e-4 of the sine's 1 g off the truth; three such samples through the 5 Hz
+  // low pass leave 3e-8 g. A restarted fusion is off by the vibration's size.
+  EXPECT_LT(worst, 1e-7 * kStandardGravity);
+  std::int64_t acc1 = 0;
+  for (const Exclusion& x : cut.assembler->exclusions())
+    if (x.reason == "accel.acc1 invalid") acc1 += x.samples;
+  EXPECT_EQ(acc1, 6);
+}
+
 // Found by fuzz_event_log (issue 15): a linear-encoder block whose sample period is 5.4e-23 s put
 // the sample index of the next row past the int64 range (an undefined conversion, reported by
 // UBSan). Those rows have the encoder missing, as after a lost block; nothing is read for them.

@@ -10,11 +10,14 @@
 namespace inertia::procedure {
 namespace {
 
+/// Cases by name; "NAME<PLAN" is a piece of the plan case PLAN (log_dataset's pieces).
 dataset::Dataset cases(std::initializer_list<const char*> names) {
   dataset::Dataset d;
-  for (const char* n : names) {
+  for (const std::string n : names) {
     dataset::CaseData c;
-    c.name = n;
+    const auto at = n.find('<');
+    c.name = n.substr(0, at);
+    if (at != std::string::npos) c.piece_of = n.substr(at + 1);
     d.cases.push_back(c);
   }
   return d;
@@ -23,13 +26,16 @@ dataset::Dataset cases(std::initializer_list<const char*> names) {
 TEST(CaseWeight, AWeightReachesEveryPieceOfItsCaseAndNothingElse) {
   PipelineOptions o;
   o.case_weights = {{"shaker-ia", 4.0}};
-  EXPECT_EQ(case_weight(o, "shaker-ia"), 4.0);
-  EXPECT_EQ(case_weight(o, "shaker-ia-seg2"), 4.0);
-  EXPECT_EQ(case_weight(o, "shaker-ia-seg12"), 4.0);
-  EXPECT_EQ(case_weight(o, "shaker-ia-segment"), 1.0);
-  EXPECT_EQ(case_weight(o, "shaker-ia2"), 1.0);
-  EXPECT_EQ(case_weight(o, "shaker-pa"), 1.0);
-  EXPECT_NO_THROW(check_case_weights(cases({"rotation-table", "shaker-ia-seg2"}), o));
+  const dataset::Dataset d = cases({"shaker-ia<shaker-ia", "shaker-ia-seg2<shaker-ia", "shaker-ia-seg12<shaker-ia",
+                                    "shaker-ia-seg3", "shaker-ia2", "shaker-pa"});
+  EXPECT_EQ(case_weight(o, d.cases[0]), 4.0);
+  EXPECT_EQ(case_weight(o, d.cases[1]), 4.0);
+  EXPECT_EQ(case_weight(o, d.cases[2]), 4.0);
+  // By what the dataset says, not by the name: a case of its own whose name looks like a piece's.
+  EXPECT_EQ(case_weight(o, d.cases[3]), 1.0);
+  EXPECT_EQ(case_weight(o, d.cases[4]), 1.0);
+  EXPECT_EQ(case_weight(o, d.cases[5]), 1.0);
+  EXPECT_NO_THROW(check_case_weights(cases({"rotation-table", "shaker-ia-seg2<shaker-ia"}), o));
 }
 
 TEST(CaseWeight, AWeightForACaseTheDatasetLacksIsBadInputNamingIt) {
