@@ -87,6 +87,53 @@ std::vector<std::pair<Index, Index>> octave_bands(Index length) {
   return b;
 }
 
+/// Variance of a band's statistic sum_{s,k} |X_sk|^2 / E_k for the lowest bins under a model with
+/// slow noise: the white formula (WindowCorrelation) takes segments more than half a window apart
+/// as independent, which 1/f noise is not at the lowest bins (over 60 simulated cases the lowest
+/// band's spread was 0.57 against that formula's 0.43, and 0.49 with this one). For Gaussian noise,
+///   Var = sum_d (K - |d|) sum_{k,m} (|E X_{s,k} X*_{s+d,m}|^2 + |E X_{s,k} X_{s+d,m}|^2) / (E_k E_m),
+/// each expectation the integral of the whole model's two-sided PSD against the bins' kernels C_k,
+/// shifted by d hops: on the fine grid, one inverse DFT per pair of bins gives every shift. The
+/// grid's period (8 windows) bounds the shifts taken: segments further apart count as independent.
+double low_band_variance(const std::vector<std::vector<Complex>>& responses, Index lo, Index hi,
+                         const Eigen::VectorXd& expected, Index segments, Index hop, double fs, const NoiseModel& noise) {
+  const auto grid = static_cast<Index>(responses.front().size());
+  const Index length = grid / 8;
+  const double bin_hz = fs / static_cast<double>(length);
+  const double sigma2 = noise.white_sd * noise.white_sd;
+  std::vector<double> psd(static_cast<std::size_t>(grid), 0.0);
+  for (Index j = 1; j < grid; ++j) {   // f = 0 carries nothing: the detrended kernels vanish there
+    const double f = std::abs(bin_hz * static_cast<double>(j <= grid / 2 ? j : j - grid) / 8.0);
+    psd[static_cast<std::size_t>(j)] = sigma2 * noise.gain2(f, fs) / fs + 0.5 * noise.power_law_psd(f, fs);
+  }
+  const double scale = fs / static_cast<double>(grid);
+  Eigen::FFT<double> fft;
+  std::vector<Complex> product(static_cast<std::size_t>(grid)), pseudo_product(static_cast<std::size_t>(grid)), cov, pseudo;
+  double variance = 0.0;
+  for (Index k = lo; k < hi; ++k) {
+    for (Index m = lo; m < hi; ++m) {
+      const auto& ck = responses[static_cast<std::size_t>(k)];
+      const auto& cm = responses[static_cast<std::size_t>(m)];
+      for (Index j = 0; j < grid; ++j) {
+        const auto at = static_cast<std::size_t>(j);
+        product[at] = psd[at] * ck[at] * std::conj(cm[at]);
+        pseudo_product[at] = psd[at] * ck[at] * cm[static_cast<std::size_t>((grid - j) % grid)];
+      }
+      fft.inv(cov, product);   // sum_j P_j e^{i 2 pi j D / grid} / grid
+      fft.inv(pseudo, pseudo_product);
+      for (Index d = -(segments - 1); d < segments; ++d) {
+        const Index shift = d * hop;
+        if (std::abs(shift) >= grid / 2) continue;
+        const auto at = static_cast<std::size_t>((shift + grid) % grid);
+        const double g = static_cast<double>(grid) * scale;
+        variance += static_cast<double>(segments - std::abs(d)) *
+                    (std::norm(cov[at] * g) + std::norm(pseudo[at] * g)) / (expected(k) * expected(m));
+      }
+    }
+  }
+  return variance;
+}
+
 CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise) {
   CaseBands out;
   out.case_index = cr.case_index;
@@ -108,20 +155,81 @@ CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise)
   Eigen::FFT<double> fft;
   std::vector<double> buf(static_cast<std::size_t>(length));
   std::vector<Complex> spec;
+  // With power-law noise (flicker, random walk) in the model each segment's mean is taken off
+  // first (Welch's constant detrend): a segment's mean then carries the noise slower than the
+  // whole record, whose expectation 1/f noise leaves undefined (it diverges without a lower
+  // edge), while after the detrend every bin's expectation converges. A white model keeps the
+  // means: there an offset is excess the model must answer for.
+  const bool detrend = noise.has_power_law();
   for (Index s = 0; s < segments; ++s) {
-    for (Index k = 0; k < length; ++k) buf[static_cast<std::size_t>(k)] = w(k) * cr.residual(s * hop + k);
+    const double mean = detrend ? cr.residual.segment(s * hop, length).mean() : 0.0;
+    for (Index k = 0; k < length; ++k) buf[static_cast<std::size_t>(k)] = w(k) * (cr.residual(s * hop + k) - mean);
     fft.fwd(spec, buf);
     for (Index k = 0; k <= half; ++k) power(k) += std::norm(spec[static_cast<std::size_t>(k)]);
   }
   // Expected |X_k|^2 under the model: sigma^2 |H|^2 sum w^2; one-sided PSD factor 2 / (fs sum w^2).
+  // The detrended bin k is sum_n c_n x_n with c_n = w_n e^{-i 2 pi k n / L} - W_k / L (W_k the
+  // window's DFT, nonzero at k = 0 and 1 only): white noise gives sigma^2 (sum w^2 - |W_k|^2 / L).
   const double sigma2 = noise.white_sd * noise.white_sd;
+  const double window_sum = w.sum();   // W_0; |W_1| = W_0 / 2 for the periodic Hann window
   Eigen::VectorXd expected(half + 1), psd_factor(half + 1);
   for (Index k = 0; k <= half; ++k) {
     const double f = fs * static_cast<double>(k) / static_cast<double>(length);
-    expected(k) = sigma2 * noise.gain2(f, fs) * w_energy;
+    const double w_k = k == 0 ? window_sum : k == 1 ? 0.5 * window_sum : 0.0;
+    const double energy = detrend ? w_energy - w_k * w_k / static_cast<double>(length) : w_energy;
+    expected(k) = sigma2 * noise.gain2(f, fs) * energy;
     psd_factor(k) = (k == 0 || k == half ? 1.0 : 2.0) / (fs * w_energy);
   }
   const WindowCorrelation corr(w);
+  constexpr Index kFine = 8, kLobe = 2 * kFine, kFullBins = 8;
+  std::vector<std::vector<Complex>> low_responses;   // C_k on the fine grid, the lowest bins
+  Index grid = 0;
+  if (noise.has_power_law()) {
+    // E|sum c_n x_n|^2 = integral of S(f) |C(f)|^2 (S two-sided): on a grid 8 times finer than
+    // the bins, from the zero-padded DFT of c (sum |C_m|^2 = 8 L sum |c_n|^2). In full over the
+    // band for the lowest bins, where 1/f varies across the kernel and its sidelobes reach DC;
+    // from the main lobe (+-2 bins, 99.9 % of the window's energy) above.
+    grid = kFine * length;
+    const double bin_hz = fs / static_cast<double>(length);
+    const auto two_sided = [&](double f) { return 0.5 * noise.power_law_psd(std::abs(f), fs); };
+    std::vector<Complex> kernel(static_cast<std::size_t>(grid)), response;
+    low_responses.clear();
+    for (Index k = 0; k <= half; ++k) {
+      if (k < kFullBins) {
+        std::fill(kernel.begin(), kernel.end(), Complex(0.0, 0.0));
+        Complex w_k = 0.0;   // W_k
+        for (Index m = 0; m < length; ++m) {
+          const double phase = -2.0 * std::numbers::pi * static_cast<double>(k * m) / static_cast<double>(length);
+          kernel[static_cast<std::size_t>(m)] = w(m) * std::polar(1.0, phase);
+          w_k += kernel[static_cast<std::size_t>(m)];
+        }
+        if (detrend)
+          for (Index m = 0; m < length; ++m) kernel[static_cast<std::size_t>(m)] -= w_k / static_cast<double>(length);
+        fft.fwd(response, kernel);
+        low_responses.push_back(response);
+        double e = 0.0;
+        for (Index m = 1; m < grid; ++m) {   // m = 0 is f = 0: the detrended kernel is 0 there
+          const double f = bin_hz * static_cast<double>(m <= grid / 2 ? m : m - grid) / static_cast<double>(kFine);
+          e += two_sided(f) * std::norm(response[static_cast<std::size_t>(m)]);
+        }
+        expected(k) += fs * e / static_cast<double>(grid);
+      } else {
+        if (k == kFullBins) {
+          // The window's own spectral main lobe, once.
+          std::fill(kernel.begin(), kernel.end(), Complex(0.0, 0.0));
+          for (Index m = 0; m < length; ++m) kernel[static_cast<std::size_t>(m)] = w(m);
+          fft.fwd(response, kernel);
+        }
+        double e = 0.0, lobe = 0.0;
+        for (Index m = -kLobe; m <= kLobe; ++m) {
+          const double weight = std::norm(response[static_cast<std::size_t>((m + grid) % grid)]);
+          e += weight * two_sided(bin_hz * (static_cast<double>(k) + static_cast<double>(m) / kFine));
+          lobe += weight;
+        }
+        expected(k) += fs * w_energy * e / lobe;
+      }
+    }
+  }
   const double kd = static_cast<double>(segments);
   for (const auto& [lo, hi] : octave_bands(length)) {
     BandTest b;
@@ -135,7 +243,9 @@ CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise)
       model += expected(k) * psd_factor(k);
     }
     const double mean = kd * static_cast<double>(hi - lo);
-    const double variance = kd * corr.pair_sum(0, lo, hi) + 2.0 * (kd - 1.0) * corr.pair_sum(1, lo, hi);
+    const double variance = hi <= static_cast<Index>(low_responses.size())
+                                ? low_band_variance(low_responses, lo, hi, expected, segments, hop, fs, noise)
+                                : kd * corr.pair_sum(0, lo, hi) + 2.0 * (kd - 1.0) * corr.pair_sum(1, lo, hi);
     b.residual_psd = psd / static_cast<double>(hi - lo);
     b.model_psd = model / static_cast<double>(hi - lo);
     b.ratio = q / mean;
@@ -192,6 +302,11 @@ constexpr Index kMinBinSamples = 20;
 NoiseModel NoiseModel::of(const model::ModelFile& model, double white_sd) {
   NoiseModel n;
   n.white_sd = white_sd;
+  const auto set = [&](noise::NoiseTerm t, const std::optional<double>& v) { n.power_law[static_cast<std::size_t>(t)] = v.value_or(0.0); };
+  set(noise::NoiseTerm::Q, model.noise.q);
+  set(noise::NoiseTerm::B, model.noise.b);
+  set(noise::NoiseTerm::K, model.noise.k);
+  set(noise::NoiseTerm::R, model.noise.r);
   for (const model::ModelTerm& t : model.terms) {
     const auto& f = t.term.factors();
     if (f.size() != 1 || f[0].lag == 0 || f[0].power != 1 || f[0].function != ident::FactorFunction::Plain) continue;
@@ -203,6 +318,14 @@ NoiseModel NoiseModel::of(const model::ModelFile& model, double white_sd) {
     (*target)(f[0].lag - 1) += t.coefficient;
   }
   return n;
+}
+
+double NoiseModel::power_law_psd(double f_hz, double fs_hz) const {
+  return has_power_law() ? noise::model_psd(power_law, f_hz, 1.0 / fs_hz) : 0.0;
+}
+
+bool NoiseModel::has_power_law() const {
+  return std::any_of(power_law.begin(), power_law.end(), [](double v) { return v > 0.0; });
 }
 
 double NoiseModel::gain2(double f_hz, double fs_hz) const {

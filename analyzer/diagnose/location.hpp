@@ -14,24 +14,36 @@
 //    autocorrelation leaves (n for white noise).
 // Every family (bands of all cases; condition bins) is Bonferroni-corrected at alpha.
 #include <Eigen/Dense>
+#include <array>
 #include <string>
 #include <vector>
 
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/noise/noise_fit.hpp"
 #include "common/dataset/dataset.hpp"
 
 namespace inertia::diagnose {
 
-/// The noise the model claims: e white with sd `white_sd`, residual = C(q)/A(q) e.
+/// The noise the model claims: e white with sd `white_sd`, residual = C(q)/A(q) e, plus the
+/// power-law terms of its `[noise]` table (IEEE 952: Q quantization, B flicker, K random walk,
+/// R ramp; `inertia-analyze noise` estimates them) beside it. Its N is the white part, which
+/// white_sd already states, so N is not added a second time. Q stays even where nothing
+/// quantizes: the fit puts there what rises above white plus flicker near Nyquist (the simulator's
+/// pink noise flattens in its top octave), and without it the top band read 1.3 times the model.
 struct NoiseModel {
   double white_sd = 0.0;
   Eigen::VectorXd ma;   // c_1..c_q: C(q) = 1 + sum c_j q^-j (terms e[k-j])
   Eigen::VectorXd ar;   // a_1..a_p: A(q) = 1 - sum a_j q^-j (terms y[k-j])
+  std::array<double, noise::kNoiseTerms> power_law{};   // Q, N (kept 0), B, K, R
 
-  /// From the model's e[k-j] and y[k-j] coefficients, with `white_sd` (the model's or a stand-in).
+  /// From the model's e[k-j] and y[k-j] coefficients and `[noise]` Q, B, K, R, with `white_sd`
+  /// (the model's or a stand-in).
   static NoiseModel of(const model::ModelFile& model, double white_sd);
   /// |C/A|^2 at f (Hz) for sample rate fs.
   [[nodiscard]] double gain2(double f_hz, double fs_hz) const;
+  /// The power-law terms' one-sided PSD at f (unit^2/Hz); 0 without them.
+  [[nodiscard]] double power_law_psd(double f_hz, double fs_hz) const;
+  [[nodiscard]] bool has_power_law() const;
   /// Impulse response of C/A, until its energy has converged (at most `max_length` samples).
   [[nodiscard]] Eigen::VectorXd impulse_response(Eigen::Index max_length = 4096) const;
 };

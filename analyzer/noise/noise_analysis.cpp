@@ -83,13 +83,9 @@ Psd welch(const std::vector<Eigen::VectorXd>& stretches, double sample_period_s,
 }
 
 double model_psd(const NoiseFit& fit, double f_hz, double tau0_s) {
-  const double w = 2.0 * std::numbers::pi * f_hz;
-  const auto v = [&](NoiseTerm t) {
-    const double c = fit.terms[static_cast<std::size_t>(t)].value;
-    return c * c;
-  };
-  return 2.0 * (v(NoiseTerm::Q) * w * w * tau0_s + v(NoiseTerm::N) + v(NoiseTerm::B) / w + v(NoiseTerm::K) / (w * w) +
-                v(NoiseTerm::R) / (w * w * w));
+  std::array<double, kNoiseTerms> c{};
+  for (int j = 0; j < kNoiseTerms; ++j) c[static_cast<std::size_t>(j)] = fit.terms[static_cast<std::size_t>(j)].value;
+  return model_psd(c, f_hz, tau0_s);
 }
 
 NoiseAnalysis analyse_noise(const dataset::Dataset& data, const NoiseAnalysisOptions& options) {

@@ -92,6 +92,13 @@ double model_avar(const std::array<double, kNoiseTerms>& c, double tau) {
   return s;
 }
 
+double model_psd(const std::array<double, kNoiseTerms>& c, double f_hz, double tau0_s) {
+  const double w = 2.0 * std::numbers::pi * f_hz;
+  const auto v = [&](NoiseTerm t) { return c[static_cast<std::size_t>(t)] * c[static_cast<std::size_t>(t)]; };
+  return 2.0 * (v(NoiseTerm::Q) * w * w * tau0_s + v(NoiseTerm::N) + v(NoiseTerm::B) / w + v(NoiseTerm::K) / (w * w) +
+                v(NoiseTerm::R) / (w * w * w));
+}
+
 double NoiseFit::avar(double tau) const {
   std::array<double, kNoiseTerms> c{};
   for (int j = 0; j < kNoiseTerms; ++j) c[static_cast<std::size_t>(j)] = terms[static_cast<std::size_t>(j)].value;

@@ -62,4 +62,8 @@ NoiseFit fit_noise(const std::vector<AllanPoint>& points, const NoiseFitOptions&
 /// sigma^2(tau) of the terms `c` (Q, N, B, K, R values).
 double model_avar(const std::array<double, kNoiseTerms>& c, double tau);
 
+/// The one-sided PSD (unit^2/Hz) at f of the terms `c` (Q, N, B, K, R values; IEEE 952 Table C.1,
+/// doubled): 2 ((2 pi f)^2 tau0 Q^2 + N^2 + B^2 / (2 pi f) + K^2 / (2 pi f)^2 + R^2 / (2 pi f)^3).
+double model_psd(const std::array<double, kNoiseTerms>& c, double f_hz, double tau0_s);
+
 }  // namespace inertia::noise

@@ -4,10 +4,14 @@
 // |a| bin must be found there and nowhere else.
 #include <gtest/gtest.h>
 
+#include <unsupported/Eigen/FFT>
+
 #include <cmath>
+#include <complex>
 #include <iostream>
 #include <numbers>
 #include <random>
+#include <vector>
 
 #include "analyzer/diagnose/location.hpp"
 
@@ -95,6 +99,58 @@ TEST(Location, ArNoiseIsExplainedByItsModelAndNotByWhiteNoise) {
   EXPECT_GT(bands.front().ratio, 10.0);
   EXPECT_FALSE(bands.back().excess);
   EXPECT_LT(bands.back().ratio, 0.5);
+}
+
+/// White plus flicker plus random walk of known law, synthesized in the frequency domain (each
+/// DFT bin of a 2^20-sample record a complex Gaussian of variance S(f) fs N), cut into cases of
+/// kSamples: against a model with those [noise] terms every band's ratio has mean 1 within its
+/// spread and the band test holds its size; against white noise alone the low bands are excess.
+TEST(Location, PowerLawNoiseIsExplainedByItsTermsAndNotByWhiteNoise) {
+  const dataset::Dataset d = one_case();
+  NoiseModel model = white_model();
+  model.power_law[static_cast<std::size_t>(noise::NoiseTerm::B)] = 3.0 * kSd / std::sqrt(kFs);   // flicker above white below ~60 Hz
+  model.power_law[static_cast<std::size_t>(noise::NoiseTerm::K)] = 0.3 * kSd;
+  const Eigen::Index n = Eigen::Index{1} << 20;
+  std::mt19937_64 rng(13);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::vector<std::complex<double>> spectrum(static_cast<std::size_t>(n));
+  for (Eigen::Index j = 1; j <= n / 2; ++j) {
+    const double f = kFs * static_cast<double>(j) / static_cast<double>(n);
+    const double two_sided = kSd * kSd / kFs + 0.5 * model.power_law_psd(f, kFs);
+    const double sd = std::sqrt(two_sided * kFs * static_cast<double>(n) / (j == n / 2 ? 1.0 : 2.0));
+    const std::complex<double> z = j == n / 2 ? std::complex<double>(sd * g(rng), 0.0) : std::complex<double>(sd * g(rng), sd * g(rng));
+    spectrum[static_cast<std::size_t>(j)] = z;
+    if (j < n / 2) spectrum[static_cast<std::size_t>(n - j)] = std::conj(z);
+  }
+  Eigen::FFT<double> fft;
+  std::vector<double> series;
+  fft.inv(series, spectrum);
+  const int cases = static_cast<int>(n / kSamples);
+  int tests = 0, rejections = 0, white_excess_low = 0;
+  std::vector<double> sum(16, 0.0), sum2(16, 0.0), dof(16, 0.0);
+  for (int c = 0; c < cases; ++c) {
+    const Eigen::VectorXd r = Eigen::Map<const Eigen::VectorXd>(series.data() + c * kSamples, kSamples);
+    const Location loc = locate(d, {{0, 0, r}}, model, 0.05);
+    const auto& bands = loc.bands[0].bands;
+    for (std::size_t b = 0; b < bands.size(); ++b) {
+      ++tests;
+      rejections += bands[b].p_value < 0.05;
+      sum[b] += bands[b].ratio;
+      sum2[b] += bands[b].ratio * bands[b].ratio;
+      dof[b] = bands[b].dof;
+    }
+    white_excess_low += locate(d, {{0, 0, r}}, white_model(), 0.05).bands[0].bands.front().excess;
+  }
+  for (std::size_t b = 0; b < 3; ++b) {
+    const double mean = sum[b] / cases, spread = std::sqrt(sum2[b] / cases - mean * mean);
+    std::cout << "[ location ] power-law noise, band " << b << ": mean ratio " << mean << ", spread " << spread
+              << " (model " << std::sqrt(2.0 / dof[b]) << ") over " << cases << " cases\n";
+    // The mean of `cases` ratios, each of sd sqrt(2 / dof): 4 of its sd.
+    EXPECT_NEAR(mean, 1.0, 4.0 * std::sqrt(2.0 / dof[b] / cases)) << "band " << b;
+  }
+  const double expected = 0.05 * tests, sd = std::sqrt(tests * 0.05 * 0.95);
+  EXPECT_NEAR(rejections, expected, 4.0 * sd) << rejections << " of " << tests;
+  EXPECT_EQ(white_excess_low, cases) << "against white noise alone the lowest band must be excess";
 }
 
 TEST(Location, ASineIsLocatedInItsBandAndItsCondition) {
