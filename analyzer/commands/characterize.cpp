@@ -3,12 +3,16 @@
 #include <fmt/format.h>
 #include <fmt/ostream.h>
 
+#include <fstream>
 #include <iostream>
+#include <optional>
 #include <ostream>
 
+#include "analyzer/commands/noise.hpp"
 #include "analyzer/commands/truth_file.hpp"
 #include "analyzer/fusion/log_dataset.hpp"
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/noise/noise_analysis.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/report/characterization_report.hpp"
 #include "common/dataset/dataset.hpp"
@@ -128,6 +132,16 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   }
   model.white_sd = std::sqrt(result.fit.residual_variance);
   model.square_highpass_rad_s = result.square_corner_rad_s;
+  // The sensor's noise terms from the plan's static stretches, as `inertia-analyze noise` reads
+  // them: [noise] carries the determined ones (diagnose's band test expects them), and the report
+  // gains the same section the noise command writes.
+  std::optional<noise::NoiseAnalysis> noise_analysis;
+  try {
+    noise_analysis = noise::analyse_noise(data);
+    noise_terms_into(*noise_analysis, model);
+  } catch (const InputError& e) {
+    fmt::print(out, "noise terms not estimated: {}\n", e.what());
+  }
   std::filesystem::create_directories(options.out);
   model::write_model(options.out / "model.toml", model);
   fmt::print(out, "wrote {}\n", (options.out / "model.toml").string());
@@ -137,7 +151,14 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   in.dataset_label = label;
   in.plots = options.plots;
   if (truth) in.truth = report::TruthForReport{truth->terms, truth->m_es};
-  fmt::print(out, "wrote {}\n", report::write_characterization_report(in, options.out).string());
+  const std::filesystem::path report_file = report::write_characterization_report(in, options.out);
+  if (noise_analysis) {
+    std::ofstream md(report_file, std::ios::app);
+    md << "\n## Noise of the static stretches\n\n";
+    write_noise_section(md, out, *noise_analysis, data.output_unit, label,
+                        options.plots ? options.out / "plots" : std::filesystem::path());
+  }
+  fmt::print(out, "wrote {}\n", report_file.string());
   return kExitOk;
 }
 

@@ -112,30 +112,15 @@ bool plot(const std::filesystem::path& dir, const noise::NoiseAnalysis& a, const
 
 }  // namespace
 
-int run_noise(const NoiseCommandOptions& options, std::ostream& out) {
-  if (options.dataset.empty() == options.event_log.empty())
-    throw InputError("noise: give exactly one of --dataset DIR and --log FILE");
-  if (!options.sensor.empty() && options.event_log.empty()) throw InputError("noise: --sensor goes with --log");
-  if (options.tau_max_s < 0.0) throw InputError("noise: --tau-max must be >= 0");
-  const bool from_log = !options.event_log.empty();
-  const dataset::Dataset data = from_log ? fusion::log_dataset(options.event_log, options.sensor, std::cerr)
-                                         : dataset::read_dataset(options.dataset);
-  noise::NoiseAnalysisOptions ao;
-  ao.only_case = options.case_name;
-  ao.tau_max_s = options.tau_max_s;
-  const noise::NoiseAnalysis a = noise::analyse_noise(data, ao);
-  const std::string source = (from_log ? options.event_log : options.dataset).string();
-  std::filesystem::create_directories(options.out);
-  write_toml(options.out / "noise.toml", a, data.output_unit, source);
-
+void write_noise_section(std::ostream& md, std::ostream& out, const noise::NoiseAnalysis& a, const std::string& unit,
+                         const std::string& source, const std::filesystem::path& plots_dir) {
   double total = 0.0;
   for (const noise::Stretch& s : a.stretches) total += s.duration_s;
-  std::ofstream md(options.out / "report.md");
   const auto both = [&](const std::string& text) {
     out << text;
     md << text;
   };
-  both(fmt::format("noise of {} ({}): {} static stretch(es), {:.4g} s in all, tau0 {:.4g} s\n", source, data.output_unit,
+  both(fmt::format("noise of {} ({}): {} static stretch(es), {:.4g} s in all, tau0 {:.4g} s\n", source, unit,
                    a.stretches.size(), total, a.tau0_s));
   for (const noise::Stretch& s : a.stretches)
     md << fmt::format("- case {}: rows {}..{} ({:.4g} s)\n", s.case_name, s.begin, s.end, s.duration_s);
@@ -153,7 +138,7 @@ int run_noise(const NoiseCommandOptions& options, std::ostream& out) {
       const std::string range = c.tau_max > 0.0 ? fmt::format("{:.3g} .. {:.3g}", c.tau_min, c.tau_max) : "-";
       both(fmt::format("| {} | {} | {:.4g} | [{:.4g}, {:.4g}]{} | {} | {} |\n", noise::noise_term_name(term),
                        noise::noise_term_meaning(term), c.value, c.lower, c.upper, c.determined ? "" : " (not determined)",
-                       units_of(term, data.output_unit), range));
+                       units_of(term, unit), range));
     }
   } else {
     both("\nno fit: " + a.fit_error + "\n");
@@ -170,12 +155,42 @@ int run_noise(const NoiseCommandOptions& options, std::ostream& out) {
         "column); intervals from the equivalent degrees of freedom (NIST SP 1065 table 5) of the noise the fit says "
         "dominates each octave. The PSD: Welch, Hann windows of " << a.psd.segment_length << " samples, 50 % overlap, "
      << a.psd.segments << " segments, one-sided.\n";
-  if (options.plots) {
-    const std::filesystem::path dir = options.out / "plots";
-    std::filesystem::create_directories(dir);
-    if (plot(dir, a, data.output_unit)) md << "\n![Allan deviation](plots/adev.png)\n\n![PSD](plots/psd.png)\n";
+  if (!plots_dir.empty()) {
+    std::filesystem::create_directories(plots_dir);
+    if (plot(plots_dir, a, unit)) md << "\n![Allan deviation](plots/adev.png)\n\n![PSD](plots/psd.png)\n";
     else md << "\n(plots not drawn: gnuplot failed)\n";
   }
+}
+
+void noise_terms_into(const noise::NoiseAnalysis& a, model::ModelFile& model) {
+  if (!a.fit) return;
+  const std::pair<NoiseTerm, std::optional<double>*> slots[] = {{NoiseTerm::Q, &model.noise.q}, {NoiseTerm::N, &model.noise.n},
+                                                                {NoiseTerm::B, &model.noise.b}, {NoiseTerm::K, &model.noise.k},
+                                                                {NoiseTerm::R, &model.noise.r}};
+  for (const auto& [term, slot] : slots) {
+    const noise::NoiseCoefficient& c = a.fit->terms[static_cast<std::size_t>(term)];
+    if (a.fit->fitted[static_cast<std::size_t>(term)] && c.determined) *slot = c.value;
+  }
+}
+
+int run_noise(const NoiseCommandOptions& options, std::ostream& out) {
+  if (options.dataset.empty() == options.event_log.empty())
+    throw InputError("noise: give exactly one of --dataset DIR and --log FILE");
+  if (!options.sensor.empty() && options.event_log.empty()) throw InputError("noise: --sensor goes with --log");
+  if (options.tau_max_s < 0.0) throw InputError("noise: --tau-max must be >= 0");
+  const bool from_log = !options.event_log.empty();
+  const dataset::Dataset data = from_log ? fusion::log_dataset(options.event_log, options.sensor, std::cerr)
+                                         : dataset::read_dataset(options.dataset);
+  noise::NoiseAnalysisOptions ao;
+  ao.only_case = options.case_name;
+  ao.tau_max_s = options.tau_max_s;
+  const noise::NoiseAnalysis a = noise::analyse_noise(data, ao);
+  const std::string source = (from_log ? options.event_log : options.dataset).string();
+  std::filesystem::create_directories(options.out);
+  write_toml(options.out / "noise.toml", a, data.output_unit, source);
+
+  std::ofstream md(options.out / "report.md");
+  write_noise_section(md, out, a, data.output_unit, source, options.plots ? options.out / "plots" : std::filesystem::path());
   fmt::print(out, "wrote {} and {}\n", (options.out / "noise.toml").string(), (options.out / "report.md").string());
   return 0;
 }

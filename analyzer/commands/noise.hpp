@@ -8,6 +8,9 @@
 #include <iosfwd>
 #include <string>
 
+#include "analyzer/model/model_file.hpp"
+#include "analyzer/noise/noise_analysis.hpp"
+
 namespace inertia::commands {
 
 struct NoiseCommandOptions {
@@ -21,5 +24,14 @@ struct NoiseCommandOptions {
 };
 
 int run_noise(const NoiseCommandOptions& options, std::ostream& out);
+
+/// The noise section of a report on `md` (its headline lines on `out` too): the stretches, the
+/// fit's table, the Allan table, the method; plots into `plots_dir` (none when empty), linked as
+/// plots/ from the report's folder. `noise` and `characterize` write the same section.
+void write_noise_section(std::ostream& md, std::ostream& out, const noise::NoiseAnalysis& a, const std::string& unit,
+                         const std::string& source, const std::filesystem::path& plots_dir);
+
+/// The analysis's determined terms into a model file's [noise] (Q, N, B, K, R).
+void noise_terms_into(const noise::NoiseAnalysis& a, model::ModelFile& model);
 
 }  // namespace inertia::commands

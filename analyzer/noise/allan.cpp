@@ -54,7 +54,9 @@ struct AllanAccumulator::Level {
   void push(double v) {
     ring[static_cast<std::size_t>(count) & mask] = v;
     ++count;
-    const bool resum = count % resum_period == 0;
+    // Powers of two throughout: masks, not divisions (an integer division per octave was most of
+    // the per-sample cost).
+    const bool resum = (count & (resum_period - 1)) == 0;
     for (int k = first_octave; k <= last_octave; ++k) {
       const auto o = static_cast<std::size_t>(k - first_octave);
       const std::int64_t m = std::int64_t{1} << k;
@@ -81,12 +83,12 @@ struct AllanAccumulator::Level {
       if (!modified) continue;
       // Modified variance: the sum of the newest m second differences.
       std::vector<double>& dr = d_ring[o];
-      const auto slot = static_cast<std::size_t>(d_count[o] % m);
+      const auto slot = static_cast<std::size_t>(d_count[o] & (m - 1));
       if (d_count[o] >= m) d_sum[o] -= dr[slot];
       dr[slot] = d;
       d_sum[o] += d;
       ++d_count[o];
-      if (d_count[o] % m == 0) {
+      if ((d_count[o] & (m - 1)) == 0) {
         // Re-sum exactly once per window turn.
         double s = 0.0;
         for (double x : dr) s += x;
