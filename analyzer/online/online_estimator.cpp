@@ -146,6 +146,10 @@ struct OnlineEstimator::Impl {
 
   void close_open(bool kept) {
     if (!open) return;
+    // The data changed by a whole segment: the next snapshot tests convergence afresh, so the
+    // flag after a case's last segment (and at the stream's end) is never up to a second of rows
+    // stale.
+    last_convergence_rows = -1;
     CaseState& c = cases[open->state];
     if (kept) {
       c.info.add(open->info);

@@ -50,11 +50,9 @@ struct OnlineOptions {
   double forgetting = 1.0;            ///< lambda in (0, 1]: every row's weight decays by lambda per row
   double noise_window_s = 2.0;        ///< rows that fit the noise model (s of sensor samples)
   int whitening_max_order = 120;      ///< largest AR order of the noise model (0: white)
-  /// An open segment counts once it is this long, and `online`'s assembler drops shorter ones.
-  /// Not the offline 0.1 s (AssemblerOptions): with it, the two-mounting paper bench's last
-  /// leave-one-case-out z rose from below its 3.6 bound to 4.15 on a stream without a single hole
-  /// (not yet understood), so live and offline still differ on a stream that lost samples.
-  double min_segment_s = 0.5;
+  /// An open segment counts once it is this long, and `online`'s assembler drops shorter ones
+  /// (the offline default: a piece of a case cut by lost samples).
+  double min_segment_s = fusion::AssemblerOptions{}.min_segment_s;
   /// Convergence: family-wise level of the leave-one-case-out test (Bonferroni over cases and terms).
   double convergence_alpha = 0.01;
   double convergence_interval_s = 1.0;   ///< stream time between two convergence tests
