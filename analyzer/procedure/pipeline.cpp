@@ -201,6 +201,24 @@ StackedRegression whitened_regression(std::span<const Term> terms, const Mountin
   return s;
 }
 
+/// The squares' corner by the GLS criterion: the search on the rows of `unfiltered` (squares not
+/// yet high-passed) after the AR whitening. Why: under 1/f noise the unwhitened residual sum of
+/// squares is dominated by the noise's slow wander, and a corner found there scatters many times
+/// more than its information says: on sim-paper-daq (20 seeds, truth 500 rad/s) 411-655 rad/s,
+/// sd 13 %, moving every term correlated with the squares 2-10 times their sd; found here, mean
+/// 499.5 and sd 1.4 % against the 1.3 % its Jacobian column predicts (HonestPrune::searched).
+/// The high pass and the whitening are both linear filters run case by case, so they commute but
+/// for a case's first few samples.
+std::optional<double> whitened_corner(StackedRegression unfiltered, const ArWhitener& whitener, const dataset::Dataset& data,
+                                      const PipelineOptions& options) {
+  const std::vector<Eigen::Index> squares = square_columns(unfiltered.labels);
+  if (squares.empty()) return std::nullopt;
+  whitener.apply(unfiltered);
+  const SquareCornerSearch search(unfiltered, squares, data);
+  return search.best(options.square_highpass_min_rad_s,
+                     std::min(options.square_highpass_max_rad_s, max_corner(unfiltered.cases, data)));
+}
+
 /// `m` turned about its first row (n_i) by `psi`: n_p, n_o rotated in their plane.
 frames::Dcm with_twist(const frames::Dcm& m, double psi) {
   if (psi == 0.0) return m;
@@ -455,6 +473,22 @@ std::vector<CaseRows> plan_case_rows(const StackedRegression& batch, const datas
   return out;
 }
 
+/// The derivative of a fit's prediction with respect to a parameter its regression was built
+/// with (HonestPrune::searched), by a central difference: `stack_at(terms, offset)` rebuilds the
+/// whitened regression of the fit's terms with the parameter moved by `offset`.
+Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step,
+                                      const std::function<StackedRegression(std::span<const Term>, double)>& stack_at) {
+  const Eigen::Index p = fit.process_terms;
+  std::vector<Term> terms;
+  for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
+  const StackedRegression up = stack_at(terms, step), down = stack_at(terms, -step);
+  return (up.phi - down.phi) * fit.theta.head(p) / (2.0 * step);
+}
+
+bool has_square(const ident::UlsResult& fit) {
+  return !square_columns(std::vector<std::string>(fit.labels.begin(), fit.labels.begin() + fit.process_terms)).empty();
+}
+
 /// Honest inference after a selection (whose t-tests take every sample as independent), on a
 /// fitted model of a stacked problem. The cases' contiguous phases are clusters; offsets between
 /// them that the noise model does not explain (a pose's placement, drift, 1/f noise below the AR
@@ -462,8 +496,8 @@ std::vector<CaseRows> plan_case_rows(const StackedRegression& batch, const datas
 /// (statistics.hpp, cluster_offsets), and every coefficient's covariance includes what they do to
 /// it. A term that varies within the phases is determined there and tested on the samples' dof; a
 /// term constant within each phase (a square in static poses, the bias) is determined only by
-/// the phases' means and is tested on the between-phase dof, after the parameters estimated
-/// elsewhere from the same means (mounting angles) are taken off. When the model has as many
+/// the phases' means and is tested on the between-phase dof, less the parameters found by a
+/// search on the same data (`searched`: mounting angles, the squares' corner). When the model has as many
 /// phase-level parameters as phases the offsets cannot be told from it: the weakest removable
 /// phase-level term leaves first. Then, one at a time, the term whose test falls below
 /// `threshold` leaves and the model is refitted. `extra` may add to the covariance (held angles).
@@ -472,11 +506,16 @@ struct HonestPrune {
   const std::vector<int>* clusters = nullptr;
   const std::vector<CaseRows>* noise_runs = nullptr;   // one noise process each (plan_case_rows)
   const Eigen::VectorXd* loading = nullptr;    // per row: a_p^2 + a_o^2 (the placement tilt's reach)
-  int estimated_elsewhere = 0;              // phase-level parameters fitted outside this model
   double threshold = 0.01;
   bool may_remove = true;
   std::function<bool(const std::string&)> protect;
   std::function<void(const ident::UlsResult&, Eigen::MatrixXd&)> extra;
+  // Parameters the fit's columns depend on that were estimated by a search on the same data (the
+  // squares' corner, the mountings' angles): the derivative of the fitted prediction with respect
+  // to each, one whitened column per parameter (rows of s). They join the covariance as columns
+  // of the Jacobian, so what their own uncertainty moves is in the coefficients' sd (sim-paper-daq,
+  // 60 seeds: the cross terms' spread over their sd 1.22-1.43 without them, 1.13-1.33 with).
+  std::function<Eigen::MatrixXd(const ident::UlsResult&)> searched;
 };
 
 struct HonestResult {
@@ -488,54 +527,59 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
                           const ident::UlsOptions& uls, std::vector<UndeterminedTerm>* removed, std::string_view what) {
   const StackedRegression& s = *h.s;
   std::vector<std::string> dropped;
-  // The whitened residual's own noise model per case of the plan (its low-frequency colour: coloured_noise.hpp),
-  // fitted once on the selected model's residual, and the meat X'RX of its columns: a term that
-  // leaves takes its row and column with it, and the residual it leaves behind differs by a term
-  // that tested as nothing.
-  Eigen::MatrixXd full_meat;
-  std::vector<std::string> meat_labels;
+  // The whitened residual's own noise model per case of the plan (its low-frequency colour:
+  // coloured_noise.hpp), fitted once on the selected model's residual: a term that leaves takes its
+  // column of the meat X'RX with it, and the residual it leaves behind differs by a term that
+  // tested as nothing.
+  std::vector<noise::SegmentSpectrum> spectra;
   ident::ColouredNoise coloured;
   for (;;) {
     HonestResult out;
     const Eigen::Index p = fit.process_terms;
     out.dof = Eigen::VectorXd::Constant(p, static_cast<double>(fit.residuals.size() - p - 1));
     if (s.phi.rows() != fit.residuals.size() || p == 0) return out;
-    Eigen::MatrixXd x(s.phi.rows(), p);
+    Eigen::MatrixXd searched = h.searched ? h.searched(fit) : Eigen::MatrixXd();
+    if (searched.cols() == 0) searched.resize(s.phi.rows(), 0);
+    if (searched.rows() != s.phi.rows()) throw std::logic_error("honest_prune: searched columns of another stack");
+    Eigen::MatrixXd x(s.phi.rows(), p + searched.cols());
     for (Eigen::Index j = 0; j < p; ++j) {
       const auto column = static_cast<Eigen::Index>(std::find(s.labels.begin(), s.labels.end(), fit.labels[std::size_t(j)]) -
                                                     s.labels.begin());
       const bool rational = std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end();
       x.col(j) = rational ? Eigen::VectorXd(-s.phi.col(column)) : Eigen::VectorXd(s.phi.col(column));   // the linear form
     }
-    if (full_meat.size() == 0) {   // the first fit: the noise and its meat, once
-      full_meat = Eigen::MatrixXd::Zero(p, p);
+    x.rightCols(searched.cols()) = searched;
+    if (spectra.empty()) {
       for (const CaseRows& rows : *h.noise_runs) {
-        const noise::SegmentSpectrum spectrum = noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows));
-        full_meat += noise::quadratic_form(spectrum, x.middleRows(rows.begin, rows.rows));
+        spectra.push_back(noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows)));
         // Each phase's mean under its case's noise (a phase is one run of rows within a plan case).
         for (Eigen::Index begin = rows.begin, end = rows.begin + rows.rows; begin < end;) {
           const int id = (*h.clusters)[static_cast<std::size_t>(begin)];
           Eigen::Index run = 1;
           while (begin + run < end && (*h.clusters)[static_cast<std::size_t>(begin + run)] == id) ++run;
-          coloured.mean_variance[id] += noise::sum_variance(spectrum, run);
+          coloured.mean_variance[id] += noise::sum_variance(spectra.back(), run);
           begin += run;
         }
       }
       std::map<int, Eigen::Index> cluster_rows;
       for (const int id : *h.clusters) ++cluster_rows[id];
       for (auto& [id, v] : coloured.mean_variance) v /= static_cast<double>(cluster_rows[id] * cluster_rows[id]);
-      meat_labels = fit.labels;
-      meat_labels.resize(static_cast<std::size_t>(p));
     }
-    std::vector<Eigen::Index> in_meat(static_cast<std::size_t>(p));
-    for (Eigen::Index j = 0; j < p; ++j) {
-      const auto at = std::find(meat_labels.begin(), meat_labels.end(), fit.labels[std::size_t(j)]);
-      if (at == meat_labels.end()) throw std::logic_error("honest_prune: a refit brought a term the first fit did not have");
-      in_meat[std::size_t(j)] = at - meat_labels.begin();
+    coloured.meat = Eigen::MatrixXd::Zero(x.cols(), x.cols());
+    for (std::size_t r = 0; r < spectra.size(); ++r) {
+      const CaseRows& rows = (*h.noise_runs)[r];
+      coloured.meat += noise::quadratic_form(spectra[r], x.middleRows(rows.begin, rows.rows));
     }
-    coloured.meat = full_meat(in_meat, in_meat);
-    out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, *h.clusters, h.estimated_elsewhere,
+    // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
+    out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, *h.clusters, 0,
                                          h.loading != nullptr ? *h.loading : Eigen::VectorXd(), &coloured);
+    // The searched parameters' rows and columns have done their work (the terms' block of the
+    // joint covariance includes them); what is reported is the terms'.
+    const Eigen::MatrixXd x_process = x.leftCols(p);
+    const Eigen::MatrixXd classical =
+        fit.residual_variance * (x_process.transpose() * x_process).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
+    for (Eigen::MatrixXd* m : {&out.offsets.within, &out.offsets.covariance}) *m = m->topLeftCorner(p, p).eval();
+    out.offsets.classical = classical;
     // Which terms live between the phases: little of their column varies within one.
     std::vector<bool> phase_level(static_cast<std::size_t>(p), false);
     {
@@ -543,16 +587,17 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
       for (Eigen::Index k = 0; k < x.rows(); ++k) {
         auto [it, fresh] = sums.try_emplace((*h.clusters)[static_cast<std::size_t>(k)]);
         if (fresh) it->second = {Eigen::VectorXd::Zero(p), 0.0};
-        it->second.first += x.row(k).transpose();
+        it->second.first += x_process.row(k).transpose();
         it->second.second += 1.0;
       }
       Eigen::VectorXd between = Eigen::VectorXd::Zero(p);
       for (const auto& [id, sum] : sums) between += sum.first.cwiseAbs2() / sum.second;
-      const Eigen::VectorXd total = x.colwise().squaredNorm().transpose();
+      const Eigen::VectorXd total = x_process.colwise().squaredNorm().transpose();
       for (Eigen::Index j = 0; j < p; ++j) phase_level[std::size_t(j)] = total(j) > 0.0 && total(j) - between(j) < 1e-2 * total(j);
     }
-    // The fit's covariance (ULS's, with its bias correction) takes the residual as white: what the
-    // residual's colour and the offsets between phases add to that is added to it.
+    // The fit's covariance (ULS's, with its bias correction) takes the residual as white and the
+    // searched parameters as known: what the residual's colour, the offsets between phases and
+    // the searched parameters add to that is added to it.
     Eigen::MatrixXd covariance = fit.covariance.topLeftCorner(p, p);
     covariance += out.offsets.covariance - out.offsets.classical;
     if (out.offsets.tau2 > 0.0) {
@@ -749,9 +794,11 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   Eigen::Matrix3d full_sensitivity_covariance = Eigen::Matrix3d::Zero();
   for (result.refinements = 0; result.refinements < std::max(1, options.max_refinements); ++result.refinements) {
     es = stack_regressions(es_terms, stack_inputs(m, cases, m_cs), data.t_ref, dataset_label, first_row);
+    std::optional<StackedRegression> unfiltered;   // for the corner's search after the whitening (batch's note)
     if (options.square_highpass) {
       const std::vector<Eigen::Index> squares = square_columns(es.labels);
       if (!squares.empty() && result.refinements < 2) {   // the corner hardly moves with M_C^S after that
+        unfiltered = es;
         const SquareCornerSearch search(es, squares, data);
         square_corner = search.best(options.square_highpass_min_rad_s,
                                     std::min(options.square_highpass_max_rad_s, max_corner(es.cases, data)));
@@ -765,6 +812,11 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     std::vector<std::string> dropped;
     const ident::UlsResult ols = fit_identifiable(es, usable, uls, dropped);
     whitener = ArWhitener::fit(ols.residuals, es.cases, options.whitening_max_order);
+    if (unfiltered) {
+      square_corner = whitened_corner(*unfiltered, whitener, data, options);
+      es = std::move(*unfiltered);
+      apply_square_model(es, data, square_corner);
+    }
     whitener.apply(es);
     const ident::UlsResult full = fit_identifiable(es, usable, uls, dropped);
     const auto theta = external_sensitivities(full.labels, full.theta, data.sensor, &full.covariance, &full_sensitivity_covariance);
@@ -863,6 +915,16 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     honest.protect = [&](const std::string& label) {
       return is_sensitivity_label(label) || label == "1" || std::find(tilts.begin(), tilts.end(), label) != tilts.end();
     };
+    if (square_corner) {
+      honest.searched = [&](const ident::UlsResult& fit) {
+        if (!has_square(fit)) return Eigen::MatrixXd();
+        // The columns are smooth in the corner: 1 % keeps the difference far above rounding.
+        return Eigen::MatrixXd(prediction_derivative(fit, 1e-2 * *square_corner, [&](std::span<const Term> terms, double moved) {
+          return whitened_regression(terms, m, cases, *best_misalignment, data, dataset_label, first_row, *square_corner + moved,
+                                     whitener);
+        }));
+      };
+    }
     std::vector<Eigen::Index> columns(selected_terms.size());
     for (std::size_t i = 0; i < columns.size(); ++i) columns[i] = static_cast<Eigen::Index>(i);
     result.s_fit = fit_identifiable(stage, columns, options.selection.uls, result.excluded);
@@ -1040,10 +1102,13 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   const std::vector<Eigen::Vector2d> nominal(result.mountings.size(), Eigen::Vector2d::Zero());
   StackedRegression batch = stack_regressions(candidates, batch_inputs(data, options, result.mountings, nominal, result.cases),
                                               data.t_ref, dataset_label);
+  std::optional<StackedRegression> unfiltered;   // for the corner's search after the whitening
   if (options.square_highpass && options.batch_square_highpass) {
-    // The squares' high pass (eq. 12), its corner estimated on the whole batch as in blocks 5-6.
+    // The squares' high pass (eq. 12), its corner estimated on the whole batch as in blocks 5-6:
+    // first on the unwhitened rows (the whitening's residual needs a corner), then whitened.
     const std::vector<Eigen::Index> squares = square_columns(batch.labels);
     if (!squares.empty()) {
+      unfiltered = batch;
       const SquareCornerSearch search(batch, squares, data);
       result.square_corner_rad_s = search.best(options.square_highpass_min_rad_s,
                                                std::min(options.square_highpass_max_rad_s, max_corner(batch.cases, data)));
@@ -1059,6 +1124,11 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     std::vector<std::string> dropped;
     const ident::UlsResult ols = fit_identifiable(batch, usable, uls, dropped);
     whitener = ArWhitener::fit(ols.residuals, batch.cases, options.whitening_max_order);
+    if (unfiltered) {
+      result.square_corner_rad_s = whitened_corner(*unfiltered, whitener, data, options);
+      batch = std::move(*unfiltered);
+      apply_square_model(batch, data, result.square_corner_rad_s);
+    }
     whitener.apply(batch);
     result.whitening = whitener.coefficients();
   }
@@ -1105,11 +1175,42 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   const std::vector<CaseRows> noise_runs = plan_case_rows(batch, data);
   honest.noise_runs = &noise_runs;
   honest.loading = &loading;
-  for (const MountingResult& m : result.mountings)
-    honest.estimated_elsewhere += static_cast<int>(m.excitation.determined[1]) + static_cast<int>(m.excitation.determined[2]);
   honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
   honest.may_remove = options.batch.select;
   honest.protect = [](const std::string& label) { return is_sensitivity_label(label) || label == "1"; };
+  // The searches whose results the batch's columns are built with: the squares' corner and each
+  // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the
+  // between-phase dof no longer count the angles separately.
+  struct Searched {
+    std::size_t mounting = 0;
+    int axis = 0;   // 0: the squares' corner; 1, 2: the mounting's tilt (turned())
+  };
+  std::vector<Searched> searches;
+  if (result.square_corner_rad_s) searches.push_back({0, 0});
+  for (std::size_t k = 0; k < result.mountings.size(); ++k)
+    for (int axis = 1; axis < 3; ++axis)
+      if (result.mountings[k].excitation.determined[static_cast<std::size_t>(axis)]) searches.push_back({k, axis});
+  honest.searched = [&](const ident::UlsResult& fit) {
+    Eigen::MatrixXd columns(batch.phi.rows(), 0);
+    for (const Searched& search : searches) {
+      if (search.axis == 0 && !has_square(fit)) continue;
+      const auto stack_at = [&](std::span<const Term> terms, double moved) {
+        std::vector<Eigen::Vector2d> tilts = nominal;
+        if (search.axis > 0) tilts[search.mounting](search.axis - 1) = moved;
+        std::vector<CaseOutcome> cases = result.cases;
+        StackedRegression st = stack_regressions(terms, batch_inputs(data, options, result.mountings, tilts, cases), data.t_ref,
+                                                 dataset_label, ident::first_usable_row(candidates));
+        apply_square_model(st, data, search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s);
+        whitener.apply(st);
+        return st;
+      };
+      // Steps: 1 % of the corner; 1e-4 rad of tilt (the columns are smooth in both).
+      const double step = search.axis == 0 ? 1e-2 * *result.square_corner_rad_s : 1e-4;
+      columns.conservativeResize(Eigen::NoChange, columns.cols() + 1);
+      columns.col(columns.cols() - 1) = prediction_derivative(fit, step, stack_at);
+    }
+    return columns;
+  };
   if (!held.empty() && options.mounting_tolerance_rad > 0.0) {
     honest.extra = [&](const ident::UlsResult& fit, Eigen::MatrixXd& covariance) {
       const Eigen::Index p = fit.process_terms;

@@ -211,12 +211,18 @@ TEST(OnlineEstimator, EqualsTheBatchPipelineOnTheSameRows) {
     const auto jj = static_cast<Index>(j);
     const auto b = static_cast<Index>(std::find(batch.fit.labels.begin(), batch.fit.labels.end(), kModel[j]) - batch.fit.labels.begin());
     EXPECT_NEAR(live.values(jj), batch.fit.theta(b), 1e-6 * batch.fit.std_dev(b)) << kModel[j];
-    // The live sd adds what the mountings' misalignment uncertainty does to the batch (the
-    // batch pipeline takes M_C^S as known): never less, but for the batch's noise model. The
-    // live estimator takes the whitened noise as white; the batch fits each case's residual
-    // spectrum (coloured_noise.hpp), whose white level on this white noise is an estimate from a
-    // case's 3000 rows: about 1/sqrt(3000) in variance, half that in sd; three of it here.
-    EXPECT_GE(live.std_devs(jj), batch.fit.std_dev(b) * (1.0 - 1.5 / std::sqrt(3000.0))) << kModel[j];
+    // Both sd include what the mountings' misalignment uncertainty moves, by two first-order
+    // routes: the live one propagates each mounting's angle covariance through the coefficients
+    // (delta method, angle and coefficient errors taken as independent); the batch fits the
+    // angles' derivative columns jointly with the terms (procedure/pipeline.cpp,
+    // HonestPrune::searched), so the rows both use count once. The joint route is the larger: on
+    // this plan the live sd are 0.89 to 0.99 of the batch's (measured 2026-11-26). Asserted: never
+    // above the batch's but for its white level, an estimate from a case's 3000 rows (1/sqrt(3000)
+    // in variance, half that in sd; three of it here), and not below 0.85 of it (the measured
+    // difference of the two methods with a margin: a bound on a method, not on noise).
+    const double ratio = live.std_devs(jj) / batch.fit.std_dev(b);
+    EXPECT_LE(ratio, 1.0 + 1.5 / std::sqrt(3000.0)) << kModel[j];
+    EXPECT_GE(ratio, 0.85) << kModel[j];
   }
   // And the truth within the noise: coefficients and each mounting's misalignment.
   const Eigen::VectorXd truth = truth_values();
