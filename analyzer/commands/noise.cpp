@@ -164,12 +164,10 @@ void write_noise_section(std::ostream& md, std::ostream& out, const noise::Noise
 
 void noise_terms_into(const noise::NoiseAnalysis& a, model::ModelFile& model) {
   if (!a.fit) return;
-  const std::pair<NoiseTerm, std::optional<double>*> slots[] = {{NoiseTerm::Q, &model.noise.q}, {NoiseTerm::N, &model.noise.n},
-                                                                {NoiseTerm::B, &model.noise.b}, {NoiseTerm::K, &model.noise.k},
-                                                                {NoiseTerm::R, &model.noise.r}};
-  for (const auto& [term, slot] : slots) {
-    const noise::NoiseCoefficient& c = a.fit->terms[static_cast<std::size_t>(term)];
-    if (a.fit->fitted[static_cast<std::size_t>(term)] && c.determined) *slot = c.value;
+  static_assert(model::ModelFile::NoiseTerms::kKeys.size() == noise::kNoiseTerms);
+  for (std::size_t i = 0; i < model.noise.values.size(); ++i) {
+    const noise::NoiseCoefficient& c = a.fit->terms[i];
+    if (a.fit->fitted[i] && c.determined) model.noise.values[i] = c.value;
   }
 }
 

@@ -302,11 +302,8 @@ constexpr Index kMinBinSamples = 20;
 NoiseModel NoiseModel::of(const model::ModelFile& model, double white_sd) {
   NoiseModel n;
   n.white_sd = white_sd;
-  const auto set = [&](noise::NoiseTerm t, const std::optional<double>& v) { n.power_law[static_cast<std::size_t>(t)] = v.value_or(0.0); };
-  set(noise::NoiseTerm::Q, model.noise.q);
-  set(noise::NoiseTerm::B, model.noise.b);
-  set(noise::NoiseTerm::K, model.noise.k);
-  set(noise::NoiseTerm::R, model.noise.r);
+  for (std::size_t i = 0; i < model.noise.values.size(); ++i)   // N is the white part white_sd states
+    if (i != static_cast<std::size_t>(noise::NoiseTerm::N)) n.power_law[i] = model.noise.values[i].value_or(0.0);
   for (const model::ModelTerm& t : model.terms) {
     const auto& f = t.term.factors();
     if (f.size() != 1 || f[0].lag == 0 || f[0].power != 1 || f[0].function != ident::FactorFunction::Plain) continue;

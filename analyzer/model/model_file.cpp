@@ -167,13 +167,12 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
         throw InputError(position_of(sd->source(), file), "noise.white_sd is negative");
       }
     }
-    const std::pair<const char*, std::optional<double>*> terms[] = {{"Q", &model.noise.q}, {"N", &model.noise.n},
-                                                                    {"B", &model.noise.b}, {"K", &model.noise.k},
-                                                                    {"R", &model.noise.r}};
-    for (const auto& [key, slot] : terms) {
+    for (std::size_t i = 0; i < ModelFile::NoiseTerms::kKeys.size(); ++i) {
+      const char* key = ModelFile::NoiseTerms::kKeys[i];
       if (const toml::node* v = noise->get(key)) {
-        *slot = finite_number(*v, file, std::string("noise.") + key);
-        if (**slot < 0.0) throw InputError(position_of(v->source(), file), std::string("noise.") + key + " is negative");
+        std::optional<double>& slot = model.noise.values[i];
+        slot = finite_number(*v, file, std::string("noise.") + key);
+        if (*slot < 0.0) throw InputError(position_of(v->source(), file), std::string("noise.") + key + " is negative");
       }
     }
   }
@@ -221,11 +220,10 @@ std::string format_model(const ModelFile& model) {
   if (model.white_sd || model.noise.any()) {
     s += "\n[noise]\n";
     if (model.white_sd) s += "white_sd = " + toml_float(*model.white_sd, "white_sd") + "\n";
-    const std::pair<const char*, const std::optional<double>*> terms[] = {{"Q", &model.noise.q}, {"N", &model.noise.n},
-                                                                          {"B", &model.noise.b}, {"K", &model.noise.k},
-                                                                          {"R", &model.noise.r}};
-    for (const auto& [key, v] : terms)
-      if (*v) s += std::string(key) + " = " + toml_float(**v, key) + "\n";
+    for (std::size_t i = 0; i < ModelFile::NoiseTerms::kKeys.size(); ++i) {
+      const char* key = ModelFile::NoiseTerms::kKeys[i];
+      if (const std::optional<double>& v = model.noise.values[i]) s += std::string(key) + " = " + toml_float(*v, key) + "\n";
+    }
   }
   return s;
 }

@@ -22,6 +22,8 @@
 // y = sum c_j term_j. Estimation (ULS), simulation and the simulator's truth use this convention.
 // Term keys are written in canonical form (analyzer/ident/term.hpp) and read in any spelling the
 // grammar accepts. Other top-level keys are ignored, so later versions can add information.
+#include <algorithm>
+#include <array>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -45,10 +47,14 @@ struct ModelFile {
   frames::Dcm m_cs = frames::Dcm::Identity();
   std::vector<ModelTerm> terms;     // in file order
   std::optional<double> white_sd;   // [noise] white_sd, output unit
-  /// [noise] Q, N, B, K, R (IEEE 952 Annex C, the units above), when a noise analysis gave them.
+  /// [noise] Q, N, B, K, R (IEEE 952 Annex C, the units above), when a noise analysis gave them:
+  /// slot i is noise::NoiseTerm(i), written under kKeys[i]. The one list of the slots.
   struct NoiseTerms {
-    std::optional<double> q, n, b, k, r;
-    [[nodiscard]] bool any() const { return q || n || b || k || r; }
+    static constexpr std::array<const char*, 5> kKeys{"Q", "N", "B", "K", "R"};
+    std::array<std::optional<double>, kKeys.size()> values;
+    [[nodiscard]] bool any() const {
+      return std::any_of(values.begin(), values.end(), [](const std::optional<double>& v) { return v.has_value(); });
+    }
   } noise;
   /// square_highpass_rad_s (top level, optional): the squares a_i^2, a_p^2, a_o^2 pass eq. 12's
   /// first-order high pass s / (s + b) with this corner; absent: they act statically.

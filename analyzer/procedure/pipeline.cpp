@@ -431,6 +431,12 @@ std::string why_not_determined(const StackedRegression& s, Eigen::Index j, const
                      fmt::join(names, ", "));
 }
 
+/// True when `c` is a piece of the plan case whose rows the stack holds just before it
+/// (CaseData::piece_of): a few lost samples cut neither its noise process nor its phases.
+bool continues_plan_case(const dataset::CaseData& c, const std::string* previous_plan_case) {
+  return previous_plan_case != nullptr && !c.piece_of.empty() && *previous_plan_case == c.plan_case();
+}
+
 /// One id per batch row: the contiguous runs of one phase label within a case of the plan (the
 /// whole case when it has no phase column). A phase cut by lost samples into two pieces of its
 /// case (CaseData::piece_of) is one run. The clusters of the jackknife inference.
@@ -441,7 +447,7 @@ std::vector<int> phase_clusters(const StackedRegression& batch, const dataset::D
   std::string previous_phase;
   for (const CaseRows& rows : batch.cases) {
     const dataset::CaseData& c = data.cases[rows.case_index];
-    const bool continues = previous_case != nullptr && !c.piece_of.empty() && *previous_case == c.plan_case();
+    const bool continues = continues_plan_case(c, previous_case);
     for (Eigen::Index r = 0; r < rows.rows; ++r) {
       const auto sample = static_cast<std::size_t>(rows.first_sample + r);
       const std::string& phase = c.phase.empty() ? c.plan_case() : c.phase_names[c.phase[sample]];
@@ -462,8 +468,7 @@ std::vector<CaseRows> plan_case_rows(const StackedRegression& batch, const datas
   for (const CaseRows& rows : batch.cases) {
     const dataset::CaseData& c = data.cases[rows.case_index];
     if (rows.rows == 0) continue;
-    if (previous_case != nullptr && !c.piece_of.empty() && *previous_case == c.plan_case() &&
-        out.back().begin + out.back().rows == rows.begin) {
+    if (continues_plan_case(c, previous_case) && out.back().begin + out.back().rows == rows.begin) {
       out.back().rows += rows.rows;
     } else {
       out.push_back(rows);

@@ -436,11 +436,7 @@ void use_estimated_noise_terms(std::uint64_t seed, double pink_sd_g, model::Mode
   const noise::NoiseAnalysis a = noise::analyse_noise(make_scenario(bench, {}).data);
   ASSERT_TRUE(a.fit.has_value()) << a.fit_error;
   const auto value = [&](noise::NoiseTerm t) { return a.fit->terms[static_cast<std::size_t>(t)].value; };
-  model.noise.q = value(noise::NoiseTerm::Q);
-  model.noise.n = value(noise::NoiseTerm::N);
-  model.noise.b = value(noise::NoiseTerm::B);
-  model.noise.k = value(noise::NoiseTerm::K);
-  model.noise.r = value(noise::NoiseTerm::R);
+  for (int t = 0; t < noise::kNoiseTerms; ++t) model.noise.values[static_cast<std::size_t>(t)] = value(noise::NoiseTerm(t));
 }
 
 int excess_bands(const Location& location) {
@@ -462,10 +458,10 @@ TEST(DiagnoseScenario, PinkNoiseWithItsEstimatedTermsRaisesNoBandAlarm) {
     const int alarms = excess_bands(r.location_before);
     with_terms += alarms > 0 ? 1 : 0;
     white_only += excess_bands(plain.location_before) > 0 ? 1 : 0;
-    std::cout << "[ pink, estimated terms ] seed " << seed << ": Q " << s.model.noise.q.value_or(0.0) << ", N "
-              << s.model.noise.n.value_or(0.0) << ", B " << s.model.noise.b.value_or(0.0) << ", K "
-              << s.model.noise.k.value_or(0.0) << ", R " << s.model.noise.r.value_or(0.0) << "; band alarms "
-              << alarms << " (white only " << excess_bands(plain.location_before) << "); " << r.location_before.verdict << '\n';
+    std::cout << "[ pink, estimated terms ] seed " << seed << ":";
+    for (std::size_t t = 0; t < s.model.noise.values.size(); ++t)
+      std::cout << ' ' << model::ModelFile::NoiseTerms::kKeys[t] << ' ' << s.model.noise.values[t].value_or(0.0);
+    std::cout << "; band alarms " << alarms << " (white only " << excess_bands(plain.location_before) << "); " << r.location_before.verdict << '\n';
   }
   std::cout << "[ pink, estimated terms ] seeds with a band alarm: " << with_terms << " of " << kSeeds
             << " (white noise only: " << white_only << ")\n";
