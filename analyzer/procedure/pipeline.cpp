@@ -1183,6 +1183,17 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
   honest.may_remove = options.batch.select;
   honest.protect = [](const std::string& label) { return is_sensitivity_label(label) || label == "1"; };
+  // The batch's whitened regression of `terms` with each mounting turned by `tilts` and the squares
+  // through `corner`: what the searched parameters' derivatives and the held angles' refits rebuild.
+  const auto batch_at = [&](std::span<const Term> terms, const std::vector<Eigen::Vector2d>& tilts,
+                            std::optional<double> corner) {
+    std::vector<CaseOutcome> cases = result.cases;
+    StackedRegression st = stack_regressions(terms, batch_inputs(data, options, result.mountings, tilts, cases), data.t_ref,
+                                             dataset_label, ident::first_usable_row(candidates));
+    apply_square_model(st, data, corner);
+    whitener.apply(st);
+    return st;
+  };
   // The searches whose results the batch's columns are built with: the squares' corner and each
   // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the
   // between-phase dof no longer count the angles separately.
@@ -1202,12 +1213,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
       const auto stack_at = [&](std::span<const Term> terms, double moved) {
         std::vector<Eigen::Vector2d> tilts = nominal;
         if (search.axis > 0) tilts[search.mounting](search.axis - 1) = moved;
-        std::vector<CaseOutcome> cases = result.cases;
-        StackedRegression st = stack_regressions(terms, batch_inputs(data, options, result.mountings, tilts, cases), data.t_ref,
-                                                 dataset_label, ident::first_usable_row(candidates));
-        apply_square_model(st, data, search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s);
-        whitener.apply(st);
-        return st;
+        return batch_at(terms, tilts, search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s);
       };
       // Steps: 1 % of the corner; 1e-4 rad of tilt (the columns are smooth in both).
       const double step = search.axis == 0 ? 1e-2 * *result.square_corner_rad_s : 1e-4;
@@ -1224,11 +1230,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
       for (const HeldColumn& h : held) {
         std::vector<Eigen::Vector2d> tilts = nominal;
         tilts[h.mounting](h.axis - 1) = options.mounting_tolerance_rad;
-        std::vector<CaseOutcome> turned_cases = result.cases;
-        StackedRegression s = stack_regressions(terms, batch_inputs(data, options, result.mountings, tilts, turned_cases),
-                                                data.t_ref, dataset_label, ident::first_usable_row(candidates));
-        apply_square_model(s, data, result.square_corner_rad_s);
-        whitener.apply(s);
+        const StackedRegression s = batch_at(terms, tilts, result.square_corner_rad_s);
         std::vector<Eigen::Index> all(terms.size());
         for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
         const ident::UlsResult moved = ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all);
