@@ -81,6 +81,8 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
                  m.candidates_tried, m.refinements, fmt::join(m.s_terms, " "));
       fmt::print(out, "  angles of F_S from the nominal case frame: about p {}, about o {}\n",
                  angle_text(m.angles(1), m.angles_sd(1)), angle_text(m.angles(2), m.angles_sd(2)));
+      if (!m.twist_reference.empty())
+        fmt::print(out, "  about i against mounting {}: {}\n", m.twist_reference, angle_text(m.angles(0), m.angles_sd(0)));
     } else {
       fmt::print(out, "mounting {}: not aligned\n", m.mounting);
     }

@@ -23,19 +23,22 @@ namespace {
 
 /// The parameters a run reports, by name: the batch model's process terms and the mountings'
 /// determined angles ("mounting M about p").
-std::map<std::string, std::pair<double, double>> reported_parameters(const procedure::PipelineResult& r) {
-  std::map<std::string, std::pair<double, double>> out;
+struct Reported {
+  double value = 0.0, sd = 0.0, held_sd = 0.0;
+};
+std::map<std::string, Reported> reported_parameters(const procedure::PipelineResult& r) {
+  std::map<std::string, Reported> out;
   for (Eigen::Index j = 0; j < r.fit.theta.size(); ++j) {
     const std::string& name = r.fit.labels[static_cast<std::size_t>(j)];
     if (name.rfind("e[", 0) == 0) continue;   // the noise model's MA terms
-    out[name] = {r.fit.theta(j), r.fit.std_dev(j)};
+    out[name] = {r.fit.theta(j), r.fit.std_dev(j), j < r.held_sd.size() ? r.held_sd(j) : 0.0};
   }
   for (const procedure::MountingResult& m : r.mountings) {
     if (!m.aligned) continue;
-    for (int axis = 1; axis <= 2; ++axis)
-      if (m.angles_sd(axis) > 0.0)
-        out[fmt::format("mounting {} about {} (deg)", m.mounting, axis == 1 ? "p" : "o")] = {
-            rad_to_deg(m.angles(axis)), rad_to_deg(m.angles_sd(axis))};
+    for (int axis = 0; axis <= 2; ++axis)
+      if (m.angles_sd(axis) > 0.0)   // NaN (about i, no twist estimated) is not
+        out[fmt::format("mounting {} about {} (deg)", m.mounting, "ipo"[axis])] = {
+            rad_to_deg(m.angles(axis)), rad_to_deg(m.angles_sd(axis)), rad_to_deg(m.angles_held_sd(axis))};
   }
   return out;
 }
@@ -109,7 +112,11 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
   for (const procedure::UndeterminedTerm& u : predicted.undetermined) fmt::print(out, "{}: {}\n", u.term, u.reason);
 
   std::vector<PlannedParameter> planned;
-  for (const auto& [name, v] : reported_parameters(predicted)) planned.push_back({name, v.first, v.second});
+  bool any_held = false;
+  for (const auto& [name, v] : reported_parameters(predicted)) {
+    planned.push_back({name, v.value, v.sd, v.held_sd});
+    any_held = any_held || v.held_sd > 0.0;
+  }
   fmt::print(out, "determined by this plan ({} batch rows, residual sd {:.4g} {}):\n", predicted.fit.residuals.size(),
              std::sqrt(predicted.fit.residual_variance), sut.output_unit);
   if (options.seeds == 0) {
@@ -130,10 +137,14 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
   const std::uint64_t first_seed = bench.seed;
   for (int s = 1; s <= options.seeds; ++s) {
     config::reseed(bench, first_seed + static_cast<std::uint64_t>(s));
-    for (const auto& [name, v] : reported_parameters(run_once(bench, sensor, fixed))) values[name].push_back(v.first);
+    for (const auto& [name, v] : reported_parameters(run_once(bench, sensor, fixed))) values[name].push_back(v.value);
   }
-  fmt::print(out, "  {:<32} {:>14} {:>12} {:>12} {:>7} {:>17}\n", "parameter", "one run", "predicted sd",
-             fmt::format("sd over {}", options.seeds), "ratio", "95 % of the ratio");
+  if (any_held) {
+    fmt::print(out, "  (predicted sd: the noise's part, which the spread over seeds measures; the held angles' tolerance "
+                    "adds the held sd to what characterize reports, a bound on an error that is the same in every run)\n");
+  }
+  fmt::print(out, "  {:<32} {:>14} {:>12} {:>12} {:>7} {:>17}{}\n", "parameter", "one run", "predicted sd",
+             fmt::format("sd over {}", options.seeds), "ratio", "95 % of the ratio", any_held ? "   held sd" : "");
   int outside = 0;
   for (PlannedParameter& p : planned) {
     const auto it = values.find(p.name);
@@ -153,8 +164,9 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
     p.ratio_low = std::sqrt(boost::math::quantile(chi, 0.025) / (n - 1.0));
     p.ratio_high = std::sqrt(boost::math::quantile(chi, 0.975) / (n - 1.0));
     outside += p.consistent() ? 0 : 1;
-    fmt::print(out, "  {:<32} {:>14.6g} {:>12.3g} {:>12.3g} {:>7.2f} {:>8.2f} .. {:<5.2f}{}\n", p.name, p.value,
-               p.predicted_sd, p.spread, p.ratio(), p.ratio_low, p.ratio_high, p.consistent() ? "" : "  outside");
+    fmt::print(out, "  {:<32} {:>14.6g} {:>12.3g} {:>12.3g} {:>7.2f} {:>8.2f} .. {:<5.2f}{}{}\n", p.name, p.value,
+               p.noise_sd(), p.spread, p.ratio(), p.ratio_low, p.ratio_high,
+               any_held ? fmt::format(" {:>9.3g}", p.held_sd) : "", p.consistent() ? "" : "  outside");
   }
   fmt::print(out, "plan-check: {} of {} predicted sd outside the 95 % interval of the spread over {} seeds\n", outside,
              planned.size(), options.seeds);

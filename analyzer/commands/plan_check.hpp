@@ -15,6 +15,8 @@
 // `--seeds N` checks the prediction the way it would be checked on the bench: N more simulated
 // runs of the plan (seeds after the bench's), the same model fitted to each, and the spread of
 // every coefficient beside its predicted sd, with the spread's chi-square interval.
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <iosfwd>
 #include <string>
@@ -35,11 +37,14 @@ struct PlanCheckOptions {
 struct PlannedParameter {
   std::string name;                      // a batch term, or "mounting M about p (deg)"
   double value = 0.0;
-  double predicted_sd = 0.0;
+  double predicted_sd = 0.0;              // as characterize reports it
+  double held_sd = 0.0;                  // its part from the held angles' tolerance (the same every run)
   int runs = 0;                          // runs of the check that reported it (0: no check)
   double spread = 0.0;                   // sd over those runs
   double ratio_low = 0.0, ratio_high = 0.0;
-  [[nodiscard]] double ratio() const { return spread / predicted_sd; }
+  /// The noise's part of the predicted sd: what the spread over seeds measures.
+  [[nodiscard]] double noise_sd() const { return std::sqrt(std::max(0.0, predicted_sd * predicted_sd - held_sd * held_sd)); }
+  [[nodiscard]] double ratio() const { return spread / noise_sd(); }
   [[nodiscard]] bool consistent() const { return runs >= 2 && ratio() >= ratio_low && ratio() <= ratio_high; }
 };
 

@@ -346,7 +346,8 @@ class MisalignmentHook final : public ident::FitHook {
 /// frame in blocks 5-6 and estimated in the batch with the tolerance as prior.
 struct HeldColumn {
   std::size_t mounting = 0;                 // into the result's mountings
-  int axis = 1;                             // 1: tilt of n_i toward p (turn about o), 2: toward o (about p)
+  int axis = 1;                             // 1: tilt of n_i toward p (turn about o), 2: toward o (about p),
+                                            // 3: twist about n_i (PipelineOptions::batch_relative_twist)
 };
 
 std::vector<HeldColumn> held_columns(const std::vector<MountingResult>& mountings) {
@@ -526,6 +527,7 @@ struct HonestPrune {
 struct HonestResult {
   ident::ClusterOffsets offsets;
   Eigen::VectorXd dof;
+  Eigen::MatrixXd searched_covariance;   // the searched parameters' block of the joint covariance
 };
 
 HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& columns, ident::UlsResult& fit,
@@ -581,6 +583,7 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
     // The searched parameters' rows and columns have done their work (the terms' block of the
     // joint covariance includes them); what is reported is the terms'.
     const Eigen::MatrixXd x_process = x.leftCols(p);
+    out.searched_covariance = out.offsets.covariance.bottomRightCorner(searched.cols(), searched.cols());
     const Eigen::MatrixXd classical =
         fit.residual_variance * (x_process.transpose() * x_process).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
     for (Eigen::MatrixXd* m : {&out.offsets.within, &out.offsets.covariance}) *m = m->topLeftCorner(p, p).eval();
@@ -673,15 +676,34 @@ Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<
   return out;
 }
 
-/// M_C^S of a mounting turned by its held angles: `tilt` = (toward p, toward o) in rad.
-frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector2d& tilt) {
-  // A frame turned by +a about o tilts n_i toward p; by -b about p tilts it toward o.
-  return frames::about_second_axis(-tilt(1)) * frames::about_third_axis(tilt(0)) * m_cs;
+/// `m_cs` turned by `turn`: (a, b, psi), +a about o tilts n_i toward p, -b about p tilts it
+/// toward o, psi about n_i twists n_p and n_o.
+frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector3d& turn) {
+  return with_twist(frames::about_second_axis(-turn(1)) * frames::about_third_axis(turn(0)) * m_cs, turn(2));
+}
+
+/// One Gauss-Newton step for parameters the columns of the fitted, whitened stack `s` are built
+/// with (variable projection: the terms re-fitted at every value). `derivatives`: the fitted
+/// prediction's derivative per parameter (prediction_derivative). With J~ the derivatives with
+/// the fit's columns projected out, the step is (J~'J~)^-1 J~'r; `information` gets J~'J~ /
+/// sigma^2, the parameters' information with the terms free.
+Eigen::VectorXd gauss_newton_step(const StackedRegression& s, const ident::UlsResult& fit, const Eigen::MatrixXd& derivatives,
+                                  Eigen::MatrixXd& information) {
+  Eigen::MatrixXd x(s.phi.rows(), fit.process_terms);
+  for (Eigen::Index j = 0; j < x.cols(); ++j) {
+    const auto at = std::find(s.labels.begin(), s.labels.end(), fit.labels[std::size_t(j)]);
+    x.col(j) = s.phi.col(at - s.labels.begin());
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> gram(x.transpose() * x);
+  const Eigen::MatrixXd projected = derivatives - x * gram.solve(x.transpose() * derivatives);
+  const Eigen::MatrixXd jj = projected.transpose() * projected;
+  information = jj / fit.residual_variance;
+  return jj.ldlt().solve(projected.transpose() * fit.residuals);
 }
 
 /// The batch's stacked inputs with every mounting's M_C^S (held angles applied).
 std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const PipelineOptions& options,
-                                     const std::vector<MountingResult>& mountings, const std::vector<Eigen::Vector2d>& tilts,
+                                     const std::vector<MountingResult>& mountings, const std::vector<Eigen::Vector3d>& tilts,
                                      std::vector<CaseOutcome>& cases) {
   for (std::size_t m = 0; m < mountings.size(); ++m) {
     for (std::size_t index : mountings[m].cases) {
@@ -694,6 +716,133 @@ std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const Pipelin
     inputs.push_back({i, &data.cases[i], cases[i].m_es, case_weight(options, data.cases[i])});
   }
   return inputs;
+}
+
+/// The batch's whitened regression of the terms with each mounting turned (turned()) and the
+/// squares through a corner (run_pipeline's batch_at).
+using BatchAt = std::function<StackedRegression(std::span<const Term>, const std::vector<Eigen::Vector3d>&, std::optional<double>)>;
+
+/// The relative twists of PipelineOptions::batch_relative_twist.
+struct RelativeTwists {
+  std::vector<std::size_t> estimated;   // mountings whose twist (and tilts) the batch refined
+  std::vector<std::size_t> held;        // mountings whose twist the plan does not determine
+};
+
+/// PipelineOptions::batch_relative_twist: each further aligned mounting's turn against the
+/// reference mounting (the first aligned), its twist about n_i with the tilts its excitation
+/// determines, by Gauss-Newton steps on the whitened batch of every identifiable candidate. The
+/// tilts join because a held twist leaks into them (the stage's model error: 0.003 deg on the
+/// noise-free paper shaker). A twist whose sd, with the tilts free, exceeds the mounting
+/// tolerance is held at the nominal frame; the rest turn their mounting's M_C^S, and `batch` is
+/// rebuilt with them.
+RelativeTwists relative_twists(StackedRegression& batch, const BatchAt& batch_at, const std::vector<Term>& candidates,
+                               const dataset::Dataset& data, const PipelineOptions& options, PipelineResult& result) {
+  RelativeTwists out;
+  if (!options.batch_relative_twist || data.sensor != dataset::SensorKind::Accelerometer || !uses_cross_axes(candidates))
+    return out;
+  const auto reference =
+      std::find_if(result.mountings.begin(), result.mountings.end(), [](const MountingResult& m) { return m.aligned; });
+  if (reference == result.mountings.end()) return out;
+  std::vector<std::size_t> turning;
+  for (std::size_t k = 0; k < result.mountings.size(); ++k)
+    if (result.mountings[k].aligned && &result.mountings[k] != &*reference) turning.push_back(k);
+  const std::vector<Eigen::Vector3d> nominal(result.mountings.size(), Eigen::Vector3d::Zero());
+  ident::UlsOptions uls = options.selection.uls;
+  uls.noise_lags = 0;
+  // A twist of a degree or two is nearly linear in the columns: two steps reach the noise.
+  constexpr int kMaxSteps = 6;
+  for (int iteration = 0; iteration < kMaxSteps && !turning.empty(); ++iteration) {
+    struct Parameter {
+      std::size_t mounting;
+      int axis;   // of turned(): 0, 1 tilts, 2 twist
+    };
+    std::vector<Parameter> parameters;
+    for (std::size_t k : turning) {
+      for (int axis = 0; axis < 2; ++axis)
+        if (result.mountings[k].excitation.determined[static_cast<std::size_t>(axis + 1)]) parameters.push_back({k, axis});
+      parameters.push_back({k, 2});
+    }
+    std::vector<Eigen::Index> usable = identifiable_ranking(batch, options.selection.err);
+    std::vector<std::string> dropped;
+    const ident::UlsResult fit = fit_identifiable(batch, usable, uls, dropped);
+    Eigen::MatrixXd derivatives(batch.phi.rows(), static_cast<Eigen::Index>(parameters.size()));
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+      derivatives.col(static_cast<Eigen::Index>(i)) = prediction_derivative(fit, 1e-4, [&](std::span<const Term> terms, double moved) {
+        std::vector<Eigen::Vector3d> turns = nominal;
+        turns[parameters[i].mounting](parameters[i].axis) = moved;
+        return batch_at(terms, turns, result.square_corner_rad_s);
+      });
+    }
+    Eigen::MatrixXd information;
+    const Eigen::VectorXd delta = gauss_newton_step(batch, fit, derivatives, information);
+    const Eigen::VectorXd sd = information.ldlt()
+                                   .solve(Eigen::MatrixXd::Identity(information.rows(), information.cols()))
+                                   .diagonal()
+                                   .cwiseMax(0.0)
+                                   .cwiseSqrt();
+    if (iteration == 0) {
+      std::vector<std::size_t> determined;
+      for (std::size_t i = 0; i < parameters.size(); ++i) {
+        if (parameters[i].axis != 2) continue;
+        const double twist_sd = sd(static_cast<Eigen::Index>(i));
+        MountingResult& m = result.mountings[parameters[i].mounting];
+        if (std::isfinite(twist_sd) && twist_sd > 0.0 && twist_sd <= options.mounting_tolerance_rad) {
+          determined.push_back(parameters[i].mounting);
+        } else {
+          out.held.push_back(parameters[i].mounting);
+          m.twist_reference = reference->mounting;
+          m.angles(0) = 0.0;
+          m.angles_sd(0) = 0.0;   // held
+          // A held twist leaks into the tilts the stage estimated with it: by how much, for a twist
+          // of the tolerance, is the regression of the tilts on the twist in the information (the
+          // other parameters free). It widens the angles' sd as the batch's refit widens the terms'.
+          const auto j = static_cast<Eigen::Index>(i);
+          std::vector<Eigen::Index> others;
+          for (Eigen::Index r = 0; r < information.rows(); ++r)
+            if (r != j) others.push_back(r);
+          const Eigen::MatrixXd i_oo = information(others, others);
+          const Eigen::VectorXd shift = -i_oo.ldlt().solve(information(others, j)) * options.mounting_tolerance_rad;
+          for (std::size_t r = 0; r < others.size(); ++r) {
+            const Parameter& tilt = parameters[static_cast<std::size_t>(others[r])];
+            if (tilt.mounting != parameters[i].mounting || !std::isfinite(shift(static_cast<Eigen::Index>(r)))) continue;
+            const int angle = tilt.axis == 0 ? 2 : 1;   // a turn about o is angles(2)
+            m.angles_sd(angle) = std::hypot(m.angles_sd(angle), shift(static_cast<Eigen::Index>(r)));
+            m.angles_held_sd(angle) = std::abs(shift(static_cast<Eigen::Index>(r)));
+          }
+          result.notes.push_back(fmt::format(
+              "the twist about n_i of mounting '{}' against '{}' is not determined by this plan (sd {:.2g} deg with its "
+              "tilts free, more than the {:.2f} deg mounting tolerance): held at the nominal frame, and what the tolerance "
+              "moves is in the sd; more cross-axis excitation (a_p, a_o) in both mountings determines it",
+              m.mounting, reference->mounting, rad_to_deg(twist_sd), rad_to_deg(options.mounting_tolerance_rad)));
+        }
+      }
+      if (determined.size() < turning.size()) {
+        turning = determined;
+        continue;   // the step again, without the held twists
+      }
+    }
+    std::vector<Eigen::Vector3d> turns = nominal;
+    for (std::size_t i = 0; i < parameters.size(); ++i) turns[parameters[i].mounting](parameters[i].axis) = delta(static_cast<Eigen::Index>(i));
+    for (std::size_t k : turning) {
+      MountingResult& m = result.mountings[k];
+      m.m_cs = turned(m.m_cs, turns[k]);
+      m.twist_rad += turns[k](2);
+      m.twist_reference = reference->mounting;
+      m.angles(0) = (std::isnan(m.angles(0)) ? 0.0 : m.angles(0)) + turns[k](2);
+    }
+    batch = batch_at(candidates, nominal, result.square_corner_rad_s);
+    if ((delta.array().abs() <= 1e-3 * sd.array()).all()) break;
+  }
+  out.estimated = turning;
+  for (std::size_t k : out.estimated) {
+    // The tilts as algorithm 1 reads them: of n_i alone (the twist is angles(0)).
+    MountingResult& m = result.mountings[k];
+    const Eigen::Vector3d tilts = rotation_vector(misalignment_from_sensitivities(m.m_cs.row(0).transpose(), frames::Dcm::Identity()));
+    m.angles(1) = tilts(1);
+    m.angles(2) = tilts(2);
+  }
+  batch_inputs(data, options, result.mountings, nominal, result.cases);   // the cases' M_E^S with the turns
+  return out;
 }
 
 }  // namespace
@@ -1104,7 +1253,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   // Held angles (excitation.hpp) stay at the nominal frame; after the selection their tolerance
   // is propagated into the coefficients' covariance (below).
   const std::vector<HeldColumn> held = held_columns(result.mountings);
-  const std::vector<Eigen::Vector2d> nominal(result.mountings.size(), Eigen::Vector2d::Zero());
+  const std::vector<Eigen::Vector3d> nominal(result.mountings.size(), Eigen::Vector3d::Zero());
   StackedRegression batch = stack_regressions(candidates, batch_inputs(data, options, result.mountings, nominal, result.cases),
                                               data.t_ref, dataset_label);
   std::optional<StackedRegression> unfiltered;   // for the corner's search after the whitening
@@ -1137,6 +1286,18 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     whitener.apply(batch);
     result.whitening = whitener.coefficients();
   }
+  // The batch's whitened regression of `terms` with each mounting turned by `tilts` and the squares
+  // through `corner`: what the searched parameters' derivatives and the held angles' refits rebuild.
+  const auto batch_at = [&](std::span<const Term> terms, const std::vector<Eigen::Vector3d>& tilts,
+                            std::optional<double> corner) {
+    std::vector<CaseOutcome> cases = result.cases;
+    StackedRegression st = stack_regressions(terms, batch_inputs(data, options, result.mountings, tilts, cases), data.t_ref,
+                                             dataset_label, ident::first_usable_row(candidates));
+    apply_square_model(st, data, corner);
+    whitener.apply(st);
+    return st;
+  };
+  const RelativeTwists twists = relative_twists(batch, batch_at, candidates, data, options, result);
   for (const CaseRows& rows : batch.cases) {
     CaseOutcome& c = result.cases[rows.case_index];
     c.first_row = rows.first_sample;
@@ -1183,60 +1344,60 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
   honest.may_remove = options.batch.select;
   honest.protect = [](const std::string& label) { return is_sensitivity_label(label) || label == "1"; };
-  // The batch's whitened regression of `terms` with each mounting turned by `tilts` and the squares
-  // through `corner`: what the searched parameters' derivatives and the held angles' refits rebuild.
-  const auto batch_at = [&](std::span<const Term> terms, const std::vector<Eigen::Vector2d>& tilts,
-                            std::optional<double> corner) {
-    std::vector<CaseOutcome> cases = result.cases;
-    StackedRegression st = stack_regressions(terms, batch_inputs(data, options, result.mountings, tilts, cases), data.t_ref,
-                                             dataset_label, ident::first_usable_row(candidates));
-    apply_square_model(st, data, corner);
-    whitener.apply(st);
-    return st;
-  };
   // The searches whose results the batch's columns are built with: the squares' corner and each
   // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the
   // between-phase dof no longer count the angles separately.
   struct Searched {
     std::size_t mounting = 0;
-    int axis = 0;   // 0: the squares' corner; 1, 2: the mounting's tilt (turned())
+    int axis = 0;   // 0: the squares' corner; 1, 2, 3: the mounting's turn (turned(): tilts, twist)
   };
   std::vector<Searched> searches;
   if (result.square_corner_rad_s) searches.push_back({0, 0});
   for (std::size_t k = 0; k < result.mountings.size(); ++k)
     for (int axis = 1; axis < 3; ++axis)
       if (result.mountings[k].excitation.determined[static_cast<std::size_t>(axis)]) searches.push_back({k, axis});
+  for (std::size_t k : twists.estimated) searches.push_back({k, 3});
+  std::vector<std::size_t> searched_columns;   // of the last call: the searches its columns are
   honest.searched = [&](const ident::UlsResult& fit) {
     Eigen::MatrixXd columns(batch.phi.rows(), 0);
-    for (const Searched& search : searches) {
+    searched_columns.clear();
+    for (std::size_t i = 0; i < searches.size(); ++i) {
+      const Searched& search = searches[i];
       if (search.axis == 0 && !has_square(fit)) continue;
       const auto stack_at = [&](std::span<const Term> terms, double moved) {
-        std::vector<Eigen::Vector2d> tilts = nominal;
+        std::vector<Eigen::Vector3d> tilts = nominal;
         if (search.axis > 0) tilts[search.mounting](search.axis - 1) = moved;
         return batch_at(terms, tilts, search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s);
       };
-      // Steps: 1 % of the corner; 1e-4 rad of tilt (the columns are smooth in both).
+      // Steps: 1 % of the corner; 1e-4 rad of a turn (the columns are smooth in both).
       const double step = search.axis == 0 ? 1e-2 * *result.square_corner_rad_s : 1e-4;
       columns.conservativeResize(Eigen::NoChange, columns.cols() + 1);
       columns.col(columns.cols() - 1) = prediction_derivative(fit, step, stack_at);
+      searched_columns.push_back(i);
     }
     return columns;
   };
-  if (!held.empty() && options.mounting_tolerance_rad > 0.0) {
+  // Held angles and held twists: each turned by the tolerance moves the coefficients by d.
+  std::vector<HeldColumn> held_turns = held;
+  for (std::size_t k : twists.held) held_turns.push_back({k, 3});
+  Eigen::MatrixXd held_part;   // of the last call: what the held turns added
+  if (!held_turns.empty() && options.mounting_tolerance_rad > 0.0) {
     honest.extra = [&](const ident::UlsResult& fit, Eigen::MatrixXd& covariance) {
+      held_part = Eigen::MatrixXd::Zero(covariance.rows(), covariance.cols());
       const Eigen::Index p = fit.process_terms;
       std::vector<Term> terms;
       for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
-      for (const HeldColumn& h : held) {
-        std::vector<Eigen::Vector2d> tilts = nominal;
+      for (const HeldColumn& h : held_turns) {
+        std::vector<Eigen::Vector3d> tilts = nominal;
         tilts[h.mounting](h.axis - 1) = options.mounting_tolerance_rad;
         const StackedRegression s = batch_at(terms, tilts, result.square_corner_rad_s);
         std::vector<Eigen::Index> all(terms.size());
         for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
         const ident::UlsResult moved = ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all);
         const Eigen::VectorXd d = moved.theta.head(p) - fit.theta.head(p);
-        covariance += d * d.transpose();
+        held_part += d * d.transpose();
       }
+      covariance += held_part;
     };
   }
   HonestResult inference = honest_prune(honest, columns, result.fit, uls, &result.undetermined, "batch model");
@@ -1294,10 +1455,30 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   }
   result.inference = inference.offsets;
   result.test_dof = inference.dof;
-  if (!held.empty() && options.mounting_tolerance_rad > 0.0) {
+  result.held_sd = held_part.rows() == result.fit.process_terms ? Eigen::VectorXd(held_part.diagonal().cwiseMax(0.0).cwiseSqrt())
+                                                                  : Eigen::VectorXd::Zero(result.fit.process_terms);
+  // The angles the batch refined (relative_twists) get their sd from its joint covariance.
+  for (std::size_t c = 0; c < searched_columns.size() && static_cast<Eigen::Index>(c) < inference.searched_covariance.rows(); ++c) {
+    const Searched& search = searches[searched_columns[c]];
+    if (search.axis == 0 || std::find(twists.estimated.begin(), twists.estimated.end(), search.mounting) == twists.estimated.end())
+      continue;
+    const auto i = static_cast<Eigen::Index>(c);
+    // Searched axis 1 (a turn about o) is angles(2), axis 2 angles(1), axis 3 (the twist) angles(0).
+    result.mountings[search.mounting].angles_sd(search.axis == 3 ? 0 : 3 - search.axis) =
+        std::sqrt(std::max(0.0, inference.searched_covariance(i, i)));
+  }
+  for (std::size_t k : twists.estimated) {
+    const MountingResult& m = result.mountings[k];
+    result.notes.push_back(fmt::format("mounting '{}' is turned {:+.4f} +- {:.4f} deg about n_i against '{}' (found in the batch, "
+                                       "with its tilts: one set of cross-axis terms holds in both; the sensor's p and o axes "
+                                       "are those of '{}''s nominal frame, as algorithm 1 takes them)",
+                                       m.mounting, rad_to_deg(m.angles(0)), rad_to_deg(m.angles_sd(0)), m.twist_reference,
+                                       m.twist_reference));
+  }
+  if (!held_turns.empty() && options.mounting_tolerance_rad > 0.0) {
     result.notes.push_back(fmt::format("{} mounting angle(s) held at the nominal case frame; each is assumed within "
                                        "+-{:.2f} deg (--mounting-tolerance-deg), and what that moves is in the sd",
-                                       held.size(), rad_to_deg(options.mounting_tolerance_rad)));
+                                       held_turns.size(), rad_to_deg(options.mounting_tolerance_rad)));
   }
   for (const std::string& label : result.fit.labels) {
     if (result.terms.size() < static_cast<std::size_t>(result.fit.process_terms)) result.terms.push_back(ident::parse_term(label));

@@ -90,6 +90,17 @@ struct PipelineOptions {
   /// shaker error from 0.003 to 0.00002 deg, but with table 1's noise the residual is nearly flat
   /// in the twist (5e-6 relative over +-6 deg) and the steps wander (shaker error 0.019 deg).
   bool estimate_twist = false;
+  /// What the data do determine about the twist: how the mountings are turned about n_i against
+  /// one another. The cross-axis terms (a_i*a_p, a_p*a_o, a_p^2 ..) are one set for the sensor,
+  /// so a mounting held at its nominal twist while another is not forces the batch to fit one
+  /// set of terms in two frames (sim-paper: the shaker's 1.15 deg left a_i*a_p 97 of its sd from
+  /// the truth, a_i*a_o 51, a_p*a_o 48). When true, the batch estimates each further aligned
+  /// mounting's twist relative to the reference mounting (the first aligned one, whose nominal
+  /// twist defines the sensor's p and o axes, as algorithm 1 does), by Gauss-Newton on the
+  /// whitened residual of the batch candidates, and its uncertainty joins the coefficients'
+  /// covariance (a searched parameter). A twist the plan does not determine (its sd above
+  /// mounting_tolerance_rad) stays at the nominal frame, and the notes say so.
+  bool batch_relative_twist = true;
   /// Temperature terms join the candidates (T, a_i*T; gyros T, T[k-1], y*T) whenever every case
   /// has a temperature column: a thermal plan's effects must be offered to be found, and a plan
   /// whose temperature does not vary says so (the terms are then not determined).
@@ -126,13 +137,19 @@ struct MountingResult {
   /// aligned at all (M_C^S = I, or for a gyroscope the rate cases' M_C^S).
   AxisExcitation excitation;
   bool aligned = true;
-  /// Angles of F_S from the nominal case frame about i, p, o (rad) and their sd; about i NaN (a
-  /// single-axis sensor does not see it); an angle held at nominal has sd 0 and `held` says why.
+  /// Angles of F_S from the nominal case frame about i, p, o (rad) and their sd; an angle held at
+  /// nominal has sd 0 and `held` says why. About i (the twist) a single-axis sensor's linear part
+  /// does not see: NaN, unless the batch found it relative to the reference mounting
+  /// (PipelineOptions::batch_relative_twist; `twist_reference` names that mounting).
   Eigen::Vector3d angles = Eigen::Vector3d::Zero();
   Eigen::Vector3d angles_sd = Eigen::Vector3d::Zero();
   /// Degrees of freedom of the angles' sd (few when the offsets between the mounting's phases
   /// dominate them, as a tumble's placement errors do): intervals use Student's t with them.
   double angles_dof = std::numeric_limits<double>::infinity();
+  /// The part of angles_sd a held twist's tolerance adds (relative_twists in pipeline.cpp): a
+  /// bound on a systematic error, the same in every run of the plan.
+  Eigen::Vector3d angles_held_sd = Eigen::Vector3d::Zero();
+  std::string twist_reference;              // the mounting angles(0) is relative to (empty: none)
   std::vector<std::string> held;            // what was held at the nominal frame, and why (for the user)
   std::vector<UndeterminedTerm> pruned;     // selected terms the honest inference took out, and why
 };
@@ -164,6 +181,9 @@ struct PipelineResult {
   /// carry most of its variance).
   ident::ClusterOffsets inference;
   Eigen::VectorXd test_dof;
+  /// Per process term, the part of its sd the held angles' tolerance adds (mounting_tolerance_rad):
+  /// a bound on a systematic error, the same in every run of the plan (zero: none held).
+  Eigen::VectorXd held_sd;
   /// Plan-level statements for the user: what was pooled or inferred, what the plan does not
   /// determine and what excitation it would need.
   std::vector<std::string> notes;

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -52,6 +53,15 @@ std::string angle_cell(double angle_rad, double sd_rad) {
   if (std::isnan(angle_rad)) return "not observable (single axis)";
   if (sd_rad == 0.0) return fmt::format("{:+.4f} (held)", rad_to_deg(angle_rad));
   return fmt::format("{:+.4f} +- {:.4f}", rad_to_deg(angle_rad), rad_to_deg(sd_rad));
+}
+
+/// The turn about i: a single axis does not see it, but one set of cross-axis terms does across
+/// mountings (PipelineOptions::batch_relative_twist): each further mounting's against the reference.
+std::string about_i_cell(const procedure::PipelineResult& r, const procedure::MountingResult& m) {
+  if (!m.twist_reference.empty()) return angle_cell(m.angles(0), m.angles_sd(0)) + " against " + m.twist_reference;
+  const bool reference = std::any_of(r.mountings.begin(), r.mountings.end(),
+                                     [&](const procedure::MountingResult& o) { return o.twist_reference == m.mounting; });
+  return reference ? std::string("reference (its nominal frame gives p and o)") : angle_cell(std::nan(""), 0.0);
 }
 
 double rms(const Eigen::VectorXd& v) { return v.size() ? std::sqrt(v.squaredNorm() / static_cast<double>(v.size())) : NAN; }
@@ -105,13 +115,16 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   md << "## Misalignment (blocks 5-6, algorithm 2)\n\n"
         "Angles of the sensor frame F_S from each mounting's nominal case frame (deg; a turn about o tilts the input "
         "axis toward p, a negative turn about p tilts it toward o). The turn about i does not change a single-axis "
-        "output's linear part: algorithm 1 fixes it by convention. An angle the mounting's excitation does not "
+        "output's linear part: algorithm 1 fixes it by convention (the reference mounting's nominal frame), and the "
+        "batch finds each further mounting's turn about i against it from the cross-axis terms, which one sensor "
+        "shares across its mountings. An angle the mounting's excitation does not "
         "determine is held at the nominal frame; the tolerance assumed for it is in the batch's sd.\n\n";
-  md << "| mounting | cases | aligned | about p | about o | AR order | bias |\n|---|---|---|---|---|---|---|\n";
+  md << "| mounting | cases | aligned | about i | about p | about o | AR order | bias |\n|---|---|---|---|---|---|---|---|\n";
   for (const procedure::MountingResult& m : r.mountings) {
     std::string cases;
     for (std::size_t index : m.cases) cases += (cases.empty() ? "" : ", ") + data.cases[index].name;
-    md << fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", m.mounting, cases, m.aligned ? "yes" : "no (held)",
+    md << fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} |\n", m.mounting, cases, m.aligned ? "yes" : "no (held)",
+                      about_i_cell(r, m),
                       angle_cell(m.angles(1), m.aligned ? m.angles_sd(1) : 0.0),
                       angle_cell(m.angles(2), m.aligned ? m.angles_sd(2) : 0.0), m.whitening_order,
                       m.known_bias ? fmt::format("{:.6g} from the other mountings", *m.known_bias) : "estimated");

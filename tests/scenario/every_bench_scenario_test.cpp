@@ -2,7 +2,10 @@
 // reports as determined is within 3 sd of the simulator's truth. The sensors, simulated in-process
 // over several seeds:
 //   sim-paper-daq acc1 (the paper's plan at 1 kHz: a table mounting and a three-orientation shaker
-//   mounting; sim-paper itself is the same plan at 10 kHz, scored by reproduce-paper),
+//   mounting turned 1.155 deg about n_i by its case misalignment, which algorithm 1 cannot see:
+//   with the twist held at the nominal frame the cross terms missed the truth by 14-33 sd in
+//   every seed; PipelineOptions::batch_relative_twist; sim-paper itself is the same plan at
+//   10 kHz, scored by reproduce-paper),
 //   sim-rotation-table acc1 (multipoint + rate series) and fog1 (a gyroscope, eq. 5),
 //   sim-shaker acc-a and acc-b (three separate one-axis shaker mountings, no alignment reference),
 //   sim-thermal acc1 (two static poses through thermal steps), sim-tumble mems1 (six poses with a
@@ -104,15 +107,6 @@ struct Bench {
   /// 1.7e-5 mA at 1 g against a bias sd of 1.5e-5 mA), and leaving them out moves the bias, the
   /// scale factor and the mountings' angles by 3-5 of their sd in some seeds. Asserted at what is
   /// met, so that it cannot get worse unseen; the closing note says the target is open.
-  /// sim-paper-daq (the paper's plan, shortened) reaches 26 of 48 (20 seeds: 129 of 240): in
-  /// every seed a_i*a_p, a_i*a_o and a_p*a_o are 14-33 of their sd from the truth (-6.3, +3.0,
-  /// +3.3 %, noise-free as well) and the shaker mounting's angles 8-14. The cause, measured on
-  /// sim-paper noise-free: the shaker's case misalignment (2 deg about case [1,1,1]) turns it
-  /// 1.155 deg about n_i, which algorithm 1 holds at the nominal frame. The table alone gives the
-  /// cross terms within 0.01 % of the truth; with the shaker's frame turned by the true twist
-  /// before the batch they come within 0.4 %. The batch does not find that twist by itself (a
-  /// Gauss-Newton on the whitened batch settles at 0: the whitener, fitted on the held twist's
-  /// model error, makes the wrong frame fit best).
   double required = 0.95;
 };
 
@@ -142,7 +136,7 @@ TEST_P(EveryBench, DefaultCharacterizeReportsOnlyWhatItDeterminesWithinThreeSd) 
 }
 
 INSTANTIATE_TEST_SUITE_P(Configs, EveryBench,
-                         ::testing::Values(Bench{"sim-paper-daq.toml", 0, 0.54}, Bench{"sim-rotation-table.toml", 0, 0.85}, Bench{"sim-rotation-table.toml", 1},
+                         ::testing::Values(Bench{"sim-paper-daq.toml", 0}, Bench{"sim-rotation-table.toml", 0, 0.85}, Bench{"sim-rotation-table.toml", 1},
                                            Bench{"sim-shaker.toml", 0}, Bench{"sim-shaker.toml", 1},
                                            Bench{"sim-thermal.toml", 0}, Bench{"sim-tumble.toml", 0}),
                          [](const ::testing::TestParamInfo<Bench>& info) {

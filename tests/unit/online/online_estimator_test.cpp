@@ -194,6 +194,10 @@ TEST(OnlineEstimator, EqualsTheBatchPipelineOnTheSameRows) {
   po.batch.fixed_terms = kModel;
   po.whitening_max_order = 0;
   po.max_refinements = 50;
+  // The live solver keeps each mounting's twist about n_i at algorithm 1's frame; the batch by
+  // default finds the shaker's against the table (PipelineOptions::batch_relative_twist: 0.63 deg
+  // on this plan). Equal estimators here: the twist held in both (issue 11 keeps the live one open).
+  po.batch_relative_twist = false;
   po.square_highpass_min_rad_s = 500.0;   // the model's corner
   po.square_highpass_max_rad_s = 500.0;
   const procedure::PipelineResult batch = procedure::run_pipeline(as_dataset(p), po, "test");
