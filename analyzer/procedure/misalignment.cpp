@@ -24,6 +24,19 @@ frames::Dcm misalignment_from_sensitivities(const Eigen::Vector3d& theta, const 
   return m_es;
 }
 
+frames::Dcm with_twist(const frames::Dcm& m, double psi) {
+  if (psi == 0.0) return m;
+  frames::Dcm r = m;
+  const double c = std::cos(psi), s = std::sin(psi);
+  r.row(1) = c * m.row(1) + s * m.row(2);
+  r.row(2) = -s * m.row(1) + c * m.row(2);
+  return r;
+}
+
+frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector3d& turn) {
+  return with_twist(frames::about_second_axis(-turn(1)) * frames::about_third_axis(turn(0)) * m_cs, turn(2));
+}
+
 Eigen::Vector3d rotation_vector(const frames::Dcm& m_cs) {
   // frames::frame_rotation(axis, angle) is the transpose of the active rotation.
   const Eigen::AngleAxisd aa(Eigen::Matrix3d(m_cs.transpose()));

@@ -20,6 +20,14 @@ inline frames::Dcm gyro_test_misalignment(const frames::Dcm& m_cs, const frames:
 /// M_C^S implied by a test's M_E^S and its nominal M_E^C (M_C^S = M_E^S (M_E^C)^T).
 inline frames::Dcm case_to_sensor(const frames::Dcm& m_es, const frames::Dcm& m_ec) { return m_es * m_ec.transpose(); }
 
+/// `m` turned about its first row (n_i) by `psi`: n_p, n_o rotated in their plane.
+frames::Dcm with_twist(const frames::Dcm& m, double psi);
+
+/// `m_cs` turned in its own frame by `turn` = (a, b, psi): +a about o tilts n_i toward p, -b
+/// about p tilts it toward o, psi about n_i twists n_p and n_o (the turns a mounting's angles are
+/// refined or held by).
+frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector3d& turn);
+
 /// The rotation vector of M_C^S (rad, case axes): M_C^S = frame_rotation(v / |v|, |v|). Its
 /// components are the angles of F_S from the nominal case frame about IRA, XRA, YRA (i, p, o).
 Eigen::Vector3d rotation_vector(const frames::Dcm& m_cs);

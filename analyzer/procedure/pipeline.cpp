@@ -219,16 +219,6 @@ std::optional<double> whitened_corner(StackedRegression unfiltered, const ArWhit
                      std::min(options.square_highpass_max_rad_s, max_corner(unfiltered.cases, data)));
 }
 
-/// `m` turned about its first row (n_i) by `psi`: n_p, n_o rotated in their plane.
-frames::Dcm with_twist(const frames::Dcm& m, double psi) {
-  if (psi == 0.0) return m;
-  frames::Dcm r = m;
-  const double c = std::cos(psi), s = std::sin(psi);
-  r.row(1) = c * m.row(1) + s * m.row(2);
-  r.row(2) = -s * m.row(1) + c * m.row(2);
-  return r;
-}
-
 bool uses_cross_axes(const std::vector<Term>& terms) {
   return std::any_of(terms.begin(), terms.end(),
                      [](const Term& t) { return t.uses(ident::Variable::Ap) || t.uses(ident::Variable::Ao); });
@@ -674,12 +664,6 @@ Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<
   }
   (void)whitener;
   return out;
-}
-
-/// `m_cs` turned by `turn`: (a, b, psi), +a about o tilts n_i toward p, -b about p tilts it
-/// toward o, psi about n_i twists n_p and n_o.
-frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector3d& turn) {
-  return with_twist(frames::about_second_axis(-turn(1)) * frames::about_third_axis(turn(0)) * m_cs, turn(2));
 }
 
 /// One Gauss-Newton step for parameters the columns of the fitted, whitened stack `s` are built
