@@ -597,8 +597,13 @@ void print_settling(const SensorPipeline& p, const online::OnlineSnapshot& last,
              last.corner_rad_s ? fmt::format("{:.1f} rad/s", *last.corner_rad_s) : std::string("none (static squares)"));
   for (const online::MountingEstimate& m : last.mountings) {
     const auto deg = [](double r) { return r * 180.0 / 3.14159265358979323846; };
-    fmt::print(out, "  mounting {}: {}, about p {:+.5f} +- {:.5f} deg, about o {:+.5f} +- {:.5f} deg{}\n", m.name,
-               m.determined ? "determined" : "not determined", deg(m.angles_rad(1)), deg(m.angles_sd_rad(1)),
+    // About i: the twist against the reference mounting, when the data determined it.
+    const std::string about_i = std::isfinite(m.angles_rad(0))
+                                    ? fmt::format("about i {:+.4f} +- {:.4f} deg against the reference mounting, ",
+                                                  deg(m.angles_rad(0)), deg(m.angles_sd_rad(0)))
+                                    : std::string();
+    fmt::print(out, "  mounting {}: {}, {}about p {:+.5f} +- {:.5f} deg, about o {:+.5f} +- {:.5f} deg{}\n", m.name,
+               m.determined ? "determined" : "not determined", about_i, deg(m.angles_rad(1)), deg(m.angles_sd_rad(1)),
                deg(m.angles_rad(2)), deg(m.angles_sd_rad(2)), m.note.empty() ? "" : " (" + m.note + ")");
   }
 }

@@ -342,6 +342,99 @@ StatFit LiveSolver::fit_batch_at(const std::vector<const Information*>& infos, c
   return f;
 }
 
+std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Information*>& infos,
+                                                     std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
+                                                     const std::vector<bool>& aligned, std::optional<double> corner) const {
+  std::vector<RelativeTurn> out(m_cs.size());
+  const bool cross = std::any_of(model_.begin(), model_.end(), [&](Index t) {
+    const Term& term = basis_.terms()[static_cast<std::size_t>(t)];
+    return term.uses(Variable::Ap) || term.uses(Variable::Ao);
+  });
+  if (!options_.relative_twist || sensor_ != dataset::SensorKind::Accelerometer || !cross) return out;
+  std::vector<std::size_t> turning;
+  for (std::size_t k = 0; k < m_cs.size(); ++k)
+    if (k != reference && aligned[k] && infos[k]->samples() > 0) turning.push_back(k);
+  // The residual sum comes from the statistics as y'y - theta'Phi'y and carries that difference's
+  // rounding: steps of 1e-3 rad move it far above that and stay in its quadratic range.
+  constexpr double kStep = 1e-3;
+  for (int iteration = 0; iteration < 12 && !turning.empty(); ++iteration) {
+    std::vector<std::pair<std::size_t, int>> parameters;   // (mounting, axis of procedure::turned())
+    for (std::size_t k : turning)
+      for (int axis = 0; axis < 3; ++axis) parameters.emplace_back(k, axis);
+    const auto n = static_cast<Index>(parameters.size());
+    const auto moved = [&](const Eigen::VectorXd& x) {
+      std::vector<Eigen::Vector3d> turns(m_cs.size(), Eigen::Vector3d::Zero());
+      for (Index i = 0; i < n; ++i) turns[parameters[static_cast<std::size_t>(i)].first](parameters[static_cast<std::size_t>(i)].second) = x(i);
+      std::vector<Eigen::Matrix3d> turned_m_cs = m_cs;
+      for (std::size_t k : turning) turned_m_cs[k] = procedure::turned(m_cs[k], turns[k]);
+      return turned_m_cs;
+    };
+    const auto rss_at = [&](const Eigen::VectorXd& x) {
+      const StatFit f = fit_batch_at(infos, moved(x), corner);
+      return f.ok ? f.rss : std::numeric_limits<double>::quiet_NaN();
+    };
+    const StatFit at = fit_batch_at(infos, m_cs, corner);
+    if (!at.ok || !(at.s2 > 0.0)) return out;
+    Eigen::VectorXd gradient(n);
+    Eigen::MatrixXd hessian(n, n);
+    for (Index i = 0; i < n; ++i) {
+      Eigen::VectorXd up = Eigen::VectorXd::Zero(n), down = up;
+      up(i) = kStep;
+      down(i) = -kStep;
+      const double f_up = rss_at(up), f_down = rss_at(down);
+      // Richardson's extrapolation of the central difference (error h^4): the gradient decides
+      // where the search stops, and the batch's Gauss-Newton finds the same point.
+      const double half = (rss_at(0.5 * up) - rss_at(0.5 * down)) / kStep;
+      gradient(i) = (4.0 * half - (f_up - f_down) / (2.0 * kStep)) / 3.0;
+      hessian(i, i) = (f_up - 2.0 * at.rss + f_down) / (kStep * kStep);
+      for (Index j = 0; j < i; ++j) {
+        Eigen::VectorXd pp = Eigen::VectorXd::Zero(n), pm = pp, mp = pp, mm = pp;
+        pp(i) = pm(i) = kStep;
+        mp(i) = mm(i) = -kStep;
+        pp(j) = mp(j) = kStep;
+        pm(j) = mm(j) = -kStep;
+        hessian(i, j) = hessian(j, i) = (rss_at(pp) - rss_at(pm) - rss_at(mp) + rss_at(mm)) / (4.0 * kStep * kStep);
+      }
+    }
+    if (!gradient.allFinite() || !hessian.allFinite()) return out;
+    // rss = sum r^2: its Hessian is 2 J'J, the information J'J / sigma^2.
+    const Eigen::MatrixXd inverse = (hessian / (2.0 * at.s2)).ldlt().solve(Eigen::MatrixXd::Identity(n, n));
+    const Eigen::VectorXd sd = inverse.diagonal().cwiseMax(0.0).cwiseSqrt();
+    if (iteration == 0) {
+      std::vector<std::size_t> determined;
+      for (Index i = 0; i < n; ++i) {
+        if (parameters[static_cast<std::size_t>(i)].second != 2) continue;
+        RelativeTurn& r = out[parameters[static_cast<std::size_t>(i)].first];
+        r.twist_sd_rad = sd(i);
+        if (std::isfinite(sd(i)) && sd(i) > 0.0 && sd(i) <= options_.mounting_tolerance_rad) {
+          determined.push_back(parameters[static_cast<std::size_t>(i)].first);
+        } else {
+          r.held = true;
+          r.covariance(0, 0) = options_.mounting_tolerance_rad * options_.mounting_tolerance_rad;
+        }
+      }
+      if (determined.size() < turning.size()) {
+        turning = determined;
+        continue;
+      }
+    }
+    const Eigen::VectorXd delta = -hessian.ldlt().solve(gradient);
+    m_cs = moved(delta);
+    for (Index i0 = 0; i0 < n; i0 += 3) {
+      // Axes (a, b, psi) of turned() as a rotation vector about i, p, o: psi, -b, a.
+      const std::size_t k = parameters[static_cast<std::size_t>(i0)].first;
+      Eigen::Matrix3d to_vector;
+      to_vector << 0, 0, 1, 0, -1, 0, 1, 0, 0;
+      out[k].estimated = true;
+      out[k].covariance = to_vector * inverse.block<3, 3>(i0, i0) * to_vector.transpose();
+      out[k].twist_rad += delta(i0 + 2);
+      out[k].twist_sd_rad = sd(i0 + 2);
+    }
+    if ((delta.array().abs() <= 1e-6 * sd.array()).all()) break;
+  }
+  return out;
+}
+
 void LiveSolver::add_misalignment_uncertainty(StatFit& batch, const std::vector<const Information*>& infos,
                                               const std::vector<Eigen::Matrix3d>& m_cs,
                                               const std::vector<Eigen::Matrix3d>& angle_covariances) const {
@@ -351,18 +444,18 @@ void LiveSolver::add_misalignment_uncertainty(StatFit& batch, const std::vector<
   for (std::size_t m = 0; m < m_cs.size(); ++m) {
     if (infos[m]->samples() == 0 || !angle_covariances[m].allFinite()) continue;
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(angle_covariances[m]);
-    const Eigen::Vector3d phi = rotation_vector(m_cs[m]);
     for (int k = 0; k < 3; ++k) {
       const double lambda = eig.eigenvalues()(k);
       if (!(lambda > 0.0)) continue;
       const Eigen::Vector3d step = std::sqrt(lambda) * eig.eigenvectors().col(k);
+      // The step turns M_C^S in its own frame (about o, -about p, about i: procedure::turned), so a
+      // turn about i is about n_i itself. Added to M_C^S's rotation vector in case axes instead, a
+      // twist's large variance (a degree) leaked into the tilts (0.02 deg per degree at a 1.5 deg
+      // tilt) and inflated the sd of every term up to 11 times.
+      const Eigen::Vector3d turn(step(2), -step(1), step(0));
       std::vector<Eigen::Matrix3d> plus = m_cs, minus = m_cs;
-      const auto turned = [](const Eigen::Vector3d& v) {
-        const double a = v.norm();
-        return a > 0.0 ? frames::frame_rotation(v / a, a) : frames::Dcm::Identity();
-      };
-      plus[m] = turned(phi + step);
-      minus[m] = turned(phi - step);
+      plus[m] = procedure::turned(m_cs[m], turn);
+      minus[m] = procedure::turned(m_cs[m], -turn);
       const StatFit a = fit_batch_at(infos, plus, batch.corner_rad_s);
       const StatFit b = fit_batch_at(infos, minus, batch.corner_rad_s);
       if (!a.ok || !b.ok || a.terms != batch.terms || b.terms != batch.terms) continue;

@@ -98,6 +98,20 @@ struct SolverOptions {
   bool ieee_rotation_table_exclusions = true;
   bool ieee_shaker_exclusions = true;
   double structure_alpha = 0.01;
+  /// procedure::PipelineOptions::batch_relative_twist and mounting_tolerance_rad, the same here.
+  bool relative_twist = true;
+  double mounting_tolerance_rad = 0.017453292519943295;
+};
+
+/// A mounting's turn against the reference mounting (LiveSolver::relative_turns).
+struct RelativeTurn {
+  bool estimated = false;   // its twist about n_i (with its tilts) found from the data
+  bool held = false;        // its twist not determined: held at the nominal frame
+  double twist_rad = 0.0;   // the twist found (about n_i, against the reference)
+  double twist_sd_rad = 0.0;
+  /// Of the turn found, as a rotation vector about i, p, o (the information's inverse; for a held
+  /// twist the tolerance about i): what add_misalignment_uncertainty propagates.
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
 };
 
 class LiveSolver {
@@ -116,6 +130,14 @@ class LiveSolver {
   /// The same at a given corner (none: static squares).
   [[nodiscard]] StatFit fit_batch_at(const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs,
                                      std::optional<double> corner) const;
+  /// The batch pipeline's relative twists (procedure/pipeline.cpp, relative_twists) from the
+  /// statistics: each aligned mounting but `reference` turned (its twist about n_i and its tilts)
+  /// to the least residual of the batch model at `corner`, by Newton steps on central
+  /// differences of that residual. A twist whose sd with the tilts free exceeds the tolerance is
+  /// held. Turns `m_cs` by what it finds.
+  [[nodiscard]] std::vector<RelativeTurn> relative_turns(const std::vector<const Information*>& infos,
+                                                         std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
+                                                         const std::vector<bool>& aligned, std::optional<double> corner) const;
   /// What the mountings' misalignment uncertainty adds to the batch's covariance: the batch refitted
   /// with each M_C^S turned by +-1 sd along each principal direction of its angles' covariance
   /// (the batch's own covariance treats M_C^S as known). Added to batch.covariance and sd.

@@ -409,9 +409,37 @@ struct OnlineEstimator::Impl {
       }
     }
     s.batch = solver->fit_batch(infos, m_cs);
+    // The twists about n_i against the reference, as the batch pipeline finds them (at the corner
+    // found first, which the pipeline keeps).
+    std::vector<RelativeTurn> turns(mountings.size());
+    if (reference && s.batch.ok) {
+      std::vector<bool> aligned;
+      for (const MountingFit& f : fits) aligned.push_back(f.determined);
+      turns = solver->relative_turns(infos, m_cs, *reference, aligned, s.batch.corner_rad_s);
+      if (std::any_of(turns.begin(), turns.end(), [](const RelativeTurn& t) { return t.estimated; }))
+        s.batch = solver->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
+    }
     std::vector<Eigen::Matrix3d> angle_covariances;
-    for (std::size_t m = 0; m < mountings.size(); ++m)
-      angle_covariances.push_back(fits[m].determined ? fits[m].angles_covariance : Eigen::Matrix3d::Zero());
+    for (std::size_t m = 0; m < mountings.size(); ++m) {
+      Eigen::Matrix3d c = fits[m].determined ? fits[m].angles_covariance : Eigen::Matrix3d::Zero();
+      if (turns[m].estimated) {
+        c = turns[m].covariance;
+        // The tilts as algorithm 1 reads them (of n_i alone); about i the twist found.
+        MountingFit& f = fits[m];
+        f.m_cs = m_cs[m];
+        f.angles = procedure::rotation_vector(
+            procedure::misalignment_from_sensitivities(m_cs[m].row(0).transpose(), frames::Dcm::Identity()));
+        f.angles(0) = turns[m].twist_rad;
+        f.angles_covariance = c;
+        f.angles_sd = c.diagonal().cwiseMax(0.0).cwiseSqrt();
+        if (update_states) {
+          mountings[m].m_cs = f.m_cs;
+          mountings[m].fit = f;
+        }
+      }
+      if (turns[m].held) c += turns[m].covariance;
+      angle_covariances.push_back(c);
+    }
     solver->add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
     add_case_scatter(s, m_cs, excluded_case);
     s.m_cs = std::move(m_cs);

@@ -10,6 +10,8 @@
 // Run: build/bench/bench_online [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
 
+#include <cmath>
+
 #include <random>
 
 #include "analyzer/online/information.hpp"
@@ -97,8 +99,12 @@ void BM_EstimatorPush(benchmark::State& state) {
 }
 BENCHMARK(BM_EstimatorPush)->Unit(benchmark::kMicrosecond);
 
+// Arg: 1 with the mountings' twist about n_i searched against the reference (LiveSolver::
+// relative_turns), 0 with it held: what the search costs a publish.
 void BM_Snapshot(benchmark::State& state) {
-  online::OnlineEstimator est(dataset::SensorKind::Accelerometer, std::nullopt, 25.0, live_options());
+  online::OnlineOptions options = live_options();
+  options.solver.relative_twist = state.range(0) != 0;
+  online::OnlineEstimator est(dataset::SensorKind::Accelerometer, std::nullopt, 25.0, options);
   const config::TestCase cases[3] = {shaker_case("shaker-ia", "fixture", config::Orientation::IA),
                                      shaker_case("shaker-pa", "fixture", config::Orientation::PA),
                                      shaker_case("shaker-oa", "other", config::Orientation::OA)};
@@ -110,7 +116,11 @@ void BM_Snapshot(benchmark::State& state) {
     est.end_segment({c, cases[c].name, 0, 5000, true});
   }
   for (auto _ : state) benchmark::DoNotOptimize(est.snapshot());
+  const online::OnlineSnapshot s = est.snapshot();
+  int twists = 0;
+  for (const online::MountingEstimate& m : s.mountings) twists += std::isfinite(m.angles_rad(0)) ? 1 : 0;
+  state.counters["twists_found"] = twists;
 }
-BENCHMARK(BM_Snapshot)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Snapshot)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
