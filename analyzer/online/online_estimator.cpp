@@ -413,8 +413,8 @@ struct OnlineEstimator::Impl {
     // found first, which the pipeline keeps).
     std::vector<RelativeTurn> turns(mountings.size());
     if (reference && s.batch.ok) {
-      std::vector<bool> aligned;
-      for (const MountingFit& f : fits) aligned.push_back(f.determined);
+      std::vector<bool> aligned(fits.size());
+      for (std::size_t m = 0; m < fits.size(); ++m) aligned[m] = fits[m].determined;
       turns = solver->relative_turns(infos, m_cs, *reference, aligned, s.batch.corner_rad_s);
       if (std::any_of(turns.begin(), turns.end(), [](const RelativeTurn& t) { return t.estimated; }))
         s.batch = solver->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);

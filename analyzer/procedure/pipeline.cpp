@@ -743,7 +743,7 @@ RelativeTwists relative_twists(StackedRegression& batch, const BatchAt& batch_at
     std::vector<Parameter> parameters;
     for (std::size_t k : turning) {
       for (int axis = 0; axis < 2; ++axis)
-        if (result.mountings[k].excitation.determined[static_cast<std::size_t>(axis + 1)]) parameters.push_back({k, axis});
+        if (result.mountings[k].excitation.determined[static_cast<std::size_t>(axis) + 1]) parameters.push_back({k, axis});
       parameters.push_back({k, 2});
     }
     std::vector<Eigen::Index> usable = identifiable_ranking(batch, options.selection.err);
