@@ -421,12 +421,10 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
     const Eigen::VectorXd delta = -hessian.ldlt().solve(gradient);
     m_cs = moved(delta);
     for (Index i0 = 0; i0 < n; i0 += 3) {
-      // Axes (a, b, psi) of turned() as a rotation vector about i, p, o: psi, -b, a.
       const std::size_t k = parameters[static_cast<std::size_t>(i0)].first;
-      Eigen::Matrix3d to_vector;
-      to_vector << 0, 0, 1, 0, -1, 0, 1, 0, 0;
+      const Eigen::Matrix3d to_angles = procedure::turn_angles();
       out[k].estimated = true;
-      out[k].covariance = to_vector * inverse.block<3, 3>(i0, i0) * to_vector.transpose();
+      out[k].covariance = to_angles * inverse.block<3, 3>(i0, i0) * to_angles.transpose();
       out[k].twist_rad += delta(i0 + 2);
       out[k].twist_sd_rad = sd(i0 + 2);
     }
@@ -452,7 +450,7 @@ void LiveSolver::add_misalignment_uncertainty(StatFit& batch, const std::vector<
       // turn about i is about n_i itself. Added to M_C^S's rotation vector in case axes instead, a
       // twist's large variance (a degree) leaked into the tilts (0.02 deg per degree at a 1.5 deg
       // tilt) and inflated the sd of every term up to 11 times.
-      const Eigen::Vector3d turn(step(2), -step(1), step(0));
+      const Eigen::Vector3d turn = procedure::turn_angles() * step;
       std::vector<Eigen::Matrix3d> plus = m_cs, minus = m_cs;
       plus[m] = procedure::turned(m_cs[m], turn);
       minus[m] = procedure::turned(m_cs[m], -turn);

@@ -28,6 +28,12 @@ frames::Dcm with_twist(const frames::Dcm& m, double psi);
 /// refined or held by).
 frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector3d& turn);
 
+/// A turn (a, b, psi) of turned() as the angles about i, p, o it makes (psi, -b, a), and back: the
+/// map is its own inverse. To first order, for the small turns of a misalignment's uncertainty.
+inline Eigen::Matrix3d turn_angles() { return (Eigen::Matrix3d() << 0, 0, 1, 0, -1, 0, 1, 0, 0).finished(); }
+/// The angle (0 about i, 1 about p, 2 about o) that component `c` of a turn of turned() moves.
+constexpr int angle_of_turn(int c) { return 2 - c; }
+
 /// The rotation vector of M_C^S (rad, case axes): M_C^S = frame_rotation(v / |v|, |v|). Its
 /// components are the angles of F_S from the nominal case frame about IRA, XRA, YRA (i, p, o).
 Eigen::Vector3d rotation_vector(const frames::Dcm& m_cs);

@@ -789,7 +789,7 @@ RelativeTwists relative_twists(StackedRegression& batch, const BatchAt& batch_at
           for (std::size_t r = 0; r < others.size(); ++r) {
             const Parameter& tilt = parameters[static_cast<std::size_t>(others[r])];
             if (tilt.mounting != parameters[i].mounting || !std::isfinite(shift(static_cast<Eigen::Index>(r)))) continue;
-            const int angle = tilt.axis == 0 ? 2 : 1;   // a turn about o is angles(2)
+            const int angle = angle_of_turn(tilt.axis);
             m.angles_sd(angle) = std::hypot(m.angles_sd(angle), shift(static_cast<Eigen::Index>(r)));
             m.angles_held_sd(angle) = std::abs(shift(static_cast<Eigen::Index>(r)));
           }
@@ -1448,8 +1448,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     if (search.axis == 0 || std::find(twists.estimated.begin(), twists.estimated.end(), search.mounting) == twists.estimated.end())
       continue;
     const auto i = static_cast<Eigen::Index>(c);
-    // Searched axis 1 (a turn about o) is angles(2), axis 2 angles(1), axis 3 (the twist) angles(0).
-    result.mountings[search.mounting].angles_sd(search.axis == 3 ? 0 : 3 - search.axis) =
+    result.mountings[search.mounting].angles_sd(angle_of_turn(search.axis - 1)) =
         std::sqrt(std::max(0.0, inference.searched_covariance(i, i)));
   }
   for (std::size_t k : twists.estimated) {
