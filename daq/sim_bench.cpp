@@ -39,6 +39,27 @@ void sleep_until_ns(std::int64_t t_ns) {
   }
 }
 
+/// A simulated CAN bus: a socketpair whose far end the real CanDevice reads; `near` gets the
+/// simulator's end. nullptr + why when the pair or the device cannot be made.
+std::unique_ptr<hal::socketcan::CanDevice> open_sim_can_bus(const hal::socketcan::CanDeviceConfig& cfg,
+                                                            hal::UniqueFd& near, std::string* why) {
+  int sv[2];
+  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) != 0) {
+    if (why) *why = std::string("socketpair: ") + std::strerror(errno);
+    return nullptr;
+  }
+  const int buf = 4 << 20;  // slack for scheduling hiccups of the reader in paced mode
+  (void)::setsockopt(sv[0], SOL_SOCKET, SO_SNDBUF, &buf, sizeof buf);
+  (void)::setsockopt(sv[1], SOL_SOCKET, SO_RCVBUF, &buf, sizeof buf);
+  near = hal::UniqueFd(sv[0]);
+  return hal::socketcan::CanDevice::from_fd(hal::UniqueFd(sv[1]), cfg, why);
+}
+
+// A CAN encoder's frame: the count (int64, little-endian) latched on the sample tick, then the
+// tick's number (uint32), 12 bytes of a CAN FD frame.
+constexpr std::size_t kCounterFrameBytes = 12;
+constexpr std::uint32_t kSimEncoderCanId = 0x180;  // + node: a CANopen device's first transmit PDO
+
 }  // namespace
 
 SimBench::SimBench(const config::BenchConfig& bench, SimOptions options)
@@ -94,16 +115,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
       info.push_back({sig.name, i < n ? s->can_channels_[i].unit : "1", next_id++});
     }
     cfg.max_records_per_read = 256;
-    int sv[2];
-    if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) != 0) {
-      if (why) *why = std::string("socketpair: ") + std::strerror(errno);
-      return nullptr;
-    }
-    const int buf = 4 << 20;  // slack for scheduling hiccups of the reader in paced mode
-    (void)::setsockopt(sv[0], SOL_SOCKET, SO_SNDBUF, &buf, sizeof buf);
-    (void)::setsockopt(sv[1], SOL_SOCKET, SO_RCVBUF, &buf, sizeof buf);
-    s->can_wire_ = hal::UniqueFd(sv[0]);
-    auto device = hal::socketcan::CanDevice::from_fd(hal::UniqueFd(sv[1]), cfg, why);
+    auto device = open_sim_can_bus(cfg, s->can_bus_.fd, why);
     if (!device) return nullptr;
     const int fd = device->wait_fd();
     if (s->real_timing_ && n + 1 > kSignalsPerFrame) {
@@ -120,7 +132,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::vector<int>{fd}, slot, false));
   }
 
-  // --- encoders: quadrature + sample-clock trigger through pipes ---
+  // --- encoders: quadrature + sample-clock trigger through pipes, or counts on a CAN bus ---
   auto add_encoder = [&](const config::Encoder& enc, bool table, const char* name) -> bool {
     if (!enc.present) return true;
     EncoderSim e;
@@ -128,6 +140,39 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     e.table = table;
     const double x0 = table ? s->sim_.cases[0].motion.table_angle_rad[0] : s->sim_.cases[0].motion.shaker_x_m[0];
     e.count = static_cast<std::int64_t>(std::floor(x0 / e.resolution));
+    if (enc.wire == config::EncoderWire::Can) {
+      e.can_id = kSimEncoderCanId + 1 + static_cast<std::uint32_t>(s->encoders_.size());
+      hal::socketcan::CanDeviceConfig cfg;
+      cfg.name = name;
+      const auto signal = [&](const char* channel, std::uint8_t offset, std::uint8_t bits, bool is_signed,
+                              double scale) {
+        hal::socketcan::CanSignal sig;
+        sig.name = channel;
+        sig.id = e.can_id;
+        sig.byte_offset = offset;
+        sig.bit_length = bits;
+        sig.is_signed = is_signed;
+        sig.scale = scale;
+        return sig;
+      };
+      cfg.map.signals = {signal("count", 0, 64, true, 1.0), signal("position", 0, 64, true, e.resolution),
+                         signal("sample_index", 8, 32, false, 1.0)};
+      cfg.map.signals.back().counter = s->real_timing_;  // as the accelerometers' bus (above)
+      cfg.max_records_per_read = 256;
+      auto device = open_sim_can_bus(cfg, e.bus.fd, why);
+      if (!device) return false;
+      const int fd = device->wait_fd();
+      std::vector<ChannelInfo> info{
+          {"count", "1", next_id}, {"position", table ? "rad" : "m", next_id + 1}, {"sample_index", "1", next_id + 2}};
+      next_id += 3;
+      auto slot = std::make_shared<DeviceSlot>(name, std::move(info), s->rate_hz_, ring_capacity);
+      slot->sim_time_base = !s->real_timing_;
+      slot->backpressure = options.fast;
+      slot->time_index_channel = 2;
+      s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::vector<int>{fd}, slot, false));
+      s->encoders_.push_back(std::move(e));
+      return true;
+    }
     hal::wire_sim::EncoderWire::Lines lines;
     lines.trigger = true;
     levels_of_state(mod4(e.count), lines.a0, lines.b0);
@@ -251,40 +296,37 @@ bool SimBench::flush_edges(EncoderSim& e, std::int64_t through_ns) {
   return true;
 }
 
-void SimBench::write_can_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd) {
-  // Queued and sent a batch at a time by flush_can_frames(): one system call (and one wake-up
-  // of the CAN sampling thread) per batch rather than per frame, which in fast runs cost the
-  // simulator more than computing the bench. The frames keep their order and their bytes.
+void SimBench::CanWire::queue(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd_frame) {
   canfd_frame f{};
   f.can_id = can_id;
   f.len = static_cast<std::uint8_t>(len);
   std::memcpy(f.data, data, len);
-  can_pending_.push_back(PendingFrame{f, fd ? sizeof(canfd_frame) : sizeof(can_frame)});
+  pending.push_back(PendingFrame{f, fd_frame ? sizeof(canfd_frame) : sizeof(can_frame)});
 }
 
-void SimBench::flush_can_frames() {
+void SimBench::CanWire::flush() {
   // A classic frame is the first CAN_MTU bytes of the canfd_frame (same id/len/data layout).
   constexpr std::size_t kChunk = 256;
   std::array<mmsghdr, kChunk> msgs{};
   std::array<iovec, kChunk> iov{};
   std::size_t done = 0;
-  while (done < can_pending_.size()) {
-    const std::size_t n = std::min(kChunk, can_pending_.size() - done);
+  while (done < pending.size()) {
+    const std::size_t n = std::min(kChunk, pending.size() - done);
     for (std::size_t i = 0; i < n; ++i) {
-      iov[i] = iovec{&can_pending_[done + i].frame, can_pending_[done + i].size};
+      iov[i] = iovec{&pending[done + i].frame, pending[done + i].size};
       msgs[i] = mmsghdr{};
       msgs[i].msg_hdr.msg_iov = &iov[i];
       msgs[i].msg_hdr.msg_iovlen = 1;
     }
     // Blocking: a full socket is the reader's back-pressure (fast runs), as write() was.
-    const int sent = ::sendmmsg(can_wire_.get(), msgs.data(), static_cast<unsigned>(n), 0);
+    const int sent = ::sendmmsg(fd.get(), msgs.data(), static_cast<unsigned>(n), 0);
     if (sent > 0) {
       done += static_cast<std::size_t>(sent);
     } else if (sent < 0 && errno != EINTR) {
       break;  // the reader is gone (daemon stopping): nothing left to deliver to
     }
   }
-  can_pending_.clear();
+  pending.clear();
 }
 
 void SimBench::update_controllers(std::size_t c, std::size_t k) {
@@ -379,10 +421,10 @@ void SimBench::run() noexcept {
       if (want != bus_off) {
         std::uint8_t err[8]{};
         if (want) {
-          write_can_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, err, 8, false);
+          can_bus_.queue(CAN_ERR_FLAG | CAN_ERR_BUSOFF, err, 8, false);
         } else {
           err[1] = CAN_ERR_CRTL_ACTIVE;
-          write_can_frame(CAN_ERR_FLAG | CAN_ERR_RESTARTED | CAN_ERR_CRTL, err, 8, false);
+          can_bus_.queue(CAN_ERR_FLAG | CAN_ERR_RESTARTED | CAN_ERR_CRTL, err, 8, false);
         }
         bus_off = want;
       }
@@ -436,19 +478,19 @@ void SimBench::run() noexcept {
           ++frames_lost_;   // lost on the bus: its samples never arrive
           continue;
         }
-        write_can_frame(kSimCanBaseId + static_cast<std::uint32_t>(g), payload.data() + 64 * g, 64, true);
+        can_bus_.queue(kSimCanBaseId + static_cast<std::uint32_t>(g), payload.data() + 64 * g, 64, true);
       }
     }
     // Paced: the batch's newest sample is due now (the sleep above), so the whole batch goes out
     // together, as before, only in one call.
     if ((n + 1) % batch == 0 || n + 1 == run_samples_) {
-      if (real_timing_ && bench_.sim_timing.jitter_s > 0.0 && !can_pending_.empty()) {
+      if (real_timing_ && bench_.sim_timing.jitter_s > 0.0 && !can_bus_.pending.empty()) {
         // The batch waits a while longer (an ADC's transfer, a driver, a busy host): its software
         // receive stamps carry that, as real ones do. Exponential: one-sided, a long tail.
         const double u = std::max(timing_draws.uniform(), 1e-12);
         sleep_until_ns(hal::monotonic_now_ns() + static_cast<std::int64_t>(-std::log(u) * bench_.sim_timing.jitter_s * 1e9));
       }
-      flush_can_frames();
+      can_bus_.flush();
     }
 
     // Encoders: the edges since the previous sample, then the sample clock's trigger edge,
@@ -458,6 +500,16 @@ void SimBench::run() noexcept {
     for (auto& e : encoders_) {
       const double x = position(e, c, k);
       const auto target = static_cast<std::int64_t>(std::floor(x / e.resolution));
+      if (e.bus.fd.get() >= 0) {  // a CAN encoder: the count latched on this tick, one frame
+        std::array<std::uint8_t, kCounterFrameBytes> frame{};
+        // An incremental counter counts from where it started, as the GPIO decoder does.
+        const auto count = static_cast<std::uint64_t>(target - e.count);
+        for (std::size_t b = 0; b < 8; ++b) frame[b] = static_cast<std::uint8_t>(count >> (8 * b));
+        for (std::size_t b = 0; b < 4; ++b) frame[8 + b] = static_cast<std::uint8_t>(n >> (8 * b));
+        e.bus.queue(e.can_id, frame.data(), frame.size(), true);
+        if ((n + 1) % batch == 0 || n + 1 == run_samples_) e.bus.flush();
+        continue;
+      }
       const std::int64_t steps = target - e.count;
       const std::int64_t m = steps < 0 ? -steps : steps;
       const std::int64_t t_prev = n == 0 ? t_n - static_cast<std::int64_t>(period_ns) : time_of(n - 1);
@@ -496,7 +548,8 @@ void SimBench::run() noexcept {
     if (k == case_len - 1) mark(t_n, c, -1, plan_event_t::MARK_CASE_END, time_of(case_first), t_n);
     written_.store(n + 1, std::memory_order_relaxed);
   }
-  flush_can_frames();  // stopped early: what was simulated still goes out
+  can_bus_.flush();  // stopped early: what was simulated still goes out
+  for (auto& e : encoders_) e.bus.flush();
   finished_.store(true, std::memory_order_release);
 }
 

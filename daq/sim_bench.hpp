@@ -7,9 +7,13 @@
 //     signed, scale 1e-6 SI/count), plus "sample_index" (uint32, the simulated sample number,
 //     as ADC modules carry a frame counter), through a SOCK_SEQPACKET socketpair into the real
 //     CanDevice;
-//   * one encoder device per [linear_encoder]/[table_encoder]: x4 quadrature edges of the
-//     simulated position and a trigger-line edge on every sample tick (the bench's sample
-//     clock), as gpioevent_data records through pipes into the real GpiodEncoderDevice;
+//   * one encoder device per [linear_encoder]/[table_encoder], by its `wire`:
+//     - gpio: x4 quadrature edges of the simulated position and a trigger-line edge on every
+//       sample tick (the bench's sample clock), as gpioevent_data records through pipes into
+//       the real GpiodEncoderDevice;
+//     - can: the count latched on every sample tick, as a CAN encoder's process data object
+//       sends it (frame id 0x180 + node, int64 count and uint32 sample_index), on a bus of its
+//       own (a socketpair) into a real CanDevice with channels count, position, sample_index;
 //   * the bench controllers (thermal fixture, table, shaker status) on a loopback Modbus TCP
 //     server, polled by the real ModbusController/ModbusLink.
 // Paced (sample n written at t0 + n / rate) or as fast as the readers take it (blocking CAN
@@ -99,11 +103,27 @@ class SimBench {
     int kind;           // 0 sensor y, 1 monitor, 2 control
     std::size_t index;  // sensor / monitor index
   };
+  /// The simulator's end of one simulated CAN bus (a socketpair into a real CanDevice). Frames
+  /// are queued and sent a batch at a time: one system call (and one wake-up of the CAN sampling
+  /// thread) per batch rather than per frame, which in fast runs cost the simulator more than
+  /// computing the bench. The frames keep their order and their bytes.
+  struct CanWire {
+    struct PendingFrame {
+      canfd_frame frame;
+      std::size_t size;                   // CAN_MTU or CANFD_MTU
+    };
+    hal::UniqueFd fd;
+    std::vector<PendingFrame> pending;
+    void queue(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd_frame);
+    void flush();
+  };
   struct EncoderSim {
-    std::unique_ptr<hal::wire_sim::EncoderWire> wire;
+    std::unique_ptr<hal::wire_sim::EncoderWire> wire;   // gpio: the edge pipes
+    CanWire bus;                                        // can: the counter's frames
+    std::uint32_t can_id = 0;
     double resolution;
     bool table;          // table angle, else shaker displacement
-    std::int64_t count = 0;
+    std::int64_t count = 0;  // gpio: where the edges have brought the count; can: the counter's zero
     double offset = 0.0; // keeps the position continuous across cases and plan repeats
     bool trigger_level = false;
     std::size_t edges = 0;
@@ -117,8 +137,6 @@ class SimBench {
   void queue_edge(EncoderSim& e, hal::gpiod::EdgeLine line, bool rising, std::int64_t t_ns);
   /// Writes the queued records; every line is then complete through `through_ns`.
   bool flush_edges(EncoderSim& e, std::int64_t through_ns);
-  void write_can_frame(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd);
-  void flush_can_frames();
   void update_controllers(std::size_t c, std::size_t k);
 
   const config::BenchConfig& bench_;
@@ -128,12 +146,7 @@ class SimBench {
   std::vector<std::size_t> case_begin_;   // global sample index of each case's first sample; back() = total
   std::size_t run_samples_ = 0;
   std::vector<CanChannel> can_channels_;
-  hal::UniqueFd can_wire_;                // the simulator's end of the socketpair
-  struct PendingFrame {
-    canfd_frame frame;
-    std::size_t size;                     // CAN_MTU or CANFD_MTU
-  };
-  std::vector<PendingFrame> can_pending_; // written by flush_can_frames()
+  CanWire can_bus_;                       // the accelerometers' bus "accel"
   // [bench.sim_timing] in a paced run: the real timing path (numbered frames, the daemon's own
   // clock fits); otherwise the simulator's exact clock.
   bool real_timing_ = false;

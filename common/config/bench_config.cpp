@@ -65,11 +65,15 @@ MonitorAccelerometer read_monitor(const TableReader& t, bool named) {
   return m;
 }
 
-Encoder read_encoder(const TableReader& t, std::string_view resolution_key) {
+Encoder read_encoder(const TableReader& t, std::string_view resolution_key, bool simulated) {
   Encoder e;
   e.present = true;
   e.resolution = t.positive(resolution_key);
   e.channel = t.string_or("channel", "");
+  if (t.has("wire") && !simulated)
+    t.fail_key("wire", "is for simulated benches: a real bench's encoder is wired by its [[gpiod_encoder]] or "
+                       "[[can_device]], named in `channel`");
+  e.wire = t.choice_or("wire", {"gpio", "can"}, 0) == 0 ? EncoderWire::Gpio : EncoderWire::Can;
   t.finish();
   return e;
 }
@@ -534,8 +538,8 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
     }
   }
   if (const auto c = root.optional_table("control_accelerometer")) cfg.control_accelerometer = read_monitor(*c, false);
-  if (const auto e = root.optional_table("linear_encoder")) cfg.linear_encoder = read_encoder(*e, "resolution_m");
-  if (const auto e = root.optional_table("table_encoder")) cfg.table_encoder = read_encoder(*e, "resolution_rad");
+  if (const auto e = root.optional_table("linear_encoder")) cfg.linear_encoder = read_encoder(*e, "resolution_m", cfg.simulated);
+  if (const auto e = root.optional_table("table_encoder")) cfg.table_encoder = read_encoder(*e, "resolution_rad", cfg.simulated);
 
   for (const TableReader& d : root.tables("can_device")) cfg.can_devices.push_back(read_can_device(d));
   for (const TableReader& d : root.tables("gpiod_encoder")) cfg.gpiod_encoders.push_back(read_gpiod_encoder(d));

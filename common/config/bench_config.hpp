@@ -12,7 +12,8 @@
 //                              AccelerometerParams / FogParams under the same names (sim only)
 //   [[monitor]]                single-axis monitoring accelerometers (section 2.3 skewed layout)
 //   [control_accelerometer]    the shaker's control accelerometer (vibration axis)
-//   [linear_encoder] [table_encoder]
+//   [linear_encoder] [table_encoder]  resolution, channel; wire ("gpio" | "can": how the simulator
+//                              carries it)
 //   [[can_device]] [[gpiod_encoder]] [[modbus_device]]   real-bench wiring (the simulator ignores it)
 //   [daemon]                   inertia-daqd's run settings (every key optional; the command line wins)
 //   [[case]]                   the test plan, in order: name, kind, mounting, misalignments, and
@@ -81,10 +82,22 @@ struct MonitorAccelerometer {
   std::string channel;
 };
 
+/// How inertia-daqd's simulator carries an encoder to its real decoding code (`wire`, simulated
+/// benches only; a real bench's wiring is its [[gpiod_encoder]] or [[can_device]] and `channel`).
+enum class EncoderWire {
+  // x4 quadrature edges on GPIO lines, decoded by the gpiod backend: an encoder wired to the PC.
+  // Every count step is one edge event, so it suits up to some 1e5 steps a second.
+  Gpio,
+  // The count latched on the sample clock and sent in a CAN frame, decoded by the socketcan
+  // backend: a CAN encoder or a counter module, as a bench whose encoder steps at MHz has.
+  Can,
+};
+
 struct Encoder {
   bool present = false;
   double resolution = 0.0;          // m per count (linear) or rad per count (table)
   std::string channel;
+  EncoderWire wire = EncoderWire::Gpio;
 };
 
 /// Fixture temperature: first-order plant dT/dt = (T_amb - T)/tau + heat_rate_max * u, with the

@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include "common/config/bench_config.hpp"
 #include "common/lcm/sample_block_layout.hpp"
@@ -15,10 +17,25 @@
 namespace inertia::daq::testing {
 namespace {
 
-TEST(DaqdSim, LogAndStreamMatchSimulatorTruth) {
+// The encoder by either of the simulator's wires (config::EncoderWire): GPIO edges into the gpiod
+// decoder, or the counter's count in CAN frames into the socketcan decoder; the same counts.
+class DaqdSim : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(DaqdSim, LogAndStreamMatchSimulatorTruth) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
-  const std::string config = source_path("tests/integration/configs/daq-small.toml");
+  const std::string config = (tmp.path / "bench.toml").string();
+  {
+    std::ifstream in(source_path("tests/integration/configs/daq-small.toml"));
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string bench = text.str();
+    const std::string key = "[linear_encoder]\nresolution_m = 1e-6\n";
+    const auto at = bench.find(key);
+    ASSERT_NE(at, std::string::npos);
+    bench.insert(at + key.size(), std::string("wire = \"") + GetParam() + "\"\n");
+    std::ofstream(config) << bench;
+  }
   const std::string url = private_lcm_url();
   LcmCollector live(url);
   ASSERT_TRUE(live.good());
@@ -171,6 +188,9 @@ TEST(DaqdSim, LogAndStreamMatchSimulatorTruth) {
             << raw_logged - raw_received << "), worst value error " << worst << "\n";
   RecordProperty("lcm_raw_loss", static_cast<int>(raw_logged - raw_received));
 }
+
+INSTANTIATE_TEST_SUITE_P(EncoderWire, DaqdSim, ::testing::Values("gpio", "can"),
+                         [](const ::testing::TestParamInfo<const char*>& info) { return std::string(info.param); });
 
 }  // namespace
 }  // namespace inertia::daq::testing

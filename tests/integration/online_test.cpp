@@ -76,14 +76,18 @@ double coefficient(const model_estimate_t& m, const std::string& term, double* s
   return NAN;
 }
 
-TEST(OnlineLive, TwoMountingsPacedEstimatesEverySecondAndEqualCharacterizeOfTheSameLog) {
+// The paper's bench: a rotation table mounting (2 deg about case z) and a shaker fixture carrying
+// three orientations (2 deg about [1,1,1]). sim-paper-daq is it shortened, 10.5 s at 1 kHz;
+// sim-paper is the whole plan, 47.5 s at 10 kHz.
+class OnlineLivePaperBench : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(OnlineLivePaperBench, TwoMountingsPacedEstimatesEverySecondAndEqualCharacterizeOfTheSameLog) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
-  // The paper's bench, shortened: a rotation table mounting (2 deg about case z) and a shaker
-  // fixture carrying three orientations (2 deg about [1,1,1]), 10.5 s at 1 kHz.
   TempDir tmp;
-  const std::string config = source_path("config/sim-paper-daq.toml");
+  const std::string config = source_path(std::string("config/") + GetParam());
   const LiveRun run = run_live(tmp, config, {"--history", (tmp.path / "history.csv").string()});
   ASSERT_FALSE(run.log.empty()) << run.daqd_output;
+  const config::BenchConfig bench = config::load_bench_config(config);
 
   std::int64_t first_raw = 0, last_raw = 0;
   for (const auto& r : run.received) {
@@ -93,7 +97,9 @@ TEST(OnlineLive, TwoMountingsPacedEstimatesEverySecondAndEqualCharacterizeOfTheS
   }
   ASSERT_GT(last_raw, first_raw);
   const auto estimates = decoded<model_estimate_t>(run.received, "INERTIA_ESTIMATE_ACC1");
-  ASSERT_GE(estimates.size(), 80u) << "10 Hz over the ~11 s run\n" << run.online_output;
+  const double run_s = 1e-9 * static_cast<double>(last_raw - first_raw);
+  ASSERT_GE(static_cast<double>(estimates.size()), 7.5 * run_s) << "10 Hz over the " << run_s << " s run\n"
+                                                                 << run.online_output;
 
   // Cadence: samples in the estimate within 3 s of the first raw block, and more of them in every
   // one-second window while the daemon samples.
@@ -179,9 +185,18 @@ TEST(OnlineLive, TwoMountingsPacedEstimatesEverySecondAndEqualCharacterizeOfTheS
   const analyzer_status_t& s = status.back().second;
   EXPECT_GT(s.received, 3000);
   EXPECT_EQ(s.skipped_malformed + s.skipped_invalid + s.skipped_refused + s.queue_drops, 0);
-  EXPECT_EQ(s.bench, "sim-paper-daq");
+  EXPECT_EQ(s.bench, bench.name);
   EXPECT_TRUE(fs::file_size(tmp.path / "history.csv") > 1000);
 }
+
+INSTANTIATE_TEST_SUITE_P(Bench, OnlineLivePaperBench, ::testing::Values("sim-paper-daq.toml", "sim-paper.toml"),
+                         [](const ::testing::TestParamInfo<const char*>& info) {
+                           std::string name = info.param;
+                           name = name.substr(0, name.find('.'));
+                           for (char& c : name)
+                             if (c == '-') c = '_';
+                           return name;
+                         });
 
 TEST(OnlineLive, ShakerOnlyBenchMatchesTheSimulatorsTruth) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);

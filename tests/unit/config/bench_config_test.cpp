@@ -281,6 +281,23 @@ TEST_F(TempFiles, CanInvalidRawAndEncoderEdgeLatency) {
   EXPECT_NE(std::string(late.what()).find("edge_latency_ns"), std::string::npos) << late.what();
 }
 
+TEST_F(TempFiles, EncoderWireChoosesTheSimulatorsTransportOnSimulatedBenchesOnly) {
+  const std::string enc = std::string(kMinimal) + "\n[linear_encoder]\nresolution_m = 1e-6\n";
+  EXPECT_EQ(load_bench_config(write("gpio.toml", enc)).linear_encoder.wire, EncoderWire::Gpio);
+  EXPECT_EQ(load_bench_config(write("can.toml", enc + "wire = \"can\"\n")).linear_encoder.wire, EncoderWire::Can);
+  const InputError bad = error_of(enc + "wire = \"spi\"\n");
+  EXPECT_NE(std::string(bad.what()).find("\"spi\" is not one of: gpio, can"), std::string::npos) << bad.what();
+  // A real bench wires its encoder itself; the key would be a promise nothing keeps.
+  const InputError real =
+      error_of(replace(enc, "sample_rate_hz = 1000.0", "backend = \"real\"\nsample_rate_hz = 1000.0") + "wire = \"can\"\n");
+  EXPECT_NE(std::string(real.what()).find("linear_encoder.wire"), std::string::npos) << real.what();
+  EXPECT_NE(std::string(real.what()).find("simulated benches"), std::string::npos) << real.what();
+  // The flagship bench's MHz encoders go over CAN (config/sim-paper.toml).
+  const BenchConfig paper = load_bench_config(kConfigDir / "sim-paper.toml");
+  EXPECT_EQ(paper.table_encoder.wire, EncoderWire::Can);
+  EXPECT_EQ(paper.linear_encoder.wire, EncoderWire::Can);
+}
+
 TEST_F(TempFiles, MissingKeyPointsAtItsTable) {
   const InputError e = error_of(replace(kMinimal, "amplitude_g = 1.0\n", ""));
   EXPECT_EQ(e.where().line, 13u);   // the [[case.phase]] header
