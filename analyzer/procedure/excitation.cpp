@@ -1,5 +1,9 @@
 #include "analyzer/procedure/excitation.hpp"
 
+#include <fmt/format.h>
+
+#include <algorithm>
+
 namespace inertia::procedure {
 
 AxisExcitation axis_excitation(const Eigen::Matrix4d& gram, bool with_bias) {
@@ -34,6 +38,35 @@ std::string missing_excitation(int axis, bool gyro) {
   return std::string("the turn of the input axis ") + angle + " needs a specific force along " + name +
          " that varies on its own (a table or tumble pose with gravity along " + name +
          ", or vibration along it)";
+}
+
+std::vector<std::string> held_angle_notes(const AxisExcitation& excitation, bool gyro, bool with_bias) {
+  std::vector<std::string> notes;
+  if (!excitation.scale_determined()) {
+    notes.push_back(fmt::format("M_C^S held at the nominal case frame: no {} along IRA varies on its own in this mounting "
+                                "({:.1e} of its input energy, at least {:.0e} needed){}",
+                                gyro ? "rate" : "specific force", excitation.share[0], kMinExcitationShare,
+                                with_bias ? "; a constant input is a bias" : ""));
+    return notes;
+  }
+  for (int axis = 1; axis < 3; ++axis) {
+    const auto a = static_cast<std::size_t>(axis);
+    if (excitation.aligns() && excitation.determined[a]) continue;
+    notes.push_back(fmt::format("angle about {} held at the nominal case frame ({:.1e} of the input energy varies on its "
+                                "own along {}): {}",
+                                axis == 1 ? "o" : "p", excitation.share[a], axis == 1 ? "XRA" : "YRA",
+                                missing_excitation(axis, gyro)));
+  }
+  return notes;
+}
+
+bool frame_free(const ident::Term& term) {
+  return std::all_of(term.factors().begin(), term.factors().end(), [](const ident::Factor& f) {
+    using ident::Variable;
+    const bool input = f.variable == Variable::Ai || f.variable == Variable::Wi;
+    return (input && f.power == 1 && f.function == ident::FactorFunction::Plain) || f.variable == Variable::T ||
+           f.variable == Variable::Y || f.variable == Variable::E;
+  });
 }
 
 }  // namespace inertia::procedure

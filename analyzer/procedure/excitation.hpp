@@ -18,6 +18,9 @@
 
 #include <array>
 #include <string>
+#include <vector>
+
+#include "analyzer/ident/term.hpp"
 
 namespace inertia::procedure {
 
@@ -36,6 +39,8 @@ struct AxisExcitation {
   std::array<bool, 3> determined{};
   [[nodiscard]] bool scale_determined() const { return determined[0]; }
   [[nodiscard]] bool all_determined() const { return determined[0] && determined[1] && determined[2]; }
+  /// Whether algorithm 1 can align the mounting: its scale axis and at least one tilt determined.
+  [[nodiscard]] bool aligns() const { return determined[0] && (determined[1] || determined[2]); }
 };
 
 /// From the Gram matrix G (4 x 4) of [a_IRA a_XRA a_YRA 1] over a mounting's rows (1: the constant
@@ -45,5 +50,15 @@ AxisExcitation axis_excitation(const Eigen::Matrix4d& gram, bool with_bias);
 /// For the user: which excitation an undetermined axis needs. `axis` 1 (XRA) or 2 (YRA) names the
 /// angle; gyro: rates instead of specific force.
 std::string missing_excitation(int axis, bool gyro);
+
+/// One note per angle the excitation leaves held at the nominal case frame (none when algorithm 1
+/// determines them all), with what it needs: the report's and the live estimate's wording.
+/// `with_bias` as for axis_excitation.
+std::vector<std::string> held_angle_notes(const AxisExcitation& excitation, bool gyro, bool with_bias);
+
+/// Whether a term holds in any frame near the sensor's: the bias, and products of the sensitive
+/// input's first power with temperature, output, lags or noise. Squares, abs(), sign() and the
+/// cross-axis inputs need the sensor frame, which a plan that aligns no mounting does not give.
+bool frame_free(const ident::Term& term);
 
 }  // namespace inertia::procedure

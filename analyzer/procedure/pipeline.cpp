@@ -832,10 +832,14 @@ RelativeTwists relative_twists(StackedRegression& batch, const BatchAt& batch_at
 
 }  // namespace
 
-std::vector<std::pair<std::string, std::vector<std::size_t>>> mountings_of(const dataset::Dataset& data) {
-  std::vector<std::pair<std::string, std::vector<std::size_t>>> groups;
-  for (std::size_t i = 0; i < data.cases.size(); ++i) {
-    const std::string& label = data.cases[i].mounting_group();
+MountingGroups group_mountings(const std::vector<MountingKey>& cases, dataset::SensorKind sensor,
+                               std::vector<std::string>* notes) {
+  const auto note = [&](std::string text) {
+    if (notes != nullptr) notes->push_back(std::move(text));
+  };
+  MountingGroups groups;
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const std::string& label = cases[i].label.empty() ? cases[i].name : cases[i].label;
     auto it = std::find_if(groups.begin(), groups.end(), [&](const auto& g) { return g.first == label; });
     if (it == groups.end()) {
       groups.emplace_back(label, std::vector<std::size_t>{i});
@@ -843,7 +847,36 @@ std::vector<std::pair<std::string, std::vector<std::size_t>>> mountings_of(const
       it->second.push_back(i);
     }
   }
+  if (sensor == dataset::SensorKind::Gyroscope) {
+    if (groups.size() > 1) {
+      note("gyroscope: one M_C^S for every case, from the rate sensitivities of all cases together (paper section 2.2: "
+           "M_E^C of each case must be known accurately); mounting labels are not used");
+    }
+    std::vector<std::size_t> all(cases.size());
+    for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+    return {{"all cases", all}};
+  }
+  const bool labelled = std::any_of(cases.begin(), cases.end(), [](const MountingKey& c) { return !c.label.empty(); });
+  std::vector<std::size_t> poses;
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    if (cases[i].kind == CaseKind::Static || cases[i].kind == CaseKind::Thermal) poses.push_back(i);
+  }
+  if (!labelled && poses.size() >= 2) {
+    std::erase_if(groups, [&](const auto& g) { return std::find(poses.begin(), poses.end(), g.second.front()) != poses.end(); });
+    groups.insert(groups.begin(), {"poses", poses});
+    std::vector<std::string> names;
+    for (std::size_t i : poses) names.push_back(cases[i].name);
+    note(fmt::format("inferred: the {} static poses ({}) share one mounting 'poses' (the sensor stays in its fixture, "
+                     "which is turned between them); give each case a `mounting` label in dataset.toml to say otherwise",
+                     poses.size(), fmt::join(names, ", ")));
+  }
   return groups;
+}
+
+MountingGroups mountings_of(const dataset::Dataset& data, std::vector<std::string>* notes) {
+  std::vector<MountingKey> keys;
+  for (const dataset::CaseData& c : data.cases) keys.push_back({c.plan_case(), c.mounting, c.kind});
+  return group_mountings(keys, data.sensor, notes);
 }
 
 MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector<std::size_t>& cases,
@@ -859,25 +892,12 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   // What this mounting's inputs can determine; an axis without its own excitation keeps the
   // nominal case frame (excitation.hpp).
   result.excitation = axis_excitation(input_gram(m.cases, data.sensor), !known_bias.has_value());
-  if (!result.excitation.scale_determined() || !(result.excitation.determined[1] || result.excitation.determined[2])) {
+  result.held = held_angle_notes(result.excitation, gyro, !known_bias.has_value());
+  if (!result.excitation.aligns()) {
     // Nothing to align: both angles are held (algorithm 2 would only fit the scale factor).
     result.aligned = false;
     result.angles(0) = std::nan("");
     result.angles_sd(0) = std::nan("");
-    if (!result.excitation.scale_determined()) {
-      result.held.push_back(fmt::format(
-          "M_C^S held at the nominal case frame: no {} along IRA varies on its own in this mounting ({:.1e} of its "
-          "input energy, at least {:.0e} needed){}",
-          gyro ? "rate" : "specific force", result.excitation.share[0], kMinExcitationShare,
-          known_bias ? "" : "; a constant input is a bias"));
-    } else {
-      for (int axis = 1; axis < 3; ++axis) {
-        result.held.push_back(fmt::format("angle about {} held at the nominal case frame ({:.1e} of the input energy varies "
-                                          "on its own along {}): {}",
-                                          axis == 1 ? "o" : "p", result.excitation.share[static_cast<std::size_t>(axis)],
-                                          axis == 1 ? "XRA" : "YRA", missing_excitation(axis, gyro)));
-      }
-    }
     result.excitation.determined[1] = result.excitation.determined[2] = false;
     return result;
   }
@@ -909,13 +929,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   {
     const std::array<const char*, 3> names = sensitivity_names(data.sensor);
     for (int axis = 1; axis < 3; ++axis) {
-      if (result.excitation.determined[static_cast<std::size_t>(axis)]) continue;
-      const Term undetermined = ident::parse_term(names[static_cast<std::size_t>(axis)]);
-      std::erase(es_terms, undetermined);
-      result.held.push_back(fmt::format("angle about {} held at the nominal case frame ({:.1e} of the input energy varies "
-                                        "on its own along {}): {}",
-                                        axis == 1 ? "o" : "p", result.excitation.share[static_cast<std::size_t>(axis)],
-                                        axis == 1 ? "XRA" : "YRA", missing_excitation(axis, gyro)));
+      if (!result.excitation.determined[static_cast<std::size_t>(axis)])
+        std::erase(es_terms, ident::parse_term(names[static_cast<std::size_t>(axis)]));
     }
   }
   const std::array<bool, 2> tilt_axes{result.excitation.determined[1], result.excitation.determined[2]};
@@ -1157,40 +1172,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   result.cases.resize(data.cases.size());
 
   // Blocks 5-6. Mountings that can estimate the bias go first, so shaker-only mountings can use it.
-  auto groups = mountings_of(data);
-  {
-    // A tumble: unlabelled static poses are the sensor in one fixture turned between them (the
-    // way every multi-position test is run), so they share one mounting. Said, and a label in
-    // dataset.toml overrides it.
-    const bool labelled = std::any_of(data.cases.begin(), data.cases.end(), [](const dataset::CaseData& c) { return !c.mounting.empty(); });
-    std::vector<std::size_t> poses;
-    for (std::size_t i = 0; i < data.cases.size(); ++i) {
-      const dataset::CaseKind kind = data.cases[i].kind;
-      if (kind == dataset::CaseKind::Static || kind == dataset::CaseKind::Thermal) poses.push_back(i);
-    }
-    if (!labelled && poses.size() >= 2 && data.sensor == dataset::SensorKind::Accelerometer) {
-      std::erase_if(groups, [&](const auto& g) { return std::find(poses.begin(), poses.end(), g.second.front()) != poses.end(); });
-      groups.insert(groups.begin(), {"poses", poses});
-      std::vector<std::string> names;
-      for (std::size_t i : poses) names.push_back(data.cases[i].name);
-      result.notes.push_back(fmt::format("inferred: the {} static poses ({}) share one mounting 'poses' (the sensor stays in "
-                                         "its fixture, which is turned between them); give each case a `mounting` label "
-                                         "in dataset.toml to say otherwise",
-                                         poses.size(), fmt::join(names, ", ")));
-    }
-  }
-  if (data.sensor == dataset::SensorKind::Gyroscope) {
-    // Paper section 2.2: a gyroscope's vibration sensitivity is not tied to a sensor frame, so its
-    // misalignment is the sensor's own M_C^S, read from the rate sensitivities over every case at
-    // once (M_E^C must be known accurately), and M_E^S = M_C^S M_E^C for every case.
-    std::vector<std::size_t> all(data.cases.size());
-    for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
-    if (groups.size() > 1) {
-      result.notes.push_back("gyroscope: one M_C^S for every case, from the rate sensitivities of all cases together (paper "
-                             "section 2.2: M_E^C of each case must be known accurately); mounting labels are not used");
-    }
-    groups = {{"all cases", all}};
-  }
+  auto groups = mountings_of(data, &result.notes);
   const auto shaker_only = [&](const std::vector<std::size_t>& cases) {
     return std::all_of(cases.begin(), cases.end(),
                        [&](std::size_t i) { return data.cases[i].kind == dataset::CaseKind::Shaker; });
@@ -1401,19 +1383,10 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
       if (!check.pass || none_aligned) {
         // Linear in the sensitive input (times temperature, output or lags) holds in any frame near
         // the sensor's; squares, |a_i|, sign and the cross-axis inputs do not.
-        const auto frame_free = [](const std::string& label) {
-          const Term t = ident::parse_term(label);
-          return std::all_of(t.factors().begin(), t.factors().end(), [](const ident::Factor& f) {
-            using ident::Variable;
-            const bool input = f.variable == Variable::Ai || f.variable == Variable::Wi;
-            return (input && f.power == 1 && f.function == ident::FactorFunction::Plain) || f.variable == Variable::T ||
-                   f.variable == Variable::Y || f.variable == Variable::E;
-          });
-        };
         std::vector<Eigen::Index> kept;
         for (Eigen::Index c : columns) {
           const std::string& label = batch.labels[static_cast<std::size_t>(c)];
-          if (frame_free(label)) {
+          if (frame_free(ident::parse_term(label))) {
             kept.push_back(c);
           } else {
             result.undetermined.push_back(

@@ -207,8 +207,23 @@ double case_weight(const PipelineOptions& options, const dataset::CaseData& c);
 /// InputError naming a weight whose case the dataset does not have (run_pipeline calls it).
 void check_case_weights(const dataset::Dataset& data, const PipelineOptions& options);
 
-/// The mountings of a dataset: cases grouped by their `mounting` label, unlabelled cases alone,
-/// in order of first appearance.
-std::vector<std::pair<std::string, std::vector<std::size_t>>> mountings_of(const dataset::Dataset& data);
+/// A case as the grouping into mountings sees it.
+struct MountingKey {
+  std::string name;     // its plan case
+  std::string label;    // its `mounting` label ("": none)
+  CaseKind kind = CaseKind::Static;
+};
+using MountingGroups = std::vector<std::pair<std::string, std::vector<std::size_t>>>;
+
+/// Which cases share a mounting (blocks 5-6): the batch pipeline's and the live estimator's one
+/// rule. Cases with one `mounting` label share it and an unlabelled case is its own, in order of
+/// first appearance; with no label anywhere, an accelerometer's static and thermal poses (two or
+/// more) share one mounting "poses", put first (a tumble: the sensor stays in its fixture, which
+/// is turned between poses); a gyroscope's cases are one mounting "all cases" (paper section 2.2:
+/// its M_C^S is read from the rates of every case). What was inferred goes to `notes`.
+MountingGroups group_mountings(const std::vector<MountingKey>& cases, dataset::SensorKind sensor,
+                               std::vector<std::string>* notes = nullptr);
+/// The same for a dataset's cases (keyed by their plan case).
+MountingGroups mountings_of(const dataset::Dataset& data, std::vector<std::string>* notes = nullptr);
 
 }  // namespace inertia::procedure
