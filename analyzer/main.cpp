@@ -145,7 +145,7 @@ int run(int argc, char** argv) {
   plan_check->add_option("--alpha", plan_options.alpha, "t-test significance level of the selection")->capture_default_str();
 
   inertia::commands::OnlineCommandOptions online_options;
-  std::vector<std::string> online_models;
+  std::vector<std::string> online_models, online_compare;
   auto* online = app.add_subcommand("online", "live: fuse the daemon's stream, recursive ULS per sensor, publish INERTIA_ESTIMATE_*");
   online->add_option("--config", online_options.config, "the bench file inertia-daqd runs")->required();
   online->add_option("--model", online_models, "[SENSOR=]MODEL.toml: terms and M_C^S to track (default: the paper's complete static model)");
@@ -160,7 +160,8 @@ int run(int argc, char** argv) {
       ->check(CLI::ExistingFile)
       ->excludes(online_duration)
       ->excludes(online_url);
-  online->add_option("--compare", online_options.compare, "at the end, print the live estimate beside this model file (read then)");
+  online->add_option("--compare", online_compare,
+                     "[SENSOR=]MODEL.toml: at the end, print that sensor's live estimate beside this model file (read then)");
 
   try {
     app.parse(argc, argv);
@@ -177,6 +178,7 @@ int run(int argc, char** argv) {
   if (noise->parsed()) return inertia::commands::run_noise(noise_options, std::cout);
   if (online->parsed()) {
     online_options.models = parse_models(online_models);
+    online_options.compare = parse_models(online_compare);
     return inertia::commands::run_online(online_options, std::cout);
   }
   if (paper->parsed()) return inertia::commands::run_reproduce_paper(paper_options, std::cout);

@@ -310,7 +310,10 @@ class Worker {
   }
 
   /// One message, as the worker thread takes it (a replayed log).
-  void ingest(const Message& m) { process(m); }
+  void ingest(const Message& m) {
+    replay_now_ns_ = m.arrival_ns;   // a replay runs on the log's clock, which stamped the arrivals
+    process(m);
+  }
   void publish_now() { publish(); }
   /// The end of a replayed log: the rows held back, fused; one estimate per sensor published.
   void finish_replay() {
@@ -399,7 +402,7 @@ class Worker {
   }
 
   void publish() {
-    const std::int64_t now = mono_ns();
+    const std::int64_t now = replay_now_ns_.value_or(mono_ns());
     for (auto& p : pipelines_) {
       const online::OnlineSnapshot s = p->estimator->snapshot();
       p->rows_estimated = s.samples_used;
@@ -496,6 +499,7 @@ class Worker {
   Counters counters_;
   std::vector<std::string> bench_texts_;
   std::int64_t first_block_ns_ = 0;
+  std::optional<std::int64_t> replay_now_ns_;   // a replay: the log time of the newest message
   std::vector<double> latencies_;
   std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
   std::chrono::steady_clock::time_point status_started_;
@@ -627,6 +631,19 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
     for (const config::SensorUnderTest& s : bench.sensors) known = known || s.name == sensor;
     if (!known) throw InputError("online: --model names sensor '" + sensor + "', which the bench lacks");
   }
+  for (const auto& [sensor, file] : options.compare) {
+    if (sensor.empty() && bench.sensors.size() > 1)
+      throw InputError("online: the bench has several sensors; give --compare SENSOR=FILE");
+    if (!sensor.empty() && std::none_of(bench.sensors.begin(), bench.sensors.end(),
+                                        [&](const config::SensorUnderTest& s) { return s.name == sensor; }))
+      throw InputError("online: --compare names sensor '" + sensor + "', which the bench lacks");
+  }
+  // The model file a sensor's live answer is compared with, if any.
+  const auto compare_file = [&options](const std::string& sensor) -> const std::filesystem::path* {
+    if (auto it = options.compare.find(sensor); it != options.compare.end()) return &it->second;
+    if (auto only = options.compare.find(""); only != options.compare.end()) return &only->second;
+    return nullptr;
+  };
 
   online::OnlineOptions estimator_options;
   estimator_options.forgetting = options.forgetting;
@@ -634,6 +651,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
   estimator_options.nominal_sample_period_s = 1.0 / bench.sample_rate_hz;
   estimator_options.temperature_candidates =
       std::any_of(bench.cases.begin(), bench.cases.end(), [](const config::TestCase& c) { return c.kind == CaseKind::Thermal; });
+  for (const config::TestCase& c : bench.cases) estimator_options.plan.push_back({c.name, c.mounting, c.kind});
   std::vector<std::unique_ptr<SensorPipeline>> pipelines;
   for (const config::SensorUnderTest& s : bench.sensors) {
     std::optional<model::ModelFile> model;
@@ -677,7 +695,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
     for (const auto& p : pipelines) {
       const online::OnlineSnapshot last = p->estimator->snapshot();
       print_settling(*p, last, out);
-      if (!options.compare.empty()) print_comparison(last, options.compare, out);
+      if (const auto* file = compare_file(p->name)) print_comparison(last, *file, out);
     }
     return 0;
   }
@@ -765,7 +783,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
     if (!p->assembler->has_bench()) fmt::print(out, "online: {}: no INERTIA_BENCH received (is inertia-daqd running on this LCM URL?)\n", p->name);
     const online::OnlineSnapshot last = p->estimator->snapshot();
     print_settling(*p, last, out);
-    if (!options.compare.empty()) print_comparison(last, options.compare, out);
+    if (const auto* file = compare_file(p->name)) print_comparison(last, *file, out);
   }
   return status;
 }

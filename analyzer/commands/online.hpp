@@ -31,7 +31,8 @@ struct OnlineCommandOptions {
   std::string lcm_url;          // empty: $LCM_DEFAULT_URL or LCM's default (with a 4 MiB receive buffer)
   std::filesystem::path history;   // non-empty: every published estimate as CSV rows
   std::filesystem::path replay;    // non-empty: run on this event log instead of LCM (no publishing)
-  std::filesystem::path compare;   // non-empty: at the end, the live answer beside this model file's
+  /// At the end, a sensor's live answer beside this model file's (sensor -> file; key "" = the only sensor).
+  std::map<std::string, std::filesystem::path> compare;
   /// Stop request from outside (tests); SIGINT and SIGTERM also stop the loop.
   std::atomic<bool>* stop = nullptr;
 };

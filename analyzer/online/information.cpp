@@ -29,10 +29,23 @@ void Information::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::
   weight_ += static_cast<double>(n);
 }
 
+void Information::add_inputs(const Eigen::Ref<const Eigen::MatrixX3d>& inputs) {
+  const Index n = inputs.rows();
+  if (n == 0) return;
+  inputs_.topLeftCorner<3, 3>().noalias() += inputs.transpose() * inputs;
+  const Eigen::RowVector3d sums = inputs.colwise().sum();
+  inputs_.block<1, 3>(3, 0) += sums;
+  inputs_.block<3, 1>(0, 3) += sums.transpose();
+  inputs_(3, 3) += static_cast<double>(n);
+}
+
 void Information::add(const Information& other) {
+  inputs_ += other.inputs_;
   if (other.samples_ == 0) return;
   if (samples_ == 0 && weight_ == 0.0 && gram_.matrix().size() == 0) {
+    const Eigen::Matrix4d inputs = inputs_;
     *this = other;
+    inputs_ = inputs;
     return;
   }
   gram_.matrix() += other.gram_.matrix();
@@ -45,6 +58,7 @@ void Information::add(const Information& other) {
 }
 
 void Information::subtract(const Information& other) {
+  inputs_ -= other.inputs_;
   gram_.matrix() -= other.gram_.matrix();
   for (std::size_t k = 0; k < cross_.size(); ++k) {
     cross_[k] -= other.cross_[k];
@@ -55,6 +69,7 @@ void Information::subtract(const Information& other) {
 }
 
 void Information::scale(double factor) {
+  inputs_ *= factor;
   gram_.matrix() *= factor;
   for (std::size_t k = 0; k < cross_.size(); ++k) {
     cross_[k] *= factor;
@@ -64,6 +79,7 @@ void Information::scale(double factor) {
 }
 
 void Information::clear() {
+  inputs_.setZero();
   gram_.matrix().setZero();
   for (std::size_t k = 0; k < cross_.size(); ++k) {
     cross_[k].setZero();

@@ -35,6 +35,11 @@ class Information {
   /// Adds rows: base (n x b), the filtered columns at each node (n x f each), the output.
   void add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
            const Eigen::Ref<const Eigen::VectorXd>& y);
+  /// Adds the same rows' inputs along the case axes IRA, XRA, YRA (n x 3: specific force, or rates
+  /// for a gyroscope), unfiltered: what procedure::axis_excitation reads. How much of each axis
+  /// varies on its own is a property of the motion, which the noise model's filter would distort
+  /// (it lifts the references' high-frequency noise against the constant inputs).
+  void add_inputs(const Eigen::Ref<const Eigen::MatrixX3d>& inputs);
   void add(const Information& other);
   void subtract(const Information& other);
   /// Exponential forgetting: every sample so far weighs `factor` less.
@@ -44,6 +49,8 @@ class Information {
   [[nodiscard]] std::int64_t samples() const { return samples_; }
   [[nodiscard]] double weight() const { return weight_; }   // sum of sample weights
   [[nodiscard]] const Eigen::MatrixXd& base_gram() const { return gram_.matrix(); }   // [B y]'[B y]
+  /// [a_IRA a_XRA a_YRA 1]'[a_IRA a_XRA a_YRA 1] of the inputs added (add_inputs).
+  [[nodiscard]] const Eigen::Matrix4d& input_gram() const { return inputs_; }
 
   /// [Phi y]'[Phi y] of the model whose columns are B t_base' + F(corner) t_filtered', with
   /// F(corner) = sum_j w_j F_j over the corner's nodes (static squares: t_filtered ignored).
@@ -61,6 +68,7 @@ class Information {
   ident::ErrGram gram_{0};
   std::vector<Eigen::MatrixXd> cross_;                // per node: F_k' [B y]   (f x (b + 1))
   std::vector<std::vector<Eigen::MatrixXd>> pairs_;   // per node k, per d: F_k' F_{k+d}
+  Eigen::Matrix4d inputs_ = Eigen::Matrix4d::Zero();
   std::int64_t samples_ = 0;
   double weight_ = 0.0;
 };

@@ -8,6 +8,7 @@
 
 #include "analyzer/ident/err.hpp"
 #include "analyzer/ident/statistics.hpp"
+#include "analyzer/procedure/excitation.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "common/frames.hpp"
 
@@ -223,7 +224,32 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
   const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
   const std::vector<Term> axis_terms = gyro ? std::vector<Term>{plain_term(Variable::Wi), plain_term(Variable::Wp), plain_term(Variable::Wo)}
                                             : std::vector<Term>{plain_term(Variable::Ai), plain_term(Variable::Ap), plain_term(Variable::Ao)};
-  std::vector<Index> es = sensitivities_;
+  // What the mounting's inputs determine, by the batch's rule (excitation.hpp): an angle without
+  // its own excitation is held at the nominal frame, within the mounting tolerance (1 sd), which
+  // add_misalignment_uncertainty carries into the terms' sd.
+  procedure::AxisExcitation excitation = procedure::axis_excitation(m.info.input_gram(), !known_bias.has_value());
+  if (!m.hold_unexcited) excitation.determined = {true, true, true};
+  const std::vector<std::string> held = procedure::held_angle_notes(excitation, gyro, !known_bias.has_value());
+  const double tolerance2 = options_.mounting_tolerance_rad * options_.mounting_tolerance_rad;
+  const auto join_held = [&held] {
+    std::string text;
+    for (const std::string& h : held) text += (text.empty() ? "" : "; ") + h;
+    return text;
+  };
+  if (!excitation.aligns()) {
+    out.note = join_held();
+    out.angles = rotation_vector(out.m_cs);
+    out.angles(0) = kNaN;
+    out.angles_covariance = Eigen::Vector3d(0.0, tolerance2, tolerance2).asDiagonal();
+    out.angles_sd = Eigen::Vector3d(kNaN, options_.mounting_tolerance_rad, options_.mounting_tolerance_rad);
+    return out;
+  }
+  // Rotation-vector components (i, p, o) of the angles a tilt axis turns: XRA's about o, YRA's about p.
+  constexpr std::array<int, 3> kAngleOfAxis{0, 2, 1};
+  std::vector<Index> sensitivities;
+  for (std::size_t a = 0; a < 3; ++a)
+    if (excitation.determined[a]) sensitivities.push_back(sensitivities_[a]);
+  std::vector<Index> es = sensitivities;
   std::vector<std::string> excluded;
   for (Index t : model_) {
     const Term& term = basis_.terms()[static_cast<std::size_t>(t)];
@@ -268,23 +294,27 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
   for (out.refinements = 0; out.refinements < options_.max_refinements; ++out.refinements) {
     if (out.refinements < 2) {
       corner = best_corner([&](std::optional<double> b) {
-                 StatFit g = fit(gram_at(out.m_cs, b), weight, es, sensitivities_, infos, {out.m_cs});
+                 StatFit g = fit(gram_at(out.m_cs, b), weight, es, sensitivities, infos, {out.m_cs});
                  g.corner_rad_s = b;
                  return g;
                }).corner_rad_s;
     }
-    f = fit(gram_at(out.m_cs, corner), weight, es, sensitivities_, infos, {out.m_cs});
+    f = fit(gram_at(out.m_cs, corner), weight, es, sensitivities, infos, {out.m_cs});
     f.corner_rad_s = corner;
-    Eigen::Vector3d theta = Eigen::Vector3d::Zero();
+    Eigen::Vector3d theta = Eigen::Vector3d::Zero();   // a held axis: 0, its tilt stays nominal
     bool have = f.ok;
-    for (int c = 0; c < 3 && have; ++c) {
-      const auto v = f.value(sensitivities_[static_cast<std::size_t>(c)]);
+    for (std::size_t c = 0; c < 3 && have; ++c) {
+      if (!excitation.determined[c]) continue;
+      const auto v = f.value(sensitivities_[c]);
       if (!v) have = false;
-      else theta(c) = *v;
+      else theta(static_cast<Index>(c)) = *v;
     }
     if (!have || !(theta.norm() > 0.0) || !theta.allFinite()) {
       out.fit = f;
+      out.determined = false;
+      out.m_cs = m.m_cs;
       out.note = f.ok ? "no excitation along the sensitive axis in this mounting" : f.why;
+      out.angles_covariance = Eigen::Vector3d(0.0, tolerance2, tolerance2).asDiagonal();
       return out;
     }
     const frames::Dcm next = procedure::misalignment_from_sensitivities(theta, frames::Dcm::Identity());
@@ -299,6 +329,7 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
     for (const std::string& e : excluded) list += (list.empty() ? "" : ", ") + e;
     out.note = "left out (IEEE 1293 12.3.5.7): " + list;
   }
+  if (!held.empty()) out.note += (out.note.empty() ? "" : "; ") + join_held();
   // The bias other mountings take: from the F_S fit of this mounting with its M_C^S (algorithm
   // 2's step 7, as the batch pipeline takes it), the sensitivities merged into the axis term.
   if (bias_ >= 0 && !fold_bias) {
@@ -311,21 +342,31 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
     out.bias = sf.value(bias_);
   }
   // Angles and their sd by the delta method through algorithm 1.
-  Eigen::Vector3d theta;
-  Eigen::Matrix3d c;
-  std::vector<Index> pos;
-  for (Index s : sensitivities_)
+  Eigen::Vector3d theta = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
+  std::array<Index, 3> pos{-1, -1, -1};
+  for (std::size_t a = 0; a < 3; ++a)
     for (std::size_t j = 0; j < f.terms.size(); ++j)
-      if (f.terms[j] == s) pos.push_back(static_cast<Index>(j));
-  for (int a = 0; a < 3; ++a) {
-    theta(a) = f.theta(pos[static_cast<std::size_t>(a)]);
-    for (int b = 0; b < 3; ++b) c(a, b) = f.covariance(pos[static_cast<std::size_t>(a)], pos[static_cast<std::size_t>(b)]);
+      if (excitation.determined[a] && f.terms[j] == sensitivities_[a]) pos[a] = static_cast<Index>(j);
+  for (std::size_t a = 0; a < 3; ++a) {
+    if (pos[a] < 0) continue;
+    theta(static_cast<Index>(a)) = f.theta(pos[a]);
+    for (std::size_t b = 0; b < 3; ++b)
+      if (pos[b] >= 0) c(static_cast<Index>(a), static_cast<Index>(b)) = f.covariance(pos[a], pos[b]);
   }
   const procedure::MisalignmentAngles angles = procedure::misalignment_angles(theta, c);
   out.angles = rotation_vector(out.m_cs);
   out.angles(0) = kNaN;
   out.angles_covariance = angles.covariance;
   out.angles_sd = angles.sd;
+  for (std::size_t a = 1; a < 3; ++a) {
+    if (excitation.determined[a]) continue;
+    const auto k = kAngleOfAxis[a];
+    out.angles_covariance.row(k).setZero();
+    out.angles_covariance.col(k).setZero();
+    out.angles_covariance(k, k) = tolerance2;
+    out.angles_sd(k) = options_.mounting_tolerance_rad;
+  }
   return out;
 }
 

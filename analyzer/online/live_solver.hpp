@@ -54,6 +54,9 @@ struct MountingData {
   bool rotation_table = false;
   bool shaker_only = true;
   Eigen::Matrix3d m_cs = Eigen::Matrix3d::Identity();   // warm start of algorithm 1
+  /// Hold the angles the inputs do not excite (procedure::axis_excitation). Off: every axis is
+  /// fitted, as free regressors, for the least residual (what the noise model is fitted on).
+  bool hold_unexcited = true;
 };
 
 struct MountingFit {

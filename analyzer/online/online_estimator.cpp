@@ -47,6 +47,7 @@ struct OnlineEstimator::Impl {
   frames::Dcm model_m_cs = frames::Dcm::Identity();
   std::unique_ptr<LiveBasis> basis;
   std::unique_ptr<LiveSolver> solver;
+  std::unique_ptr<LiveSolver> unaligned_solver;   // the model's frame-free terms (no mounting aligned)
   std::vector<Index> model, candidates;
   CornerGrid grid;   // the squares' corner: the model's, or the nodes it is interpolated on
   bool rational = false;
@@ -85,6 +86,7 @@ struct OnlineEstimator::Impl {
     double period = 0.0;
     Eigen::MatrixXd base;
     Eigen::VectorXd y;
+    Eigen::MatrixX3d inputs;   // along the case axes (Information::add_inputs)
   };
 
   std::vector<CaseState> cases;
@@ -93,6 +95,7 @@ struct OnlineEstimator::Impl {
   std::vector<Buffered> buffer;
   std::int64_t buffered_rows = 0;
   bool noise_fitted = false;
+  bool hold_unexcited = true;   // MountingData::hold_unexcited of the next solve()
   Eigen::VectorXd ar;
   std::int64_t rows_total = 0;
   double nominal_period = 0.0;
@@ -111,10 +114,20 @@ struct OnlineEstimator::Impl {
     return std::make_unique<SegmentPipeline>(ar, basis->filtered_sources(), grid.nodes(), period);
   }
 
+  /// The mounting case `tc` belongs to: the batch's grouping of the plan (or of `tc` alone).
+  [[nodiscard]] std::string mounting_label(const config::TestCase& tc) const {
+    const std::vector<procedure::MountingKey> alone{{tc.name, tc.mounting, tc.kind}};
+    const std::vector<procedure::MountingKey>& keys = options.plan.empty() ? alone : options.plan;
+    for (const auto& [label, members] : procedure::group_mountings(keys, sensor))
+      for (std::size_t i : members)
+        if (keys[i].name == tc.name) return label;
+    return tc.mounting.empty() ? tc.name : tc.mounting;   // a case the plan does not have
+  }
+
   std::size_t state_of(std::size_t plan_case, const config::TestCase& tc) {
     for (std::size_t i = 0; i < cases.size(); ++i)
       if (cases[i].plan_case == plan_case) return i;
-    const std::string label = tc.mounting.empty() ? tc.name : tc.mounting;
+    const std::string label = mounting_label(tc);
     std::size_t m = mountings.size();
     for (std::size_t i = 0; i < mountings.size(); ++i)
       if (mountings[i].name == label) m = i;
@@ -236,11 +249,13 @@ struct OnlineEstimator::Impl {
     Eigen::MatrixXd x(rows, basis->base_size());
     basis->evaluate(signals, first_row, x);
     const Eigen::VectorXd y = work.y.tail(rows);
+    const Eigen::MatrixX3d inputs = sensor == dataset::SensorKind::Gyroscope ? work.w_e->bottomRows(rows) : work.a_e.bottomRows(rows);
     if (!noise_fitted) {
-      buffer.push_back({state, chunk.case_index, chunk.segment, chunk.sample_period_s, x, y});
+      buffer.push_back({state, chunk.case_index, chunk.segment, chunk.sample_period_s, x, y, inputs});
       buffered_rows += rows;
     }
     seg.pipeline->push(x, y, seg.info);
+    seg.info.add_inputs(inputs);
     seg.rows += rows;
     rows_total += rows;
     if (nominal_period <= 0.0) nominal_period = chunk.sample_period_s;
@@ -259,8 +274,11 @@ struct OnlineEstimator::Impl {
       buffer.clear();
       return;
     }
-    // Residuals of the current (white-noise) fit over the kept rows.
+    // Residuals of the current (white-noise) fit over the kept rows. Every tilt is fitted: an angle
+    // held at the nominal frame leaves a misfit that follows the input, which is no noise.
+    hold_unexcited = false;
     Solution s = solve(false);
+    hold_unexcited = true;
     if (!s.batch.ok) {
       buffer.clear();
       return;
@@ -316,6 +334,7 @@ struct OnlineEstimator::Impl {
         p = pipeline(b.period);
       }
       p->push(b.base, b.y, info);
+      info.add_inputs(b.inputs);
     }
     settle();
     buffer.clear();
@@ -331,6 +350,7 @@ struct OnlineEstimator::Impl {
     std::vector<Eigen::Matrix3d> angle_covariances;
     StatFit batch;
     CaseScatter scatter;
+    bool aligned = true;                     // some mounting aligned (else the frame-free terms only)
   };
 
   [[nodiscard]] bool open_counts() const {
@@ -341,6 +361,17 @@ struct OnlineEstimator::Impl {
   [[nodiscard]] bool has_data(std::size_t c) const {
     return cases[c].info.samples() > 0 || (open_counts() && open->state == c);
   }
+  /// Whether every case of the plan has rows in the estimate: what is not determined then, the
+  /// plan does not determine.
+  [[nodiscard]] bool whole_plan_in() const {
+    if (options.plan.empty()) return false;
+    return std::all_of(options.plan.begin(), options.plan.end(), [&](const procedure::MountingKey& k) {
+      for (std::size_t c = 0; c < cases.size(); ++c)
+        if (cases[c].name == k.name && has_data(c)) return true;
+      return false;
+    });
+  }
+
   [[nodiscard]] std::size_t cases_with_data() const {
     std::size_t n = 0;
     for (std::size_t c = 0; c < cases.size(); ++c) n += has_data(c) ? 1 : 0;
@@ -351,7 +382,7 @@ struct OnlineEstimator::Impl {
   /// mountings' misalignments to use instead of estimating them (the convergence test).
   Solution solve(bool update_states, std::optional<std::size_t> excluded_case = std::nullopt,
                  const std::vector<Eigen::Matrix3d>* fixed_m_cs = nullptr,
-                 const std::vector<Eigen::Matrix3d>* fixed_angle_covariances = nullptr) {
+                 const std::vector<Eigen::Matrix3d>* fixed_angle_covariances = nullptr, bool fixed_aligned = true) {
     Solution s;
     s.infos.assign(mountings.size(), empty_information());
     for (std::size_t c = 0; c < cases.size(); ++c) {
@@ -368,9 +399,11 @@ struct OnlineEstimator::Impl {
       s.m_cs = *fixed_m_cs;
       std::vector<const Information*> infos;
       for (const Information& i : s.infos) infos.push_back(&i);
-      s.batch = solver->fit_batch(infos, s.m_cs);
-      if (fixed_angle_covariances != nullptr) solver->add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances);
-      add_case_scatter(s, s.m_cs, excluded_case);
+      const LiveSolver& batch_solver = fixed_aligned ? *solver : *unaligned_solver;
+      s.aligned = fixed_aligned;
+      s.batch = batch_solver.fit_batch(infos, s.m_cs);
+      if (fixed_angle_covariances != nullptr) batch_solver.add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances);
+      add_case_scatter(s, s.m_cs, excluded_case, batch_solver);
       return s;
     }
     std::optional<double> bias;
@@ -384,23 +417,22 @@ struct OnlineEstimator::Impl {
       // Algorithm 1 starts where the batch starts it, every time: a start from an earlier, less
       // determined estimate (one orientation so far) can lead the fixed point elsewhere.
       d.m_cs = model_m_cs;
+      d.hold_unexcited = hold_unexcited;
       const bool use_bias = d.shaker_only && options.solver.ieee_shaker_exclusions;
       fits[m] = solver->fit_mounting(d, use_bias ? bias : std::nullopt);
       if (!bias && !d.shaker_only && fits[m].bias) bias = fits[m].bias;
     }
-    // A mounting whose data does not fix its misalignment takes the first one that is fixed.
+    // A mounting whose data does not fix its misalignment keeps the nominal frame (the batch's
+    // rule: another mounting's M_C^S is another fixture's), within the mounting tolerance.
     std::optional<std::size_t> reference;
     for (std::size_t m : s.order)
       if (fits[m].determined && !reference) reference = m;
+    // With none aligned, the sensor frame's p and o axes are not known in any case: only the
+    // terms that hold in any frame near it are fitted (procedure::frame_free), as in the batch.
+    const LiveSolver& batch_solver = reference ? *solver : *unaligned_solver;
     std::vector<const Information*> infos;
     std::vector<Eigen::Matrix3d> m_cs;
     for (std::size_t m = 0; m < mountings.size(); ++m) {
-      if (!fits[m].determined && reference) {
-        fits[m].m_cs = fits[*reference].m_cs;
-        if (s.infos[m].samples() > 0)
-          fits[m].note = fmt::format("misalignment not determined by this mounting's data ({}); M_C^S of mounting '{}' used",
-                                     fits[m].note, mountings[*reference].name);
-      }
       infos.push_back(&s.infos[m]);
       m_cs.push_back(fits[m].m_cs);
       if (update_states) {
@@ -408,7 +440,7 @@ struct OnlineEstimator::Impl {
         mountings[m].fit = fits[m];
       }
     }
-    s.batch = solver->fit_batch(infos, m_cs);
+    s.batch = batch_solver.fit_batch(infos, m_cs);
     // The twists about n_i against the reference, as the batch pipeline finds them (at the corner
     // found first, which the pipeline keeps).
     std::vector<RelativeTurn> turns(mountings.size());
@@ -421,7 +453,7 @@ struct OnlineEstimator::Impl {
     }
     std::vector<Eigen::Matrix3d> angle_covariances;
     for (std::size_t m = 0; m < mountings.size(); ++m) {
-      Eigen::Matrix3d c = fits[m].determined ? fits[m].angles_covariance : Eigen::Matrix3d::Zero();
+      Eigen::Matrix3d c = fits[m].angles_covariance;   // a held angle: the tolerance
       if (turns[m].estimated) {
         c = turns[m].covariance;
         // The tilts as algorithm 1 reads them (of n_i alone); about i the twist found.
@@ -440,15 +472,17 @@ struct OnlineEstimator::Impl {
       if (turns[m].held) c += turns[m].covariance;
       angle_covariances.push_back(c);
     }
-    solver->add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
-    add_case_scatter(s, m_cs, excluded_case);
+    batch_solver.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
+    add_case_scatter(s, m_cs, excluded_case, batch_solver);
+    s.aligned = reference.has_value();
     s.m_cs = std::move(m_cs);
     s.angle_covariances = std::move(angle_covariances);
     return s;
   }
 
   /// The cases' offsets the noise model does not explain, into the batch's covariance.
-  void add_case_scatter(Solution& s, const std::vector<Eigen::Matrix3d>& m_cs, std::optional<std::size_t> excluded_case) {
+  void add_case_scatter(Solution& s, const std::vector<Eigen::Matrix3d>& m_cs, std::optional<std::size_t> excluded_case,
+                        const LiveSolver& batch_solver) {
     std::vector<Information> with_open;
     std::vector<const Information*> infos;
     std::vector<Eigen::Matrix3d> case_m_cs;
@@ -460,7 +494,7 @@ struct OnlineEstimator::Impl {
       case_m_cs.push_back(m_cs[cases[c].mounting]);
     }
     for (const Information& i : with_open) infos.push_back(&i);
-    s.scatter = solver->add_case_scatter(s.batch, infos, case_m_cs, 1.0 - ar.sum());
+    s.scatter = batch_solver.add_case_scatter(s.batch, infos, case_m_cs, 1.0 - ar.sum());
   }
 
   OnlineSnapshot snapshot() {
@@ -504,7 +538,10 @@ struct OnlineEstimator::Impl {
         out.t(static_cast<Index>(j)) = s.batch.theta(static_cast<Index>(k)) / s.batch.sd(static_cast<Index>(k));
         found = true;
       }
-      if (!found) out.undetermined.push_back(model_terms[j].to_string());
+      if (found) continue;
+      out.undetermined.push_back(model_terms[j].to_string());
+      if ((!s.aligned && !procedure::frame_free(model_terms[j])) || whole_plan_in())
+        out.plan_undetermined.push_back(model_terms[j].to_string());
     }
     out.residual_variance = s.batch.s2;
     out.corner_rad_s = s.batch.corner_rad_s;
@@ -515,7 +552,8 @@ struct OnlineEstimator::Impl {
         infos.push_back(&s.infos[m]);
         m_cs.push_back(mountings[m].fit.determined ? mountings[m].fit.m_cs : mountings[m].m_cs);
       }
-      for (const CandidateStat& c : solver->structure(candidates, s.batch, infos, m_cs)) {
+      const LiveSolver& batch_solver = s.aligned ? *solver : *unaligned_solver;
+      for (const CandidateStat& c : batch_solver.structure(candidates, s.batch, infos, m_cs)) {
         const Term& t = basis->terms()[static_cast<std::size_t>(c.term)];
         out.structure.push_back({t.to_string(), ident::physical_name(t, sensor), c.err, c.value, c.sd, c.t, c.significant});
       }
@@ -541,15 +579,23 @@ struct OnlineEstimator::Impl {
     last_convergence_rows = rows_total;
     last_convergence_cases = with_data;
     converged = false;
-    if (!out.undetermined.empty()) {
-      convergence = fmt::format("{} term(s) not determined yet", out.undetermined.size());
+    // Terms the plan cannot determine (no mounting aligned) do not hold the flag back; the
+    // verdict says which they are.
+    const std::string beyond_plan =
+        out.plan_undetermined.empty()
+            ? std::string()
+            : fmt::format("; not determined by this plan ({}): {}",
+                          s.aligned ? "every case is in" : "no mounting is aligned", fmt::join(out.plan_undetermined, ", "));
+    if (out.undetermined.size() > out.plan_undetermined.size()) {
+      convergence = fmt::format("{} term(s) not determined yet{}", out.undetermined.size() - out.plan_undetermined.size(),
+                                beyond_plan);
       return;
     }
     if (with_data < 2) {
-      convergence = "one case so far: nothing to check it against";
+      convergence = "one case so far: nothing to check it against" + beyond_plan;
       return;
     }
-    const double z_bound = bonferroni_z(options.convergence_alpha, static_cast<double>(with_data * model.size()));
+    const double z_bound = bonferroni_z(options.convergence_alpha, static_cast<double>(with_data * s.batch.terms.size()));
     double worst = 0.0;
     std::string worst_at;
     for (std::size_t c = 0; c < cases.size(); ++c) {
@@ -558,19 +604,23 @@ struct OnlineEstimator::Impl {
       // (re-running algorithm 1 without the case would break the procedure's own structure: a
       // shaker fixture left without the mounting that gives it the bias, an orientation missing
       // that separated a tilt from the cross-couplings).
-      const Solution without = solve(false, c, &s.m_cs, &s.angle_covariances);
+      const Solution without = solve(false, c, &s.m_cs, &s.angle_covariances, s.aligned);
       if (!without.batch.ok) {
-        convergence = fmt::format("without case {} the model is not determined", cases[c].name);
+        convergence = fmt::format("without case {} the model is not determined{}", cases[c].name, beyond_plan);
         return;
       }
       for (std::size_t j = 0; j < model.size(); ++j) {
+        if (std::find(out.plan_undetermined.begin(), out.plan_undetermined.end(), model_terms[j].to_string()) !=
+            out.plan_undetermined.end())
+          continue;
         std::optional<Index> a, b;
         for (std::size_t k = 0; k < s.batch.terms.size(); ++k)
           if (s.batch.terms[k] == model[j]) a = static_cast<Index>(k);
         for (std::size_t k = 0; k < without.batch.terms.size(); ++k)
           if (without.batch.terms[k] == model[j]) b = static_cast<Index>(k);
         if (!a || !b) {
-          convergence = fmt::format("without case {} term {} is not determined", cases[c].name, model_terms[j].to_string());
+          convergence = fmt::format("without case {} term {} is not determined{}", cases[c].name, model_terms[j].to_string(),
+                                    beyond_plan);
           return;
         }
         // Nested estimators: theta - theta_without has variance var_without - var <= var_without,
@@ -585,7 +635,7 @@ struct OnlineEstimator::Impl {
       }
     }
     converged = worst <= z_bound;
-    convergence = fmt::format("largest leave-one-case-out z {:.2f} ({}), bound {:.2f}", worst, worst_at, z_bound);
+    convergence = fmt::format("largest leave-one-case-out z {:.2f} ({}), bound {:.2f}{}", worst, worst_at, z_bound, beyond_plan);
   }
 };
 
@@ -679,6 +729,10 @@ OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional
   std::vector<Index> sens;
   for (const Term& t : sensitivities) sens.push_back(s.basis->find(t));
   s.solver = std::make_unique<LiveSolver>(*s.basis, s.model, sens, sensor, s.grid, search_corner, s.options.solver);
+  std::vector<Index> frame_free;
+  for (Index t : s.model)
+    if (procedure::frame_free(s.basis->terms()[static_cast<std::size_t>(t)])) frame_free.push_back(t);
+  s.unaligned_solver = std::make_unique<LiveSolver>(*s.basis, frame_free, sens, sensor, s.grid, search_corner, s.options.solver);
   // No noise window, or no order to fit: white noise from the first row on.
   s.noise_fitted = options.noise_window_s <= 0.0 || options.whitening_max_order <= 0 || s.rational;
 }

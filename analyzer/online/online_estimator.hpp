@@ -41,6 +41,7 @@
 #include "analyzer/online/information.hpp"
 #include "analyzer/online/live_basis.hpp"
 #include "analyzer/online/live_solver.hpp"
+#include "analyzer/procedure/pipeline.hpp"
 #include "common/config/bench_config.hpp"
 #include "common/dataset/dataset.hpp"
 
@@ -59,6 +60,10 @@ struct OnlineOptions {
   bool structure_table = true;        ///< ERR and t of the candidate terms not in the model
   bool temperature_candidates = false;   ///< include T terms among the candidates (the bench has temperature)
   double nominal_sample_period_s = 0.0;  ///< the bench's; bounds the squares' corner grid below Nyquist
+  /// The bench's test plan, for grouping its cases into mountings as the batch does
+  /// (procedure::group_mountings: a tumble's unlabelled poses share one). Empty: each case is
+  /// grouped on its own label as it arrives (a gyroscope's cases are one mounting either way).
+  std::vector<procedure::MountingKey> plan;
   SolverOptions solver;
 };
 
@@ -85,6 +90,7 @@ struct OnlineSnapshot {
   std::vector<std::string> terms;            // canonical names of the model's terms
   Eigen::VectorXd values, std_devs, t;       // NaN where the data does not determine the term yet
   std::vector<std::string> undetermined;     // those terms
+  std::vector<std::string> plan_undetermined;   // of those, the ones this plan cannot determine (no mounting aligned)
   double residual_variance = 0.0;            // of the (whitened) residual
   std::vector<MountingEstimate> mountings;
   std::int64_t samples_used = 0;             // rows in the estimate
