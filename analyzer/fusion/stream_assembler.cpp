@@ -185,6 +185,7 @@ struct StreamAssembler::Impl {
     bool next_piece = false;           // a hole ended a piece: the next row starts another
     bool has_temp = false;
     CentralDifferences differences{1.0};
+    std::int32_t differenced_phase = -1;   // the plan phase of the newest row differenced
     std::optional<ComplementaryFilter> filter;
     std::deque<RawRow> pending;
     FusedChunk out;
@@ -643,7 +644,14 @@ struct StreamAssembler::Impl {
     if (f.monitors && !row.hole) row.monitors_a = f.monitors->fuse(f.readings);
     if (!f.segment) start_segment(with_temp);
     f.segment->pending.push_back(row);
-    f.segment->differences.push(row.encoder);
+    // A table's rate steps between phases (a rate phase runs at its rate from its first sample):
+    // a central difference across the change gives half of each, on the wrong phase's axis. So
+    // each phase of a table case is differenced on its own, its end rows extrapolated from inside.
+    Segment& seg = *f.segment;
+    if (f.kind == CaseKind::RotationTable && seg.differences.pushed() > 0 && row.phase_index != seg.differenced_phase)
+      seg.differences.finish();
+    seg.differenced_phase = row.phase_index;
+    seg.differences.push(row.encoder);
     finalize_ready(false);
     last_row_ns = t;
     return true;
