@@ -244,8 +244,10 @@ void DeviceSampler::run(RealtimeOptions rt) noexcept {
 }
 
 ModbusSampler::ModbusSampler(std::unique_ptr<hal::modbus::ModbusController> controller, int poll_interval_ms,
-                             std::shared_ptr<DeviceSlot> slot, std::shared_ptr<ControllerPort> port)
-    : controller_(std::move(controller)), poll_interval_ms_(poll_interval_ms), slot_(std::move(slot)), port_(std::move(port)) {}
+                             std::shared_ptr<DeviceSlot> slot, std::shared_ptr<ControllerPort> port,
+                             std::shared_ptr<SimulatedClock> clock)
+    : controller_(std::move(controller)), poll_interval_ms_(poll_interval_ms), slot_(std::move(slot)), port_(std::move(port)),
+      clock_(std::move(clock)) {}
 
 bool ModbusSampler::bring_up(std::string*) {
   // ModbusController::connect() already connected (or the device was refused at creation).
@@ -267,8 +269,29 @@ void ModbusSampler::run() noexcept {
   RingSink sink(*slot_);
   timespec next{};
   ::clock_gettime(CLOCK_MONOTONIC, &next);
+  const std::int64_t interval_ns = static_cast<std::int64_t>(poll_interval_ms_) * 1'000'000;
+  std::int64_t next_simulated = SimulatedClock::kNotYet;
   while (!stop_.load(std::memory_order_acquire)) {
+    std::int64_t stamp = 0;   // the poll's time: its start on CLOCK_MONOTONIC, or the simulated time it is due
+    if (clock_) {
+      // The next reading is due when the simulation has reached its time (the first: its start).
+      bool due = false;
+      while (!due && !stop_.load(std::memory_order_acquire)) {
+        const std::int64_t reached = clock_->reached_ns.load(std::memory_order_acquire);
+        if (reached != SimulatedClock::kNotYet) {
+          if (next_simulated == SimulatedClock::kNotYet) next_simulated = reached;
+          due = reached >= next_simulated;
+        }
+        if (!due) {
+          timespec ts{0, 20'000};
+          ::nanosleep(&ts, nullptr);
+        }
+      }
+      if (!due) break;
+      stamp = next_simulated;
+    }
     const std::int64_t t0 = hal::monotonic_now_ns();
+    if (!clock_) stamp = t0;
     const auto values = controller_->poll();
     const std::int64_t t1 = hal::monotonic_now_ns();
     store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(t1 - t0));
@@ -276,7 +299,7 @@ void ModbusSampler::run() noexcept {
     for (std::size_t i = 0; i < values.size(); ++i) {
       any_valid = any_valid || values[i].valid;
       // One row per poll, all stamped with the poll's start so the row stays aligned.
-      (void)sink.push(static_cast<std::uint32_t>(i), t0, values[i].valid ? values[i].value : 0.0, values[i].valid,
+      (void)sink.push(static_cast<std::uint32_t>(i), stamp, values[i].valid ? values[i].value : 0.0, values[i].valid,
                       hal::kNoSampleIndex);
     }
     sink.flush();
@@ -293,6 +316,12 @@ void ModbusSampler::run() noexcept {
       slot_->faults.fetch_and(~kFaultModbusGone, std::memory_order_relaxed);
     }
     slot_->heartbeat.fetch_add(1, std::memory_order_relaxed);
+    if (clock_) {
+      clock_->polled_ns.store(next_simulated, std::memory_order_release);
+      next_simulated += interval_ns;
+      if (port_) port_->serve(*controller_);
+      continue;
+    }
     // Absolute schedule; after an overrun (a request timing out) restart from now, no burst.
     next.tv_nsec += static_cast<long>(poll_interval_ms_) * 1'000'000L;
     while (next.tv_nsec >= 1'000'000'000L) {
@@ -320,6 +349,7 @@ void ModbusSampler::run() noexcept {
   // A safe state asked for while stopping still goes out (the daemon stops the pollers only
   // after the executive has its answer, but never leave one unserved).
   if (port_) port_->serve(*controller_);
+  if (clock_) clock_->poller_gone.store(true, std::memory_order_release);
   slot_->finished.store(true, std::memory_order_release);
 }
 

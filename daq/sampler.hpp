@@ -9,6 +9,7 @@
 // Optional SCHED_FIFO and CPU affinity are applied by the thread itself (warning on failure).
 #include <atomic>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <thread>
@@ -76,10 +77,28 @@ class DeviceSampler final : public Sampler {
 /// fast device, so it has a thread of its own and a ring like every device).
 /// With a ControllerPort the same thread also carries the test executive's commands to the
 /// device (the only thread that talks to it), between polls and at once when posted.
+/// The simulated time of a simulated bench run as fast as possible (--fast), for a poller to follow.
+/// Polled in wall time, the controllers would be read a few times while the simulator runs the
+/// whole plan, stamped on another clock than the samples: a thermal plan's log would carry no
+/// usable temperature. Following this clock, they are read every poll interval of simulated time
+/// and stamped with it, as in a paced run; the simulator waits for each reading before it moves
+/// the registers past it. Thread: the simulator writes reached_ns, the poller polled_ns.
+struct SimulatedClock {
+  static constexpr std::int64_t kNotYet = std::numeric_limits<std::int64_t>::min();
+  /// The registers hold the bench's state for every simulated time up to this one.
+  std::atomic<std::int64_t> reached_ns{kNotYet};
+  /// The newest simulated time a reading was stamped with (kNotYet: none yet).
+  std::atomic<std::int64_t> polled_ns{kNotYet};
+  /// The poller left (stopped): nobody will take the next reading.
+  std::atomic<bool> poller_gone{false};
+};
+
 class ModbusSampler final : public Sampler {
  public:
+  /// `clock`: a fast simulated run's clock to poll on (nullptr: wall time, every interval).
   ModbusSampler(std::unique_ptr<hal::modbus::ModbusController> controller, int poll_interval_ms,
-                std::shared_ptr<DeviceSlot> slot, std::shared_ptr<ControllerPort> port = nullptr);
+                std::shared_ptr<DeviceSlot> slot, std::shared_ptr<ControllerPort> port = nullptr,
+                std::shared_ptr<SimulatedClock> clock = nullptr);
   ~ModbusSampler() override { stop(); }
   bool bring_up(std::string* why) override;
   void start(const RealtimeOptions& rt) override;
@@ -92,6 +111,7 @@ class ModbusSampler final : public Sampler {
   int poll_interval_ms_;
   std::shared_ptr<DeviceSlot> slot_;
   std::shared_ptr<ControllerPort> port_;
+  std::shared_ptr<SimulatedClock> clock_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -230,7 +230,12 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     info.push_back({r.name, unit, next_id++});
   }
   auto slot = std::make_shared<DeviceSlot>("controller", std::move(info), 1000.0 / options.modbus_poll_ms, ring_capacity);
-  s->samplers_.push_back(std::make_unique<ModbusSampler>(std::move(controller), options.modbus_poll_ms, slot));
+  if (options.fast) {
+    s->controller_clock_ = std::make_shared<SimulatedClock>();
+    s->controller_poll_ns_ = static_cast<std::int64_t>(options.modbus_poll_ms) * 1'000'000;
+  }
+  s->samplers_.push_back(
+      std::make_unique<ModbusSampler>(std::move(controller), options.modbus_poll_ms, slot, nullptr, s->controller_clock_));
   return s;
 }
 
@@ -355,6 +360,29 @@ void SimBench::update_controllers(std::size_t c, std::size_t k) {
     s.shaker_status = shaking ? 1 : 0;
     s.shaker_frequency_hz = frequency;
   });
+}
+
+void SimBench::wait_for_readings_before(std::int64_t t_ns) {
+  SimulatedClock& clock = *controller_clock_;
+  if (clock.reached_ns.load(std::memory_order_relaxed) == SimulatedClock::kNotYet) return;   // the first update
+  // The registers hold their state until t_ns: readings due before it may be taken now.
+  clock.reached_ns.store(t_ns - 1, std::memory_order_release);
+  std::int64_t last = clock.polled_ns.load(std::memory_order_acquire);
+  std::int64_t since = hal::monotonic_now_ns();
+  for (;;) {
+    const std::int64_t polled = clock.polled_ns.load(std::memory_order_acquire);
+    if (polled != SimulatedClock::kNotYet && polled + controller_poll_ns_ >= t_ns) return;
+    if (clock.poller_gone.load(std::memory_order_acquire) || stop_.load(std::memory_order_relaxed)) return;
+    const std::int64_t now = hal::monotonic_now_ns();
+    if (polled != last) {
+      last = polled;
+      since = now;
+    } else if (now - since > 2'000'000'000) {
+      return;   // no reading for 2 s: the run goes on without waiting for the controllers
+    }
+    timespec ts{0, 20'000};
+    ::nanosleep(&ts, nullptr);
+  }
 }
 
 void SimBench::run() noexcept {
@@ -539,7 +567,11 @@ void SimBench::run() noexcept {
     if (k == case_len - 1)
       for (auto& e : encoders_) e.offset = position(e, c, k);  // continuity into the next case
 
-    if (controllers_ && !modbus_gone && n % ctrl_every == 0) update_controllers(c, k);
+    if (controllers_ && !modbus_gone && n % ctrl_every == 0) {
+      if (controller_clock_) wait_for_readings_before(t_n);
+      update_controllers(c, k);
+      if (controller_clock_) controller_clock_->reached_ns.store(t_n, std::memory_order_release);
+    }
 
     for (std::size_t i = 0; i < spans.size(); ++i)
       if (spans[i].end == k + 1)

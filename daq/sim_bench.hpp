@@ -138,6 +138,9 @@ class SimBench {
   /// Writes the queued records; every line is then complete through `through_ns`.
   bool flush_edges(EncoderSim& e, std::int64_t through_ns);
   void update_controllers(std::size_t c, std::size_t k);
+  /// Fast runs: before the registers move to simulated time t_ns, the readings due before it are
+  /// taken (SimulatedClock). Gives up after 2 s of wall time without one (a poller that is gone).
+  void wait_for_readings_before(std::int64_t t_ns);
 
   const config::BenchConfig& bench_;
   SimOptions options_;
@@ -154,6 +157,8 @@ class SimBench {
   std::shared_ptr<DeviceSlot> can_slot_;
   std::vector<EncoderSim> encoders_;
   std::unique_ptr<hal::wire_sim::BenchControllerServer> controllers_;
+  std::shared_ptr<SimulatedClock> controller_clock_;   // fast runs: the controllers polled on simulated time
+  std::int64_t controller_poll_ns_ = 0;
   std::vector<std::unique_ptr<Sampler>> samplers_;
   SpscRing<PlanMark>* marks_ = nullptr;
   std::int64_t t0_ns_ = 0;

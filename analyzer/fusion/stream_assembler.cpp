@@ -113,6 +113,10 @@ struct CaseMarks {
   std::vector<PhaseMark> phases;
 };
 
+// Stream time a thermal case's first row waits for the fixture's first temperature reading before
+// its segment goes on without temperature (a controller that never answers).
+constexpr double kFirstTemperatureWaitS = 30.0;
+
 // A row read from the devices, waiting for the differences it needs.
 struct RawRow {
   double t_ns = 0.0;
@@ -199,6 +203,11 @@ struct StreamAssembler::Impl {
     std::vector<std::size_t> monitor_needs;
     std::optional<std::size_t> encoder_need;   // table or linear encoder
     std::optional<MonitorFusion> monitors;
+    // A static or thermal case on a bench without three monitors: the specific force is gravity in
+    // the plan's pose, which a static pose is by definition (a placement error is the fixture's,
+    // for the analyzer's honest inference to carry, as on a tumble with a known pose and no monitor).
+    std::optional<Eigen::Vector3d> pose_specific_force;
+    bool needs_temperature = false;   // a thermal case, or one with a thermal_step phase
     Eigen::VectorXd readings, monitor_bias, monitor_gain;   // calibration from the bench file
     std::vector<std::string> phase_names;
     std::map<std::int32_t, std::uint16_t> phase_labels;   // phase index (-1 unplanned) -> label
@@ -613,6 +622,12 @@ struct StreamAssembler::Impl {
       }
     }
     double temp = 0.0;
+    // A segment carries temperature when a reading has come by its first row. A case that needs
+    // it (thermal) waits for the first: the controller is polled at its own pace (10 Hz; in a
+    // --fast run, in wall time), and its first reading may come after the first sensor rows.
+    if (!f.segment && temps.empty() && f.needs_temperature && !finishing &&
+        output_newest_ns() - t < kFirstTemperatureWaitS * 1e9)
+      return false;
     const bool with_temp = f.segment ? f.segment->has_temp : !temps.empty();
     if (with_temp) {
       if (temp_newest_ns < t && !given_up(t)) return false;
@@ -642,6 +657,7 @@ struct StreamAssembler::Impl {
       row.hole = true;
     }
     if (f.monitors && !row.hole) row.monitors_a = f.monitors->fuse(f.readings);
+    if (f.pose_specific_force) row.monitors_a = *f.pose_specific_force;
     if (!f.segment) start_segment(with_temp);
     f.segment->pending.push_back(row);
     // A table's rate steps between phases (a rate phase runs at its rate from its first sample):
@@ -754,10 +770,16 @@ struct StreamAssembler::Impl {
     }
     if (tc.kind == CaseKind::RotationTable && !f.encoder_need)
       throw InputError("case " + c.name + " (rotation_table): the bench has no [table_encoder] to fuse it with");
-    if (tc.kind != CaseKind::RotationTable) {
+    const bool pose = tc.kind == CaseKind::Static || tc.kind == CaseKind::Thermal;
+    if (pose && f.monitor_needs.size() < 3) {
+      f.pose_specific_force = kStandardGravity * tc.start_attitude.dcm().col(2);
+      f.monitor_needs.clear();
+      std::erase_if(f.used, [&](std::size_t k) { return needs[k].role == Role::Monitor; });
+    } else if (tc.kind != CaseKind::RotationTable) {
       if (f.monitor_needs.size() < 3)
         throw InputError("case " + c.name + " (" + to_string(tc.kind) +
-                         "): fusion needs at least three [[monitor]] accelerometers, the bench has " +
+                         "): fusion needs at least three [[monitor]] accelerometers (or, in a static or thermal case, "
+                         "none: the pose's gravity), the bench has " +
                          std::to_string(f.monitor_needs.size()));
       // Monitors: calibrated (bias, scale, misalignment from the bench file), then WLS.
       MonitorLayout layout;
@@ -783,6 +805,9 @@ struct StreamAssembler::Impl {
       }
     }
     f.running_attitude = tc.start_attitude.dcm();
+    f.needs_temperature = tc.kind == CaseKind::Thermal ||
+                          std::any_of(tc.phases.begin(), tc.phases.end(),
+                                      [](const config::Phase& p) { return p.kind == config::PhaseKind::ThermalStep; });
     fuser = std::move(f);
   }
 

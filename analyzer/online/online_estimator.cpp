@@ -639,20 +639,30 @@ struct OnlineEstimator::Impl {
   }
 };
 
-std::vector<Term> OnlineEstimator::default_terms(dataset::SensorKind sensor) {
-  if (sensor == dataset::SensorKind::Gyroscope) {
+std::vector<Term> OnlineEstimator::default_terms(dataset::SensorKind sensor, bool temperature) {
+  const bool gyro = sensor == dataset::SensorKind::Gyroscope;
+  std::vector<Term> terms;
+  if (gyro) {
     // Bias, scale factor and the g-sensitivity of eq. 5 (static part).
-    return {Term(), plain_term(Variable::Wi), plain_term(Variable::Ai), plain_term(Variable::Ap), plain_term(Variable::Ao)};
+    terms = {Term(), plain_term(Variable::Wi), plain_term(Variable::Ai), plain_term(Variable::Ap), plain_term(Variable::Ao)};
+  } else {
+    // The paper's complete static model (eq. 4, r = 0, table 3's case 3).
+    terms = {Term(),
+             plain_term(Variable::Ai),
+             plain_term(Variable::Ai, 2),
+             plain_term(Variable::Ap, 2),
+             plain_term(Variable::Ao, 2),
+             product(Variable::Ai, Variable::Ap),
+             product(Variable::Ai, Variable::Ao),
+             product(Variable::Ap, Variable::Ao)};
   }
-  // The paper's complete static model (eq. 4, r = 0, table 3's case 3).
-  return {Term(),
-          plain_term(Variable::Ai),
-          plain_term(Variable::Ai, 2),
-          plain_term(Variable::Ap, 2),
-          plain_term(Variable::Ao, 2),
-          product(Variable::Ai, Variable::Ap),
-          product(Variable::Ai, Variable::Ao),
-          product(Variable::Ap, Variable::Ao)};
+  if (temperature) {
+    // A thermal plan is run for the temperature coefficients of the bias and the scale factor
+    // (IEEE Std 1293's K_0T and K_1T): without them the temperature's effect lands in the others.
+    terms.push_back(plain_term(Variable::T));
+    terms.push_back(product(gyro ? Variable::Wi : Variable::Ai, Variable::T));
+  }
+  return terms;
 }
 
 OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional<model::ModelFile>& model, double t_ref,
@@ -672,7 +682,7 @@ OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional
     for (const model::ModelTerm& t : model->terms) s.model_terms.push_back(t.term);
     if (model->square_highpass_rad_s) s.grid = CornerGrid::single(*model->square_highpass_rad_s);
   } else {
-    s.model_terms = default_terms(sensor);
+    s.model_terms = default_terms(sensor, options.temperature_candidates);
   }
   for (const Term& t : s.model_terms) {
     if (t.is_noise_term()) {

@@ -117,8 +117,9 @@ class OnlineEstimator {
   OnlineEstimator(const OnlineEstimator&) = delete;
   OnlineEstimator& operator=(const OnlineEstimator&) = delete;
 
-  /// The default term list of a sensor kind.
-  static std::vector<ident::Term> default_terms(dataset::SensorKind sensor);
+  /// The default term list of a sensor kind; `temperature` (a plan with thermal cases): with the
+  /// bias's and the scale factor's temperature coefficients (T, a_i*T or w_i*T).
+  static std::vector<ident::Term> default_terms(dataset::SensorKind sensor, bool temperature = false);
 
   /// Rows of one segment of test case `tc` (chunks of a segment arrive in order).
   void push(const fusion::FusedChunk& chunk, const config::TestCase& tc);

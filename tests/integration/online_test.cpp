@@ -199,7 +199,7 @@ INSTANTIATE_TEST_SUITE_P(Bench, OnlineLivePaperBench, ::testing::Values("sim-pap
                            return name;
                          });
 
-// Every other shipped bench that characterize --log accepts, sensor by sensor: the live answer on
+// Every other shipped bench, sensor by sensor: the live answer on
 // the daemon's log (`online --replay`, the live worker as fast as it reads) against the batch's
 // (`characterize --log`) on the same log. The terms both determine agree within 3 combined sd;
 // what the batch's selection left out the live model may still carry, and what the live estimate
@@ -266,7 +266,9 @@ TEST_P(OnlineReplay, TheLiveAnswerOnTheDaemonsLogEqualsCharacterizeOfIt) {
 
 INSTANTIATE_TEST_SUITE_P(Bench, OnlineReplay,
                          ::testing::Values(EveryBenchCase{"sim-rotation-table.toml", {"acc1"}},
-                                           EveryBenchCase{"sim-shaker.toml", {"acc-a", "acc-b"}}),
+                                           EveryBenchCase{"sim-shaker.toml", {"acc-a", "acc-b"}},
+                                           EveryBenchCase{"sim-thermal.toml", {"acc1"}},
+                                           EveryBenchCase{"sim-tumble.toml", {"mems1"}}),
                          [](const ::testing::TestParamInfo<EveryBenchCase>& info) {
                            std::string name = info.param.bench;
                            name = name.substr(0, name.find('.'));
