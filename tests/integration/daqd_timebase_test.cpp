@@ -95,13 +95,7 @@ TEST_P(DaqdTimeBase, DriftFittedLostFramesAccountedNoChannelShifted) {
 INSTANTIATE_TEST_SUITE_P(EveryShippedBench, DaqdTimeBase,
                          ::testing::Values("sim-paper.toml", "sim-paper-daq.toml", "sim-rotation-table.toml", "sim-shaker.toml",
                                            "sim-thermal.toml", "sim-tumble.toml"),
-                         [](const ::testing::TestParamInfo<const char*>& info) {
-                           std::string name = info.param;
-                           name = name.substr(0, name.find('.'));
-                           for (char& c : name)
-                             if (c == '-') c = '_';
-                           return name;
-                         });
+                         [](const ::testing::TestParamInfo<const char*>& info) { return bench_test_name(info.param); });
 
 }  // namespace
 }  // namespace inertia::daq::testing

@@ -328,6 +328,17 @@ TEST(LogCharacterize, ALogWithoutMarkersIsSegmentedFromTheReferences) {
   EXPECT_EQ(common, static_cast<int>(marked.terms.size()));
 }
 
+/// The log inertia-daqd --fast writes of `bench` into dir/log (its output in dir/daqd.txt), or an
+/// empty path when the daemon failed.
+fs::path record_fast(const std::string& bench, const fs::path& dir) {
+  DaqdProcess daqd({"--config", bench, "--fast", "--log", (dir / "log").string(), "--lcm-url", private_lcm_url()}, {},
+                   dir / "daqd.txt");
+  if (daqd.wait(300.0) != 0) return {};
+  for (const auto& e : fs::directory_iterator(dir / "log"))
+    if (e.path().extension() == ".lcmlog") return e.path();
+  return {};
+}
+
 TEST(LogCharacterize, AGyroscopeFromTheDaemonsLogMatchesTheSimulatorTruth) {
   // sim-rotation-table's fog1: its scale factor, rate nonlinearity (y*w_i) and g-sensitivity from
   // the table rates the fusion derives from the encoder. A rate phase runs at its rate from its
@@ -338,11 +349,8 @@ TEST(LogCharacterize, AGyroscopeFromTheDaemonsLogMatchesTheSimulatorTruth) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const std::string bench = source_path("config/sim-rotation-table.toml");
-  DaqdProcess daqd({"--config", bench, "--fast", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()}, {},
-                   tmp.path / "daqd.txt");
-  ASSERT_EQ(daqd.wait(300.0), 0) << daqd.output();
-  fs::path log;
-  for (const auto& e : fs::directory_iterator(tmp.path / "log")) log = e.path();
+  const fs::path log = record_fast(bench, tmp.path);
+  ASSERT_FALSE(log.empty()) << read_text(tmp.path / "daqd.txt");
   ASSERT_EQ(run_command(analyze_binary() + " characterize --log " + log.string() + " --sensor fog1 --out " +
                             (tmp.path / "char").string(),
                         tmp.path / "char.txt"),
@@ -377,11 +385,8 @@ TEST(LogCharacterize, AThermalBenchFromAFastLogCarriesTheFixtureTemperature) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const std::string bench = source_path("config/sim-thermal.toml");
-  DaqdProcess daqd({"--config", bench, "--fast", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()}, {},
-                   tmp.path / "daqd.txt");
-  ASSERT_EQ(daqd.wait(300.0), 0) << daqd.output();
-  fs::path log;
-  for (const auto& e : fs::directory_iterator(tmp.path / "log")) log = e.path();
+  const fs::path log = record_fast(bench, tmp.path);
+  ASSERT_FALSE(log.empty()) << read_text(tmp.path / "daqd.txt");
   ASSERT_EQ(run_command(analyze_binary() + " characterize --log " + log.string() + " --dataset-out " +
                             (tmp.path / "fused").string() + " --out " + (tmp.path / "char").string(),
                         tmp.path / "char.txt"),

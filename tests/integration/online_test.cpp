@@ -191,13 +191,7 @@ TEST_P(OnlineLivePaperBench, TwoMountingsPacedEstimatesEverySecondAndEqualCharac
 }
 
 INSTANTIATE_TEST_SUITE_P(Bench, OnlineLivePaperBench, ::testing::Values("sim-paper-daq.toml", "sim-paper.toml"),
-                         [](const ::testing::TestParamInfo<const char*>& info) {
-                           std::string name = info.param;
-                           name = name.substr(0, name.find('.'));
-                           for (char& c : name)
-                             if (c == '-') c = '_';
-                           return name;
-                         });
+                         [](const ::testing::TestParamInfo<const char*>& info) { return bench_test_name(info.param); });
 
 // Every other shipped bench, sensor by sensor: the live answer on
 // the daemon's log (`online --replay`, the live worker as fast as it reads) against the batch's
@@ -215,6 +209,7 @@ struct EveryBenchCase {
 class OnlineReplay : public ::testing::TestWithParam<EveryBenchCase> {};
 
 TEST_P(OnlineReplay, TheLiveAnswerOnTheDaemonsLogEqualsCharacterizeOfIt) {
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const std::string config = source_path(std::string("config/") + GetParam().bench);
   DaqdProcess daqd({"--config", config, "--fast", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()}, {},
@@ -269,13 +264,7 @@ INSTANTIATE_TEST_SUITE_P(Bench, OnlineReplay,
                                            EveryBenchCase{"sim-shaker.toml", {"acc-a", "acc-b"}},
                                            EveryBenchCase{"sim-thermal.toml", {"acc1"}},
                                            EveryBenchCase{"sim-tumble.toml", {"mems1"}}),
-                         [](const ::testing::TestParamInfo<EveryBenchCase>& info) {
-                           std::string name = info.param.bench;
-                           name = name.substr(0, name.find('.'));
-                           for (char& c : name)
-                             if (c == '-') c = '_';
-                           return name;
-                         });
+                         [](const ::testing::TestParamInfo<EveryBenchCase>& info) { return bench_test_name(info.param.bench); });
 
 TEST(OnlineLive, ShakerOnlyBenchMatchesTheSimulatorsTruth) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
