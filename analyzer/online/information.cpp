@@ -25,6 +25,19 @@ void Information::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::
     cross_[k].col(b).noalias() += f.transpose() * y;
     for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d].noalias() += f.transpose() * filtered[k + d].topRows(n);
   }
+  if (!run_open_) {
+    Run r;
+    r.base = Eigen::VectorXd::Zero(b + 1);
+    r.filtered.assign(cross_.size(), Eigen::VectorXd::Zero(cross_.empty() ? 0 : cross_[0].rows()));
+    runs_.push_back(std::move(r));
+    run_open_ = true;
+  }
+  Run& run = runs_.back();
+  const auto c = base.col(0);   // the constant, through the noise model's A(q): A(1) on every row
+  run.base.head(b).noalias() += base.transpose() * c;
+  run.base(b) += y.dot(c);
+  for (std::size_t k = 0; k < cross_.size(); ++k) run.filtered[k].noalias() += filtered[k].topRows(n).transpose() * c;
+  run.samples += n;
   samples_ += n;
   weight_ += static_cast<double>(n);
 }
@@ -46,8 +59,11 @@ void Information::add(const Information& other) {
     const Eigen::Matrix4d inputs = inputs_;
     *this = other;
     inputs_ = inputs;
+    run_open_ = false;
     return;
   }
+  runs_.insert(runs_.end(), other.runs_.begin(), other.runs_.end());
+  run_open_ = false;   // rows added after another's are not its run's
   gram_.matrix() += other.gram_.matrix();
   for (std::size_t k = 0; k < cross_.size(); ++k) {
     cross_[k] += other.cross_[k];
@@ -58,6 +74,7 @@ void Information::add(const Information& other) {
 }
 
 void Information::subtract(const Information& other) {
+  // The runs are not taken out: whose they were is not known here (runs() stays as it was).
   inputs_ -= other.inputs_;
   gram_.matrix() -= other.gram_.matrix();
   for (std::size_t k = 0; k < cross_.size(); ++k) {
@@ -70,6 +87,10 @@ void Information::subtract(const Information& other) {
 
 void Information::scale(double factor) {
   inputs_ *= factor;
+  for (Run& r : runs_) {
+    r.base *= factor;
+    for (Eigen::VectorXd& f : r.filtered) f *= factor;
+  }
   gram_.matrix() *= factor;
   for (std::size_t k = 0; k < cross_.size(); ++k) {
     cross_[k] *= factor;
@@ -80,6 +101,8 @@ void Information::scale(double factor) {
 
 void Information::clear() {
   inputs_.setZero();
+  runs_.clear();
+  run_open_ = false;
   gram_.matrix().setZero();
   for (std::size_t k = 0; k < cross_.size(); ++k) {
     cross_[k].setZero();
@@ -122,20 +145,34 @@ Eigen::MatrixXd Information::model_gram(const Eigen::MatrixXd& t_base, const Eig
   return out;
 }
 
-Eigen::VectorXd Information::model_constant_products(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
-                                                     const CornerWeights& corner) const {
-  const Eigen::MatrixXd& g = gram_.matrix();
-  const Index b = g.rows() - 1;
+Eigen::VectorXd Information::constant_products(const Eigen::VectorXd& base_sums,
+                                               const std::vector<Eigen::VectorXd>& filtered_sums,
+                                               const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                               const CornerWeights& corner) {
+  const Index b = base_sums.size() - 1;
   const Index p = t_base.rows();
   Eigen::VectorXd out(p + 1);
-  out.head(p).noalias() = t_base * g.col(0).head(b);
-  out(p) = g(b, 0);
+  out.head(p).noalias() = t_base * base_sums.head(b);
+  out(p) = base_sums(b);
   if (corner.filtered() && t_filtered.cols() > 0) {
     Eigen::VectorXd f = Eigen::VectorXd::Zero(t_filtered.cols());
-    for (const auto& [j, wj] : corner.nodes) f += wj * cross_[static_cast<std::size_t>(j)].col(0);
+    for (const auto& [j, wj] : corner.nodes) f += wj * filtered_sums[static_cast<std::size_t>(j)];
     out.head(p).noalias() += t_filtered * f;
   }
   return out;
+}
+
+Eigen::VectorXd Information::model_constant_products(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                                     const CornerWeights& corner) const {
+  std::vector<Eigen::VectorXd> filtered;
+  filtered.reserve(cross_.size());
+  for (const Eigen::MatrixXd& c : cross_) filtered.emplace_back(c.col(0));
+  return constant_products(gram_.matrix().col(0), filtered, t_base, t_filtered, corner);
+}
+
+Eigen::VectorXd Information::run_constant_products(std::size_t r, const Eigen::MatrixXd& t_base,
+                                                   const Eigen::MatrixXd& t_filtered, const CornerWeights& corner) const {
+  return constant_products(runs_[r].base, runs_[r].filtered, t_base, t_filtered, corner);
 }
 
 SegmentPipeline::SegmentPipeline(Eigen::VectorXd ar, std::vector<Index> filtered_sources, std::vector<double> corners,

@@ -35,6 +35,16 @@ class Information {
   /// Adds rows: base (n x b), the filtered columns at each node (n x f each), the output.
   void add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
            const Eigen::Ref<const Eigen::VectorXd>& y);
+  /// The rows added from now on form a new run: a contiguous phase of a case, the unit whose
+  /// offsets the case scatter compares (LiveSolver::add_case_scatter; the batch's phase clusters).
+  /// A run also starts with the first rows added.
+  void start_run() { run_open_ = false; }
+  /// Runs kept, oldest first (add(other) appends other's).
+  [[nodiscard]] std::size_t runs() const { return runs_.size(); }
+  [[nodiscard]] std::int64_t run_samples(std::size_t r) const { return runs_[r].samples; }
+  /// model_constant_products over the rows of run r alone.
+  [[nodiscard]] Eigen::VectorXd run_constant_products(std::size_t r, const Eigen::MatrixXd& t_base,
+                                                      const Eigen::MatrixXd& t_filtered, const CornerWeights& corner) const;
   /// Adds the same rows' inputs along the case axes IRA, XRA, YRA (n x 3: specific force, or rates
   /// for a gyroscope), unfiltered: what procedure::axis_excitation reads. How much of each axis
   /// varies on its own is a property of the motion, which the noise model's filter would distort
@@ -68,7 +78,20 @@ class Information {
   ident::ErrGram gram_{0};
   std::vector<Eigen::MatrixXd> cross_;                // per node: F_k' [B y]   (f x (b + 1))
   std::vector<std::vector<Eigen::MatrixXd>> pairs_;   // per node k, per d: F_k' F_{k+d}
+  /// A run's products of the (filtered) constant base column 0 with every column and the output.
+  struct Run {
+    Eigen::VectorXd base;                   // [B y]' c   (b + 1)
+    std::vector<Eigen::VectorXd> filtered;  // per node: F_k' c
+    std::int64_t samples = 0;
+  };
+  /// Products of `v` (base, filtered at each node, output) with the constant, as model_constant_products.
+  static Eigen::VectorXd constant_products(const Eigen::VectorXd& base_sums, const std::vector<Eigen::VectorXd>& filtered_sums,
+                                           const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                           const CornerWeights& corner);
+
   Eigen::Matrix4d inputs_ = Eigen::Matrix4d::Zero();
+  std::vector<Run> runs_;
+  bool run_open_ = false;                   // the next rows continue runs_.back()
   std::int64_t samples_ = 0;
   double weight_ = 0.0;
 };

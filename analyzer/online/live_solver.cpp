@@ -516,18 +516,22 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   Eigen::MatrixXd tb, tf;
   double excess = 0.0;
   for (std::size_t c = 0; c < cases.size(); ++c) {
-    const double n = static_cast<double>(cases[c]->samples());
-    if (n < 2.0) continue;
     basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
-    const Eigen::VectorXd v = cases[c]->model_constant_products(tb, tf, weights) / noise_gain;   // row sums
-    // A constant offset d of the case's output adds A(1) d to each whitened row.
-    const double offset = (v(p) - batch.theta.dot(v.head(p))) / (n * noise_gain);
-    const double sd = std::sqrt(batch.s2 / n) / noise_gain;
-    out.offsets.push_back(offset);
-    out.offset_sd.push_back(sd);
-    out.chi_square += (offset / sd) * (offset / sd);
-    excess += offset * offset - sd * sd;
-    responses.push_back(batch.gram_inverse * v.head(p) * noise_gain);
+    // Each contiguous phase of the case on its own (the batch's phase clusters): a fixture's
+    // placement, a thermal step's slow drift, move a phase's rows together.
+    for (std::size_t r = 0; r < cases[c]->runs(); ++r) {
+      const double n = static_cast<double>(cases[c]->run_samples(r));
+      if (n < 2.0) continue;
+      const Eigen::VectorXd v = cases[c]->run_constant_products(r, tb, tf, weights) / noise_gain;   // row sums
+      // A constant offset d of the run's output adds A(1) d to each whitened row.
+      const double offset = (v(p) - batch.theta.dot(v.head(p))) / (n * noise_gain);
+      const double sd = std::sqrt(batch.s2 / n) / noise_gain;
+      out.offsets.push_back(offset);
+      out.offset_sd.push_back(sd);
+      out.chi_square += (offset / sd) * (offset / sd);
+      excess += offset * offset - sd * sd;
+      responses.push_back(batch.gram_inverse * v.head(p) * noise_gain);
+    }
   }
   const int consumed = bias_ >= 0 && std::find(batch.terms.begin(), batch.terms.end(), bias_) != batch.terms.end() ? 1 : 0;
   out.dof = static_cast<int>(out.offsets.size()) - consumed;

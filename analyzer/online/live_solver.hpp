@@ -73,11 +73,12 @@ struct MountingFit {
   std::string note;
 };
 
-/// Offsets between cases that the noise model does not explain: 1/f noise below an AR model's
-/// reach (it is flat below its resolution), a fixture remounted between cases. Each case's mean
+/// Offsets between the contiguous phases of the cases (Information::start_run) that the noise
+/// model does not explain: 1/f noise below an AR model's reach (it is flat below its
+/// resolution), a fixture remounted between cases, a thermal step's drift. Each phase's mean
 /// residual is set against the sd the noise model gives a mean over that many rows; their excess
 /// variance tau^2 (method of moments, one dof to the bias) is what every estimate's covariance
-/// gains through the estimate's response to an offset of each case.
+/// gains through the estimate's response to an offset of each phase.
 struct CaseScatter {
   std::vector<double> offsets;      // per case, output unit (the noise model undone)
   std::vector<double> offset_sd;    // what the noise model gives a case mean

@@ -78,6 +78,7 @@ struct OnlineEstimator::Impl {
     dataset::CaseData history;   // the last max_lag rows (case frame), for lagged columns
     std::int64_t rows = 0;       // rows into the statistics
     std::int64_t raw_rows = 0;   // rows received
+    int run_label = -1;          // the phase label of the run the statistics are in (Information::start_run)
   };
   struct Buffered {
     std::size_t state = 0;
@@ -87,6 +88,7 @@ struct OnlineEstimator::Impl {
     Eigen::MatrixXd base;
     Eigen::VectorXd y;
     Eigen::MatrixX3d inputs;   // along the case axes (Information::add_inputs)
+    std::vector<std::uint16_t> phase;   // per row: the chunk's phase label
   };
 
   std::vector<CaseState> cases;
@@ -112,6 +114,24 @@ struct OnlineEstimator::Impl {
 
   std::unique_ptr<SegmentPipeline> pipeline(double period) const {
     return std::make_unique<SegmentPipeline>(ar, basis->filtered_sources(), grid.nodes(), period);
+  }
+
+  /// Rows of one segment through its noise pipeline into `info`, a new run where the phase label
+  /// changes (`run_label`: the label of the run `info` is in, -1 for none yet).
+  static void add_rows(SegmentPipeline& pipeline, Information& info, int& run_label, const Eigen::MatrixXd& x,
+                       const Eigen::VectorXd& y, const Eigen::MatrixX3d& inputs, const std::vector<std::uint16_t>& phase) {
+    const Index n = y.size();
+    for (Index from = 0; from < n;) {
+      Index to = from + 1;
+      while (to < n && phase[static_cast<std::size_t>(to)] == phase[static_cast<std::size_t>(from)]) ++to;
+      if (phase[static_cast<std::size_t>(from)] != run_label) {
+        info.start_run();
+        run_label = phase[static_cast<std::size_t>(from)];
+      }
+      pipeline.push(x.middleRows(from, to - from), y.segment(from, to - from), info);
+      info.add_inputs(inputs.middleRows(from, to - from));
+      from = to;
+    }
   }
 
   /// The mounting case `tc` belongs to: the batch's grouping of the plan (or of `tc` alone).
@@ -250,12 +270,15 @@ struct OnlineEstimator::Impl {
     basis->evaluate(signals, first_row, x);
     const Eigen::VectorXd y = work.y.tail(rows);
     const Eigen::MatrixX3d inputs = sensor == dataset::SensorKind::Gyroscope ? work.w_e->bottomRows(rows) : work.a_e.bottomRows(rows);
+    // The rows' phase labels (a chunk without them is one phase).
+    const std::vector<std::uint16_t> phase = chunk.phase.size() == static_cast<std::size_t>(n)
+                                                 ? std::vector<std::uint16_t>(chunk.phase.end() - rows, chunk.phase.end())
+                                                 : std::vector<std::uint16_t>(static_cast<std::size_t>(rows), 0);
     if (!noise_fitted) {
-      buffer.push_back({state, chunk.case_index, chunk.segment, chunk.sample_period_s, x, y, inputs});
+      buffer.push_back({state, chunk.case_index, chunk.segment, chunk.sample_period_s, x, y, inputs, phase});
       buffered_rows += rows;
     }
-    seg.pipeline->push(x, y, seg.info);
-    seg.info.add_inputs(inputs);
+    add_rows(*seg.pipeline, seg.info, seg.run_label, x, y, inputs, phase);
     seg.rows += rows;
     rows_total += rows;
     if (nominal_period <= 0.0) nominal_period = chunk.sample_period_s;
@@ -327,15 +350,17 @@ struct OnlineEstimator::Impl {
       }
       info = empty_information();
     };
+    int run_label = -1;
     for (const Buffered& b : buffer) {
       if (current != std::pair{b.state, b.segment}) {
         settle();
         current = {b.state, b.segment};
         p = pipeline(b.period);
+        run_label = -1;
       }
-      p->push(b.base, b.y, info);
-      info.add_inputs(b.inputs);
+      add_rows(*p, info, run_label, b.base, b.y, b.inputs, b.phase);
     }
+    if (open && current == std::pair{open->state, open->segment}) open->run_label = run_label;   // its rows go on in that run
     settle();
     buffer.clear();
     buffered_rows = 0;
