@@ -12,6 +12,7 @@
 #include <deque>
 #include <fstream>
 #include <lcm/lcm-cpp.hpp>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -155,11 +156,12 @@ struct HistoryRow {
 /// One sensor under test: its assembler (fusion at its position) and estimator.
 class SensorPipeline final : public fusion::FusionSink {
  public:
+  /// `max_wait_s`: how long (stream time) a late device or marker is waited for (fusion::AssemblerOptions).
   SensorPipeline(const config::SensorUnderTest& s, const std::optional<model::ModelFile>& model, const config::BenchConfig& bench,
-                 const online::OnlineOptions& estimator_options)
+                 const online::OnlineOptions& estimator_options, double max_wait_s)
       : name(s.name), output_unit(s.output_unit), estimate_channel(channels::estimate_channel(s.name)),
         structure_channel(channels::structure_channel(s.name)), model_(model), kind_(sensor_kind(s.type)),
-        t_ref_(bench.t_ref_c), estimator_options_(estimator_options) {
+        t_ref_(bench.t_ref_c), estimator_options_(estimator_options), max_wait_s_(max_wait_s) {
     restart();
   }
 
@@ -168,7 +170,7 @@ class SensorPipeline final : public fusion::FusionSink {
     fusion::AssemblerOptions ao;
     ao.sensor = name;
     ao.min_segment_s = estimator_options_.min_segment_s;
-    ao.max_wait_s = 0.5;   // live: a late or silent device is waited for this long (stream time)
+    ao.max_wait_s = max_wait_s_;
     assembler = std::make_unique<fusion::StreamAssembler>(ao, *this);
     newest_mono_ns = 0;
     last_published_newest_ns = 0;
@@ -199,6 +201,7 @@ class SensorPipeline final : public fusion::FusionSink {
   dataset::SensorKind kind_;
   double t_ref_;
   online::OnlineOptions estimator_options_;
+  double max_wait_s_;
 };
 
 model_estimate_t to_message(const SensorPipeline& p, const online::OnlineSnapshot& s) {
@@ -657,7 +660,12 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
     std::optional<model::ModelFile> model;
     if (auto it = options.models.find(s.name); it != options.models.end()) model = model::read_model(it->second);
     else if (auto only = options.models.find(""); only != options.models.end()) model = model::read_model(only->second);
-    pipelines.push_back(std::make_unique<SensorPipeline>(s, model, bench, estimator_options));
+    // Live, a late or silent device or marker is waited for 0.5 s of stream time, so a silent one
+    // never stalls the estimate. A replay has the whole log: it waits as characterize --log does.
+    // (A --fast run's markers trail its samples by more than 0.5 s of its stream time: given up on,
+    // a case's rows went to the case before it.)
+    const double max_wait_s = options.replay.empty() ? 0.5 : std::numeric_limits<double>::infinity();
+    pipelines.push_back(std::make_unique<SensorPipeline>(s, model, bench, estimator_options, max_wait_s));
   }
   std::optional<std::ofstream> history;
   if (!options.history.empty()) {
