@@ -506,8 +506,34 @@ void LiveSolver::add_misalignment_uncertainty(StatFit& batch, const std::vector<
   batch.sd = batch.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
 }
 
+std::vector<Index> LiveSolver::phase_level_terms(const StatFit& batch, const std::vector<const Information*>& cases,
+                                                 const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const {
+  std::vector<Index> out;
+  if (!batch.ok || !(noise_gain > 0.0)) return out;
+  const auto p = static_cast<Index>(batch.terms.size());
+  const CornerWeights weights = batch.corner_rad_s ? grid_.at(*batch.corner_rad_s) : CornerWeights{};
+  Eigen::VectorXd energy = Eigen::VectorXd::Zero(p), between = Eigen::VectorXd::Zero(p);
+  Eigen::MatrixXd tb, tf;
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    if (cases[c]->samples() == 0) continue;
+    basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
+    energy += cases[c]->model_gram(tb, tf, weights).diagonal().head(p);
+    for (std::size_t r = 0; r < cases[c]->runs(); ++r) {
+      const double n = static_cast<double>(cases[c]->run_samples(r));
+      if (n < 1.0) continue;
+      // The run's mean of each column (the constant is A(1) on every whitened row), squared, n times.
+      const Eigen::VectorXd sums = cases[c]->run_constant_products(r, tb, tf, weights).head(p) / noise_gain;
+      between += sums.cwiseAbs2() / n;
+    }
+  }
+  for (Index j = 0; j < p; ++j)
+    if (energy(j) > 0.0 && (energy(j) - between(j)) < kLevelShare * energy(j)) out.push_back(batch.terms[static_cast<std::size_t>(j)]);
+  return out;
+}
+
 CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
-                                         const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const {
+                                         const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain,
+                                         int level_parameters) const {
   CaseScatter out;
   if (!batch.ok || !(noise_gain > 0.0)) return out;
   const auto p = static_cast<Index>(batch.terms.size());
@@ -533,7 +559,8 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
       responses.push_back(batch.gram_inverse * v.head(p) * noise_gain);
     }
   }
-  const int consumed = bias_ >= 0 && std::find(batch.terms.begin(), batch.terms.end(), bias_) != batch.terms.end() ? 1 : 0;
+  const int consumed = level_parameters >= 0 ? level_parameters
+                       : (bias_ >= 0 && std::find(batch.terms.begin(), batch.terms.end(), bias_) != batch.terms.end() ? 1 : 0);
   out.dof = static_cast<int>(out.offsets.size()) - consumed;
   if (out.dof < 1) return out;
   out.tau2 = std::max(0.0, excess / out.dof);

@@ -150,8 +150,23 @@ class LiveSolver {
                                     const std::vector<Eigen::Matrix3d>& angle_covariances) const;
   /// Adds the case scatter to batch.covariance and sd (see CaseScatter). `cases`: each case's
   /// statistics and its mounting's M_C^S; `noise_gain`: A(1) = 1 - sum a_j of the noise model.
+  /// `level_parameters`: the parameters fitted at the level of the phases' means (their offsets
+  /// lose that many degrees of freedom); -1: the bias alone, when fitted.
   CaseScatter add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
-                               const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const;
+                               const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain, int level_parameters = -1) const;
+  /// Of batch.terms, those whose column is constant within every phase of `cases` (less than
+  /// kLevelShare of its energy varies inside the phases): a static pose's terms. Such terms and
+  /// the phases' offsets (a pose's placement) are told apart only by the phases left over.
+  [[nodiscard]] std::vector<Eigen::Index> phase_level_terms(const StatFit& batch, const std::vector<const Information*>& cases,
+                                                            const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const;
+  static constexpr double kLevelShare = 1e-3;
+  /// The same solver for another model (a subset of the basis's terms).
+  [[nodiscard]] LiveSolver with_model(std::vector<Eigen::Index> model) const {
+    LiveSolver s = *this;
+    s.model_ = std::move(model);
+    return s;
+  }
+  [[nodiscard]] Eigen::Index bias_term() const { return bias_; }
   /// ERR and t of each candidate (basis term indices) added alone to the batch fit `batch`.
   [[nodiscard]] std::vector<CandidateStat> structure(const std::vector<Eigen::Index>& candidates, const StatFit& batch,
                                                      const std::vector<const Information*>& infos,

@@ -1,5 +1,7 @@
 #include "analyzer/online/online_estimator.hpp"
 
+#include "analyzer/ident/statistics.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -65,6 +67,7 @@ struct OnlineEstimator::Impl {
     std::vector<std::size_t> cases;
     bool rotation_table = false;
     bool shaker_only = true;
+    bool poses_only = true;   // static and thermal cases only: its tilts are read from the poses' levels
     frames::Dcm m_cs = frames::Dcm::Identity();
     MountingFit fit;
   };
@@ -160,6 +163,7 @@ struct OnlineEstimator::Impl {
     MountingState& ms = mountings[m];
     ms.rotation_table = ms.rotation_table || tc.kind == CaseKind::RotationTable;
     ms.shaker_only = ms.shaker_only && tc.kind == CaseKind::Shaker;
+    ms.poses_only = ms.poses_only && (tc.kind == CaseKind::Static || tc.kind == CaseKind::Thermal);
     CaseState cs;
     cs.plan_case = plan_case;
     cs.name = tc.name;
@@ -376,6 +380,9 @@ struct OnlineEstimator::Impl {
     StatFit batch;
     CaseScatter scatter;
     bool aligned = true;                     // some mounting aligned (else the frame-free terms only)
+    std::vector<Index> model;                // the terms the batch fitted (the solver's model)
+    std::vector<Index> confounded;           // left out: at the phases' level, with no phase to spare
+    int level_parameters = -1;               // fitted at the level of the phases' means (case scatter's dof)
   };
 
   [[nodiscard]] bool open_counts() const {
@@ -407,7 +414,8 @@ struct OnlineEstimator::Impl {
   /// mountings' misalignments to use instead of estimating them (the convergence test).
   Solution solve(bool update_states, std::optional<std::size_t> excluded_case = std::nullopt,
                  const std::vector<Eigen::Matrix3d>* fixed_m_cs = nullptr,
-                 const std::vector<Eigen::Matrix3d>* fixed_angle_covariances = nullptr, bool fixed_aligned = true) {
+                 const std::vector<Eigen::Matrix3d>* fixed_angle_covariances = nullptr,
+                 const Solution* fixed_from = nullptr) {
     Solution s;
     s.infos.assign(mountings.size(), empty_information());
     for (std::size_t c = 0; c < cases.size(); ++c) {
@@ -424,10 +432,13 @@ struct OnlineEstimator::Impl {
       s.m_cs = *fixed_m_cs;
       std::vector<const Information*> infos;
       for (const Information& i : s.infos) infos.push_back(&i);
-      const LiveSolver& batch_solver = fixed_aligned ? *solver : *unaligned_solver;
-      s.aligned = fixed_aligned;
+      // The full solution's model (what it dropped stays out) and its count of phase-level parameters.
+      const LiveSolver batch_solver = fixed_from != nullptr ? solver->with_model(fixed_from->model) : *solver;
+      s.aligned = fixed_from == nullptr || fixed_from->aligned;
+      s.model = batch_solver.model();
       s.batch = batch_solver.fit_batch(infos, s.m_cs);
       if (fixed_angle_covariances != nullptr) batch_solver.add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances);
+      if (s.batch.ok) s.level_parameters = level_parameters(s.batch, batch_solver, case_statistics(s.m_cs, excluded_case), nullptr);
       add_case_scatter(s, s.m_cs, excluded_case, batch_solver);
       return s;
     }
@@ -497,29 +508,100 @@ struct OnlineEstimator::Impl {
       if (turns[m].held) c += turns[m].covariance;
       angle_covariances.push_back(c);
     }
-    batch_solver.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
-    add_case_scatter(s, m_cs, excluded_case, batch_solver);
+    const LiveSolver fitted = drop_confounded(s, batch_solver, infos, m_cs, excluded_case, fits);
+    fitted.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
+    add_case_scatter(s, m_cs, excluded_case, fitted);
+    s.model = fitted.model();
     s.aligned = reference.has_value();
     s.m_cs = std::move(m_cs);
     s.angle_covariances = std::move(angle_covariances);
     return s;
   }
 
+  /// Each case's statistics (the open segment's included) and its mounting's M_C^S.
+  struct CaseStatistics {
+    std::vector<Information> with_open;
+    std::vector<const Information*> infos;
+    std::vector<Eigen::Matrix3d> m_cs;
+  };
+  [[nodiscard]] CaseStatistics case_statistics(const std::vector<Eigen::Matrix3d>& m_cs,
+                                               std::optional<std::size_t> excluded_case) const {
+    CaseStatistics out;
+    out.with_open.reserve(cases.size());
+    for (std::size_t c = 0; c < cases.size(); ++c) {
+      if ((excluded_case && *excluded_case == c) || !has_data(c)) continue;
+      out.with_open.push_back(cases[c].info);
+      if (open_counts() && open->state == c) out.with_open.back().add(open->info);
+      out.m_cs.push_back(m_cs[cases[c].mounting]);
+    }
+    for (const Information& i : out.with_open) out.infos.push_back(&i);
+    return out;
+  }
+
+  /// Parameters fitted at the level of the phases' means: the terms constant within every phase,
+  /// and the tilts of mountings read from poses (static and thermal cases: from the poses' levels).
+  [[nodiscard]] int level_parameters(const StatFit& batch, const LiveSolver& batch_solver, const CaseStatistics& cs,
+                                     const std::vector<MountingFit>* fits) const {
+    int n = static_cast<int>(batch_solver.phase_level_terms(batch, cs.infos, cs.m_cs, 1.0 - ar.sum()).size());
+    for (std::size_t m = 0; m < mountings.size(); ++m) {
+      const bool determined = fits != nullptr ? (*fits)[m].determined : mountings[m].fit.determined;
+      if (mountings[m].poses_only && determined) n += 2;
+    }
+    return n;
+  }
+
   /// The cases' offsets the noise model does not explain, into the batch's covariance.
   void add_case_scatter(Solution& s, const std::vector<Eigen::Matrix3d>& m_cs, std::optional<std::size_t> excluded_case,
                         const LiveSolver& batch_solver) {
-    std::vector<Information> with_open;
-    std::vector<const Information*> infos;
-    std::vector<Eigen::Matrix3d> case_m_cs;
-    with_open.reserve(cases.size());
-    for (std::size_t c = 0; c < cases.size(); ++c) {
-      if ((excluded_case && *excluded_case == c) || !has_data(c)) continue;
-      with_open.push_back(cases[c].info);
-      if (open_counts() && open->state == c) with_open.back().add(open->info);
-      case_m_cs.push_back(m_cs[cases[c].mounting]);
+    const CaseStatistics cs = case_statistics(m_cs, excluded_case);
+    s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - ar.sum(), s.level_parameters);
+  }
+
+  /// Terms at the level of the phases' means (constant within every phase: a tumble's poses) are
+  /// told from the phases' offsets (a pose's placement) only by the phases left over. As the
+  /// batch's honest inference: the weakest such term is left out while none are left over, or while
+  /// its t, with the offsets' scatter in its sd, fails Student's test on that many degrees of freedom
+  /// (Bonferroni over those terms). Never the bias or the scale factor. Refits s.batch with what is
+  /// left; returns the solver of that model.
+  LiveSolver drop_confounded(Solution& s, const LiveSolver& batch_solver, const std::vector<const Information*>& infos,
+                             const std::vector<Eigen::Matrix3d>& m_cs, std::optional<std::size_t> excluded_case,
+                             const std::vector<MountingFit>& fits) {
+    std::optional<LiveSolver> current(batch_solver);
+    const Index axis = basis->find(plain_term(sensor == dataset::SensorKind::Gyroscope ? Variable::Wi : Variable::Ai));
+    const double gain = 1.0 - ar.sum();
+    for (;;) {
+      if (!s.batch.ok) break;
+      const CaseStatistics cs = case_statistics(m_cs, excluded_case);
+      int runs = 0;
+      for (const Information* i : cs.infos)
+        for (std::size_t r = 0; r < i->runs(); ++r) runs += i->run_samples(r) >= 2 ? 1 : 0;
+      const std::vector<Index> level = current->phase_level_terms(s.batch, cs.infos, cs.m_cs, gain);
+      s.level_parameters = level_parameters(s.batch, *current, cs, &fits);
+      const int dof = runs - s.level_parameters;
+      StatFit trial = s.batch;
+      if (dof >= 1) (void)current->add_case_scatter(trial, cs.infos, cs.m_cs, gain, s.level_parameters);
+      std::optional<Index> weakest;
+      double weakest_t = std::numeric_limits<double>::infinity();
+      int droppable = 0;
+      for (std::size_t k = 0; k < trial.terms.size(); ++k) {
+        const Index t = trial.terms[k];
+        if (t == current->bias_term() || t == axis || std::find(level.begin(), level.end(), t) == level.end()) continue;
+        ++droppable;
+        const double z = std::abs(trial.theta(static_cast<Index>(k)) / trial.sd(static_cast<Index>(k)));
+        if (z < weakest_t) {
+          weakest_t = z;
+          weakest = t;
+        }
+      }
+      if (!weakest) break;
+      if (dof >= 1 && ident::student_t_two_sided_p(weakest_t, dof) <= options.solver.structure_alpha / droppable) break;
+      s.confounded.push_back(*weakest);
+      std::vector<Index> kept = current->model();
+      std::erase(kept, *weakest);
+      current.emplace(current->with_model(std::move(kept)));
+      s.batch = current->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
     }
-    for (const Information& i : with_open) infos.push_back(&i);
-    s.scatter = batch_solver.add_case_scatter(s.batch, infos, case_m_cs, 1.0 - ar.sum());
+    return *current;
   }
 
   OnlineSnapshot snapshot() {
@@ -565,7 +647,9 @@ struct OnlineEstimator::Impl {
       }
       if (found) continue;
       out.undetermined.push_back(model_terms[j].to_string());
-      if ((!s.aligned && !procedure::frame_free(model_terms[j])) || whole_plan_in())
+      if (std::find(s.confounded.begin(), s.confounded.end(), model[j]) != s.confounded.end())
+        out.confounded.push_back(model_terms[j].to_string());
+      else if ((!s.aligned && !procedure::frame_free(model_terms[j])) || whole_plan_in())
         out.plan_undetermined.push_back(model_terms[j].to_string());
     }
     out.residual_variance = s.batch.s2;
@@ -577,8 +661,7 @@ struct OnlineEstimator::Impl {
         infos.push_back(&s.infos[m]);
         m_cs.push_back(mountings[m].fit.determined ? mountings[m].fit.m_cs : mountings[m].m_cs);
       }
-      const LiveSolver& batch_solver = s.aligned ? *solver : *unaligned_solver;
-      for (const CandidateStat& c : batch_solver.structure(candidates, s.batch, infos, m_cs)) {
+      for (const CandidateStat& c : solver->with_model(s.model).structure(candidates, s.batch, infos, m_cs)) {
         const Term& t = basis->terms()[static_cast<std::size_t>(c.term)];
         out.structure.push_back({t.to_string(), ident::physical_name(t, sensor), c.err, c.value, c.sd, c.t, c.significant});
       }
@@ -606,14 +689,18 @@ struct OnlineEstimator::Impl {
     converged = false;
     // Terms the plan cannot determine (no mounting aligned) do not hold the flag back; the
     // verdict says which they are.
-    const std::string beyond_plan =
+    std::string beyond_plan =
         out.plan_undetermined.empty()
             ? std::string()
             : fmt::format("; not determined by this plan ({}): {}",
                           s.aligned ? "every case is in" : "no mounting is aligned", fmt::join(out.plan_undetermined, ", "));
-    if (out.undetermined.size() > out.plan_undetermined.size()) {
-      convergence = fmt::format("{} term(s) not determined yet{}", out.undetermined.size() - out.plan_undetermined.size(),
-                                beyond_plan);
+    if (!out.confounded.empty())
+      beyond_plan += fmt::format("; left out, constant within each phase with no phase to spare for the offsets between "
+                                 "them (placement, drift): {}",
+                                 fmt::join(out.confounded, ", "));
+    const std::size_t beyond = out.plan_undetermined.size() + out.confounded.size();
+    if (out.undetermined.size() > beyond) {
+      convergence = fmt::format("{} term(s) not determined yet{}", out.undetermined.size() - beyond, beyond_plan);
       return;
     }
     if (with_data < 2) {
@@ -629,14 +716,15 @@ struct OnlineEstimator::Impl {
       // (re-running algorithm 1 without the case would break the procedure's own structure: a
       // shaker fixture left without the mounting that gives it the bias, an orientation missing
       // that separated a tilt from the cross-couplings).
-      const Solution without = solve(false, c, &s.m_cs, &s.angle_covariances, s.aligned);
+      const Solution without = solve(false, c, &s.m_cs, &s.angle_covariances, &s);
       if (!without.batch.ok) {
         convergence = fmt::format("without case {} the model is not determined{}", cases[c].name, beyond_plan);
         return;
       }
       for (std::size_t j = 0; j < model.size(); ++j) {
-        if (std::find(out.plan_undetermined.begin(), out.plan_undetermined.end(), model_terms[j].to_string()) !=
-            out.plan_undetermined.end())
+        const std::string name = model_terms[j].to_string();
+        if (std::find(out.plan_undetermined.begin(), out.plan_undetermined.end(), name) != out.plan_undetermined.end() ||
+            std::find(out.confounded.begin(), out.confounded.end(), name) != out.confounded.end())
           continue;
         std::optional<Index> a, b;
         for (std::size_t k = 0; k < s.batch.terms.size(); ++k)

@@ -91,6 +91,7 @@ struct OnlineSnapshot {
   Eigen::VectorXd values, std_devs, t;       // NaN where the data does not determine the term yet
   std::vector<std::string> undetermined;     // those terms
   std::vector<std::string> plan_undetermined;   // of those, the ones this plan cannot determine (no mounting aligned)
+  std::vector<std::string> confounded;   // of those, left out: constant within each phase, no phase to spare (placement)
   double residual_variance = 0.0;            // of the (whitened) residual
   std::vector<MountingEstimate> mountings;
   std::int64_t samples_used = 0;             // rows in the estimate
