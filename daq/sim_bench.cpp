@@ -230,10 +230,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     info.push_back({r.name, unit, next_id++});
   }
   auto slot = std::make_shared<DeviceSlot>("controller", std::move(info), 1000.0 / options.modbus_poll_ms, ring_capacity);
-  if (options.fast) {
-    s->controller_clock_ = std::make_shared<SimulatedClock>();
-    s->controller_poll_ns_ = static_cast<std::int64_t>(options.modbus_poll_ms) * 1'000'000;
-  }
+  if (options.fast) s->controller_clock_ = std::make_shared<SimulatedClock>();
   s->samplers_.push_back(
       std::make_unique<ModbusSampler>(std::move(controller), options.modbus_poll_ms, slot, nullptr, s->controller_clock_));
   return s;
@@ -371,7 +368,7 @@ void SimBench::wait_for_readings_before(std::int64_t t_ns) {
   std::int64_t since = hal::monotonic_now_ns();
   for (;;) {
     const std::int64_t polled = clock.polled_ns.load(std::memory_order_acquire);
-    if (polled != SimulatedClock::kNotYet && polled + controller_poll_ns_ >= t_ns) return;
+    if (polled != SimulatedClock::kNotYet && polled + static_cast<std::int64_t>(options_.modbus_poll_ms) * 1'000'000 >= t_ns) return;
     if (clock.poller_gone.load(std::memory_order_acquire) || stop_.load(std::memory_order_relaxed)) return;
     const std::int64_t now = hal::monotonic_now_ns();
     if (polled != last) {

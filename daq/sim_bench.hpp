@@ -158,7 +158,6 @@ class SimBench {
   std::vector<EncoderSim> encoders_;
   std::unique_ptr<hal::wire_sim::BenchControllerServer> controllers_;
   std::shared_ptr<SimulatedClock> controller_clock_;   // fast runs: the controllers polled on simulated time
-  std::int64_t controller_poll_ns_ = 0;
   std::vector<std::unique_ptr<Sampler>> samplers_;
   SpscRing<PlanMark>* marks_ = nullptr;
   std::int64_t t0_ns_ = 0;

@@ -49,7 +49,7 @@ struct OnlineEstimator::Impl {
   frames::Dcm model_m_cs = frames::Dcm::Identity();
   std::unique_ptr<LiveBasis> basis;
   std::unique_ptr<LiveSolver> solver;
-  std::unique_ptr<LiveSolver> unaligned_solver;   // the model's frame-free terms (no mounting aligned)
+  std::vector<Index> frame_free_model;   // the model's frame-free terms: what is fitted with no mounting aligned
   std::vector<Index> model, candidates;
   CornerGrid grid;   // the squares' corner: the model's, or the nodes it is interpolated on
   bool rational = false;
@@ -438,8 +438,9 @@ struct OnlineEstimator::Impl {
       s.model = batch_solver.model();
       s.batch = batch_solver.fit_batch(infos, s.m_cs);
       if (fixed_angle_covariances != nullptr) batch_solver.add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances);
-      if (s.batch.ok) s.level_parameters = level_parameters(s.batch, batch_solver, case_statistics(s.m_cs, excluded_case), nullptr);
-      add_case_scatter(s, s.m_cs, excluded_case, batch_solver);
+      const CaseStatistics cs = case_statistics(s.m_cs, excluded_case);
+      if (s.batch.ok) s.level_parameters = level_parameters(s.batch, batch_solver, cs, nullptr);
+      add_case_scatter(s, cs, batch_solver);
       return s;
     }
     std::optional<double> bias;
@@ -465,7 +466,7 @@ struct OnlineEstimator::Impl {
       if (fits[m].determined && !reference) reference = m;
     // With none aligned, the sensor frame's p and o axes are not known in any case: only the
     // terms that hold in any frame near it are fitted (procedure::frame_free), as in the batch.
-    const LiveSolver& batch_solver = reference ? *solver : *unaligned_solver;
+    const LiveSolver batch_solver = reference ? *solver : solver->with_model(frame_free_model);
     std::vector<const Information*> infos;
     std::vector<Eigen::Matrix3d> m_cs;
     for (std::size_t m = 0; m < mountings.size(); ++m) {
@@ -508,9 +509,10 @@ struct OnlineEstimator::Impl {
       if (turns[m].held) c += turns[m].covariance;
       angle_covariances.push_back(c);
     }
-    const LiveSolver fitted = drop_confounded(s, batch_solver, infos, m_cs, excluded_case, fits);
+    const CaseStatistics cs = case_statistics(m_cs, excluded_case);
+    const LiveSolver fitted = drop_confounded(s, batch_solver, infos, m_cs, cs, fits);
     fitted.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
-    add_case_scatter(s, m_cs, excluded_case, fitted);
+    add_case_scatter(s, cs, fitted);
     s.model = fitted.model();
     s.aligned = reference.has_value();
     s.m_cs = std::move(m_cs);
@@ -551,9 +553,7 @@ struct OnlineEstimator::Impl {
   }
 
   /// The cases' offsets the noise model does not explain, into the batch's covariance.
-  void add_case_scatter(Solution& s, const std::vector<Eigen::Matrix3d>& m_cs, std::optional<std::size_t> excluded_case,
-                        const LiveSolver& batch_solver) {
-    const CaseStatistics cs = case_statistics(m_cs, excluded_case);
+  void add_case_scatter(Solution& s, const CaseStatistics& cs, const LiveSolver& batch_solver) {
     s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - ar.sum(), s.level_parameters);
   }
 
@@ -564,17 +564,16 @@ struct OnlineEstimator::Impl {
   /// (Bonferroni over those terms). Never the bias or the scale factor. Refits s.batch with what is
   /// left; returns the solver of that model.
   LiveSolver drop_confounded(Solution& s, const LiveSolver& batch_solver, const std::vector<const Information*>& infos,
-                             const std::vector<Eigen::Matrix3d>& m_cs, std::optional<std::size_t> excluded_case,
+                             const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
                              const std::vector<MountingFit>& fits) {
     std::optional<LiveSolver> current(batch_solver);
     const Index axis = basis->find(plain_term(sensor == dataset::SensorKind::Gyroscope ? Variable::Wi : Variable::Ai));
     const double gain = 1.0 - ar.sum();
+    int runs = 0;
+    for (const Information* i : cs.infos)
+      for (std::size_t r = 0; r < i->runs(); ++r) runs += i->run_samples(r) >= 2 ? 1 : 0;
     for (;;) {
       if (!s.batch.ok) break;
-      const CaseStatistics cs = case_statistics(m_cs, excluded_case);
-      int runs = 0;
-      for (const Information* i : cs.infos)
-        for (std::size_t r = 0; r < i->runs(); ++r) runs += i->run_samples(r) >= 2 ? 1 : 0;
       const std::vector<Index> level = current->phase_level_terms(s.batch, cs.infos, cs.m_cs, gain);
       s.level_parameters = level_parameters(s.batch, *current, cs, &fits);
       const int dof = runs - s.level_parameters;
@@ -852,10 +851,8 @@ OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional
   std::vector<Index> sens;
   for (const Term& t : sensitivities) sens.push_back(s.basis->find(t));
   s.solver = std::make_unique<LiveSolver>(*s.basis, s.model, sens, sensor, s.grid, search_corner, s.options.solver);
-  std::vector<Index> frame_free;
   for (Index t : s.model)
-    if (procedure::frame_free(s.basis->terms()[static_cast<std::size_t>(t)])) frame_free.push_back(t);
-  s.unaligned_solver = std::make_unique<LiveSolver>(*s.basis, frame_free, sens, sensor, s.grid, search_corner, s.options.solver);
+    if (procedure::frame_free(s.basis->terms()[static_cast<std::size_t>(t)])) s.frame_free_model.push_back(t);
   // No noise window, or no order to fit: white noise from the first row on.
   s.noise_fitted = options.noise_window_s <= 0.0 || options.whitening_max_order <= 0 || s.rational;
 }
