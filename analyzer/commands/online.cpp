@@ -270,6 +270,16 @@ struct Counters {
   }
 };
 
+/// The history file's term columns: every sensor's terms, in order of first appearance (sensors of
+/// different kinds track different terms; a sensor leaves the others' cells empty).
+std::vector<std::string> history_terms(const std::vector<std::unique_ptr<SensorPipeline>>& pipelines) {
+  std::vector<std::string> out;
+  for (const auto& p : pipelines)
+    for (const std::string& t : p->estimator->terms())
+      if (std::find(out.begin(), out.end(), t) == out.end()) out.push_back(t);
+  return out;
+}
+
 class Worker {
  public:
   Worker(std::vector<std::unique_ptr<SensorPipeline>>& pipelines, const config::BenchConfig& bench, Inbox& inbox,
@@ -423,7 +433,11 @@ class Worker {
         p->history.push_back({t, s.samples_used, s.values, s.std_devs, s.converged});
         if (history_ != nullptr) {
           *history_ << fmt::format("{},{:.4f},{},{},{}", p->name, t, s.samples_used, s.cases_used, s.converged ? 1 : 0);
-          for (Eigen::Index j = 0; j < s.values.size(); ++j) *history_ << fmt::format(",{:.9g},{:.3g}", s.values(j), s.std_devs(j));
+          for (const std::string& term : history_terms(pipelines_)) {
+            const auto j = std::find(s.terms.begin(), s.terms.end(), term) - s.terms.begin();
+            if (j == static_cast<std::ptrdiff_t>(s.terms.size())) *history_ << ",,";
+            else *history_ << fmt::format(",{:.9g},{:.3g}", s.values(j), s.std_devs(j));
+          }
           *history_ << '\n';
         }
       }
@@ -672,7 +686,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
     history.emplace(options.history);
     if (!*history) throw InputError(options.history.string() + ": cannot write the history file");
     *history << "sensor,t_s,samples,cases,converged";
-    for (const std::string& t : pipelines.front()->estimator->terms()) *history << ',' << t << ',' << t << "_sd";
+    for (const std::string& t : history_terms(pipelines)) *history << ',' << t << ',' << t << "_sd";
     *history << '\n';
   }
 
