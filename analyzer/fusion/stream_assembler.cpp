@@ -883,6 +883,7 @@ struct StreamAssembler::Impl {
       out.sample_period_s = output_period_ns() * 1e-9;
       out.first_row = s.piece_rows;
       out.phase.clear();
+      out.plan_phase.clear();
       if (s.piece_rows == 0) s.piece_first_t_case = row.t_case_s;
     }
     ++s.piece_rows;
@@ -901,6 +902,7 @@ struct StreamAssembler::Impl {
       (*out.temp)(n) = row.temp;
     }
     out.phase.push_back(row.phase_label);
+    out.plan_phase.push_back(row.phase_index);
     out.newest_mono_ns = static_cast<std::int64_t>(row.t_ns);
     if (out.rows() >= 4096) flush_chunk();
   }

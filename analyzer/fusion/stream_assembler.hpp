@@ -67,7 +67,8 @@ struct FusedChunk {
   std::optional<Eigen::VectorXd> temp; // fixture temperature, degC (held from the controller)
   Eigen::VectorXd y;                   // sensor output, output unit
   std::vector<std::string> phase_names;   // the case's phase labels so far
-  std::vector<std::uint16_t> phase;
+  std::vector<std::uint16_t> phase;       // per row: its label, into phase_names
+  std::vector<std::int32_t> plan_phase;   // per row: the plan's phase index (-1 before the first marker)
   std::int64_t newest_mono_ns = 0;     // CLOCK_MONOTONIC of the chunk's last row
   [[nodiscard]] Eigen::Index rows() const { return y.size(); }
 };

@@ -52,17 +52,25 @@ void Information::add_inputs(const Eigen::Ref<const Eigen::MatrixX3d>& inputs) {
   inputs_(3, 3) += static_cast<double>(n);
 }
 
-void Information::add(const Information& other) {
+void Information::add(const Information& other, bool continues_run) {
   inputs_ += other.inputs_;
   if (other.samples_ == 0) return;
-  if (samples_ == 0 && weight_ == 0.0 && gram_.matrix().size() == 0) {
+  if (samples_ == 0 && weight_ == 0.0) {   // no rows yet (a default-constructed one has no size either)
     const Eigen::Matrix4d inputs = inputs_;
     *this = other;
     inputs_ = inputs;
     run_open_ = false;
     return;
   }
-  runs_.insert(runs_.end(), other.runs_.begin(), other.runs_.end());
+  auto from = other.runs_.begin();
+  if (continues_run && !runs_.empty() && from != other.runs_.end()) {
+    Run& last = runs_.back();
+    last.base += from->base;
+    for (std::size_t k = 0; k < last.filtered.size(); ++k) last.filtered[k] += from->filtered[k];
+    last.samples += from->samples;
+    ++from;
+  }
+  runs_.insert(runs_.end(), from, other.runs_.end());
   run_open_ = false;   // rows added after another's are not its run's
   gram_.matrix() += other.gram_.matrix();
   for (std::size_t k = 0; k < cross_.size(); ++k) {
@@ -173,6 +181,61 @@ Eigen::VectorXd Information::model_constant_products(const Eigen::MatrixXd& t_ba
 Eigen::VectorXd Information::run_constant_products(std::size_t r, const Eigen::MatrixXd& t_base,
                                                    const Eigen::MatrixXd& t_filtered, const CornerWeights& corner) const {
   return constant_products(runs_[r].base, runs_[r].filtered, t_base, t_filtered, corner);
+}
+
+Information& RunStatistics::run_for(int phase, int label, const Information& empty) {
+  if (!last_open_ || runs_.back().phase != phase) {
+    close_run();
+    const bool joins = !runs_.empty() && runs_.back().label == label;
+    runs_.push_back({phase, label, joins, empty});
+    last_open_ = true;
+  }
+  return runs_.back().info;
+}
+
+void RunStatistics::close_run() {
+  if (!last_open_) return;
+  closed_.add(runs_.back().info, runs_.back().joins_previous);
+  last_open_ = false;
+}
+
+void RunStatistics::add(RunStatistics&& other) {
+  close_run();
+  other.close_run();
+  closed_.add(other.closed_);   // another segment: its first cluster is a new one
+  runs_.insert(runs_.end(), std::make_move_iterator(other.runs_.begin()), std::make_move_iterator(other.runs_.end()));
+  other.clear();
+}
+
+void RunStatistics::scale(double factor) {
+  closed_.scale(factor);
+  for (Run& r : runs_) r.info.scale(factor);
+}
+
+void RunStatistics::clear() {
+  closed_ = Information();
+  runs_.clear();
+  last_open_ = false;
+}
+
+Information RunStatistics::total(std::optional<std::size_t> without) const {
+  if (without) {
+    // From the runs themselves: taking one out of the sum would leave its run in runs() (and
+    // cancel large numbers for a small phase).
+    Information out;
+    for (std::size_t r = 0; r < runs_.size(); ++r)
+      if (r != *without) out.add(runs_[r].info, runs_[r].joins_previous && r - 1 != *without);
+    return out;
+  }
+  Information out = closed_;
+  if (last_open_) out.add(runs_.back().info, runs_.back().joins_previous);
+  return out;
+}
+
+std::int64_t RunStatistics::samples() const {
+  std::int64_t n = 0;
+  for (const Run& r : runs_) n += r.info.samples();
+  return n;
 }
 
 SegmentPipeline::SegmentPipeline(Eigen::VectorXd ar, std::vector<Index> filtered_sources, std::vector<double> corners,

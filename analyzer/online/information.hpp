@@ -18,6 +18,7 @@
 #include <Eigen/Dense>
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "analyzer/ident/err.hpp"
@@ -35,12 +36,13 @@ class Information {
   /// Adds rows: base (n x b), the filtered columns at each node (n x f each), the output.
   void add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
            const Eigen::Ref<const Eigen::VectorXd>& y);
-  /// The rows added from now on form a new run: a contiguous phase of a case, the unit whose
-  /// offsets the case scatter compares (LiveSolver::add_case_scatter; the batch's phase clusters).
-  /// A run also starts with the first rows added.
-  void start_run() { run_open_ = false; }
-  /// Runs kept, oldest first (add(other) appends other's).
+  /// Runs kept, oldest first: a run is a contiguous phase of a case, the unit whose offsets the
+  /// case scatter compares (LiveSolver::add_case_scatter; the batch's phase clusters). The rows
+  /// added to an Information form one run; add(other) appends other's (RunStatistics keeps one
+  /// Information per run).
   [[nodiscard]] std::size_t runs() const { return runs_.size(); }
+  /// The rows added from now on form a new run (a long phase is cut into several).
+  void start_run() { run_open_ = false; }
   [[nodiscard]] std::int64_t run_samples(std::size_t r) const { return runs_[r].samples; }
   /// model_constant_products over the rows of run r alone.
   [[nodiscard]] Eigen::VectorXd run_constant_products(std::size_t r, const Eigen::MatrixXd& t_base,
@@ -50,7 +52,9 @@ class Information {
   /// varies on its own is a property of the motion, which the noise model's filter would distort
   /// (it lifts the references' high-frequency noise against the constant inputs).
   void add_inputs(const Eigen::Ref<const Eigen::MatrixX3d>& inputs);
-  void add(const Information& other);
+  /// `continues_run`: other's first run goes on this one's last (the same phase label across two
+  /// plan phases: one cluster, as the batch's phase_clusters).
+  void add(const Information& other, bool continues_run = false);
   void subtract(const Information& other);
   /// Exponential forgetting: every sample so far weighs `factor` less.
   void scale(double factor);
@@ -94,6 +98,38 @@ class Information {
   bool run_open_ = false;                   // the next rows continue runs_.back()
   std::int64_t samples_ = 0;
   double weight_ = 0.0;
+};
+
+/// Statistics kept per run (a contiguous phase of a case) and summed. The sum is what the estimate
+/// reads; the runs let the convergence test leave one phase out where the plan has no case to
+/// spare (a term that one case alone determines).
+class RunStatistics {
+ public:
+  struct Run {
+    int phase = -1;   // the plan's phase index
+    int label = -1;   // the stream's phase label
+    bool joins_previous = false;   // the previous run's label in the same segment: one cluster with it
+    Information info;
+  };
+  /// Where the next rows of plan phase `phase` (labelled `label`) go: the last run while its phase
+  /// goes on, else a new one.
+  Information& run_for(int phase, int label, const Information& empty);
+  /// Appends other's runs (closed: rows after this start a new run).
+  void add(RunStatistics&& other);
+  /// Exponential forgetting (Information::scale) of every run.
+  void scale(double factor);
+  void clear();
+  /// Every row's statistics; `without`: run left out.
+  [[nodiscard]] Information total(std::optional<std::size_t> without = std::nullopt) const;
+  [[nodiscard]] const std::vector<Run>& runs() const { return runs_; }
+  [[nodiscard]] std::int64_t samples() const;
+
+ private:
+  void close_run();
+
+  Information closed_;      // the sum of every run but an open last one
+  std::vector<Run> runs_;
+  bool last_open_ = false;  // runs_.back() takes more rows (not in closed_ yet)
 };
 
 /// A segment's rows on their way into the statistics: the noise model's A(q), then each corner's

@@ -541,6 +541,11 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   std::vector<Eigen::VectorXd> responses;
   Eigen::MatrixXd tb, tf;
   double excess = 0.0;
+  // ULS's sign convention (uls_batch.hpp): an output-multiplied column enters the prediction with
+  // its coefficient negated, and batch.gram_inverse is of the columns so signed.
+  Eigen::VectorXd sign = Eigen::VectorXd::Ones(p);
+  for (Index j = 0; j < p; ++j)
+    if (basis_.terms()[static_cast<std::size_t>(batch.terms[static_cast<std::size_t>(j)])].is_output_multiplied()) sign(j) = -1.0;
   for (std::size_t c = 0; c < cases.size(); ++c) {
     basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
     // Each contiguous phase of the case on its own (the batch's phase clusters): a fixture's
@@ -548,7 +553,8 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
     for (std::size_t r = 0; r < cases[c]->runs(); ++r) {
       const double n = static_cast<double>(cases[c]->run_samples(r));
       if (n < 2.0) continue;
-      const Eigen::VectorXd v = cases[c]->run_constant_products(r, tb, tf, weights) / noise_gain;   // row sums
+      Eigen::VectorXd v = cases[c]->run_constant_products(r, tb, tf, weights) / noise_gain;   // row sums
+      v.head(p).array() *= sign.array();
       // A constant offset d of the run's output adds A(1) d to each whitened row.
       const double offset = (v(p) - batch.theta.dot(v.head(p))) / (n * noise_gain);
       const double sd = std::sqrt(batch.s2 / n) / noise_gain;

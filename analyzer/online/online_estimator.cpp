@@ -59,7 +59,8 @@ struct OnlineEstimator::Impl {
     std::size_t plan_case = 0;
     std::string name;
     std::size_t mounting = 0;
-    Information info;
+    RunStatistics stats;
+    std::vector<std::string> phase_names;   // the stream's, for the run labels
     std::int64_t rows = 0;
   };
   struct MountingState {
@@ -77,11 +78,10 @@ struct OnlineEstimator::Impl {
     int segment = 0;
     double period = 0.0;
     std::unique_ptr<SegmentPipeline> pipeline;
-    Information info;
+    RunStatistics stats;
     dataset::CaseData history;   // the last max_lag rows (case frame), for lagged columns
     std::int64_t rows = 0;       // rows into the statistics
     std::int64_t raw_rows = 0;   // rows received
-    int run_label = -1;          // the phase label of the run the statistics are in (Information::start_run)
   };
   struct Buffered {
     std::size_t state = 0;
@@ -92,6 +92,7 @@ struct OnlineEstimator::Impl {
     Eigen::VectorXd y;
     Eigen::MatrixX3d inputs;   // along the case axes (Information::add_inputs)
     std::vector<std::uint16_t> phase;   // per row: the chunk's phase label
+    std::vector<std::int32_t> plan_phase;   // per row: the plan's phase index
   };
 
   std::vector<CaseState> cases;
@@ -119,17 +120,29 @@ struct OnlineEstimator::Impl {
     return std::make_unique<SegmentPipeline>(ar, basis->filtered_sources(), grid.nodes(), period);
   }
 
-  /// Rows of one segment through its noise pipeline into `info`, a new run where the phase label
-  /// changes (`run_label`: the label of the run `info` is in, -1 for none yet).
-  static void add_rows(SegmentPipeline& pipeline, Information& info, int& run_label, const Eigen::MatrixXd& x,
-                       const Eigen::VectorXd& y, const Eigen::MatrixX3d& inputs, const std::vector<std::uint16_t>& phase) {
+  /// The longest stretch of a phase that is one cluster of the case scatter. Slow noise (1/f,
+  /// drift) moves a minute's rows together; cut into minutes, a thermal step's offsets carry it
+  /// into the sd of what varies within the step (its T terms), which the whole step's offset
+  /// cannot. Shorter than every phase of the shipped benches but the thermal ones.
+  static constexpr double kClusterS = 60.0;
+
+  /// Rows of one segment through its noise pipeline into `stats`, a new run where the plan's phase
+  /// changes, a new cluster after every kClusterS of it.
+  void add_rows(SegmentPipeline& pipeline, RunStatistics& stats, double period, const Eigen::MatrixXd& x,
+                const Eigen::VectorXd& y, const Eigen::MatrixX3d& inputs, const std::vector<std::uint16_t>& phase,
+                const std::vector<std::int32_t>& plan_phase) const {
     const Index n = y.size();
+    const Information empty = empty_information();
+    const auto cluster_rows = std::max<std::int64_t>(1, std::llround(kClusterS / period));
     for (Index from = 0; from < n;) {
+      const auto at = static_cast<std::size_t>(from);
       Index to = from + 1;
-      while (to < n && phase[static_cast<std::size_t>(to)] == phase[static_cast<std::size_t>(from)]) ++to;
-      if (phase[static_cast<std::size_t>(from)] != run_label) {
-        info.start_run();
-        run_label = phase[static_cast<std::size_t>(from)];
+      while (to < n && plan_phase[static_cast<std::size_t>(to)] == plan_phase[at] && phase[static_cast<std::size_t>(to)] == phase[at]) ++to;
+      Information& info = stats.run_for(plan_phase[at], phase[at], empty);
+      if (info.runs() > 0) {
+        const std::int64_t in_cluster = info.run_samples(info.runs() - 1);
+        if (in_cluster >= cluster_rows) info.start_run();
+        else to = std::min<Index>(to, from + (cluster_rows - in_cluster));
       }
       pipeline.push(x.middleRows(from, to - from), y.segment(from, to - from), info);
       info.add_inputs(inputs.middleRows(from, to - from));
@@ -168,7 +181,6 @@ struct OnlineEstimator::Impl {
     cs.plan_case = plan_case;
     cs.name = tc.name;
     cs.mounting = m;
-    cs.info = empty_information();
     cases.push_back(std::move(cs));
     ms.cases.push_back(cases.size() - 1);
     return cases.size() - 1;
@@ -177,8 +189,8 @@ struct OnlineEstimator::Impl {
   void forget(Index rows) {
     if (!(options.forgetting < 1.0)) return;
     const double f = std::pow(options.forgetting, static_cast<double>(rows));
-    for (CaseState& c : cases) c.info.scale(f);
-    if (open) open->info.scale(f);
+    for (CaseState& c : cases) c.stats.scale(f);
+    if (open) open->stats.scale(f);
   }
 
   void close_open(bool kept) {
@@ -189,7 +201,7 @@ struct OnlineEstimator::Impl {
     last_convergence_rows = -1;
     CaseState& c = cases[open->state];
     if (kept) {
-      c.info.add(open->info);
+      c.stats.add(std::move(open->stats));
       c.rows += open->rows;
     } else {
       // Its rows leave the estimate, and the noise model's window.
@@ -211,6 +223,7 @@ struct OnlineEstimator::Impl {
                                    tc.name));
     }
     const std::size_t state = state_of(chunk.case_index, tc);
+    if (chunk.phase_names.size() > cases[state].phase_names.size()) cases[state].phase_names = chunk.phase_names;
     if (!open || open->plan_case != chunk.case_index || open->segment != chunk.segment) {
       close_open(true);   // its end was not announced: what it has counts
       OpenSegment s;
@@ -219,7 +232,6 @@ struct OnlineEstimator::Impl {
       s.segment = chunk.segment;
       s.period = chunk.sample_period_s;
       s.pipeline = pipeline(chunk.sample_period_s);
-      s.info = empty_information();
       // Lags of the structure table's candidates beyond the model's own see zeros before the
       // segment's first row, so the model's rows start where the batch starts them.
       const Index pad = basis->max_lag() - model_max_lag;
@@ -278,11 +290,15 @@ struct OnlineEstimator::Impl {
     const std::vector<std::uint16_t> phase = chunk.phase.size() == static_cast<std::size_t>(n)
                                                  ? std::vector<std::uint16_t>(chunk.phase.end() - rows, chunk.phase.end())
                                                  : std::vector<std::uint16_t>(static_cast<std::size_t>(rows), 0);
+    const std::vector<std::int32_t> plan_phase =
+        chunk.plan_phase.size() == static_cast<std::size_t>(n)
+            ? std::vector<std::int32_t>(chunk.plan_phase.end() - rows, chunk.plan_phase.end())
+            : std::vector<std::int32_t>(phase.begin(), phase.end());
     if (!noise_fitted) {
-      buffer.push_back({state, chunk.case_index, chunk.segment, chunk.sample_period_s, x, y, inputs, phase});
+      buffer.push_back({state, chunk.case_index, chunk.segment, chunk.sample_period_s, x, y, inputs, phase, plan_phase});
       buffered_rows += rows;
     }
-    add_rows(*seg.pipeline, seg.info, seg.run_label, x, y, inputs, phase);
+    add_rows(*seg.pipeline, seg.stats, seg.period, x, y, inputs, phase, plan_phase);
     seg.rows += rows;
     rows_total += rows;
     if (nominal_period <= 0.0) nominal_period = chunk.sample_period_s;
@@ -340,31 +356,28 @@ struct OnlineEstimator::Impl {
     }
     ar = procedure::ArWhitener::fit(residuals, layout, options.whitening_max_order).coefficients();
     // Every row so far again, through the noise model.
-    for (CaseState& c : cases) c.info.clear();
+    for (CaseState& c : cases) c.stats.clear();
     std::unique_ptr<SegmentPipeline> p;
-    Information info = empty_information();
+    RunStatistics stats;
     current = {static_cast<std::size_t>(-1), -1};
     const auto settle = [&] {
       if (current.first == static_cast<std::size_t>(-1)) return;
       if (open && open->state == current.first && open->segment == current.second) {
         open->pipeline = std::move(p);
-        open->info = std::move(info);
+        open->stats = std::move(stats);   // its rows go on in its last run
       } else {
-        cases[current.first].info.add(info);
+        cases[current.first].stats.add(std::move(stats));
       }
-      info = empty_information();
+      stats = RunStatistics();
     };
-    int run_label = -1;
     for (const Buffered& b : buffer) {
       if (current != std::pair{b.state, b.segment}) {
         settle();
         current = {b.state, b.segment};
         p = pipeline(b.period);
-        run_label = -1;
       }
-      add_rows(*p, info, run_label, b.base, b.y, b.inputs, b.phase);
+      add_rows(*p, stats, b.period, b.base, b.y, b.inputs, b.phase, b.plan_phase);
     }
-    if (open && current == std::pair{open->state, open->segment}) open->run_label = run_label;   // its rows go on in that run
     settle();
     buffer.clear();
     buffered_rows = 0;
@@ -391,7 +404,39 @@ struct OnlineEstimator::Impl {
 
   /// Whether case c has rows in the estimate (kept ones, or an open segment long enough to count).
   [[nodiscard]] bool has_data(std::size_t c) const {
-    return cases[c].info.samples() > 0 || (open_counts() && open->state == c);
+    return cases[c].stats.samples() > 0 || (open_counts() && open->state == c);
+  }
+
+  /// What the convergence test leaves out: a case, or one run (phase) of it.
+  struct LeftOut {
+    std::size_t case_index = 0;
+    std::optional<std::size_t> run;   // into runs_of(case_index)
+  };
+
+  /// Case c's runs, the open segment's included while it counts.
+  [[nodiscard]] std::vector<const RunStatistics::Run*> runs_of(std::size_t c) const {
+    std::vector<const RunStatistics::Run*> out;
+    for (const RunStatistics::Run& r : cases[c].stats.runs()) out.push_back(&r);
+    if (open_counts() && open->state == c)
+      for (const RunStatistics::Run& r : open->stats.runs()) out.push_back(&r);
+    return out;
+  }
+
+  /// Case c's statistics as the estimate reads them, `left_out`'s run taken out when it is c's
+  /// (nullopt: the case is left out, or has no rows in the estimate).
+  [[nodiscard]] std::optional<Information> case_information(std::size_t c, const std::optional<LeftOut>& left_out) const {
+    if (!has_data(c)) return std::nullopt;
+    if (!left_out || left_out->case_index != c) {
+      Information out = cases[c].stats.total();
+      if (open_counts() && open->state == c) out.add(open->stats.total());
+      return out;
+    }
+    if (!left_out->run) return std::nullopt;
+    Information out;
+    const std::vector<const RunStatistics::Run*> runs = runs_of(c);
+    for (std::size_t r = 0; r < runs.size(); ++r)
+      if (r != *left_out->run) out.add(runs[r]->info);
+    return out;
   }
   /// Whether every case of the plan has rows in the estimate: what is not determined then, the
   /// plan does not determine.
@@ -410,19 +455,16 @@ struct OnlineEstimator::Impl {
     return n;
   }
 
-  /// Blocks 5-6 per mounting and the batch; `excluded_case`: a case left out, `fixed_m_cs`: the
+  /// Blocks 5-6 per mounting and the batch; `left_out`: a case or a run left out, `fixed_m_cs`: the
   /// mountings' misalignments to use instead of estimating them (the convergence test).
-  Solution solve(bool update_states, std::optional<std::size_t> excluded_case = std::nullopt,
+  Solution solve(bool update_states, const std::optional<LeftOut>& left_out = std::nullopt,
                  const std::vector<Eigen::Matrix3d>* fixed_m_cs = nullptr,
                  const std::vector<Eigen::Matrix3d>* fixed_angle_covariances = nullptr,
                  const Solution* fixed_from = nullptr) {
     Solution s;
     s.infos.assign(mountings.size(), empty_information());
-    for (std::size_t c = 0; c < cases.size(); ++c) {
-      if (excluded_case && *excluded_case == c) continue;
-      s.infos[cases[c].mounting].add(cases[c].info);
-    }
-    if (open_counts() && !(excluded_case && *excluded_case == open->state)) s.infos[cases[open->state].mounting].add(open->info);
+    for (std::size_t c = 0; c < cases.size(); ++c)
+      if (const std::optional<Information> info = case_information(c, left_out)) s.infos[cases[c].mounting].add(*info);
     // Mountings that determine the bias first: shaker-only ones take it from them.
     for (std::size_t m = 0; m < mountings.size(); ++m)
       if (!mountings[m].shaker_only) s.order.push_back(m);
@@ -432,13 +474,15 @@ struct OnlineEstimator::Impl {
       s.m_cs = *fixed_m_cs;
       std::vector<const Information*> infos;
       for (const Information& i : s.infos) infos.push_back(&i);
-      // The full solution's model (what it dropped stays out) and its count of phase-level parameters.
-      const LiveSolver batch_solver = fixed_from != nullptr ? solver->with_model(fixed_from->model) : *solver;
+      // The terms the full solution determined (what it dropped or could not determine stays out:
+      // of three squares that sum to one with the bias, which one goes is rounding's choice) and
+      // its count of phase-level parameters.
+      const LiveSolver batch_solver = fixed_from != nullptr ? solver->with_model(fixed_from->batch.terms) : *solver;
       s.aligned = fixed_from == nullptr || fixed_from->aligned;
       s.model = batch_solver.model();
       s.batch = batch_solver.fit_batch(infos, s.m_cs);
       if (fixed_angle_covariances != nullptr) batch_solver.add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances);
-      const CaseStatistics cs = case_statistics(s.m_cs, excluded_case);
+      const CaseStatistics cs = case_statistics(s.m_cs, left_out);
       if (s.batch.ok) s.level_parameters = level_parameters(s.batch, batch_solver, cs, nullptr);
       add_case_scatter(s, cs, batch_solver);
       return s;
@@ -509,7 +553,7 @@ struct OnlineEstimator::Impl {
       if (turns[m].held) c += turns[m].covariance;
       angle_covariances.push_back(c);
     }
-    const CaseStatistics cs = case_statistics(m_cs, excluded_case);
+    const CaseStatistics cs = case_statistics(m_cs, left_out);
     const LiveSolver fitted = drop_confounded(s, batch_solver, infos, m_cs, cs, fits);
     fitted.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
     add_case_scatter(s, cs, fitted);
@@ -527,13 +571,13 @@ struct OnlineEstimator::Impl {
     std::vector<Eigen::Matrix3d> m_cs;
   };
   [[nodiscard]] CaseStatistics case_statistics(const std::vector<Eigen::Matrix3d>& m_cs,
-                                               std::optional<std::size_t> excluded_case) const {
+                                               const std::optional<LeftOut>& left_out) const {
     CaseStatistics out;
     out.with_open.reserve(cases.size());
     for (std::size_t c = 0; c < cases.size(); ++c) {
-      if ((excluded_case && *excluded_case == c) || !has_data(c)) continue;
-      out.with_open.push_back(cases[c].info);
-      if (open_counts() && open->state == c) out.with_open.back().add(open->info);
+      std::optional<Information> info = case_information(c, left_out);
+      if (!info) continue;
+      out.with_open.push_back(std::move(*info));
       out.m_cs.push_back(m_cs[cases[c].mounting]);
     }
     for (const Information& i : out.with_open) out.infos.push_back(&i);
@@ -673,10 +717,14 @@ struct OnlineEstimator::Impl {
     return out;
   }
 
-  /// Leave-one-case-out: the estimate without case c against the estimate with it. Under the
-  /// model, theta_without - theta has variance var_without - var (nested estimators), so
+  /// Leave-one-out: the estimate without case c against the estimate with it. Under the model,
+  /// theta_without - theta has variance var_without - var (nested estimators), so
   /// z = |difference| / sqrt(var_without - var) is standard normal; a case whose z exceeds the
   /// Bonferroni bound disagrees with the others, and one more such case would move the estimate.
+  /// A case without which a term is not determined (a plan with no case to spare: a rotation
+  /// table's rate series alone gives the centripetal terms, a thermal bench's two poses the bias)
+  /// is checked by leaving out each of its phases instead; a term that rests on one phase alone
+  /// is never called converged.
   void update_convergence(const Solution& s, const OnlineSnapshot& out) {
     const auto rate_rows = nominal_period > 0.0 ? options.convergence_interval_s / nominal_period : 1e4;
     const std::size_t with_data = cases_with_data();
@@ -706,20 +754,20 @@ struct OnlineEstimator::Impl {
       convergence = "one case so far: nothing to check it against" + beyond_plan;
       return;
     }
-    const double z_bound = bonferroni_z(options.convergence_alpha, static_cast<double>(with_data * s.batch.terms.size()));
+    // Each case left out in turn; a case the model cannot do without (a minimal plan) is checked
+    // by its phases instead: with no case to spare, the case's own runs are the replicates.
     double worst = 0.0;
     std::string worst_at;
-    for (std::size_t c = 0; c < cases.size(); ++c) {
-      if (!has_data(c)) continue;
-      // The batch again without the case, each mounting keeping its M_C^S and its uncertainty
-      // (re-running algorithm 1 without the case would break the procedure's own structure: a
+    std::size_t units = 0;
+    // The estimate without `left_out`: the first model term it does not determine, or none (then
+    // its moves are in worst).
+    const auto compare = [&](const LeftOut& left_out, const std::string& where) -> std::optional<std::string> {
+      // The batch again without it, each mounting keeping its M_C^S and its uncertainty
+      // (re-running algorithm 1 without a case would break the procedure's own structure: a
       // shaker fixture left without the mounting that gives it the bias, an orientation missing
       // that separated a tilt from the cross-couplings).
-      const Solution without = solve(false, c, &s.m_cs, &s.angle_covariances, &s);
-      if (!without.batch.ok) {
-        convergence = fmt::format("without case {} the model is not determined{}", cases[c].name, beyond_plan);
-        return;
-      }
+      const Solution without = solve(false, left_out, &s.m_cs, &s.angle_covariances, &s);
+      if (!without.batch.ok) return std::string("the model");
       for (std::size_t j = 0; j < model.size(); ++j) {
         const std::string name = model_terms[j].to_string();
         if (std::find(out.plan_undetermined.begin(), out.plan_undetermined.end(), name) != out.plan_undetermined.end() ||
@@ -730,24 +778,52 @@ struct OnlineEstimator::Impl {
           if (s.batch.terms[k] == model[j]) a = static_cast<Index>(k);
         for (std::size_t k = 0; k < without.batch.terms.size(); ++k)
           if (without.batch.terms[k] == model[j]) b = static_cast<Index>(k);
-        if (!a || !b) {
-          convergence = fmt::format("without case {} term {} is not determined{}", cases[c].name, model_terms[j].to_string(),
-                                    beyond_plan);
-          return;
-        }
+        if (!a || !b) return "term " + name;
         // Nested estimators: theta - theta_without has variance var_without - var <= var_without,
         // so measuring the move in sd_without is conservative (and needs no difference of
-        // variances, which the misalignment's share makes fragile).
-        const double sd_without = without.batch.sd(*b);
-        const double z = std::abs(without.batch.theta(*b) - s.batch.theta(*a)) / sd_without;
+        // variances, which the misalignment's share makes fragile). Fewer rows never know more:
+        // where the rows left read less case scatter than all of them (the sd without below the
+        // sd with), the scale is the sd with.
+        const double z = std::abs(without.batch.theta(*b) - s.batch.theta(*a)) /
+                         std::max(without.batch.sd(*b), s.batch.sd(*a));
         if (z > worst) {
           worst = z;
-          worst_at = fmt::format("{} without case {}", model_terms[j].to_string(), cases[c].name);
+          worst_at = fmt::format("{} without {}", name, where);
+        }
+      }
+      ++units;
+      return std::nullopt;
+    };
+    for (std::size_t c = 0; c < cases.size(); ++c) {
+      if (!has_data(c)) continue;
+      const std::optional<std::string> missing = compare({c, std::nullopt}, "case " + cases[c].name);
+      if (!missing) continue;
+      const std::vector<const RunStatistics::Run*> runs = runs_of(c);
+      std::size_t with_rows = 0;
+      for (const RunStatistics::Run* r : runs) with_rows += r->info.samples() > 0 ? 1 : 0;
+      if (with_rows < 2) {
+        convergence = fmt::format("without case {} {} is not determined, and the case has one phase to check it "
+                                  "by{}",
+                                  cases[c].name, *missing, beyond_plan);
+        return;
+      }
+      for (std::size_t r = 0; r < runs.size(); ++r) {
+        if (runs[r]->info.samples() == 0) continue;
+        const auto label = static_cast<std::size_t>(runs[r]->label);
+        const std::string where = fmt::format("phase {} ({}) of case {}", runs[r]->phase,
+                                              label < cases[c].phase_names.size() ? cases[c].phase_names[label] : "unlabelled",
+                                              cases[c].name);
+        if (const std::optional<std::string> rests = compare({c, r}, where)) {
+          convergence = fmt::format("without case {} {} is not determined, nor without its {}: it rests on one phase"
+                                    "{}",
+                                    cases[c].name, *missing, where, beyond_plan);
+          return;
         }
       }
     }
+    const double z_bound = bonferroni_z(options.convergence_alpha, static_cast<double>(units * s.batch.terms.size()));
     converged = worst <= z_bound;
-    convergence = fmt::format("largest leave-one-case-out z {:.2f} ({}), bound {:.2f}{}", worst, worst_at, z_bound, beyond_plan);
+    convergence = fmt::format("largest leave-one-out z {:.2f} ({}), bound {:.2f}{}", worst, worst_at, z_bound, beyond_plan);
   }
 };
 
@@ -755,8 +831,14 @@ std::vector<Term> OnlineEstimator::default_terms(dataset::SensorKind sensor, boo
   const bool gyro = sensor == dataset::SensorKind::Gyroscope;
   std::vector<Term> terms;
   if (gyro) {
-    // Bias, scale factor and the g-sensitivity of eq. 5 (static part).
-    terms = {Term(), plain_term(Variable::Wi), plain_term(Variable::Ai), plain_term(Variable::Ap), plain_term(Variable::Ao)};
+    // Eq. 5's static part: bias, scale factor, its rate nonlinearity (c_f1: the output times the
+    // rate, fitted with ULS's correction) and the g-sensitivity.
+    terms = {Term(),
+             plain_term(Variable::Wi),
+             product(Variable::Y, Variable::Wi),
+             plain_term(Variable::Ai),
+             plain_term(Variable::Ap),
+             plain_term(Variable::Ao)};
   } else {
     // The paper's complete static model (eq. 4, r = 0, table 3's case 3).
     terms = {Term(),

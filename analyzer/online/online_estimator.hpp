@@ -54,7 +54,8 @@ struct OnlineOptions {
   /// An open segment counts once it is this long, and `online`'s assembler drops shorter ones
   /// (the offline default: a piece of a case cut by lost samples).
   double min_segment_s = fusion::AssemblerOptions{}.min_segment_s;
-  /// Convergence: family-wise level of the leave-one-case-out test (Bonferroni over cases and terms).
+  /// Convergence: family-wise level of the leave-one-out test (Bonferroni over the cases or phases
+  /// left out and the terms).
   double convergence_alpha = 0.01;
   double convergence_interval_s = 1.0;   ///< stream time between two convergence tests
   bool structure_table = true;        ///< ERR and t of the candidate terms not in the model
@@ -100,7 +101,7 @@ struct OnlineSnapshot {
   /// case out moves no coefficient by more than the noise allows (z of the nested difference below
   /// the Bonferroni bound at convergence_alpha).
   bool converged = false;
-  std::string convergence;                   // why not, or the largest leave-one-case-out z
+  std::string convergence;                   // why not, or the largest leave-one-out z
   int noise_order = 0;                       // AR order of the noise model (0: white or not yet fitted)
   bool noise_model_fitted = false;
   std::optional<double> corner_rad_s;        // squares' high pass (none: static)

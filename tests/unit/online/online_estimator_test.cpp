@@ -490,6 +490,108 @@ TEST(OnlineEstimator, ConvergedNeverWhileOneMoreCaseWouldMoveACoefficientByThree
   EXPECT_FALSE(s.converged) << s.convergence;
 }
 
+/// Feeds one case in chunks whose rows carry `phases` plan phases of equal length, every phase
+/// labelled alike (one cluster of the case scatter, as consecutive phases of one kind are).
+void feed_phased(OnlineEstimator& est, const PlanCase& c, std::size_t case_index, int phases) {
+  const Index n = c.data.y.size();
+  for (Index k = 0; k < n;) {
+    const Index m = std::min<Index>(700, n - k);
+    fusion::FusedChunk chunk = chunk_of(c, case_index, k, m);
+    for (Index r = 0; r < m; ++r) chunk.plan_phase.push_back(static_cast<std::int32_t>((k + r) * phases / n));
+    est.push(chunk, c.tc);
+    k += m;
+  }
+  est.end_segment({case_index, c.tc.name, 0, n, true});
+}
+
+TEST(OnlineEstimator, APlanWithNoCaseToSpareIsCheckedByItsPhases) {
+  // Two poses, input axis up and down (config/sim-thermal.toml's plan): without either, the bias
+  // and the scale factor are one number, so leaving a case out tests nothing. The poses' plan
+  // phases stand in for replicates.
+  const auto pose = [](const std::string& name, double g, std::uint32_t seed) {
+    dataset::CaseData c;
+    const Index n = 8000;
+    c.a_e = dataset::Matrix3Columns::Zero(n, 3);
+    c.a_e.col(0).setConstant(g * kG);
+    c.w_e = dataset::Matrix3Columns::Zero(n, 3);
+    c.t = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * kPeriod);
+    c.sample_period_s = kPeriod;
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> noise(0.0, 1e-3);
+    c.y.resize(n);
+    for (Index k = 0; k < n; ++k) c.y(k) = 3.44e-3 + 0.0877 * g * kG + noise(rng);
+    return PlanCase{test_case(name, CaseKind::Static, frames::Dcm::Identity(), "poses"), c};
+  };
+  const PlanCase up = pose("up", 1.0, 3), down = pose("down", -1.0, 4);
+  for (const int phases : {4, 1}) {
+    SCOPED_TRACE(std::to_string(phases) + " phase(s) per pose");
+    OnlineEstimator est(dataset::SensorKind::Accelerometer, model_file({"1", "a_i"}, std::nullopt), 25.0, white_noise());
+    feed_phased(est, up, 0, phases);
+    feed_phased(est, down, 1, phases);
+    const OnlineSnapshot s = est.snapshot();
+    ASSERT_TRUE(s.undetermined.empty()) << s.convergence;
+    EXPECT_NEAR(s.values(1), 0.0877, 4.0 * s.std_devs(1));
+    // With one phase a pose, nothing checks the estimate: never converged.
+    EXPECT_EQ(s.converged, phases > 1) << s.convergence;
+    EXPECT_NE(s.convergence.find(phases > 1 ? "without phase" : "one phase to check it by"), std::string::npos)
+        << s.convergence;
+  }
+}
+
+TEST(OnlineEstimator, AnOutputMultipliedTermsPhasesCarryNoScatterTheNoiseDoesNot) {
+  // A gyroscope with eq. 5's rate nonlinearity on a rate table, white noise: ULS negates an
+  // output-multiplied coefficient in the prediction (uls_batch.hpp). The phases' offsets, read
+  // with that sign, are noise, so the sd with the phases as clusters are those without (one
+  // cluster, no scatter), and cover the truth.
+  constexpr double kBias = 2e-6, kScale = 1.0005, kNonlinearity = 1e-4, kNoise = 1e-4;
+  const int phases = 12;
+  const Index n = 24000;
+  dataset::CaseData c;
+  c.a_e = dataset::Matrix3Columns::Zero(n, 3);
+  c.a_e.col(2).setConstant(kG);
+  c.w_e = dataset::Matrix3Columns::Zero(n, 3);
+  c.t = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * kPeriod);
+  c.sample_period_s = kPeriod;
+  c.y.resize(n);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, kNoise);
+  for (Index k = 0; k < n; ++k) {
+    const Index phase = k * phases / n;
+    const double rate = (phase % 2 == 0 ? 1.0 : -1.0) * 0.3 * static_cast<double>(1 + phase % 6);
+    c.w_e.value()(k, phase % 3 == 2 ? 1 : 2) = 0.2 * rate;
+    c.w_e.value()(k, 0) = rate;
+    // y (1 + c w_i) = K w_i + b, w_i along x_E (the nominal frame's input axis).
+    c.y(k) = (kScale * rate + kBias) / (1.0 + kNonlinearity * rate) + noise(rng);
+  }
+  const PlanCase table{test_case("rates", CaseKind::RotationTable, frames::Dcm::Identity(), ""), c};
+  model::ModelFile m = model_file({"1", "w_i", "y*w_i"}, std::nullopt);
+  m.sensor = dataset::SensorKind::Gyroscope;
+  m.m_cs = frames::Dcm::Identity();
+  OnlineSnapshot with_phases, one_cluster;
+  for (const int k : {phases, 1}) {
+    OnlineEstimator est(dataset::SensorKind::Gyroscope, m, 25.0, white_noise());
+    std::vector<std::uint16_t> labels;
+    for (Index r = 0; r < n; ++r) labels.push_back(static_cast<std::uint16_t>(r * k / n));
+    for (Index from = 0; from < n; from += 1000) {
+      fusion::FusedChunk chunk = chunk_of(table, 0, from, 1000);
+      chunk.phase.assign(labels.begin() + from, labels.begin() + from + 1000);
+      chunk.phase_names = std::vector<std::string>(static_cast<std::size_t>(k), "rotation");
+      est.push(chunk, table.tc);
+    }
+    est.end_segment({0, "rates", 0, n, true});
+    (k == phases ? with_phases : one_cluster) = est.snapshot();
+  }
+  const Eigen::Vector3d truth(kBias, kScale, kNonlinearity);
+  for (Index j = 0; j < 3; ++j) {
+    SCOPED_TRACE(with_phases.terms[static_cast<std::size_t>(j)]);
+    ASSERT_TRUE(std::isfinite(with_phases.values(j)));
+    // The sd over 12 phases' scatter: its own estimate's spread is ~1/sqrt(2 * 11) = 21 %, so 1.7
+    // is three of it.
+    EXPECT_LT(with_phases.std_devs(j), 1.7 * one_cluster.std_devs(j));
+    EXPECT_NEAR(with_phases.values(j), truth(j), 4.0 * with_phases.std_devs(j));
+  }
+}
+
 TEST(OnlineEstimator, StandardDeviationsCoverTheTruthOverSeeds) {
   // The sd include what each mounting's misalignment uncertainty does to the batch: z = (estimate
   // - truth) / sd over seeds and terms is standard normal when they are honest.
