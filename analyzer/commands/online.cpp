@@ -614,7 +614,12 @@ void print_settling(const SensorPipeline& p, const online::OnlineSnapshot& last,
   fmt::print(out, "  converged: {}{}\n", last.converged ? "yes" : "no",
              converged_at ? fmt::format(" (from {:.2f} s on)", *converged_at) : std::string());
   fmt::print(out, "  {}\n", last.convergence);
-  fmt::print(out, "  noise model AR({}){}; squares' corner {}\n", last.noise_order, last.noise_model_fitted ? "" : " (not fitted yet)",
+  fmt::print(out, "  noise model AR({}){}{}; squares' corner {}\n", last.noise_order, last.noise_model_fitted ? "" : " (not fitted yet)",
+             last.long_run_variance_factor > 1.0
+                 ? fmt::format(" (rows kept white for ULS's output-multiplied terms; variances x{:.3g}, the residual's long-run "
+                               "power)",
+                               last.long_run_variance_factor)
+                 : std::string(),
              last.corner_rad_s ? fmt::format("{:.1f} rad/s", *last.corner_rad_s) : std::string("none (static squares)"));
   for (const online::MountingEstimate& m : last.mountings) {
     const auto deg = [](double r) { return r * 180.0 / 3.14159265358979323846; };

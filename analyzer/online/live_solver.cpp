@@ -186,7 +186,7 @@ StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vect
       out.rss = sol.zeta_energy;
       const double dof = std::max(weight - static_cast<double>(sorted.size()), 1.0);
       out.s2 = out.rss / dof;
-      out.covariance = out.s2 * (den.empty() ? sol.gram_inverse : sol.corrected_inverse);
+      out.covariance = options_.long_run_variance_factor * out.s2 * (den.empty() ? sol.gram_inverse : sol.corrected_inverse);
       out.sd = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
       out.conditional_sd = out.sd;
       out.gram_inverse = sol.gram_inverse;
@@ -439,7 +439,7 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
     }
     if (!gradient.allFinite() || !hessian.allFinite()) return out;
     // rss = sum r^2: its Hessian is 2 J'J, the information J'J / sigma^2.
-    const Eigen::MatrixXd inverse = (hessian / (2.0 * at.s2)).ldlt().solve(Eigen::MatrixXd::Identity(n, n));
+    const Eigen::MatrixXd inverse = (hessian / (2.0 * options_.long_run_variance_factor * at.s2)).ldlt().solve(Eigen::MatrixXd::Identity(n, n));
     const Eigen::VectorXd sd = inverse.diagonal().cwiseMax(0.0).cwiseSqrt();
     if (iteration == 0) {
       std::vector<std::size_t> determined;
@@ -531,6 +531,13 @@ std::vector<Index> LiveSolver::phase_level_terms(const StatFit& batch, const std
   return out;
 }
 
+Eigen::VectorXd LiveSolver::prediction_signs(const std::vector<Index>& terms) const {
+  Eigen::VectorXd sign = Eigen::VectorXd::Ones(static_cast<Index>(terms.size()));
+  for (std::size_t j = 0; j < terms.size(); ++j)
+    if (basis_.terms()[static_cast<std::size_t>(terms[j])].is_output_multiplied()) sign(static_cast<Index>(j)) = -1.0;
+  return sign;
+}
+
 CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
                                          const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain,
                                          int level_parameters) const {
@@ -541,11 +548,8 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   std::vector<Eigen::VectorXd> responses;
   Eigen::MatrixXd tb, tf;
   double excess = 0.0;
-  // ULS's sign convention (uls_batch.hpp): an output-multiplied column enters the prediction with
-  // its coefficient negated, and batch.gram_inverse is of the columns so signed.
-  Eigen::VectorXd sign = Eigen::VectorXd::Ones(p);
-  for (Index j = 0; j < p; ++j)
-    if (basis_.terms()[static_cast<std::size_t>(batch.terms[static_cast<std::size_t>(j)])].is_output_multiplied()) sign(j) = -1.0;
+  // batch.gram_inverse is of the columns signed as the prediction takes them.
+  const Eigen::VectorXd sign = prediction_signs(batch.terms);
   for (std::size_t c = 0; c < cases.size(); ++c) {
     basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
     // Each contiguous phase of the case on its own (the batch's phase clusters): a fixture's
@@ -557,7 +561,7 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
       v.head(p).array() *= sign.array();
       // A constant offset d of the run's output adds A(1) d to each whitened row.
       const double offset = (v(p) - batch.theta.dot(v.head(p))) / (n * noise_gain);
-      const double sd = std::sqrt(batch.s2 / n) / noise_gain;
+      const double sd = std::sqrt(options_.long_run_variance_factor * batch.s2 / n) / noise_gain;
       out.offsets.push_back(offset);
       out.offset_sd.push_back(sd);
       out.chi_square += (offset / sd) * (offset / sd);
@@ -634,7 +638,7 @@ std::vector<CandidateStat> LiveSolver::structure(const std::vector<Index>& candi
     const double gain = r * r / d;
     s.err = reference > 0.0 ? gain / reference : 0.0;
     const double s2 = std::max(batch.rss - gain, 0.0) / dof;
-    s.sd = std::sqrt(s2 / d);
+    s.sd = std::sqrt(options_.long_run_variance_factor * s2 / d);
     s.t = s.sd > 0.0 ? s.value / s.sd : kNaN;
     s.p_value = std::isfinite(s.t) ? ident::student_t_two_sided_p(s.t, dof) : 1.0;
     s.significant = s.p_value < alpha;

@@ -105,6 +105,10 @@ struct SolverOptions {
   /// procedure::PipelineOptions::batch_relative_twist and mounting_tolerance_rad, the same here.
   bool relative_twist = true;
   double mounting_tolerance_rad = 0.017453292519943295;
+  /// For a model kept white (output-multiplied terms: no AR whitening), the residual's long-run
+  /// variance (its spectrum at zero frequency) over its variance: every variance the solver reports
+  /// is scaled by it. 1 for a whitened model.
+  double long_run_variance_factor = 1.0;
 };
 
 /// A mounting's turn against the reference mounting (LiveSolver::relative_turns).
@@ -167,6 +171,10 @@ class LiveSolver {
     return s;
   }
   [[nodiscard]] Eigen::Index bias_term() const { return bias_; }
+  /// Per term of `terms`: +1, or -1 for an output-multiplied one, which ULS's prediction negates
+  /// (uls_batch.hpp): the prediction is sum sign_j theta_j phi_j.
+  [[nodiscard]] Eigen::VectorXd prediction_signs(const std::vector<Eigen::Index>& terms) const;
+  void set_long_run_variance_factor(double factor) { options_.long_run_variance_factor = factor; }
   /// ERR and t of each candidate (basis term indices) added alone to the batch fit `batch`.
   [[nodiscard]] std::vector<CandidateStat> structure(const std::vector<Eigen::Index>& candidates, const StatFit& batch,
                                                      const std::vector<const Information*>& infos,

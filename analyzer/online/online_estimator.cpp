@@ -101,6 +101,7 @@ struct OnlineEstimator::Impl {
   std::vector<Buffered> buffer;
   std::int64_t buffered_rows = 0;
   bool noise_fitted = false;
+  double long_run_factor = 1.0;   // a white (output-multiplied) model's: LiveSolver's long_run_variance_factor
   bool hold_unexcited = true;   // MountingData::hold_unexcited of the next solve()
   Eigen::VectorXd ar;
   std::int64_t rows_total = 0;
@@ -313,7 +314,7 @@ struct OnlineEstimator::Impl {
 
   void fit_noise_model() {
     noise_fitted = true;
-    if (rational || options.whitening_max_order <= 0) {
+    if (options.whitening_max_order <= 0) {
       buffer.clear();
       return;
     }
@@ -327,6 +328,7 @@ struct OnlineEstimator::Impl {
       return;
     }
     std::vector<Index> fitted = s.batch.terms;
+    const Eigen::VectorXd predicting = s.batch.theta.cwiseProduct(solver->prediction_signs(fitted));
     std::vector<procedure::CaseRows> layout;
     Eigen::VectorXd residuals(buffered_rows);
     Index at = 0;
@@ -335,7 +337,7 @@ struct OnlineEstimator::Impl {
     for (const Buffered& b : buffer) {
       Eigen::MatrixXd tb, tf;
       basis->transform(fitted, s.m_cs[cases[b.state].mounting], s.batch.corner_rad_s.has_value(), tb, tf);
-      Eigen::VectorXd fit = b.base * (tb.transpose() * s.batch.theta);
+      Eigen::VectorXd fit = b.base * (tb.transpose() * predicting);
       if (s.batch.corner_rad_s) {
         if (current != std::pair{b.state, b.segment}) hp.assign(basis->filtered_sources().size(), {});
         Eigen::MatrixXd f(b.base.rows(), basis->filtered_size());
@@ -344,7 +346,7 @@ struct OnlineEstimator::Impl {
           procedure::highpass_in_place(f.col(j), *s.batch.corner_rad_s, b.period,
                                        hp[static_cast<std::size_t>(j)]);
         }
-        fit += f * (tf.transpose() * s.batch.theta);
+        fit += f * (tf.transpose() * predicting);
       }
       if (current != std::pair{b.state, b.segment}) {
         layout.push_back({layout.size(), at, 0, 0});
@@ -354,7 +356,23 @@ struct OnlineEstimator::Impl {
       layout.back().rows += b.y.size();
       at += b.y.size();
     }
-    ar = procedure::ArWhitener::fit(residuals, layout, options.whitening_max_order).coefficients();
+    const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, options.whitening_max_order);
+    if (rational) {
+      // ULS's correction is derived for white equation errors, so the rows stay unfiltered; the
+      // noise model scales the variances instead: by the residual's long-run variance (its
+      // spectrum at zero, innovation variance / A(1)^2) over its variance. Exact for columns
+      // constant over the noise's memory (rate phases, poses), conservative for faster ones under
+      // noise whose spectrum falls with frequency (the sensors' 1/f, brown, AR with a positive pole).
+      const double gain = 1.0 - noise.coefficients().sum();
+      if (gain > 0.0) {
+        long_run_factor = std::max(1.0, noise.variance_ratio() / (gain * gain));
+        solver->set_long_run_variance_factor(long_run_factor);
+      }
+      buffer.clear();
+      buffered_rows = 0;
+      return;
+    }
+    ar = noise.coefficients();
     // Every row so far again, through the noise model.
     for (CaseState& c : cases) c.stats.clear();
     std::unique_ptr<SegmentPipeline> p;
@@ -656,6 +674,7 @@ struct OnlineEstimator::Impl {
     out.t = Eigen::VectorXd::Constant(p, kNaN);
     out.noise_model_fitted = noise_fitted;
     out.noise_order = static_cast<int>(ar.size());
+    out.long_run_variance_factor = long_run_factor;
     Solution s = solve(true);
     std::int64_t samples = 0;
     for (const Information& i : s.infos) samples += i.samples();
@@ -936,7 +955,7 @@ OnlineEstimator::OnlineEstimator(dataset::SensorKind sensor, const std::optional
   for (Index t : s.model)
     if (procedure::frame_free(s.basis->terms()[static_cast<std::size_t>(t)])) s.frame_free_model.push_back(t);
   // No noise window, or no order to fit: white noise from the first row on.
-  s.noise_fitted = options.noise_window_s <= 0.0 || options.whitening_max_order <= 0 || s.rational;
+  s.noise_fitted = options.noise_window_s <= 0.0 || options.whitening_max_order <= 0;
 }
 
 OnlineEstimator::~OnlineEstimator() = default;

@@ -538,14 +538,10 @@ TEST(OnlineEstimator, APlanWithNoCaseToSpareIsCheckedByItsPhases) {
   }
 }
 
-TEST(OnlineEstimator, AnOutputMultipliedTermsPhasesCarryNoScatterTheNoiseDoesNot) {
-  // A gyroscope with eq. 5's rate nonlinearity on a rate table, white noise: ULS negates an
-  // output-multiplied coefficient in the prediction (uls_batch.hpp). The phases' offsets, read
-  // with that sign, are noise, so the sd with the phases as clusters are those without (one
-  // cluster, no scatter), and cover the truth.
-  constexpr double kBias = 2e-6, kScale = 1.0005, kNonlinearity = 1e-4, kNoise = 1e-4;
-  const int phases = 12;
-  const Index n = 24000;
+/// A gyroscope with eq. 5's rate nonlinearity on a rate table: y (1 + c w_i) = K w_i + b + v, w_i
+/// along x_E (the nominal frame's input axis), twelve rate phases; v white (pole 0) or AR(1).
+constexpr double kGyroBias = 2e-6, kGyroScale = 1.0005, kGyroNonlinearity = 1e-4;
+PlanCase rate_phases(std::uint32_t seed, double pole, int phases = 12, Index n = 24000) {
   dataset::CaseData c;
   c.a_e = dataset::Matrix3Columns::Zero(n, 3);
   c.a_e.col(2).setConstant(kG);
@@ -553,35 +549,44 @@ TEST(OnlineEstimator, AnOutputMultipliedTermsPhasesCarryNoScatterTheNoiseDoesNot
   c.t = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * kPeriod);
   c.sample_period_s = kPeriod;
   c.y.resize(n);
-  std::mt19937_64 rng(5);
-  std::normal_distribution<double> noise(0.0, kNoise);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 1e-4);
+  double v = 0.0;
   for (Index k = 0; k < n; ++k) {
     const Index phase = k * phases / n;
     const double rate = (phase % 2 == 0 ? 1.0 : -1.0) * 0.3 * static_cast<double>(1 + phase % 6);
-    c.w_e.value()(k, phase % 3 == 2 ? 1 : 2) = 0.2 * rate;
+    if (phase % 3 != 1) c.w_e.value()(k, phase % 3 == 2 ? 1 : 2) = (phase % 3 == 2 ? 0.2 : 0.1) * rate;   // tilts seen on their own
     c.w_e.value()(k, 0) = rate;
-    // y (1 + c w_i) = K w_i + b, w_i along x_E (the nominal frame's input axis).
-    c.y(k) = (kScale * rate + kBias) / (1.0 + kNonlinearity * rate) + noise(rng);
+    v = pole * v + noise(rng);
+    c.y(k) = (kGyroScale * rate + kGyroBias + v) / (1.0 + kGyroNonlinearity * rate);
   }
-  const PlanCase table{test_case("rates", CaseKind::RotationTable, frames::Dcm::Identity(), ""), c};
+  return PlanCase{test_case("rates", CaseKind::RotationTable, frames::Dcm::Identity(), ""), c};
+}
+
+/// The live estimate of {1, w_i, y*w_i} on `table`, its rows labelled in `phases` clusters.
+OnlineSnapshot gyro_estimate(const PlanCase& table, int phases, const OnlineOptions& options) {
   model::ModelFile m = model_file({"1", "w_i", "y*w_i"}, std::nullopt);
   m.sensor = dataset::SensorKind::Gyroscope;
-  m.m_cs = frames::Dcm::Identity();
-  OnlineSnapshot with_phases, one_cluster;
-  for (const int k : {phases, 1}) {
-    OnlineEstimator est(dataset::SensorKind::Gyroscope, m, 25.0, white_noise());
-    std::vector<std::uint16_t> labels;
-    for (Index r = 0; r < n; ++r) labels.push_back(static_cast<std::uint16_t>(r * k / n));
-    for (Index from = 0; from < n; from += 1000) {
-      fusion::FusedChunk chunk = chunk_of(table, 0, from, 1000);
-      chunk.phase.assign(labels.begin() + from, labels.begin() + from + 1000);
-      chunk.phase_names = std::vector<std::string>(static_cast<std::size_t>(k), "rotation");
-      est.push(chunk, table.tc);
-    }
-    est.end_segment({0, "rates", 0, n, true});
-    (k == phases ? with_phases : one_cluster) = est.snapshot();
+  OnlineEstimator est(dataset::SensorKind::Gyroscope, m, 25.0, options);
+  const Index n = table.data.y.size();
+  for (Index from = 0; from < n; from += 1000) {
+    fusion::FusedChunk chunk = chunk_of(table, 0, from, 1000);
+    for (Index r = 0; r < 1000; ++r) chunk.phase[static_cast<std::size_t>(r)] = static_cast<std::uint16_t>((from + r) * phases / n);
+    chunk.phase_names = std::vector<std::string>(static_cast<std::size_t>(phases), "rotation");
+    est.push(chunk, table.tc);
   }
-  const Eigen::Vector3d truth(kBias, kScale, kNonlinearity);
+  est.end_segment({0, "rates", 0, n, true});
+  return est.snapshot();
+}
+
+TEST(OnlineEstimator, AnOutputMultipliedTermsPhasesCarryNoScatterTheNoiseDoesNot) {
+  // ULS negates an output-multiplied coefficient in the prediction (uls_batch.hpp). The phases'
+  // offsets, read with that sign, are noise, so the sd with the phases as clusters are those
+  // without (one cluster, no scatter), and cover the truth.
+  const PlanCase table = rate_phases(5, 0.0);
+  const OnlineSnapshot with_phases = gyro_estimate(table, 12, white_noise());
+  const OnlineSnapshot one_cluster = gyro_estimate(table, 1, white_noise());
+  const Eigen::Vector3d truth(kGyroBias, kGyroScale, kGyroNonlinearity);
   for (Index j = 0; j < 3; ++j) {
     SCOPED_TRACE(with_phases.terms[static_cast<std::size_t>(j)]);
     ASSERT_TRUE(std::isfinite(with_phases.values(j)));
@@ -590,6 +595,35 @@ TEST(OnlineEstimator, AnOutputMultipliedTermsPhasesCarryNoScatterTheNoiseDoesNot
     EXPECT_LT(with_phases.std_devs(j), 1.7 * one_cluster.std_devs(j));
     EXPECT_NEAR(with_phases.values(j), truth(j), 4.0 * with_phases.std_devs(j));
   }
+}
+
+TEST(OnlineEstimator, AWhiteModelsSdCarryTheNoisesLongRunPower) {
+  // Output-multiplied terms keep the rows white (ULS's correction is derived for white equation
+  // errors); the noise model fitted on the first 2 s scales the variances by the residual's
+  // long-run power instead. With AR(1) noise of pole 0.9 that is 19 times (4.4 in sd): z over
+  // seeds and terms is standard normal when the sd are honest.
+  OnlineOptions options;
+  options.nominal_sample_period_s = kPeriod;
+  std::vector<double> z;
+  double factor = 0.0;
+  for (std::uint32_t seed = 1; seed <= 20; ++seed) {
+    const OnlineSnapshot s = gyro_estimate(rate_phases(300 + seed, 0.9), 12, options);
+    factor += s.long_run_variance_factor / 20.0;
+    const Eigen::Vector3d truth(kGyroBias, kGyroScale, kGyroNonlinearity);
+    for (Index j = 0; j < 3; ++j) z.push_back((s.values(j) - truth(j)) / s.std_devs(j));
+  }
+  double sum = 0.0, sum2 = 0.0;
+  for (double v : z) {
+    sum += v;
+    sum2 += v * v;
+  }
+  const double n = static_cast<double>(z.size());
+  const double sd = std::sqrt(sum2 / n - (sum / n) * (sum / n));
+  // 60 values: the sample sd's own sd is ~0.09; the bounds are 3.3 and 3.9 of it.
+  EXPECT_GT(sd, 0.7) << "sd of z over seeds";
+  EXPECT_LT(sd, 1.35) << "sd of z over seeds";
+  // 1 / (1 - 0.9)^2 / (1 / (1 - 0.81)) = 19, fitted on 2000 rows of each seed.
+  EXPECT_NEAR(factor, 19.0, 4.0);
 }
 
 TEST(OnlineEstimator, StandardDeviationsCoverTheTruthOverSeeds) {
