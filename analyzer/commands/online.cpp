@@ -672,7 +672,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
   estimator_options.noise_window_s = options.noise_window_s;
   estimator_options.nominal_sample_period_s = 1.0 / bench.sample_rate_hz;
   estimator_options.temperature_candidates =
-      std::any_of(bench.cases.begin(), bench.cases.end(), [](const config::TestCase& c) { return c.kind == CaseKind::Thermal; });
+      std::any_of(bench.cases.begin(), bench.cases.end(), [](const config::TestCase& c) { return c.varies_temperature(); });
   for (const config::TestCase& c : bench.cases) estimator_options.plan.push_back({c.name, c.mounting, c.kind});
   std::vector<std::unique_ptr<SensorPipeline>> pipelines;
   for (const config::SensorUnderTest& s : bench.sensors) {

@@ -805,9 +805,7 @@ struct StreamAssembler::Impl {
       }
     }
     f.running_attitude = tc.start_attitude.dcm();
-    f.needs_temperature = tc.kind == CaseKind::Thermal ||
-                          std::any_of(tc.phases.begin(), tc.phases.end(),
-                                      [](const config::Phase& p) { return p.kind == config::PhaseKind::ThermalStep; });
+    f.needs_temperature = tc.varies_temperature();
     fuser = std::move(f);
   }
 

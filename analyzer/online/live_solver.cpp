@@ -151,6 +151,20 @@ StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vect
   Eigen::MatrixXd all_factor_gram;
   Eigen::VectorXd all_factor_sum;
   factor_statistics(terms, infos, m_cs, all_positions, all_factor_gram, all_factor_sum);
+  // An output-multiplied column whose factor does not vary on its own is the output times a
+  // constant (y*w_i in a dwell): it explains the output by itself, which ULS's correction does
+  // not undo (it takes the noise out of the column's energy, not out of its correlation with the
+  // output). Not determined until the factor moves (excitation.hpp's share).
+  for (std::size_t a = 0; a < all_positions.size(); ++a) {
+    const auto k = static_cast<Index>(a);
+    const double energy = all_factor_gram(k, k);
+    const double own = energy - all_factor_sum(k) * all_factor_sum(k) / weight;
+    if (energy > 0.0 && own >= procedure::kMinExcitationShare * energy) continue;
+    const auto it = std::find(columns.begin(), columns.end(), all_positions[a]);
+    if (it == columns.end()) continue;
+    out.undetermined.push_back(terms[static_cast<std::size_t>(*it)]);
+    columns.erase(it);
+  }
   for (;;) {
     if (columns.empty()) {
       out.why = "no term is determined by the data";

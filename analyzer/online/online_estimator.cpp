@@ -11,6 +11,7 @@
 
 #include "analyzer/diagnose/candidate_library.hpp"
 #include "analyzer/ident/regressors.hpp"
+#include "analyzer/procedure/excitation.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
@@ -101,6 +102,8 @@ struct OnlineEstimator::Impl {
   std::vector<Buffered> buffer;
   std::int64_t buffered_rows = 0;
   bool noise_fitted = false;
+  // The fixture temperature's range over the rows pushed (temperature_moved()).
+  double temp_lo = std::numeric_limits<double>::infinity(), temp_hi = -std::numeric_limits<double>::infinity();
   double long_run_factor = 1.0;   // a white (output-multiplied) model's: LiveSolver's long_run_variance_factor
   bool hold_unexcited = true;   // MountingData::hold_unexcited of the next solve()
   Eigen::VectorXd ar;
@@ -244,6 +247,10 @@ struct OnlineEstimator::Impl {
       open = std::move(s);
     }
     forget(n);
+    if (chunk.temp && chunk.temp->size() > 0) {
+      temp_lo = std::min(temp_lo, chunk.temp->minCoeff());
+      temp_hi = std::max(temp_hi, chunk.temp->maxCoeff());
+    }
     OpenSegment& seg = *open;
     // The rows in the mounting's nominal case frame, after the kept history.
     dataset::CaseData work;
@@ -356,7 +363,9 @@ struct OnlineEstimator::Impl {
       layout.back().rows += b.y.size();
       at += b.y.size();
     }
-    const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, options.whitening_max_order);
+    // An AR(m) fit wants ten rows per order (ArWhitener::fit): a low-rate bench's window holds fewer.
+    const int max_order = std::min<int>(options.whitening_max_order, static_cast<int>(residuals.size() / 10));
+    const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, max_order);
     if (rational) {
       // ULS's correction is derived for white equation errors, so the rows stay unfiltered; the
       // noise model scales the variances instead: by the residual's long-run variance (its
@@ -364,7 +373,7 @@ struct OnlineEstimator::Impl {
       // constant over the noise's memory (rate phases, poses), conservative for faster ones under
       // noise whose spectrum falls with frequency (the sensors' 1/f, brown, AR with a positive pole).
       const double gain = 1.0 - noise.coefficients().sum();
-      if (gain > 0.0) {
+        if (gain > 0.0) {
         long_run_factor = std::max(1.0, noise.variance_ratio() / (gain * gain));
         solver->set_long_run_variance_factor(long_run_factor);
       }
@@ -456,15 +465,30 @@ struct OnlineEstimator::Impl {
       if (r != *left_out->run) out.add(runs[r]->info);
     return out;
   }
-  /// Whether every case of the plan has rows in the estimate: what is not determined then, the
-  /// plan does not determine.
-  [[nodiscard]] bool whole_plan_in() const {
+  /// Whether every case of the plan has rows in the estimate.
+  [[nodiscard]] bool every_plan_case_in() const {
     if (options.plan.empty()) return false;
     return std::all_of(options.plan.begin(), options.plan.end(), [&](const procedure::MountingKey& k) {
       for (std::size_t c = 0; c < cases.size(); ++c)
         if (cases[c].name == k.name && has_data(c)) return true;
       return false;
     });
+  }
+  /// ... and none is still running (its next phase may determine more): what is not determined
+  /// then, the plan does not determine.
+  [[nodiscard]] bool whole_plan_in() const { return every_plan_case_in() && !open; }
+
+  /// Whether the fixture temperature has moved enough for its terms (the batch's rule).
+  [[nodiscard]] bool temperature_moved() const { return temp_hi - temp_lo >= procedure::kMinTemperatureSpanC; }
+
+  /// The solver for what the rows so far can determine: terms of the temperature wait until it
+  /// has moved (a near-constant T column stands in for the bias, and y*T for the output itself).
+  [[nodiscard]] LiveSolver active_solver(const std::vector<Index>& terms) const {
+    if (temperature_moved()) return solver->with_model(terms);
+    std::vector<Index> kept;
+    for (Index t : terms)
+      if (!basis->terms()[static_cast<std::size_t>(t)].uses(Variable::T)) kept.push_back(t);
+    return solver->with_model(std::move(kept));
   }
 
   [[nodiscard]] std::size_t cases_with_data() const {
@@ -505,6 +529,7 @@ struct OnlineEstimator::Impl {
       add_case_scatter(s, cs, batch_solver);
       return s;
     }
+    const LiveSolver active = active_solver(model);
     std::optional<double> bias;
     std::vector<MountingFit> fits(mountings.size());
     for (std::size_t m : s.order) {
@@ -518,7 +543,7 @@ struct OnlineEstimator::Impl {
       d.m_cs = model_m_cs;
       d.hold_unexcited = hold_unexcited;
       const bool use_bias = d.shaker_only && options.solver.ieee_shaker_exclusions;
-      fits[m] = solver->fit_mounting(d, use_bias ? bias : std::nullopt);
+      fits[m] = active.fit_mounting(d, use_bias ? bias : std::nullopt);
       if (!bias && !d.shaker_only && fits[m].bias) bias = fits[m].bias;
     }
     // A mounting whose data does not fix its misalignment keeps the nominal frame (the batch's
@@ -528,7 +553,7 @@ struct OnlineEstimator::Impl {
       if (fits[m].determined && !reference) reference = m;
     // With none aligned, the sensor frame's p and o axes are not known in any case: only the
     // terms that hold in any frame near it are fitted (procedure::frame_free), as in the batch.
-    const LiveSolver batch_solver = reference ? *solver : solver->with_model(frame_free_model);
+    const LiveSolver batch_solver = reference ? active : active_solver(frame_free_model);
     std::vector<const Information*> infos;
     std::vector<Eigen::Matrix3d> m_cs;
     for (std::size_t m = 0; m < mountings.size(); ++m) {
@@ -546,9 +571,9 @@ struct OnlineEstimator::Impl {
     if (reference && s.batch.ok) {
       std::vector<bool> aligned(fits.size());
       for (std::size_t m = 0; m < fits.size(); ++m) aligned[m] = fits[m].determined;
-      turns = solver->relative_turns(infos, m_cs, *reference, aligned, s.batch.corner_rad_s);
+      turns = active.relative_turns(infos, m_cs, *reference, aligned, s.batch.corner_rad_s);
       if (std::any_of(turns.begin(), turns.end(), [](const RelativeTurn& t) { return t.estimated; }))
-        s.batch = solver->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
+        s.batch = active.fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
     }
     std::vector<Eigen::Matrix3d> angle_covariances;
     for (std::size_t m = 0; m < mountings.size(); ++m) {
@@ -769,7 +794,8 @@ struct OnlineEstimator::Impl {
       convergence = fmt::format("{} term(s) not determined yet{}", out.undetermined.size() - beyond, beyond_plan);
       return;
     }
-    if (with_data < 2) {
+    // A plan of one case is checked by its phases (below), once it is in.
+    if (with_data < 2 && !every_plan_case_in()) {
       convergence = "one case so far: nothing to check it against" + beyond_plan;
       return;
     }
@@ -871,9 +897,10 @@ std::vector<Term> OnlineEstimator::default_terms(dataset::SensorKind sensor, boo
   }
   if (temperature) {
     // A thermal plan is run for the temperature coefficients of the bias and the scale factor
-    // (IEEE Std 1293's K_0T and K_1T): without them the temperature's effect lands in the others.
+    // (IEEE Std 1293's K_0T and K_1T; a gyroscope's as eq. 5 has them, c_T1 T and the output
+    // times epsilon_T T): without them the temperature's effect lands in the others.
     terms.push_back(plain_term(Variable::T));
-    terms.push_back(product(gyro ? Variable::Wi : Variable::Ai, Variable::T));
+    terms.push_back(product(gyro ? Variable::Y : Variable::Ai, Variable::T));
   }
   return terms;
 }

@@ -25,6 +25,7 @@
 // _g, _deg); everything is converted to SI here, at the edge (design.md, "Units and frames").
 // Unknown keys are errors: a typo must not silently fall back to a default.
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <limits>
@@ -348,6 +349,13 @@ struct TestCase {
   double placement_error_rad = 0.0;
   std::vector<Phase> phases;
   SourcePosition where;
+
+  /// A thermal case, or any case with a thermal_step phase (a rate table in the fixture): its
+  /// rows carry the fixture temperature, and its plan is run for the temperature coefficients.
+  [[nodiscard]] bool varies_temperature() const {
+    return kind == CaseKind::Thermal ||
+           std::any_of(phases.begin(), phases.end(), [](const Phase& p) { return p.kind == PhaseKind::ThermalStep; });
+  }
 };
 
 /// One file of a bench: its path (as given, or as an include resolved it) and its exact text.

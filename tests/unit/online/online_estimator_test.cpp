@@ -541,7 +541,7 @@ TEST(OnlineEstimator, APlanWithNoCaseToSpareIsCheckedByItsPhases) {
 /// A gyroscope with eq. 5's rate nonlinearity on a rate table: y (1 + c w_i) = K w_i + b + v, w_i
 /// along x_E (the nominal frame's input axis), twelve rate phases; v white (pole 0) or AR(1).
 constexpr double kGyroBias = 2e-6, kGyroScale = 1.0005, kGyroNonlinearity = 1e-4;
-PlanCase rate_phases(std::uint32_t seed, double pole, int phases = 12, Index n = 24000) {
+PlanCase rate_phases(std::uint32_t seed, double pole, int phases = 12, Index n = 24000, Index dwell = 0) {
   dataset::CaseData c;
   c.a_e = dataset::Matrix3Columns::Zero(n, 3);
   c.a_e.col(2).setConstant(kG);
@@ -554,7 +554,8 @@ PlanCase rate_phases(std::uint32_t seed, double pole, int phases = 12, Index n =
   double v = 0.0;
   for (Index k = 0; k < n; ++k) {
     const Index phase = k * phases / n;
-    const double rate = (phase % 2 == 0 ? 1.0 : -1.0) * 0.3 * static_cast<double>(1 + phase % 6);
+    // A dwell reads the earth's rate (here all of it along the input axis).
+    const double rate = k < dwell ? 7.292e-5 : (phase % 2 == 0 ? 1.0 : -1.0) * 0.3 * static_cast<double>(1 + phase % 6);
     if (phase % 3 != 1) c.w_e.value()(k, phase % 3 == 2 ? 1 : 2) = (phase % 3 == 2 ? 0.2 : 0.1) * rate;   // tilts seen on their own
     c.w_e.value()(k, 0) = rate;
     v = pole * v + noise(rng);
@@ -595,6 +596,33 @@ TEST(OnlineEstimator, AnOutputMultipliedTermsPhasesCarryNoScatterTheNoiseDoesNot
     EXPECT_LT(with_phases.std_devs(j), 1.7 * one_cluster.std_devs(j));
     EXPECT_NEAR(with_phases.values(j), truth(j), 4.0 * with_phases.std_devs(j));
   }
+}
+
+TEST(OnlineEstimator, AnOutputMultipliedTermWaitsForItsFactorToMove) {
+  // In a dwell, y*w_i is the output times a constant: fitted, it explains the output by itself
+  // (and the noise model, fitted on those rows, would find white noise). It is not determined
+  // until the rate moves; then it is, and the noise model fitted in the dwell has the AR(1)'s
+  // long-run power (19 in theory).
+  const PlanCase table = rate_phases(9, 0.9, 12, 24000, 2000);
+  model::ModelFile m = model_file({"1", "w_i", "y*w_i"}, std::nullopt);
+  m.sensor = dataset::SensorKind::Gyroscope;
+  OnlineOptions options;
+  options.nominal_sample_period_s = kPeriod;
+  options.structure_table = false;
+  OnlineEstimator est(dataset::SensorKind::Gyroscope, m, 25.0, options);
+  for (Index from = 0; from < 24000; from += 1000) {
+    est.push(chunk_of(table, 0, from, 1000), table.tc);
+    if (from + 1000 == 2000) {
+      const OnlineSnapshot dwell = est.snapshot();
+      EXPECT_FALSE(std::isfinite(dwell.values(2))) << dwell.values(2);
+      EXPECT_NE(std::find(dwell.undetermined.begin(), dwell.undetermined.end(), "y*w_i"), dwell.undetermined.end());
+      EXPECT_FALSE(dwell.converged);
+    }
+  }
+  est.end_segment({0, "rates", 0, 24000, true});
+  const OnlineSnapshot s = est.snapshot();
+  EXPECT_NEAR(s.values(2), kGyroNonlinearity, 4.0 * s.std_devs(2));
+  EXPECT_GT(s.long_run_variance_factor, 10.0);
 }
 
 TEST(OnlineEstimator, AWhiteModelsSdCarryTheNoisesLongRunPower) {
