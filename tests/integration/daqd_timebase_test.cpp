@@ -94,7 +94,7 @@ TEST_P(DaqdTimeBase, DriftFittedLostFramesAccountedNoChannelShifted) {
 
 INSTANTIATE_TEST_SUITE_P(EveryShippedBench, DaqdTimeBase,
                          ::testing::Values("sim-paper.toml", "sim-paper-daq.toml", "sim-rotation-table.toml", "sim-shaker.toml",
-                                           "sim-thermal.toml", "sim-tumble.toml"),
+                                           "sim-thermal.toml", "sim-tumble.toml", "sim-gyro-thermal.toml"),
                          [](const ::testing::TestParamInfo<const char*>& info) { return bench_test_name(info.param); });
 
 }  // namespace

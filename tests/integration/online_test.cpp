@@ -265,7 +265,8 @@ INSTANTIATE_TEST_SUITE_P(Bench, OnlineReplay,
                          ::testing::Values(EveryBenchCase{"sim-rotation-table.toml", {"acc1", "fog1"}},
                                            EveryBenchCase{"sim-shaker.toml", {"acc-a", "acc-b"}},
                                            EveryBenchCase{"sim-thermal.toml", {"acc1"}},
-                                           EveryBenchCase{"sim-tumble.toml", {"mems1"}}),
+                                           EveryBenchCase{"sim-tumble.toml", {"mems1"}},
+                                           EveryBenchCase{"sim-gyro-thermal.toml", {"fog1"}}),
                          [](const ::testing::TestParamInfo<EveryBenchCase>& info) { return bench_test_name(info.param.bench); });
 
 TEST(OnlineLive, ShakerOnlyBenchMatchesTheSimulatorsTruth) {

@@ -120,7 +120,8 @@ TEST(PlanCheck, WhatItCannotPredictFromExitsTwoSayingWhy) {
 // Every shipped simulated bench gets a prediction with default options (what characterize would
 // determine there, and what not): the gyro on the rate table, the shaker-only and thermal plans.
 TEST(PlanCheck, EveryShippedSimulatedBenchGetsAPrediction) {
-  for (const std::string name : {"sim-rotation-table.toml", "sim-shaker.toml", "sim-thermal.toml", "sim-tumble.toml"}) {
+  for (const std::string name :
+       {"sim-rotation-table.toml", "sim-shaker.toml", "sim-thermal.toml", "sim-tumble.toml", "sim-gyro-thermal.toml"}) {
     PlanCheckOptions options;
     options.bench = config_path(name);
     std::ostringstream out;
