@@ -218,15 +218,7 @@ void RunStatistics::clear() {
   last_open_ = false;
 }
 
-Information RunStatistics::total(std::optional<std::size_t> without) const {
-  if (without) {
-    // From the runs themselves: taking one out of the sum would leave its run in runs() (and
-    // cancel large numbers for a small phase).
-    Information out;
-    for (std::size_t r = 0; r < runs_.size(); ++r)
-      if (r != *without) out.add(runs_[r].info, runs_[r].joins_previous && r - 1 != *without);
-    return out;
-  }
+Information RunStatistics::total() const {
   Information out = closed_;
   if (last_open_) out.add(runs_.back().info, runs_.back().joins_previous);
   return out;

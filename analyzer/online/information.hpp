@@ -18,7 +18,6 @@
 #include <Eigen/Dense>
 
 #include <cstdint>
-#include <optional>
 #include <vector>
 
 #include "analyzer/ident/err.hpp"
@@ -36,12 +35,12 @@ class Information {
   /// Adds rows: base (n x b), the filtered columns at each node (n x f each), the output.
   void add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
            const Eigen::Ref<const Eigen::VectorXd>& y);
-  /// Runs kept, oldest first: a run is a contiguous phase of a case, the unit whose offsets the
-  /// case scatter compares (LiveSolver::add_case_scatter; the batch's phase clusters). The rows
-  /// added to an Information form one run; add(other) appends other's (RunStatistics keeps one
-  /// Information per run).
+  /// Runs kept, oldest first: a run is a contiguous stretch of one phase of a case, the unit whose
+  /// offsets the case scatter compares (LiveSolver::add_case_scatter; the batch's phase clusters).
+  /// Rows added go on the last run until start_run(); add(other) appends other's (RunStatistics
+  /// keeps one Information per plan phase).
   [[nodiscard]] std::size_t runs() const { return runs_.size(); }
-  /// The rows added from now on form a new run (a long phase is cut into several).
+  /// The rows added from now on form a new run (a long phase is cut into clusters of a minute).
   void start_run() { run_open_ = false; }
   [[nodiscard]] std::int64_t run_samples(std::size_t r) const { return runs_[r].samples; }
   /// model_constant_products over the rows of run r alone.
@@ -119,8 +118,8 @@ class RunStatistics {
   /// Exponential forgetting (Information::scale) of every run.
   void scale(double factor);
   void clear();
-  /// Every row's statistics; `without`: run left out.
-  [[nodiscard]] Information total(std::optional<std::size_t> without = std::nullopt) const;
+  /// Every row's statistics.
+  [[nodiscard]] Information total() const;
   [[nodiscard]] const std::vector<Run>& runs() const { return runs_; }
   [[nodiscard]] std::int64_t samples() const;
 

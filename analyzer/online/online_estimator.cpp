@@ -373,7 +373,7 @@ struct OnlineEstimator::Impl {
       // constant over the noise's memory (rate phases, poses), conservative for faster ones under
       // noise whose spectrum falls with frequency (the sensors' 1/f, brown, AR with a positive pole).
       const double gain = 1.0 - noise.coefficients().sum();
-        if (gain > 0.0) {
+      if (gain > 0.0) {
         long_run_factor = std::max(1.0, noise.variance_ratio() / (gain * gain));
         solver->set_long_run_variance_factor(long_run_factor);
       }
@@ -459,10 +459,12 @@ struct OnlineEstimator::Impl {
       return out;
     }
     if (!left_out->run) return std::nullopt;
+    // From the runs themselves: taking one out of the sum would leave it among the case
+    // scatter's clusters (and cancel large numbers for a small phase).
     Information out;
     const std::vector<const RunStatistics::Run*> runs = runs_of(c);
     for (std::size_t r = 0; r < runs.size(); ++r)
-      if (r != *left_out->run) out.add(runs[r]->info);
+      if (r != *left_out->run) out.add(runs[r]->info, runs[r]->joins_previous && r - 1 != *left_out->run);
     return out;
   }
   /// Whether every case of the plan has rows in the estimate.
