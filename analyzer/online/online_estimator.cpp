@@ -434,11 +434,16 @@ struct OnlineEstimator::Impl {
     return cases[c].stats.samples() > 0 || (open_counts() && open->state == c);
   }
 
-  /// What the convergence test leaves out: a case, or one run (phase) of it.
+  /// What the convergence test leaves out: a case, or runs [first, last) of it (its phases).
   struct LeftOut {
     std::size_t case_index = 0;
-    std::optional<std::size_t> run;   // into runs_of(case_index)
+    std::optional<std::pair<std::size_t, std::size_t>> runs;   // into runs_of(case_index)
+    [[nodiscard]] bool leaves(std::size_t r) const { return runs && r >= runs->first && r < runs->second; }
   };
+  /// At most this many leave-outs per case checked by its phases: a long case (a plan repeated for
+  /// hours) leaves out contiguous groups of its phases, so the test's cost stays bounded and one
+  /// group's move is not lost among thousands of phases.
+  static constexpr std::size_t kMaxPhaseGroups = 10;
 
   /// Case c's runs, the open segment's included while it counts.
   [[nodiscard]] std::vector<const RunStatistics::Run*> runs_of(std::size_t c) const {
@@ -458,13 +463,13 @@ struct OnlineEstimator::Impl {
       if (open_counts() && open->state == c) out.add(open->stats.total());
       return out;
     }
-    if (!left_out->run) return std::nullopt;
+    if (!left_out->runs) return std::nullopt;
     // From the runs themselves: taking one out of the sum would leave it among the case
     // scatter's clusters (and cancel large numbers for a small phase).
     Information out;
     const std::vector<const RunStatistics::Run*> runs = runs_of(c);
     for (std::size_t r = 0; r < runs.size(); ++r)
-      if (r != *left_out->run) out.add(runs[r]->info, runs[r]->joins_previous && r - 1 != *left_out->run);
+      if (!left_out->leaves(r)) out.add(runs[r]->info, runs[r]->joins_previous && (r == 0 || !left_out->leaves(r - 1)));
     return out;
   }
   /// Whether every case of the plan has rows in the estimate.
@@ -854,16 +859,24 @@ struct OnlineEstimator::Impl {
                                   cases[c].name, *missing, beyond_plan);
         return;
       }
-      for (std::size_t r = 0; r < runs.size(); ++r) {
-        if (runs[r]->info.samples() == 0) continue;
-        const auto label = static_cast<std::size_t>(runs[r]->label);
-        const std::string where = fmt::format("phase {} ({}) of case {}", runs[r]->phase,
-                                              label < cases[c].phase_names.size() ? cases[c].phase_names[label] : "unlabelled",
-                                              cases[c].name);
-        if (const std::optional<std::string> rests = compare({c, r}, where)) {
-          convergence = fmt::format("without case {} {} is not determined, nor without its {}: it rests on one phase"
-                                    "{}",
-                                    cases[c].name, *missing, where, beyond_plan);
+      const std::size_t groups = std::min(runs.size(), kMaxPhaseGroups);
+      for (std::size_t g = 0; g < groups; ++g) {
+        const std::size_t first = g * runs.size() / groups, last = (g + 1) * runs.size() / groups;
+        std::int64_t rows = 0;
+        for (std::size_t r = first; r < last; ++r) rows += runs[r]->info.samples();
+        if (rows == 0) continue;
+        const auto name = [&](std::size_t r) {
+          const auto label = static_cast<std::size_t>(runs[r]->label);
+          return fmt::format("{} ({})", runs[r]->phase,
+                             label < cases[c].phase_names.size() ? cases[c].phase_names[label] : "unlabelled");
+        };
+        const std::string where = last - first == 1
+                                      ? fmt::format("phase {} of case {}", name(first), cases[c].name)
+                                      : fmt::format("phases {} to {} of case {}", name(first), name(last - 1), cases[c].name);
+        if (const std::optional<std::string> rests = compare({c, std::pair{first, last}}, where)) {
+          convergence = fmt::format("without case {} {} is not determined, nor without its {}: it rests on {}{}",
+                                    cases[c].name, *missing, where, last - first == 1 ? "one phase" : "those phases",
+                                    beyond_plan);
           return;
         }
       }
