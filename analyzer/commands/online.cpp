@@ -285,7 +285,7 @@ class Worker {
   Worker(std::vector<std::unique_ptr<SensorPipeline>>& pipelines, const config::BenchConfig& bench, Inbox& inbox,
          Outbox& outbox, double publish_hz, std::ostream& out, std::ofstream* history)
       : pipelines_(pipelines), bench_(bench), inbox_(inbox), outbox_(outbox), publish_hz_(publish_hz), out_(out),
-        history_(history) {}
+        history_(history), history_terms_(history_terms(pipelines)) {}
 
   void run() {
     const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / publish_hz_));
@@ -433,7 +433,7 @@ class Worker {
         p->history.push_back({t, s.samples_used, s.values, s.std_devs, s.converged});
         if (history_ != nullptr) {
           *history_ << fmt::format("{},{:.4f},{},{},{}", p->name, t, s.samples_used, s.cases_used, s.converged ? 1 : 0);
-          for (const std::string& term : history_terms(pipelines_)) {
+          for (const std::string& term : history_terms_) {
             const auto j = std::find(s.terms.begin(), s.terms.end(), term) - s.terms.begin();
             if (j == static_cast<std::ptrdiff_t>(s.terms.size())) *history_ << ",,";
             else *history_ << fmt::format(",{:.9g},{:.3g}", s.values(j), s.std_devs(j));
@@ -513,6 +513,7 @@ class Worker {
   double publish_hz_;
   std::ostream& out_;
   std::ofstream* history_;
+  std::vector<std::string> history_terms_;   // the history file's term columns (history_terms)
   Counters counters_;
   std::vector<std::string> bench_texts_;
   std::int64_t first_block_ns_ = 0;

@@ -183,16 +183,6 @@ Eigen::VectorXd Information::run_constant_products(std::size_t r, const Eigen::M
   return constant_products(runs_[r].base, runs_[r].filtered, t_base, t_filtered, corner);
 }
 
-Information& RunStatistics::run_for(int phase, int label, const Information& empty) {
-  if (!last_open_ || runs_.back().phase != phase) {
-    close_run();
-    const bool joins = !runs_.empty() && runs_.back().label == label;
-    runs_.push_back({phase, label, joins, empty});
-    last_open_ = true;
-  }
-  return runs_.back().info;
-}
-
 void RunStatistics::close_run() {
   if (!last_open_) return;
   closed_.add(runs_.back().info, runs_.back().joins_previous);

@@ -111,8 +111,17 @@ class RunStatistics {
     Information info;
   };
   /// Where the next rows of plan phase `phase` (labelled `label`) go: the last run while its phase
-  /// goes on, else a new one.
-  Information& run_for(int phase, int label, const Information& empty);
+  /// goes on, else a new one, `empty()` (called only then: an empty Information is not small).
+  template <class MakeEmpty>
+  Information& run_for(int phase, int label, MakeEmpty&& empty) {
+    if (!last_open_ || runs_.back().phase != phase) {
+      close_run();
+      const bool joins = !runs_.empty() && runs_.back().label == label;
+      runs_.push_back({phase, label, joins, empty()});
+      last_open_ = true;
+    }
+    return runs_.back().info;
+  }
   /// Appends other's runs (closed: rows after this start a new run).
   void add(RunStatistics&& other);
   /// Exponential forgetting (Information::scale) of every run.

@@ -175,6 +175,7 @@ class LiveSolver {
   /// (uls_batch.hpp): the prediction is sum sign_j theta_j phi_j.
   [[nodiscard]] Eigen::VectorXd prediction_signs(const std::vector<Eigen::Index>& terms) const;
   void set_long_run_variance_factor(double factor) { options_.long_run_variance_factor = factor; }
+  [[nodiscard]] double long_run_variance_factor() const { return options_.long_run_variance_factor; }
   /// ERR and t of each candidate (basis term indices) added alone to the batch fit `batch`.
   [[nodiscard]] std::vector<CandidateStat> structure(const std::vector<Eigen::Index>& candidates, const StatFit& batch,
                                                      const std::vector<const Information*>& infos,

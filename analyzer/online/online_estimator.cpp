@@ -104,7 +104,6 @@ struct OnlineEstimator::Impl {
   bool noise_fitted = false;
   // The fixture temperature's range over the rows pushed (temperature_moved()).
   double temp_lo = std::numeric_limits<double>::infinity(), temp_hi = -std::numeric_limits<double>::infinity();
-  double long_run_factor = 1.0;   // a white (output-multiplied) model's: LiveSolver's long_run_variance_factor
   bool hold_unexcited = true;   // MountingData::hold_unexcited of the next solve()
   Eigen::VectorXd ar;
   std::int64_t rows_total = 0;
@@ -136,13 +135,12 @@ struct OnlineEstimator::Impl {
                 const Eigen::VectorXd& y, const Eigen::MatrixX3d& inputs, const std::vector<std::uint16_t>& phase,
                 const std::vector<std::int32_t>& plan_phase) const {
     const Index n = y.size();
-    const Information empty = empty_information();
     const auto cluster_rows = std::max<std::int64_t>(1, std::llround(kClusterS / period));
     for (Index from = 0; from < n;) {
       const auto at = static_cast<std::size_t>(from);
       Index to = from + 1;
       while (to < n && plan_phase[static_cast<std::size_t>(to)] == plan_phase[at] && phase[static_cast<std::size_t>(to)] == phase[at]) ++to;
-      Information& info = stats.run_for(plan_phase[at], phase[at], empty);
+      Information& info = stats.run_for(plan_phase[at], phase[at], [this] { return empty_information(); });
       if (info.runs() > 0) {
         const std::int64_t in_cluster = info.run_samples(info.runs() - 1);
         if (in_cluster >= cluster_rows) info.start_run();
@@ -374,8 +372,7 @@ struct OnlineEstimator::Impl {
       // noise whose spectrum falls with frequency (the sensors' 1/f, brown, AR with a positive pole).
       const double gain = 1.0 - noise.coefficients().sum();
       if (gain > 0.0) {
-        long_run_factor = std::max(1.0, noise.variance_ratio() / (gain * gain));
-        solver->set_long_run_variance_factor(long_run_factor);
+        solver->set_long_run_variance_factor(std::max(1.0, noise.variance_ratio() / (gain * gain)));
       }
       buffer.clear();
       buffered_rows = 0;
@@ -706,7 +703,7 @@ struct OnlineEstimator::Impl {
     out.t = Eigen::VectorXd::Constant(p, kNaN);
     out.noise_model_fitted = noise_fitted;
     out.noise_order = static_cast<int>(ar.size());
-    out.long_run_variance_factor = long_run_factor;
+    out.long_run_variance_factor = solver->long_run_variance_factor();
     Solution s = solve(true);
     std::int64_t samples = 0;
     for (const Information& i : s.infos) samples += i.samples();
