@@ -68,17 +68,24 @@ ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& res
 ///   tau_g^2 = tau_0^2 + tau_1^2 q_g: an offset common to all clusters plus one that grows with
 ///   the cluster's `loading` q_g (mean over its rows; a pose's placement tilt moves the output in
 ///   proportion to the specific force across the input axis, so q = a_p^2 + a_o^2 there);
-///   tau_0, tau_1 by non-negative least squares of mean_g(e)^2 - sigma^2 / n_g on [1 q_g], scaled
-///   by G / dof for the means the fit absorbed (method of moments);
+///   tau_0, tau_1 by non-negative least squares (method of moments) of the residual cluster means'
+///   squares less what the noise puts there, on [1 q_g], scaled by G / dof for the offsets the fit
+///   absorbed. With Z the cluster indicators, S = X'Z, H the fit's projection, D = diag(n_g) and
+///   P = S'(X'X)^-1 S, the noise's part of the residual's cluster sums Z'(I - H)e is exact:
+///   sigma^2 (D - P) for white noise;
 ///   V = sigma^2 (X'X)^-1 + (X'X)^-1 (sum_g tau_g^2 s_g s_g') (X'X)^-1,  s_g = X_g' 1,
 /// the covariance of the (ordinary, here AR-whitened) least-squares estimate under that model.
 /// With a coloured noise model (the whitened residual is not white where the AR model stops
 /// following the sensor's noise: noise/coloured_noise.hpp) its meat X'RX replaces sigma^2 X'X,
-/// and each cluster mean's variance under it replaces sigma^2 / n_g: the offsets are then what
-/// that noise model does not explain.
+/// and R's part of the cluster sums is Z'RZ - S'(X'X)^-1 X'RZ - (..)' + S'(X'X)^-1 X'RX (X'X)^-1 S:
+/// noise common to a case's clusters (flicker below one cycle per phase) moves their means
+/// together, and the fit's bias takes that out of the residual's means, so it is not subtracted
+/// from their scatter. The offsets are then what that noise model does not explain.
 struct ColouredNoise {
   Eigen::MatrixXd meat;                 ///< X'RX (p x p), R the residual's covariance
-  std::map<int, double> mean_variance;  ///< per cluster id: the variance of its mean under R
+  std::vector<int> cluster_ids;         ///< ascending: the order of the columns below
+  Eigen::MatrixXd cross;                ///< X'RZ (p x G)
+  Eigen::MatrixXd sums_covariance;      ///< Z'RZ (G x G): the covariance of the clusters' noise sums
 };
 struct ClusterOffsets {
   int clusters = 0;                 ///< G

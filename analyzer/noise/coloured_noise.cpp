@@ -104,6 +104,27 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
   return 0.5 * (out + out.transpose());
 }
 
+Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x) {
+  if (x.rows() != spectrum.rows) throw std::invalid_argument("covariance_times: rows differ from the spectrum's");
+  // The circulant of length L >= 2n restricted to the first n rows and columns is the Toeplitz R,
+  // so the first n samples of the circular convolution of the zero-padded column are R x.
+  const Eigen::Index half = spectrum.length / 2;
+  Eigen::FFT<double> fft;
+  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+  std::vector<double> column(static_cast<std::size_t>(spectrum.length), 0.0);
+  std::vector<std::complex<double>> bins;
+  Eigen::MatrixXd out(x.rows(), x.cols());
+  for (Eigen::Index j = 0; j < x.cols(); ++j) {
+    std::fill(column.begin(), column.end(), 0.0);
+    Eigen::Map<Eigen::VectorXd>(column.data(), x.rows()) = x.col(j);
+    fft.fwd(bins, column);
+    for (Eigen::Index k = 0; k <= half; ++k) bins[static_cast<std::size_t>(k)] *= spectrum.density(k);
+    fft.inv(column, bins, static_cast<std::size_t>(spectrum.length));
+    out.col(j) = Eigen::Map<const Eigen::VectorXd>(column.data(), x.rows());
+  }
+  return out;
+}
+
 double sum_variance(const SegmentSpectrum& spectrum, Eigen::Index m) {
   if (m < 1 || m > spectrum.rows) throw std::invalid_argument("sum_variance: m outside 1 .. rows");
   double v = static_cast<double>(m) * spectrum.autocovariance(0);

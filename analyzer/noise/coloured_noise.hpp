@@ -48,6 +48,11 @@ SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double
 /// x' R x for the rows of x under the spectrum (x.rows() == spectrum.rows).
 Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x);
 
+/// R x for the rows of x under the spectrum (x.rows() == spectrum.rows): the covariance of the
+/// noise with each column's weighted sum of it, x'(R x) = quadratic_form, and z'(R x) for any
+/// other columns z of the same rows.
+Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x);
+
 /// The variance of the sum of `m` consecutive samples (m <= rows) under the spectrum.
 double sum_variance(const SegmentSpectrum& spectrum, Eigen::Index m);
 

@@ -547,26 +547,45 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
     }
     x.rightCols(searched.cols()) = searched;
     if (spectra.empty()) {
+      std::map<int, Eigen::Index> order;   // cluster id -> column of Z (ascending ids)
+      for (const int id : *h.clusters) order.emplace(id, 0);
+      for (auto& [id, column] : order) {
+        column = static_cast<Eigen::Index>(coloured.cluster_ids.size());
+        coloured.cluster_ids.push_back(id);
+      }
+      const auto g_count = static_cast<Eigen::Index>(order.size());
+      coloured.sums_covariance = Eigen::MatrixXd::Zero(g_count, g_count);
       for (const CaseRows& rows : *h.noise_runs) {
         spectra.push_back(noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows)));
-        // Each phase's mean under its case's noise (a phase is one run of rows within a plan case).
-        for (Eigen::Index begin = rows.begin, end = rows.begin + rows.rows; begin < end;) {
-          const int id = (*h.clusters)[static_cast<std::size_t>(begin)];
-          Eigen::Index run = 1;
-          while (begin + run < end && (*h.clusters)[static_cast<std::size_t>(begin + run)] == id) ++run;
-          coloured.mean_variance[id] += noise::sum_variance(spectra.back(), run);
-          begin += run;
+        // The covariance of the sums of this case's phases (each phase a run of rows within it).
+        std::vector<Eigen::Index> columns;
+        for (Eigen::Index k = rows.begin; k < rows.begin + rows.rows; ++k) {
+          const Eigen::Index g = order.at((*h.clusters)[static_cast<std::size_t>(k)]);
+          if (std::find(columns.begin(), columns.end(), g) == columns.end()) columns.push_back(g);
         }
+        Eigen::MatrixXd z = Eigen::MatrixXd::Zero(rows.rows, static_cast<Eigen::Index>(columns.size()));
+        for (Eigen::Index k = 0; k < rows.rows; ++k) {
+          const Eigen::Index g = order.at((*h.clusters)[static_cast<std::size_t>(rows.begin + k)]);
+          z(k, std::find(columns.begin(), columns.end(), g) - columns.begin()) = 1.0;
+        }
+        const Eigen::MatrixXd zrz = z.transpose() * noise::covariance_times(spectra.back(), z);
+        for (std::size_t a = 0; a < columns.size(); ++a)
+          for (std::size_t b = 0; b < columns.size(); ++b) coloured.sums_covariance(columns[a], columns[b]) = zrz(Eigen::Index(a), Eigen::Index(b));
       }
-      std::map<int, Eigen::Index> cluster_rows;
-      for (const int id : *h.clusters) ++cluster_rows[id];
-      for (auto& [id, v] : coloured.mean_variance) v /= static_cast<double>(cluster_rows[id] * cluster_rows[id]);
     }
     coloured.meat = Eigen::MatrixXd::Zero(x.cols(), x.cols());
+    coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
     for (std::size_t r = 0; r < spectra.size(); ++r) {
       const CaseRows& rows = (*h.noise_runs)[r];
-      coloured.meat += noise::quadratic_form(spectra[r], x.middleRows(rows.begin, rows.rows));
+      const Eigen::MatrixXd rx = noise::covariance_times(spectra[r], x.middleRows(rows.begin, rows.rows));
+      coloured.meat += x.middleRows(rows.begin, rows.rows).transpose() * rx;
+      for (Eigen::Index k = 0; k < rows.rows; ++k) {
+        const int id = (*h.clusters)[static_cast<std::size_t>(rows.begin + k)];
+        const auto g = std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), id) - coloured.cluster_ids.begin();
+        coloured.cross.col(g) += rx.row(k).transpose();
+      }
     }
+    coloured.meat = (0.5 * (coloured.meat + coloured.meat.transpose())).eval();
     // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
     out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, *h.clusters, 0,
                                          h.loading != nullptr ? *h.loading : Eigen::VectorXd(), &coloured);

@@ -42,6 +42,20 @@ TEST(ColouredNoise, QuadraticFormEqualsTheToeplitzForm) {
     EXPECT_NEAR(sum_variance(spectrum, m), r.topLeftCorner(m, m).sum(), 1e-10 * r.topLeftCorner(m, m).sum()) << m;
 }
 
+TEST(ColouredNoise, CovarianceTimesEqualsTheToeplitzProduct) {
+  // As above: the circulant's wrap-around, phi^(L-n) = 0.9^724, is nothing at double precision.
+  const double phi = 0.9, s2 = 0.7;
+  const Eigen::Index n = 300;
+  const Eigen::MatrixXd x = Eigen::MatrixXd::Random(n, 3);
+  const SegmentSpectrum spectrum = spectrum_of(n, [&](double f) { return ar1_density(f, phi, s2); });
+  Eigen::MatrixXd r(n, n);
+  for (Eigen::Index a = 0; a < n; ++a)
+    for (Eigen::Index b = 0; b < n; ++b) r(a, b) = s2 * std::pow(phi, double(std::abs(a - b))) / (1.0 - phi * phi);
+  const Eigen::MatrixXd direct = r * x;
+  EXPECT_LT((covariance_times(spectrum, x) - direct).norm(), 1e-10 * direct.norm());
+  EXPECT_LT((x.transpose() * covariance_times(spectrum, x) - quadratic_form(spectrum, x)).norm(), 1e-10 * direct.norm());
+}
+
 TEST(ColouredNoise, WhiteSpectrumGivesTheClassicalForm) {
   const Eigen::Index n = 257;
   const Eigen::MatrixXd x = Eigen::MatrixXd::Random(n, 4);
