@@ -43,7 +43,7 @@ SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double
   return out;
 }
 
-SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual) {
+SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual, const std::function<double(double)>& below_record) {
   const Eigen::Index n = residual.size();
   std::optional<NoiseFit> fit;
   if (n >= 64) {
@@ -62,12 +62,17 @@ SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residua
   SegmentSpectrum out;
   if (fit) {
     // Below the record's lowest frequency (one cycle in n samples) the residual cannot tell a
-    // flicker or random walk from an offset of the whole stretch: there only the white part, and
-    // the offsets between stretches are the cluster offsets' (ident::cluster_offsets).
+    // flicker or random walk from an offset of the whole stretch: there only the white part, or
+    // what `below_record` knows; the offsets between stretches beyond that are the cluster
+    // offsets' (ident::cluster_offsets).
     NoiseFit white = *fit;
     for (const NoiseTerm t : {NoiseTerm::B, NoiseTerm::K, NoiseTerm::R}) white.terms[static_cast<std::size_t>(t)].value = 0.0;
     const double lowest = 1.0 / static_cast<double>(n);
-    out = spectrum_of(n, [&](double f) { return 0.5 * model_psd(f < lowest ? white : *fit, f, 1.0); });
+    out = spectrum_of(n, [&](double f) {
+      if (f >= lowest) return 0.5 * model_psd(*fit, f, 1.0);
+      const double floor = 0.5 * model_psd(white, f, 1.0);
+      return below_record ? std::max(floor, below_record(f)) : floor;
+    });
     std::string terms;
     for (int t = 0; t < kNoiseTerms; ++t) {
       const NoiseCoefficient& c = fit->terms[static_cast<std::size_t>(t)];
@@ -77,7 +82,9 @@ SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residua
     out.fit = std::move(fit);
   } else {
     const double variance = n > 0 ? residual.squaredNorm() / static_cast<double>(n) : 0.0;
-    out = spectrum_of(std::max<Eigen::Index>(n, 1), [&](double) { return variance; });
+    const double lowest = 1.0 / static_cast<double>(std::max<Eigen::Index>(n, 1));
+    out = spectrum_of(std::max<Eigen::Index>(n, 1),
+                      [&](double f) { return f < lowest && below_record ? std::max(variance, below_record(f)) : variance; });
     out.model = fmt::format("white {:.3g} (too short for the Allan fit)", variance);
   }
   return out;

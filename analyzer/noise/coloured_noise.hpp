@@ -39,8 +39,11 @@ struct SegmentSpectrum {
 };
 
 /// The spectrum of `residual`'s noise: its Allan variance's terms (fit_noise, tau0 = 1 sample), or
-/// white with its mean square when the stretch is too short for the fit.
-SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual);
+/// white with its mean square when the stretch is too short for the fit. Below one cycle per
+/// record the white part, or `below_record(f)` (f in cycles per sample) where that is larger: what
+/// is known of the noise there from elsewhere (the plan's static stretches).
+SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual,
+                                const std::function<double(double)>& below_record = {});
 
 /// A stationary noise of two-sided density `density(f)` (f in cycles per sample, 0..0.5) on n rows.
 SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double)>& density);

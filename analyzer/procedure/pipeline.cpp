@@ -1,5 +1,6 @@
 #include "analyzer/procedure/pipeline.hpp"
 
+#include <boost/math/distributions/chi_squared.hpp>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -16,7 +17,9 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "analyzer/noise/allan.hpp"
 #include "analyzer/noise/coloured_noise.hpp"
+#include "analyzer/noise/noise_analysis.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
@@ -485,6 +488,73 @@ bool has_square(const ident::UlsResult& fit) {
   return !square_columns(std::vector<std::string>(fit.labels.begin(), fit.labels.begin() + fit.process_terms)).empty();
 }
 
+/// The plan's own noise where it holds still: the Allan variance of the unwhitened residual over
+/// the static stretches (noise::static_stretches: dwells, static cases), pooled, and its terms.
+/// A case's whitened residual cannot say what its noise does below one cycle per case, and a case's
+/// mean (the bias, a pose's static terms) is read there. The static stretches of all cases together
+/// can: on sim-rotation-table acc1 they give B 8.7e-5 mA to +-3 %, where each case's whitened
+/// residual left B and K undetermined.
+struct StaticNoiseLaw {
+  noise::NoiseFit fit;
+  double tau0_s = 0.0;
+  Eigen::Index plan_rows = 0;   // the rows of every case: one cycle per plan is the lowest frequency it spans
+
+  /// The whitened residual's two-sided density per sample at f cycles per sample, below one cycle
+  /// per case (noise::fitted_spectrum's below_record): the law's white part and its determined
+  /// flicker and random walk through the whitener's gain at DC, A(1)^2, held at its level at one
+  /// cycle per plan below that.
+  [[nodiscard]] std::function<double(double)> below_record(const ArWhitener& whitener) const {
+    const double gain = 1.0 - whitener.coefficients().sum();
+    noise::NoiseFit held = fit;
+    for (const noise::NoiseTerm t : {noise::NoiseTerm::B, noise::NoiseTerm::K, noise::NoiseTerm::R}) {
+      noise::NoiseCoefficient& c = held.terms[static_cast<std::size_t>(t)];
+      if (!c.determined || t == noise::NoiseTerm::R) c.value = 0.0;
+    }
+    const double lowest = 1.0 / static_cast<double>(std::max<Eigen::Index>(plan_rows, 1));
+    const double rate = 1.0 / tau0_s;
+    return [held, gain, lowest, rate, tau0 = tau0_s](double f) {
+      return gain * gain * 0.5 * noise::model_psd(held, std::max(f, lowest) * rate, tau0) * rate;
+    };
+  }
+};
+
+/// The law of `residuals` (unwhitened, rows of `layout`) over the static stretches of `data`; none
+/// when the plan has none of 64 samples or more, or too few octaves for the fit.
+std::optional<StaticNoiseLaw> static_noise_law(const Eigen::VectorXd& residuals, const std::vector<CaseRows>& layout,
+                                               const dataset::Dataset& data) {
+  StaticNoiseLaw out;
+  std::vector<std::vector<noise::AllanPoint>> stretches;
+  for (const CaseRows& rows : layout) out.plan_rows += rows.rows;
+  for (const noise::Stretch& stretch : noise::static_stretches(data)) {
+    const double period = data.cases[stretch.case_index].sample_period_s;
+    if (out.tau0_s == 0.0) out.tau0_s = period;
+    if (std::abs(period - out.tau0_s) > 1e-9 * out.tau0_s) continue;
+    for (const CaseRows& rows : layout) {
+      if (rows.case_index != stretch.case_index) continue;
+      const Eigen::Index from = std::max(stretch.begin, rows.first_sample), to = std::min(stretch.end, rows.first_sample + rows.rows);
+      if (to - from < 64) continue;
+      noise::AllanAccumulator allan(out.tau0_s);
+      allan.push(residuals.segment(rows.begin + from - rows.first_sample, to - from));
+      stretches.push_back(allan.points());
+    }
+  }
+  if (stretches.empty()) return std::nullopt;
+  noise::NoiseFitOptions options;
+  options.terms[static_cast<std::size_t>(noise::NoiseTerm::R)] = false;   // a drift, not a stationary noise
+  try {
+    out.fit = noise::fit_noise(noise::pool(stretches), options);
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;
+  }
+  // A law that does not hold on its own stretches is not carried below them. The gyro bench's
+  // Gauss-Markov rate noise (correlation 0.1 s) in dwells of about a second reads as flicker and
+  // random walk (chi-square 42.7 on 6 dof), and that random walk, held at one cycle per plan,
+  // made w_i's sd 14 times the spread.
+  if (out.fit.dof > 0 && boost::math::cdf(boost::math::complement(boost::math::chi_squared(out.fit.dof), out.fit.chi_square)) < 1e-3)
+    return std::nullopt;
+  return out;
+}
+
 /// Honest inference after a selection (whose t-tests take every sample as independent), on a
 /// fitted model of a stacked problem. The cases' contiguous phases are clusters; offsets between
 /// them that the noise model does not explain (a pose's placement, drift, 1/f noise below the AR
@@ -512,6 +582,9 @@ struct HonestPrune {
   // of the Jacobian, so what their own uncertainty moves is in the coefficients' sd (sim-paper-daq:
   // the corner's column predicts its sd at 1.3 %; over 20 seeds it spread 1.4 %).
   std::function<Eigen::MatrixXd(const ident::UlsResult&)> searched;
+  // The whitened residual's density below one cycle per case (StaticNoiseLaw::below_record); empty:
+  // its white part alone.
+  std::function<double(double)> below_record;
 };
 
 struct HonestResult {
@@ -556,7 +629,7 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
       const auto g_count = static_cast<Eigen::Index>(order.size());
       coloured.sums_covariance = Eigen::MatrixXd::Zero(g_count, g_count);
       for (const CaseRows& rows : *h.noise_runs) {
-        spectra.push_back(noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows)));
+        spectra.push_back(noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows), h.below_record));
         // The covariance of the sums of this case's phases (each phase a run of rows within it).
         std::vector<Eigen::Index> columns;
         for (Eigen::Index k = rows.begin; k < rows.begin + rows.rows; ++k) {
@@ -617,9 +690,14 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
     // the searched parameters add to that is added to it.
     Eigen::MatrixXd covariance = fit.covariance.topLeftCorner(p, p);
     covariance += out.offsets.covariance - out.offsets.classical;
-    if (out.offsets.tau2 > 0.0) {
-      for (Eigen::Index j = 0; j < p; ++j)
-        if (out.offsets.covariance(j, j) > 2.0 * out.offsets.within(j, j)) out.dof(j) = std::max(1, out.offsets.between_dof);
+    // A term constant within each phase is determined by the phases' means alone, and is tested on
+    // their dof whatever the offsets' estimate: on few dof that estimate often comes out near 0
+    // (sim-tumble seed 119: 6 poses, 1 dof, and a_o^2 named from the placement scatter at t -22.8
+    // on the samples' 17774 dof; the mounting's angles then 250 of their sd from the truth).
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const bool offsets_dominate = out.offsets.tau2 > 0.0 && out.offsets.covariance(j, j) > 2.0 * out.offsets.within(j, j);
+      const bool between_only = phase_level[std::size_t(j)] && out.offsets.clusters >= 2 && out.offsets.between_dof >= 1;
+      if (offsets_dominate || between_only) out.dof(j) = std::max(1, out.offsets.between_dof);
     }
     if (h.extra) h.extra(fit, covariance);
     fit.covariance.topLeftCorner(p, p) = covariance;
@@ -959,6 +1037,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   frames::Dcm m_cs = frames::Dcm::Identity();
   StackedRegression es;
   ArWhitener whitener;
+  std::optional<StaticNoiseLaw> stage_law;
   std::optional<double> square_corner;
   double twist = 0.0;
   const bool twist_matters = uses_cross_axes(es_terms);
@@ -985,6 +1064,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     std::vector<std::string> dropped;
     const ident::UlsResult ols = fit_identifiable(es, usable, uls, dropped);
     whitener = ArWhitener::fit(ols.residuals, es.cases, options.whitening_max_order);
+    stage_law = static_noise_law(ols.residuals, es.cases, data);
     if (unfiltered) {
       square_corner = whitened_corner(*unfiltered, whitener, data, options);
       es = std::move(*unfiltered);
@@ -1088,6 +1168,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     honest.protect = [&](const std::string& label) {
       return is_sensitivity_label(label) || label == "1" || std::find(tilts.begin(), tilts.end(), label) != tilts.end();
     };
+    if (stage_law) honest.below_record = stage_law->below_record(whitener);
     if (square_corner) {
       honest.searched = [&](const ident::UlsResult& fit) {
         if (!has_square(fit)) return Eigen::MatrixXd();
@@ -1256,6 +1337,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     }
   }
   ArWhitener whitener;
+  std::optional<StaticNoiseLaw> batch_law;
   {
     // The noise model from the residuals of the full candidate set (dependent columns left out).
     std::vector<Eigen::Index> usable = identifiable_ranking(batch, options.selection.err);
@@ -1264,6 +1346,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     std::vector<std::string> dropped;
     const ident::UlsResult ols = fit_identifiable(batch, usable, uls, dropped);
     whitener = ArWhitener::fit(ols.residuals, batch.cases, options.whitening_max_order);
+    batch_law = static_noise_law(ols.residuals, batch.cases, data);
     if (unfiltered) {
       result.square_corner_rad_s = whitened_corner(*unfiltered, whitener, data, options);
       batch = std::move(*unfiltered);
@@ -1330,6 +1413,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
   honest.may_remove = options.batch.select;
   honest.protect = [](const std::string& label) { return is_sensitivity_label(label) || label == "1"; };
+  if (batch_law) honest.below_record = batch_law->below_record(whitener);
   // The searches whose results the batch's columns are built with: the squares' corner and each
   // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the
   // between-phase dof no longer count the angles separately.

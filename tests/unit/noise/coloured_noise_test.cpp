@@ -56,6 +56,29 @@ TEST(ColouredNoise, CovarianceTimesEqualsTheToeplitzProduct) {
   EXPECT_LT((x.transpose() * covariance_times(spectrum, x) - quadratic_form(spectrum, x)).norm(), 1e-10 * direct.norm());
 }
 
+/// What is known of the noise below one cycle per record from elsewhere (the plan's static
+/// stretches) replaces the white part there, and only there; where it is lower the white part stays.
+TEST(ColouredNoise, BelowTheRecordsLowestFrequencyTheKnownLawHolds) {
+  const Eigen::Index n = 4096;
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> normal;
+  Eigen::VectorXd residual(n);
+  for (Eigen::Index k = 0; k < n; ++k) residual(k) = 2.0 * normal(rng);
+  const SegmentSpectrum white = fitted_spectrum(residual);
+  const SegmentSpectrum held = fitted_spectrum(residual, [](double) { return 40.0; });
+  const SegmentSpectrum lower = fitted_spectrum(residual, [](double) { return 1e-3; });
+  const Eigen::Index below = held.length / n;   // bins k / L < 1 / n
+  for (Eigen::Index k = 0; k <= held.length / 2; ++k) {
+    if (k < below) {
+      EXPECT_DOUBLE_EQ(held.density(k), 40.0) << k;
+    } else {
+      EXPECT_DOUBLE_EQ(held.density(k), white.density(k)) << k;
+    }
+    EXPECT_DOUBLE_EQ(lower.density(k), white.density(k)) << k;
+  }
+  EXPECT_NEAR(white.density(0), 4.0, 0.5);   // the white part: the mean square, two-sided per sample
+}
+
 TEST(ColouredNoise, WhiteSpectrumGivesTheClassicalForm) {
   const Eigen::Index n = 257;
   const Eigen::MatrixXd x = Eigen::MatrixXd::Random(n, 4);
