@@ -47,6 +47,15 @@ bool UlsOptions::is_valid(std::string* why) const {
   return true;
 }
 
+Eigen::VectorXd linear_form_signs(Index columns, std::span<const Index> output_multiplied_columns) {
+  Eigen::VectorXd sign = Eigen::VectorXd::Ones(columns);
+  for (const Index c : output_multiplied_columns) {
+    if (c < 0 || c >= columns) throw std::invalid_argument("linear_form_signs: an output-multiplied column outside the columns");
+    sign[c] = -1.0;
+  }
+  return sign;
+}
+
 UlsStatistics UlsStatistics::from_data(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                                        const Eigen::Ref<const Eigen::VectorXd>& y,
                                        std::span<const Index> output_multiplied_columns,
@@ -59,8 +68,7 @@ UlsStatistics UlsStatistics::from_data(const Eigen::Ref<const Eigen::MatrixXd>& 
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(p, p);
   g.selfadjointView<Eigen::Lower>().rankUpdate(phi.transpose());
   mirror_lower(g);
-  Eigen::VectorXd sign = Eigen::VectorXd::Ones(p);
-  for (Index c : output_multiplied_columns) sign[c] = -1.0;
+  const Eigen::VectorXd sign = linear_form_signs(p, output_multiplied_columns);
   s.scale = (g.diagonal() / static_cast<double>(std::max<Index>(n, 1))).cwiseSqrt();
   const Eigen::VectorXd inv =
       (s.scale.array() > 0.0).select(sign.array() / s.scale.array(), sign.array()).matrix();
@@ -99,8 +107,7 @@ UlsStatistics UlsStatistics::from_gram(const Eigen::Ref<const Eigen::MatrixXd>& 
   UlsStatistics s;
   s.samples = samples;
   const Eigen::MatrixXd g = augmented.topLeftCorner(p, p);
-  Eigen::VectorXd sign = Eigen::VectorXd::Ones(p);
-  for (Index c : output_multiplied_columns) sign[c] = -1.0;
+  const Eigen::VectorXd sign = linear_form_signs(p, output_multiplied_columns);
   s.scale = (g.diagonal().cwiseMax(0.0) / static_cast<double>(std::max<Index>(samples, 1))).cwiseSqrt();
   const Eigen::VectorXd inv =
       (s.scale.array() > 0.0).select(sign.array() / s.scale.array(), sign.array()).matrix();

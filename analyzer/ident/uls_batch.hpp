@@ -97,6 +97,11 @@ struct UlsResult {
   [[nodiscard]] Eigen::VectorXd process_theta() const { return theta.head(process_terms); }
 };
 
+/// The sign each column takes in ULS's linear form: -1 for an output-multiplied column (its
+/// coefficient multiplies the output, which moves to the regression's side), +1 otherwise. A
+/// prediction from the coefficients, a case offset read against them, reads the columns so.
+[[nodiscard]] Eigen::VectorXd linear_form_signs(Index columns, std::span<const Index> output_multiplied_columns);
+
 /// Sufficient statistics of the linear form in RMS-scaled units (notes §3 step 0).
 /// Column j of the linear form is phi_lin,j = sign_j * phi_j (sign -1 for output-multiplied
 /// columns), scaled: phi_s,j = phi_lin,j / scale_j. Built in one O(N p^2) pass; every subset fit

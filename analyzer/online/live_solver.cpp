@@ -546,10 +546,10 @@ std::vector<Index> LiveSolver::phase_level_terms(const StatFit& batch, const std
 }
 
 Eigen::VectorXd LiveSolver::prediction_signs(const std::vector<Index>& terms) const {
-  Eigen::VectorXd sign = Eigen::VectorXd::Ones(static_cast<Index>(terms.size()));
+  std::vector<Index> output_multiplied;
   for (std::size_t j = 0; j < terms.size(); ++j)
-    if (basis_.terms()[static_cast<std::size_t>(terms[j])].is_output_multiplied()) sign(static_cast<Index>(j)) = -1.0;
-  return sign;
+    if (basis_.terms()[static_cast<std::size_t>(terms[j])].is_output_multiplied()) output_multiplied.push_back(static_cast<Index>(j));
+  return ident::linear_form_signs(static_cast<Index>(terms.size()), output_multiplied);
 }
 
 CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,

@@ -612,12 +612,14 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
     if (searched.cols() == 0) searched.resize(s.phi.rows(), 0);
     if (searched.rows() != s.phi.rows()) throw std::logic_error("honest_prune: searched columns of another stack");
     Eigen::MatrixXd x(s.phi.rows(), p + searched.cols());
+    std::vector<Eigen::Index> output_multiplied;
     for (Eigen::Index j = 0; j < p; ++j) {
       const auto column = static_cast<Eigen::Index>(std::find(s.labels.begin(), s.labels.end(), fit.labels[std::size_t(j)]) -
                                                     s.labels.begin());
-      const bool rational = std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end();
-      x.col(j) = rational ? Eigen::VectorXd(-s.phi.col(column)) : Eigen::VectorXd(s.phi.col(column));   // the linear form
+      if (std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end()) output_multiplied.push_back(j);
+      x.col(j) = s.phi.col(column);
     }
+    x.leftCols(p) *= ident::linear_form_signs(p, output_multiplied).asDiagonal();   // the linear form
     x.rightCols(searched.cols()) = searched;
     if (spectra.empty()) {
       std::map<int, Eigen::Index> order;   // cluster id -> column of Z (ascending ids)
