@@ -219,7 +219,7 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
   for (Eigen::Index j = 0; j < p; ++j)
     if (!(scale(j) > 0.0)) scale(j) = 1.0;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(means * scale.cwiseInverse().asDiagonal());
-  const Eigen::VectorXd sv = svd.singularValues();
+  const Eigen::VectorXd& sv = svd.singularValues();
   int rank = 0;
   for (Eigen::Index k = 0; k < sv.size(); ++k)
     if (sv(k) > 1e-6 * sv(0)) ++rank;
