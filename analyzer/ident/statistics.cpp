@@ -267,10 +267,8 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
         t1 = only1;
       }
     }
-    t0 *= inflate;
-    t1 *= inflate;
-    out.tau2_common = t0;
-    out.tau2_per_loading = t1;
+    out.tau2_common = inflate * t0;
+    out.tau2_per_loading = inflate * t1;
     Eigen::MatrixXd between = Eigen::MatrixXd::Zero(p, p);
     double total = 0.0;
     for (Eigen::Index g = 0; g < g_count; ++g) {

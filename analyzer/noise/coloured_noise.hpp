@@ -16,8 +16,10 @@
 // domain: sum over the bins f_k of a zero-padded DFT of length L >= 2n of S(f_k) X_k^H X_k / L,
 // the circulant that equals the Toeplitz R wherever R's correlation has decayed within n lags.
 // Below the record's lowest frequency (one cycle per record), where a flicker or random-walk
-// spectrum rises without bound, a fitted spectrum keeps its white part only: a stretch's offset
-// is the offsets between stretches' business (ident::cluster_offsets), measured from their scatter.
+// spectrum rises without bound, a fitted spectrum keeps its white part, or what the caller knows
+// of the noise there from elsewhere (the plan's static stretches: StaticNoiseLaw in
+// procedure/pipeline.cpp); what a stretch's offset holds beyond that is the offsets between
+// stretches' business (ident::cluster_offsets), measured from their scatter.
 #include <Eigen/Dense>
 
 #include <functional>
