@@ -132,11 +132,4 @@ Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::R
   return out;
 }
 
-double sum_variance(const SegmentSpectrum& spectrum, Eigen::Index m) {
-  if (m < 1 || m > spectrum.rows) throw std::invalid_argument("sum_variance: m outside 1 .. rows");
-  double v = static_cast<double>(m) * spectrum.autocovariance(0);
-  for (Eigen::Index tau = 1; tau < m; ++tau) v += 2.0 * static_cast<double>(m - tau) * spectrum.autocovariance(tau);
-  return v;
-}
-
 }  // namespace inertia::noise

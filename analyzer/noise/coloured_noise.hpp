@@ -58,7 +58,5 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
 /// other columns z of the same rows.
 Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x);
 
-/// The variance of the sum of `m` consecutive samples (m <= rows) under the spectrum.
-double sum_variance(const SegmentSpectrum& spectrum, Eigen::Index m);
 
 }  // namespace inertia::noise
