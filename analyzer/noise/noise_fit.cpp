@@ -95,7 +95,8 @@ double model_avar(const std::array<double, kNoiseTerms>& c, double tau) {
 double model_psd(const std::array<double, kNoiseTerms>& c, double f_hz, double tau0_s) {
   const double w = 2.0 * std::numbers::pi * f_hz;
   const auto v = [&](NoiseTerm t) { return c[static_cast<std::size_t>(t)] * c[static_cast<std::size_t>(t)]; };
-  return 2.0 * (v(NoiseTerm::Q) * w * w * tau0_s + v(NoiseTerm::N) + v(NoiseTerm::B) / w + v(NoiseTerm::K) / (w * w) +
+  const double quantization = 4.0 * std::pow(std::sin(std::numbers::pi * f_hz * tau0_s), 2) / tau0_s;
+  return 2.0 * (v(NoiseTerm::Q) * quantization + v(NoiseTerm::N) + v(NoiseTerm::B) / w + v(NoiseTerm::K) / (w * w) +
                 v(NoiseTerm::R) / (w * w * w));
 }
 

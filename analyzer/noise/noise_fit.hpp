@@ -63,7 +63,10 @@ NoiseFit fit_noise(const std::vector<AllanPoint>& points, const NoiseFitOptions&
 double model_avar(const std::array<double, kNoiseTerms>& c, double tau);
 
 /// The one-sided PSD (unit^2/Hz) at f of the terms `c` (Q, N, B, K, R values; IEEE 952 Table C.1,
-/// doubled): 2 ((2 pi f)^2 tau0 Q^2 + N^2 + B^2 / (2 pi f) + K^2 / (2 pi f)^2 + R^2 / (2 pi f)^3).
+/// doubled): 2 (4 Q^2 sin^2(pi f tau0) / tau0 + N^2 + B^2 / (2 pi f) + K^2 / (2 pi f)^2 + R^2 / (2 pi f)^3).
+/// Q's is the sampled spectrum (a white quantization error, differenced), whose Allan variance is
+/// model_avar's 3 Q^2 / tau^2 at every tau; Table C.1's (2 pi f)^2 tau0 Q^2 is its low-frequency
+/// limit, pi^2 / 4 times too high at Nyquist.
 double model_psd(const std::array<double, kNoiseTerms>& c, double f_hz, double tau0_s);
 
 }  // namespace inertia::noise

@@ -2,10 +2,13 @@
 // pooled across a gap, white noise's N recovered, the PSD at the level the fit predicts, a tau the
 // data cannot reach clipped and said, and a dataset without rest refused by name.
 #include "analyzer/noise/noise_analysis.hpp"
+#include "analyzer/noise/noise_fit.hpp"
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "common/input_error.hpp"
@@ -77,6 +80,34 @@ TEST(NoiseAnalysis, NoRestNamesWhatIsMissing) {
   EXPECT_THROW((void)analyse_noise(d, o), InputError);
   o.only_case = "shaker-ia";
   EXPECT_NO_THROW((void)analyse_noise(d, o)) << "a case named is taken whole";
+}
+
+/// model_psd is the spectrum whose Allan variance is model_avar, for the sampled series: the
+/// Allan variance at tau = m tau0 of a series of one-sided PSD S is the integral over 0 .. fs/2 of
+/// S(f) 2 sin^4(pi f m tau0) / (m sin(pi f tau0))^2. Exact for Q (the sampled spectrum) and N at
+/// every m; B and K are continuous-time laws, whose sampled Allan variance approaches theirs as
+/// tau grows.
+TEST(NoiseFit, ModelPsdIsTheSpectrumOfModelAvar) {
+  constexpr double kTau0 = 1e-3;
+  const auto sampled_avar = [&](const std::array<double, kNoiseTerms>& c, int m) {
+    constexpr int kSteps = 400000;   // Simpson over (0, fs/2]; the integrand is smooth there
+    const double top = 0.5 / kTau0, h = top / kSteps;
+    double sum = 0.0;
+    for (int i = 1; i <= kSteps; ++i) {
+      const double f = h * i;
+      const double transfer = 2.0 * std::pow(std::sin(std::numbers::pi * f * m * kTau0), 4) / std::pow(m * std::sin(std::numbers::pi * f * kTau0), 2);
+      sum += (i == kSteps ? 1.0 : i % 2 == 1 ? 4.0 : 2.0) * model_psd(c, f, kTau0) * transfer;
+    }
+    return sum * h / 3.0;   // the f = 0 end contributes 0
+  };
+  for (const NoiseTerm t : {NoiseTerm::Q, NoiseTerm::N}) {
+    std::array<double, kNoiseTerms> c{};
+    c[static_cast<std::size_t>(t)] = 2.0;
+    for (const int m : {1, 2, 3, 8, 32}) {
+      const double expected = model_avar(c, m * kTau0);
+      EXPECT_NEAR(sampled_avar(c, m) / expected, 1.0, 1e-6) << noise_term_name(t) << " m " << m;
+    }
+  }
 }
 
 }  // namespace
