@@ -123,11 +123,11 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
   const Location& lb = r.location_before;
   const Location& la = r.location_after;
   md << "## Location by frequency band\n\n";
-  md << fmt::format("Residual Welch PSD (Hann, 50% overlap) against the PSD the model's noise explains (white_sd "
-                    "through its noise terms e[k-j] and output lags y[k-j]), per octave band; ratio = residual / model "
-                    "power; chi-square with the Welch dof, `excess` below alpha / all bands of all cases.\n\n"
-                    "Baseline: {}.\n\nFinal: {}.\n\n",
-                    lb.verdict, la.verdict);
+  md << fmt::format("Residual Welch PSD (Hann, 50% overlap{}) against the PSD the model's noise explains ({}), per "
+                    "octave band; ratio = residual / model power; scaled chi-square with the Welch dof, `excess` below "
+                    "alpha / all bands of all cases.\n\nBaseline: {}.\n\nFinal: {}.\n\n",
+                    lb.about_means ? ", each segment about its mean" : "",
+                    lb.noise, lb.verdict, la.verdict);
   for (std::size_t c = 0; c < lb.bands.size() && c < la.bands.size(); ++c) {
     const CaseBands& b = lb.bands[c];
     if (b.bands.empty()) continue;
@@ -143,8 +143,8 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
     md << "\n";
   }
   md << "## Location by condition\n\n";
-  md << "Residual RMS per bin of reference specific-force magnitude |a| and of temperature, against the RMS of the "
-        "model's noise; chi-square, `excess` below alpha / number of bins.\n\n";
+  md << "Residual RMS per bin of reference specific-force magnitude |a| and of temperature, against the RMS the "
+        "model's noise puts there; scaled chi-square, `excess` below alpha / number of bins.\n\n";
   md << "| quantity | bin | samples | expected RMS | RMS before | ratio | p | RMS after | ratio | p |\n"
         "|---|---|---|---|---|---|---|---|---|---|\n";
   for (std::size_t k = 0; k < lb.conditions.size() && k < la.conditions.size(); ++k) {

@@ -590,52 +590,81 @@ std::uint16_t phase_at(const dataset::CaseData& c, Index sample) {
   return c.phase.empty() ? std::uint16_t{0} : c.phase[static_cast<std::size_t>(sample)];
 }
 
-/// Per case and phase: sum of squares and count of a stacked vector.
-std::vector<std::vector<std::pair<double, Index>>> segment_power(const dataset::Dataset& data, const Workspace& w,
-                                                                 const Eigen::VectorXd& v) {
-  std::vector<std::vector<std::pair<double, Index>>> out(data.cases.size());
+/// Per case and phase: sum, sum of squares and count of a stacked vector.
+struct SegmentPower {
+  double sum = 0.0, sum_squares = 0.0;
+  Index n = 0;
+};
+std::vector<std::vector<SegmentPower>> segment_power(const dataset::Dataset& data, const Workspace& w,
+                                                     const Eigen::VectorXd& v) {
+  std::vector<std::vector<SegmentPower>> out(data.cases.size());
   for (const procedure::CaseRows& c : w.stack.cases) {
     const dataset::CaseData& cd = data.cases[c.case_index];
     auto& seg = out[c.case_index];
-    seg.assign(segment_phase_names(cd).size(), {0.0, 0});
+    seg.assign(segment_phase_names(cd).size(), {});
     for (Index r = 0; r < c.rows; ++r) {
-      auto& [ss, n] = seg[phase_at(cd, c.first_sample + r)];
-      ss += v(c.begin + r) * v(c.begin + r);
-      ++n;
+      SegmentPower& p = seg[phase_at(cd, c.first_sample + r)];
+      p.sum += v(c.begin + r);
+      p.sum_squares += v(c.begin + r) * v(c.begin + r);
+      ++p.n;
     }
   }
   return out;
 }
 
+/// The per case and phase test: against the noise the model states (`noise`: each segment's sum
+/// of squares, about its mean when the noise has slow terms, against its law, NoiseModel::stretch;
+/// chi2(n) for white noise), or without one against the final residual's variance (F with
+/// `reference_dof`).
+/// The law of a segment's sum of squares under the noise the model states, once per length and
+/// rate (every step tests the same segments).
+class SegmentLaws {
+ public:
+  explicit SegmentLaws(const NoiseModel& noise) : noise_(noise) {}
+  const NoiseModel::StretchMoments& at(Index n, double fs_hz) {
+    auto it = laws_.find({n, fs_hz});
+    if (it == laws_.end()) it = laws_.emplace(std::make_pair(n, fs_hz), noise_.stretch(n, fs_hz)).first;
+    return it->second;
+  }
+
+ private:
+  const NoiseModel& noise_;
+  std::map<std::pair<Index, double>, NoiseModel::StretchMoments> laws_;
+};
+
 ResidualSummary summarize(const dataset::Dataset& data, const Workspace& w, const Eigen::VectorXd& r,
-                          std::string label, double noise_sd, bool chi_square, Index reference_dof, double alpha) {
+                          std::string label, SegmentLaws* noise, double noise_sd, Index reference_dof,
+                          double alpha) {
   ResidualSummary s;
   s.label = std::move(label);
   s.overall = std::sqrt(r.squaredNorm() / static_cast<double>(r.size()));
   const auto power = segment_power(data, w, r);
   std::size_t segments = 0;
-  for (const auto& p : power) segments += static_cast<std::size_t>(std::count_if(p.begin(), p.end(), [](const auto& x) { return x.second > 0; }));
+  for (const auto& p : power) segments += static_cast<std::size_t>(std::count_if(p.begin(), p.end(), [](const auto& x) { return x.n > 0; }));
   for (std::size_t i = 0; i < data.cases.size(); ++i) {
     double ss = 0.0;
     Index n = 0;
     const std::vector<std::string> names = segment_phase_names(data.cases[i]);
     for (std::size_t k = 0; k < power[i].size(); ++k) {
-      const auto& [pss, pn] = power[i][k];
-      ss += pss;
-      n += pn;
-      if (pn == 0) continue;
+      const SegmentPower& p = power[i][k];
+      ss += p.sum_squares;
+      n += p.n;
+      if (p.n == 0) continue;
       SegmentStats seg;
       seg.case_index = i;
       seg.phase = names[k];
-      seg.samples = pn;
-      seg.rms = std::sqrt(pss / static_cast<double>(pn));
-      seg.ratio = seg.rms / noise_sd;
-      const double stat = pss / (noise_sd * noise_sd);
-      if (chi_square) {
-        seg.p_value = boost::math::cdf(boost::math::complement(boost::math::chi_squared(static_cast<double>(pn)), stat));
+      seg.samples = p.n;
+      seg.rms = std::sqrt(p.sum_squares / static_cast<double>(p.n));
+      if (noise != nullptr) {
+        const NoiseModel::StretchMoments& m = noise->at(p.n, 1.0 / data.cases[i].sample_period_s);
+        const double stat = m.about_mean ? p.sum_squares - p.sum * p.sum / static_cast<double>(p.n) : p.sum_squares;
+        const double expected = m.mean_square * static_cast<double>(p.n);
+        seg.ratio = std::sqrt(stat / expected);
+        seg.p_value = m.law.upper_tail(stat);
       } else {
-        const boost::math::fisher_f f(static_cast<double>(pn), static_cast<double>(reference_dof));
-        seg.p_value = boost::math::cdf(boost::math::complement(f, stat / static_cast<double>(pn)));
+        seg.ratio = seg.rms / noise_sd;
+        const boost::math::fisher_f f(static_cast<double>(p.n), static_cast<double>(reference_dof));
+        seg.p_value = boost::math::cdf(boost::math::complement(f, p.sum_squares / (noise_sd * noise_sd) / static_cast<double>(p.n)));
       }
       seg.excess = seg.p_value < alpha / static_cast<double>(std::max<std::size_t>(1, segments));
       s.segments.push_back(seg);
@@ -878,8 +907,8 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
     for (std::size_t i = 0; i < power.size(); ++i) {
       const std::vector<std::string> names = segment_phase_names(data.cases[i]);
       for (std::size_t k = 0; k < power[i].size(); ++k) {
-        if (power[i][k].second == 0) continue;
-        const double rms = std::sqrt(power[i][k].first / static_cast<double>(power[i][k].second));
+        if (power[i][k].n == 0) continue;
+        const double rms = std::sqrt(power[i][k].sum_squares / static_cast<double>(power[i][k].n));
         if (rms > f.where_rms) {
           f.where_rms = rms;
           f.where_case = data.cases[i].name;
@@ -951,20 +980,31 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
   }
   out.library.assign(w.labels.begin(), w.labels.end());
 
-  // Location test: the model's claimed white noise when it states one (chi-square with n dof:
-  // sum r^2 / sd^2 over a segment); otherwise the final model's residual variance (F-type).
-  const bool chi_square = model.white_sd.has_value() && *model.white_sd > 0.0;
+  // Location test: the noise the model states (white_sd, or its [noise] law); otherwise the final
+  // model's residual variance (F-type).
   const Eigen::VectorXd& final_r = residuals.back();
-  out.noise_reference = chi_square ? *model.white_sd : std::sqrt(final_r.squaredNorm() / static_cast<double>(final_r.size()));
-  out.location_test = chi_square ? "chi-square: sum(r^2)/white_sd^2 ~ chi2(n), white_sd from the model file"
-                                 : "F: segment variance / final residual variance ~ F(n, N) (model file has no white_sd)";
+  const bool stated = (model.white_sd.has_value() && *model.white_sd > 0.0) || model.noise.any();
+  out.noise_reference = model.white_sd.value_or(std::sqrt(final_r.squaredNorm() / static_cast<double>(final_r.size())));
+  const NoiseModel baseline_noise = NoiseModel::of(model, out.noise_reference);
+  const NoiseModel final_noise = NoiseModel::of(current, out.noise_reference);
+  out.location_test = !stated ? "F: segment variance / final residual variance ~ F(n, N) (model file has no white_sd)"
+                      : baseline_noise.has_slow_noise()
+                          ? "each segment's sum of squares about its mean against its law under the model's [noise] terms "
+                            "(Q, N, B, K, R): Toeplitz mean and variance, leading eigenvalues, saddlepoint tail"
+                      : baseline_noise.has_power_law()
+                          ? "each segment's sum of squares against its law under the model's [noise] terms (Q, N): Toeplitz "
+                            "mean and variance, leading eigenvalues, saddlepoint tail"
+                          : "sum(r^2) against white_sd through the model's noise terms: chi2(n) for white noise, else its "
+                            "law (leading eigenvalues, saddlepoint tail); white_sd from the model file";
+  SegmentLaws segment_laws(baseline_noise);
+  SegmentLaws* laws = stated ? &segment_laws : nullptr;
   for (std::size_t s = 0; s < residuals.size(); ++s) {
-    out.steps.push_back(summarize(data, w, residuals[s], step_labels[s], out.noise_reference, chi_square,
-                                  final_r.size(), options.alpha));
+    out.steps.push_back(
+        summarize(data, w, residuals[s], step_labels[s], laws, out.noise_reference, final_r.size(), options.alpha));
   }
   if (refit_residual) {
-    out.refit_only = summarize(data, w, *refit_residual, "given terms refitted", out.noise_reference, chi_square,
-                               final_r.size(), options.alpha);
+    out.refit_only =
+        summarize(data, w, *refit_residual, "given terms refitted", laws, out.noise_reference, final_r.size(), options.alpha);
   }
   for (const procedure::CaseRows& c : w.stack.cases) {
     const dataset::CaseData& cd = data.cases[c.case_index];
@@ -983,10 +1023,8 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
     }
     return v;
   };
-  out.location_before = locate(data, case_residuals(out.residual_before), NoiseModel::of(model, out.noise_reference),
-                               options.alpha);
-  out.location_after = locate(data, case_residuals(out.residual_after), NoiseModel::of(current, out.noise_reference),
-                              options.alpha);
+  out.location_before = locate(data, case_residuals(out.residual_before), baseline_noise, options.alpha);
+  out.location_after = locate(data, case_residuals(out.residual_after), final_noise, options.alpha);
   return out;
 }
 

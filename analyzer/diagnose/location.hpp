@@ -1,17 +1,17 @@
 #pragma once
 // Where the residual exceeds the model's own noise, by frequency band and by operating condition
-// (issue 5, "locate the disagreement"). The per case/phase test lives in discrepancy.cpp; these
-// two complete it:
+// (issue 5, "locate the disagreement"). The per case/phase test lives in discrepancy.cpp (on
+// NoiseModel::stretch); these two complete it:
 //  - bands: per case, the residual's Welch PSD (Hann, 50% overlap) against the PSD the model's
-//    noise explains, in octave bands up to Nyquist. The model's noise is white_sd passed through
-//    C(q)/A(q): C from the noise terms e[k-j] (MA), A from the output lags y[k-j] (a free-run
-//    residual of an ARMAX model is C/A e). Per band the statistic is the sum over segments and
-//    bins of periodogram / expected, a quadratic form in the residual whose mean and variance
-//    under the model are known exactly from the window (white within a few bins), so it is
-//    compared with a scaled chi-square (Satterthwaite: dof = 2 mean^2 / variance).
+//    noise explains (NoiseModel), in octave bands up to Nyquist. Per band the statistic is the sum
+//    over segments and bins of periodogram / expected, a quadratic form in the residual whose mean
+//    and variance under the model are known exactly from the window (white within a few bins; the
+//    lowest bins integrated against the model's spectrum), so it is compared with a scaled
+//    chi-square (Satterthwaite: dof = 2 mean^2 / variance).
 //  - conditions: bins of the reference specific-force magnitude |a| (g) and of temperature;
-//    residual RMS per bin against the model noise's RMS, chi-square with the dof the noise's
-//    autocorrelation leaves (n for white noise).
+//    residual sum of squares per bin against what the model's noise puts there, scaled
+//    chi-square with the dof of the runs the bin's samples come from.
+// Under slow noise (flicker, random walk) every stretch is taken about its own mean.
 // Every family (bands of all cases; condition bins) is Bonferroni-corrected at alpha.
 #include <Eigen/Dense>
 #include <array>
@@ -19,33 +19,72 @@
 #include <vector>
 
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/noise/noise_fit.hpp"
+#include "analyzer/noise/quadratic_form_law.hpp"
 #include "common/dataset/dataset.hpp"
 
 namespace inertia::diagnose {
 
-/// The noise the model claims: e white with sd `white_sd`, residual = C(q)/A(q) e, plus the
-/// power-law terms of its `[noise]` table (IEEE 952: Q quantization, B flicker, K random walk,
-/// R ramp; `inertia-analyze noise` estimates them) beside it. Its N is the white part, which
-/// white_sd already states, so N is not added a second time. Q stays even where nothing
-/// quantizes: the fit puts there what rises above white plus flicker near Nyquist (the simulator's
-/// pink noise flattens in its top octave), and without it the top band read 1.3 times the model.
+/// The noise the model claims. Two descriptions, not added together:
+///  - its `[noise]` law when that states N: Q, N, B, K, R (IEEE 952: quantization, white, flicker,
+///    random walk, ramp), as `inertia-analyze noise` or characterize measure them on the sensor's
+///    own output. That output's noise is what the free-run residual holds (an ARMAX model's C/A is
+///    inside it), and the law's terms come from one fit: its N and Q share the top octaves (their
+///    estimates trade off), so N is not replaced by white_sd. With white_sd in N's place and the
+///    law's Q, a 30 s law read a white band 1.18 times the model (DiagnoseScenario's
+///    pink-noise seed 1610).
+///  - otherwise e white with sd `white_sd`, residual = C(q)/A(q) e, plus whatever slow terms the
+///    law states (B, K, R without N).
 struct NoiseModel {
-  double white_sd = 0.0;
+  double white_sd = 0.0;   // of e through C/A; 0 when the law states N (the law is then the whole noise)
   Eigen::VectorXd ma;   // c_1..c_q: C(q) = 1 + sum c_j q^-j (terms e[k-j])
   Eigen::VectorXd ar;   // a_1..a_p: A(q) = 1 - sum a_j q^-j (terms y[k-j])
-  std::array<double, noise::kNoiseTerms> power_law{};   // Q, N (kept 0), B, K, R
+  std::array<double, noise::kNoiseTerms> power_law{};   // Q, N, B, K, R
 
-  /// From the model's e[k-j] and y[k-j] coefficients and `[noise]` Q, B, K, R, with `white_sd`
-  /// (the model's or a stand-in).
+  /// From the model's e[k-j] and y[k-j] coefficients and `[noise]`, with `white_sd` (the model's
+  /// or a stand-in) where the law does not state N.
   static NoiseModel of(const model::ModelFile& model, double white_sd);
   /// |C/A|^2 at f (Hz) for sample rate fs.
   [[nodiscard]] double gain2(double f_hz, double fs_hz) const;
-  /// The power-law terms' one-sided PSD at f (unit^2/Hz); 0 without them.
+  /// The law's one-sided PSD at f (unit^2/Hz); 0 without it.
   [[nodiscard]] double power_law_psd(double f_hz, double fs_hz) const;
   [[nodiscard]] bool has_power_law() const;
-  /// Impulse response of C/A, until its energy has converged (at most `max_length` samples).
-  [[nodiscard]] Eigen::VectorXd impulse_response(Eigen::Index max_length = 4096) const;
+  /// Flicker, random walk or ramp: noise slower than any stretch, whose offsets between stretches
+  /// have no level the model states; the tests then look at each stretch about its own mean.
+  [[nodiscard]] bool has_slow_noise() const;
+  /// Whether the model states any noise to test against.
+  [[nodiscard]] bool has_reference() const;
+  /// One line for the report: which noise the tests expect.
+  [[nodiscard]] std::string describe() const;
+
+  /// The covariance of n contiguous residual samples at fs under the model, about their own mean
+  /// when it has slow noise: C = P R P, R the Toeplitz covariance of the model's spectrum
+  /// (noise::spectrum_of) and P = I - 11'/n (or I).
+  struct StretchCovariance {
+    noise::SegmentSpectrum spectrum;   // R: its autocovariance r(d), d = 0 .. n-1, and R x
+    Eigen::VectorXd row_sums;          // R 1 (about the mean only)
+    double total = 0.0;                // 1'R1
+    bool about_mean = false;
+    [[nodiscard]] Eigen::Index rows() const { return spectrum.rows; }
+    [[nodiscard]] double operator()(Eigen::Index i, Eigen::Index j) const;
+    [[nodiscard]] Eigen::VectorXd times(const Eigen::VectorXd& x) const;   // C x, O(n log n)
+  };
+  [[nodiscard]] StretchCovariance stretch_covariance(Eigen::Index n, double fs_hz) const;
+
+  /// The sum of squares of n contiguous residual samples at fs (about their mean when the model
+  /// has slow noise), whose law is tr(C) (mean), 2 tr(C^2) (variance) and C's eigenvalues.
+  struct StretchMoments {
+    double mean_square = 0.0;          // tr(C) / n
+    double dof = 0.0;                  // Satterthwaite: 2 mean^2 / variance (n for white noise)
+    bool about_mean = false;
+    noise::QuadraticFormLaw law;       // of the sum of squares; see stretch()
+  };
+  /// With the law's leading eigenvalues (exactly, by Lanczos on C x; all of them for a short
+  /// stretch), so its upper tail holds where slow noise puts the power in a few modes.
+  [[nodiscard]] StretchMoments stretch(Eigen::Index n, double fs_hz) const;
+  /// The mean and dof alone (the law a scaled chi-square), O(n).
+  [[nodiscard]] static StretchMoments moments(const StretchCovariance& c);
 };
 
 struct BandTest {
@@ -78,6 +117,8 @@ struct ConditionBin {
 };
 
 struct Location {
+  std::string noise;           // NoiseModel::describe() of the noise tested against
+  bool about_means = false;    // slow noise: every stretch tested about its own mean
   std::vector<CaseBands> bands;
   std::vector<ConditionBin> conditions;
   std::string verdict;         // one line: where the excess is, or that there is none

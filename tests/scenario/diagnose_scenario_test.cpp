@@ -419,14 +419,13 @@ TEST(DiagnoseScenario, WeakOddQuadraticHonestStdPinkNoise) { expect_honest_std(5
 TEST(DiagnoseScenario, ControlPinkNoiseFalseAlarmRate) { expect_false_alarm_rate(5e-4, 500, "control, pink noise"); }
 
 /// Issue 16: the bench's pink noise (five times its white) and a model whose [noise] holds the
-/// power-law terms `inertia-analyze noise` estimates on a 30 s static run of the same sensor (a
-/// run of its own, its own seed). With the white noise alone every seed's low bands read as
-/// excess (the control, asserted so the test can fail); with the terms the band test is a
-/// family-wise 5 % test per seed again. What is asserted is that rate, not a count of 1: a
-/// calibrated 5 % test raises 2 or more alarms in 20 seeds 26 % of the time and 4 or more 1.6 %
-/// of the time, so at most 3. Seen (2026-11-26): 2 of 20, one in a white band (250-500 Hz), one
-/// at 0-3.9 Hz (power x4.2, dof 8): the issue's "19 of 20" is not met on these seeds. A hidden
-/// term is still found with the terms.
+/// terms `inertia-analyze noise` estimates on a 30 s static run of the same sensor (a run of its
+/// own, its own seed). With the white noise alone every seed's low bands, its segments and its
+/// condition bins read as excess (the control, asserted so the test can fail). With the law, each
+/// family is a 5 % family-wise test per seed: the issue asks for no band alarm in 19 of 20 seeds.
+/// Seen (2026-11-27): band alarms in 1 of 20 seeds (seed 1612, shaker-OA 0-3.9 Hz, power x4.2 on
+/// 8 dof, p 4e-5), no segment or condition alarm. Before the law's own N was used (white_sd in
+/// its place beside the law's Q), 2 of 20: seed 1610 read 250-500 Hz at x1.18 on 862 dof.
 void use_estimated_noise_terms(std::uint64_t seed, double pink_sd_g, model::ModelFile& model) {
   std::string bench = "[bench]\nname = \"diag-static\"\nbackend = \"sim\"\nsample_rate_hz = 2000.0\nt_ref_c = 25.0\nseed = " +
                       std::to_string(seed + 100000) + "\n";
@@ -446,27 +445,53 @@ int excess_bands(const Location& location) {
   return n;
 }
 
+int excess_conditions(const Location& location) {
+  int n = 0;
+  for (const ConditionBin& b : location.conditions) n += b.excess ? 1 : 0;
+  return n;
+}
+
+int excess_segments(const ResidualSummary& summary) {
+  int n = 0;
+  for (const SegmentStats& s : summary.segments) n += s.excess ? 1 : 0;
+  return n;
+}
+
 TEST(DiagnoseScenario, PinkNoiseWithItsEstimatedTermsRaisesNoBandAlarm) {
   constexpr double kPink = 5e-4;
   constexpr int kSeeds = 20;
-  int with_terms = 0, white_only = 0;
+  struct Count {
+    int bands = 0, conditions = 0, segments = 0;
+    void add(const DiagnoseResult& r) {
+      bands += excess_bands(r.location_before) > 0 ? 1 : 0;
+      conditions += excess_conditions(r.location_before) > 0 ? 1 : 0;
+      segments += excess_segments(r.steps.front()) > 0 ? 1 : 0;
+    }
+  } with_terms, white_only;
   for (int seed = 1601; seed < 1601 + kSeeds; ++seed) {
     Scenario s = make_scenario(shaker_bench(truth_fields("k_ip = 2e-3\nk_oq = 2e-5\n", kPink), seed), {});
     const DiagnoseResult plain = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
     use_estimated_noise_terms(seed, kPink, s.model);
     const DiagnoseResult r = diagnose(s.data, s.model, DiagnoseOptions{}, "diag-shaker");
-    const int alarms = excess_bands(r.location_before);
-    with_terms += alarms > 0 ? 1 : 0;
-    white_only += excess_bands(plain.location_before) > 0 ? 1 : 0;
+    with_terms.add(r);
+    white_only.add(plain);
     std::cout << "[ pink, estimated terms ] seed " << seed << ":";
     for (std::size_t t = 0; t < s.model.noise.values.size(); ++t)
       std::cout << ' ' << model::ModelFile::NoiseTerms::kKeys[t] << ' ' << s.model.noise.values[t].value_or(0.0);
-    std::cout << "; band alarms " << alarms << " (white only " << excess_bands(plain.location_before) << "); " << r.location_before.verdict << '\n';
+    std::cout << "; alarms: bands " << excess_bands(r.location_before) << ", conditions " << excess_conditions(r.location_before)
+              << ", segments " << excess_segments(r.steps.front()) << " (white only " << excess_bands(plain.location_before)
+              << ", " << excess_conditions(plain.location_before) << ", " << excess_segments(plain.steps.front()) << "); "
+              << r.location_before.verdict << '\n';
   }
-  std::cout << "[ pink, estimated terms ] seeds with a band alarm: " << with_terms << " of " << kSeeds
-            << " (white noise only: " << white_only << ")\n";
-  EXPECT_LE(with_terms, 3);
-  EXPECT_GE(white_only, kSeeds / 2) << "the control: without the terms the pink noise must read as excess";
+  std::cout << "[ pink, estimated terms ] seeds with an alarm: bands " << with_terms.bands << ", conditions "
+            << with_terms.conditions << ", segments " << with_terms.segments << " of " << kSeeds << " (white noise only: "
+            << white_only.bands << ", " << white_only.conditions << ", " << white_only.segments << ")\n";
+  EXPECT_LE(with_terms.bands, 1);
+  EXPECT_LE(with_terms.conditions, 1);
+  EXPECT_LE(with_terms.segments, 1);
+  EXPECT_GE(white_only.bands, kSeeds / 2) << "the control: without the terms the pink noise must read as excess";
+  EXPECT_GE(white_only.conditions, kSeeds / 2);
+  EXPECT_GE(white_only.segments, kSeeds / 2);
 }
 
 TEST(DiagnoseScenario, PinkNoiseWithItsEstimatedTermsStillFindsAHiddenTerm) {

@@ -101,22 +101,15 @@ TEST(Location, ArNoiseIsExplainedByItsModelAndNotByWhiteNoise) {
   EXPECT_LT(bands.back().ratio, 0.5);
 }
 
-/// White plus flicker plus random walk of known law, synthesized in the frequency domain (each
-/// DFT bin of a 2^20-sample record a complex Gaussian of variance S(f) fs N), cut into cases of
-/// kSamples: against a model with those [noise] terms every band's ratio has mean 1 within its
-/// spread and the band test holds its size; against white noise alone the low bands are excess.
-TEST(Location, PowerLawNoiseIsExplainedByItsTermsAndNotByWhiteNoise) {
-  const dataset::Dataset d = one_case();
-  NoiseModel model = white_model();
-  model.power_law[static_cast<std::size_t>(noise::NoiseTerm::B)] = 3.0 * kSd / std::sqrt(kFs);   // flicker above white below ~60 Hz
-  model.power_law[static_cast<std::size_t>(noise::NoiseTerm::K)] = 0.3 * kSd;
-  const Eigen::Index n = Eigen::Index{1} << 20;
-  std::mt19937_64 rng(13);
+/// A record of n samples at kFs of the model's noise, synthesized in the frequency domain: each
+/// DFT bin a complex Gaussian of variance S(f) fs n (the white part through C/A, the law beside it).
+std::vector<double> synthesize(const NoiseModel& model, Eigen::Index n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
   std::normal_distribution<double> g(0.0, 1.0);
   std::vector<std::complex<double>> spectrum(static_cast<std::size_t>(n));
   for (Eigen::Index j = 1; j <= n / 2; ++j) {
     const double f = kFs * static_cast<double>(j) / static_cast<double>(n);
-    const double two_sided = kSd * kSd / kFs + 0.5 * model.power_law_psd(f, kFs);
+    const double two_sided = model.white_sd * model.white_sd * model.gain2(f, kFs) / kFs + 0.5 * model.power_law_psd(f, kFs);
     const double sd = std::sqrt(two_sided * kFs * static_cast<double>(n) / (j == n / 2 ? 1.0 : 2.0));
     const std::complex<double> z = j == n / 2 ? std::complex<double>(sd * g(rng), 0.0) : std::complex<double>(sd * g(rng), sd * g(rng));
     spectrum[static_cast<std::size_t>(j)] = z;
@@ -125,8 +118,28 @@ TEST(Location, PowerLawNoiseIsExplainedByItsTermsAndNotByWhiteNoise) {
   Eigen::FFT<double> fft;
   std::vector<double> series;
   fft.inv(series, spectrum);
+  return series;
+}
+
+/// White plus flicker plus random walk: flicker above white below ~60 Hz.
+NoiseModel power_law_model() {
+  NoiseModel model = white_model();
+  model.power_law[static_cast<std::size_t>(noise::NoiseTerm::B)] = 3.0 * kSd / std::sqrt(kFs);
+  model.power_law[static_cast<std::size_t>(noise::NoiseTerm::K)] = 0.3 * kSd;
+  return model;
+}
+
+/// White plus flicker plus random walk of known law (synthesize, 2^20 samples) cut into cases of
+/// kSamples: against a model with those [noise] terms every band's ratio has mean 1 within its
+/// spread and the band and condition-bin tests hold their size; against white noise alone the low
+/// bands are excess.
+TEST(Location, PowerLawNoiseIsExplainedByItsTermsAndNotByWhiteNoise) {
+  const dataset::Dataset d = one_case();
+  const NoiseModel model = power_law_model();
+  const Eigen::Index n = Eigen::Index{1} << 20;
+  const std::vector<double> series = synthesize(model, n, 13);
   const int cases = static_cast<int>(n / kSamples);
-  int tests = 0, rejections = 0, white_excess_low = 0;
+  int tests = 0, rejections = 0, white_excess_low = 0, bins = 0, bin_rejections = 0;
   std::vector<double> sum(16, 0.0), sum2(16, 0.0), dof(16, 0.0);
   for (int c = 0; c < cases; ++c) {
     const Eigen::VectorXd r = Eigen::Map<const Eigen::VectorXd>(series.data() + c * kSamples, kSamples);
@@ -139,6 +152,11 @@ TEST(Location, PowerLawNoiseIsExplainedByItsTermsAndNotByWhiteNoise) {
       sum2[b] += bands[b].ratio * bands[b].ratio;
       dof[b] = bands[b].dof;
     }
+    // The two |a| bins are the case's contiguous halves: each carries its offset from the case's mean.
+    for (const ConditionBin& b : loc.conditions) {
+      ++bins;
+      bin_rejections += b.p_value < 0.05;
+    }
     white_excess_low += locate(d, {{0, 0, r}}, white_model(), 0.05).bands[0].bands.front().excess;
   }
   for (std::size_t b = 0; b < 3; ++b) {
@@ -150,7 +168,53 @@ TEST(Location, PowerLawNoiseIsExplainedByItsTermsAndNotByWhiteNoise) {
   }
   const double expected = 0.05 * tests, sd = std::sqrt(tests * 0.05 * 0.95);
   EXPECT_NEAR(rejections, expected, 4.0 * sd) << rejections << " of " << tests;
+  std::cout << "[ location ] power-law noise: condition bins below p 0.05: " << bin_rejections << " of " << bins << '\n';
+  EXPECT_NEAR(bin_rejections, 0.05 * bins, 4.0 * std::sqrt(bins * 0.05 * 0.95)) << bin_rejections << " of " << bins;
   EXPECT_EQ(white_excess_low, cases) << "against white noise alone the lowest band must be excess";
+}
+
+/// NoiseModel::stretch: the mean and dof of a stretch's sum of squares. Under white noise through
+/// an AR(1) the exact Toeplitz forms from its autocovariance sigma^2 a^|d| / (1 - a^2); under the
+/// power law (about the stretch's mean) the mean and spread of the sums of squares of 1024
+/// stretches of synthesized noise.
+TEST(Location, StretchMomentsAreTheToeplitzFormsOfTheModelsNoise) {
+  NoiseModel ar = white_model();
+  ar.ar = Eigen::VectorXd::Constant(1, 0.8);
+  constexpr Eigen::Index kRows = 300;
+  Eigen::MatrixXd r(kRows, kRows);
+  for (Eigen::Index i = 0; i < kRows; ++i)
+    for (Eigen::Index j = 0; j < kRows; ++j) r(i, j) = kSd * kSd * std::pow(0.8, std::abs(i - j)) / (1.0 - 0.64);
+  const NoiseModel::StretchMoments m = ar.stretch(kRows, kFs);
+  EXPECT_FALSE(m.about_mean);
+  EXPECT_NEAR(m.mean_square * kRows, r.trace(), 1e-9 * r.trace());
+  const double toeplitz_dof = r.trace() * r.trace() / (r * r).trace();
+  EXPECT_NEAR(m.dof, toeplitz_dof, 1e-6 * toeplitz_dof);
+  const NoiseModel::StretchMoments white = white_model().stretch(kRows, kFs);
+  EXPECT_NEAR(white.mean_square, kSd * kSd, 1e-12);
+  EXPECT_NEAR(white.dof, static_cast<double>(kRows), 1e-6);
+
+  // Flicker ten times the power_law_model's: it dominates up to ~1/4 of Nyquist, so the stretch's
+  // sum of squares has few dof and the mean taken off matters.
+  NoiseModel law = power_law_model();
+  law.power_law[static_cast<std::size_t>(noise::NoiseTerm::B)] *= 10.0;
+  constexpr Eigen::Index kStretch = 1024, kStretches = 1024;
+  const std::vector<double> series = synthesize(law, kStretch * kStretches, 14);
+  const NoiseModel::StretchMoments lm = law.stretch(kStretch, kFs);
+  ASSERT_TRUE(lm.about_mean);
+  double sum = 0.0, sum2 = 0.0;
+  for (Eigen::Index s = 0; s < kStretches; ++s) {
+    const Eigen::Map<const Eigen::VectorXd> x(series.data() + s * kStretch, kStretch);
+    const double ratio = (x.array() - x.mean()).square().sum() / (lm.mean_square * kStretch);
+    sum += ratio;
+    sum2 += ratio * ratio;
+  }
+  const double mean = sum / kStretches, spread = std::sqrt(sum2 / kStretches - mean * mean), predicted = std::sqrt(2.0 / lm.dof);
+  std::cout << "[ location ] stretch of " << kStretch << " under the law: mean ratio " << mean << ", spread " << spread
+            << " (predicted " << predicted << ", dof " << lm.dof << ")\n";
+  EXPECT_NEAR(mean, 1.0, 4.0 * predicted / std::sqrt(static_cast<double>(kStretches)));
+  // The sample sd of n draws of a scaled chi-square of nu dof (kurtosis 3 + 12 / nu) has a
+  // relative sd of sqrt((2 + 12 / nu) / 4n): 4 of those.
+  EXPECT_NEAR(spread / predicted, 1.0, 4.0 * std::sqrt((2.0 + 12.0 / lm.dof) / (4.0 * kStretches)));
 }
 
 TEST(Location, ASineIsLocatedInItsBandAndItsCondition) {
@@ -187,3 +251,4 @@ TEST(Location, ASineIsLocatedInItsBandAndItsCondition) {
 
 }  // namespace
 }  // namespace inertia::diagnose
+
