@@ -70,7 +70,8 @@ ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& res
 ///   proportion to the specific force across the input axis, so q = a_p^2 + a_o^2 there);
 ///   tau_0, tau_1 by non-negative least squares (method of moments) of the residual cluster means'
 ///   squares less what the noise puts there, on [1 q_g], scaled by G / dof for the offsets the fit
-///   absorbed. With Z the cluster indicators, S = X'Z, H the fit's projection, D = diag(n_g) and
+///   absorbed; on fewer than 4 dof, where the two cannot be told apart, tau_1 alone when the
+///   loading varies (a placement's tilt). With Z the cluster indicators, S = X'Z, H the fit's projection, D = diag(n_g) and
 ///   P = S'(X'X)^-1 S, the noise's part of the residual's cluster sums Z'(I - H)e is exact:
 ///   sigma^2 (D - P) for white noise;
 ///   V = sigma^2 (X'X)^-1 + (X'X)^-1 (sum_g tau_g^2 s_g s_g') (X'X)^-1,  s_g = X_g' 1,

@@ -17,6 +17,7 @@
 // issue 12 quotes 20).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -46,12 +47,16 @@ struct Scores {
   int within = 0, total = 0;
   int covered = 0;
   std::vector<std::string> misses;
+  /// Per parameter (`what` without its "seed N "): |z| and whether the 95 % interval covered.
+  std::map<std::string, std::vector<std::pair<double, bool>>> by_parameter;
   void add(const std::string& what, double z, double dof) {
     ++total;
     const double p = inertia::ident::student_t_two_sided_p(z, std::isfinite(dof) ? dof : 1e9);
     if (p >= 0.0027) ++within;
     if (p >= 0.05) ++covered;
     if (p < 0.0027) misses.push_back(what + " z " + std::to_string(z) + " dof " + std::to_string(dof));
+    const std::size_t space = what.rfind("seed ", 0) == 0 ? what.find(' ', 5) : std::string::npos;
+    by_parameter[space == std::string::npos ? what : what.substr(space + 1)].emplace_back(std::abs(z), p >= 0.05);
   }
 };
 
@@ -198,18 +203,22 @@ TEST(RelativeTwist, TheBatchFindsTheShakersTurnAboutTheInputAxisAgainstTheTable)
 }
 
 // The six-position tumble (IEEE Std 1293) with 3 mrad placement error per axis per pose and a
-// linear sensor: over 20 seeds no term beyond bias and scale factor in more than one seed, and the
-// 95 % intervals (Student's t on each estimate's dof) of bias, scale factor and both misalignment
-// angles cover the truth in at least 90 % of the cases (their sd are the scatter the placement
-// error makes, not the white noise's). The issue asks for at most 99 % too: 80 of 80 cover, the
-// intervals are conservative (one offset variance for the IRA poses, whose placement error acts
-// only at second order, and the tilted ones); the closing note says so.
-TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverTwentySeeds) {
+// linear sensor, over 100 seeds (INERTIA_SCENARIO_SEEDS to change): a term beyond bias and scale
+// factor in at most 5 % of the seeds, and the 95 % intervals (Student's t on each estimate's dof)
+// of bias, scale factor and both misalignment angles cover the truth in 90 to 99 % of the cases
+// (their sd are the scatter the placement error makes, not the white noise's). A binomial sd of
+// the coverage of 400 intervals is 1.1 %. Each parameter's intervals cover in at least 85 %, and
+// the scale factor's sd is not the poses' common offset: with that (before the placements' shape
+// on few dof, ident::cluster_offsets) its median |z| was 0.024 over 200 seeds, 35 times too wide.
+// Measured 2026-11-27, 200 seeds: 765 of 800 cover; bias 100 %, scale factor 100 % (median |z|
+// 0.66), angles 91.5 % and 91.5 %; one seed of 200 with a spurious abs(a_i).
+TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverSeeds) {
   const inertia::config::BenchConfig file =
       inertia::config::load_bench_config(std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-tumble.toml");
+  const int seeds = seeds_from_environment(100);
   int spurious_seeds = 0;
   Scores s;
-  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(seeds); ++seed) {
     const inertia::config::BenchConfig bench = with_seed(file, seed);
     const inertia::sim::BenchSimulation sim = inertia::sim::simulate_bench(bench);
     const inertia::dataset::Dataset data = inertia::sim::sensor_dataset(bench, sim, 0);
@@ -223,12 +232,28 @@ TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverTwentySeeds) {
     if (spurious) std::printf("seed %u: spurious terms in the batch model\n", static_cast<unsigned>(seed));
     score(r, sim, 0, truth_terms(sim, 0), seed, s);
   }
-  std::printf("tumble: %d of 20 seeds with spurious terms; %d of %d intervals cover the truth (95 %% nominal)\n",
-              spurious_seeds, s.covered, s.total);
-  EXPECT_LE(spurious_seeds, 1);
+  std::printf("tumble: %d of %d seeds with spurious terms; %d of %d intervals cover the truth (95 %% nominal)\n",
+              spurious_seeds, seeds, s.covered, s.total);
+  EXPECT_LE(spurious_seeds, std::max(1, seeds / 20));
   ASSERT_GT(s.total, 0);
   const double coverage = static_cast<double>(s.covered) / static_cast<double>(s.total);
   EXPECT_GE(coverage, 0.90);
+  EXPECT_LE(coverage, 0.99);
+  for (const std::string name : {"1", "a_i", "mounting poses about p", "mounting poses about o"}) {
+    const auto& v = s.by_parameter[name];
+    ASSERT_GE(v.size(), static_cast<std::size_t>(seeds) - 1) << name;
+    std::vector<double> z;
+    int covered = 0;
+    for (const auto& [abs_z, cover] : v) {
+      z.push_back(abs_z);
+      covered += cover ? 1 : 0;
+    }
+    std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
+    const double median = z[z.size() / 2];
+    std::printf("  %s: %d of %zu cover, median |z| %.3f\n", name.c_str(), covered, v.size(), median);
+    EXPECT_GE(covered, 0.85 * static_cast<double>(v.size())) << name;
+    if (name == "a_i") EXPECT_GT(median, 0.3) << "the scale factor's sd is many times its spread";
+  }
 }
 
 }  // namespace
