@@ -149,7 +149,7 @@ CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise)
   out.case_index = cr.case_index;
   out.sample_rate_hz = fs;
   const Index n = cr.residual.size();
-  if (n < 4 * 16) return out;   // too short a case gets no spectrum
+  if (n < 4 * Index{16}) return out;   // too short a case gets no spectrum
   const Index length = welch_length(n);
   const Index hop = length / 2;
   const Index segments = (n - length) / hop + 1;

@@ -273,13 +273,11 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
       const Eigen::Vector2d both = a.colPivHouseholderQr().solve(excess);
       const double only1 = std::max(0.0, q.dot(excess) / q.squaredNorm());
       const auto misfit = [&](double c0, double c1) { return (excess - a * Eigen::Vector2d(c0, c1)).squaredNorm(); };
-      if (out.between_dof < kTwoComponentDof && only1 > 0.0) {
-        t0 = 0.0;
-        t1 = only1;
-      } else if (both(0) >= 0.0 && both(1) >= 0.0) {
+      const bool placements_only = out.between_dof < kTwoComponentDof && only1 > 0.0;
+      if (!placements_only && both(0) >= 0.0 && both(1) >= 0.0) {
         t0 = both(0);
         t1 = both(1);
-      } else if (misfit(0.0, only1) < misfit(t0, 0.0)) {
+      } else if (placements_only || misfit(0.0, only1) < misfit(t0, 0.0)) {
         t0 = 0.0;
         t1 = only1;
       }
