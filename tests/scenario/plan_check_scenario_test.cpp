@@ -41,27 +41,19 @@ std::pair<double, double> ratio_interval(int runs, double level) {
 // The sim-paper-daq plan (a table mounting, a three-orientation shaker mounting): every parameter
 // characterize reports is in the prediction and varies over the check's runs by the sensor's noise
 // (each run reseeds the sensor too: with the bench seed alone the table's angles came out identical
-// to 1e-15 over the runs), and its predicted sd is within the 99 % interval of the spread over 20
-// seeds. Three are not, over 60 seeds (`plan-check --seeds 60`, 2026-11-26): the bias spreads 1.59
-// times its sd, a_o^2 and a_p*a_o 1.40 and 1.43 (20 seeds: 1.40, 1.56, 1.62).
-//  - The bias: each case's noise is taken as independent of the next case's, and the bench's 1/f
-//    noise is not (probably; not shown).
-//  - a_o^2 and a_p*a_o: the shaker mounting's turn about n_i (1.15 deg of its 2 deg about
-//    [1,1,1]) is held at the nominal frame, since algorithm 1 cannot see it, and the frame error it
-//    leaves moves these two by an amount that depends on each run's random vibration. With the turn
-//    estimated (PipelineOptions::estimate_twist) they came out at 1.00 and 1.02 while the turn's own
-//    wander spoiled the rest (measured once, with a variant of this covariance that also carried
-//    the sensor's 1/f law down to the whole plan; not repeated).
-// They are asserted below 2, so that they cannot get worse unseen; the closing note says issue 12's
-// 25 % is not met for them.
+// to 1e-15 over the runs), and its predicted sd is within the issue's 25 % of the spread over 60
+// seeds. The prediction is the RMS of characterize's sd over 10 runs: from one run, the bias read
+// 1.61 times too small (that run's sd 2.4e-4 mA; over 60 runs they ranged 2.1e-4 to 7.5e-4, RMS
+// 3.85e-4 against a spread of 3.84e-4), a_o^2 1.41 and a_p*a_o 1.45. Seen (2026-11-27): 0.96 to
+// 1.21. Both the spread over 60 runs (+-9 % at one sd) and an RMS over 10 sd of few dof (about as
+// much) are estimates, so 25 % is about two of their combined sd.
 TEST(PlanCheck, ThePaperPlansPredictionAgainstTheSpreadOverSeeds) {
   PlanCheckOptions options;
   options.bench = config_path("sim-paper-daq.toml");
-  options.seeds = 20;
+  options.seeds = 60;
   std::ostringstream out;
   const std::vector<PlannedParameter> planned = inertia::commands::plan_check(options, out);
   std::cout << out.str();
-  const auto [low, high] = ratio_interval(options.seeds, 0.99);
   for (const std::string term : {"1", "a_i", "a_i*a_p", "a_i*a_o", "a_p*a_o", "a_i^2", "a_p^2", "a_o^2"})
     EXPECT_TRUE(std::any_of(planned.begin(), planned.end(), [&](const PlannedParameter& p) { return p.name == term; })) << term;
   int angles = 0;
@@ -69,9 +61,8 @@ TEST(PlanCheck, ThePaperPlansPredictionAgainstTheSpreadOverSeeds) {
     EXPECT_EQ(p.runs, options.seeds) << p.name;
     EXPECT_GT(p.predicted_sd, 0.0) << p.name;
     angles += p.name.rfind("mounting ", 0) == 0 ? 1 : 0;
-    EXPECT_GE(p.ratio(), low) << p.name;
-    const bool known_excess = p.name == "1" || p.name == "a_o^2" || p.name == "a_p*a_o";
-    EXPECT_LE(p.ratio(), known_excess ? 2.0 : high) << p.name;
+    EXPECT_GE(p.ratio(), 0.75) << p.name;
+    EXPECT_LE(p.ratio(), 1.25) << p.name;
   }
   EXPECT_EQ(angles, 4);
 }
