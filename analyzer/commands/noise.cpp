@@ -163,11 +163,15 @@ void write_noise_section(std::ostream& md, std::ostream& out, const noise::Noise
 }
 
 void noise_terms_into(const noise::NoiseAnalysis& a, model::ModelFile& model) {
+  constexpr double kNormal975 = 1.959963984540054;
   if (!a.fit) return;
   static_assert(model::ModelFile::NoiseTerms::kKeys.size() == noise::kNoiseTerms);
   for (std::size_t i = 0; i < model.noise.values.size(); ++i) {
     const noise::NoiseCoefficient& c = a.fit->terms[i];
-    if (a.fit->fitted[i] && c.determined) model.noise.values[i] = c.value;
+    if (!a.fit->fitted[i] || !c.determined) continue;
+    model.noise.values[i] = c.value;
+    // The interval is 95 % (NoiseFitOptions::level): its half-width over the normal quantile.
+    model.noise.sd[i] = (c.upper - c.lower) / (2.0 * kNormal975);
   }
 }
 

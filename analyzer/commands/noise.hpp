@@ -31,7 +31,7 @@ int run_noise(const NoiseCommandOptions& options, std::ostream& out);
 void write_noise_section(std::ostream& md, std::ostream& out, const noise::NoiseAnalysis& a, const std::string& unit,
                          const std::string& source, const std::filesystem::path& plots_dir);
 
-/// The analysis's determined terms into a model file's [noise] (Q, N, B, K, R).
+/// The analysis's determined terms into a model file's [noise] (Q, N, B, K, R), with their sd in [noise.std].
 void noise_terms_into(const noise::NoiseAnalysis& a, model::ModelFile& model);
 
 }  // namespace inertia::commands

@@ -41,6 +41,7 @@ struct NoiseModel {
   Eigen::VectorXd ma;   // c_1..c_q: C(q) = 1 + sum c_j q^-j (terms e[k-j])
   Eigen::VectorXd ar;   // a_1..a_p: A(q) = 1 - sum a_j q^-j (terms y[k-j])
   std::array<double, noise::kNoiseTerms> power_law{};   // Q, N, B, K, R
+  std::array<double, noise::kNoiseTerms> power_law_sd{};   // their sd ([noise.std]); 0: taken as exact
 
   /// From the model's e[k-j] and y[k-j] coefficients and `[noise]`, with `white_sd` (the model's
   /// or a stand-in) where the law does not state N.
@@ -55,6 +56,9 @@ struct NoiseModel {
   [[nodiscard]] bool has_slow_noise() const;
   /// Whether the model states any noise to test against.
   [[nodiscard]] bool has_reference() const;
+  /// The relative variance of the power the model expects between f_lo and f_hi (Hz), from the
+  /// law's sds: its terms' shares of the PSD over the band, each known to 2 sd/value of itself.
+  [[nodiscard]] double band_relative_variance(double f_lo_hz, double f_hi_hz, double fs_hz) const;
   /// One line for the report: which noise the tests expect.
   [[nodiscard]] std::string describe() const;
 
@@ -94,6 +98,7 @@ struct BandTest {
   double model_psd = 0.0;      // mean PSD the model noise explains
   double ratio = 1.0;          // mean of residual/model over the band's bins and segments
   double dof = 0.0;            // of the scaled chi-square
+  double reference_dof = 0.0;  // of the model's expected power, from the law's sds (0: exact)
   double p_value = 1.0;
   bool excess = false;         // p below alpha / (bands of every case)
 };

@@ -167,12 +167,21 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
         throw InputError(position_of(sd->source(), file), "noise.white_sd is negative");
       }
     }
+    const toml::table* sd = optional_table(*noise, "std", file);
     for (std::size_t i = 0; i < ModelFile::NoiseTerms::kKeys.size(); ++i) {
       const char* key = ModelFile::NoiseTerms::kKeys[i];
       if (const toml::node* v = noise->get(key)) {
         std::optional<double>& slot = model.noise.values[i];
         slot = finite_number(*v, file, std::string("noise.") + key);
         if (*slot < 0.0) throw InputError(position_of(v->source(), file), std::string("noise.") + key + " is negative");
+      }
+      if (const toml::node* v = sd != nullptr ? sd->get(key) : nullptr) {
+        const std::string name = std::string("noise.std.") + key;
+        std::optional<double>& slot = model.noise.sd[i];
+        slot = finite_number(*v, file, name);
+        if (*slot < 0.0) throw InputError(position_of(v->source(), file), name + " is negative");
+        if (!model.noise.values[i])
+          throw InputError(position_of(v->source(), file), name + " is given but [noise] has no " + key);
       }
     }
   }
@@ -223,6 +232,13 @@ std::string format_model(const ModelFile& model) {
     for (std::size_t i = 0; i < ModelFile::NoiseTerms::kKeys.size(); ++i) {
       const char* key = ModelFile::NoiseTerms::kKeys[i];
       if (const std::optional<double>& v = model.noise.values[i]) s += std::string(key) + " = " + toml_float(*v, key) + "\n";
+    }
+    if (std::any_of(model.noise.sd.begin(), model.noise.sd.end(), [](const std::optional<double>& v) { return v.has_value(); })) {
+      s += "\n[noise.std]\n";
+      for (std::size_t i = 0; i < ModelFile::NoiseTerms::kKeys.size(); ++i) {
+        const char* key = ModelFile::NoiseTerms::kKeys[i];
+        if (const std::optional<double>& v = model.noise.sd[i]) s += std::string(key) + " = " + toml_float(*v, key) + "\n";
+      }
     }
   }
   return s;

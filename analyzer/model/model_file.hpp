@@ -15,6 +15,8 @@
 //   B = 2.0e-5                                #   noise): Q quantization (unit s), N white (unit s^1/2),
 //   K = 3.0e-7                                #   B bias instability (unit), K rate random walk
 //                                             #   (unit s^-1/2), R rate ramp (unit s^-1)
+//   [noise.std]                               # optional: each noise term's standard deviation
+//   B = 1.1e-6                                #   (its 95 % interval's half-width / 1.96)
 //
 // Meaning of the coefficients: y (1 + sum_b c_b p_b) = sum_a c_a term_a, where the output-multiplied
 // terms y*p_b (rational models, paper eq. 5: y*T, y*w_i) carry their denominator coefficient c_b
@@ -52,6 +54,8 @@ struct ModelFile {
   struct NoiseTerms {
     static constexpr std::array<const char*, 5> kKeys{"Q", "N", "B", "K", "R"};
     std::array<std::optional<double>, kKeys.size()> values;
+    /// [noise.std] (optional): each term's standard deviation, from its fit's 95 % interval.
+    std::array<std::optional<double>, kKeys.size()> sd;
     [[nodiscard]] bool any() const {
       return std::any_of(values.begin(), values.end(), [](const std::optional<double>& v) { return v.has_value(); });
     }

@@ -217,6 +217,34 @@ TEST(Location, StretchMomentsAreTheToeplitzFormsOfTheModelsNoise) {
   EXPECT_NEAR(spread / predicted, 1.0, 4.0 * std::sqrt((2.0 + 12.0 / lm.dof) / (4.0 * kStretches)));
 }
 
+/// A law whose N is 3 % low (the power 6 %) against white noise of 2^20 samples: its top bands
+/// have ~10^5 dof, and taken as exact they read as excess. With the law's sd for N stating that
+/// uncertainty (3 %), the band test is F-like and holds.
+TEST(Location, TheLawsOwnSdKeepsItsEstimationErrorFromReadingAsExcess) {
+  constexpr Eigen::Index kLong = Eigen::Index{1} << 20;
+  dataset::Dataset d = one_case();
+  dataset::CaseData& c = d.cases.front();
+  c.t = Eigen::VectorXd::LinSpaced(kLong, 0.0, double(kLong - 1) / kFs);
+  c.a_e = Eigen::MatrixXd::Zero(kLong, 3);
+  c.a_e.col(2).setConstant(9.80665);
+  c.y = Eigen::VectorXd::Zero(kLong);
+  std::mt19937_64 rng(15);
+  std::normal_distribution<double> g(0.0, kSd);
+  Eigen::VectorXd r(kLong);
+  for (Eigen::Index k = 0; k < kLong; ++k) r(k) = g(rng);
+  NoiseModel law;
+  // White noise of sd kSd is N = kSd / sqrt(fs) (one-sided PSD 2 N^2); 3 % below.
+  law.power_law[static_cast<std::size_t>(noise::NoiseTerm::N)] = 0.97 * kSd / std::sqrt(kFs);
+  const Location exact = locate(d, {{0, 0, r}}, law, 0.05);
+  EXPECT_TRUE(exact.bands[0].bands.back().excess) << "ratio " << exact.bands[0].bands.back().ratio;
+  law.power_law_sd[static_cast<std::size_t>(noise::NoiseTerm::N)] = 0.03 * kSd / std::sqrt(kFs);
+  const Location stated = locate(d, {{0, 0, r}}, law, 0.05);
+  for (const BandTest& b : stated.bands[0].bands) {
+    EXPECT_FALSE(b.excess) << b.f_lo_hz << ".." << b.f_hi_hz << " ratio " << b.ratio << " p " << b.p_value;
+    EXPECT_NEAR(b.reference_dof, 2.0 / std::pow(2.0 * 0.03 / 0.97, 2), 1.0);
+  }
+}
+
 TEST(Location, ASineIsLocatedInItsBandAndItsCondition) {
   const dataset::Dataset d = one_case();
   std::mt19937_64 rng(13);

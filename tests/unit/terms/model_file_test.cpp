@@ -26,6 +26,9 @@ ModelFile sample_model() {
              {parse_term("a_o[k-1]^2"), 6e-5, std::nullopt},
              {parse_term("y[k-1]"), 0.5, std::nullopt}};
   m.white_sd = 1.0e-4;
+  m.noise.values[1] = 2.5e-6;   // N
+  m.noise.values[2] = 2.0e-5;   // B
+  m.noise.sd[2] = 1.0 / 3.0 * 1e-6;
   return m;
 }
 
@@ -54,6 +57,8 @@ TEST(ModelFile, RoundTripIsExactAndKeepsOrder) {
     EXPECT_EQ(r.terms[i].std, m.terms[i].std) << i;
   }
   EXPECT_EQ(r.white_sd, m.white_sd);
+  EXPECT_EQ(r.noise.values, m.noise.values);
+  EXPECT_EQ(r.noise.sd, m.noise.sd);
   EXPECT_EQ(format_model(r), format_model(m));
   EXPECT_EQ(r.coefficient(parse_term("a_i*a_p")), -1.0 / 3.0);
   EXPECT_FALSE(r.coefficient(parse_term("a_i^2")).has_value());
@@ -61,7 +66,9 @@ TEST(ModelFile, RoundTripIsExactAndKeepsOrder) {
   const std::string text = format_model(m);
   EXPECT_NE(text.find("[terms]\n\"a_i\" = 0.0877\n\"1\" = 0.00344\n\"a_i*a_p\" = "), std::string::npos) << text;
   EXPECT_NE(text.find("\"a_o^2[k-1]\" = 6e-05\n"), std::string::npos) << text;
-  EXPECT_NE(text.find("[noise]\nwhite_sd = 1e-04\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("[noise]\nwhite_sd = 1e-04\nN = 2.5e-06\nB = 2e-05\n\n[noise.std]\nB = 3.333333333333333e-07\n"),
+            std::string::npos)
+      << text;
 }
 
 TEST(ModelFile, ReadsTheDesignExampleWithIntegersAndWithoutOptionalTables) {
@@ -108,6 +115,8 @@ TEST(ModelFile, OtherErrorsNameTheirLine) {
                        Bad{head + "[terms]\n\"a_i\" = nan\n", 4, "finite number"},
                        Bad{head + "[terms]\n\"a_i\" = 1.0\n[std]\n\"a_p\" = 1.0\n", 6, "not in [terms]"},
                        Bad{head + "[terms]\n\"a_i\" = 1.0\n[std]\n\"a_i\" = -1.0\n", 6, "negative"},
+                       Bad{head + "[terms]\n\"a_i\" = 1.0\n[noise]\nB = 1e-5\n[noise.std]\nK = 1e-7\n", 8, "no K"},
+                       Bad{head + "[terms]\n\"a_i\" = 1.0\n[noise]\nB = 1e-5\n[noise.std]\nB = -1e-7\n", 8, "negative"},
                        Bad{"sensor = \"accelerometer\"\nm_cs = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]\n"
                            "[terms]\n\"a_i\" = 1.0\n",
                            2, "not a rotation"},
