@@ -612,10 +612,6 @@ std::vector<std::vector<SegmentPower>> segment_power(const dataset::Dataset& dat
   return out;
 }
 
-/// The per case and phase test: against the noise the model states (`noise`: each segment's sum
-/// of squares, about its mean when the noise has slow terms, against its law, NoiseModel::stretch;
-/// chi2(n) for white noise), or without one against the final residual's variance (F with
-/// `reference_dof`).
 /// The law of a segment's sum of squares under the noise the model states, once per length and
 /// rate (every step tests the same segments).
 class SegmentLaws {
@@ -632,6 +628,10 @@ class SegmentLaws {
   std::map<std::pair<Index, double>, NoiseModel::StretchMoments> laws_;
 };
 
+/// The per case and phase test: against the noise the model states (`noise`: each segment's sum
+/// of squares, about its mean when the noise has slow terms, against its law, NoiseModel::stretch;
+/// chi2(n) for white noise), or without one against the final residual's variance (F with
+/// `reference_dof`).
 ResidualSummary summarize(const dataset::Dataset& data, const Workspace& w, const Eigen::VectorXd& r,
                           std::string label, SegmentLaws* noise, double noise_sd, Index reference_dof,
                           double alpha) {
