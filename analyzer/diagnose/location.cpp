@@ -560,7 +560,8 @@ Location locate(const dataset::Dataset& data, const std::vector<CaseResidual>& r
         const NoiseModel::StretchMoments mom = NoiseModel::moments(cov);
         it = runs.emplace(std::make_pair(m, fs), std::make_pair(std::move(cov), mom)).first;
       }
-      const auto& [cov, mom] = it->second;
+      const NoiseModel::StretchCovariance& cov = it->second.first;
+      const NoiseModel::StretchMoments& mom = it->second.second;
       const double mean = cov.about_mean ? cr.residual.segment(begin, m).mean() : 0.0;
       const double variance_per_expected = mom.mean_square * static_cast<double>(m) / mom.dof;
       const auto add_sample = [&](Acc& a, Index i) {

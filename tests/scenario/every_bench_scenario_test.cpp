@@ -252,7 +252,9 @@ TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverSeeds) {
     const double median = z[z.size() / 2];
     std::printf("  %s: %d of %zu cover, median |z| %.3f\n", name.c_str(), covered, v.size(), median);
     EXPECT_GE(covered, 0.85 * static_cast<double>(v.size())) << name;
-    if (name == "a_i") EXPECT_GT(median, 0.3) << "the scale factor's sd is many times its spread";
+    if (name == "a_i") {
+      EXPECT_GT(median, 0.3) << "the scale factor's sd is many times its spread";
+    }
   }
 }
 

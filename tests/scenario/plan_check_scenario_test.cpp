@@ -3,8 +3,6 @@
 // prediction against the spread over simulated runs, as the bench would.
 #include <gtest/gtest.h>
 
-#include <boost/math/distributions/chi_squared.hpp>
-
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -30,13 +28,6 @@ std::string read_text(const fs::path& p) {
   return s.str();
 }
 
-/// The ratio's two-sided interval at `level` for a sample sd over `runs` runs: sqrt(chi2(n-1)/(n-1)).
-std::pair<double, double> ratio_interval(int runs, double level) {
-  const double dof = runs - 1.0;
-  const boost::math::chi_squared chi(dof);
-  return {std::sqrt(boost::math::quantile(chi, (1.0 - level) / 2.0) / dof),
-          std::sqrt(boost::math::quantile(chi, 1.0 - (1.0 - level) / 2.0) / dof)};
-}
 
 // The sim-paper-daq plan (a table mounting, a three-orientation shaker mounting): every parameter
 // characterize reports is in the prediction and varies over the check's runs by the sensor's noise
