@@ -16,6 +16,7 @@
 #include <set>
 #include <string>
 
+#include "analyzer/commands/noise.hpp"
 #include "analyzer/diagnose/discrepancy.hpp"
 #include "analyzer/ident/term.hpp"
 #include "analyzer/noise/noise_analysis.hpp"
@@ -434,14 +435,8 @@ void use_estimated_noise_terms(std::uint64_t seed, double pink_sd_g, model::Mode
   bench += "[[case]]\nname = \"static\"\nkind = \"static\"\norientation = \"IA\"\n[[case.phase]]\nkind = \"dwell\"\nduration_s = 30.0\n";
   const noise::NoiseAnalysis a = noise::analyse_noise(make_scenario(bench, {}).data);
   ASSERT_TRUE(a.fit.has_value()) << a.fit_error;
-  // As `noise` and characterize write them (commands::noise_terms_into): the determined terms,
-  // each with its sd from its 95 % interval.
-  for (std::size_t t = 0; t < model.noise.values.size(); ++t) {
-    const noise::NoiseCoefficient& c = a.fit->terms[t];
-    if (!a.fit->fitted[t] || !c.determined) continue;
-    model.noise.values[t] = c.value;
-    model.noise.sd[t] = (c.upper - c.lower) / (2.0 * 1.959963984540054);
-  }
+  // As `noise` and characterize write them: the determined terms, each with its sd.
+  commands::noise_terms_into(a, model);
 }
 
 int excess_bands(const Location& location) {
