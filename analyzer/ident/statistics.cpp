@@ -173,6 +173,34 @@ WhitenessReport residual_whiteness(const Eigen::Ref<const Eigen::VectorXd>& resi
 namespace {
 /// Between-cluster dof from which the offsets' common and loading parts are both estimated.
 constexpr int kTwoComponentDof = 4;
+
+/// B with (X'X)^-1 = B'B, from the QR of X with its columns scaled to unit norm: X S^-1 = Q R P'
+/// gives B = R^-T P' S^-1. A sandwich B'(B M B')B then stays positive semidefinite for a
+/// semidefinite meat M where (X'X)^-1 M (X'X)^-1 through an LDLT of X'X, whose condition is the
+/// square of X's, came out with negative variances (sim-tumble seed 80: sign(a_i) and
+/// a_i*abs(a_i) differ from a_i only in the poses with the input axis level, and the batch's
+/// sandwich gave a_i a variance of -8e5, read as a t of infinity).
+Eigen::MatrixXd inverse_gram_factor(const Eigen::Ref<const Eigen::MatrixXd>& x) {
+  const Eigen::Index p = x.cols();
+  Eigen::VectorXd scale = x.colwise().norm().transpose();
+  for (Eigen::Index j = 0; j < p; ++j)
+    if (!(scale(j) > 0.0)) scale(j) = 1.0;
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(x * scale.cwiseInverse().asDiagonal());
+  Eigen::MatrixXd r = qr.matrixR().topLeftCorner(p, p).triangularView<Eigen::Upper>();
+  // A dependent column gets an enormous variance, not an infinite one (as the LDLT gave before).
+  const double floor = p > 0 ? 1e-15 * std::abs(r(0, 0)) : 0.0;
+  for (Eigen::Index j = 0; j < p; ++j)
+    if (std::abs(r(j, j)) < floor) r(j, j) = std::copysign(floor, r(j, j));
+  const Eigen::MatrixXd b = r.transpose().triangularView<Eigen::Lower>().solve(
+      Eigen::MatrixXd(qr.colsPermutation().transpose() * Eigen::MatrixXd::Identity(p, p)));
+  return b * scale.cwiseInverse().asDiagonal();
+}
+
+/// (X'X)^-1 M (X'X)^-1 with B from inverse_gram_factor.
+Eigen::MatrixXd sandwich(const Eigen::MatrixXd& b, const Eigen::MatrixXd& meat) {
+  const Eigen::MatrixXd out = b.transpose() * (b * meat * b.transpose()) * b;
+  return 0.5 * (out + out.transpose());
+}
 }  // namespace
 
 ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
@@ -229,11 +257,10 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
   for (Eigen::Index k = 0; k < sv.size(); ++k)
     if (sv(k) > 1e-6 * sv(0)) ++rank;
   out.between_dof = out.clusters - rank - estimated_elsewhere;
-  const Eigen::LDLT<Eigen::MatrixXd> xx(x.transpose() * x);
-  const Eigen::MatrixXd inverse = xx.solve(Eigen::MatrixXd::Identity(p, p));
-  out.classical = sigma2 * 0.5 * (inverse + inverse.transpose());
-  out.within = noise != nullptr ? Eigen::MatrixXd(inverse * noise->meat * inverse) : out.classical;
-  out.within = 0.5 * (out.within + out.within.transpose()).eval();
+  const Eigen::MatrixXd factor = inverse_gram_factor(x);
+  const Eigen::MatrixXd inverse = factor.transpose() * factor;
+  out.classical = sigma2 * inverse;
+  out.within = noise != nullptr ? sandwich(factor, noise->meat) : out.classical;
   out.covariance = out.within;
   if (out.between_dof > 0) {
     // What the noise puts in the squares of the residual's cluster sums Z'(I - H)e, with the
@@ -292,9 +319,70 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
       between.noalias() += tau_g * sums.col(g) * sums.col(g).transpose();
     }
     out.tau2 = total / static_cast<double>(g_count);
-    out.covariance += inverse * between * inverse;
+    out.covariance += sandwich(factor, between);
   }
   out.covariance = 0.5 * (out.covariance + out.covariance.transpose()).eval();
+  return out;
+}
+
+RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Index estimated,
+                                    const Eigen::Ref<const Eigen::VectorXd>& y, const std::vector<int>& cluster,
+                                    const Eigen::VectorXd& tau2, const Eigen::VectorXd& noise_sum_variance,
+                                    const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& noise_times) {
+  const Eigen::Index n = x.rows(), p = x.cols();
+  if (y.size() != n || static_cast<Eigen::Index>(cluster.size()) != n || estimated < 1 || estimated > p)
+    throw std::invalid_argument("random_effects_fit: x, y and cluster ids differ in length, or no column is estimated");
+  std::map<int, Eigen::Index> order;   // id -> position (ascending)
+  for (const int id : cluster) order.emplace(id, 0);
+  Eigen::Index next = 0;
+  for (auto& [id, g] : order) g = next++;
+  if (tau2.size() != next || noise_sum_variance.size() != next)
+    throw std::invalid_argument("random_effects_fit: tau2 and the noise's sum variances are not one per cluster");
+  std::vector<Eigen::Index> group(static_cast<std::size_t>(n));
+  Eigen::MatrixXd mean_x = Eigen::MatrixXd::Zero(next, p);
+  Eigen::VectorXd mean_y = Eigen::VectorXd::Zero(next), rows = Eigen::VectorXd::Zero(next);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const Eigen::Index g = order.at(cluster[static_cast<std::size_t>(k)]);
+    group[static_cast<std::size_t>(k)] = g;
+    mean_x.row(g) += x.row(k);
+    mean_y(g) += y(k);
+    rows(g) += 1.0;
+  }
+  mean_x.array().colwise() /= rows.array();
+  mean_y.array() /= rows.array();
+  RandomEffectsFit out;
+  out.weights.resize(next);
+  for (Eigen::Index g = 0; g < next; ++g) {
+    const double m = noise_sum_variance(g) / (rows(g) * rows(g));
+    if (!(m > 0.0) || !(tau2(g) >= 0.0)) throw std::invalid_argument("random_effects_fit: a cluster's noise or offset variance is not positive");
+    out.weights(g) = m / (m + tau2(g));
+  }
+  Eigen::MatrixXd once(n, p), twice(n, p);   // X~ and X2
+  Eigen::VectorXd y_once(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const Eigen::Index g = group[static_cast<std::size_t>(k)];
+    const double lambda = 1.0 - std::sqrt(out.weights(g));
+    once.row(k) = x.row(k) - lambda * mean_x.row(g);
+    twice.row(k) = x.row(k) - (1.0 - out.weights(g)) * mean_x.row(g);
+    y_once(k) = y(k) - lambda * mean_y(g);
+  }
+  // Scaled to unit column norms: a bias and a square of a small input differ by orders.
+  Eigen::VectorXd scale = once.colwise().norm().transpose();
+  for (Eigen::Index j = 0; j < p; ++j)
+    if (!(scale(j) > 0.0)) scale(j) = 1.0;
+  const Eigen::MatrixXd once_scaled = once * scale.cwiseInverse().asDiagonal();
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> fitted(once_scaled.leftCols(estimated));
+  if (fitted.rank() < estimated) throw std::invalid_argument("random_effects_fit: the weighed columns are linearly dependent");
+  out.theta = fitted.solve(y_once).cwiseQuotient(scale.head(estimated));
+  const Eigen::MatrixXd b = inverse_gram_factor(once);
+  const Eigen::MatrixXd noise_meat = twice.transpose() * noise_times(twice);
+  Eigen::MatrixXd offsets_meat = Eigen::MatrixXd::Zero(p, p);
+  for (Eigen::Index g = 0; g < next; ++g) {
+    const Eigen::VectorXd sum = out.weights(g) * rows(g) * mean_x.row(g).transpose();   // X2' 1_g
+    offsets_meat.noalias() += tau2(g) * sum * sum.transpose();
+  }
+  out.within = sandwich(b, noise_meat);
+  out.covariance = out.within + sandwich(b, offsets_meat);
   return out;
 }
 

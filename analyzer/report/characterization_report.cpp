@@ -173,6 +173,15 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
                     "they dominate is tested on the between-phase dof (samples within a phase are not independent "
                     "information).\n\n",
                     r.inference.clusters, std::sqrt(r.inference.tau2), data.output_unit, r.inference.between_dof);
+  if (r.inference.weights.size() != 0)
+    md << fmt::format("The offsets reach the phases unequally{}, so each phase's mean is weighed by the share of its "
+                      "information its offset leaves (random effects; weights {:.3g} to {:.3g}): what the phases the "
+                      "offsets hardly reach determine comes from those (on a tumble, the bias and scale factor from the "
+                      "poses with the input axis vertical, as the classical six-position formulas take them).\n\n",
+                      r.inference.tau2_per_loading > 0.0 ? " (a placement tilt moves a pose's output in proportion to the "
+                                                           "specific force across the input axis)"
+                                                         : "",
+                      r.inference.weights.minCoeff(), r.inference.weights.maxCoeff());
   if (!r.undetermined.empty()) {
     md << "Not determined by this plan:\n\n";
     for (const procedure::UndeterminedTerm& u : r.undetermined) md << fmt::format("- `{}`: {}\n", u.term, u.reason);

@@ -23,7 +23,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -210,14 +212,20 @@ TEST(RelativeTwist, TheBatchFindsTheShakersTurnAboutTheInputAxisAgainstTheTable)
 // the coverage of 400 intervals is 1.1 %. Each parameter's intervals cover in at least 85 %, and
 // the scale factor's sd is not the poses' common offset: with that (before the placements' shape
 // on few dof, ident::cluster_offsets) its median |z| was 0.024 over 200 seeds, 35 times too wide.
-// Measured 2026-11-27, 200 seeds: 765 of 800 cover; bias 100 %, scale factor 100 % (median |z|
-// 0.66), angles 91.5 % and 91.5 %; one seed of 200 with a spurious abs(a_i).
+// Bias and scale factor are as precise as the classical six-position formulas on the same data
+// ((up + down) / 2 and (up - down) / 2g): their rms errors over the seeds within 20 % of those.
+// Least squares weighed the four poses a placement tilt moves like the two it hardly moves, and its
+// bias missed by 1.26e-3 g on seed 1, where (up + down) / 2 missed by 2.3e-5; the random-effects
+// weights (ident::random_effects_fit) take the bias and scale factor from those two.
+// Measured 2026-11-27, 100 seeds: 372 of 400 cover; bias 95, scale factor 96, angles 89 and 92;
+// rms error / the classical formula's: bias 1.011, scale factor 0.928; no spurious term.
 TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverSeeds) {
   const inertia::config::BenchConfig file =
       inertia::config::load_bench_config(std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-tumble.toml");
   const int seeds = seeds_from_environment(100);
   int spurious_seeds = 0;
   Scores s;
+  std::map<std::string, std::pair<double, double>> square_errors;   // per term: characterize's, the classical formula's
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(seeds); ++seed) {
     const inertia::config::BenchConfig bench = with_seed(file, seed);
     const inertia::sim::BenchSimulation sim = inertia::sim::simulate_bench(bench);
@@ -229,11 +237,39 @@ TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverSeeds) {
       if (term != "1" && term != "a_i") spurious = true;
     }
     spurious_seeds += spurious ? 1 : 0;
-    if (spurious) std::printf("seed %u: spurious terms in the batch model\n", static_cast<unsigned>(seed));
+    if (spurious) {
+      std::string terms;
+      for (Eigen::Index j = 0; j < r.fit.process_terms; ++j)
+        terms += " " + r.fit.labels[static_cast<std::size_t>(j)] + " " + std::to_string(r.fit.theta(j) / r.fit.std_dev(j)) + " (t)";
+      std::printf("seed %u: spurious terms in the batch model:%s\n", static_cast<unsigned>(seed), terms.c_str());
+    }
     score(r, sim, 0, truth_terms(sim, 0), seed, s);
+    // The classical six-position formulas on the same data: the input axis up and down.
+    const auto mean_of = [&](const std::string& name) {
+      for (const auto& c : data.cases)
+        if (c.name == name) return std::pair{c.y.mean(), c.a_e.rowwise().norm().mean()};
+      throw std::logic_error("no case " + name);
+    };
+    const auto [up, g_up] = mean_of("ira-up");
+    const auto [down, g_down] = mean_of("ira-down");
+    const std::map<std::string, double> truth = truth_terms(sim, 0);
+    for (Eigen::Index j = 0; j < r.fit.process_terms; ++j) {
+      const std::string& term = r.fit.labels[static_cast<std::size_t>(j)];
+      if (term != "1" && term != "a_i") continue;
+      const double classical = term == "1" ? (up + down) / 2.0 : (up - down) / (g_up + g_down);
+      const double error = r.fit.theta(j) - truth.at(term), classical_error = classical - truth.at(term);
+      square_errors[term].first += error * error;
+      square_errors[term].second += classical_error * classical_error;
+    }
   }
   std::printf("tumble: %d of %d seeds with spurious terms; %d of %d intervals cover the truth (95 %% nominal)\n",
               spurious_seeds, seeds, s.covered, s.total);
+  for (const std::string term : {"1", "a_i"}) {
+    const double ratio = std::sqrt(square_errors[term].first / square_errors[term].second);
+    std::printf("  %s: rms error %.3g, the classical formula's %.3g (ratio %.3f)\n", term.c_str(),
+                std::sqrt(square_errors[term].first / seeds), std::sqrt(square_errors[term].second / seeds), ratio);
+    EXPECT_LT(ratio, 1.2) << term;
+  }
   EXPECT_LE(spurious_seeds, std::max(1, seeds / 20));
   ASSERT_GT(s.total, 0);
   const double coverage = static_cast<double>(s.covered) / static_cast<double>(s.total);
@@ -252,6 +288,7 @@ TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverSeeds) {
     const double median = z[z.size() / 2];
     std::printf("  %s: %d of %zu cover, median |z| %.3f\n", name.c_str(), covered, v.size(), median);
     EXPECT_GE(covered, 0.85 * static_cast<double>(v.size())) << name;
+    EXPECT_LE(covered, 0.99 * static_cast<double>(v.size())) << name;
     if (name == "a_i") {
       EXPECT_GT(median, 0.3) << "the scale factor's sd is many times its spread";
     }
