@@ -190,7 +190,7 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
         if (scored_samples >= 0 && base.samples() != scored_samples)
           throw std::invalid_argument("selection: models scored on different sample counts");
         scored_samples = base.samples();
-        const std::vector<Index> kept = prune(base, ranked, options, threshold, model);
+        const std::vector<Index> kept = prune(base, ranked, options, threshold, model, problem.kept);
         std::vector<Index> key = kept;
         std::sort(key.begin(), key.end());
         const auto seen = scored.find(key);

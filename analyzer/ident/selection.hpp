@@ -40,6 +40,9 @@ struct SelectionProblem {
   /// Candidate columns in ranked order. Empty: the ERR ranking of phi with options.err (plain
   /// ERR; for output-multiplied candidates pass a ranking from bias_corrected_gram instead).
   std::vector<Index> ranking;
+  /// Columns step 9 never removes once ranked in (the model's given terms, such as a sensor's bias
+  /// and scale factor): a candidate near collinear with one of them must not take its place.
+  std::vector<Index> kept;
 };
 
 /// A regression problem owned by the engine and filled by a FitHook (algorithm 2 steps 6-7).
