@@ -53,6 +53,32 @@ std::string angle_text(double angle_rad, double sd_rad) {
 }
 }  // namespace
 
+model::ModelFile characterized_model(const procedure::PipelineResult& result, const dataset::Dataset& data,
+                                     std::optional<noise::NoiseAnalysis>& noise_analysis, std::string& why_no_noise) {
+  // Process terms (noise terms describe the residual colour; kept, marked by e).
+  model::ModelFile model;
+  model.sensor = data.sensor;
+  model.m_cs = result.m_cs;
+  for (Eigen::Index j = 0; j < result.fit.theta.size(); ++j) {
+    model.terms.push_back({ident::parse_term(result.fit.labels[static_cast<std::size_t>(j)]), result.fit.theta(j),
+                           result.fit.std_dev(j)});
+  }
+  model.white_sd = std::sqrt(result.fit.residual_variance);
+  model.square_highpass_rad_s = result.square_corner_rad_s;
+  // The sensor's noise terms from the plan's static stretches, as `inertia-analyze noise` reads
+  // them: [noise] carries the determined ones (diagnose's band test expects them).
+  noise_analysis.reset();
+  why_no_noise.clear();
+  try {
+    noise_analysis = noise::analyse_noise(data);
+    noise_terms_into(*noise_analysis, model);
+  } catch (const InputError& e) {
+    noise_analysis.reset();
+    why_no_noise = e.what();
+  }
+  return model;
+}
+
 int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   if (options.dataset.empty() == options.event_log.empty())
     throw InputError("characterize: give exactly one of --dataset DIR and --log FILE");
@@ -124,26 +150,10 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
     }
   }
 
-  // The model file: process terms (noise terms describe the residual colour; kept, marked by e).
-  model::ModelFile model;
-  model.sensor = data.sensor;
-  model.m_cs = result.m_cs;
-  for (Eigen::Index j = 0; j < result.fit.theta.size(); ++j) {
-    model.terms.push_back({ident::parse_term(result.fit.labels[static_cast<std::size_t>(j)]), result.fit.theta(j),
-                           result.fit.std_dev(j)});
-  }
-  model.white_sd = std::sqrt(result.fit.residual_variance);
-  model.square_highpass_rad_s = result.square_corner_rad_s;
-  // The sensor's noise terms from the plan's static stretches, as `inertia-analyze noise` reads
-  // them: [noise] carries the determined ones (diagnose's band test expects them), and the report
-  // gains the same section the noise command writes.
   std::optional<noise::NoiseAnalysis> noise_analysis;
-  try {
-    noise_analysis = noise::analyse_noise(data);
-    noise_terms_into(*noise_analysis, model);
-  } catch (const InputError& e) {
-    fmt::print(out, "noise terms not estimated: {}\n", e.what());
-  }
+  std::string no_noise;
+  const model::ModelFile model = characterized_model(result, data, noise_analysis, no_noise);
+  if (!no_noise.empty()) fmt::print(out, "noise terms not estimated: {}\n", no_noise);
   std::filesystem::create_directories(options.out);
   model::write_model(options.out / "model.toml", model);
   fmt::print(out, "wrote {}\n", (options.out / "model.toml").string());

@@ -4,9 +4,12 @@
 #include <filesystem>
 #include <iosfwd>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "analyzer/model/model_file.hpp"
+#include "analyzer/noise/noise_analysis.hpp"
 #include "analyzer/procedure/pipeline.hpp"
 
 namespace inertia::commands {
@@ -30,6 +33,12 @@ struct CharacterizeOptions {
 
 /// Pipeline options from the command-line choices (shared with reproduce-paper).
 procedure::PipelineOptions pipeline_options(const CharacterizeOptions& options);
+
+/// The model file characterize writes for `result`: the batch's terms with their sd, M_C^S, the
+/// innovation's sd, the squares' corner, and the sensor's noise terms from the plan's static
+/// stretches (their analysis in `noise_analysis`; when there is none, `why_no_noise` says why).
+model::ModelFile characterized_model(const procedure::PipelineResult& result, const dataset::Dataset& data,
+                                     std::optional<noise::NoiseAnalysis>& noise_analysis, std::string& why_no_noise);
 
 int run_characterize(const CharacterizeOptions& options, std::ostream& out);
 
