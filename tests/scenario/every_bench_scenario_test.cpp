@@ -274,7 +274,11 @@ TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverSeeds) {
   ASSERT_GT(s.total, 0);
   const double coverage = static_cast<double>(s.covered) / static_cast<double>(s.total);
   EXPECT_GE(coverage, 0.90);
-  EXPECT_LE(coverage, 0.99);
+  // Upper bounds from 100 seeds (the default) on: at 95 %, 20 intervals all cover 36 % of the time.
+  const bool enough_for_upper = seeds >= 100;
+  if (enough_for_upper) {
+    EXPECT_LE(coverage, 0.99);
+  }
   for (const std::string name : {"1", "a_i", "mounting poses about p", "mounting poses about o"}) {
     const auto& v = s.by_parameter[name];
     ASSERT_GE(v.size(), static_cast<std::size_t>(seeds) - 1) << name;
@@ -288,7 +292,9 @@ TEST(SixPositionTumble, NoSpuriousTermsAndHonestIntervalsOverSeeds) {
     const double median = z[z.size() / 2];
     std::printf("  %s: %d of %zu cover, median |z| %.3f\n", name.c_str(), covered, v.size(), median);
     EXPECT_GE(covered, 0.85 * static_cast<double>(v.size())) << name;
-    EXPECT_LE(covered, 0.99 * static_cast<double>(v.size())) << name;
+    if (enough_for_upper) {
+      EXPECT_LE(covered, 0.99 * static_cast<double>(v.size())) << name;
+    }
     if (name == "a_i") {
       EXPECT_GT(median, 0.3) << "the scale factor's sd is many times its spread";
     }
