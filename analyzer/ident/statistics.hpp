@@ -72,9 +72,11 @@ ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& res
 ///   tau_0, tau_1 by non-negative least squares (method of moments) of the residual cluster means'
 ///   squares less what the noise puts there, on [1 q_g], scaled by G / dof for the offsets the fit
 ///   absorbed; on fewer than 4 dof, where the two cannot be told apart, tau_1 alone when the
-///   loading varies (a placement's tilt). With Z the cluster indicators, S = X'Z, H the fit's projection, D = diag(n_g) and
-///   P = S'(X'X)^-1 S, the noise's part of the residual's cluster sums Z'(I - H)e is exact:
-///   sigma^2 (D - P) for white noise;
+///   loading varies (a placement's tilt), fitted to the exact share each residual mean keeps,
+///   ((D - P)_gh / n_g)^2 (placements are independent pose to pose). With Z the cluster
+///   indicators, S = X'Z, H the fit's projection, D = diag(n_g) and P = S'(X'X)^-1 S, the
+///   noise's part of the residual's cluster sums Z'(I - H)e is exact: sigma^2 (D - P) for white
+///   noise;
 ///   V = sigma^2 (X'X)^-1 + (X'X)^-1 (sum_g tau_g^2 s_g s_g') (X'X)^-1,  s_g = X_g' 1,
 /// the covariance of the (ordinary, here AR-whitened) least-squares estimate under that model.
 /// With a coloured noise model (the whitened residual is not white where the AR model stops
