@@ -133,7 +133,8 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
       ++reporting[name];
     }
   };
-  add_run(reported_parameters(predicted));
+  const std::map<std::string, Reported> first_run = reported_parameters(predicted);
+  add_run(first_run);
   for (int k = 1; k < kPredictionRuns; ++k) add_run(run_with_seed(first_seed + kPredictionSeedOffset + static_cast<std::uint64_t>(k)));
   fmt::print(out, "  predicted from {} simulated runs of the plan (seed {}, then {} and on) with the sensor's [sensor.truth] "
                   "and characterize's options: each sd is the RMS of what characterize reports over them\n",
@@ -149,7 +150,7 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
 
   std::vector<PlannedParameter> planned;
   bool any_held = false;
-  for (const auto& [name, v] : reported_parameters(predicted)) {
+  for (const auto& [name, v] : first_run) {
     const auto& [sd2, held2] = squares.at(name);
     const auto runs = static_cast<double>(reporting.at(name));
     planned.push_back({name, v.value, std::sqrt(sd2 / runs), std::sqrt(held2 / runs)});
