@@ -757,9 +757,10 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
     // The fit's covariance (ULS's, with its bias correction) takes the residual as white and the
     // searched parameters as known: what the residual's colour, the offsets between phases and
     // the searched parameters add to that is added to it.
-    Eigen::MatrixXd covariance = fit.covariance.topLeftCorner(p, p);
-    covariance += out.offsets.covariance - out.offsets.classical;
-    if (weighed) covariance = out.offsets.covariance;
+    // The weighed estimate's covariance is its own sandwich, whole.
+    Eigen::MatrixXd covariance = weighed ? out.offsets.covariance
+                                         : Eigen::MatrixXd(fit.covariance.topLeftCorner(p, p) + out.offsets.covariance -
+                                                           out.offsets.classical);
     // A term constant within each phase is determined by the phases' means alone, and is tested on
     // their dof whatever the offsets' estimate: on few dof that estimate often comes out near 0
     // (sim-tumble seed 119: 6 poses, 1 dof, and a_o^2 named from the placement scatter at t -22.8
