@@ -598,14 +598,13 @@ struct HonestResult {
 constexpr double kDistinct = 10.0;
 
 /// The random-effects estimate (ident::random_effects_fit) under the offsets `offsets` found, with
-/// the noise model of each case of the plan (`spectra` over `noise_runs`).
+/// the noise model of the plan's cases (noise_times(M) = R M).
 std::optional<ident::RandomEffectsFit> random_effects(const Eigen::MatrixXd& x, Eigen::Index estimated, const Eigen::VectorXd& y,
                                                       const std::vector<int>& clusters, const Eigen::VectorXd* loading,
                                                       const ident::ClusterOffsets& offsets, const ident::ColouredNoise& coloured,
-                                                      const std::vector<noise::SegmentSpectrum>& spectra,
-                                                      const std::vector<CaseRows>& noise_runs) {
+                                                      const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& noise_times) {
   const auto g_count = static_cast<Eigen::Index>(coloured.cluster_ids.size());
-  if (g_count < 2 || spectra.size() != noise_runs.size()) return std::nullopt;
+  if (g_count < 2) return std::nullopt;
   Eigen::VectorXd loading_sum = Eigen::VectorXd::Zero(g_count), rows = Eigen::VectorXd::Zero(g_count);
   for (std::size_t k = 0; k < clusters.size(); ++k) {
     const auto g = std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), clusters[k]) - coloured.cluster_ids.begin();
@@ -623,14 +622,6 @@ std::optional<ident::RandomEffectsFit> random_effects(const Eigen::MatrixXd& x, 
   // which in static phases is the whitening's transients and the reference's noise: on sim-tumble
   // seed 31, under a common offset, the weighed fit's covariance came out indefinite.
   if (!(tau2.maxCoeff() > kDistinct * tau2.minCoeff())) return std::nullopt;
-  const auto noise_times = [&](const Eigen::MatrixXd& m) {
-    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(m.rows(), m.cols());
-    for (std::size_t r = 0; r < spectra.size(); ++r) {
-      const CaseRows& run = noise_runs[r];
-      out.middleRows(run.begin, run.rows) = noise::covariance_times(spectra[r], m.middleRows(run.begin, run.rows));
-    }
-    return out;
-  };
   std::optional<ident::RandomEffectsFit> out;
   try {
     out = ident::random_effects_fit(x, estimated, y, clusters, tau2, noise_sums, noise_times);
@@ -699,17 +690,22 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
           for (std::size_t b = 0; b < columns.size(); ++b) coloured.sums_covariance(columns[a], columns[b]) = zrz(Eigen::Index(a), Eigen::Index(b));
       }
     }
-    coloured.meat = Eigen::MatrixXd::Zero(x.cols(), x.cols());
-    coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
-    for (std::size_t r = 0; r < spectra.size(); ++r) {
-      const CaseRows& rows = (*h.noise_runs)[r];
-      const Eigen::MatrixXd rx = noise::covariance_times(spectra[r], x.middleRows(rows.begin, rows.rows));
-      coloured.meat += x.middleRows(rows.begin, rows.rows).transpose() * rx;
-      for (Eigen::Index k = 0; k < rows.rows; ++k) {
-        const int id = (*h.clusters)[static_cast<std::size_t>(rows.begin + k)];
-        const auto g = std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), id) - coloured.cluster_ids.begin();
-        coloured.cross.col(g) += rx.row(k).transpose();
+    // R m for columns m over the stack's rows: each case of the plan under its own spectrum.
+    const auto noise_times = [&](const Eigen::MatrixXd& m) {
+      Eigen::MatrixXd out = Eigen::MatrixXd::Zero(m.rows(), m.cols());
+      for (std::size_t r = 0; r < spectra.size(); ++r) {
+        const CaseRows& run = (*h.noise_runs)[r];
+        out.middleRows(run.begin, run.rows) = noise::covariance_times(spectra[r], m.middleRows(run.begin, run.rows));
       }
+      return out;
+    };
+    const Eigen::MatrixXd rx = noise_times(x);
+    coloured.meat = x.transpose() * rx;
+    coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
+    for (Eigen::Index k = 0; k < x.rows(); ++k) {
+      const int id = (*h.clusters)[static_cast<std::size_t>(k)];
+      const auto g = std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), id) - coloured.cluster_ids.begin();
+      coloured.cross.col(g) += rx.row(k).transpose();
     }
     coloured.meat = (0.5 * (coloured.meat + coloured.meat.transpose())).eval();
     // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
@@ -742,7 +738,7 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
     std::optional<ident::RandomEffectsFit> weighed;
     const bool means_only = std::all_of(phase_level.begin(), phase_level.end(), [](bool b) { return b; });
     if (means_only && out.offsets.tau2 > 0.0 && output_multiplied.empty() && fit.theta.size() == p)
-      weighed = random_effects(x, p, s.y, *h.clusters, h.loading, out.offsets, coloured, spectra, *h.noise_runs);
+      weighed = random_effects(x, p, s.y, *h.clusters, h.loading, out.offsets, coloured, noise_times);
     if (weighed) {
       out.offsets.within = weighed->within;
       out.offsets.covariance = weighed->covariance;
