@@ -9,6 +9,7 @@
 
 #include "hal/modbus/modbus_controller.hpp"
 #include "hal/wire_sim/bench_controllers.hpp"
+#include "tests/support/pseudo_terminal.hpp"
 #include "tests/support/scratch_dirs.hpp"
 
 namespace inertia::hal::modbus {
@@ -21,6 +22,7 @@ using namespace std::chrono_literals;
 
 class RtuModbus : public ::testing::Test {
  protected:
+  void SetUp() override { INERTIA_REQUIRE_PSEUDO_TERMINALS(); }
   void start(int slave_id = 5, const BenchControllerState& initial = frozen()) {
     link_ = (dir_.path / "ttyBENCH").string();
     std::string why;
@@ -162,7 +164,13 @@ TEST_F(RtuModbus, AdapterUnpluggedThenPluggedBackBehindTheSameNameRecovers) {
   EXPECT_GE(c->link().health().reconnects, 1u);
 }
 
-TEST_F(RtuModbus, ConnectNamesAMissingSerialPort) {
+/// The tests that open no serial line run without pseudo-terminals.
+class RtuModbusWithoutLine : public RtuModbus {
+ protected:
+  void SetUp() override {}
+};
+
+TEST_F(RtuModbusWithoutLine, ConnectNamesAMissingSerialPort) {
   config_.serial.device = (dir_.path / "ttyUSB9").string();
   config_.map = wire_sim::bench_controller_register_map();
   std::string why;
