@@ -409,9 +409,7 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
   std::vector<std::size_t> turning;
   for (std::size_t k = 0; k < m_cs.size(); ++k)
     if (k != reference && aligned[k] && infos[k]->samples() > 0) turning.push_back(k);
-  // The residual sum comes from the statistics as y'y - theta'Phi'y and carries that difference's
-  // rounding: steps of 1e-3 rad move it far above that and stay in its quadratic range.
-  constexpr double kStep = 1e-3;
+  constexpr double kStep = kTurnDifferenceStepRad;
   for (int iteration = 0; iteration < 12 && !turning.empty(); ++iteration) {
     std::vector<std::pair<std::size_t, int>> parameters;   // (mounting, axis of procedure::turned())
     for (std::size_t k : turning)
@@ -483,7 +481,7 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
       out[k].twist_rad += delta(i0 + 2);
       out[k].twist_sd_rad = sd(i0 + 2);
     }
-    if ((delta.array().abs() <= 1e-6 * sd.array()).all()) break;
+    if ((delta.array().abs() <= procedure::kTurnConvergence * sd.array()).all()) break;
   }
   return out;
 }

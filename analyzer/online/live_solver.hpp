@@ -124,6 +124,11 @@ struct RelativeTurn {
 
 class LiveSolver {
  public:
+  /// relative_turns' difference step: the residual sum comes from the statistics as
+  /// y'y - 2 theta'Phi'y + theta'Phi'Phi theta and carries that cancellation's rounding (a few
+  /// eps y'y); steps of this size move it far above that and stay in its quadratic range.
+  static constexpr double kTurnDifferenceStepRad = 1e-3;
+
   /// `model`: basis term indices of the model (F_S); `sensitivities`: of a_x a_y a_z (w_x w_y
   /// w_z for a gyroscope); `grid`: the nodes the filtered statistics were kept at (empty: static
   /// squares only); `static_option`: static squares compete with the high pass.

@@ -33,6 +33,10 @@ frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector3d& turn);
 inline Eigen::Matrix3d turn_angles() { return (Eigen::Matrix3d() << 0, 0, 1, 0, -1, 0, 1, 0, 0).finished(); }
 /// The angle (0 about i, 1 about p, 2 about o) that component `c` of a turn of turned() moves.
 constexpr int angle_of_turn(int c) { return 2 - c; }
+/// A search for a mounting's turn (the batch's Gauss-Newton on its rows, the live solver's Newton
+/// steps on its statistics) stops once every step is at most this fraction of its parameter's sd:
+/// far below what the data determine, and above the searches' own rounding.
+inline constexpr double kTurnConvergence = 1e-6;
 
 /// The rotation vector of M_C^S (rad, case axes): M_C^S = frame_rotation(v / |v|, |v|). Its
 /// components are the angles of F_S from the nominal case frame about IRA, XRA, YRA (i, p, o).

@@ -1000,8 +1000,7 @@ RelativeTwists relative_twists(StackedRegression& batch, const BatchAt& batch_at
       m.angles(0) = (std::isnan(m.angles(0)) ? 0.0 : m.angles(0)) + turns[k](2);
     }
     batch = batch_at(candidates, nominal, result.square_corner_rad_s);
-    // To 1e-6 of the sd: the live solver finds the same minimum from its statistics.
-    if ((delta.array().abs() <= 1e-6 * sd.array()).all()) break;
+    if ((delta.array().abs() <= kTurnConvergence * sd.array()).all()) break;
   }
   out.estimated = turning;
   for (std::size_t k : out.estimated) {

@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
+#include <limits>
 #include <random>
 
 #include "analyzer/ident/regressors.hpp"
@@ -256,14 +258,37 @@ TEST(OnlineEstimator, EqualsTheBatchPipelineOnTheSameRows) {
   }
 }
 
+/// How far the live and the batch searches for a mounting's turn may end apart, in the turn's sd,
+/// derived from the searches and the problem (not from what one machine printed):
+/// - each stops once its steps are at most procedure::kTurnConvergence of the sd;
+/// - the live one differentiates the residual sum the statistics give as y'y - 2 theta'Phi'y +
+///   theta'Phi'Phi theta: three numbers of the size of y'y whose difference is the residual, each
+///   a sum of p products, so rounding leaves an error e of up to p eps y'y in it (p terms). The
+///   batch's Gauss-Newton takes J'r from the rows, which carries no such cancellation.
+/// - Richardson's central difference with step h turns e into a gradient error of at most 3 e / h
+///   ((4 (2e / h) + 2e / (2h)) / 3), and the residual's curvature H = 2 s^2 / sd^2 (the
+///   information the sd comes from) turns that into a shift of 3 e / h / H = 1.5 e sd / (h s^2).
+/// The rounding itself differs between CPUs' libm paths and builds; this bound does not.
+/// `live_searches`: how many of the two searches are the live one (1: live against batch, 2: two
+/// live runs).
+double turn_search_agreement_in_sd(const Plan& p, double twist_sd, double noise_sd, int live_searches = 1) {
+  double yy = 0.0;
+  for (const PlanCase& c : p.cases) yy += c.data.y.squaredNorm();
+  const double e = static_cast<double>(kModel.size()) * std::numeric_limits<double>::epsilon() * yy;
+  const double h = LiveSolver::kTurnDifferenceStepRad;
+  const double rounding_shift_in_sd = 1.5 * e * twist_sd / (h * noise_sd * noise_sd);
+  return 2.0 * procedure::kTurnConvergence + live_searches * rounding_shift_in_sd;
+}
+
 TEST(OnlineEstimator, FindsTheBatchsTwistAgainstTheReferenceMounting) {
   // PipelineOptions::batch_relative_twist: the shaker mounting turned about n_i against the table
   // to one set of cross terms for both, by Gauss-Newton on the batch's rows; live, by Newton steps
-  // on the residual the statistics give (LiveSolver::relative_turns). Both stop at 1e-6 of the
-  // twist's sd, but the live one differentiates a residual sum that the statistics give as a
-  // difference of large numbers, and its numeric gradient leaves its minimum 4e-5 of the twist's sd
-  // from the batch's (measured 2026-11-27; the coefficients 3e-5 of their sd): asserted at 1e-4.
-  const Plan p = two_mountings(500.0, 1e-3, 11);
+  // on the residual the statistics give (LiveSolver::relative_turns). The two searches end apart
+  // by at most turn_search_agreement_in_sd; a coefficient moves with the three angles searched,
+  // each of whose sd-sized shift moves it by at most its own sd (the batch's sd carry the angles'
+  // uncertainty), so the terms agree within three times that in their sd.
+  constexpr double kNoiseSd = 1e-3;
+  const Plan p = two_mountings(500.0, kNoiseSd, 11);
   OnlineEstimator est(dataset::SensorKind::Accelerometer, model_file(kModel, 500.0), 25.0, white_noise());
   feed(est, p, 3);
   const OnlineSnapshot live = est.snapshot();
@@ -273,17 +298,24 @@ TEST(OnlineEstimator, FindsTheBatchsTwistAgainstTheReferenceMounting) {
   const procedure::MountingResult& shaker = batch.mountings[1];
   ASSERT_EQ(shaker.twist_reference, batch.mountings[0].mounting);
   ASSERT_GT(shaker.angles_sd(0), 0.0) << "the twist was held";
-  EXPECT_NEAR(live.mountings[1].angles_rad(0), shaker.angles(0), 1e-4 * shaker.angles_sd(0));
-  EXPECT_LT(frames::angle_between(live.mountings[1].m_cs, shaker.m_cs), 1e-4 * shaker.angles_sd(0));
+  const double within = turn_search_agreement_in_sd(p, shaker.angles_sd(0), kNoiseSd);
+  // The bound must still say something: far below the sd, so a search that stopped early or
+  // found another minimum fails.
+  ASSERT_LT(within, 0.01);
+  std::cout << "live and batch searches may end " << within << " sd apart\n";
+  EXPECT_NEAR(live.mountings[1].angles_rad(0), shaker.angles(0), within * shaker.angles_sd(0));
+  EXPECT_LT(frames::angle_between(live.mountings[1].m_cs, shaker.m_cs), within * shaker.angles_sd.norm());
   EXPECT_TRUE(std::isnan(live.mountings[0].angles_rad(0))) << "the reference's twist is the convention";
-  expect_the_batchs_terms(live, batch, 1e-4);   // the twist's uncertainty in the sd by the two routes
+  expect_the_batchs_terms(live, batch, 3.0 * within);   // the twist's uncertainty in the sd by the two routes
 }
 
 TEST(OnlineEstimator, ChunkingDoesNotMatter) {
   // The statistics are the same however the samples arrive, to rounding: with the mountings'
   // frames fixed by algorithm 1 the estimates agree to 1e-6 of their sd; the twist's search
-  // (previous test) differentiates a residual sum the rounding reaches, so to 1e-4 there.
-  const Plan p = two_mountings(500.0, 1e-3, 21, 3000, 2000);
+  // differentiates a residual sum the rounding reaches, so there two live searches end apart by
+  // at most turn_search_agreement_in_sd (the previous test says why), the terms three times that.
+  constexpr double kNoiseSd = 1e-3;
+  const Plan p = two_mountings(500.0, kNoiseSd, 21, 3000, 2000);
   for (const bool twist : {false, true}) {
     SCOPED_TRACE(twist ? "twist searched" : "twist held");
     OnlineOptions options = white_noise();
@@ -294,7 +326,12 @@ TEST(OnlineEstimator, ChunkingDoesNotMatter) {
     feed(b, p, 2);
     const OnlineSnapshot sa = a.snapshot(), sb = b.snapshot();
     ASSERT_EQ(sa.samples_used, sb.samples_used);
-    const double within = twist ? 1e-4 : 1e-6;
+    ASSERT_EQ(sa.mountings.size(), 2u);
+    const double within =
+        twist ? 3.0 * turn_search_agreement_in_sd(p, sa.mountings[1].angles_sd_rad(0), kNoiseSd, 2) : 1e-6;
+    if (twist) {
+      ASSERT_LT(within, 0.03);
+    }
     for (Index j = 0; j < sa.values.size(); ++j)
       EXPECT_NEAR(sa.values(j), sb.values(j), 1e-12 * std::abs(sa.values(j)) + within * sa.std_devs(j));
   }
