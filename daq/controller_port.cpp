@@ -1,14 +1,29 @@
 #include "daq/controller_port.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <sstream>
 
 #include "hal/device.hpp"
 
 namespace inertia::daq {
+namespace {
 
-ControllerPort::ControllerPort(std::string device, std::vector<SafeValue> safe_values)
-    : device_(std::move(device)), safe_values_(std::move(safe_values)) {}
+std::int64_t seconds_ns(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
+}  // namespace
+
+ControllerPort::ControllerPort(std::string device, std::vector<SafeValue> safe_values, std::optional<Heartbeat> heartbeat,
+                               std::shared_ptr<const LifeSign> life)
+    : device_(std::move(device)),
+      safe_values_(std::move(safe_values)),
+      heartbeat_spec_(heartbeat),
+      life_(std::move(life)),
+      safe_confirmed_(safe_values_.size(), false) {
+  beat_.present = heartbeat_spec_.has_value();
+  if (heartbeat_spec_) beat_.timeout_ns = heartbeat_spec_->timeout_ns;
+  if (heartbeat_spec_) beat_value_ = heartbeat_spec_->max;   // the first write wraps to min
+}
 
 std::uint64_t ControllerPort::post(std::size_t register_index, double value) {
   std::uint64_t ticket = 0;
@@ -30,7 +45,7 @@ std::optional<ControllerPort::Outcome> ControllerPort::take_outcome(std::uint64_
   return out;
 }
 
-void ControllerPort::request_safe_state() {
+void ControllerPort::hold_safe_state() {
   {
     std::lock_guard lock(mutex_);
     // Commands still queued belong to the plan being stopped: their tickets answer "link error"
@@ -42,12 +57,22 @@ void ControllerPort::request_safe_state() {
       outcomes_[c.ticket] = dropped;
     }
     queue_.clear();
-    safe_pending_ = true;
+    const std::uint64_t round = safe_.round + 1;
     safe_ = SafeState{};
-    safe_.requested = true;
-    safe_.requested_ns = hal::monotonic_now_ns();
+    safe_.held = true;
+    safe_.round = round;
+    safe_.held_ns = hal::monotonic_now_ns();
+    safe_.confirmed = safe_values_.empty();
+    if (safe_.confirmed) safe_.confirmed_ns = safe_.held_ns;
+    safe_confirmed_.assign(safe_values_.size(), false);
+    next_safe_attempt_ns_ = 0;
   }
   posted_.notify_one();
+}
+
+void ControllerPort::release_safe_state() {
+  std::lock_guard lock(mutex_);
+  safe_.held = false;
 }
 
 ControllerPort::SafeState ControllerPort::safe_state() const {
@@ -55,51 +80,112 @@ ControllerPort::SafeState ControllerPort::safe_state() const {
   return safe_;
 }
 
+ControllerPort::HeartbeatState ControllerPort::heartbeat() const {
+  std::lock_guard lock(mutex_);
+  return beat_;
+}
+
 ControllerPort::Poll ControllerPort::latest() const {
   std::lock_guard lock(mutex_);
   return poll_;
 }
 
-void ControllerPort::serve(hal::modbus::ModbusController& controller) {
-  // The safe state first: it never waits behind a queued command.
-  bool safe = false;
+void ControllerPort::serve_safe_state(hal::modbus::ModbusController& controller, std::int64_t now_ns) {
+  std::vector<std::size_t> pending;
   {
     std::lock_guard lock(mutex_);
-    safe = safe_pending_;
-    safe_pending_ = false;
-  }
-  if (safe) {
-    std::vector<std::string> written, failures;
-    for (const SafeValue& v : safe_values_) {
-      const hal::modbus::WriteResult r = controller.write(v.register_index, v.value, hal::modbus::Ramp::Immediate);
-      const auto& spec = controller.config().map.registers[v.register_index];
-      std::ostringstream line;
-      if (r.status == hal::modbus::WriteStatus::Written) {
-        line << spec.name << " = " << r.written;
-        written.push_back(line.str());
-      } else {
-        line << spec.name << ": " << hal::modbus::to_string(r.status);
-        if (!controller.link().health().last_error.empty() && r.status == hal::modbus::WriteStatus::LinkError)
-          line << " (" << controller.link().health().last_error << ")";
-        failures.push_back(line.str());
-      }
+    if (!safe_.held) return;
+    // A controller that lost its link may have lost what it was told: after a reconnect the safe
+    // values go out again.
+    if (safe_.confirmed && controller.link().health().reconnects != reconnects_seen_) {
+      safe_.confirmed = false;
+      safe_confirmed_.assign(safe_values_.size(), false);
+      next_safe_attempt_ns_ = 0;
     }
-    std::lock_guard lock(mutex_);
-    safe_.written = std::move(written);
-    safe_.failures = std::move(failures);
-    safe_.done = true;
-    safe_.done_ns = hal::monotonic_now_ns();
+    if (safe_.confirmed || now_ns < next_safe_attempt_ns_) return;
+    for (std::size_t i = 0; i < safe_values_.size(); ++i)
+      if (!safe_confirmed_[i]) pending.push_back(i);
+    ++safe_.attempts;
   }
+  // After a failure the link may be in its back-off: a safe value does not wait for it.
+  if (!controller.link().connected()) controller.link().reconnect_now();
+  std::vector<std::pair<std::size_t, std::string>> written, failed;
+  for (std::size_t i : pending) {
+    const SafeValue& v = safe_values_[i];
+    const hal::modbus::WriteResult r = controller.write(v.register_index, v.value, hal::modbus::Ramp::Immediate);
+    const auto& spec = controller.config().map.registers[v.register_index];
+    std::ostringstream line;
+    if (r.status == hal::modbus::WriteStatus::Written) {
+      line << spec.name << " = " << r.written;
+      written.emplace_back(i, line.str());
+    } else {
+      line << spec.name << ": " << hal::modbus::to_string(r.status);
+      if (r.status == hal::modbus::WriteStatus::NotConfirmed && !std::isnan(r.read_back)) line << " (reads " << r.read_back << ")";
+      if (!controller.link().health().last_error.empty() && r.status == hal::modbus::WriteStatus::LinkError)
+        line << " (" << controller.link().health().last_error << ")";
+      failed.emplace_back(i, line.str());
+    }
+  }
+  const std::int64_t done_ns = hal::monotonic_now_ns();
+  std::lock_guard lock(mutex_);
+  if (!safe_.held) return;   // released while the writes went out: the plan was armed meanwhile
+  for (const auto& [i, text] : written) {
+    safe_confirmed_[i] = true;
+    safe_.written.push_back(text);
+  }
+  safe_.failures.clear();
+  for (const auto& [i, text] : failed) safe_.failures.push_back(text);
+  if (failed.empty()) {
+    safe_.confirmed = true;
+    safe_.confirmed_ns = done_ns;
+    reconnects_seen_ = controller.link().health().reconnects;
+  } else {
+    next_safe_attempt_ns_ = done_ns + seconds_ns(kSafeRetryS);
+  }
+}
+
+void ControllerPort::serve_heartbeat(hal::modbus::ModbusController& controller, std::int64_t now_ns) {
+  if (!heartbeat_spec_ || now_ns < next_beat_ns_) return;
+  if (life_ && !life_->alive(now_ns)) return;   // a hung daemon stops proving life
+  const Heartbeat& h = *heartbeat_spec_;
+  next_beat_ns_ = now_ns + h.period_ns;
+  beat_value_ = beat_value_ + h.step > h.max + 0.5 * h.step ? h.min : beat_value_ + h.step;
+  const hal::modbus::WriteResult r = controller.write(h.register_index, beat_value_, hal::modbus::Ramp::Immediate);
+  std::lock_guard lock(mutex_);
+  if (r.status == hal::modbus::WriteStatus::Written) {
+    const std::int64_t written_ns = hal::monotonic_now_ns();
+    if (beat_.last_written_ns != 0 && written_ns - beat_.last_written_ns > h.timeout_ns) {
+      ++beat_.lapses;
+      beat_.last_lapse_s = static_cast<double>(written_ns - beat_.last_written_ns) * 1e-9;
+    }
+    ++beat_.written;
+    beat_.last_written_ns = written_ns;
+  } else {
+    ++beat_.failed;
+    beat_.last_failure = hal::modbus::to_string(r.status);
+  }
+}
+
+void ControllerPort::serve(hal::modbus::ModbusController& controller) {
+  // The safe state first: it never waits behind a queued command or a heartbeat.
+  serve_safe_state(controller, hal::monotonic_now_ns());
+  serve_heartbeat(controller, hal::monotonic_now_ns());
   for (;;) {
     Command c{};
+    bool refused = false;
     {
       std::lock_guard lock(mutex_);
-      if (queue_.empty() || safe_pending_) return;
+      if (queue_.empty()) return;
       c = queue_.front();
       queue_.pop_front();
+      refused = safe_.held;
     }
     Outcome out;
-    out.result = controller.write(c.register_index, c.value, hal::modbus::Ramp::Limited);
+    if (refused) {
+      out.result.status = hal::modbus::WriteStatus::Disabled;   // the safe state is held: nothing moves
+    } else {
+      out.result = controller.write(c.register_index, c.value, hal::modbus::Ramp::Limited);
+    }
     out.t_ns = hal::monotonic_now_ns();
     std::lock_guard lock(mutex_);
     outcomes_[c.ticket] = out;
@@ -110,7 +196,9 @@ void ControllerPort::wait_until(std::int64_t until_ns) {
   std::unique_lock lock(mutex_);
   const std::int64_t left = until_ns - hal::monotonic_now_ns();
   if (left <= 0) return;
-  posted_.wait_for(lock, std::chrono::nanoseconds(left), [this] { return safe_pending_ || !queue_.empty(); });
+  posted_.wait_for(lock, std::chrono::nanoseconds(left), [this] {
+    return !queue_.empty() || (safe_.held && !safe_.confirmed && next_safe_attempt_ns_ == 0);
+  });
 }
 
 void ControllerPort::publish(std::span<const hal::modbus::PolledValue> values, bool connected) {

@@ -1,6 +1,7 @@
 #include "daq/daemon.hpp"
 
 #include <pthread.h>
+#include <pwd.h>
 #include <signal.h>
 #include <sys/mman.h>
 #include <systemd/sd-daemon.h>
@@ -10,6 +11,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -24,6 +27,7 @@
 #include "daq/publisher.hpp"
 #include "daq/plan_mark.hpp"
 #include "daq/real_bench.hpp"
+#include "daq/run_record.hpp"
 #include "daq/test_executive.hpp"
 #include "hal/device.hpp"
 #include "inertia/bench_config_t.hpp"
@@ -86,12 +90,37 @@ void parse_fault(const std::string& spec, DaemonOptions& o) {
 
 volatile sig_atomic_t g_unused = 0;
 
+// The controllers' heartbeat lease: renewed while every watched thread moved within it.
+constexpr std::int64_t kLifeLeaseNs = 500'000'000;
+
+std::string user_name(uid_t uid) {
+  const passwd* pw = ::getpwuid(uid);
+  return pw != nullptr ? pw->pw_name : "uid " + std::to_string(uid);
+}
+
+// --state-dir, else systemd's StateDirectory= (the first of $STATE_DIRECTORY's colon-separated
+// paths), else the log's directory; empty: none.
+std::filesystem::path run_record_dir(const DaemonOptions& o) {
+  if (!o.state_dir.empty()) return o.state_dir;
+  if (const char* state = std::getenv("STATE_DIRECTORY"); state != nullptr && *state != '\0') {
+    const std::string first(state, std::strcspn(state, ":"));
+    return first;
+  }
+  return o.log_dir;
+}
+
 }  // namespace
 
 const char* usage() {
   return "usage: inertia-daqd --config FILE [--duration S] [--log DIR] [options]\n"
          "       inertia-daqd --check --config FILE\n"
          "       inertia-daqd mark --case NAME [--phase KIND] | --end | --stop [--lcm-url URL]  (mark --help)\n"
+         "       inertia-daqd arm [--lcm-url URL]   start the plan on a daemon that runs it (arm --help)\n"
+         "  --arm                real bench, executive = \"plan\": an attended start, the plan armed at\n"
+         "                       once (otherwise the daemon starts disarmed, the controllers held in\n"
+         "                       their safe state, until an operator runs inertia-daqd arm)\n"
+         "  --state-dir DIR      where the run record is kept, which the next start reads to say how\n"
+         "                       this run ended (default: $STATE_DIRECTORY, else the --log DIR)\n"
          "  --check              open every device of the bench file without sampling and print one\n"
          "                       table: CAN interface up at the bench's bit rates, GPIO lines free,\n"
          "                       Modbus registers readable and in range; each failure with its\n"
@@ -132,6 +161,11 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
     };
     if (a == "--help" || a == "-h") *help = true;
     else if (a == "--check") o.check = true;
+    else if (a == "--arm") {
+      o.arm = true;
+      o.given.insert(a);
+    }
+    else if (a == "--state-dir") o.state_dir = value();
     else if (a == "--config") o.config = value();
     else if (a == "--duration") o.duration_s = to_number(a, value());
     else if (a == "--log") o.log_dir = value();
@@ -175,6 +209,7 @@ void apply_bench_settings(DaemonOptions& o, const config::DaemonSettings& d) {
   };
   take("--log", d.log_dir, o.log_dir);
   take("--lcm-url", d.lcm_url, o.lcm_url);
+  take("--state-dir", d.state_dir, o.state_dir);
   take("--block-ms", d.block_ms, o.block_ms);
   take("--rotate-mb", d.rotate_mb, o.rotate_mb);
   take("--fsync-ms", d.fsync_ms, o.fsync_ms);
@@ -194,6 +229,10 @@ int run_daemon(const DaemonOptions& command_line) {
     throw InputError("option --fast: bench " + bench.name + " is real (backend = \"real\"): it samples in real time");
   if (!bench.simulated && o.given.count("--fault") != 0)
     throw InputError("option --fault: bench " + bench.name + " is real: faults are injected into the simulator only");
+  if (o.arm && (bench.simulated || bench.executive != config::Executive::Plan))
+    throw InputError("option --arm: bench " + bench.name +
+                     (bench.simulated ? " is simulated: the simulator runs its plan by itself and commands no machinery"
+                                      : " is moved by its operator (executive = \"operator\"): the daemon commands no motion to arm"));
 
   // Signals are taken synchronously by the supervisor: block them before any thread starts so
   // every thread inherits the mask.
@@ -230,6 +269,7 @@ int run_daemon(const DaemonOptions& command_line) {
   std::vector<std::unique_ptr<Sampler>> samplers;
   std::vector<std::string> absent;  // optional devices the bench runs without
   std::map<std::string, std::shared_ptr<ControllerPort>> controller_ports;  // real benches: for the test executive
+  const auto life = std::make_shared<LifeSign>();   // renewed below while the daemon is healthy
   std::string why;
   if (bench.simulated) {
     // Threads the simulator starts here (its Modbus server) inherit this name, so CPU accounting
@@ -248,7 +288,8 @@ int run_daemon(const DaemonOptions& command_line) {
     samplers = sim->take_samplers();
     ::pthread_setname_np(::pthread_self(), "inertia-daqd");
   } else {
-    RealBench real = open_real_bench(bench, o.ring, &why);
+    life->renew(hal::monotonic_now_ns() + kLifeLeaseNs);   // the controllers' heartbeats start with the pollers
+    RealBench real = open_real_bench(bench, o.ring, life, &why);
     if (real.samplers.empty()) {
       std::cerr << "inertia-daqd: " << why << "\n";
       return kExitBadInput;
@@ -330,8 +371,10 @@ int run_daemon(const DaemonOptions& command_line) {
   // either way their names and setpoints are the plan's.
   po.describe_mark = [&bench](const PlanMark& m, plan_event_t& e) { describe_plan_mark(bench, m, e); };
   LogWriter* log_ptr = log.get();
-  po.daemon_faults = [log_ptr, absent, mlock_refused] {
+  std::unique_ptr<TestExecutive> executive;   // real benches: created below, before the publisher starts
+  po.daemon_faults = [log_ptr, absent, mlock_refused, &executive] {
     std::vector<std::string> f;
+    if (executive) f = executive->faults();
     for (const std::string& name : absent) f.push_back("absent:" + name);
     if (mlock_refused) f.emplace_back("mlock-refused");
     if (log_ptr == nullptr) f.emplace_back("log-off");
@@ -344,9 +387,20 @@ int run_daemon(const DaemonOptions& command_line) {
     return kExitBadInput;
   }
   // A real bench's plan: run by the test executive on the controllers, or marked by the operator.
-  std::unique_ptr<TestExecutive> executive;
+  // The run record tells the next start how this run ended.
+  std::unique_ptr<RunRecorder> run_record;
   if (!sim) {
-    executive = std::make_unique<TestExecutive>(bench, controller_ports, publisher.plan_marks(), url);
+    const std::filesystem::path state_dir = run_record_dir(o);
+    if (state_dir.empty())
+      std::cerr << "inertia-daqd: warning: no --state-dir, $STATE_DIRECTORY or --log DIR: a crash leaves no run record for "
+                   "the next start to report\n";
+    run_record = std::make_unique<RunRecorder>(state_dir.empty() ? state_dir : state_dir / "inertia-daqd.run", bench.name);
+    ExecutiveOptions eo;
+    eo.lcm_url = url;
+    eo.arm_at_start = o.arm;
+    eo.armed_by = "uid " + std::to_string(::getuid()) + " (" + user_name(::getuid()) + "), inertia-daqd --arm";
+    eo.record = run_record.get();
+    executive = std::make_unique<TestExecutive>(bench, controller_ports, publisher.plan_marks(), eo);
     if (!executive->ready(&why)) {
       std::cerr << "inertia-daqd: " << why << "\n";
       return kExitBadInput;
@@ -365,8 +419,10 @@ int run_daemon(const DaemonOptions& command_line) {
         << (bench.simulated ? (o.fast ? " (simulated, fast)" : " (simulated, paced)") : "");
   if (!absent.empty()) ready << " (degraded: " << absent.size() << " optional device" << (absent.size() > 1 ? "s" : "") << " absent)";
   if (executive)
-    ready << (bench.executive == config::Executive::Plan ? "; the test executive runs the plan on the controllers"
-                                                          : "; phases marked by the operator (inertia-daqd mark)");
+    ready << (bench.executive == config::Executive::Plan
+                  ? (o.arm ? "; the test executive runs the plan on the controllers (armed by --arm)"
+                           : "; disarmed: the controllers are held in their safe state until an operator runs inertia-daqd arm")
+                  : "; phases marked by the operator (inertia-daqd mark)");
   sd_notify(0, ready.str().c_str());
   std::cerr << "inertia-daqd: " << ready.str().substr(15) << "; log "
             << (log ? log->current_path() : std::string("off")) << "\n";
@@ -375,7 +431,15 @@ int run_daemon(const DaemonOptions& command_line) {
   std::uint64_t watchdog_usec = 0;
   const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0;
   const std::int64_t watchdog_ns = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
-  std::vector<std::uint64_t> beats(samplers.size(), 0);
+  // The threads whose stall the watchdog and the controllers' heartbeat lease follow: every
+  // real-time sampler (Sampler::watched) and the publisher (the last entry).
+  std::vector<std::uint64_t> beats(samplers.size() + 1, 0), lease_beats(samplers.size() + 1, 0);
+  std::vector<std::int64_t> moved_ns(samplers.size() + 1, hal::monotonic_now_ns());
+  auto beat_of = [&](std::size_t i) {
+    return i < samplers.size() ? samplers[i]->slot().heartbeat.load(std::memory_order_relaxed) : publisher.heartbeat();
+  };
+  auto watched = [&](std::size_t i) { return i == samplers.size() || samplers[i]->watched(); };
+  auto name_of = [&](std::size_t i) { return i < samplers.size() ? "sampling thread of " + samplers[i]->slot().name : std::string("publisher"); };
   std::vector<const DeviceSlot*> watched_slots;
   for (auto& s : samplers) watched_slots.push_back(&s->slot());
   FaultJournal fault_journal(std::move(watched_slots), hal::monotonic_now_ns());
@@ -410,13 +474,24 @@ int run_daemon(const DaemonOptions& command_line) {
       }
     }
     if (sim ? sim->finished() : (o.duration_s > 0 && now - start >= static_cast<std::int64_t>(o.duration_s * 1e9))) break;
+    // The controllers' heartbeats go on while every watched thread moved within a lease.
+    bool healthy = true;
+    for (std::size_t i = 0; i < beats.size(); ++i) {
+      if (!watched(i)) continue;
+      const std::uint64_t b = beat_of(i);
+      if (b != lease_beats[i]) moved_ns[i] = now;
+      lease_beats[i] = b;
+      healthy = healthy && now - moved_ns[i] < kLifeLeaseNs;
+    }
+    if (healthy) life->renew(now + kLifeLeaseNs);
     if (watchdog && now - last_ping >= watchdog_ns) {
       bool alive = true;
-      for (std::size_t i = 0; i < samplers.size(); ++i) {
-        const std::uint64_t b = samplers[i]->slot().heartbeat.load(std::memory_order_relaxed);
+      for (std::size_t i = 0; i < beats.size(); ++i) {
+        if (!watched(i)) continue;
+        const std::uint64_t b = beat_of(i);
         if (b == beats[i]) {
           alive = false;
-          if (!stalled_reported) std::cerr << "inertia-daqd: sampling thread of " << samplers[i]->slot().name << " is not moving; withholding WATCHDOG=1\n";
+          if (!stalled_reported) std::cerr << "inertia-daqd: " << name_of(i) << " is not moving; withholding WATCHDOG=1\n";
           stalled_reported = true;
         }
         beats[i] = b;
@@ -446,7 +521,10 @@ int run_daemon(const DaemonOptions& command_line) {
   // running case is aborted (MARK_ABORT), and nothing is left moving after the daemon.
   if (executive) {
     sd_notify(0, "STATUS=stopping: controllers to their safe state");
-    executive->stop(exit_signal == SIGTERM ? "SIGTERM" : exit_signal == SIGINT ? "SIGINT" : "--duration reached");
+    const std::string reason = exit_signal == SIGTERM ? "SIGTERM" : exit_signal == SIGINT ? "SIGINT" : "--duration reached";
+    executive->stop(reason);
+    if (!run_record->end("stopped (" + reason + "), safe state held", &why))
+      std::cerr << "inertia-daqd: warning: the run record could not be written: " << why << "\n";
   }
   sd_notify(0, "STOPPING=1\nSTATUS=stopping: flushing rings and log");
   fault_journal.finish(hal::monotonic_now_ns());

@@ -5,8 +5,9 @@
 // benches (sim_bench.hpp), the test executive on real ones (test_executive.hpp: the plan on the
 // controllers, or the operator's marks), the publisher (publisher.hpp), the log writer
 // (log_writer.hpp), and the main thread as supervisor: signals (SIGTERM/SIGINT stop, SIGHUP rotates the log),
-// sd_notify READY/STATUS/WATCHDOG/STOPPING. WATCHDOG=1 is sent only when every sampling thread's
-// heartbeat moved since the previous ping, so a hung sampler gets the daemon restarted.
+// sd_notify READY/STATUS/WATCHDOG/STOPPING. WATCHDOG=1 is sent only when every real-time sampling
+// thread's heartbeat and the publisher's moved since the previous ping, so a hung sampler gets the
+// daemon restarted; the same proof renews the controllers' heartbeat lease (life_sign.hpp).
 #include <set>
 #include <string>
 #include <vector>
@@ -32,6 +33,8 @@ struct DaemonOptions {
   int cpu = -1;
   bool mlock = false;
   bool check = false;           // --check: open every device without sampling, print the table, exit
+  bool arm = false;             // --arm: an attended start, the plan armed at once (executive = "plan")
+  std::string state_dir;        // --state-dir: the run record's directory (empty: $STATE_DIRECTORY, else the log's)
   double log_stall_after_s = -1.0;
   int log_stall_ms = 0;
   SimFaults faults;

@@ -15,6 +15,7 @@
 #include <span>
 #include <sstream>
 
+#include "common/config/machine_safety.hpp"
 #include "daq/real_bench.hpp"
 #include "hal/gpiod/line_probe.hpp"
 #include "hal/modbus/modbus_controller.hpp"
@@ -296,7 +297,52 @@ std::vector<CheckRow> check_gpiod_encoder(const config::GpiodEncoder& e) {
   return std::move(rows.rows);
 }
 
-std::vector<CheckRow> check_modbus_device(const config::ModbusDevice& m) {
+namespace {
+
+// The heartbeat the controller's communication-loss action watches: the daemon must be able to
+// write it (a write the controller does not take would leave the bench stopping at every start,
+// or, worse, a watchdog that was never armed), and what the controller needs to stop (its timeout
+// plus its own stop time) must fit the bench's stop distance.
+void check_heartbeat(const config::ModbusDevice& m, std::size_t index, hal::modbus::ModbusController& controller,
+                     const config::BenchConfig* bench, RowMaker& rows) {
+  const config::ModbusRegister& h = m.registers[index];
+  const std::string item = "heartbeat " + h.name;
+  if (!m.writes_enabled) {
+    rows.add(item, CheckStatus::Warn, "writes_enabled = false: the daemon writes no heartbeat (and commands nothing)", h.where);
+    return;
+  }
+  const hal::modbus::RegisterSpec& spec = controller.config().map.registers[index];
+  std::uint16_t words[2] = {0, 0};
+  const int n = hal::modbus::word_count(spec.type);
+  double next = h.min;
+  if (controller.link().read_registers(spec.kind, spec.address, std::span<std::uint16_t>(words, static_cast<std::size_t>(n))) == n) {
+    const double held = hal::modbus::decode(spec, words);
+    next = std::isfinite(held) && held + std::abs(h.scale) <= h.max ? held + std::abs(h.scale) : h.min;
+  }
+  const hal::modbus::WriteResult w = controller.write(index, next, hal::modbus::Ramp::Immediate);
+  if (w.status != hal::modbus::WriteStatus::Written) {
+    rows.add(item, CheckStatus::Fail, std::string("writing ") + number(next) + ": " + hal::modbus::to_string(w.status), h.where,
+             "the daemon must be able to write the heartbeat register: check its address and type against the "
+             "controller's register table, and that the controller accepts writes from this PC");
+    return;
+  }
+  const double stop_s = h.heartbeat_timeout_s + h.heartbeat_stop_s;
+  std::string detail = "written " + number(w.written) + " and read back; the controller stops " + number(h.heartbeat_timeout_s) +
+                       " s after the daemon's last heartbeat and is at rest " + number(stop_s) + " s after it";
+  if (bench == nullptr || !bench->stop_within_s) {
+    rows.add(item, CheckStatus::Warn, detail + "; the bench gives no stop_within_s to hold that against", h.where,
+             "set [bench] stop_within_s: the longest the bench's machinery may go on after the daemon dies");
+  } else if (stop_s > *bench->stop_within_s) {
+    rows.add(item, CheckStatus::Fail, detail + ", more than the bench's stop_within_s = " + number(*bench->stop_within_s) + " s", h.where,
+             "shorten the controller's communication-loss timeout (and timeout_s here), or its stop time");
+  } else {
+    rows.add(item, CheckStatus::Ok, detail + ", within the bench's stop_within_s = " + number(*bench->stop_within_s) + " s", h.where);
+  }
+}
+
+}  // namespace
+
+std::vector<CheckRow> check_modbus_device(const config::ModbusDevice& m, const config::BenchConfig* bench) {
   const bool rtu = m.transport == config::ModbusTransport::Rtu;
   RowMaker rows{m.name, rtu ? "Modbus RTU" : "Modbus TCP", m.availability.optional, {}};
   if (rtu && check_serial_port(m, rows)) return std::move(rows.rows);
@@ -340,6 +386,7 @@ std::vector<CheckRow> check_modbus_device(const config::ModbusDevice& m) {
       rows.add(reg_item, CheckStatus::Ok, shown, r.where);
     }
   }
+  if (const auto h = config::heartbeat_register(m)) check_heartbeat(m, *h, *controller, bench, rows);
   return std::move(rows.rows);
 }
 
@@ -348,7 +395,7 @@ std::vector<CheckRow> check_bench(const config::BenchConfig& bench) {
   auto append = [&rows](std::vector<CheckRow> more) { rows.insert(rows.end(), more.begin(), more.end()); };
   for (const auto& d : bench.can_devices) append(check_can_device(d));
   for (const auto& e : bench.gpiod_encoders) append(check_gpiod_encoder(e));
-  for (const auto& m : bench.modbus_devices) append(check_modbus_device(m));
+  for (const auto& m : bench.modbus_devices) append(check_modbus_device(m, &bench));
   return rows;
 }
 

@@ -36,7 +36,8 @@ struct CheckRow {
 
 std::vector<CheckRow> check_can_device(const config::CanDevice& device);
 std::vector<CheckRow> check_gpiod_encoder(const config::GpiodEncoder& encoder);
-std::vector<CheckRow> check_modbus_device(const config::ModbusDevice& device);
+/// With `bench` (the bench it belongs to), also the heartbeat against the bench's stop_within_s.
+std::vector<CheckRow> check_modbus_device(const config::ModbusDevice& device, const config::BenchConfig* bench = nullptr);
 /// Every device of the bench, in file order by kind (CAN, GPIO, Modbus).
 std::vector<CheckRow> check_bench(const config::BenchConfig& bench);
 

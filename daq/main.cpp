@@ -1,5 +1,5 @@
 // inertia-daqd --config FILE [--duration S] [--log DIR] [options]: see daemon.hpp.
-// inertia-daqd mark ...: the operator's phase marks to a running daemon (operator_mark.hpp).
+// inertia-daqd mark ... / arm ...: the operator's marks, stop and arm to a running daemon (operator_mark.hpp).
 #include <iostream>
 #include <string>
 #include <vector>
@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
   try {
     if (!args.empty() && args[0] == "mark") return inertia::daq::run_mark({args.begin() + 1, args.end()});
+    if (!args.empty() && args[0] == "arm") return inertia::daq::run_arm({args.begin() + 1, args.end()});
     bool help = false;
     const auto options = inertia::daq::parse_options(args, &help);
     if (help) {

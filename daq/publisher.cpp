@@ -437,6 +437,7 @@ void Publisher::run(RealtimeOptions rt) noexcept {
       send(std::string(channels::kBench), options_.bench_message.data(), options_.bench_message.size());
       last_bench = now;
     }
+    heartbeat_.fetch_add(1, std::memory_order_relaxed);
     if (stopping && n == 0) break;
     // Until a sampling thread has pushed samples; at most 1 ms (status, silence, markers).
     if (n == 0) (void)doorbell_->wait(1);

@@ -81,6 +81,8 @@ class Publisher {
   [[nodiscard]] SpscRing<PlanMark>& plan_marks() noexcept { return marks_; }
 
   [[nodiscard]] std::uint64_t messages() const noexcept { return messages_.load(std::memory_order_relaxed); }
+  /// +1 per loop turn (at least every 1 ms while it runs): the supervisor's proof of its life.
+  [[nodiscard]] std::uint64_t heartbeat() const noexcept { return heartbeat_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t publish_failures() const noexcept { return failures_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::int32_t block_samples(std::size_t device) const { return packers_.at(device).block_len; }
   /// After stop(): a line per device timed by its own clock (clock_fit.hpp): its drift, the
@@ -143,6 +145,7 @@ class Publisher {
   std::atomic<bool> stop_{false};
   std::atomic<bool> realtime_refused_{false};   // its SCHED_FIFO / CPU pin was refused
   std::atomic<std::uint64_t> messages_{0}, failures_{0};
+  std::atomic<std::uint64_t> heartbeat_{0};
   std::int64_t start_ns_ = 0;
 };
 

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "common/config/machine_safety.hpp"
 #include "daq/device_check.hpp"
 
 namespace inertia::daq {
@@ -104,7 +105,8 @@ std::string diagnose(const std::vector<CheckRow>& rows, const std::string& fallb
 
 }  // namespace
 
-RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_capacity, std::string* why) {
+RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_capacity, std::shared_ptr<const LifeSign> life,
+                          std::string* why) {
   RealBench out;
   // Channel ids stay those of the full bench when an optional device is left out.
   std::int32_t next_id = 1;
@@ -175,7 +177,13 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     std::vector<ControllerPort::SafeValue> safe;
     for (std::size_t r = 0; r < m.registers.size(); ++r)
       if (m.writes_enabled && m.registers[r].safe) safe.push_back({r, *m.registers[r].safe});
-    auto port = std::make_shared<ControllerPort>(m.name, std::move(safe));
+    std::optional<ControllerPort::Heartbeat> heartbeat;
+    if (const auto h = config::heartbeat_register(m); h && m.writes_enabled) {
+      const config::ModbusRegister& reg = m.registers[*h];
+      heartbeat = ControllerPort::Heartbeat{*h, seconds_to_ns(reg.heartbeat_period_s), reg.min, reg.max, std::abs(reg.scale),
+                                            seconds_to_ns(reg.heartbeat_timeout_s)};
+    }
+    auto port = std::make_shared<ControllerPort>(m.name, std::move(safe), heartbeat, life);
     out.ports[m.name] = port;
     out.samplers.push_back(std::make_unique<ModbusSampler>(std::move(controller), m.poll_interval_ms, slot, port));
   }

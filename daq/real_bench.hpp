@@ -11,6 +11,7 @@
 
 #include "common/config/bench_config.hpp"
 #include "daq/controller_port.hpp"
+#include "daq/life_sign.hpp"
 #include "daq/sampler.hpp"
 #include "hal/gpiod/encoder_device.hpp"
 #include "hal/modbus/modbus_link.hpp"
@@ -33,8 +34,10 @@ struct RealBench {
 };
 
 /// The opened bench, or empty samplers + why naming the required device that failed (or that
-/// there are no devices at all). Control thread.
-RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_capacity, std::string* why);
+/// there are no devices at all). `life`: the daemon's proof of life, which each controller's
+/// heartbeat follows. Control thread.
+RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_capacity, std::shared_ptr<const LifeSign> life,
+                          std::string* why);
 
 // The bench file's device tables in the HAL's terms (also used by device_check.cpp).
 hal::socketcan::CanDeviceConfig to_hal(const config::CanDevice& device);

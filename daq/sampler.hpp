@@ -39,6 +39,10 @@ class Sampler {
   /// Asks the loop to finish: it drains what is pending (read_into until 0), then leaves. Joins.
   virtual void stop() = 0;
   [[nodiscard]] virtual DeviceSlot& slot() noexcept = 0;
+  /// Whether the systemd watchdog follows this sampler's heartbeat: the real-time samplers, whose
+  /// stall loses samples. A Modbus poller blocks up to its response timeout by design; its stall
+  /// is the device's fault (`silent`), not a reason to restart the daemon.
+  [[nodiscard]] virtual bool watched() const noexcept { return true; }
 };
 
 /// CAN bus or encoder: an event-driven device with descriptors to poll.
@@ -100,6 +104,7 @@ class ModbusSampler final : public Sampler {
                 std::shared_ptr<DeviceSlot> slot, std::shared_ptr<ControllerPort> port = nullptr,
                 std::shared_ptr<SimulatedClock> clock = nullptr);
   ~ModbusSampler() override { stop(); }
+  [[nodiscard]] bool watched() const noexcept override { return false; }
   bool bring_up(std::string* why) override;
   void start(const RealtimeOptions& rt) override;
   void stop() override;

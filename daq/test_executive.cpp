@@ -58,13 +58,13 @@ std::optional<std::size_t> find_phase(const config::TestCase& c, const std::stri
 }  // namespace
 
 TestExecutive::TestExecutive(const config::BenchConfig& bench, std::map<std::string, std::shared_ptr<ControllerPort>> ports,
-                             SpscRing<PlanMark>& marks, std::string lcm_url)
-    : bench_(bench), ports_(std::move(ports)), marks_(marks), lcm_url_(std::move(lcm_url)) {
+                             SpscRing<PlanMark>& marks, ExecutiveOptions options)
+    : bench_(bench), ports_(std::move(ports)), marks_(marks), options_(std::move(options)) {
   for (const config::ModbusDevice& device : bench_.modbus_devices) {
     const auto port = ports_.find(device.name);
     for (std::size_t r = 0; r < device.registers.size(); ++r) {
       const config::ModbusRegister& reg = device.registers[r];
-      if (reg.role == RegisterRole::None) continue;
+      if (reg.role == RegisterRole::None || reg.role == RegisterRole::Heartbeat) continue;
       Binding b{&device, &reg, r, port == ports_.end() ? nullptr : port->second};
       if (reg.role == RegisterRole::Fault) {
         if (b.port) faults_.push_back(b);
@@ -112,59 +112,101 @@ void TestExecutive::stop(const std::string& reason) {
 
 void TestExecutive::run() noexcept {
   ::pthread_setname_np(::pthread_self(), "executive");
-  lcm_ = std::make_unique<lcm::LCM>(lcm_url_);
+  // Whatever started the daemon, the bench starts at rest: the safe state is held from here until
+  // an operator arms the plan.
+  hold_safe_state();
+  record("disarmed, safe state held");
+  lcm_ = std::make_unique<lcm::LCM>(options_.lcm_url);
   if (lcm_->good()) {
     lcm_->subscribe(std::string(channels::kCommand), &TestExecutive::on_command, this);
   } else {
-    journal_plan({"refused", "plan: LCM did not start on '" + lcm_url_ + "': operator commands (inertia-daqd mark) are not heard", 4});
+    journal_plan({"refused", "plan: LCM did not start on '" + options_.lcm_url + "': operator commands (inertia-daqd mark) are not heard", 4});
   }
   try {
-    if (bench_.executive == config::Executive::Plan) {
-      try {
-        run_plan();
-        plan_finished_.store(true, std::memory_order_release);
-        int priority = 6;
-        const std::string account = apply_safe_state(hal::monotonic_now_ns(), &priority);
-        journal_plan({"plan-end", "plan: finished: every case ran; " + account, priority});
-      } catch (const Aborted& a) {
-        abort(a.reason, a.t_ns);
-      }
+    report_start(wait_for_first_polls());
+    if (options_.arm_at_start) {
+      // An attended start arms once the safe state the daemon starts in is accounted for.
+      while (account_) pump(false);
+      const auto [ok, detail] = operator_arm(options_.armed_by);
+      journal_plan({ok ? "arm" : "refused", "plan: " + std::string(ok ? "" : "not armed: ") + detail, ok ? 5 : 4});
     }
-    // Then (and in operator mode throughout): operator commands until the daemon stops.
     while (!stop_.load(std::memory_order_acquire)) {
       try {
         pump(false);
+        if (arm_pending_) {
+          arm_pending_ = false;
+          for (const auto& [name, port] : ports_) lapses_at_start_[name] = port->heartbeat().lapses;
+          run_plan();
+          plan_finished_.store(true, std::memory_order_release);
+          hold_safe_state();
+          armed_.store(false, std::memory_order_release);
+          record("disarmed after the plan's end, safe state held");
+          account_safe_state("plan: finished: every case ran; disarmed", std::string(), 6, hal::monotonic_now_ns(), std::nullopt);
+        }
       } catch (const Aborted& a) {
         abort(a.reason, a.t_ns);
       }
     }
+  } catch (const Aborted& a) {
+    abort(a.reason, a.t_ns);
   } catch (const std::exception& e) {
     abort(std::string("error in the test executive: ") + e.what(), hal::monotonic_now_ns());
   }
+  close_safe_state_account(true);
   lcm_.reset();
 }
 
-void TestExecutive::wait_for_first_polls() {
-  // Settling and faults are judged on polls: every controller the plan uses answers first.
+std::vector<std::string> TestExecutive::wait_for_first_polls() {
+  // Settling, faults and the start's report are judged on polls: every controller answers first.
   std::set<ControllerPort*> needed;
-  for (const auto& [role, b] : bindings_) needed.insert(b.port.get());
-  for (const Binding& b : faults_) needed.insert(b.port.get());
-  needed.erase(nullptr);
+  for (const auto& [name, port] : ports_) needed.insert(port.get());
   const std::int64_t deadline = hal::monotonic_now_ns() + 10 * kNsPerS;
   for (;;) {
-    bool all = true;
-    for (ControllerPort* p : needed) all = all && p->latest().last_valid_ns > 0;
-    if (all) return;
-    if (hal::monotonic_now_ns() > deadline) {
-      for (ControllerPort* p : needed)
-        if (p->latest().last_valid_ns == 0) throw Aborted{"device '" + p->device() + "' gave no valid reading in 10 s", hal::monotonic_now_ns()};
-    }
+    std::vector<std::string> silent;
+    for (ControllerPort* p : needed)
+      if (p->latest().last_valid_ns == 0) silent.push_back(p->device());
+    if (silent.empty() || hal::monotonic_now_ns() > deadline) return silent;
     pump(false);
   }
 }
 
+void TestExecutive::report_start(const std::vector<std::string>& silent) {
+  const RunRecorder* recorder = options_.record;
+  if (recorder != nullptr && !recorder->previous_error().empty()) {
+    journal_plan({"start", "plan: the previous run's record is unreadable (" + recorder->previous_error() + ")", 4});
+  } else if (recorder != nullptr && recorder->previous()) {
+    const RunRecord& r = *recorder->previous();
+    const std::string run = "the previous run (pid " + std::to_string(r.pid) + ", bench " + r.bench + ", started " + r.started + ")";
+    if (r.ended)
+      journal_plan({"start", "plan: " + run + " ended at " + r.updated + ": " + r.activity, 6});
+    else
+      journal_plan({"start", "plan: " + run + " did not end: it was killed or crashed after " + r.updated + ", when it was " +
+                                 (r.armed ? "ARMED: " : "disarmed: ") + r.activity + "; this run starts disarmed", r.armed ? 3 : 4});
+  }
+  // What the controllers report now: every reading a command role is judged by.
+  std::ostringstream found;
+  for (const auto& [role, b] : bindings_) {
+    if (!b.port) continue;
+    const ControllerPort::Poll poll = b.port->latest();
+    for (const std::string& name : {b.reg->measured, b.reg->settled_by}) {
+      const auto r = name.empty() ? std::nullopt : config::find_register(*b.device, name);
+      if (!r || *r >= poll.valid.size()) continue;
+      found << (found.tellp() > 0 ? ", " : "") << b.device->name << "." << name << " = ";
+      if (!poll.valid[*r]) found << "no valid reading";
+      else if (name == b.reg->settled_by) found << "0x" << std::hex << bits_of(poll.values[*r]) << std::dec;
+      else found << value_text(b, poll.values[*r]);
+    }
+  }
+  std::string text = "plan: started disarmed";
+  if (found.tellp() > 0) text += "; found " + found.str();
+  for (const std::string& d : silent) text += "; device '" + d + "' gave no valid reading in 10 s";
+  text += bench_.executive == config::Executive::Plan ? "; the plan waits for an operator's arm (inertia-daqd arm)"
+                                                      : "; phases are marked by the operator (inertia-daqd mark)";
+  journal_plan({"start", text, silent.empty() ? 6 : 4});
+  account_safe_state("plan: daemon start", std::string(), 6, hal::monotonic_now_ns(), std::nullopt);
+}
+
 void TestExecutive::run_plan() {
-  wait_for_first_polls();
   journal_plan({"plan-start", "plan: running the plan of bench " + bench_.name + " (" + std::to_string(bench_.cases.size()) +
                                   " cases) on its controllers (executive = \"plan\")"});
   for (std::size_t c = 0; c < bench_.cases.size(); ++c) {
@@ -175,6 +217,7 @@ void TestExecutive::run_plan() {
       const std::int64_t commanded = hal::monotonic_now_ns();
       if (open_->phase) end_phase(commanded);
       std::int64_t start = commanded;
+      record("case " + tc.name + ", phase " + std::to_string(p) + " (" + config::to_string(tc.phases[p].kind) + ") commanded");
       try {
         for (const config::PhaseCommand& command : config::phase_commands(tc, p))
           if (bindings_.count(command.role) != 0) start = std::max(start, execute(command, c, p, commanded));
@@ -309,6 +352,8 @@ void TestExecutive::pump(bool plan_running) {
   std::vector<plan_command_t> inbox;
   inbox.swap(inbox_);
   for (const plan_command_t& c : inbox) handle(c);
+  watch_safe_state();
+  close_safe_state_account(false);
   if (stop_.load(std::memory_order_acquire)) {
     std::lock_guard lock(stop_mutex_);
     throw Aborted{stop_reason_, stop_ns_};
@@ -316,7 +361,31 @@ void TestExecutive::pump(bool plan_running) {
   if (stop_request_) throw Aborted{"operator stop by " + stop_request_->sender, hal::monotonic_now_ns()};
   if (plan_running) {
     if (auto fault = controller_fault()) throw Aborted{*fault, hal::monotonic_now_ns()};
+    if (auto fault = heartbeat_fault()) throw Aborted{*fault, hal::monotonic_now_ns()};
   }
+}
+
+std::optional<std::string> TestExecutive::heartbeat_fault() const {
+  const std::int64_t now = hal::monotonic_now_ns();
+  for (const auto& [name, port] : ports_) {
+    const ControllerPort::HeartbeatState h = port->heartbeat();
+    if (!h.present) continue;
+    const auto at_start = lapses_at_start_.find(name);
+    const double timeout_s = static_cast<double>(h.timeout_ns) * 1e-9;
+    std::ostringstream s;
+    if (at_start != lapses_at_start_.end() && h.lapses > at_start->second) {
+      s << "device fault: the heartbeat to controller " << name << " lapsed for " << std::setprecision(3) << h.last_lapse_s
+        << " s, more than its timeout_s = " << timeout_s << " s: the controller has stopped its machine";
+      return s.str();
+    }
+    if (h.last_written_ns != 0 && now - h.last_written_ns > h.timeout_ns) {
+      s << "device fault: no heartbeat reached controller " << name << " for " << std::setprecision(3)
+        << static_cast<double>(now - h.last_written_ns) * 1e-9 << " s, more than its timeout_s = " << timeout_s
+        << " s: the controller has stopped its machine" << (h.last_failure.empty() ? "" : " (last write: " + h.last_failure + ")");
+      return s.str();
+    }
+  }
+  return std::nullopt;
 }
 
 std::optional<std::string> TestExecutive::controller_fault() const {
@@ -333,6 +402,7 @@ std::optional<std::string> TestExecutive::controller_fault() const {
   }
   const std::int64_t now = hal::monotonic_now_ns();
   for (const auto& [role, b] : bindings_) {
+    if (!b.port) continue;
     const ControllerPort::Poll poll = b.port->latest();
     // Silent: no valid answer for three polls and two response timeouts (one slow request is not a fault).
     const std::int64_t silent_ns = 3 * static_cast<std::int64_t>(b.device->poll_interval_ms) * 1'000'000 +
@@ -344,75 +414,153 @@ std::optional<std::string> TestExecutive::controller_fault() const {
   return std::nullopt;
 }
 
+std::optional<std::string> TestExecutive::arm_refusal() const {
+  if (bench_.executive != config::Executive::Plan)
+    return "bench " + bench_.name + " is moved by its operator (executive = \"operator\"): the daemon commands no motion, "
+           "so there is nothing to arm; mark its phases with inertia-daqd mark";
+  if (armed()) return std::string("already armed: the plan is running") + (open_ ? " (case " + bench_.cases[open_->index].name + ")" : "");
+  if (auto fault = controller_fault()) return *fault;
+  for (const auto& [name, port] : ports_) {
+    const ControllerPort::SafeState st = port->safe_state();
+    if (port->has_safe_state() && !st.confirmed) {
+      std::string failures;
+      for (const std::string& f : st.failures) failures += (failures.empty() ? "" : "; ") + f;
+      return "device '" + name + "' has not confirmed its safe state" + (failures.empty() ? std::string() : " (" + failures + ")") +
+             ": where it is, is not known";
+    }
+  }
+  return std::nullopt;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Abort and safe state
 
-std::string TestExecutive::apply_safe_state(std::int64_t since_ns, int* priority) {
-  std::vector<ControllerPort*> ports;
+void TestExecutive::hold_safe_state() {
   for (auto& [name, port] : ports_)
-    if (port->has_safe_state()) {
-      port->request_safe_state();
-      ports.push_back(port.get());
-    }
-  if (ports.empty()) return "no controller has a safe state the daemon can write (no `safe` register on a device with writes enabled)";
-  // Each device's thread writes at once; one with a dead link gives up after its response timeouts.
+    if (port->has_safe_state()) port->hold_safe_state();
+}
+
+void TestExecutive::account_safe_state(std::string headline, std::string case_name, int priority, std::int64_t since_ns,
+                                       std::optional<plan_command_t> stop_request) {
+  // A new account replaces one still open (a stop during a plan's end): its operator hears the new one.
+  if (account_ && account_->stop_request && !stop_request) stop_request = account_->stop_request;
   double longest_s = 0.0;
   for (const auto& d : bench_.modbus_devices) longest_s = std::max(longest_s, d.response_timeout_s);
-  const std::int64_t deadline = hal::monotonic_now_ns() + seconds_ns(4 * longest_s + 1.0);
+  // Each device's thread writes at once; one with a dead link gives up a round after its response
+  // timeouts (and goes on trying, which the watch reports).
+  account_ = SafeStateAccount{std::move(headline), std::move(case_name), since_ns,
+                              hal::monotonic_now_ns() + seconds_ns(4 * longest_s + 1.0), priority, std::move(stop_request)};
+}
+
+void TestExecutive::close_safe_state_account(bool final) {
+  if (!account_) return;
   for (;;) {
     bool all = true;
-    for (ControllerPort* p : ports) all = all && p->safe_state().done;
-    if (all || hal::monotonic_now_ns() > deadline) break;
+    for (const auto& [name, port] : ports_) all = all && (!port->has_safe_state() || port->safe_state().confirmed);
+    if (all || hal::monotonic_now_ns() > account_->deadline_ns) break;
+    if (!final) return;
     timespec ts{0, 200'000};
     ::nanosleep(&ts, nullptr);
   }
-  std::ostringstream s;
-  std::int64_t last = since_ns;
-  bool complete = true;
+  std::int64_t last = account_->since_ns;
+  bool complete = true, any = false;
   std::ostringstream parts;
-  for (ControllerPort* p : ports) {
-    const ControllerPort::SafeState st = p->safe_state();
-    parts << "; " << p->device() << ": ";
-    if (!st.done) {
-      parts << "NO ANSWER";
+  for (const auto& [name, port] : ports_) {
+    if (!port->has_safe_state()) continue;
+    any = true;
+    const ControllerPort::SafeState st = port->safe_state();
+    parts << "; " << name << ": ";
+    if (st.confirmed) {
+      last = std::max(last, st.confirmed_ns);
+      for (std::size_t i = 0; i < st.written.size(); ++i) parts << (i ? ", " : "") << st.written[i];
+    } else {
       complete = false;
-      continue;
+      parts << "NOT CONFIRMED";
+      for (const std::string& f : st.failures) parts << ", " << f;
+      if (st.failures.empty()) parts << ", no answer yet";
     }
-    last = std::max(last, st.done_ns);
-    for (std::size_t i = 0; i < st.written.size(); ++i) parts << (i ? ", " : "") << st.written[i];
-    for (std::size_t i = 0; i < st.failures.size(); ++i) parts << (i || !st.written.empty() ? ", " : "") << "FAILED " << st.failures[i];
-    complete = complete && st.failures.empty();
   }
-  if (complete) {
-    s << "controllers in their safe state " << ms_text(last - since_ns) << " after it" << parts.str();
+  std::string account;
+  int priority = account_->priority;
+  if (!any) {
+    account = "no controller has a safe state the daemon can write (no `safe` register on a device with writes enabled)";
+  } else if (complete) {
+    account = "controllers in their safe state " + ms_text(last - account_->since_ns) + " after it" + parts.str();
   } else {
-    s << "SAFE STATE NOT CONFIRMED on every controller (check the bench by hand)" << parts.str();
-    *priority = 3;
+    account = "SAFE STATE NOT CONFIRMED on every controller (the daemon goes on trying; check the bench by hand)" + parts.str();
+    priority = 3;
   }
-  return s.str();
+  journal_plan({"safe-state", account_->headline + ": " + account, priority, account_->case_name});
+  if (account_->stop_request)
+    reply(*account_->stop_request, complete ? plan_command_t::STATUS_DONE : plan_command_t::STATUS_REFUSED, account);
+  account_.reset();
+}
+
+void TestExecutive::watch_safe_state() {
+  const std::int64_t now = hal::monotonic_now_ns();
+  std::vector<std::string> faults;
+  for (const auto& [name, port] : ports_) {
+    if (!port->has_safe_state()) continue;
+    const ControllerPort::SafeState st = port->safe_state();
+    UnconfirmedWatch& w = unconfirmed_[name];
+    const bool unconfirmed = st.held && !st.confirmed && !st.failures.empty();
+    if (unconfirmed) {
+      faults.push_back("safe-state-unconfirmed:" + name);
+      if (!w.raised || now - w.journalled_ns >= seconds_ns(kUnconfirmedRepeatS)) {
+        std::string failures;
+        for (const std::string& f : st.failures) failures += (failures.empty() ? "" : "; ") + f;
+        journal_plan({"safe-state", std::string("plan: SAFE STATE NOT CONFIRMED on device '") + name + "'" +
+                                        (w.raised ? " (still, " + s_text(now - st.held_ns) + " after it was commanded)" : "") + ": " +
+                                        failures + "; retrying every " + s_text(seconds_ns(ControllerPort::kSafeRetryS)),
+                      3, std::string(), std::string(), name});
+        w.journalled_ns = now;
+      }
+      w.raised = true;
+    } else if (w.raised && st.confirmed) {
+      journal_plan({"safe-state", "plan: safe state confirmed on device '" + name + "' " + s_text(st.confirmed_ns - st.held_ns) +
+                                      " after it was commanded (" + std::to_string(st.attempts) + " attempts)",
+                    5, std::string(), std::string(), name});
+      w.raised = false;
+    }
+  }
+  std::lock_guard lock(faults_mutex_);
+  faults_now_ = std::move(faults);
+}
+
+std::vector<std::string> TestExecutive::faults() const {
+  std::lock_guard lock(faults_mutex_);
+  return faults_now_;
 }
 
 void TestExecutive::abort(const std::string& reason, std::int64_t t_ns) {
+  // An operator stop commanded the safe state when it arrived; everything else does it here.
+  if (!stop_request_) hold_safe_state();
+  const bool was_armed = armed_.exchange(false, std::memory_order_acq_rel);
+  arm_pending_ = false;
   int priority = open_ ? 4 : 6;
-  const bool any_safe = std::any_of(ports_.begin(), ports_.end(), [](const auto& p) { return p.second->has_safe_state(); });
-  const std::string account = apply_safe_state(t_ns, &priority);
   std::string where = "no case was running";
+  std::string case_name;
   if (open_) {
     const config::TestCase& tc = bench_.cases[open_->index];
+    case_name = tc.name;
     where = open_->phase ? phase_text(open_->index, *open_->phase) : "case " + tc.name;
     mark(plan_event_t::MARK_ABORT, open_->index, open_->phase ? static_cast<std::int32_t>(*open_->phase) : -1, t_ns,
          open_->start_ns, t_ns);
-    journal_plan({"abort", "plan: abort (" + reason + ") during " + where + ": " + account, priority, tc.name});
-  } else if (any_safe || stop_request_) {
-    // Nothing was cut short: the daemon stopping after the plan, or a stop between cases.
-    journal_plan({"safe-state", "plan: " + reason + ", " + where + ": " + account, priority});
   }
+  record("disarmed by an abort (" + reason + ") during " + where + ", safe state held");
+  account_safe_state((open_ ? "plan: abort (" + reason + ") during " + where : "plan: " + reason + ", " + where) +
+                         (was_armed ? "; disarmed" : ""),
+                     case_name, priority, t_ns, stop_request_);
   open_.reset();
   holds_.clear();
-  if (stop_request_) {
-    reply(*stop_request_, true, "stopped (" + where + "): " + account);
-    stop_request_.reset();
-  }
+  stop_request_.reset();
+}
+
+void TestExecutive::record(const std::string& activity) {
+  if (options_.record == nullptr) return;
+  std::string why;
+  if (!options_.record->update(armed(), activity, &why))
+    journal_plan({"refused", "plan: the run record could not be written (" + why + "): a crash now leaves no account", 4});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -465,25 +613,49 @@ void TestExecutive::handle(const plan_command_t& command) {
     if (lcm_ && lcm_->good()) lcm_->publish(std::string(channels::kCommandReply), &seen->second);
     return;
   }
-  if (stop_request_ && stop_request_->sender == command.sender && stop_request_->id == command.id) return;
   switch (command.command) {
-    case plan_command_t::COMMAND_STOP:
-      // Carried out by pump() through the abort path (the plan may be in the middle of a phase).
+    case plan_command_t::COMMAND_STOP: {
+      // Every controller is commanded now, before anything else; the abort (the plan may be in
+      // the middle of a phase) and the confirmation follow, the latter as a second answer.
+      const std::int64_t t0 = hal::monotonic_now_ns();
+      hold_safe_state();
       journal_plan({"operator-mark", "plan: operator stop requested by " + command.sender, 4});
+      reply(command, plan_command_t::STATUS_ACCEPTED,
+            "stop received: every controller commanded to its safe state " + ms_text(hal::monotonic_now_ns() - t0) +
+                " after; its confirmation follows");
       stop_request_ = command;
       return;
+    }
     case plan_command_t::COMMAND_MARK: {
       const auto [ok, detail] = operator_mark(command);
-      reply(command, ok, detail);
+      reply(command, ok ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED, detail);
       return;
     }
     case plan_command_t::COMMAND_END_CASE: {
       const auto [ok, detail] = operator_end_case();
-      reply(command, ok, detail);
+      reply(command, ok ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED, detail);
       return;
     }
-    default: reply(command, false, "unknown command " + std::to_string(command.command));
+    case plan_command_t::COMMAND_ARM: {
+      const auto [ok, detail] = operator_arm(command.sender);
+      reply(command, ok ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED, detail);
+      return;
+    }
+    default: reply(command, plan_command_t::STATUS_REFUSED, "unknown command " + std::to_string(command.command));
   }
+}
+
+std::pair<bool, std::string> TestExecutive::operator_arm(const std::string& who) {
+  if (const auto refusal = arm_refusal()) return {false, "arm refused: " + *refusal};
+  for (auto& [name, port] : ports_) port->release_safe_state();
+  armed_.store(true, std::memory_order_release);
+  arm_pending_ = true;
+  holds_.clear();
+  record("armed by " + who + ": the plan starts");
+  const std::string detail = "armed by " + who + ": the plan of bench " + bench_.name + " starts now (" +
+                             std::to_string(bench_.cases.size()) + " cases); inertia-daqd mark --stop stops it";
+  journal_plan({"arm", "plan: " + detail, 5});
+  return {true, detail};
 }
 
 std::pair<bool, std::string> TestExecutive::operator_mark(const plan_command_t& command) {
@@ -541,14 +713,15 @@ std::pair<bool, std::string> TestExecutive::operator_end_case() {
   return {true, "case " + name + " ended"};
 }
 
-void TestExecutive::reply(const plan_command_t& request, bool accepted, const std::string& detail) {
+void TestExecutive::reply(const plan_command_t& request, std::int8_t status, const std::string& detail) {
   plan_command_t answer = request;
-  answer.status = accepted ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED;
+  answer.status = status;
   answer.detail = detail;
   timespec now{};
   ::clock_gettime(CLOCK_REALTIME, &now);
   answer.utime = static_cast<std::int64_t>(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
-  if (!accepted) journal_plan({"refused", "plan: refused " + request.sender + "'s request: " + detail, 4, request.case_name});
+  if (status == plan_command_t::STATUS_REFUSED)
+    journal_plan({"refused", "plan: refused " + request.sender + "'s request: " + detail, 4, request.case_name});
   answered_[std::make_pair(request.sender, request.id)] = answer;
   if (lcm_ && lcm_->good()) lcm_->publish(std::string(channels::kCommandReply), &answer);
 }

@@ -12,6 +12,7 @@
 
 #include "common/config/controller_plan.hpp"
 #include "common/config/link_capacity.hpp"
+#include "common/config/machine_safety.hpp"
 #include "common/config/register_role.hpp"
 #include "common/config/toml_reader.hpp"
 #include "common/units.hpp"
@@ -209,6 +210,10 @@ DaemonSettings read_daemon(const TableReader& t) {
     if (d.log_dir->empty()) t.fail_key("log_dir", "must not be empty (leave the key out for no log)");
   }
   if (t.has("lcm_url")) d.lcm_url = t.string("lcm_url");
+  if (t.has("state_dir")) {
+    d.state_dir = t.string("state_dir");
+    if (d.state_dir->empty()) t.fail_key("state_dir", "must not be empty (leave the key out for the default)");
+  }
   if (t.has("block_ms")) {
     d.block_ms = t.positive("block_ms");
     if (*d.block_ms > DaemonLimits::kMaxBlockMs) t.fail_key("block_ms", "must be at most " + std::to_string(static_cast<int>(DaemonLimits::kMaxBlockMs)) + " ms");
@@ -315,6 +320,7 @@ ModbusDevice read_modbus_device(const TableReader& t) {
     d.registers.push_back(std::move(reg));
   }
   check_register_references(registers, d);
+  check_machine_safety(t, registers, d);
   t.finish();
   return d;
 }
@@ -497,6 +503,11 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
     if (cfg.simulated) bench.fail_key("executive", "is for real benches: a simulated bench runs its plan in the simulator");
     cfg.executive = bench.choice("executive", {"operator", "plan"}) == 0 ? Executive::Operator : Executive::Plan;
   }
+  if (bench.has("stop_within_s")) {
+    if (cfg.simulated) bench.fail_key("stop_within_s", "is for real benches: a simulated bench commands no machinery");
+    cfg.stop_within_s = bench.positive("stop_within_s");
+    cfg.stop_within_at = bench.where("stop_within_s");
+  }
   cfg.sample_rate_hz = bench.positive("sample_rate_hz");
   cfg.t_ref_c = bench.number_in("t_ref_c", cfg.t_ref_c, -100.0, 200.0);
   cfg.seed = read_seed(bench, "seed", cfg.seed);
@@ -617,6 +628,7 @@ const char* to_string(RegisterRole role) {
     case RegisterRole::ShakerProfile: return "shaker_profile";
     case RegisterRole::ThermalSetpoint: return "thermal_setpoint";
     case RegisterRole::Fault: return "fault";
+    case RegisterRole::Heartbeat: return "heartbeat";
   }
   return "?";
 }

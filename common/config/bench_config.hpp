@@ -187,10 +187,12 @@ enum class RegisterKind { Holding, Input };
 enum class RegisterType { U16, I16, U32, I32, F32 };
 enum class WordOrder { ABCD, CDAB, BADC, DCBA };
 
-/// What the test executive (daq/test_executive.hpp, issue 13) does with a register. None: a
-/// reading only. The command roles are setpoints the plan's phases write (config/controller_plan.hpp
-/// says which phase writes what); Fault is a status word whose set bits abort the plan.
-enum class RegisterRole { None, TableRate, TableAngle, ShakerRun, ShakerProfile, ThermalSetpoint, Fault };
+/// What the test executive (daq/test_executive.hpp) does with a register. None: a reading only.
+/// The command roles are setpoints the plan's phases write (config/controller_plan.hpp says which
+/// phase writes what); Fault is a status word whose set bits abort the plan; Heartbeat is the
+/// register the daemon writes while it is alive, whose silence the controller answers by stopping
+/// (common/config/machine_safety.hpp).
+enum class RegisterRole { None, TableRate, TableAngle, ShakerRun, ShakerProfile, ThermalSetpoint, Fault, Heartbeat };
 
 struct ModbusRegister {
   std::string name;
@@ -211,8 +213,10 @@ struct ModbusRegister {
   // ---- test executive (a register with a role; every key below needs one) ----
   RegisterRole role = RegisterRole::None;
   SourcePosition role_at;           // the `role` key
-  // Written on every abort and at the plan's end, at once (not ramped: the controller's own
-  // deceleration applies), clamped to [min, max]. Unset: the register is left as it is.
+  // The safe state: written at the daemon's start, on every abort and at the plan's end, at once
+  // (not ramped: the controller's own deceleration applies), and until read back. A command role
+  // or a writable register without a role (a mode, brake or enable register) may have one.
+  // Unset: the register is left as it is.
   std::optional<double> safe;
   // A commanded value moves toward its target by at most max_rate per second (SI/s), in steps
   // written every ramp tick; infinity: in one write (discrete roles: run, profile).
@@ -227,6 +231,16 @@ struct ModbusRegister {
   double settle_s = 0.0;
   double settle_timeout_s = 60.0;   // not settled by then: the phase fails and the plan stops
   std::uint32_t fault_mask = 0;     // role fault: a fault when reading & fault_mask != 0 (0: any bit)
+  // role table_angle: the register of the same device whose `safe` value stops a move in
+  // progress (the controller's mode or stop register, or its rate setpoint where a rate write
+  // leaves position mode). An angle setpoint has no safe value of its own: any angle is a move.
+  std::string stopped_by;
+  // role heartbeat: the daemon writes a counter (min, min + 1, ..., max, min, ...) every period_s
+  // while it is alive; the controller is configured to stop (its communication-loss action) when
+  // no write came for timeout_s, and is at rest stop_s after that.
+  double heartbeat_period_s = 0.1;
+  double heartbeat_timeout_s = 0.0;
+  double heartbeat_stop_s = 0.0;
 };
 
 enum class ControllerRole { Thermal, Table, Shaker };
@@ -275,6 +289,10 @@ struct SimTiming {
 // The daemon's settings' ranges, one place for the bench file's [daemon] table and the command
 // line: a value outside one is bad input, never an undefined cast.
 struct DaemonLimits {
+  // systemd/inertia-daqd.service's WatchdogSec: a daemon whose sampling or publishing stops is
+  // restarted after this long. A controller's heartbeat timeout and a Modbus device's worst poll
+  // stay within it (common/config/machine_safety.hpp).
+  static constexpr double kWatchdogS = 5.0;
   static constexpr double kMaxBlockMs = 1000.0;
   static constexpr int kMaxFsyncMs = 3'600'000;
   static constexpr int kMaxLogQueue = 1 << 20;
@@ -286,6 +304,7 @@ struct DaemonLimits {
 struct DaemonSettings {
   std::optional<std::string> log_dir;      // --log: durable event log directory
   std::optional<std::string> lcm_url;      // --lcm-url
+  std::optional<std::string> state_dir;    // --state-dir: where the run record is kept (daq/run_record.hpp)
   std::optional<double> block_ms;          // --block-ms: sample block length, > 0
   std::optional<double> rotate_mb;         // --rotate-mb: new log file past this size, > 0
   std::optional<int> fsync_ms;             // --fsync-ms: fflush + fsync period of the log, >= 1
@@ -378,6 +397,11 @@ struct BenchConfig {
   bool simulated = true;            // backend = "sim"
   Executive executive = Executive::Operator;   // [bench] executive (real benches; the simulator runs its plan itself)
   SourcePosition executive_at;
+  // [bench] stop_within_s (real benches): the longest any machine of the bench may go on after
+  // the daemon's last heartbeat, the lab's stop distance in time. inertia-daqd --check holds each
+  // heartbeat's timeout_s + stop_s against it. Unset: not checked (--check says so).
+  std::optional<double> stop_within_s;
+  SourcePosition stop_within_at;
   double sample_rate_hz = 1000.0;
   double t_ref_c = 25.0;
   std::uint64_t seed = 1;

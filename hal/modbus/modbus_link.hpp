@@ -82,6 +82,9 @@ class ModbusLink {
   [[nodiscard]] const ModbusHealth& health() const noexcept { return health_; }
   /// Back-off before the next reconnect attempt (grows while attempts fail).
   [[nodiscard]] Clock::duration backoff() const noexcept { return backoff_; }
+  /// The next call tries to reconnect at once, whatever is left of the back-off (a safe state
+  /// that must go out as soon as the controller answers again).
+  void reconnect_now() noexcept { next_attempt_ = Clock::time_point{}; }
 
  private:
   ModbusLink(modbus_t* ctx, const ModbusConfig& config);

@@ -151,6 +151,19 @@ void BenchControllerServer::take_setpoints(BenchControllerState& s, const modbus
   s.table_angle_setpoint_rad = bits_float(get32(holding(m, r::kTableAngleSetpoint), WordOrder::ABCD));
   s.shaker_enable = *holding(m, r::kShakerEnable) != 0;
   s.shaker_profile = *holding(m, r::kShakerProfile);
+  s.heartbeat = *holding(m, r::kHeartbeat);
+}
+
+// The controllers' communication-loss action: every machine to rest, latched.
+void BenchControllerServer::watch_heartbeat(BenchControllerState& s, std::int64_t now_ns) {
+  if (!(s.heartbeat_timeout_s > 0.0) || s.heartbeat_ns == 0 || s.comm_lost) return;
+  if (static_cast<double>(now_ns - s.heartbeat_ns) * 1e-9 < s.heartbeat_timeout_s) return;
+  s.comm_lost = true;
+  s.comm_lost_ns = now_ns;
+  s.table_rate_setpoint_rad_s = 0.0;
+  s.table_position_mode = false;
+  s.shaker_enable = false;
+  s.temperature_setpoint_degC = s.comm_loss_temperature_degC;
 }
 
 void BenchControllerServer::written(modbus_mapping_t& regs, int address, int count, const std::uint16_t* before) {
@@ -171,11 +184,17 @@ void BenchControllerServer::written(modbus_mapping_t& regs, int address, int cou
   // The last setpoint written chooses the table's mode, as on rate tables with a rate and a
   // position loop.
   auto touches = [&](int reg, int words) { return address < reg + words && reg < address + count; };
+  const std::uint16_t beat_before = s.heartbeat;
   if (touches(r::kTableAngleSetpoint, 2) && ((s.ignore_writes >> (r::kTableAngleSetpoint - r::kHoldingStart)) & 1u) == 0)
     s.table_position_mode = true;
   if (touches(r::kTableRateSetpoint, 2) && ((s.ignore_writes >> (r::kTableRateSetpoint - r::kHoldingStart)) & 1u) == 0)
     s.table_position_mode = false;
   take_setpoints(s, regs);
+  if (touches(r::kHeartbeat, 1) && ((s.ignore_writes >> (r::kHeartbeat - r::kHoldingStart)) & 1u) == 0 &&
+      (s.heartbeat != beat_before || s.heartbeat_ns == 0)) {
+    s.heartbeat_ns = now_ns;
+    s.comm_lost = false;
+  }
   publish(s, regs, false);  // status words judge the new setpoint from the first read on
 }
 
@@ -184,6 +203,11 @@ void BenchControllerServer::tick(modbus_mapping_t& regs, double dt) {
   BenchControllerState& s = state_;
   if (!published_) return;  // the first ticks may come before start() wrote the registers
   take_setpoints(s, regs);  // as the clients left them
+  timespec now{};
+  ::clock_gettime(CLOCK_MONOTONIC, &now);
+  const bool was_lost = s.comm_lost;
+  watch_heartbeat(s, static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec);
+  if (s.comm_lost && !was_lost) publish(s, regs, true);   // the safe setpoints in the registers too
   if (s.frozen) return;
 
   const double error = s.temperature_setpoint_degC - s.temperature_degC;
@@ -226,7 +250,9 @@ void BenchControllerServer::publish(const BenchControllerState& s, modbus_mappin
     put32(holding(regs, r::kTableAngleSetpoint), float_bits(static_cast<float>(s.table_angle_setpoint_rad)),
           WordOrder::ABCD);
     *holding(regs, r::kShakerProfile) = s.shaker_profile;
+    *holding(regs, r::kHeartbeat) = s.heartbeat;
   }
+  *input(regs, r::kCommStatus) = s.comm_lost ? r::kCommLost : 0;
   constexpr double kTwoPi = 6.283185307179586;
   const double position = s.table_turns * kTwoPi + s.table_angle_rad;
   std::uint16_t table_status = 0;

@@ -9,17 +9,23 @@
 //   0x1003 shaker_enable        uint16  0/1          0x2002 table_angle      float32 CDAB rad
 //   0x1004 table_angle_setpoint float32 ABCD rad     0x2004 table_rate       float32 BADC rad/s
 //   0x1006 shaker_profile       uint16               0x2006 shaker_status    uint16  bits
-//                                                    0x2007 shaker_frequency uint32 DCBA 0.001 Hz
+//   0x1007 heartbeat            uint16               0x2007 shaker_frequency uint32 DCBA 0.001 Hz
 //                                                    0x2009 table_turns      int32  ABCD
 //                                                    0x200B table_status     uint16  bits
 //                                                    0x200C thermal_status   uint16  bits
 //                                                    0x200D table_position   float32 ABCD rad
+//                                                    0x200F comm_status      uint16  bits
 // The controllers take a setpoint the moment it is written (the server's write hook) and move
 // toward it at their own rate, reporting settled in their status words, as the test executive
 // (daq/test_executive.hpp) expects of real ones: table_status bit 0 at rate (rate mode), bit 1
 // in position (position mode: entered by writing table_angle_setpoint, left by writing
 // table_rate_setpoint); thermal_status bit 0 at setpoint; shaker_status bit 0 running (after
-// shaker_start_s), bit 1 fault. bench_controller_register_map() is what the simulated benches
+// shaker_start_s), bit 1 fault.
+// Their communication-loss watchdog, as a PLC's or a drive's: once armed by a first write of the
+// heartbeat register, a heartbeat that has not changed for heartbeat_timeout_s stops every
+// machine (table rate 0 at its deceleration, position mode left, shaker disabled, thermal
+// setpoint to comm_loss_temperature_degC) and latches comm_status bit 0 until the next heartbeat;
+// motion then needs a new command. bench_controller_register_map() is what the simulated benches
 // poll; the registers added for the executive (0x1004.., 0x200B..) are described in bench files.
 // The words are composed here byte by byte from the documented order, independently of
 // hal/modbus/register_map.cpp, so the client's decoding is checked against a second reading of
@@ -70,19 +76,26 @@ struct BenchControllerState {
   // CLOCK_MONOTONIC (ns) of the last write taken, per holding register kHoldingStart + i: when
   // the controller got each setpoint, seen from its side.
   std::array<std::int64_t, 8> written_ns{};
+  // Communication-loss watchdog (0: none): see the file comment.
+  double heartbeat_timeout_s = 0.0;
+  double comm_loss_temperature_degC = 25.0;
+  std::uint16_t heartbeat = 0;          // the register's value, as the client last wrote it
+  std::int64_t heartbeat_ns = 0;        // CLOCK_MONOTONIC of its last change (0: never written)
+  bool comm_lost = false;               // the watchdog tripped (latched until the next heartbeat)
+  std::int64_t comm_lost_ns = 0;        // when it tripped
 };
 
 namespace bench_registers {
 inline constexpr int kHoldingStart = 0x1000, kHoldingCount = 8;
 inline constexpr int kInputStart = 0x2000, kInputCount = 16;
 inline constexpr int kTemperatureSetpoint = 0x1000, kTableRateSetpoint = 0x1001, kShakerEnable = 0x1003,
-                     kTableAngleSetpoint = 0x1004, kShakerProfile = 0x1006;
+                     kTableAngleSetpoint = 0x1004, kShakerProfile = 0x1006, kHeartbeat = 0x1007;
 inline constexpr int kTemperature = 0x2000, kPeltierPower = 0x2001, kTableAngle = 0x2002, kTableRate = 0x2004,
                      kShakerStatus = 0x2006, kShakerFrequency = 0x2007, kTableTurns = 0x2009, kTableStatus = 0x200B,
-                     kThermalStatus = 0x200C, kTablePosition = 0x200D;
+                     kThermalStatus = 0x200C, kTablePosition = 0x200D, kCommStatus = 0x200F;
 // Status bits.
 inline constexpr std::uint16_t kTableAtRate = 0x1, kTableInPosition = 0x2, kThermalAtSetpoint = 0x1,
-                               kShakerRunning = 0x1, kShakerFault = 0x2;
+                               kShakerRunning = 0x1, kShakerFault = 0x2, kCommLost = 0x1;
 // Within these the controllers report settled.
 inline constexpr double kTableRateTolerance = 1e-3, kTablePositionTolerance = 1e-3, kThermalTolerance = 0.05;
 }  // namespace bench_registers
@@ -117,6 +130,7 @@ class BenchControllerServer {
   void tick(modbus_mapping_t& registers, double dt_s);  // server thread, register lock held
   void written(modbus_mapping_t& registers, int address, int count, const std::uint16_t* before);  // likewise
   static void take_setpoints(BenchControllerState& s, const modbus_mapping_t& registers);
+  static void watch_heartbeat(BenchControllerState& s, std::int64_t now_ns);
   static void publish(const BenchControllerState& s, modbus_mapping_t& registers, bool setpoints);
 
   std::mutex state_mutex_;             // taken inside the register lock, never the other way

@@ -1,4 +1,4 @@
-// The test executive on the wire simulators (issue 13): the real inertia-daqd on a backend =
+// The test executive on the wire simulators: the real inertia-daqd on a backend =
 // "real" bench whose controllers are the simulated ones (hal/wire_sim/bench_controllers.hpp)
 // behind a real Modbus TCP server on loopback. The daemon runs the plan: every command is read
 // back, settled and marked on INERTIA_EVENT (live and in the log) on the clock of the sample
@@ -15,91 +15,10 @@
 #include <iostream>
 #include <sstream>
 
-#include "hal/wire_sim/bench_controllers.hpp"
-#include "tests/integration/daqd_harness.hpp"
+#include "tests/integration/executive_bench.hpp"
 
 namespace inertia::daq::testing {
 namespace {
-
-using hal::wire_sim::BenchControllerServer;
-using hal::wire_sim::BenchControllerState;
-namespace reg = hal::wire_sim::bench_registers;
-
-std::int64_t mono_now_ns() {
-  timespec t{};
-  ::clock_gettime(CLOCK_MONOTONIC, &t);
-  return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
-}
-
-std::size_t line_of(const std::string& text, const std::string& prefix, int nth = 1) {
-  std::istringstream in(text);
-  std::string line;
-  for (std::size_t n = 1; std::getline(in, line); ++n)
-    if (line.rfind(prefix, 0) == 0 && --nth == 0) return n;
-  return 0;
-}
-
-std::size_t count_of(const std::string& text, const std::string& what) {
-  std::size_t n = 0;
-  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
-  return n;
-}
-
-/// The three simulated controllers as a real bench wires them: one device each, all on the one
-/// server (three connections, three polling threads, three safe states).
-std::string controllers(int port, const std::string& writes = "true") {
-  const std::string head = "host = \"127.0.0.1\"\nport = " + std::to_string(port) +
-                           "\npoll_interval_ms = 20\nresponse_timeout_s = 0.3\nwrites_enabled = " + writes + "\n";
-  return "[[modbus_device]]\nname = \"table\"\nrole = \"table\"\n" + head +
-         "[[modbus_device.register]]\nname = \"rate_setpoint\"\naddress = 0x1001\nkind = \"holding\"\ntype = \"f32\"\n"
-         "unit = \"rad/s\"\nwritable = true\nmin = -3.0\nmax = 3.0\nrole = \"table_rate\"\nmax_rate = 4.0\nsafe = 0.0\n"
-         "measured = \"rate\"\ntolerance = 0.005\nsettle_s = 0.1\nsettle_timeout_s = 5.0\n"
-         "[[modbus_device.register]]\nname = \"angle_setpoint\"\naddress = 0x1004\nkind = \"holding\"\ntype = \"f32\"\n"
-         "unit = \"rad\"\nwritable = true\nmin = -10.0\nmax = 10.0\nrole = \"table_angle\"\nmax_rate = 20.0\n"
-         "settled_by = \"status\"\nsettled_mask = 2\nsettle_s = 0.05\nsettle_timeout_s = 5.0\n"
-         "[[modbus_device.register]]\nname = \"rate\"\naddress = 0x2004\nkind = \"input\"\ntype = \"f32\"\nword_order = \"BADC\"\nunit = \"rad/s\"\n"
-         "[[modbus_device.register]]\nname = \"status\"\naddress = 0x200B\nkind = \"input\"\n"
-         "[[modbus_device.register]]\nname = \"position\"\naddress = 0x200D\nkind = \"input\"\ntype = \"f32\"\nunit = \"rad\"\n"
-         "\n[[modbus_device]]\nname = \"shaker\"\nrole = \"shaker\"\n" + head +
-         "[[modbus_device.register]]\nname = \"run\"\naddress = 0x1003\nkind = \"holding\"\nwritable = true\nmin = 0\nmax = 1\n"
-         "role = \"shaker_run\"\nsafe = 0\nsettled_by = \"status\"\nsettled_mask = 1\nsettle_timeout_s = 5.0\n"
-         "[[modbus_device.register]]\nname = \"profile\"\naddress = 0x1006\nkind = \"holding\"\nwritable = true\nmin = 1\nmax = 8\n"
-         "role = \"shaker_profile\"\n"
-         "[[modbus_device.register]]\nname = \"status\"\naddress = 0x2006\nkind = \"input\"\nrole = \"fault\"\nfault_mask = 2\n"
-         "[[modbus_device.register]]\nname = \"frequency\"\naddress = 0x2007\nkind = \"input\"\ntype = \"u32\"\nword_order = \"DCBA\"\n"
-         "scale = 0.001\nunit = \"Hz\"\n"
-         "\n[[modbus_device]]\nname = \"thermal\"\nrole = \"thermal\"\n" + head +
-         "[[modbus_device.register]]\nname = \"setpoint\"\naddress = 0x1000\nkind = \"holding\"\ntype = \"i16\"\nscale = 0.01\n"
-         "unit = \"degC\"\nwritable = true\nmin = 10.0\nmax = 60.0\nrole = \"thermal_setpoint\"\nmax_rate = 20.0\nsafe = 25.0\n"
-         "measured = \"temperature\"\ntolerance = 0.1\nsettle_s = 0.1\nsettle_timeout_s = 5.0\n"
-         "[[modbus_device.register]]\nname = \"temperature\"\naddress = 0x2000\nkind = \"input\"\ntype = \"i16\"\nscale = 0.01\nunit = \"degC\"\n";
-}
-
-std::string bench_head(const std::string& executive) {
-  return "[bench]\nname = \"exec-bench\"\nbackend = \"real\"\nexecutive = \"" + executive + "\"\nsample_rate_hz = 1000.0\n\n";
-}
-
-const std::string kTableCase =
-    "\n[[case]]\nname = \"table\"\nkind = \"rotation_table\"\nm_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n"
-    "[[case.phase]]\nkind = \"dwell\"\nduration_s = 0.3\n"
-    "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 0.0, 1.0]\nrate_deg_s = 45.0\nduration_s = 0.4\n"
-    "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 0.0, 1.0]\nangle_deg = 90.0\nduration_s = 0.4\n";
-const std::string kShakerCase =
-    "\n[[case]]\nname = \"shake\"\nkind = \"shaker\"\norientation = \"IA\"\n"
-    "[[case.phase]]\nkind = \"sine\"\nfrequency_hz = 30.0\namplitude_g = 1.0\nprofile = 3\nduration_s = 0.3\n";
-const std::string kThermalCase =
-    "\n[[case]]\nname = \"warm\"\nkind = \"thermal\"\norientation = \"IA\"\n"
-    "[[case.phase]]\nkind = \"thermal_step\"\nsetpoint_c = 27.0\nduration_s = 0.3\n";
-
-BenchControllerState moving_controllers() {
-  BenchControllerState s;
-  s.temperature_degC = 25.0;
-  s.temperature_setpoint_degC = 25.0;
-  s.thermal_time_constant_s = 0.3;
-  s.table_max_accel_rad_s2 = 4.0;
-  s.table_max_rate_rad_s = 2.0;
-  return s;
-}
 
 class Executive : public ::testing::Test {
  protected:
@@ -134,7 +53,7 @@ TEST_F(Executive, RunsThePlanOnTheControllersEachCommandReadBackSettledAndMarked
   ASSERT_TRUE(live.good());
   TempDir tmp;
   const std::int64_t started = mono_now_ns();
-  DaqdProcess daqd({"--config", bench.string(), "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", url}, {},
+  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", url}, {},
                    tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: finished", 40)) << daqd.output();
   daqd.signal(SIGTERM);
@@ -235,7 +154,7 @@ TEST_F(Executive, RunsThePlanOnTheControllersEachCommandReadBackSettledAndMarked
   EXPECT_DOUBLE_EQ(end.table_rate_setpoint_rad_s, 0.0);
   EXPECT_FALSE(end.shaker_enable);
   EXPECT_DOUBLE_EQ(end.temperature_setpoint_degC, 25.0);
-  EXPECT_NE(out.find("plan: finished: every case ran; controllers in their safe state"), std::string::npos) << out;
+  EXPECT_NE(out.find("plan: finished: every case ran; disarmed: controllers in their safe state"), std::string::npos) << out;
 
   // Figures for the report: from the command (the previous marker) to the settled start of each phase.
   std::int64_t commanded = 0;
@@ -258,7 +177,7 @@ TEST_F(Executive, SigtermMidPhaseReachesTheSafeStateWithin100Ms) {
       "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 0.0, 1.0]\nrate_deg_s = 60.0\nduration_s = 60.0\n";
   const fs::path bench = write(bench_head("plan") + controllers(controllers_->port()) + kThermalCase + long_turn);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: case table phase 0 (rotation) started", 30)) << daqd.output();
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // mid-phase
@@ -286,7 +205,7 @@ TEST_F(Executive, SigtermMidPhaseReachesTheSafeStateWithin100Ms) {
   RecordProperty("abort_to_safe_state_us", static_cast<int>((reached - sent) / 1000));
   EXPECT_LT(abort_ms, 100.0) << out;
 
-  EXPECT_NE(out.find("plan: abort (SIGTERM) during case table phase 0 (rotation): controllers in their safe state"),
+  EXPECT_NE(out.find("plan: abort (SIGTERM) during case table phase 0 (rotation); disarmed: controllers in their safe state"),
             std::string::npos)
       << out;
   const auto marks = decode_all<plan_event_t>(read_log_dir(tmp.path / "log"), "INERTIA_EVENT");
@@ -308,7 +227,7 @@ TEST_F(Executive, AControllerThatNeverConfirmsFailsThePhaseAndThePlanStopsSafely
   });
   const fs::path bench = write(bench_head("plan") + controllers(controllers_->port()) + kTableCase + kShakerCase);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: abort (phase failed", 30)) << daqd.output();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the plan must not go on
@@ -347,7 +266,7 @@ TEST_F(Executive, AControllerThatNeverSettlesFailsThePhaseAtItsTimeout) {
   devices.replace(devices.find(thermal_timeout), 23, "settle_timeout_s = 0.5\n");
   const fs::path bench = write(bench_head("plan") + devices + kThermalCase + kTableCase);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: abort (phase failed", 30)) << daqd.output();
   daqd.signal(SIGTERM);
@@ -374,7 +293,7 @@ TEST_F(Executive, AControllerFaultMidPhaseAbortsThePlan) {
       "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 0.0, 1.0]\nrate_deg_s = 30.0\nduration_s = 60.0\n";
   const fs::path bench = write(bench_head("plan") + controllers(controllers_->port()) + long_turn);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: case table phase 0 (rotation) started", 30)) << daqd.output();
   const std::int64_t raised = mono_now_ns();
@@ -399,7 +318,7 @@ TEST_F(Executive, APlanBeyondAControllersLimitsIsRefusedAtLoadWithFileAndLine) {
                            }();
   const fs::path bench = write(text);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--duration", "5", "--lcm-url", private_lcm_url()}, {}, tmp.path / "stderr.txt");
+  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "5", "--lcm-url", private_lcm_url()}, {}, tmp.path / "stderr.txt");
   EXPECT_EQ(daqd.wait(30), 2);
   const std::string out = daqd.output();
   EXPECT_NE(out.find(bench.string() + ":" + std::to_string(line_of(text, "rate_deg_s = 250.0")) +
@@ -451,8 +370,9 @@ TEST_F(Executive, OperatorMarksBecomeMarkersAndAnOperatorStopPutsTheControllersI
   EXPECT_NE(warm.out.find("case table ended; case warm started; case warm phase 0 (thermal_step) started"), std::string::npos) << warm.out;
   const Mark stop = mark({"--stop"});
   EXPECT_EQ(stop.status, 0) << stop.out;
-  EXPECT_NE(stop.out.find("stopped (case warm phase 0 (thermal_step)): controllers in their safe state"), std::string::npos)
+  EXPECT_NE(stop.out.find("inertia-daqd mark: stop received: every controller commanded to its safe state"), std::string::npos)
       << stop.out;
+  EXPECT_NE(stop.out.find("inertia-daqd mark: controllers in their safe state"), std::string::npos) << stop.out;
   const Mark end = mark({"--end"});
   EXPECT_EQ(end.status, 2) << end.out;
   EXPECT_NE(end.out.find("refused: no case is running"), std::string::npos) << end.out;

@@ -1,4 +1,4 @@
-// The plan in terms of the controllers (issue 13): registers with a role, what each phase
+// The plan in terms of the controllers: registers with a role, what each phase
 // commands, and a plan beyond a controller's limits refused at load with the plan key's
 // file:line:column; with executive = "plan", the roles and writes the plan needs.
 #include <gtest/gtest.h>
@@ -36,7 +36,13 @@ std::string bench_head(const std::string& executive) {
          (executive.empty() ? std::string() : "executive = \"" + executive + "\"\n");
 }
 
-/// The table: rate and angle setpoints, their readings, a status word.
+/// The controller's communication-loss watchdog register (common/config/machine_safety.hpp).
+std::string heartbeat(int address) {
+  return "[[modbus_device.register]]\nname = \"watchdog\"\naddress = " + std::to_string(address) +
+         "\nkind = \"holding\"\nwritable = true\nmin = 0\nmax = 65535\nrole = \"heartbeat\"\ntimeout_s = 2.0\nstop_s = 1.0\n";
+}
+
+/// The table: rate and angle setpoints, their readings, a status word, the heartbeat.
 std::string table(const std::string& writes = "true", const std::string& rate_extra = "") {
   return "[[modbus_device]]\nname = \"table\"\nrole = \"table\"\nwrites_enabled = " + writes +
          "\n"
@@ -44,9 +50,10 @@ std::string table(const std::string& writes = "true", const std::string& rate_ex
          "writable = true\nmin = -3.5\nmax = 3.5\nrole = \"table_rate\"\nmax_rate = 2.0\nsafe = 0.0\nmeasured = \"rate\"\n"
          "tolerance = 0.01\nsettle_s = 0.5\n" + rate_extra +
          "[[modbus_device.register]]\nname = \"angle_setpoint\"\naddress = 4\nkind = \"holding\"\ntype = \"f32\"\nunit = \"rad\"\n"
-         "writable = true\nmin = -7.0\nmax = 7.0\nrole = \"table_angle\"\nmax_rate = 1.0\nsettled_by = \"status\"\nsettled_mask = 2\n"
+         "writable = true\nmin = -7.0\nmax = 7.0\nrole = \"table_angle\"\nmax_rate = 1.0\nstopped_by = \"rate_setpoint\"\n"
+         "settled_by = \"status\"\nsettled_mask = 2\n"
          "[[modbus_device.register]]\nname = \"rate\"\naddress = 4\nkind = \"input\"\ntype = \"f32\"\n"
-         "[[modbus_device.register]]\nname = \"status\"\naddress = 11\nkind = \"input\"\ntype = \"u16\"\n";
+         "[[modbus_device.register]]\nname = \"status\"\naddress = 11\nkind = \"input\"\ntype = \"u16\"\n" + heartbeat(7);
 }
 
 std::string shaker() {
@@ -55,13 +62,15 @@ std::string shaker() {
          "role = \"shaker_run\"\nsafe = 0\nsettled_by = \"status\"\nsettled_mask = 1\n"
          "[[modbus_device.register]]\nname = \"profile\"\naddress = 6\nkind = \"holding\"\nwritable = true\nmin = 1\nmax = 8\n"
          "role = \"shaker_profile\"\n"
-         "[[modbus_device.register]]\nname = \"status\"\naddress = 6\nkind = \"input\"\nrole = \"fault\"\nfault_mask = 2\n";
+         "[[modbus_device.register]]\nname = \"status\"\naddress = 6\nkind = \"input\"\nrole = \"fault\"\nfault_mask = 2\n" +
+         heartbeat(7);
 }
 
 std::string thermal() {
   return "[[modbus_device]]\nname = \"thermal\"\nrole = \"thermal\"\nwrites_enabled = true\n"
          "[[modbus_device.register]]\nname = \"setpoint\"\naddress = 0\nkind = \"holding\"\ntype = \"i16\"\nscale = 0.01\n"
-         "unit = \"degC\"\nwritable = true\nmin = 10.0\nmax = 60.0\nrole = \"thermal_setpoint\"\nmax_rate = 0.5\nsafe = 25.0\n";
+         "unit = \"degC\"\nwritable = true\nmin = 10.0\nmax = 60.0\nrole = \"thermal_setpoint\"\nmax_rate = 0.5\nsafe = 25.0\n" +
+         heartbeat(7);
 }
 
 const std::string kRotationCase =
