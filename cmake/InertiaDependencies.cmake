@@ -7,6 +7,7 @@ find_package(nlohmann_json 3.10 REQUIRED)
 find_package(spectra 1.0 REQUIRED)         # header-only: leading eigenvalues by Lanczos (diagnose)
 find_package(Boost 1.74 REQUIRED)          # header-only parts: Math (Student's t), Lockfree (benchmark peer)
 find_package(Threads REQUIRED)
+find_package(OpenSSL 3 REQUIRED COMPONENTS Crypto)   # libcrypto: HMAC-SHA256 of signed operator requests
 find_package(GTest REQUIRED)
 find_package(benchmark REQUIRED)
 find_package(Java 17 COMPONENTS Development REQUIRED)

@@ -22,6 +22,8 @@
 #include "common/config/bench_config.hpp"
 #include "common/input_error.hpp"
 #include "common/lcm/channels.hpp"
+#include "daq/command_auth.hpp"
+#include "daq/command_socket.hpp"
 #include "daq/journal.hpp"
 #include "daq/log_writer.hpp"
 #include "daq/publisher.hpp"
@@ -121,6 +123,13 @@ const char* usage() {
          "                       their safe state, until an operator runs inertia-daqd arm)\n"
          "  --state-dir DIR      where the run record is kept, which the next start reads to say how\n"
          "                       this run ended (default: $STATE_DIRECTORY, else the --log DIR)\n"
+         "  --command-socket P   real bench: the operators' requests on this machine (inertia-daqd mark,\n"
+         "                       arm) arrive on this Unix socket (default: $RUNTIME_DIRECTORY/command.sock,\n"
+         "                       else /run/inertia/command.sock); who sent each is the kernel's word\n"
+         "  --command-key FILE   the operators' keys: requests from other machines are taken only when\n"
+         "                       signed with one (the file readable by owner and group only)\n"
+         "  --operator-group G   who is an operator on this machine besides root and the daemon's user\n"
+         "                       (default inertia-operators)\n"
          "  --check              open every device of the bench file without sampling and print one\n"
          "                       table: CAN interface up at the bench's bit rates, GPIO lines free,\n"
          "                       Modbus registers readable and in range; each failure with its\n"
@@ -166,6 +175,9 @@ DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {
       o.given.insert(a);
     }
     else if (a == "--state-dir") o.state_dir = value();
+    else if (a == "--command-socket") o.command_socket = value();
+    else if (a == "--command-key") o.command_key = value();
+    else if (a == "--operator-group") o.operator_group = value();
     else if (a == "--config") o.config = value();
     else if (a == "--duration") o.duration_s = to_number(a, value());
     else if (a == "--log") o.log_dir = value();
@@ -210,6 +222,9 @@ void apply_bench_settings(DaemonOptions& o, const config::DaemonSettings& d) {
   take("--log", d.log_dir, o.log_dir);
   take("--lcm-url", d.lcm_url, o.lcm_url);
   take("--state-dir", d.state_dir, o.state_dir);
+  take("--command-socket", d.command_socket, o.command_socket);
+  take("--command-key", d.command_key, o.command_key);
+  take("--operator-group", d.operator_group, o.operator_group);
   take("--block-ms", d.block_ms, o.block_ms);
   take("--rotate-mb", d.rotate_mb, o.rotate_mb);
   take("--fsync-ms", d.fsync_ms, o.fsync_ms);
@@ -372,6 +387,7 @@ int run_daemon(const DaemonOptions& command_line) {
   po.describe_mark = [&bench](const PlanMark& m, plan_event_t& e) { describe_plan_mark(bench, m, e); };
   LogWriter* log_ptr = log.get();
   std::unique_ptr<TestExecutive> executive;   // real benches: created below, before the publisher starts
+  po.command_counts = [&executive] { return executive ? executive->command_counts() : std::array<std::int64_t, 3>{}; };
   po.daemon_faults = [log_ptr, absent, mlock_refused, &executive] {
     std::vector<std::string> f;
     if (executive) f = executive->faults();
@@ -397,10 +413,28 @@ int run_daemon(const DaemonOptions& command_line) {
     run_record = std::make_unique<RunRecorder>(state_dir.empty() ? state_dir : state_dir / "inertia-daqd.run", bench.name);
     ExecutiveOptions eo;
     eo.lcm_url = url;
+    // A socket asked for must open; the default one may be missing on a run by hand (no
+    // /run/inertia): the daemon then takes no local request, and says so (nothing can arm it).
+    const std::filesystem::path socket_path = o.command_socket.empty() ? default_command_socket() : std::filesystem::path(o.command_socket);
+    std::error_code ec;
+    if (!o.command_socket.empty() || std::filesystem::is_directory(socket_path.parent_path(), ec)) {
+      eo.socket = CommandSocket::listen(socket_path, &why);
+      if (!eo.socket) {
+        std::cerr << "inertia-daqd: " << why << "\n";
+        return kExitBadInput;
+      }
+    } else {
+      std::cerr << "inertia-daqd: warning: " << socket_path.parent_path().string()
+                << " does not exist: no command socket, so nothing on this machine can mark, stop or arm this daemon "
+                   "(the service makes it; by hand, give --command-socket PATH)\n";
+    }
+    if (!o.command_key.empty()) eo.keys = load_command_keys(o.command_key);   // InputError -> exit 2
+    eo.operator_group = o.operator_group;
+    eo.operator_records = &publisher.operator_records();
     eo.arm_at_start = o.arm;
     eo.armed_by = "uid " + std::to_string(::getuid()) + " (" + user_name(::getuid()) + "), inertia-daqd --arm";
     eo.record = run_record.get();
-    executive = std::make_unique<TestExecutive>(bench, controller_ports, publisher.plan_marks(), eo);
+    executive = std::make_unique<TestExecutive>(bench, controller_ports, publisher.plan_marks(), std::move(eo));
     if (!executive->ready(&why)) {
       std::cerr << "inertia-daqd: " << why << "\n";
       return kExitBadInput;

@@ -35,6 +35,9 @@ struct DaemonOptions {
   bool check = false;           // --check: open every device without sampling, print the table, exit
   bool arm = false;             // --arm: an attended start, the plan armed at once (executive = "plan")
   std::string state_dir;        // --state-dir: the run record's directory (empty: $STATE_DIRECTORY, else the log's)
+  std::string command_socket;   // --command-socket: empty: $RUNTIME_DIRECTORY/command.sock, else /run/inertia/command.sock
+  std::string command_key;      // --command-key: the operators' key file (empty: no signed requests)
+  std::string operator_group = "inertia-operators";   // --operator-group: name or gid
   double log_stall_after_s = -1.0;
   int log_stall_ms = 0;
   SimFaults faults;

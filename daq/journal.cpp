@@ -53,6 +53,10 @@ void journal_plan(const PlanEntry& e) {
   send_entry(e.message, e.priority, std::move(fields));
 }
 
+void journal_command(const CommandEntry& e) {
+  send_entry(e.message, e.priority, {"OPERATOR=" + e.who, "COMMAND=" + e.command, "RESULT=" + e.result});
+}
+
 FaultJournal::FaultJournal(std::vector<const DeviceSlot*> slots, std::int64_t now_ns) {
   for (const DeviceSlot* s : slots) watched_.push_back(Watched{s, 0, snapshot(*s, now_ns), {}});
 }

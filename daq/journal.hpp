@@ -1,5 +1,5 @@
 #pragma once
-// Faults on the systemd journal as structured entries (issue 14), so that
+// Faults on the systemd journal as structured entries, so that
 //   journalctl -u inertia-daqd DEVICE=accel      journalctl -u inertia-daqd FAULT=bus-off
 // find them. Every entry carries MESSAGE (the text of the stderr line), PRIORITY, DEVICE, FAULT
 // and FAULT_STATE (raised, cleared, active-at-stop, absent), and where it is known
@@ -33,7 +33,7 @@ struct FaultEntry {
 /// Writes the entry to the journal and, unless stderr is the journal, the line to stderr.
 void journal_fault(const FaultEntry& entry);
 
-/// What the test executive does, on the journal (issue 13) the same way: MESSAGE, PRIORITY,
+/// What the test executive does, on the journal the same way: MESSAGE, PRIORITY,
 /// PLAN_EVENT (command, settled, phase-start, phase-end, phase-failed, abort, safe-state,
 /// operator-mark, refused, plan-end), and where known CASE, PHASE (its 0-based index and label,
 /// "1 rotation") and DEVICE. `journalctl -u inertia-daqd PLAN_EVENT=abort` finds every abort.
@@ -46,6 +46,19 @@ struct PlanEntry {
   std::string device{};               // DEVICE=, empty: none
 };
 void journal_plan(const PlanEntry& entry);
+
+/// Every operator request, accepted or refused, the same way: MESSAGE, PRIORITY, OPERATOR (who,
+/// as verified: "uid 1000 (ana)", "key lab-pc-2", or "unsigned (...)" with what it claimed),
+/// COMMAND (mark, end, stop, arm), RESULT (accepted, refused, ignored). `journalctl -u
+/// inertia-daqd RESULT=refused` lists the refusals.
+struct CommandEntry {
+  std::string who{};                  // OPERATOR=
+  std::string command{};              // COMMAND=
+  std::string result{};               // RESULT=
+  std::string message{};              // MESSAGE= and the stderr line
+  int priority = 5;                   // 5 notice: accepted; 4 warning: refused or ignored
+};
+void journal_command(const CommandEntry& entry);
 
 /// Whether fd 2 is the journal stream systemd connected (JOURNAL_STREAM names its device:inode).
 bool stderr_is_journal();

@@ -1,14 +1,15 @@
 #pragma once
 // `inertia-daqd mark` and `inertia-daqd arm`: the operator's marks for a bench whose motion the
-// daemon does not command, the operator stop, and the arm of a plan the daemon runs. Sends a plan_command_t on INERTIA_COMMAND to the running daemon and waits for its
-// answer on INERTIA_COMMAND_REPLY, repeating the request until answered (LCM is UDP: a request
-// can be lost; the daemon acts on a repeated request once). The daemon stamps the markers itself.
+// daemon does not command, the operator stop, and the arm of a plan the daemon runs. On the bench
+// PC a request goes through the daemon's command socket, which knows the caller from the kernel
+// (daq/command_socket.hpp); from another machine it goes on LCM signed with the operators'
+// command key (--key FILE; daq/command_auth.hpp), repeated until answered (UDP can lose it; the
+// daemon acts on one request once). The daemon stamps the markers itself.
 //   inertia-daqd mark --case NAME [--phase KIND|INDEX]   start a case (if not running) and a phase
 //   inertia-daqd mark --end                              end the running case
-//   inertia-daqd mark --stop                             operator stop: abort, controllers to safe state
-// Options: --lcm-url URL (default: the bench's [daemon] lcm_url with --config FILE, else
-// $LCM_DEFAULT_URL, else LCM's default), --timeout S (default 3).
-// Exit status: 0 accepted, 2 refused or bad options (the answer says why), 1 no answer.
+//   inertia-daqd mark --stop                             operator stop: controllers to their safe state
+//   inertia-daqd arm                                     run the plan (executive = "plan")
+// Exit status: 0 accepted, 2 refused ("not authorized: ...") or bad options, 1 no answer.
 #include <string>
 #include <vector>
 

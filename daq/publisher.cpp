@@ -330,6 +330,13 @@ void Publisher::publish_marks() {
   }
 }
 
+void Publisher::publish_operator_records() {
+  while (OperatorRecord* r = operator_records_.front()) {
+    send(std::string(channels::kOperator), r->bytes.data(), r->size);
+    operator_records_.pop();
+  }
+}
+
 // A device that stopped sending (a pulled cable, a module that hung) raises "silent" once its
 // timeout has passed without a sample; the journal and the status channel carry it like any
 // fault, and it clears with the next sample.
@@ -398,6 +405,12 @@ void Publisher::publish_status(double dt_s) {
   if (realtime_refused_.load(std::memory_order_relaxed)) st.faults.emplace_back("publisher-realtime-refused");
   if (options_.daemon_faults)
     for (auto& f : options_.daemon_faults()) st.faults.push_back(std::move(f));
+  if (options_.command_counts) {
+    const std::array<std::int64_t, 3> c = options_.command_counts();
+    st.commands_accepted = c[0];
+    st.commands_refused = c[1];
+    st.commands_unsigned = c[2];
+  }
   st.num_faults = static_cast<std::int32_t>(st.faults.size());
   const int size = st.getEncodedSize();
   std::vector<std::uint8_t> buf(static_cast<std::size_t>(size));
@@ -425,6 +438,7 @@ void Publisher::run(RealtimeOptions rt) noexcept {
   for (;;) {
     const bool stopping = stop_.load(std::memory_order_acquire);
     std::size_t n = 0;
+    publish_operator_records();
     publish_marks();
     for (Packer& p : packers_) n += drain(p);
     const std::int64_t now = hal::monotonic_now_ns();
@@ -454,6 +468,7 @@ void Publisher::run(RealtimeOptions rt) noexcept {
     const std::size_t most = *std::max_element(p.fill.begin(), p.fill.end());
     if (most > 0) p.slot->misaligned += most;  // channels left unequal: counted, not hidden
   }
+  publish_operator_records();
   publish_marks();
   publish_status(static_cast<double>(hal::monotonic_now_ns() - last_status) * 1e-9);
 }

@@ -9,6 +9,7 @@
 // and encoded into one reused buffer); the status message allocates once a second.
 #include <lcm/lcm-cpp.hpp>
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -56,6 +57,16 @@ struct PublisherOptions {
   bool log_backpressure = false;
   /// Daemon-wide faults for the status (e.g. "lcm-no-route"). Publisher thread.
   std::function<std::vector<std::string>()> daemon_faults;
+  /// Operator requests accepted, refused and unsigned so far (INERTIA_STATUS); none: zeros.
+  std::function<std::array<std::int64_t, 3>()> command_counts;
+};
+
+/// An accepted operator request (plan_command_t, LCM-encoded) for INERTIA_OPERATOR, published and
+/// logged just before the markers it causes, so a log says who marked it. Fixed size: the ring
+/// holds trivially copyable slots.
+struct OperatorRecord {
+  std::uint16_t size = 0;
+  std::array<std::uint8_t, 4096> bytes{};
 };
 
 /// The LCM channel of a device's blocks (common/lcm/channels.hpp): "acc-a" -> INERTIA_RAW_ACC_A.
@@ -77,8 +88,10 @@ class Publisher {
   /// final status, then joins. Control thread.
   void stop();
 
-  /// Producer side for plan markers (one producer thread: the simulator).
+  /// Producer side for plan markers (one producer thread: the simulator, or the test executive).
   [[nodiscard]] SpscRing<PlanMark>& plan_marks() noexcept { return marks_; }
+  /// Producer side for accepted operator requests (one producer thread: the test executive).
+  [[nodiscard]] SpscRing<OperatorRecord>& operator_records() noexcept { return operator_records_; }
 
   [[nodiscard]] std::uint64_t messages() const noexcept { return messages_.load(std::memory_order_relaxed); }
   /// +1 per loop turn (at least every 1 ms while it runs): the supervisor's proof of its life.
@@ -131,6 +144,7 @@ class Publisher {
   void mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept;
   void publish_status(double dt_s);
   void publish_marks();
+  void publish_operator_records();
   void send(const std::string& channel, const void* data, std::size_t size) noexcept;
 
   lcm::LCM& lcm_;
@@ -138,6 +152,7 @@ class Publisher {
   PublisherOptions options_;
   std::vector<Packer> packers_;
   SpscRing<PlanMark> marks_{1024};
+  SpscRing<OperatorRecord> operator_records_{64};
   std::shared_ptr<Doorbell> doorbell_ = std::make_shared<Doorbell>();   // the samplers ring it
   std::vector<std::uint8_t> buffer_;
   std::thread thread_;

@@ -1,5 +1,6 @@
 #include "daq/test_executive.hpp"
 
+#include <poll.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -59,7 +60,12 @@ std::optional<std::size_t> find_phase(const config::TestCase& c, const std::stri
 
 TestExecutive::TestExecutive(const config::BenchConfig& bench, std::map<std::string, std::shared_ptr<ControllerPort>> ports,
                              SpscRing<PlanMark>& marks, ExecutiveOptions options)
-    : bench_(bench), ports_(std::move(ports)), marks_(marks), options_(std::move(options)) {
+    : bench_(bench),
+      ports_(std::move(ports)),
+      marks_(marks),
+      options_(std::move(options)),
+      verifier_(options_.keys),
+      operator_gid_(operator_group_id(options_.operator_group)) {
   for (const config::ModbusDevice& device : bench_.modbus_devices) {
     const auto port = ports_.find(device.name);
     for (std::size_t r = 0; r < device.registers.size(); ++r) {
@@ -118,10 +124,16 @@ void TestExecutive::run() noexcept {
   record("disarmed, safe state held");
   lcm_ = std::make_unique<lcm::LCM>(options_.lcm_url);
   if (lcm_->good()) {
-    lcm_->subscribe(std::string(channels::kCommand), &TestExecutive::on_command, this);
+    // Raw: bytes that do not decode are counted and dropped here, not printed by LCM.
+    lcm_->subscribe(std::string(channels::kCommand), &TestExecutive::on_unsigned, this);
+    lcm_->subscribe(std::string(channels::kCommandSigned), &TestExecutive::on_signed, this);
   } else {
-    journal_plan({"refused", "plan: LCM did not start on '" + options_.lcm_url + "': operator commands (inertia-daqd mark) are not heard", 4});
+    journal_plan({"refused", "plan: LCM did not start on '" + options_.lcm_url + "': signed requests from other machines are not heard", 4});
   }
+  if (!operator_gid_)
+    journal_plan({"start", "plan: the system has no group '" + options_.operator_group + "': only root and the daemon's own user are "
+                                                                                          "operators on this machine",
+                  4});
   try {
     report_start(wait_for_first_polls());
     if (options_.arm_at_start) {
@@ -343,25 +355,21 @@ std::int64_t TestExecutive::settle(const Binding& b, double target, std::int64_t
 }
 
 void TestExecutive::pump(bool plan_running) {
-  if (lcm_ && lcm_->good()) {
-    (void)lcm_->handleTimeout(static_cast<int>(kLoopS * 1000));
-  } else {
-    timespec ts{0, static_cast<long>(kLoopS * 1e9)};
-    ::nanosleep(&ts, nullptr);
-  }
-  std::vector<plan_command_t> inbox;
+  receive_commands();
+  std::vector<Inbound> inbox;
   inbox.swap(inbox_);
-  for (const plan_command_t& c : inbox) handle(c);
+  for (const Inbound& in : inbox) handle(in);
   watch_safe_state();
   close_safe_state_account(false);
   if (stop_.load(std::memory_order_acquire)) {
     std::lock_guard lock(stop_mutex_);
     throw Aborted{stop_reason_, stop_ns_};
   }
-  if (stop_request_) throw Aborted{"operator stop by " + stop_request_->sender, hal::monotonic_now_ns()};
+  if (stop_request_) throw Aborted{"operator stop by " + stop_request_->origin.who, hal::monotonic_now_ns()};
   if (plan_running) {
-    if (auto fault = controller_fault()) throw Aborted{*fault, hal::monotonic_now_ns()};
+    // A lapsed heartbeat first: after a hang every controller also looks silent, and the lapse is the cause.
     if (auto fault = heartbeat_fault()) throw Aborted{*fault, hal::monotonic_now_ns()};
+    if (auto fault = controller_fault()) throw Aborted{*fault, hal::monotonic_now_ns()};
   }
 }
 
@@ -441,7 +449,7 @@ void TestExecutive::hold_safe_state() {
 }
 
 void TestExecutive::account_safe_state(std::string headline, std::string case_name, int priority, std::int64_t since_ns,
-                                       std::optional<plan_command_t> stop_request) {
+                                       std::optional<Inbound> stop_request) {
   // A new account replaces one still open (a stop during a plan's end): its operator hears the new one.
   if (account_ && account_->stop_request && !stop_request) stop_request = account_->stop_request;
   double longest_s = 0.0;
@@ -602,15 +610,91 @@ void TestExecutive::end_case(std::int64_t t_ns) {
 // ---------------------------------------------------------------------------------------------
 // Operator commands (INERTIA_COMMAND)
 
-void TestExecutive::on_command(const lcm::ReceiveBuffer*, const std::string&, const plan_command_t* command) {
-  if (command->status == plan_command_t::STATUS_REQUEST) inbox_.push_back(*command);
+void TestExecutive::receive_commands() {
+  std::vector<pollfd> fds;
+  const bool lcm_up = lcm_ && lcm_->good();
+  if (lcm_up) fds.push_back({lcm_->getFileno(), POLLIN, 0});
+  if (options_.socket) options_.socket->add_poll_fds(fds);
+  if (fds.empty()) {
+    timespec ts{0, static_cast<long>(kLoopS * 1e9)};
+    ::nanosleep(&ts, nullptr);
+    return;
+  }
+  (void)::poll(fds.data(), fds.size(), static_cast<int>(kLoopS * 1000));
+  if (lcm_up && (fds[0].revents & POLLIN) != 0)
+    while (lcm_->handleTimeout(0) > 0) {
+    }
+  if (!options_.socket) return;
+  const uid_t daemon_uid = ::getuid();
+  for (CommandSocket::Request& r : options_.socket->take_requests()) {
+    Inbound in;
+    in.command = std::move(r.command);
+    in.connection = r.connection;
+    in.origin.path = CommandOrigin::Path::Socket;
+    in.origin.operator_ = is_operator(r.peer.uid, r.peer.gid, r.peer.groups, daemon_uid, operator_gid_);
+    in.origin.who = describe_uid(r.peer.uid) + ", pid " + std::to_string(r.peer.pid);
+    inbox_.push_back(std::move(in));
+  }
 }
 
-void TestExecutive::handle(const plan_command_t& command) {
-  const auto key = std::make_pair(command.sender, command.id);
-  if (const auto seen = answered_.find(key); seen != answered_.end()) {
-    // A repeat of a request already acted on (the sender did not hear the answer): answer again.
-    if (lcm_ && lcm_->good()) lcm_->publish(std::string(channels::kCommandReply), &seen->second);
+void TestExecutive::on_unsigned(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  plan_command_t command{};
+  if (command.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) != static_cast<int>(rbuf->data_size)) {
+    refused_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  if (command.status != plan_command_t::STATUS_REQUEST) return;
+  Inbound in;
+  in.command = command;
+  in.origin = CommandOrigin{CommandOrigin::Path::Unsigned, false, "unsigned request claiming to be " + command.sender};
+  inbox_.push_back(std::move(in));
+}
+
+void TestExecutive::on_signed(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  signed_command_t decoded{};
+  if (decoded.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) != static_cast<int>(rbuf->data_size)) {
+    refused_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  const signed_command_t* request = &decoded;
+  timespec now{};
+  ::clock_gettime(CLOCK_REALTIME, &now);
+  const std::int64_t now_us = static_cast<std::int64_t>(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
+  SignedCommandVerifier::Verdict v = verifier_.verify(*request, now_us);
+  Inbound in;
+  in.origin = CommandOrigin{CommandOrigin::Path::Signed, true, "key " + request->key_id};
+  if (v.repeat) {
+    if (const auto seen = answered_.find(std::make_pair(v.command.sender, v.command.id)); seen != answered_.end() && lcm_ && lcm_->good())
+      lcm_->publish(std::string(channels::kCommandReply), &seen->second);
+    return;
+  }
+  if (v.ok) {
+    if (v.command.status != plan_command_t::STATUS_REQUEST) return;
+    in.command = std::move(v.command);
+    inbox_.push_back(std::move(in));
+    return;
+  }
+  // Refused before anything in it is trusted; what it names is used only to address the answer.
+  (void)in.command.decode(request->command.data(), 0, request->command_size);
+  in.origin.operator_ = false;
+  in.origin.who = "key " + request->key_id + " (not verified)";
+  reply(in, plan_command_t::STATUS_REFUSED, "refused: " + v.why);
+  account_command(in, false, v.why);
+}
+
+void TestExecutive::handle(const Inbound& in) {
+  const plan_command_t& command = in.command;
+  if (in.connection < 0) {
+    const auto key = std::make_pair(command.sender, command.id);
+    if (const auto seen = answered_.find(key); seen != answered_.end()) {
+      // A repeat of a request already acted on (the sender did not hear the answer): answer again.
+      if (lcm_ && lcm_->good()) lcm_->publish(std::string(channels::kCommandReply), &seen->second);
+      return;
+    }
+  }
+  if (const auto why = refusal(in.origin, command.command, options_.operator_group)) {
+    reply(in, plan_command_t::STATUS_REFUSED, *why);
+    account_command(in, false, *why);
     return;
   }
   switch (command.command) {
@@ -619,30 +703,58 @@ void TestExecutive::handle(const plan_command_t& command) {
       // the middle of a phase) and the confirmation follow, the latter as a second answer.
       const std::int64_t t0 = hal::monotonic_now_ns();
       hold_safe_state();
-      journal_plan({"operator-mark", "plan: operator stop requested by " + command.sender, 4});
-      reply(command, plan_command_t::STATUS_ACCEPTED,
-            "stop received: every controller commanded to its safe state " + ms_text(hal::monotonic_now_ns() - t0) +
-                " after; its confirmation follows");
-      stop_request_ = command;
+      const std::string detail =
+          "stop received: every controller commanded to its safe state " + ms_text(hal::monotonic_now_ns() - t0) + " after; its confirmation follows";
+      reply(in, plan_command_t::STATUS_ACCEPTED, detail);
+      account_command(in, true, detail);
+      stop_request_ = in;
       return;
     }
-    case plan_command_t::COMMAND_MARK: {
-      const auto [ok, detail] = operator_mark(command);
-      reply(command, ok ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED, detail);
-      return;
-    }
-    case plan_command_t::COMMAND_END_CASE: {
-      const auto [ok, detail] = operator_end_case();
-      reply(command, ok ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED, detail);
-      return;
-    }
+    case plan_command_t::COMMAND_MARK:
+    case plan_command_t::COMMAND_END_CASE:
     case plan_command_t::COMMAND_ARM: {
-      const auto [ok, detail] = operator_arm(command.sender);
-      reply(command, ok ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED, detail);
+      const auto [ok, detail] = command.command == plan_command_t::COMMAND_MARK       ? operator_mark(command, in.origin.who)
+                                : command.command == plan_command_t::COMMAND_END_CASE ? operator_end_case()
+                                                                                      : operator_arm(in.origin.who);
+      reply(in, ok ? plan_command_t::STATUS_ACCEPTED : plan_command_t::STATUS_REFUSED, detail);
+      account_command(in, ok, detail);
       return;
     }
-    default: reply(command, plan_command_t::STATUS_REFUSED, "unknown command " + std::to_string(command.command));
+    default: {
+      const std::string why = "unknown command " + std::to_string(command.command);
+      reply(in, plan_command_t::STATUS_REFUSED, why);
+      account_command(in, false, why);
+    }
   }
+}
+
+void TestExecutive::account_command(const Inbound& in, bool accepted, const std::string& detail) {
+  static const char* const kNames[] = {"none", "mark", "end", "stop", "arm"};
+  const std::int8_t c = in.command.command;
+  const std::string name = c >= 1 && c <= 4 ? kNames[c] : "command-" + std::to_string(c);
+  const bool unsigned_request = in.origin.path == CommandOrigin::Path::Unsigned;
+  const std::string result = accepted ? "accepted" : unsigned_request ? "ignored" : "refused";
+  (accepted ? accepted_ : unsigned_request ? unsigned_ : refused_).fetch_add(1, std::memory_order_relaxed);
+  journal_command({in.origin.who, name, result, "command: " + name + " from " + in.origin.who + ": " + result + ": " + detail,
+                   accepted ? 5 : 4});
+  if (!accepted || options_.operator_records == nullptr) return;
+  plan_command_t record = in.command;
+  record.status = plan_command_t::STATUS_ACCEPTED;
+  record.sender = in.origin.who + (in.command.sender.empty() ? std::string() : " as " + in.command.sender);
+  record.detail = detail;
+  OperatorRecord slot;
+  const int size = record.getEncodedSize();
+  if (size <= 0 || static_cast<std::size_t>(size) > slot.bytes.size()) return;
+  slot.size = static_cast<std::uint16_t>(size);
+  (void)record.encode(slot.bytes.data(), 0, size);
+  if (!options_.operator_records->try_push(slot))
+    journal_plan({"refused", "plan: the operator record ring is full: who sent a request is not in the log", 3});
+}
+
+std::array<std::int64_t, 3> TestExecutive::command_counts() const {
+  const std::int64_t dropped = options_.socket ? static_cast<std::int64_t>(options_.socket->dropped()) : 0;
+  return {accepted_.load(std::memory_order_relaxed), refused_.load(std::memory_order_relaxed) + dropped,
+          unsigned_.load(std::memory_order_relaxed)};
 }
 
 std::pair<bool, std::string> TestExecutive::operator_arm(const std::string& who) {
@@ -658,7 +770,7 @@ std::pair<bool, std::string> TestExecutive::operator_arm(const std::string& who)
   return {true, detail};
 }
 
-std::pair<bool, std::string> TestExecutive::operator_mark(const plan_command_t& command) {
+std::pair<bool, std::string> TestExecutive::operator_mark(const plan_command_t& command, const std::string& who) {
   if (bench_.executive == config::Executive::Plan)
     return {false, "the test executive runs this bench's plan (executive = \"plan\") and marks its phases itself; "
                    "`inertia-daqd mark --stop` aborts it"};
@@ -699,7 +811,7 @@ std::pair<bool, std::string> TestExecutive::operator_mark(const plan_command_t& 
     detail += std::string(detail.empty() ? "" : "; ") + phase_text(c, *phase) + " started";
   }
   if (detail.empty()) detail = "case " + command.case_name + " is already running: nothing marked";
-  journal_plan({"operator-mark", "plan: operator " + command.sender + ": " + detail, 6, command.case_name,
+  journal_plan({"operator-mark", "plan: operator " + who + ": " + detail, 6, command.case_name,
                 phase ? std::to_string(*phase) + " " + config::phase_label(bench_.cases[c].phases[*phase].kind) : std::string()});
   return {true, detail};
 }
@@ -713,16 +825,18 @@ std::pair<bool, std::string> TestExecutive::operator_end_case() {
   return {true, "case " + name + " ended"};
 }
 
-void TestExecutive::reply(const plan_command_t& request, std::int8_t status, const std::string& detail) {
-  plan_command_t answer = request;
+void TestExecutive::reply(const Inbound& request, std::int8_t status, const std::string& detail) {
+  plan_command_t answer = request.command;
   answer.status = status;
   answer.detail = detail;
   timespec now{};
   ::clock_gettime(CLOCK_REALTIME, &now);
   answer.utime = static_cast<std::int64_t>(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
-  if (status == plan_command_t::STATUS_REFUSED)
-    journal_plan({"refused", "plan: refused " + request.sender + "'s request: " + detail, 4, request.case_name});
-  answered_[std::make_pair(request.sender, request.id)] = answer;
+  if (request.connection >= 0) {
+    if (options_.socket) (void)options_.socket->reply(request.connection, answer);
+    return;
+  }
+  answered_[std::make_pair(answer.sender, answer.id)] = answer;
   if (lcm_ && lcm_->good()) lcm_->publish(std::string(channels::kCommandReply), &answer);
 }
 

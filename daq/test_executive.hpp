@@ -53,10 +53,13 @@
 #include "common/config/bench_config.hpp"
 #include "common/config/controller_plan.hpp"
 #include "common/spsc_ring.hpp"
+#include "daq/command_auth.hpp"
+#include "daq/command_socket.hpp"
 #include "daq/controller_port.hpp"
 #include "daq/publisher.hpp"
 #include "daq/run_record.hpp"
 #include "inertia/plan_command_t.hpp"
+#include "inertia/signed_command_t.hpp"
 
 namespace lcm {
 class LCM;
@@ -66,10 +69,14 @@ class ReceiveBuffer;
 namespace inertia::daq {
 
 struct ExecutiveOptions {
-  std::string lcm_url;            // where the operator's INERTIA_COMMAND arrives (the daemon's URL)
+  std::string lcm_url;            // where signed requests arrive from other machines (the daemon's URL)
+  std::unique_ptr<CommandSocket> socket;   // requests from this machine (daq/command_socket.hpp)
+  std::vector<CommandKey> keys;   // the operators' keys for signed requests (none: every one refused)
+  std::string operator_group = "inertia-operators";
   bool arm_at_start = false;      // --arm: an attended start, the plan armed by whoever started the daemon
   std::string armed_by;           // who that is ("uid 1000 (ana), --arm")
   RunRecorder* record = nullptr;  // this run's record (none: not kept)
+  SpscRing<OperatorRecord>* operator_records = nullptr;   // accepted requests, for INERTIA_OPERATOR
 };
 
 class TestExecutive {
@@ -103,6 +110,8 @@ class TestExecutive {
   [[nodiscard]] bool armed() const noexcept { return armed_.load(std::memory_order_acquire); }
   /// Daemon-wide faults for INERTIA_STATUS: "safe-state-unconfirmed:<device>". Any thread.
   [[nodiscard]] std::vector<std::string> faults() const;
+  /// Operator requests accepted, refused and unsigned so far (INERTIA_STATUS). Any thread.
+  [[nodiscard]] std::array<std::int64_t, 3> command_counts() const;
 
  private:
   struct Binding {                       // a command role's register and the port to its device
@@ -119,6 +128,12 @@ class TestExecutive {
     std::string reason;
     std::string device;
   };
+  /// An operator's request and who sent it (as verified), with the way back for its answers.
+  struct Inbound {
+    plan_command_t command{};
+    CommandOrigin origin;
+    int connection = -1;                 // the command socket's connection; -1: LCM
+  };
   struct OpenCase {
     std::size_t index = 0;
     std::int64_t start_ns = 0;
@@ -133,7 +148,7 @@ class TestExecutive {
     std::int64_t since_ns = 0;
     std::int64_t deadline_ns = 0;
     int priority = 6;
-    std::optional<plan_command_t> stop_request;   // answered STATUS_DONE / REFUSED with the account
+    std::optional<Inbound> stop_request;   // answered STATUS_DONE / REFUSED with the account
   };
   /// Per port: the unconfirmed safe state's journal entries.
   struct UnconfirmedWatch {
@@ -160,7 +175,7 @@ class TestExecutive {
   void hold_safe_state();
   /// Starts the journal's account of the safe state just commanded.
   void account_safe_state(std::string headline, std::string case_name, int priority, std::int64_t since_ns,
-                          std::optional<plan_command_t> stop_request);
+                          std::optional<Inbound> stop_request);
   /// The account, if every port confirmed or the deadline passed (or `final`: the daemon stops).
   void close_safe_state_account(bool final);
   /// Raises, repeats and clears the unconfirmed safe state per port.
@@ -182,12 +197,17 @@ class TestExecutive {
   void end_case(std::int64_t t_ns);
 
   // operator commands
-  void on_command(const lcm::ReceiveBuffer* rbuf, const std::string& channel, const plan_command_t* command);
-  void handle(const plan_command_t& command);
-  std::pair<bool, std::string> operator_mark(const plan_command_t& command);
+  /// Waits up to kLoopS for a request (the LCM socket and the command socket) and queues each.
+  void receive_commands();
+  void on_unsigned(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
+  void on_signed(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
+  void handle(const Inbound& in);
+  std::pair<bool, std::string> operator_mark(const plan_command_t& command, const std::string& who);
   std::pair<bool, std::string> operator_end_case();
   std::pair<bool, std::string> operator_arm(const std::string& who);
-  void reply(const plan_command_t& request, std::int8_t status, const std::string& detail);
+  void reply(const Inbound& request, std::int8_t status, const std::string& detail);
+  /// The journal's entry of a request, and its count; an accepted one also goes to INERTIA_OPERATOR.
+  void account_command(const Inbound& in, bool accepted, const std::string& detail);
 
   std::string phase_text(std::size_t case_index, std::size_t phase_index) const;
   std::string value_text(const Binding& b, double value) const;
@@ -205,9 +225,12 @@ class TestExecutive {
   std::map<std::string, std::uint64_t> lapses_at_start_;   // per device: heartbeat lapses when the plan started
 
   std::unique_ptr<lcm::LCM> lcm_;
-  std::vector<plan_command_t> inbox_;    // filled by on_command inside pump()
-  std::map<std::pair<std::string, std::int64_t>, plan_command_t> answered_;
-  std::optional<plan_command_t> stop_request_;   // an operator stop acknowledged, its abort pending
+  SignedCommandVerifier verifier_;
+  std::optional<gid_t> operator_gid_;   // the operator group's id (none: no such group here)
+  std::vector<Inbound> inbox_;           // filled by receive_commands() inside pump()
+  std::map<std::pair<std::string, std::int64_t>, plan_command_t> answered_;   // LCM requests, for repeats
+  std::optional<Inbound> stop_request_;  // an operator stop acknowledged, its abort pending
+  std::atomic<std::int64_t> accepted_{0}, refused_{0}, unsigned_{0};
   std::optional<SafeStateAccount> account_;
   std::map<std::string, UnconfirmedWatch> unconfirmed_;   // by device
 

@@ -210,9 +210,11 @@ DaemonSettings read_daemon(const TableReader& t) {
     if (d.log_dir->empty()) t.fail_key("log_dir", "must not be empty (leave the key out for no log)");
   }
   if (t.has("lcm_url")) d.lcm_url = t.string("lcm_url");
-  if (t.has("state_dir")) {
-    d.state_dir = t.string("state_dir");
-    if (d.state_dir->empty()) t.fail_key("state_dir", "must not be empty (leave the key out for the default)");
+  for (auto [key, target] : {std::pair{"state_dir", &d.state_dir}, std::pair{"command_socket", &d.command_socket},
+                              std::pair{"command_key", &d.command_key}, std::pair{"operator_group", &d.operator_group}}) {
+    if (!t.has(key)) continue;
+    *target = t.string(key);
+    if (target->value().empty()) t.fail_key(key, "must not be empty (leave the key out for the default)");
   }
   if (t.has("block_ms")) {
     d.block_ms = t.positive("block_ms");

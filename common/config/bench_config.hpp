@@ -305,6 +305,9 @@ struct DaemonSettings {
   std::optional<std::string> log_dir;      // --log: durable event log directory
   std::optional<std::string> lcm_url;      // --lcm-url
   std::optional<std::string> state_dir;    // --state-dir: where the run record is kept (daq/run_record.hpp)
+  std::optional<std::string> command_socket;   // --command-socket: requests from this machine (daq/command_socket.hpp)
+  std::optional<std::string> command_key;      // --command-key: the operators' keys for signed requests
+  std::optional<std::string> operator_group;   // --operator-group: who is an operator on this machine
   std::optional<double> block_ms;          // --block-ms: sample block length, > 0
   std::optional<double> rotate_mb;         // --rotate-mb: new log file past this size, > 0
   std::optional<int> fsync_ms;             // --fsync-ms: fflush + fsync period of the log, >= 1

@@ -10,8 +10,14 @@ inline constexpr std::string_view kEvent = "INERTIA_EVENT";     // plan_event_t
 inline constexpr std::string_view kStatus = "INERTIA_STATUS";   // daq_status_t, 1 Hz
 inline constexpr std::string_view kBench = "INERTIA_BENCH";     // bench_config_t (extension, README)
 // Operator requests to the daemon (`inertia-daqd mark`) and its answers: plan_command_t (extension, README).
+// A request on kCommand carries no identity: refused and counted. From another machine a request
+// is signed (signed_command_t on kCommandSigned); on this one it goes through the daemon's command
+// socket (daq/command_socket.hpp). Every accepted request is also published on kOperator, and
+// so logged, with who sent it.
 inline constexpr std::string_view kCommand = "INERTIA_COMMAND";
+inline constexpr std::string_view kCommandSigned = "INERTIA_COMMAND_SIGNED";   // signed_command_t
 inline constexpr std::string_view kCommandReply = "INERTIA_COMMAND_REPLY";
+inline constexpr std::string_view kOperator = "INERTIA_OPERATOR";              // plan_command_t, accepted
 inline constexpr std::string_view kRawPrefix = "INERTIA_RAW_";           // + device: sample_block_t
 inline constexpr std::string_view kEstimatePrefix = "INERTIA_ESTIMATE_"; // + sensor: model_estimate_t
 inline constexpr std::string_view kStructurePrefix = "INERTIA_STRUCTURE_";  // + sensor: structure_table_t (extension)

@@ -41,6 +41,8 @@ class Executive : public ::testing::Test {
     }
     return false;
   }
+  /// The daemon's command socket (inertia-daqd mark and arm reach it with --socket).
+  [[nodiscard]] std::string socket_path() const { return (dir_.path / "command.sock").string(); }
   TempDir dir_;
   std::unique_ptr<BenchControllerServer> controllers_;
 };
@@ -53,7 +55,7 @@ TEST_F(Executive, RunsThePlanOnTheControllersEachCommandReadBackSettledAndMarked
   ASSERT_TRUE(live.good());
   TempDir tmp;
   const std::int64_t started = mono_now_ns();
-  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", url}, {},
+  DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", url}, {},
                    tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: finished", 40)) << daqd.output();
   daqd.signal(SIGTERM);
@@ -177,7 +179,7 @@ TEST_F(Executive, SigtermMidPhaseReachesTheSafeStateWithin100Ms) {
       "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 0.0, 1.0]\nrate_deg_s = 60.0\nduration_s = 60.0\n";
   const fs::path bench = write(bench_head("plan") + controllers(controllers_->port()) + kThermalCase + long_turn);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+  DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--arm", "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: case table phase 0 (rotation) started", 30)) << daqd.output();
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // mid-phase
@@ -227,7 +229,7 @@ TEST_F(Executive, AControllerThatNeverConfirmsFailsThePhaseAndThePlanStopsSafely
   });
   const fs::path bench = write(bench_head("plan") + controllers(controllers_->port()) + kTableCase + kShakerCase);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+  DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: abort (phase failed", 30)) << daqd.output();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the plan must not go on
@@ -266,7 +268,7 @@ TEST_F(Executive, AControllerThatNeverSettlesFailsThePhaseAtItsTimeout) {
   devices.replace(devices.find(thermal_timeout), 23, "settle_timeout_s = 0.5\n");
   const fs::path bench = write(bench_head("plan") + devices + kThermalCase + kTableCase);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+  DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--arm", "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: abort (phase failed", 30)) << daqd.output();
   daqd.signal(SIGTERM);
@@ -293,7 +295,7 @@ TEST_F(Executive, AControllerFaultMidPhaseAbortsThePlan) {
       "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 0.0, 1.0]\nrate_deg_s = 30.0\nduration_s = 60.0\n";
   const fs::path bench = write(bench_head("plan") + controllers(controllers_->port()) + long_turn);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
+  DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--arm", "--duration", "90", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
                    {}, tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "plan: case table phase 0 (rotation) started", 30)) << daqd.output();
   const std::int64_t raised = mono_now_ns();
@@ -318,7 +320,7 @@ TEST_F(Executive, APlanBeyondAControllersLimitsIsRefusedAtLoadWithFileAndLine) {
                            }();
   const fs::path bench = write(text);
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--arm", "--duration", "5", "--lcm-url", private_lcm_url()}, {}, tmp.path / "stderr.txt");
+  DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--arm", "--duration", "5", "--lcm-url", private_lcm_url()}, {}, tmp.path / "stderr.txt");
   EXPECT_EQ(daqd.wait(30), 2);
   const std::string out = daqd.output();
   EXPECT_NE(out.find(bench.string() + ":" + std::to_string(line_of(text, "rate_deg_s = 250.0")) +
@@ -336,7 +338,7 @@ TEST_F(Executive, OperatorMarksBecomeMarkersAndAnOperatorStopPutsTheControllersI
   const fs::path bench = write(text);
   const std::string url = private_lcm_url();
   TempDir tmp;
-  DaqdProcess daqd({"--config", bench.string(), "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", url}, {},
+  DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--duration", "60", "--log", (tmp.path / "log").string(), "--lcm-url", url}, {},
                    tmp.path / "stderr.txt");
   ASSERT_TRUE(wait_for(daqd, "phases marked by the operator", 30)) << daqd.output();
   struct Mark {
@@ -347,7 +349,7 @@ TEST_F(Executive, OperatorMarksBecomeMarkersAndAnOperatorStopPutsTheControllersI
   int n = 0;
   auto mark = [&](std::vector<std::string> args) {
     args.insert(args.begin(), "mark");
-    args.insert(args.end(), {"--lcm-url", url});
+    args.insert(args.end(), {"--socket", socket_path()});
     Mark m{};
     m.before_ns = mono_now_ns();
     DaqdProcess p(args, {}, tmp.path / ("mark" + std::to_string(n++) + ".txt"));
@@ -383,7 +385,8 @@ TEST_F(Executive, OperatorMarksBecomeMarkersAndAnOperatorStopPutsTheControllersI
   ASSERT_EQ(daqd.wait(20), 0) << daqd.output();
   const std::string out = daqd.output();
   EXPECT_NE(out.find("plan: operator "), std::string::npos) << out;
-  EXPECT_NE(out.find("plan: refused "), std::string::npos) << out;
+  EXPECT_NE(out.find("command: mark from uid 0 (root), pid "), std::string::npos) << out;
+  EXPECT_NE(out.find(": refused: no case 'nosuch' in the plan"), std::string::npos) << out;
   EXPECT_NE(out.find("plan: abort (operator stop by "), std::string::npos) << out;
 
   // The markers, stamped by the daemon when each request arrived.
