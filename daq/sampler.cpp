@@ -21,12 +21,13 @@ class RingSink final : public hal::SampleSink {
  public:
   explicit RingSink(DeviceSlot& slot) : slot_(slot) {}
   bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid, std::int64_t sample_index) noexcept override {
-    if (!valid) ++invalid_;
+    const bool sample = channel != hal::kSegmentStart;   // a segment mark travels with the samples, uncounted
+    if (sample && !valid) ++invalid_;
     if (!slot_.ring.try_stage(RingSample{t_ns, value, channel, valid ? 1u : 0u, sample_index})) {
-      ++drops_;
+      if (sample) ++drops_;
       return false;
     }
-    ++samples_;
+    if (sample) ++samples_;
     return true;
   }
   /// Publishes the staged samples, then the counters (so a reader that sees a count finds the
@@ -84,7 +85,8 @@ std::vector<std::string> fault_names(std::uint32_t bits) {
       {kFaultBusOff, "bus-off"},        {kFaultBusPassive, "bus-passive"},   {kFaultModbusGone, "modbus-gone"},
       {kFaultPeerClosed, "peer-closed"}, {kFaultGlitches, "encoder-glitch"}, {kFaultMisaligned, "misaligned"},
       {kFaultInvalidSamples, "invalid-samples"},
-      {kFaultStuck, "stuck"},           {kFaultSilent, "silent"},         {kFaultRealtimeRefused, "realtime-refused"}};
+      {kFaultStuck, "stuck"},           {kFaultSilent, "silent"},         {kFaultRealtimeRefused, "realtime-refused"},
+      {kFaultOutOfRange, "out-of-range"}, {kFaultLinkDown, "link-down"}, {kFaultEncoderOverflow, "encoder-overflow"}};
   std::vector<std::string> out;
   for (const auto& [bit, name] : kNames)
     if ((bits & bit) != 0) out.emplace_back(name);
@@ -162,6 +164,13 @@ void DeviceSampler::mirror_health() noexcept {
     if (s.bus_state == hal::socketcan::BusState::BusOff) faults |= kFaultBusOff;
     if (s.bus_state == hal::socketcan::BusState::ErrorPassive) faults |= kFaultBusPassive;
     if (s.peer_closed) faults |= kFaultPeerClosed;
+    slot_->counter_resets.store(s.counter_resets, std::memory_order_relaxed);
+    slot_->short_frames.store(s.short_frames, std::memory_order_relaxed);
+    slot_->duplicate_frames.store(s.duplicate_frames, std::memory_order_relaxed);
+    slot_->out_of_order_frames.store(s.out_of_order_frames, std::memory_order_relaxed);
+    slot_->kernel_drops.store(s.kernel_drops, std::memory_order_relaxed);
+    slot_->clock_steps.store(s.clock_steps, std::memory_order_relaxed);
+    slot_->range_faults.store(s.range_faults, std::memory_order_relaxed);
   } else if (encoder_ != nullptr) {
     const auto s = encoder_->status();
     const std::uint64_t glitches = s.quadrature.glitches + s.quadrature.illegal_transitions;

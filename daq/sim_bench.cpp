@@ -115,6 +115,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
       info.push_back({sig.name, i < n ? s->can_channels_[i].unit : "1", next_id++});
     }
     cfg.max_records_per_read = 256;
+    cfg.frame_rate_hz = s->rate_hz_;
     auto device = open_sim_can_bus(cfg, s->can_bus_.fd, why);
     if (!device) return nullptr;
     const int fd = device->wait_fd();
@@ -127,7 +128,8 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
     slot->sim_time_base = !s->real_timing_;
     slot->backpressure = options.fast;
     slot->time_index_channel = static_cast<int>(n);
-    slot->stuck_samples = kSimStuckSamples;
+    slot->stuck_samples.assign(n + 1, kSimStuckSamples);
+    slot->stuck_samples[n] = 0;   // sample_index counts, never stuck
     s->can_slot_ = slot;
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::vector<int>{fd}, slot, false));
   }
@@ -159,6 +161,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
                          signal("sample_index", 8, 32, false, 1.0)};
       cfg.map.signals.back().counter = s->real_timing_;  // as the accelerometers' bus (above)
       cfg.max_records_per_read = 256;
+      cfg.frame_rate_hz = s->rate_hz_;
       auto device = open_sim_can_bus(cfg, e.bus.fd, why);
       if (!device) return false;
       const int fd = device->wait_fd();
