@@ -304,12 +304,13 @@ void ModbusSampler::run() noexcept {
     const auto values = controller_->poll();
     const std::int64_t t1 = hal::monotonic_now_ns();
     store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(t1 - t0));
-    bool any_valid = false;
+    bool any_answered = false;   // a reading out of its range was still an answer
     for (std::size_t i = 0; i < values.size(); ++i) {
-      any_valid = any_valid || values[i].valid;
+      any_answered = any_answered || values[i].valid || values[i].out_of_range;
       // One row per poll, all stamped with the poll's start so the row stays aligned.
-      (void)sink.push(static_cast<std::uint32_t>(i), stamp, values[i].valid ? values[i].value : 0.0, values[i].valid,
-                      hal::kNoSampleIndex);
+      // An implausible reading keeps its value, marked invalid (the log shows what came).
+      (void)sink.push(static_cast<std::uint32_t>(i), stamp, values[i].valid || values[i].out_of_range ? values[i].value : 0.0,
+                      values[i].valid, hal::kNoSampleIndex);
     }
     sink.flush();
     if (slot_->doorbell) slot_->doorbell->ring();
@@ -318,8 +319,9 @@ void ModbusSampler::run() noexcept {
     // Every failed request (timeout, refused, exception, bad data) left its values invalid.
     slot_->decode_errors.store(h.errors, std::memory_order_relaxed);
     slot_->resyncs.store(h.reconnects, std::memory_order_relaxed);
+    slot_->range_faults.store(controller_->range_faults(), std::memory_order_relaxed);
     // Read-modify-write of our bit only (the supervisor sets invalid-samples on the same word).
-    if (!any_valid || !controller_->link().connected()) {
+    if (!any_answered || !controller_->link().connected()) {
       slot_->faults.fetch_or(kFaultModbusGone, std::memory_order_relaxed);
     } else {
       slot_->faults.fetch_and(~kFaultModbusGone, std::memory_order_relaxed);
