@@ -47,6 +47,12 @@ struct SimFaults {
   double stuck_at_s = -1.0, stuck_s = 0.0;             // CAN: the first sensor's value frozen
   double nan_at_s = -1.0, nan_s = 0.0;                 // CAN: the first sensor sends "no valid reading"
   double hang_at_s = -1.0, hang_s = 0.0;               // the CAN sampling thread hangs (watchdog test)
+  // Real hardware's failure modes, on the CAN bus's frames (they need [bench.sim_timing]: the
+  // frames then carry a counter). One each at the sample due at that time.
+  double can_reset_at_s = -1.0, can_reset_s = 0.0;     // the adapter resets: silent, then counts from 0
+  double short_frame_at_s = -1.0;                      // a frame cut short before its counter
+  double duplicate_frame_at_s = -1.0;                  // a frame sent twice
+  double swapped_frames_at_s = -1.0;                   // a frame sent after the next one
 };
 
 struct SimOptions {

@@ -541,6 +541,8 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
     cfg.sim_timing.jitter_s = 1e-6 * timing->number_in("jitter_us", 0.0, 0.0, 1e5);
     cfg.sim_timing.clock_ppm = timing->number_in("clock_ppm", 0.0, -1000.0, 1000.0);
     cfg.sim_timing.frame_loss = timing->number_in("frame_loss", 0.0, 0.0, 0.5);
+    // From a byte's counter up; a 16-bit one at 10 kHz rolls over every 6.6 s.
+    cfg.sim_timing.counter_bits = static_cast<int>(timing->integer_in("counter_bits", 32, 8, 32));
     timing->finish();
   }
   bench.finish();

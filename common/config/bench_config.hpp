@@ -280,11 +280,12 @@ struct ModbusDevice {
 /// frames) runs on the simulator: the CAN device's frames carry a counter and arrive with
 /// software receive stamps, a batch late by an exponential delay of mean jitter_us; the bench's
 /// sample clock runs clock_ppm fast against CLOCK_MONOTONIC; each CAN frame is lost with
-/// probability frame_loss.
+/// probability frame_loss; the frame counter is counter_bits wide (rolls over at 2^counter_bits).
 struct SimTiming {
   double jitter_s = 0.0;
   double clock_ppm = 0.0;
   double frame_loss = 0.0;
+  int counter_bits = 32;
   bool enabled = false;            // the table is present
 };
 
