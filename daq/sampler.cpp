@@ -6,6 +6,7 @@
 #include <time.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <iostream>
 
@@ -132,6 +133,17 @@ bool DeviceSampler::bring_up(std::string* why) {
     return false;
   }
   set(SlotState::Inactive);
+  if (can_ != nullptr && can_->is_can_socket()) {
+    // The kernel caps a receive buffer at net.core.rmem_max (without CAP_NET_ADMIN): said on
+    // the journal with how long of frames it holds, so a bench whose reader may stall knows.
+    const hal::socketcan::ReceiveBuffer& b = can_->receive_buffer();
+    if (b.granted < b.wanted)
+      std::cerr << "inertia-daqd: warning: " << slot_->name << ": the kernel gave CAN interface " << can_->interface()
+                << " a receive buffer of " << b.granted << " bytes, " << std::llround(1000.0 * static_cast<double>(b.granted) /
+                                                                                      static_cast<double>(b.wanted))
+                << " ms of its frames, not the 1000 ms asked; to give it more: sysctl -w net.core.rmem_max=" << b.wanted / 2
+                << " (and a file in /etc/sysctl.d/ to keep it)\n";
+  }
   if (device_->activate() != hal::Step::Ok) {
     set(SlotState::Failed);
     if (why) *why = "device " + slot_->name + ": activate: " + device_->last_error();
@@ -143,11 +155,26 @@ bool DeviceSampler::bring_up(std::string* why) {
 
 void DeviceSampler::start(const RealtimeOptions& rt) {
   thread_ = std::thread([this, rt] { run(rt); });
+  if (can_ != nullptr && can_->is_can_socket()) {
+    link_watch_ = std::make_unique<hal::socketcan::CanLinkWatch>(*can_, can_->interface());
+    link_thread_ = std::thread([this] { watch_link(); });
+  }
 }
 
 void DeviceSampler::stop() {
   stop_.store(true, std::memory_order_release);
+  if (link_thread_.joinable()) link_thread_.join();
   if (thread_.joinable()) thread_.join();
+}
+
+void DeviceSampler::watch_link() noexcept {
+  ::pthread_setname_np(::pthread_self(), ("link-" + slot_->name).substr(0, 15).c_str());
+  while (!stop_.load(std::memory_order_acquire)) {
+    if (link_watch_->check(hal::monotonic_now_ns()))
+      std::cerr << "inertia-daqd: " << slot_->name << ": CAN interface " << can_->interface() << " is back, reopened\n";
+    timespec ts{0, 50'000'000};
+    ::nanosleep(&ts, nullptr);
+  }
 }
 
 void DeviceSampler::mirror_health() noexcept {
@@ -157,13 +184,15 @@ void DeviceSampler::mirror_health() noexcept {
   store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(h.read_time_max_us * 1e3));
   // Only this thread's own bits change here, by read-modify-write: the supervisor and the
   // publisher set and clear other bits of the same word at any time.
-  constexpr std::uint32_t kMine = kFaultBusOff | kFaultBusPassive | kFaultPeerClosed | kFaultGlitches;
+  constexpr std::uint32_t kMine = kFaultBusOff | kFaultBusPassive | kFaultPeerClosed | kFaultGlitches | kFaultLinkDown;
   std::uint32_t faults = 0;
   if (can_ != nullptr) {
     const auto& s = can_->status();
     if (s.bus_state == hal::socketcan::BusState::BusOff) faults |= kFaultBusOff;
     if (s.bus_state == hal::socketcan::BusState::ErrorPassive) faults |= kFaultBusPassive;
     if (s.peer_closed) faults |= kFaultPeerClosed;
+    if (s.link_down) faults |= kFaultLinkDown;
+    slot_->link_reopens.store(s.link_reopens, std::memory_order_relaxed);
     slot_->counter_resets.store(s.counter_resets, std::memory_order_relaxed);
     slot_->short_frames.store(s.short_frames, std::memory_order_relaxed);
     slot_->duplicate_frames.store(s.duplicate_frames, std::memory_order_relaxed);

@@ -78,30 +78,35 @@ bool CanDeviceConfig::is_valid(std::string* why) const {
   return true;
 }
 
-std::unique_ptr<CanDevice> CanDevice::open_interface(const CanDeviceConfig& config, std::string* why) {
-  if (!config.is_valid(why)) return nullptr;
+UniqueFd open_can_raw(const std::string& interface, std::string* why) {
   UniqueFd fd(::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW));
   if (!fd.valid()) {
     const int err = errno;
     if (why) {
       *why = errno_text("socket(PF_CAN, SOCK_RAW, CAN_RAW)", err);
-      if (err == EAFNOSUPPORT) *why += ": this kernel has no SocketCAN (CONFIG_CAN), so '" + config.interface +
-                                        "' cannot be opened";
+      if (err == EAFNOSUPPORT) *why += ": this kernel has no SocketCAN (CONFIG_CAN), so '" + interface + "' cannot be opened";
     }
-    return nullptr;
+    return UniqueFd();
   }
-  const unsigned index = ::if_nametoindex(config.interface.c_str());
+  const unsigned index = ::if_nametoindex(interface.c_str());
   if (index == 0) {
-    if (why) *why = errno_text(("CAN interface '" + config.interface + "'").c_str(), errno);
-    return nullptr;
+    if (why) *why = errno_text(("CAN interface '" + interface + "'").c_str(), errno);
+    return UniqueFd();
   }
   sockaddr_can addr{};
   addr.can_family = AF_CAN;
   addr.can_ifindex = static_cast<int>(index);
   if (::bind(fd.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
-    if (why) *why = errno_text(("bind to CAN interface '" + config.interface + "'").c_str(), errno);
-    return nullptr;
+    if (why) *why = errno_text(("bind to CAN interface '" + interface + "'").c_str(), errno);
+    return UniqueFd();
   }
+  return fd;
+}
+
+std::unique_ptr<CanDevice> CanDevice::open_interface(const CanDeviceConfig& config, std::string* why) {
+  if (!config.is_valid(why)) return nullptr;
+  UniqueFd fd = open_can_raw(config.interface, why);
+  if (!fd.valid()) return nullptr;
   return from_fd(std::move(fd), config, why);
 }
 
@@ -145,38 +150,72 @@ CanDevice::CanDevice(UniqueFd fd, CanDeviceConfig config, bool is_can_socket)
   }
 }
 
-Step CanDevice::configure() {
-  const int flags = ::fcntl(fd_.get(), F_GETFL);
-  if (flags < 0 || ::fcntl(fd_.get(), F_SETFL, flags | O_NONBLOCK) != 0)
-    return fail(Step::Fatal, errno_text("fcntl(O_NONBLOCK)", errno));
+bool CanDevice::prepare(int fd, bool can_socket, std::string* why) {
+  const int flags = ::fcntl(fd, F_GETFL);
+  if (flags < 0 || ::fcntl(fd, F_SETFL, flags | O_NONBLOCK) != 0) {
+    if (why) *why = errno_text("fcntl(O_NONBLOCK)", errno);
+    return false;
+  }
   const int on = 1;
   // Without the stamp the device still works: frames get CLOCK_MONOTONIC at reception.
-  (void)::setsockopt(fd_.get(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
+  (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
   // The kernel's count of frames it dropped on a full receive buffer, with every record.
-  (void)::setsockopt(fd_.get(), SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on);
-  size_receive_buffer();
-  if (is_can_socket_) {
-    if (::setsockopt(fd_.get(), SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) != 0)
-      return fail(Step::Fatal, errno_text("setsockopt(CAN_RAW_FD_FRAMES)", errno));
-    std::vector<can_filter> filters;
-    for (std::uint32_t key : map_.keys()) {
-      const bool eff = (key & CAN_EFF_FLAG) != 0;
-      // RTR in the mask: only data frames pass; the EFF flag keeps 0x123 and 0x00000123 apart.
-      filters.push_back(can_filter{key, CAN_EFF_FLAG | CAN_RTR_FLAG | (eff ? CAN_EFF_MASK : CAN_SFF_MASK)});
-    }
-    if (::setsockopt(fd_.get(), SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
-                     static_cast<socklen_t>(filters.size() * sizeof(can_filter))) != 0)
-      return fail(Step::Fatal, errno_text("setsockopt(CAN_RAW_FILTER)", errno));
-    // Bus errors (CAN_ERR_BUSERROR, CAN_ERR_PROT) may flood; state changes are what we track.
-    const can_err_mask_t mask = CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_BUSOFF | CAN_ERR_RESTARTED | CAN_ERR_CNT;
-    if (::setsockopt(fd_.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &mask, sizeof mask) != 0)
-      return fail(Step::Fatal, errno_text("setsockopt(CAN_RAW_ERR_FILTER)", errno));
+  (void)::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on);
+  size_receive_buffer(fd);
+  if (!can_socket) return true;
+  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) != 0) {
+    if (why) *why = errno_text("setsockopt(CAN_RAW_FD_FRAMES)", errno);
+    return false;
   }
+  std::vector<can_filter> filters;
+  for (std::uint32_t key : map_.keys()) {
+    const bool eff = (key & CAN_EFF_FLAG) != 0;
+    // RTR in the mask: only data frames pass; the EFF flag keeps 0x123 and 0x00000123 apart.
+    filters.push_back(can_filter{key, CAN_EFF_FLAG | CAN_RTR_FLAG | (eff ? CAN_EFF_MASK : CAN_SFF_MASK)});
+  }
+  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(), static_cast<socklen_t>(filters.size() * sizeof(can_filter))) !=
+      0) {
+    if (why) *why = errno_text("setsockopt(CAN_RAW_FILTER)", errno);
+    return false;
+  }
+  // Bus errors (CAN_ERR_BUSERROR, CAN_ERR_PROT) may flood; state changes are what we track.
+  const can_err_mask_t mask = CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_BUSOFF | CAN_ERR_RESTARTED | CAN_ERR_CNT;
+  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &mask, sizeof mask) != 0) {
+    if (why) *why = errno_text("setsockopt(CAN_RAW_ERR_FILTER)", errno);
+    return false;
+  }
+  return true;
+}
+
+Step CanDevice::configure() {
+  std::string why;
+  if (!prepare(fd_.get(), is_can_socket_, &why)) return fail(Step::Fatal, why);
   configured_ = true;
   return ok();
 }
 
-void CanDevice::size_receive_buffer() noexcept {
+bool CanDevice::adopt(UniqueFd fd, BusState state, std::string* why) {
+  int domain = AF_UNSPEC;
+  socklen_t len = sizeof domain;
+  if (::getsockopt(fd.get(), SOL_SOCKET, SO_DOMAIN, &domain, &len) != 0) domain = AF_UNSPEC;
+  if (!prepare(fd.get(), domain == AF_CAN, why)) return false;
+  // In the old descriptor's place: the sampling thread's next receive, and its poll, use it.
+  if (::dup3(fd.get(), fd_.get(), O_CLOEXEC) < 0) {
+    if (why) *why = errno_text("dup3 onto the device's descriptor", errno);
+    return false;
+  }
+  restored_state_.store(static_cast<int>(state), std::memory_order_relaxed);
+  link_restored_.store(true, std::memory_order_release);
+  link_down_.store(false, std::memory_order_release);   // the next read takes the new socket
+  return true;
+}
+
+void CanDevice::set_bus_state(BusState state) noexcept {
+  restored_state_.store(static_cast<int>(state), std::memory_order_relaxed);
+  state_posted_.store(true, std::memory_order_release);
+}
+
+void CanDevice::size_receive_buffer(int fd) noexcept {
   receive_buffer_ = ReceiveBuffer{};
   if (config_.frame_rate_hz <= 0.0 || config_.receive_buffer_s <= 0.0) return;
   // One frame of every id per sample period.
@@ -184,17 +223,17 @@ void CanDevice::size_receive_buffer() noexcept {
   const double wanted = std::min(frames * static_cast<double>(kBufferBytesPerFrame), static_cast<double>(INT_MAX));
   int have = 0;
   socklen_t len = sizeof have;
-  if (::getsockopt(fd_.get(), SOL_SOCKET, SO_RCVBUF, &have, &len) != 0) return;
+  if (::getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &have, &len) != 0) return;
   receive_buffer_.wanted = static_cast<std::size_t>(wanted);
   receive_buffer_.granted = static_cast<std::size_t>(have);
   if (static_cast<double>(have) >= wanted) return;   // never shrink a buffer someone made larger
   // The kernel doubles what it is given (its bookkeeping) and reports the double. Beyond
   // net.core.rmem_max only with CAP_NET_ADMIN (SO_RCVBUFFORCE); otherwise capped there.
   const int ask = static_cast<int>(wanted / 2.0);
-  if (::setsockopt(fd_.get(), SOL_SOCKET, SO_RCVBUFFORCE, &ask, sizeof ask) != 0)
-    (void)::setsockopt(fd_.get(), SOL_SOCKET, SO_RCVBUF, &ask, sizeof ask);
+  if (::setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &ask, sizeof ask) != 0)
+    (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &ask, sizeof ask);
   len = sizeof have;
-  if (::getsockopt(fd_.get(), SOL_SOCKET, SO_RCVBUF, &have, &len) == 0) receive_buffer_.granted = static_cast<std::size_t>(have);
+  if (::getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &have, &len) == 0) receive_buffer_.granted = static_cast<std::size_t>(have);
 }
 
 std::int64_t CanDevice::realtime_now_ns() const noexcept {
@@ -242,6 +281,7 @@ int CanDevice::receive(std::size_t want) noexcept {
       break;
     }
     if (errno == EAGAIN || errno == EWOULDBLOCK) return 0;
+    if (gone(errno)) return -1;
     ++health_.io_errors;
     return -1;
   }
@@ -251,7 +291,7 @@ int CanDevice::receive(std::size_t want) noexcept {
     if (len < 0) {
       if (errno == EINTR) continue;
       if (errno != EAGAIN && errno != EWOULDBLOCK) {
-        ++health_.io_errors;
+        if (!gone(errno)) ++health_.io_errors;
         if (n == 0) return -1;
       }
       break;
@@ -263,8 +303,30 @@ int CanDevice::receive(std::size_t want) noexcept {
   return static_cast<int>(n);
 }
 
+bool CanDevice::gone(int err) noexcept {
+  // The interface was unregistered (a USB adapter pulled: ENODEV, the socket is unbound) or set
+  // down (ENETDOWN): nothing more comes on this socket until it is opened again.
+  if (err != ENODEV && err != ENETDOWN && err != ENXIO) return false;
+  ++status_.link_losses;
+  status_.link_down = true;
+  link_down_.store(true, std::memory_order_release);
+  return true;
+}
+
 std::size_t CanDevice::read_into(SampleSink& sink) noexcept {
   if (!active_) return 0;
+  if (link_restored_.exchange(false, std::memory_order_acquire)) {
+    // A new socket in the descriptor's place (adopt()): the interface is back.
+    status_.bus_state = static_cast<BusState>(restored_state_.load(std::memory_order_relaxed));
+    status_.link_down = false;
+    status_.peer_closed = false;
+    ++status_.link_reopens;
+    link_down_.store(false, std::memory_order_release);
+    have_offset_ = false;
+  } else if (state_posted_.exchange(false, std::memory_order_acquire)) {
+    status_.bus_state = static_cast<BusState>(restored_state_.load(std::memory_order_relaxed));
+  }
+  if (status_.link_down || status_.peer_closed) return 0;   // nothing comes on this socket until it is opened again
   const std::int64_t t_start = monotonic_now_ns();
   // SCM_TIMESTAMPNS is CLOCK_REALTIME; one offset per call maps it to CLOCK_MONOTONIC. A step of
   // CLOCK_REALTIME since the previous call may lie between a record's stamp and this offset, so
@@ -311,6 +373,9 @@ std::size_t CanDevice::read_into(SampleSink& sink) noexcept {
     }
     if (static_cast<std::size_t>(got) < want) break;  // drained: spare the call that says so
   }
+  // For CanLinkWatch: whether this socket has gone quiet for good, and the controller's state.
+  if (status_.peer_closed) link_down_.store(true, std::memory_order_release);
+  bus_off_.store(status_.bus_state == BusState::BusOff, std::memory_order_relaxed);
   const double us = static_cast<double>(monotonic_now_ns() - t_start) * 1e-3;
   if (us > health_.read_time_max_us) health_.read_time_max_us = us;
   return pushed;

@@ -7,6 +7,7 @@
 #include <sys/uio.h>
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -57,6 +58,9 @@ struct CanStatus {
   std::uint64_t kernel_timestamps = 0;    // frames stamped from the SCM_TIMESTAMPNS cmsg
   std::uint64_t receive_calls = 0;        // recvmmsg/recvmsg system calls that returned records
   bool peer_closed = false;               // a stream end (socketpair peer gone; never on CAN_RAW)
+  bool link_down = false;                 // the interface went away or down (ENODEV, ENETDOWN): see CanLinkWatch
+  std::uint64_t link_losses = 0;          // times it did
+  std::uint64_t link_reopens = 0;         // times a new socket took the old one's place (adopt())
   // Frames refused so that no sample number is given twice (frame_counter.hpp), and resets.
   std::uint64_t counter_resets = 0;       // a frame counter restarted: a new segment, marked to the sink
   std::uint64_t short_frames = 0;         // too short to hold their frame's counter
@@ -86,6 +90,10 @@ ReceiveControl read_receive_control(const msghdr& msg) noexcept;
 
 const char* to_string(BusState state) noexcept;
 
+/// A CAN_RAW socket bound to `interface` by name (its index looked up now, so a re-plugged
+/// adapter's new index is found). An invalid descriptor with the reason otherwise. Non-RT.
+UniqueFd open_can_raw(const std::string& interface, std::string* why);
+
 class CanDevice final : public Device {
  public:
   static constexpr std::size_t kMaxRecordsPerReadLimit = 1024;
@@ -104,6 +112,7 @@ class CanDevice final : public Device {
   static std::unique_ptr<CanDevice> from_fd(UniqueFd fd, const CanDeviceConfig& config, std::string* why);
 
   [[nodiscard]] std::string_view name() const noexcept override { return config_.name; }
+  [[nodiscard]] const std::string& interface() const noexcept { return config_.interface; }
   [[nodiscard]] std::span<const std::string> channel_names() const noexcept override { return channels_; }
 
   /// Non-RT. Makes the descriptor non-blocking, turns on SO_TIMESTAMPNS and SO_RXQ_OVFL and
@@ -130,6 +139,19 @@ class CanDevice final : public Device {
   [[nodiscard]] int wait_fd() const noexcept override { return fd_.get(); }
 
   [[nodiscard]] const CanStatus& status() const noexcept { return status_; }
+
+  /// The socket's interface went away or down, or its peer closed (a socketpair): nothing comes
+  /// until adopt() puts a new socket in its place. Thread: any (CanLinkWatch asks).
+  [[nodiscard]] bool link_down() const noexcept { return link_down_.load(std::memory_order_acquire); }
+  /// The controller was bus-off at the last read. Thread: any.
+  [[nodiscard]] bool bus_off() const noexcept { return bus_off_.load(std::memory_order_relaxed); }
+  /// Non-RT (CanLinkWatch's thread): sets `fd` up as configure() set the first socket and puts
+  /// it in the old descriptor's place (dup3, so the number waited on stays); the sampling thread's
+  /// next read takes it, with the controller's state `state`, and counts a reopen.
+  bool adopt(UniqueFd fd, BusState state, std::string* why);
+  /// Non-RT: the controller's state as the interface reports it, for the sampling thread's next
+  /// read (a bus-off the kernel's restart frame did not clear, e.g. ip link set down and up).
+  void set_bus_state(BusState state) noexcept;
   [[nodiscard]] const ReceiveBuffer& receive_buffer() const noexcept { return receive_buffer_; }
   [[nodiscard]] bool is_can_socket() const noexcept { return is_can_socket_; }
   /// A CAN FD frame's share of a receive buffer (its socket buffer's true size in the kernel:
@@ -159,7 +181,11 @@ class CanDevice final : public Device {
   bool active_ = false;
   CompiledFrameMap map_;
   std::int64_t realtime_now_ns() const noexcept;
-  void size_receive_buffer() noexcept;
+  void size_receive_buffer(int fd) noexcept;
+  /// Non-blocking, timestamps, drop count, buffer; on a CAN_RAW socket FD frames, filters.
+  bool prepare(int fd, bool can_socket, std::string* why);
+  /// Whether a receive error means the interface is gone (counted, link_down set). Sampling thread.
+  bool gone(int err) noexcept;
 
   // Per frame key with a counter signal: its unwrapping (sampling thread).
   struct CounterState {
@@ -178,6 +204,10 @@ class CanDevice final : public Device {
   bool have_offset_ = false;
   std::int64_t offset_ns_ = 0, offset_at_ns_ = 0;
   ReceiveBuffer receive_buffer_;
+  // Between the sampling thread and CanLinkWatch's (see adopt()).
+  std::atomic<bool> link_down_{false}, bus_off_{false};
+  std::atomic<bool> link_restored_{false}, state_posted_{false};
+  std::atomic<int> restored_state_{0};
   std::vector<std::string> channels_;
   CanStatus status_;
   bool batch_receive_ = true;
