@@ -205,6 +205,7 @@ void DeviceSampler::mirror_health() noexcept {
     const std::uint64_t glitches = s.quadrature.glitches + s.quadrature.illegal_transitions;
     if (glitches > slot_->glitches.load(std::memory_order_relaxed)) faults |= kFaultGlitches;
     slot_->glitches.store(glitches, std::memory_order_relaxed);
+    slot_->encoder_overflows.store(s.overflows, std::memory_order_relaxed);
     // Glitches and illegal transitions are edges that did not decode into motion.
     slot_->decode_errors.store(h.decode_errors + h.malformed + glitches, std::memory_order_relaxed);
   }

@@ -286,6 +286,10 @@ bool SimBench::flush_edges(EncoderSim& e, std::int64_t through_ns) {
   // device already knows A and B are complete through the batch and merges all of it.
   for (std::size_t l = 0; l < gp::kEdgeLineCount; ++l) {
     if (l == static_cast<std::size_t>(gp::EdgeLine::Trigger)) {
+      // The lines' levels as a chip would read them now, whatever events reached the reader.
+      bool a = false, b = false;
+      levels_of_state(mod4(e.count), a, b);
+      e.wire->set_levels(a, b, through_ns);
       e.wire->advance(gp::EdgeLine::A, through_ns);
       e.wire->advance(gp::EdgeLine::B, through_ns);
     }
@@ -584,6 +588,11 @@ void SimBench::run() noexcept {
           --e.count;
         }
         const std::int64_t t_edge = t_prev + (t_n - t_prev) * (j + 1) / (m + 1);
+        if (line == gp::EdgeLine::A && f.gpio_overflow_at_s >= 0 && t_s >= f.gpio_overflow_at_s &&
+            e.overflowed < f.gpio_overflow_edges) {
+          ++e.overflowed;   // the full FIFO drops it: the line moved, its event never comes
+          continue;
+        }
         queue_edge(e, line, rising, t_edge);
         if (f.glitch_every > 0 && ++e.edges % f.glitch_every == 0)
           queue_edge(e, line, rising, t_edge + 1);  // the same edge again: no level change, a glitch

@@ -53,6 +53,10 @@ struct SimFaults {
   double short_frame_at_s = -1.0;                      // a frame cut short before its counter
   double duplicate_frame_at_s = -1.0;                  // a frame sent twice
   double swapped_frames_at_s = -1.0;                   // a frame sent after the next one
+  // GPIO encoders: line A's kernel FIFO overflows, so many of its edges from that time on never
+  // reach the reader (the line itself, and so its level, moves on).
+  double gpio_overflow_at_s = -1.0;
+  std::size_t gpio_overflow_edges = 0;
 };
 
 struct SimOptions {
@@ -133,6 +137,7 @@ class SimBench {
     double offset = 0.0; // keeps the position continuous across cases and plan repeats
     bool trigger_level = false;
     std::size_t edges = 0;
+    std::size_t overflowed = 0;   // line A edges dropped so far (gpio-overflow)
     // Records of one sample tick per line, written in PIPE_BUF-sized batches (one syscall for
     // many edges; a pipe write of at most PIPE_BUF bytes is atomic, so records never split).
     std::array<std::vector<gpioevent_data>, hal::gpiod::kEdgeLineCount> pending;

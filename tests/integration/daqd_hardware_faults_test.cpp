@@ -10,6 +10,7 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <regex>
 #include <sstream>
 
@@ -258,6 +259,77 @@ TEST(DaqdHardwareFaults, ShortDuplicateAndSwappedFramesAreRefusedCountedAndNoSam
       compare_with_truth(r, truth, [](const sample_block_t& b, std::int32_t s) { return b.channel_seq[0] + s; }, &wrong);
   EXPECT_EQ(wrong, 0) << "of " << compared;
   EXPECT_GT(compared, static_cast<std::int64_t>(5.0 * kRateHz) * 7);
+}
+
+TEST(DaqdHardwareFaults, AGpioEncoderLineOverflowIsCountedResynchronizedAndOnlyItsSamplesAreInvalid) {
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
+  // 17 edges of the linear encoder's line A lost from 0.3 s on (during the sine phase): a full
+  // kernel FIFO of 16 and the edge after it. As fast as possible: the simulator's exact clock.
+  TempDir tmp;
+  const std::string config = source_path("tests/integration/configs/daq-small.toml");
+  DaqdProcess daqd({"--config", config, "--fast", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url(), "--fault",
+                    "gpio-overflow@0.3+17"},
+                   {}, tmp.path / "daqd.txt");
+  ASSERT_EQ(daqd.wait(60), 0) << daqd.output();
+  const auto events = read_log_dir(tmp.path / "log");
+  const auto statuses = decode_all<daq_status_t>(events, "INERTIA_STATUS");
+  ASSERT_FALSE(statuses.empty());
+  const auto* st = device(statuses.back(), "linear_encoder");
+  ASSERT_NE(st, nullptr);
+  EXPECT_EQ(st->encoder_overflows, 1);
+  bool raised = false;
+  for (const auto& s : statuses) {
+    const auto* d = device(s, "linear_encoder");
+    raised = raised || std::find(d->faults.begin(), d->faults.end(), "encoder-overflow") != d->faults.end();
+  }
+  EXPECT_TRUE(raised) << "encoder-overflow on INERTIA_STATUS";
+
+  // Truth: count = floor(x / resolution) - floor(x0 / resolution) at every sample tick.
+  const config::BenchConfig bench = config::load_bench_config(config);
+  const sim::BenchSimulation truth = sim::simulate_bench(bench);
+  const auto& x = truth.cases.at(0).motion.shaker_x_m;
+  const double res = bench.linear_encoder.resolution;
+  const double c0 = std::floor(x[0] / res);
+  const auto enc = decode_all<sample_block_t>(events, "INERTIA_RAW_LINEAR_ENCODER");
+  ASSERT_FALSE(enc.empty());
+  EXPECT_EQ(sequence_gaps(enc), 0);
+  const auto lost_from = static_cast<std::int64_t>(0.3 * kRateHz);
+  std::int64_t invalid = 0, first_invalid = -1, last_invalid = -1, wrong_before = 0;
+  for (const auto& b : enc)
+    for (std::int32_t s = 0; s < b.num_samples; ++s) {
+      const std::int64_t k = b.channel_seq[0] + s;
+      const double expected = std::floor(x[static_cast<Eigen::Index>(k)] / res) - c0;
+      if (!sample_valid(b, 0, s)) {
+        ++invalid;
+        if (first_invalid < 0) first_invalid = k;
+        last_invalid = k;
+        EXPECT_FALSE(sample_valid(b, 1, s)) << "count and position together";
+      } else if (k < lost_from && b.values[0][static_cast<std::size_t>(s)] != expected) {
+        ++wrong_before;
+      }
+    }
+  EXPECT_EQ(wrong_before, 0) << "every sample before the loss is the encoder's";
+  ASSERT_GT(invalid, 0);
+  EXPECT_GE(first_invalid, lost_from);
+  // Invalid from the edge that showed the loss to the levels the simulator wrote after that
+  // batch (10 ms of samples in a fast run), and nowhere else.
+  EXPECT_EQ(last_invalid - first_invalid + 1, invalid) << "one run of invalid samples";
+  EXPECT_LE(invalid, static_cast<std::int64_t>(kRateHz / 100.0));
+  // After it the count follows the encoder, off by the steps that were lost: one constant.
+  std::int64_t offset_changes = 0;
+  std::optional<double> offset;
+  for (const auto& b : enc)
+    for (std::int32_t s = 0; s < b.num_samples; ++s) {
+      const std::int64_t k = b.channel_seq[0] + s;
+      if (k <= last_invalid) continue;
+      const double d = b.values[0][static_cast<std::size_t>(s)] - (std::floor(x[static_cast<Eigen::Index>(k)] / res) - c0);
+      if (offset && d != *offset) ++offset_changes;
+      offset = d;
+    }
+  ASSERT_TRUE(offset.has_value());
+  std::cout << "[ figures ] 17 edges of line A lost at 0.3 s: " << invalid << " samples invalid, count off by " << *offset
+            << " after\n";
+  EXPECT_EQ(offset_changes, 0);
 }
 
 }  // namespace
