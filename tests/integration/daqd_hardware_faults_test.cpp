@@ -220,6 +220,29 @@ TEST(DaqdHardwareFaults, ASixteenBitCounterResetStartsANewClockSegmentAndNoSampl
   }
 }
 
+TEST(DaqdHardwareFaults, AnEightSecondSilenceOnASixteenBitCounterKeepsItsLength) {
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
+  // The bus is off from 1 s to 9 s: 80000 samples at 10 kHz, one roll-over of the 16-bit counter
+  // and 14464 more. By value alone the numbers after it would come 65536 short.
+  TempDir tmp;
+  const DaqdRun r = run_daqd(tmp, "counter_bits = 16\n", 10.0, {"bus-off@1+8"});
+  ASSERT_FALSE(r.accel.empty());
+  const auto* st = device(r.last_status, "accel");
+  ASSERT_NE(st, nullptr);
+  EXPECT_EQ(st->counter_resets, 0);
+  // The blocks' numbers jump by the silence, and every sample is the simulator's of its number.
+  std::int64_t jump = 0;
+  for (std::size_t i = 1; i < r.accel.size(); ++i)
+    jump = std::max(jump, r.accel[i].channel_seq[0] - (r.accel[i - 1].channel_seq[0] + r.accel[i - 1].num_samples));
+  EXPECT_GE(jump, static_cast<std::int64_t>(8.0 * kRateHz) - 200) << "the silence, less the blocks it began and ended in";
+  const Truth truth(r.bench);
+  std::int64_t wrong = 0;
+  const std::int64_t compared =
+      compare_with_truth(r, truth, [](const sample_block_t& b, std::int32_t s) { return b.channel_seq[0] + s; }, &wrong);
+  EXPECT_EQ(wrong, 0) << "of " << compared;
+  EXPECT_GT(compared, static_cast<std::int64_t>(1.8 * kRateHz) * 7) << "before and after the silence";
+}
+
 TEST(DaqdHardwareFaults, ShortDuplicateAndSwappedFramesAreRefusedCountedAndNoSampleDiffers) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   // One of each in 60000 frames: the frame of the sample due at 2 s cut short before its counter,
