@@ -62,7 +62,7 @@ std::unique_ptr<CanDevice> make_device(UniqueFd fd) {
   return device;
 }
 
-TEST(CanLinkWatch, AReplugedAdapterIsReopenedByNameWithBackoffAndSamplingGoesOn) {
+TEST(CanLinkWatch, ARepluggedAdapterIsReopenedByNameWithBackoffAndSamplingGoesOn) {
   Pair first;
   auto device = make_device(std::move(first.reader));
   const int waited_on = device->wait_fd();
