@@ -84,9 +84,24 @@ void parse_fault(const std::string& spec, DaemonOptions& o) {
     std::tie(o.faults.nan_at_s, o.faults.nan_s) = at_for(kind, arg);
   } else if (kind == "encoder-glitch") {
     o.faults.glitch_every = static_cast<std::size_t>(to_number("--fault encoder-glitch", arg));
+  } else if (kind == "can-reset") {
+    std::tie(o.faults.can_reset_at_s, o.faults.can_reset_s) = at_for(kind, arg);
+  } else if (kind == "short-frame") {
+    o.faults.short_frame_at_s = to_number("--fault " + kind, arg);
+  } else if (kind == "duplicate-frame") {
+    o.faults.duplicate_frame_at_s = to_number("--fault " + kind, arg);
+  } else if (kind == "swapped-frames") {
+    o.faults.swapped_frames_at_s = to_number("--fault " + kind, arg);
+  } else if (kind == "gpio-overflow") {
+    const auto plus = arg.find('+');
+    if (plus == std::string::npos) throw InputError("option --fault gpio-overflow: expected AT+EDGES, got '" + arg + "'");
+    o.faults.gpio_overflow_at_s = to_number("--fault " + kind, arg.substr(0, plus));
+    o.faults.gpio_overflow_edges = static_cast<std::size_t>(to_integer("--fault " + kind, arg.substr(plus + 1), 1, 1'000'000));
   } else {
     throw InputError("option --fault: unknown fault '" + kind +
-                     "' (known: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S, nan@AT+S, sampler-hang@AT+S, log-stall@AT+MS, encoder-glitch@N)");
+                     "' (known: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S, nan@AT+S, sampler-hang@AT+S, log-stall@AT+MS, "
+                     "encoder-glitch@N, can-reset@AT+S, short-frame@AT, duplicate-frame@AT, swapped-frames@AT, "
+                     "gpio-overflow@AT+N)");
   }
 }
 
@@ -155,7 +170,11 @@ const char* usage() {
          "  --fault SPEC         sim bench fault: bus-off@AT+S, modbus-gone@AT+S, stuck@AT+S (first\n"
          "                       sensor frozen), nan@AT+S (first sensor reports no valid reading),\n"
          "                       sampler-hang@AT+S (CAN sampling thread sleeps; the\n"
-         "                       watchdog must stop), log-stall@AT+MS, encoder-glitch@N (simulated s)\n";
+         "                       watchdog must stop), log-stall@AT+MS, encoder-glitch@N (simulated s);\n"
+         "                       with [bench.sim_timing]: can-reset@AT+S (the CAN adapter reboots, its\n"
+         "                       counter restarts at 0), short-frame@AT, duplicate-frame@AT,\n"
+         "                       swapped-frames@AT; gpio-overflow@AT+N (N edges of a GPIO\n"
+         "                       encoder's line A lost from AT on)\n";
 }
 
 DaemonOptions parse_options(const std::vector<std::string>& args, bool* help) {

@@ -34,6 +34,9 @@ enum FaultBit : std::uint32_t {
   kFaultStuck = 1u << 7,
   kFaultSilent = 1u << 8,
   kFaultRealtimeRefused = 1u << 9,   // the sampling thread runs without its SCHED_FIFO or CPU pin
+  kFaultOutOfRange = 1u << 10,       // readings outside their plausible range arrived in the last status period
+  kFaultLinkDown = 1u << 11,         // the CAN interface is gone or down; reopened when it is back
+  kFaultEncoderOverflow = 1u << 12,  // edge events were lost in the last status period (decoder resynchronized)
 };
 std::vector<std::string> fault_names(std::uint32_t bits);
 
@@ -57,10 +60,13 @@ struct DeviceSlot {
   const double nominal_rate_hz;            // samples per second per channel
   bool sim_time_base = false;              // block times from the simulated clock (see publisher)
   int time_index_channel = -1;             // with sim_time_base: a channel holding the sample number
-  // A channel repeating exactly the same value this many samples in a row is stuck: from then on
-  // its samples are marked invalid until the value moves (0: off; only for channels that always
-  // carry noise, e.g. accelerometers digitised below their noise floor).
-  std::uint32_t stuck_samples = 0;
+  // Per channel: repeating exactly the same value this many samples in a row is stuck: from then
+  // on its samples are marked invalid until the value moves (0 or no entry: off; only for
+  // channels that always carry noise, e.g. accelerometers digitised below their noise floor).
+  std::vector<std::uint32_t> stuck_samples;
+  // The device's fixed receive latency (bench file latency_floor_ns): subtracted from its stamps
+  // before its clock fit, which cannot observe a constant delay (clock_fit.hpp).
+  std::int64_t latency_floor_ns = 0;
   // No sample for this long is the fault "silent" (the publisher watches; 0: not watched).
   std::int64_t silent_timeout_ns = 0;
   // Fast simulated runs only: the sampling thread waits for room in the ring instead of dropping,
@@ -79,6 +85,16 @@ struct DeviceSlot {
   std::atomic<std::uint64_t> invalid_samples{0};
   std::atomic<std::uint64_t> glitches{0};
   std::atomic<std::uint64_t> read_time_max_ns{0};
+  // Real hardware's failure modes, as device_status_t names them (the backends' own counters).
+  std::atomic<std::uint64_t> counter_resets{0};
+  std::atomic<std::uint64_t> short_frames{0};
+  std::atomic<std::uint64_t> duplicate_frames{0};
+  std::atomic<std::uint64_t> out_of_order_frames{0};
+  std::atomic<std::uint64_t> kernel_drops{0};
+  std::atomic<std::uint64_t> link_reopens{0};
+  std::atomic<std::uint64_t> clock_steps{0};
+  std::atomic<std::uint64_t> range_faults{0};
+  std::atomic<std::uint64_t> encoder_overflows{0};
   std::atomic<std::uint32_t> faults{0};
   std::atomic<std::uint64_t> heartbeat{0};  // +1 per loop: the supervisor's proof of life
   std::atomic<std::int8_t> state{static_cast<std::int8_t>(SlotState::Unconfigured)};

@@ -189,11 +189,12 @@ void Publisher::send_block(Packer& p) noexcept {
 
 void Publisher::mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept {
   DeviceSlot& slot = *p.slot;
+  if (c >= slot.stuck_samples.size() || slot.stuck_samples[c] == 0) return;
   const double v = p.values[c][f];
-  const bool was_stuck = p.run[c] >= slot.stuck_samples;
+  const bool was_stuck = p.run[c] >= slot.stuck_samples[c];
   p.run[c] = (v == p.last_value[c]) ? p.run[c] + 1 : 0;
   p.last_value[c] = v;
-  const bool stuck = p.run[c] >= slot.stuck_samples;
+  const bool stuck = p.run[c] >= slot.stuck_samples[c];
   if (stuck) {
     p.valid[c][f] = 0;  // the log shows exactly which samples were judged stuck
     ++slot.stuck_invalid;
@@ -208,8 +209,28 @@ void Publisher::mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept {
   }
 }
 
+void Publisher::start_segment(Packer& p, std::int64_t first) noexcept {
+  if (!p.clock) return;
+  if (p.numbered) {
+    // What the old segment holds goes out now, timed by the old clock, as at the end of a run.
+    while (p.base >= 0 && p.newest >= p.base)
+      emit_numbered(p, static_cast<std::int32_t>(std::min<std::int64_t>(p.block_len, p.newest - p.base + 1)));
+    // The new segment's blocks start at its first number (its numbers go on from the old ones').
+    if (p.base >= 0) p.base = first;
+    p.newest = -1;
+  }
+  p.clock.emplace(1.0 / p.slot->nominal_rate_hz);
+  p.timebase = SlewedTimeBase{};
+  p.clock_fed = first - 1;
+  ++p.segments;
+}
+
 void Publisher::take(Packer& p, const RingSample& s) noexcept {
   DeviceSlot& slot = *p.slot;
+  if (s.channel == hal::kSegmentStart) {
+    start_segment(p, s.index);
+    return;
+  }
   if (s.index >= 0 && p.clock) {
     take_numbered(p, s);
     return;
@@ -220,11 +241,11 @@ void Publisher::take(Packer& p, const RingSample& s) noexcept {
   if (f < p.capacity) {
     p.values[c][f] = s.value;
     p.valid[c][f] = static_cast<std::uint8_t>(s.valid);
-    if (slot.stuck_samples > 0 && static_cast<int>(c) != slot.time_index_channel) mark_stuck(p, c, f);
+    mark_stuck(p, c, f);
     if (c == 0) {
-      p.t_first[f] = s.t_ns;
+      p.t_first[f] = s.t_ns - slot.latency_floor_ns;
       // Without numbers the count of a channel's samples is the device's clock.
-      if (p.clock) p.clock->add(p.channel_seq[0] + static_cast<std::int64_t>(f), s.t_ns);
+      if (p.clock) p.clock->add(p.channel_seq[0] + static_cast<std::int64_t>(f), p.t_first[f]);
     }
     ++f;
     if (f >= static_cast<std::size_t>(p.block_len) &&
@@ -271,9 +292,9 @@ void Publisher::take_numbered(Packer& p, const RingSample& s) noexcept {
   }
   p.values[c][pos] = s.value;
   p.valid[c][pos] = static_cast<std::uint8_t>(s.valid);
-  if (slot.stuck_samples > 0 && static_cast<int>(c) != slot.time_index_channel) mark_stuck(p, c, pos);
+  mark_stuck(p, c, pos);
   if (s.index > p.clock_fed) {
-    p.clock->add(s.index, s.t_ns);
+    p.clock->add(s.index, s.t_ns - slot.latency_floor_ns);
     p.clock_fed = s.index;
   }
   p.newest = std::max(p.newest, s.index);
@@ -288,9 +309,9 @@ std::vector<std::string> Publisher::clock_report() const {
   for (const Packer& p : packers_) {
     if (!p.clock || p.clock->points() == 0) continue;
     lines.push_back(fmt::format("{}: clock drift {:+.2f} +- {:.2f} ppm, floor residual {:.1f} us, largest correction slewed in "
-                                "{:.1f} us, samples lost {}, late {}",
+                                "{:.1f} us, samples lost {}, late {}, clock segments {}",
                                 p.slot->name, p.clock->drift_ppm(), p.clock->drift_sd_ppm(), p.clock->residual_us(),
-                                p.timebase.largest_correction_us(), p.lost, p.late));
+                                p.timebase.largest_correction_us(), p.lost, p.late, p.segments + 1));
   }
   return lines;
 }
@@ -353,6 +374,15 @@ void Publisher::watch_silence(Packer& p, std::int64_t now_ns) noexcept {
   }
 }
 
+void Publisher::raise_while_counting(DeviceSlot& slot, std::uint32_t bit, std::uint64_t count, std::uint64_t& seen) noexcept {
+  if (count != seen) {
+    slot.faults.fetch_or(bit, std::memory_order_relaxed);
+  } else {
+    slot.faults.fetch_and(~bit, std::memory_order_relaxed);
+  }
+  seen = count;
+}
+
 void Publisher::publish_status(double dt_s) {
   daq_status_t st{};
   const std::int64_t now = hal::monotonic_now_ns();
@@ -377,6 +407,11 @@ void Publisher::publish_status(double dt_s) {
     d.decode_errors = static_cast<std::int64_t>(s.decode_errors.load(std::memory_order_relaxed));
     d.resyncs = static_cast<std::int64_t>(s.resyncs.load(std::memory_order_relaxed));
     d.read_time_max_us = static_cast<double>(s.read_time_max_ns.exchange(0, std::memory_order_relaxed)) * 1e-3;
+    // Faults that are events, not states: raised for the status period in which they came.
+    const std::uint64_t range_faults = s.range_faults.load(std::memory_order_relaxed);
+    const std::uint64_t overflows = s.encoder_overflows.load(std::memory_order_relaxed);
+    raise_while_counting(s, kFaultOutOfRange, range_faults, p.status_range_faults);
+    raise_while_counting(s, kFaultEncoderOverflow, overflows, p.status_overflows);
     d.faults = fault_names(s.faults.load(std::memory_order_relaxed));
     d.num_faults = static_cast<std::int32_t>(d.faults.size());
     if (p.clock && p.clock->points() > 0) {
@@ -385,6 +420,16 @@ void Publisher::publish_status(double dt_s) {
     }
     d.lost_samples = static_cast<std::int64_t>(p.lost);
     d.late_samples = static_cast<std::int64_t>(p.late);
+    d.counter_resets = static_cast<std::int64_t>(s.counter_resets.load(std::memory_order_relaxed));
+    d.short_frames = static_cast<std::int64_t>(s.short_frames.load(std::memory_order_relaxed));
+    d.duplicate_frames = static_cast<std::int64_t>(s.duplicate_frames.load(std::memory_order_relaxed));
+    d.out_of_order_frames = static_cast<std::int64_t>(s.out_of_order_frames.load(std::memory_order_relaxed));
+    d.kernel_drops = static_cast<std::int64_t>(s.kernel_drops.load(std::memory_order_relaxed));
+    d.link_reopens = static_cast<std::int64_t>(s.link_reopens.load(std::memory_order_relaxed));
+    d.clock_steps = static_cast<std::int64_t>(s.clock_steps.load(std::memory_order_relaxed));
+    d.range_faults = static_cast<std::int64_t>(range_faults);
+    d.stuck_samples = static_cast<std::int64_t>(s.stuck_invalid);
+    d.encoder_overflows = static_cast<std::int64_t>(overflows);
     st.devices.push_back(std::move(d));
   }
   st.num_devices = static_cast<std::int32_t>(st.devices.size());

@@ -133,11 +133,19 @@ class Publisher {
     std::vector<std::vector<std::uint8_t>> present;
     std::vector<std::uint32_t> block_present;   // present samples (all channels) per block of the window
     std::uint64_t lost = 0, late = 0;
+    std::uint64_t segments = 0;          // clock segments started after the first (hal::kSegmentStart)
+    std::uint64_t status_range_faults = 0, status_overflows = 0;   // counts at the previous status
   };
   void run(RealtimeOptions rt) noexcept;
   std::size_t drain(Packer& p) noexcept;
   void take(Packer& p, const RingSample& s) noexcept;
   void take_numbered(Packer& p, const RingSample& s) noexcept;
+  /// The device's numbers go on in a new segment from `first` (hal::kSegmentStart: its counter
+  /// restarted): the old segment's samples go out on the old clock, and the fit starts again, so
+  /// a restart neither tilts the line nor is slewed into it.
+  void start_segment(Packer& p, std::int64_t first) noexcept;
+  /// Raises `bit` on the slot while `count` moved since the previous status, clears it once not.
+  static void raise_while_counting(DeviceSlot& slot, std::uint32_t bit, std::uint64_t count, std::uint64_t& seen) noexcept;
   void emit(Packer& p, std::int32_t n) noexcept;
   void emit_numbered(Packer& p, std::int32_t n) noexcept;
   void send_block(Packer& p) noexcept;

@@ -1,5 +1,6 @@
 #include "daq/real_bench.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/config/machine_safety.hpp"
@@ -11,6 +12,7 @@ hal::socketcan::CanDeviceConfig to_hal(const config::CanDevice& d) {
   hal::socketcan::CanDeviceConfig c;
   c.name = d.name;
   c.interface = d.interface;
+  c.frame_rate_hz = d.sample_rate_hz;
   for (const auto& s : d.signals) {
     hal::socketcan::CanSignal h;
     h.name = s.name;
@@ -26,6 +28,9 @@ hal::socketcan::CanDeviceConfig to_hal(const config::CanDevice& d) {
     h.offset = s.offset;
     h.invalid_raw = s.invalid_raw;
     h.counter = s.counter;
+    h.wraps = s.wraps;
+    h.min = s.min;
+    h.max = s.max;
     c.map.signals.push_back(h);
   }
   return c;
@@ -70,6 +75,9 @@ hal::modbus::ModbusConfig to_hal(const config::ModbusDevice& d) {
       s.max = r.max;
       s.max_rate = r.max_rate;
     }
+    // Plausible readings: `range`, else a setpoint's write limits (as inertia-daqd --check has them).
+    s.range_min = r.writable && std::isinf(r.range_min) ? r.min : r.range_min;
+    s.range_max = r.writable && std::isinf(r.range_max) ? r.max : r.range_max;
     c.map.registers.push_back(s);
   }
   return c;
@@ -94,6 +102,11 @@ hal::gpiod::QuadratureConfig to_hal(const config::GpiodEncoder& e, double bench_
 namespace {
 
 std::int64_t seconds_to_ns(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
+/// Samples in a row that make a channel stuck, from its stuck_after_s at its device's rate (0: off).
+std::uint32_t stuck_samples(double stuck_after_s, double rate_hz) {
+  return stuck_after_s > 0.0 ? static_cast<std::uint32_t>(std::max(2.0, std::ceil(stuck_after_s * rate_hz))) : 0u;
+}
 
 /// The start-up message for a device that did not open: the device check's first failure for
 /// it (bench-file position, what, fix) when the check finds one, else the open call's reason.
@@ -124,7 +137,10 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
   };
   for (const auto& d : bench.can_devices) {
     std::string reason;
-    auto dev = hal::socketcan::CanDevice::open_interface(to_hal(d), &reason);
+    hal::socketcan::CanDeviceConfig config = to_hal(d);
+    const double rate_hz = d.sample_rate_hz > 0 ? d.sample_rate_hz : bench.sample_rate_hz;
+    config.frame_rate_hz = rate_hz;
+    auto dev = hal::socketcan::CanDevice::open_interface(config, &reason);
     if (!dev) {
       if (!left_out(d.availability, d.name, diagnose(check_can_device(d), "device '" + d.name + "' (CAN " + d.interface + "): " + reason)))
         return out;
@@ -133,9 +149,10 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     }
     std::vector<ChannelInfo> info;
     for (const auto& s : d.signals) info.push_back({s.name, s.unit, next_id++});
-    auto slot = std::make_shared<DeviceSlot>(d.name, std::move(info), d.sample_rate_hz > 0 ? d.sample_rate_hz : bench.sample_rate_hz,
-                                             ring_capacity);
+    auto slot = std::make_shared<DeviceSlot>(d.name, std::move(info), rate_hz, ring_capacity);
     slot->silent_timeout_ns = seconds_to_ns(d.availability.silent_timeout_s);
+    slot->latency_floor_ns = d.availability.latency_floor_ns;
+    for (const auto& s : d.signals) slot->stuck_samples.push_back(stuck_samples(s.stuck_after_s, rate_hz));
     const int fd = dev->wait_fd();
     out.samplers.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::vector<int>{fd}, slot, false));
   }
@@ -158,6 +175,7 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     next_id += 2;
     auto slot = std::make_shared<DeviceSlot>(e.name, std::move(info), bench.sample_rate_hz, ring_capacity);
     slot->silent_timeout_ns = seconds_to_ns(e.availability.silent_timeout_s);
+    slot->latency_floor_ns = e.availability.latency_floor_ns;
     out.samplers.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::move(fds), slot, rows));
   }
   for (const auto& m : bench.modbus_devices) {
@@ -174,6 +192,8 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     for (const auto& r : m.registers) info.push_back({r.name, r.unit, next_id++});
     auto slot = std::make_shared<DeviceSlot>(m.name, std::move(info), 1000.0 / m.poll_interval_ms, ring_capacity);
     slot->silent_timeout_ns = seconds_to_ns(m.availability.silent_timeout_s);
+    slot->latency_floor_ns = m.availability.latency_floor_ns;
+    for (const auto& r : m.registers) slot->stuck_samples.push_back(stuck_samples(r.stuck_after_s, slot->nominal_rate_hz));
     std::vector<ControllerPort::SafeValue> safe;
     for (std::size_t r = 0; r < m.registers.size(); ++r)
       if (m.writes_enabled && m.registers[r].safe) safe.push_back({r, *m.registers[r].safe});

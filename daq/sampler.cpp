@@ -6,6 +6,7 @@
 #include <time.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <iostream>
 
@@ -21,12 +22,13 @@ class RingSink final : public hal::SampleSink {
  public:
   explicit RingSink(DeviceSlot& slot) : slot_(slot) {}
   bool push(std::uint32_t channel, std::int64_t t_ns, double value, bool valid, std::int64_t sample_index) noexcept override {
-    if (!valid) ++invalid_;
+    const bool sample = channel != hal::kSegmentStart;   // a segment mark travels with the samples, uncounted
+    if (sample && !valid) ++invalid_;
     if (!slot_.ring.try_stage(RingSample{t_ns, value, channel, valid ? 1u : 0u, sample_index})) {
-      ++drops_;
+      if (sample) ++drops_;
       return false;
     }
-    ++samples_;
+    if (sample) ++samples_;
     return true;
   }
   /// Publishes the staged samples, then the counters (so a reader that sees a count finds the
@@ -84,7 +86,8 @@ std::vector<std::string> fault_names(std::uint32_t bits) {
       {kFaultBusOff, "bus-off"},        {kFaultBusPassive, "bus-passive"},   {kFaultModbusGone, "modbus-gone"},
       {kFaultPeerClosed, "peer-closed"}, {kFaultGlitches, "encoder-glitch"}, {kFaultMisaligned, "misaligned"},
       {kFaultInvalidSamples, "invalid-samples"},
-      {kFaultStuck, "stuck"},           {kFaultSilent, "silent"},         {kFaultRealtimeRefused, "realtime-refused"}};
+      {kFaultStuck, "stuck"},           {kFaultSilent, "silent"},         {kFaultRealtimeRefused, "realtime-refused"},
+      {kFaultOutOfRange, "out-of-range"}, {kFaultLinkDown, "link-down"}, {kFaultEncoderOverflow, "encoder-overflow"}};
   std::vector<std::string> out;
   for (const auto& [bit, name] : kNames)
     if ((bits & bit) != 0) out.emplace_back(name);
@@ -130,6 +133,17 @@ bool DeviceSampler::bring_up(std::string* why) {
     return false;
   }
   set(SlotState::Inactive);
+  if (can_ != nullptr && can_->is_can_socket()) {
+    // The kernel caps a receive buffer at net.core.rmem_max (without CAP_NET_ADMIN): said on
+    // the journal with how long of frames it holds, so a bench whose reader may stall knows.
+    const hal::socketcan::ReceiveBuffer& b = can_->receive_buffer();
+    if (b.granted < b.wanted)
+      std::cerr << "inertia-daqd: warning: " << slot_->name << ": the kernel gave CAN interface " << can_->interface()
+                << " a receive buffer of " << b.granted << " bytes, " << std::llround(1000.0 * static_cast<double>(b.granted) /
+                                                                                      static_cast<double>(b.wanted))
+                << " ms of its frames, not the 1000 ms asked; to give it more: sysctl -w net.core.rmem_max=" << b.wanted / 2
+                << " (and a file in /etc/sysctl.d/ to keep it)\n";
+  }
   if (device_->activate() != hal::Step::Ok) {
     set(SlotState::Failed);
     if (why) *why = "device " + slot_->name + ": activate: " + device_->last_error();
@@ -141,11 +155,26 @@ bool DeviceSampler::bring_up(std::string* why) {
 
 void DeviceSampler::start(const RealtimeOptions& rt) {
   thread_ = std::thread([this, rt] { run(rt); });
+  if (can_ != nullptr && can_->is_can_socket()) {
+    link_watch_ = std::make_unique<hal::socketcan::CanLinkWatch>(*can_, can_->interface());
+    link_thread_ = std::thread([this] { watch_link(); });
+  }
 }
 
 void DeviceSampler::stop() {
   stop_.store(true, std::memory_order_release);
+  if (link_thread_.joinable()) link_thread_.join();
   if (thread_.joinable()) thread_.join();
+}
+
+void DeviceSampler::watch_link() noexcept {
+  ::pthread_setname_np(::pthread_self(), ("link-" + slot_->name).substr(0, 15).c_str());
+  while (!stop_.load(std::memory_order_acquire)) {
+    if (link_watch_->check(hal::monotonic_now_ns()))
+      std::cerr << "inertia-daqd: " << slot_->name << ": CAN interface " << can_->interface() << " is back, reopened\n";
+    timespec ts{0, 50'000'000};
+    ::nanosleep(&ts, nullptr);
+  }
 }
 
 void DeviceSampler::mirror_health() noexcept {
@@ -155,18 +184,28 @@ void DeviceSampler::mirror_health() noexcept {
   store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(h.read_time_max_us * 1e3));
   // Only this thread's own bits change here, by read-modify-write: the supervisor and the
   // publisher set and clear other bits of the same word at any time.
-  constexpr std::uint32_t kMine = kFaultBusOff | kFaultBusPassive | kFaultPeerClosed | kFaultGlitches;
+  constexpr std::uint32_t kMine = kFaultBusOff | kFaultBusPassive | kFaultPeerClosed | kFaultGlitches | kFaultLinkDown;
   std::uint32_t faults = 0;
   if (can_ != nullptr) {
     const auto& s = can_->status();
     if (s.bus_state == hal::socketcan::BusState::BusOff) faults |= kFaultBusOff;
     if (s.bus_state == hal::socketcan::BusState::ErrorPassive) faults |= kFaultBusPassive;
     if (s.peer_closed) faults |= kFaultPeerClosed;
+    if (s.link_down) faults |= kFaultLinkDown;
+    slot_->link_reopens.store(s.link_reopens, std::memory_order_relaxed);
+    slot_->counter_resets.store(s.counter_resets, std::memory_order_relaxed);
+    slot_->short_frames.store(s.short_frames, std::memory_order_relaxed);
+    slot_->duplicate_frames.store(s.duplicate_frames, std::memory_order_relaxed);
+    slot_->out_of_order_frames.store(s.out_of_order_frames, std::memory_order_relaxed);
+    slot_->kernel_drops.store(s.kernel_drops, std::memory_order_relaxed);
+    slot_->clock_steps.store(s.clock_steps, std::memory_order_relaxed);
+    slot_->range_faults.store(s.range_faults, std::memory_order_relaxed);
   } else if (encoder_ != nullptr) {
     const auto s = encoder_->status();
     const std::uint64_t glitches = s.quadrature.glitches + s.quadrature.illegal_transitions;
     if (glitches > slot_->glitches.load(std::memory_order_relaxed)) faults |= kFaultGlitches;
     slot_->glitches.store(glitches, std::memory_order_relaxed);
+    slot_->encoder_overflows.store(s.overflows, std::memory_order_relaxed);
     // Glitches and illegal transitions are edges that did not decode into motion.
     slot_->decode_errors.store(h.decode_errors + h.malformed + glitches, std::memory_order_relaxed);
   }
@@ -295,12 +334,13 @@ void ModbusSampler::run() noexcept {
     const auto values = controller_->poll();
     const std::int64_t t1 = hal::monotonic_now_ns();
     store_max(slot_->read_time_max_ns, static_cast<std::uint64_t>(t1 - t0));
-    bool any_valid = false;
+    bool any_answered = false;   // a reading out of its range was still an answer
     for (std::size_t i = 0; i < values.size(); ++i) {
-      any_valid = any_valid || values[i].valid;
+      any_answered = any_answered || values[i].valid || values[i].out_of_range;
       // One row per poll, all stamped with the poll's start so the row stays aligned.
-      (void)sink.push(static_cast<std::uint32_t>(i), stamp, values[i].valid ? values[i].value : 0.0, values[i].valid,
-                      hal::kNoSampleIndex);
+      // An implausible reading keeps its value, marked invalid (the log shows what came).
+      (void)sink.push(static_cast<std::uint32_t>(i), stamp, values[i].valid || values[i].out_of_range ? values[i].value : 0.0,
+                      values[i].valid, hal::kNoSampleIndex);
     }
     sink.flush();
     if (slot_->doorbell) slot_->doorbell->ring();
@@ -309,8 +349,9 @@ void ModbusSampler::run() noexcept {
     // Every failed request (timeout, refused, exception, bad data) left its values invalid.
     slot_->decode_errors.store(h.errors, std::memory_order_relaxed);
     slot_->resyncs.store(h.reconnects, std::memory_order_relaxed);
+    slot_->range_faults.store(controller_->range_faults(), std::memory_order_relaxed);
     // Read-modify-write of our bit only (the supervisor sets invalid-samples on the same word).
-    if (!any_valid || !controller_->link().connected()) {
+    if (!any_answered || !controller_->link().connected()) {
       slot_->faults.fetch_or(kFaultModbusGone, std::memory_order_relaxed);
     } else {
       slot_->faults.fetch_and(~kFaultModbusGone, std::memory_order_relaxed);

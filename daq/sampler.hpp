@@ -21,6 +21,7 @@
 #include "hal/gpiod/encoder_device.hpp"
 #include "hal/modbus/modbus_controller.hpp"
 #include "hal/socketcan/can_device.hpp"
+#include "hal/socketcan/can_link_watch.hpp"
 
 namespace inertia::daq {
 
@@ -45,7 +46,10 @@ class Sampler {
   [[nodiscard]] virtual bool watched() const noexcept { return true; }
 };
 
-/// CAN bus or encoder: an event-driven device with descriptors to poll.
+/// CAN bus or encoder: an event-driven device with descriptors to poll. A CAN device on a real
+/// interface also gets a thread that watches its link (hal/socketcan/can_link_watch.hpp): it
+/// reopens the interface by name when it comes back and clears a bus-off the interface no longer
+/// reports, so the sampling thread never waits on netlink or opens sockets.
 class DeviceSampler final : public Sampler {
  public:
   static constexpr int kIdleWaitMs = 20;
@@ -63,6 +67,7 @@ class DeviceSampler final : public Sampler {
 
  private:
   void run(RealtimeOptions rt) noexcept;
+  void watch_link() noexcept;
   void mirror_health() noexcept;
 
   std::unique_ptr<hal::Device> device_;
@@ -74,6 +79,8 @@ class DeviceSampler final : public Sampler {
   bool trigger_rows_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  std::unique_ptr<hal::socketcan::CanLinkWatch> link_watch_;   // real CAN interfaces only
+  std::thread link_thread_;
 };
 
 /// A Modbus controller polled at its interval. Thread: its own, NOT real-time (each request may

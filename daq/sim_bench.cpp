@@ -105,7 +105,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
       sig.name = i < n ? s->can_channels_[i].name : "sample_index";
       sig.id = kSimCanBaseId + static_cast<std::uint32_t>(i / kSignalsPerFrame);
       sig.byte_offset = static_cast<std::uint8_t>(4 * (i % kSignalsPerFrame));
-      sig.bit_length = 32;
+      sig.bit_length = static_cast<std::uint8_t>(i == n && s->real_timing_ ? bench.sim_timing.counter_bits : 32);
       sig.is_signed = i < n;
       sig.scale = i < n ? kSimCanScale : 1.0;
       if (i < n) sig.invalid_raw = kSimCanNoReading;
@@ -115,6 +115,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
       info.push_back({sig.name, i < n ? s->can_channels_[i].unit : "1", next_id++});
     }
     cfg.max_records_per_read = 256;
+    cfg.frame_rate_hz = s->rate_hz_;
     auto device = open_sim_can_bus(cfg, s->can_bus_.fd, why);
     if (!device) return nullptr;
     const int fd = device->wait_fd();
@@ -123,11 +124,19 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
                       "than " + std::to_string(kSignalsPerFrame - 1) + " channels need a second frame";
       return nullptr;
     }
+    const SimFaults& f = options.faults;
+    if (!s->real_timing_ && (f.can_reset_at_s >= 0 || f.short_frame_at_s >= 0 || f.duplicate_frame_at_s >= 0 ||
+                             f.swapped_frames_at_s >= 0)) {
+      if (why) *why = "--fault can-reset, short-frame, duplicate-frame and swapped-frames act on the frame counter: they need "
+                      "[bench.sim_timing] in the bench file and a paced run (no --fast)";
+      return nullptr;
+    }
     auto slot = std::make_shared<DeviceSlot>("accel", std::move(info), s->rate_hz_, ring_capacity);
     slot->sim_time_base = !s->real_timing_;
     slot->backpressure = options.fast;
     slot->time_index_channel = static_cast<int>(n);
-    slot->stuck_samples = kSimStuckSamples;
+    slot->stuck_samples.assign(n + 1, kSimStuckSamples);
+    slot->stuck_samples[n] = 0;   // sample_index counts, never stuck
     s->can_slot_ = slot;
     s->samplers_.push_back(std::make_unique<DeviceSampler>(std::move(device), std::vector<int>{fd}, slot, false));
   }
@@ -159,6 +168,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
                          signal("sample_index", 8, 32, false, 1.0)};
       cfg.map.signals.back().counter = s->real_timing_;  // as the accelerometers' bus (above)
       cfg.max_records_per_read = 256;
+      cfg.frame_rate_hz = s->rate_hz_;
       auto device = open_sim_can_bus(cfg, e.bus.fd, why);
       if (!device) return false;
       const int fd = device->wait_fd();
@@ -276,6 +286,10 @@ bool SimBench::flush_edges(EncoderSim& e, std::int64_t through_ns) {
   // device already knows A and B are complete through the batch and merges all of it.
   for (std::size_t l = 0; l < gp::kEdgeLineCount; ++l) {
     if (l == static_cast<std::size_t>(gp::EdgeLine::Trigger)) {
+      // The lines' levels as a chip would read them now, whatever events reached the reader.
+      bool a = false, b = false;
+      levels_of_state(mod4(e.count), a, b);
+      e.wire->set_levels(a, b, through_ns);
       e.wire->advance(gp::EdgeLine::A, through_ns);
       e.wire->advance(gp::EdgeLine::B, through_ns);
     }
@@ -403,6 +417,15 @@ void SimBench::run() noexcept {
   bool stuck = false;
   // Real timing: the bench's sample clock runs clock_ppm fast against CLOCK_MONOTONIC.
   const double host_period_ns = real_timing_ ? period_ns * (1.0 + 1e-6 * bench_.sim_timing.clock_ppm) : period_ns;
+  // The frame counter: counter_bits wide; after an adapter reset it counts from 0 again.
+  const std::uint64_t counter_mask = real_timing_ ? (std::uint64_t{1} << bench_.sim_timing.counter_bits) - 1 : 0xffffffffu;
+  const auto sample_at = [this](double t_s) { return t_s >= 0 ? static_cast<std::size_t>(std::llround(t_s * rate_hz_)) : run_samples_; };
+  const SimFaults& faults = options_.faults;
+  const std::size_t reset_at = sample_at(faults.can_reset_at_s);
+  const std::size_t reset_back = faults.can_reset_at_s >= 0 ? sample_at(faults.can_reset_at_s + faults.can_reset_s) : run_samples_;
+  const std::size_t short_at = sample_at(faults.short_frame_at_s), duplicate_at = sample_at(faults.duplicate_frame_at_s);
+  const std::size_t swap_at = sample_at(faults.swapped_frames_at_s);
+  std::vector<CanWire::PendingFrame> held;   // swapped-frames: a sample's frames, sent after the next sample's
   auto time_of = [&](std::size_t n) { return t0_ns_ + static_cast<std::int64_t>(std::llround(n * host_period_ns)); };
   sim::RandomSource timing_draws(sim::derive_seed(bench_.seed, {0x71AE5ull}));
   auto mark = [&](std::int64_t t, std::size_t c, std::int32_t phase, std::int8_t what, std::int64_t b, std::int64_t e) {
@@ -471,8 +494,9 @@ void SimBench::run() noexcept {
       can_slot_->hang_until_ns.store(hal::monotonic_now_ns() + static_cast<std::int64_t>(f.hang_s * 1e9),
                                      std::memory_order_relaxed);
 
-    // CAN: one FD frame per 16 channels, sample_index last. Nothing goes out while bus-off.
-    if (!bus_off) {
+    // CAN: one FD frame per 16 channels, sample_index last. Nothing goes out while bus-off, nor
+    // while the adapter reboots.
+    if (!bus_off && !(n >= reset_at && n < reset_back)) {
       std::fill(payload.begin(), payload.end(), std::uint8_t{0});
       for (std::size_t i = 0; i <= nch; ++i) {
         std::int64_t raw;
@@ -489,7 +513,7 @@ void SimBench::run() noexcept {
           if (i == 0 && f.nan_at_s >= 0 && t_s >= f.nan_at_s && t_s < f.nan_at_s + f.nan_s)
             raw = static_cast<std::int32_t>(kSimCanNoReading);  // the sensor's output is NaN
         } else {
-          raw = static_cast<std::int64_t>(n & 0xffffffffu);
+          raw = static_cast<std::int64_t>((n >= reset_back ? n - reset_back : n) & counter_mask);
         }
         const auto u = static_cast<std::uint32_t>(raw);
         std::uint8_t* p = payload.data() + 64 * (i / kSignalsPerFrame) + 4 * (i % kSignalsPerFrame);
@@ -498,12 +522,24 @@ void SimBench::run() noexcept {
         p[2] = static_cast<std::uint8_t>(u >> 16);
         p[3] = static_cast<std::uint8_t>(u >> 24);
       }
+      const std::size_t before = can_bus_.pending.size();
       for (std::size_t g = 0; g < frames; ++g) {
         if (real_timing_ && timing_draws.uniform() < bench_.sim_timing.frame_loss) {
           ++frames_lost_;   // lost on the bus: its samples never arrive
           continue;
         }
-        can_bus_.queue(kSimCanBaseId + static_cast<std::uint32_t>(g), payload.data() + 64 * g, 64, true);
+        // A frame cut short: its payload ends where the counter (the last frame's last signal) starts.
+        const bool cut = n == short_at && g + 1 == frames;
+        can_bus_.queue(kSimCanBaseId + static_cast<std::uint32_t>(g), payload.data() + 64 * g,
+                       cut ? 4 * (nch % kSignalsPerFrame) : 64, true);
+        if (n == duplicate_at && g + 1 == frames) can_bus_.pending.push_back(can_bus_.pending.back());
+      }
+      if (n == swap_at) {
+        held.assign(can_bus_.pending.begin() + static_cast<std::ptrdiff_t>(before), can_bus_.pending.end());
+        can_bus_.pending.resize(before);
+      } else if (!held.empty()) {
+        can_bus_.pending.insert(can_bus_.pending.end(), held.begin(), held.end());
+        held.clear();
       }
     }
     // Paced: the batch's newest sample is due now (the sleep above), so the whole batch goes out
@@ -552,6 +588,11 @@ void SimBench::run() noexcept {
           --e.count;
         }
         const std::int64_t t_edge = t_prev + (t_n - t_prev) * (j + 1) / (m + 1);
+        if (line == gp::EdgeLine::A && f.gpio_overflow_at_s >= 0 && t_s >= f.gpio_overflow_at_s &&
+            e.overflowed < f.gpio_overflow_edges) {
+          ++e.overflowed;   // the full FIFO drops it: the line moved, its event never comes
+          continue;
+        }
         queue_edge(e, line, rising, t_edge);
         if (f.glitch_every > 0 && ++e.edges % f.glitch_every == 0)
           queue_edge(e, line, rising, t_edge + 1);  // the same edge again: no level change, a glitch

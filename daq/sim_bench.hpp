@@ -47,6 +47,16 @@ struct SimFaults {
   double stuck_at_s = -1.0, stuck_s = 0.0;             // CAN: the first sensor's value frozen
   double nan_at_s = -1.0, nan_s = 0.0;                 // CAN: the first sensor sends "no valid reading"
   double hang_at_s = -1.0, hang_s = 0.0;               // the CAN sampling thread hangs (watchdog test)
+  // Real hardware's failure modes, on the CAN bus's frames (they need [bench.sim_timing]: the
+  // frames then carry a counter). One each at the sample due at that time.
+  double can_reset_at_s = -1.0, can_reset_s = 0.0;     // the adapter resets: silent, then counts from 0
+  double short_frame_at_s = -1.0;                      // a frame cut short before its counter
+  double duplicate_frame_at_s = -1.0;                  // a frame sent twice
+  double swapped_frames_at_s = -1.0;                   // a frame sent after the next one
+  // GPIO encoders: line A's kernel FIFO overflows, so many of its edges from that time on never
+  // reach the reader (the line itself, and so its level, moves on).
+  double gpio_overflow_at_s = -1.0;
+  std::size_t gpio_overflow_edges = 0;
 };
 
 struct SimOptions {
@@ -127,6 +137,7 @@ class SimBench {
     double offset = 0.0; // keeps the position continuous across cases and plan repeats
     bool trigger_level = false;
     std::size_t edges = 0;
+    std::size_t overflowed = 0;   // line A edges dropped so far (gpio-overflow)
     // Records of one sample tick per line, written in PIPE_BUF-sized batches (one syscall for
     // many edges; a pipe write of at most PIPE_BUF bytes is atomic, so records never split).
     std::array<std::vector<gpioevent_data>, hal::gpiod::kEdgeLineCount> pending;

@@ -19,6 +19,13 @@ enum class Step { Ok, Retry, Fatal };
 /// SampleSink::push's sample_index for a device that does not number its samples.
 inline constexpr std::int64_t kNoSampleIndex = -1;
 
+/// SampleSink::push's channel for a mark, not a sample: the device's sample numbers go on in a
+/// new segment from sample_index, on a clock not continuous with the one before (a CAN adapter
+/// whose frame counter restarted), so a clock fit of the numbers to their stamps starts again
+/// there. t_ns: the receive stamp of the segment's first frame; value and valid carry nothing.
+/// Pushed before that frame's samples; not a sample (not counted as one).
+inline constexpr std::uint32_t kSegmentStart = 0xFFFFFFFFu;
+
 /// Receives samples from read_into(). Implemented by the daemon (ring writer) and by tests.
 /// Thread: the device's sampling thread. Real-time: push() must not allocate, lock or block.
 class SampleSink {

@@ -123,7 +123,16 @@ SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64
 }
 
 DeviceAvailability read_availability(const TableReader& t) {
-  return DeviceAvailability{t.boolean_or("optional", false), t.where(), t.number_in("silent_timeout_s", 1.0, 1e-3, 3600.0)};
+  return DeviceAvailability{t.boolean_or("optional", false), t.where(), t.number_in("silent_timeout_s", 1.0, 1e-3, 3600.0),
+                            t.integer_in("latency_floor_ns", 0, 0, 1'000'000'000)};
+}
+
+// Plausible range (`min`, `max`) and stuck watch (`stuck_after_s`) of a reading.
+void read_plausible(const TableReader& t, double& min, double& max, double& stuck_after_s) {
+  if (t.has("min")) min = t.number("min");
+  if (t.has("max")) max = t.number("max");
+  if (!(min < max)) t.fail_key("max", "must be greater than min");
+  stuck_after_s = t.number_in("stuck_after_s", 0.0, 0.0, 3600.0);
 }
 
 CanDevice read_can_device(const TableReader& t) {
@@ -162,6 +171,12 @@ CanDevice read_can_device(const TableReader& t) {
     c.unit = s.string_or("unit", "");
     c.counter = s.boolean_or("counter", false);
     if (c.counter && c.is_signed) s.fail_key("counter", "a frame counter is unsigned (signed = false)");
+    c.wraps = s.boolean_or("wraps", false);
+    if (c.wraps && c.counter)
+      s.fail_key("wraps", "a frame counter is unwrapped as the frame's number; wraps is for an accumulating count");
+    read_plausible(s, c.min, c.max, c.stuck_after_s);
+    if (c.counter && (s.has("min") || s.has("max") || c.stuck_after_s > 0.0))
+      s.fail_key(s.has("min") ? "min" : s.has("max") ? "max" : "stuck_after_s", "a frame counter is no reading");
     if (s.has("invalid_raw")) {
       // TOML integers are 64-bit signed: a 64-bit code above INT64_MAX is written negative.
       const bool all64 = c.bit_length == 64;
@@ -315,6 +330,7 @@ ModbusDevice read_modbus_device(const TableReader& t) {
       reg.range_min = range[0];
       reg.range_max = range[1];
     }
+    reg.stuck_after_s = r.number_in("stuck_after_s", 0.0, 0.0, 3600.0);
     read_register_role(r, reg);
     r.finish();
     if (!names.insert(reg.name).second) r.fail_key("name", "duplicate register name '" + reg.name + "'");
@@ -325,6 +341,26 @@ ModbusDevice read_modbus_device(const TableReader& t) {
   check_machine_safety(t, registers, d);
   t.finish();
   return d;
+}
+
+// Modbus RTU has one master per RS-485 line, and every [[modbus_device]] is a master of its own
+// (its own poller): two of them on one port would talk over each other.
+void check_one_master_per_serial_line(const std::vector<ModbusDevice>& devices) {
+  for (std::size_t i = 0; i < devices.size(); ++i) {
+    const ModbusDevice& d = devices[i];
+    if (d.transport != ModbusTransport::Rtu) continue;
+    for (std::size_t j = 0; j < i; ++j) {
+      const ModbusDevice& e = devices[j];
+      if (e.transport != ModbusTransport::Rtu) continue;
+      std::error_code ec;   // two names of one adapter (a /dev/serial/by-id link) are one port where both exist
+      if (e.serial_port != d.serial_port && !std::filesystem::equivalent(e.serial_port, d.serial_port, ec)) continue;
+      throw InputError(d.endpoint_at, "serial port '" + d.serial_port + "' is already the line of [[modbus_device]] '" +
+                                          e.name + "' (line " + std::to_string(e.endpoint_at.line) +
+                                          "): Modbus RTU has one master per RS-485 line and each [[modbus_device]] is one. "
+                                          "Wire this controller (unit_id " + std::to_string(d.unit_id) +
+                                          ") to a second adapter and name that serial_port here");
+    }
+  }
 }
 
 // Which phases make physical sense on which facility.
@@ -518,6 +554,8 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
     cfg.sim_timing.jitter_s = 1e-6 * timing->number_in("jitter_us", 0.0, 0.0, 1e5);
     cfg.sim_timing.clock_ppm = timing->number_in("clock_ppm", 0.0, -1000.0, 1000.0);
     cfg.sim_timing.frame_loss = timing->number_in("frame_loss", 0.0, 0.0, 0.5);
+    // From a byte's counter up; a 16-bit one at 10 kHz rolls over every 6.6 s.
+    cfg.sim_timing.counter_bits = static_cast<int>(timing->integer_in("counter_bits", 32, 8, 32));
     timing->finish();
   }
   bench.finish();
@@ -557,6 +595,7 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
   for (const TableReader& d : root.tables("can_device")) cfg.can_devices.push_back(read_can_device(d));
   for (const TableReader& d : root.tables("gpiod_encoder")) cfg.gpiod_encoders.push_back(read_gpiod_encoder(d));
   for (const TableReader& d : root.tables("modbus_device")) cfg.modbus_devices.push_back(read_modbus_device(d));
+  check_one_master_per_serial_line(cfg.modbus_devices);
   if (const auto d = root.optional_table("daemon")) cfg.daemon = read_daemon(*d);
 
   std::set<std::string> case_names;

@@ -128,6 +128,10 @@ struct DeviceAvailability {
   // No sample for this long while the daemon runs is the device's fault "silent" (status channel
   // and journal): a cable pulled or a module that stopped sending is never just a rate of 0.
   double silent_timeout_s = 1.0;
+  // The device's fixed delay from sample to receive stamp (its conversion, transfer, adapter),
+  // ns: subtracted from its stamps before its clock fit, which cannot see a constant delay, so
+  // that two adapters with different delays are put on one time base. 0: none known.
+  std::int64_t latency_floor_ns = 0;
 };
 
 struct CanSignal {
@@ -149,6 +153,15 @@ struct CanSignal {
   // The frame's sample counter (hal/socketcan/frame_map.hpp): the device is timed by its own
   // clock and a lost frame leaves exactly its samples missing.
   bool counter = false;
+  // An accumulating count that rolls over at its bit_length (an encoder counter card): unwrapped
+  // to 64 bits (hal/socketcan/frame_map.hpp).
+  bool wraps = false;
+  // Plausible readings, SI: a value outside is an invalid sample and a range fault.
+  double min = -std::numeric_limits<double>::infinity();
+  double max = std::numeric_limits<double>::infinity();
+  // The same reading for this long in a row is a stuck channel: its samples are marked invalid
+  // until the value moves (0: not watched; only for channels that always carry noise).
+  double stuck_after_s = 0.0;
 };
 
 struct CanDevice {
@@ -206,9 +219,12 @@ struct ModbusRegister {
   bool writable = false;            // a setpoint: needs min/max and the device's writes_enabled
   double min = 0.0;                 // write limits (clamped), SI; set when writable
   double max = 0.0;
-  // Plausible readings, SI (`range = [lo, hi]`): inertia-daqd --check reports a value outside.
+  // Plausible readings, SI (`range = [lo, hi]`): a reading outside is an invalid sample and a range
+  // fault at every poll, and inertia-daqd --check reports it.
   double range_min = -std::numeric_limits<double>::infinity();
   double range_max = std::numeric_limits<double>::infinity();
+  // As CanSignal::stuck_after_s: the same reading this long in a row is stuck (0: not watched).
+  double stuck_after_s = 0.0;
   SourcePosition where;
   // ---- test executive (a register with a role; every key below needs one) ----
   RegisterRole role = RegisterRole::None;
@@ -278,11 +294,12 @@ struct ModbusDevice {
 /// frames) runs on the simulator: the CAN device's frames carry a counter and arrive with
 /// software receive stamps, a batch late by an exponential delay of mean jitter_us; the bench's
 /// sample clock runs clock_ppm fast against CLOCK_MONOTONIC; each CAN frame is lost with
-/// probability frame_loss.
+/// probability frame_loss; the frame counter is counter_bits wide (rolls over at 2^counter_bits).
 struct SimTiming {
   double jitter_s = 0.0;
   double clock_ppm = 0.0;
   double frame_loss = 0.0;
+  int counter_bits = 32;
   bool enabled = false;            // the table is present
 };
 

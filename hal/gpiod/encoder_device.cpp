@@ -220,12 +220,14 @@ EncoderStatus GpiodEncoderDevice::status() const noexcept {
   s.quadrature = decoder_.counters();
   s.markers = markers_;
   s.triggers = triggers_;
+  s.overflows = overflows_;
   s.count = decoder_.count();
   return s;
 }
 
 bool GpiodEncoderDevice::push(std::uint32_t channel, std::int64_t t_ns, double value, SampleSink& sink) noexcept {
-  if (sink.push(channel, t_ns, value, true, kNoSampleIndex)) {
+  // While edges are known lost and the levels not yet taken, the count is not the encoder's.
+  if (sink.push(channel, t_ns, value, !unsynced_, kNoSampleIndex)) {
     ++health_.samples;
     return true;
   }
@@ -242,7 +244,11 @@ std::size_t GpiodEncoderDevice::handle(const EdgeEvent& event, SampleSink& sink)
     case EdgeLine::A:
     case EdgeLine::B: {
       const std::int64_t before = decoder_.count();
-      decoder_.on_edge(line, rising, t_ns);
+      if (decoder_.on_edge(line, rising, t_ns) == QuadratureDecoder::Outcome::Lost) {
+        if (!unsynced_) ++overflows_;
+        unsynced_ = true;
+        want_levels();
+      }
       if (decoder_.count() != before && !ticked()) {
         pushed += push(kCountChannel, t_ns, static_cast<double>(decoder_.count()), sink);
         pushed += push(kPositionChannel, t_ns, position(), sink);
@@ -261,6 +267,30 @@ std::size_t GpiodEncoderDevice::handle(const EdgeEvent& event, SampleSink& sink)
       break;
   }
   return pushed;
+}
+
+void GpiodEncoderDevice::want_levels() noexcept {
+  if (resync_pending_) return;
+  levels_wanted_ = true;
+  const LineLevels l = source_->levels();
+  if (merged_ns_ != kNever && l.t_ns < merged_ns_) return;   // older than what was merged: ask again later
+  resync_ = l;
+  resync_pending_ = true;
+  levels_wanted_ = false;
+}
+
+void GpiodEncoderDevice::resync_through(std::int64_t t_ns) noexcept {
+  if (levels_wanted_) want_levels();
+  if (!resync_pending_ || t_ns < resync_.t_ns) return;
+  // Every edge up to the levels' time is merged: the decoder's state must be theirs.
+  resync_pending_ = false;
+  if (decoder_.level(EdgeLine::A) != resync_.a || decoder_.level(EdgeLine::B) != resync_.b) {
+    if (!unsynced_) ++overflows_;   // lost edges that left no contradiction behind
+    decoder_.resync(resync_.a, resync_.b);
+    ++health_.resyncs;
+  }
+  unsynced_ = false;
+  next_level_check_ns_ = resync_.t_ns + kLevelCheckNs;
 }
 
 bool GpiodEncoderDevice::emit_ticks(std::int64_t through, bool strict, SampleSink& sink, std::size_t& pushed,
@@ -326,6 +356,20 @@ std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
           best_t = t;
         }
       }
+      // A level check is due, or levels asked for apply, before the next event (or by the horizon).
+      const std::int64_t next_t = best == kEdgeLineCount ? horizon : best_t;
+      if (next_level_check_ns_ != kNever && next_t >= next_level_check_ns_ && !resync_pending_ && !levels_wanted_) want_levels();
+      // Every edge at or before the levels' time is merged once the next one is later, or, with
+      // none left, once the horizon (all edges known) has reached it.
+      if (resync_pending_ && (best == kEdgeLineCount ? horizon >= resync_.t_ns : best_t > resync_.t_ns)) {
+        if (ticked() && !emit_ticks(resync_.t_ns, false, sink, pushed, tick_budget)) {
+          out_of_ticks = true;
+          break;
+        }
+        resync_through(resync_.t_ns);
+      } else if (levels_wanted_) {
+        want_levels();
+      }
       if (best == kEdgeLineCount) break;
       if (ticked() && !emit_ticks(best_t, true, sink, pushed, tick_budget)) {
         out_of_ticks = true;
@@ -333,6 +377,8 @@ std::size_t GpiodEncoderDevice::read_into(SampleSink& sink) noexcept {
       }
       LineBuffer& buf = buffers_[best];
       pushed += handle(buf.events[buf.head], sink);
+      merged_ns_ = buf.events[buf.head].t_ns;
+      if (next_level_check_ns_ == kNever) next_level_check_ns_ = merged_ns_ + kLevelCheckNs;
       ++buf.head;
       handled_any = true;
     }

@@ -45,6 +45,13 @@ struct QuadratureConfig {
   bool is_valid(std::string* why) const;
 };
 
+/// The levels of lines A and B and the time (the events' clock) they hold at: every edge
+/// stamped at or before t_ns is in them.
+struct LineLevels {
+  bool a = false, b = false;
+  std::int64_t t_ns = 0;
+};
+
 /// Where edge events come from. Thread: configure/activate on the control thread; event_fd()
 /// is then read by the sampling thread.
 class EdgeSource {
@@ -52,8 +59,15 @@ class EdgeSource {
   virtual ~EdgeSource() = default;
   /// Descriptor yielding gpioevent_data records for `line`, or -1 when the line is not used.
   [[nodiscard]] virtual int event_fd(EdgeLine line) const noexcept = 0;
-  /// Present level of `line` (seeds the decoder). Non-RT.
+  /// Present level of `line` (seeds the decoder). Real-time safe (one ioctl on a chip).
   [[nodiscard]] virtual bool level(EdgeLine line) const noexcept = 0;
+  /// Levels of A and B with their time, for resynchronizing the decoder after lost edges.
+  /// Default: the present levels, stamped CLOCK_MONOTONIC before they are read (an edge between
+  /// the stamp and the read is in the levels already; the decoder then sees it as a glitch).
+  [[nodiscard]] virtual LineLevels levels() const noexcept {
+    const std::int64_t t = monotonic_now_ns();
+    return LineLevels{level(EdgeLine::A), level(EdgeLine::B), t};
+  }
   /// Every event of `line` stamped at or before this time (the events' clock) is already in its
   /// descriptor, or was read from it. The device asks right before it reads the line, so after
   /// a read that emptied the descriptor nothing older can still come. Real-time safe.
@@ -81,6 +95,7 @@ class GpiodEdgeSource final : public EdgeSource {
 
 struct EncoderStatus {
   QuadratureCounters quadrature;
+  std::uint64_t overflows = 0;            // times edges were found lost (a full line FIFO): resynchronized
   std::uint64_t markers = 0;              // marker rising edges
   std::uint64_t triggers = 0;             // trigger edges (both)
   std::int64_t count = 0;
@@ -121,7 +136,15 @@ class GpiodEncoderDevice final : public Device {
   /// Pushes a marker sample (value: position at the marker's rising edge) and a trigger sample
   /// (value: new level); count and position after each edge that changed the count, or, with
   /// sample_rate_hz and no trigger line, at every tick once the lowest watermark has passed it.
+  /// Lost edges (a line FIFO that overflowed: QuadratureDecoder::Outcome::Lost, or line levels
+  /// that disagree with the decoder's at a check every kLevelCheckNs) are counted as an overflow;
+  /// the decoder takes the lines' levels (EdgeSource::levels()) at their time, merged in order with
+  /// the edges, and every sample from the detection to that point is pushed invalid. The count
+  /// goes on from there (the steps lost are not known: a constant offset, and a step in it there).
   std::size_t read_into(SampleSink& sink) noexcept override;
+  /// How often the decoder's levels are compared with the lines' (events' clock): lost edges
+  /// that leave no contradiction behind (an even number on one line) are found within this.
+  static constexpr std::int64_t kLevelCheckNs = 100'000'000;
   Step deactivate() override;
   /// Line A's descriptor. Each line has its own (one request per line in libgpiod v1): a poll
   /// loop that waits for edges should wait on all of event_fds().
@@ -155,6 +178,11 @@ class GpiodEncoderDevice final : public Device {
   GpiodEncoderDevice(std::unique_ptr<EdgeSource> source, QuadratureConfig config);
   std::size_t handle(const EdgeEvent& event, SampleSink& sink) noexcept;
   bool push(std::uint32_t channel, std::int64_t t_ns, double value, SampleSink& sink) noexcept;
+  /// Asks the source for the lines' levels, unless asked already; kept once their time is not
+  /// behind what was merged (an older reading would undo edges handled since).
+  void want_levels() noexcept;
+  /// Merged through `t_ns`: a pending resynchronization due by then is applied.
+  void resync_through(std::int64_t t_ns) noexcept;
   void discard_pending() noexcept;
   /// Pushes the rows of ticks at or before `through` (before `before` when strict); false when
   /// the per-call budget ran out first.
@@ -184,6 +212,12 @@ class GpiodEncoderDevice final : public Device {
   UniqueFd tick_timer_;
   std::int64_t next_tick_ = 0;                            // index of the next tick to emit
   std::uint64_t markers_ = 0, triggers_ = 0;
+  // Lost edges: the levels asked for and when they apply; samples are invalid until then.
+  bool levels_wanted_ = false, resync_pending_ = false, unsynced_ = false;
+  LineLevels resync_{};
+  std::int64_t merged_ns_ = kNever;             // the newest event (or tick) handled
+  std::int64_t next_level_check_ns_ = kNever;   // kNever: from the first event on
+  std::uint64_t overflows_ = 0;
 };
 
 }  // namespace inertia::hal::gpiod

@@ -7,13 +7,22 @@ void QuadratureDecoder::reset(bool a, bool b, std::int64_t count) noexcept {
   level_[1] = b;
   count_ = count;
   have_last_ = false;
+  other_moved_[0] = other_moved_[1] = false;
 }
 
 QuadratureDecoder::Outcome QuadratureDecoder::on_edge(EdgeLine line, bool rising, std::int64_t t_ns) noexcept {
   ++counters_.edges;
   const int i = line == EdgeLine::B ? 1 : 0;
   if (level_[i] == rising) {
-    ++counters_.glitches;  // no level change: the opposite edge never reached us
+    // No level change: the opposite edge never reached us. Harmless while the other line stood
+    // still (the two cancel); after it moved, edges were lost and the count with them.
+    if (other_moved_[i]) {
+      other_moved_[i] = false;
+      have_last_ = false;
+      ++counters_.lost;
+      return Outcome::Lost;
+    }
+    ++counters_.glitches;
     return Outcome::Glitch;
   }
   if (have_last_ && last_step_ != 0) {
@@ -43,6 +52,8 @@ QuadratureDecoder::Outcome QuadratureDecoder::on_edge(EdgeLine line, bool rising
   const int step = ((after - before) & 3) == 1 ? 1 : -1;  // one line changed: +-1 only
   count_ += step;
   ++counters_.steps;
+  other_moved_[i] = false;
+  other_moved_[1 - i] = true;
   have_last_ = true;
   last_line_ = i;
   last_step_ = step;

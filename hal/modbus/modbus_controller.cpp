@@ -67,11 +67,15 @@ std::span<const PolledValue> ModbusController::poll() {
       PolledValue& v = values_[i];
       v.t_ns = t_ns;
       v.valid = false;
+      v.out_of_range = false;
       if (!ok) continue;
       // A NaN or infinite register is no reading: marked invalid, as a failed request is.
       if (const auto reading = decode_reading(regs[i], words.subspan(static_cast<std::size_t>(regs[i].address - b.address)))) {
         v.value = *reading;
-        v.valid = true;
+        // Implausible: kept as read, marked, counted.
+        v.out_of_range = *reading < regs[i].range_min || *reading > regs[i].range_max;
+        v.valid = !v.out_of_range;
+        if (v.out_of_range) ++range_faults_;
       }
     }
   }

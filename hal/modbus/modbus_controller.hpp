@@ -21,8 +21,10 @@ namespace inertia::hal::modbus {
 struct PolledValue {
   std::string_view name;   // the register's name (points into the controller's config)
   double value = 0.0;      // SI; meaningless when !valid
-  bool valid = false;      // false when its request failed (see link().health()) or it held no
-                           // reading (NaN or infinity, register_map.hpp decode_reading)
+  bool valid = false;      // false when its request failed (see link().health()), it held no
+                           // reading (NaN or infinity, register_map.hpp decode_reading), or
+                           // the reading is outside the register's plausible range
+  bool out_of_range = false;  // answered, but outside [range_min, range_max] (value kept)
   std::int64_t t_ns = 0;   // CLOCK_MONOTONIC when the answer arrived
 };
 
@@ -67,6 +69,8 @@ class ModbusController {
 
   [[nodiscard]] std::span<const PolledValue> values() const noexcept { return values_; }
   [[nodiscard]] const ModbusConfig& config() const noexcept { return config_; }
+  /// Readings outside their register's plausible range, since connect().
+  [[nodiscard]] std::uint64_t range_faults() const noexcept { return range_faults_; }
   [[nodiscard]] ModbusLink& link() noexcept { return *link_; }
 
  private:
@@ -86,6 +90,7 @@ class ModbusController {
   // Per register: the value of its last confirmed write and when (for the rate limit).
   std::vector<std::optional<double>> last_written_;
   std::vector<std::int64_t> last_write_ns_;
+  std::uint64_t range_faults_ = 0;
 };
 
 }  // namespace inertia::hal::modbus

@@ -33,6 +33,9 @@ struct RegisterSpec {
   // Rate limit of a setpoint, SI per second: a write moves the register toward the value asked
   // by at most max_rate x the time since its previous write (ModbusController::write).
   double max_rate = std::numeric_limits<double>::infinity();
+  // Plausible readings, SI: a poll that reads a value outside marks it invalid, a range fault.
+  double range_min = -std::numeric_limits<double>::infinity();
+  double range_max = std::numeric_limits<double>::infinity();
 };
 
 struct RegisterMap {

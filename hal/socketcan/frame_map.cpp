@@ -106,6 +106,8 @@ bool CanFrameMap::is_valid(std::string* why) const {
     if (!std::isfinite(std::abs(s.scale) * largest_counts + std::abs(s.offset)))
       return fail(s, "scale and offset take a " + std::to_string(s.bit_length) +
                          "-bit raw value beyond the range of a double");
+    if (!(s.min < s.max) || std::isnan(s.min) || std::isnan(s.max)) return fail(s, "min must be below max");
+    if (s.wraps && s.counter) return fail(s, "a frame counter is unwrapped as the frame's number; wraps is for counts");
     if (s.counter) {
       if (s.is_signed) return fail(s, "a frame counter is unsigned");
       for (std::size_t k = 0; k < i; ++k)

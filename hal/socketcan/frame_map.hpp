@@ -48,6 +48,14 @@ struct CanSignal {
   // With it a lost frame leaves exactly its samples missing and the device is timed by its own
   // clock (daq/clock_fit.hpp) instead of by the order frames arrive in.
   bool counter = false;
+  // An accumulating count (an encoder counter card's position) that rolls over at 2^bit_length:
+  // the decoder unwraps it to 64 bits by the shortest step between consecutive frames, so a
+  // 32-bit count of 1 urad per step goes on past its 340 turns. value = scale * unwrapped + offset.
+  bool wraps = false;
+  // Plausible readings, SI: a value outside [min, max] is pushed marked invalid (the value kept,
+  // so the log shows what came) and counted as a range fault. Unset: +-infinity.
+  double min = -std::numeric_limits<double>::infinity();
+  double max = std::numeric_limits<double>::infinity();
 };
 
 /// The value of a sample whose raw value was the signal's invalid_raw.

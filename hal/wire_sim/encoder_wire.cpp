@@ -4,6 +4,7 @@
 #include <linux/gpio.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <limits>
@@ -16,16 +17,25 @@ static_assert(sizeof(gpioevent_data) == 16);
 using Flags = std::array<std::atomic<bool>, gpiod::kEdgeLineCount>;
 using Stamps = std::array<std::atomic<std::int64_t>, gpiod::kEdgeLineCount>;
 
+std::uint64_t pack_levels(bool a, bool b, std::int64_t t_ns) {
+  return (static_cast<std::uint64_t>(std::max<std::int64_t>(t_ns, 0)) << 2) | (b ? 2u : 0u) | (a ? 1u : 0u);
+}
+
 class PipeEdgeSource final : public gpiod::EdgeSource {
  public:
-  PipeEdgeSource(std::shared_ptr<const Flags> level, std::shared_ptr<const Stamps> through,
-                 std::array<int, gpiod::kEdgeLineCount> fds, std::shared_ptr<void> keep)
-      : level_(std::move(level)), through_(std::move(through)), fds_(fds), keep_(std::move(keep)) {}
+  PipeEdgeSource(std::shared_ptr<const Flags> level, std::shared_ptr<const std::atomic<std::uint64_t>> levels,
+                 std::shared_ptr<const Stamps> through, std::array<int, gpiod::kEdgeLineCount> fds, std::shared_ptr<void> keep)
+      : level_(std::move(level)), levels_(std::move(levels)), through_(std::move(through)), fds_(fds), keep_(std::move(keep)) {}
   [[nodiscard]] int event_fd(gpiod::EdgeLine line) const noexcept override {
     return fds_[static_cast<std::size_t>(line)];
   }
   [[nodiscard]] bool level(gpiod::EdgeLine line) const noexcept override {
     return (*level_)[static_cast<std::size_t>(line)].load();
+  }
+  [[nodiscard]] gpiod::LineLevels levels() const noexcept override {
+    const std::uint64_t w = levels_->load(std::memory_order_acquire);
+    if (w == ~std::uint64_t{0}) return {level(gpiod::EdgeLine::A), level(gpiod::EdgeLine::B), std::numeric_limits<std::int64_t>::min()};
+    return {(w & 1u) != 0, (w & 2u) != 0, static_cast<std::int64_t>(w >> 2)};
   }
   [[nodiscard]] std::int64_t complete_through_ns(gpiod::EdgeLine line) const noexcept override {
     // Acquire: pairs with advance()'s release, so the records written before are readable.
@@ -34,6 +44,7 @@ class PipeEdgeSource final : public gpiod::EdgeSource {
 
  private:
   std::shared_ptr<const Flags> level_;
+  std::shared_ptr<const std::atomic<std::uint64_t>> levels_;
   std::shared_ptr<const Stamps> through_;
   std::array<int, gpiod::kEdgeLineCount> fds_;
   std::shared_ptr<void> keep_;  // owns the read ends
@@ -67,8 +78,9 @@ std::unique_ptr<gpiod::EdgeSource> EncoderWire::take_source() {
   std::array<int, gpiod::kEdgeLineCount> fds{};
   for (std::size_t i = 0; i < gpiod::kEdgeLineCount; ++i) fds[i] = shared_->read_end[i].get();
   auto level = std::shared_ptr<const Flags>(shared_, &shared_->level);
+  auto levels = std::shared_ptr<const std::atomic<std::uint64_t>>(shared_, &shared_->levels);
   auto through = std::shared_ptr<const Stamps>(shared_, &shared_->through);
-  return std::make_unique<PipeEdgeSource>(std::move(level), std::move(through), fds, shared_);
+  return std::make_unique<PipeEdgeSource>(std::move(level), std::move(levels), std::move(through), fds, shared_);
 }
 
 bool EncoderWire::write(const gpiod::EdgeEvent& event) {
@@ -77,7 +89,14 @@ bool EncoderWire::write(const gpiod::EdgeEvent& event) {
   record.id = event.rising ? GPIOEVENT_EVENT_RISING_EDGE : GPIOEVENT_EVENT_FALLING_EDGE;
   if (!write_raw(event.line, &record, sizeof record)) return false;
   shared_->level[static_cast<std::size_t>(event.line)] = event.rising;
+  shared_->levels.store(pack_levels(shared_->level[0].load(), shared_->level[1].load(), event.t_ns), std::memory_order_release);
   return true;
+}
+
+void EncoderWire::set_levels(bool a, bool b, std::int64_t t_ns) {
+  shared_->level[0] = a;
+  shared_->level[1] = b;
+  shared_->levels.store(pack_levels(a, b, t_ns), std::memory_order_release);
 }
 
 void EncoderWire::advance(gpiod::EdgeLine line, std::int64_t t_ns) {

@@ -26,8 +26,12 @@ class EncoderWire {
   /// Hands out the read side (once). It reports the levels last written here.
   std::unique_ptr<gpiod::EdgeSource> take_source();
 
-  /// Writes one record; false when the pipe is full (EAGAIN) or the line does not exist.
+  /// Writes one record; false when the pipe is full (EAGAIN) or the line does not exist. The
+  /// levels the source reports (EdgeSource::levels()) are then those after it, at its time.
   bool write(const gpiod::EdgeEvent& event);
+  /// The levels of A and B at t_ns (>= 0), for a writer of raw records (write_raw): what a chip
+  /// would read on the lines then, whatever records reached (or were lost from) the pipes.
+  void set_levels(bool a, bool b, std::int64_t t_ns);
   /// The wire's clock, as a kernel's: every edge of `line` stamped at or before t_ns has been
   /// written (the reader's EdgeSource::complete_through_ns()). Call it after the writes, never
   /// before: a reader trusting it too early merges edges out of order. Starts at "never".
@@ -40,6 +44,8 @@ class EncoderWire {
   EncoderWire() = default;
   struct Shared {
     std::array<std::atomic<bool>, gpiod::kEdgeLineCount> level{};
+    // A's level in bit 0, B's in bit 1, their time above (one word: read together). ~0: none yet.
+    std::atomic<std::uint64_t> levels{~std::uint64_t{0}};
     std::array<std::atomic<std::int64_t>, gpiod::kEdgeLineCount> through{};
     std::array<UniqueFd, gpiod::kEdgeLineCount> read_end;
   };

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -157,6 +158,65 @@ TEST_F(DeviceTables, OptionalRangeAndThePositionsTheCheckQuotes) {
                InputError);
   EXPECT_THROW(load(kReal + "[[can_device]]\nname = \"adc\"\noptional = \"yes\"\n[[can_device.signal]]\nname = \"x\"\nid = 1\n"),
                InputError);
+}
+
+TEST_F(DeviceTables, TwoRtuDevicesOnOneSerialPortAreRefusedAtTheSecondOnesPortWithTheFix) {
+  // One master per RS-485 line: each [[modbus_device]] polls on its own, so two on one port would
+  // talk over each other. Lines: the first device 5..10, the second's serial_port on line 15.
+  const std::string rtu = "transport = \"rtu\"\nserial_port = \"/dev/ttyUSB0\"\n";
+  const std::string text = modbus(rtu + "unit_id = 1\n", "") +
+                           "[[modbus_device]]\nname = \"table\"\nrole = \"table\"\n" + rtu + "unit_id = 2\n";
+  const InputError e = error_of(text);
+  EXPECT_EQ(e.where().line, 15u) << e.what();
+  const std::string what = e.what();
+  EXPECT_NE(what.find("already the line of [[modbus_device]] 'thermal' (line 9)"), std::string::npos) << what;
+  EXPECT_NE(what.find("one master per RS-485 line"), std::string::npos) << what;
+  EXPECT_NE(what.find("second adapter"), std::string::npos) << what;
+  // Two adapters, or one on RTU and one on TCP, are fine.
+  EXPECT_NO_THROW(load(modbus(rtu, "") + "[[modbus_device]]\nname = \"table\"\nrole = \"table\"\n"
+                                        "transport = \"rtu\"\nserial_port = \"/dev/ttyUSB1\"\n"));
+  EXPECT_NO_THROW(load(modbus(rtu, "") + "[[modbus_device]]\nname = \"table\"\nrole = \"table\"\nhost = \"10.0.0.2\"\n"));
+  // Two names of one adapter (a by-id link and the device it points to) are one port.
+  const fs::path dir = write("").parent_path();
+  const fs::path tty = dir / "ttyUSB9";
+  std::ofstream(tty) << "";
+  fs::remove(dir / "by-id-adapter");
+  fs::create_symlink(tty, dir / "by-id-adapter");
+  EXPECT_THROW(load(modbus("transport = \"rtu\"\nserial_port = \"" + tty.string() + "\"\n", "") +
+                    "[[modbus_device]]\nname = \"table\"\nrole = \"table\"\ntransport = \"rtu\"\nserial_port = \"" +
+                    (dir / "by-id-adapter").string() + "\"\n"),
+               InputError);
+}
+
+TEST_F(DeviceTables, PlausibleRangesStuckWatchesWrappingCountsAndLatencyFloors) {
+  const BenchConfig b = load(can("latency_floor_ns = 120000\n", "bit_length = 16\nsigned = true\nmin = -5.0\nmax = 5.0\n"
+                                                                "stuck_after_s = 0.01\n"
+                                                                "[[can_device.signal]]\nname = \"n\"\nid = 0x101\nbyte_offset = 2\n"
+                                                                "bit_length = 32\nwraps = true\n"));
+  const CanDevice& d = b.can_devices[0];
+  EXPECT_EQ(d.availability.latency_floor_ns, 120000);
+  EXPECT_DOUBLE_EQ(d.signals[0].min, -5.0);
+  EXPECT_DOUBLE_EQ(d.signals[0].max, 5.0);
+  EXPECT_DOUBLE_EQ(d.signals[0].stuck_after_s, 0.01);
+  EXPECT_TRUE(d.signals[1].wraps);
+  EXPECT_TRUE(std::isinf(d.signals[1].min) && std::isinf(d.signals[1].max));
+  // Each wrong value is named at its key (the signal's own keys start on line 11).
+  const InputError order = error_of(can("", "min = 5.0\nmax = 1.0\n"));
+  EXPECT_EQ(order.where().line, 12u) << order.what();
+  EXPECT_NE(std::string(order.what()).find("must be greater than min"), std::string::npos) << order.what();
+  const InputError counter = error_of(can("", "counter = true\nwraps = true\n"));
+  EXPECT_EQ(counter.where().line, 12u) << counter.what();
+  EXPECT_THROW(load(can("", "counter = true\nmax = 3.0\n")), InputError);   // a counter is no reading
+  EXPECT_THROW(load(can("latency_floor_ns = -1\n", "")), InputError);
+  EXPECT_THROW(load(can("", "stuck_after_s = -1.0\n")), InputError);
+  EXPECT_THROW(load(can("", "wraps = 1\n")), InputError);
+  // A Modbus register's stuck watch and a GPIO encoder's latency floor.
+  const BenchConfig m = load(modbus("latency_floor_ns = 2000000\n", reg("t", 0, "input", "i16") + "stuck_after_s = 30.0\n"));
+  EXPECT_EQ(m.modbus_devices[0].availability.latency_floor_ns, 2'000'000);
+  EXPECT_DOUBLE_EQ(m.modbus_devices[0].registers[0].stuck_after_s, 30.0);
+  const BenchConfig g = load(kReal + "[[gpiod_encoder]]\nname = \"enc\"\nline_a = 1\nline_b = 2\nkind = \"linear\"\n"
+                                     "resolution = 1e-6\nlatency_floor_ns = 5000\n");
+  EXPECT_EQ(g.gpiod_encoders[0].availability.latency_floor_ns, 5000);
 }
 
 }  // namespace

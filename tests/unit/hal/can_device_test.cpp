@@ -6,8 +6,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <random>
 #include <vector>
 
@@ -59,7 +61,8 @@ void reference_put(std::uint8_t* payload, const CanSignal& s, std::uint64_t raw)
 
 class CanPair : public ::testing::Test {
  protected:
-  void open(CanFrameMap map, std::size_t max_records = 64, bool batch_receive = true) {
+  void open(CanFrameMap map, std::size_t max_records = 64, bool batch_receive = true, double frame_rate_hz = 0.0,
+            std::int64_t (*realtime_ns)() noexcept = nullptr) {
     int sv[2];
     ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
     writer_ = UniqueFd(sv[0]);
@@ -68,6 +71,8 @@ class CanPair : public ::testing::Test {
     config.map = std::move(map);
     config.max_records_per_read = max_records;
     config.batch_receive = batch_receive;
+    config.frame_rate_hz = frame_rate_hz;
+    config.realtime_ns = realtime_ns;
     std::string why;
     device_ = CanDevice::from_fd(UniqueFd(sv[1]), config, &why);
     ASSERT_NE(device_, nullptr) << why;
@@ -248,6 +253,210 @@ TEST_F(CanPair, ShortFrameForAKnownIdGivesAnInvalidSample) {
   EXPECT_DOUBLE_EQ(sink_.samples[0].value, 42);
   EXPECT_FALSE(sink_.samples[1].valid);
   EXPECT_EQ(device_->health().decode_errors, 1u);
+}
+
+// An ADC's frame: a 16-bit reading (bytes 0-1) and a 16-bit counter (bytes 6-7).
+CanFrameMap counted_map() {
+  CanSignal counter = sig("seq", 0x101, 6, 0, 16, ByteOrder::LittleEndian, false);
+  counter.counter = true;
+  return CanFrameMap{{sig("v", 0x101, 0, 0, 16, ByteOrder::LittleEndian, true), counter}};
+}
+
+TEST_F(CanPair, ShortDuplicateAndOutOfOrderFramesAreRefusedCountedAndOverwriteNothing) {
+  open(counted_map(), 256, true, 10000.0);
+  // Frames 0..199, the reading of frame n being 1000 + n; among them a frame of 6 bytes (its
+  // counter cut off), frame 60 again after 61, and frames 71 and 70 swapped (70 overtaken: lost).
+  std::vector<std::uint16_t> sent;
+  for (std::uint16_t n = 0; n < 200; ++n) {
+    const auto put = [&](std::uint16_t c, std::size_t len = 8) {
+      can_frame f{};
+      f.can_id = 0x101;
+      f.len = static_cast<std::uint8_t>(len);
+      const auto v = static_cast<std::uint16_t>(1000 + c);
+      f.data[0] = static_cast<std::uint8_t>(v);
+      f.data[1] = static_cast<std::uint8_t>(v >> 8);
+      f.data[6] = static_cast<std::uint8_t>(c);
+      f.data[7] = static_cast<std::uint8_t>(c >> 8);
+      send_bytes(&f, sizeof f);
+    };
+    if (n == 70) continue;
+    put(n);
+    if (n == 30) put(31, 6);
+    if (n == 61) put(60);
+    if (n == 71) put(70);
+  }
+  while (device_->read_into(sink_) > 0) {
+  }
+  EXPECT_EQ(device_->status().short_frames, 1u);
+  EXPECT_EQ(device_->status().duplicate_frames, 1u);
+  EXPECT_EQ(device_->status().out_of_order_frames, 1u);
+  EXPECT_EQ(device_->status().counter_resets, 0u);
+  // Every number once, in order, each with its own frame's reading; 70 missing.
+  ASSERT_EQ(sink_.samples.size(), 398u);
+  for (std::size_t i = 0; i < sink_.samples.size(); ++i) {
+    const Sample& s = sink_.samples[i];
+    ASSERT_EQ(s.index, static_cast<std::int64_t>(i / 2 + (i >= 140 ? 1 : 0))) << i;
+    ASSERT_EQ(s.channel, i % 2);
+    if (s.channel == 0) {
+      ASSERT_DOUBLE_EQ(s.value, 1000.0 + static_cast<double>(s.index)) << i;
+    }
+  }
+}
+
+TEST_F(CanPair, ACounterRestartPushesASegmentMarkBeforeItsFramesSamples) {
+  open(counted_map(), 256, true, 10000.0);
+  for (std::uint16_t c = 40000; c < 40010; ++c) {
+    can_frame f{};
+    f.can_id = 0x101;
+    f.len = 8;
+    f.data[6] = static_cast<std::uint8_t>(c);
+    f.data[7] = static_cast<std::uint8_t>(c >> 8);
+    send_bytes(&f, sizeof f);
+  }
+  ::usleep(30000);   // the adapter reboots: 30 ms of silence, then it counts from 0
+  for (std::uint16_t c = 0; c < 5; ++c) {
+    can_frame f{};
+    f.can_id = 0x101;
+    f.len = 8;
+    f.data[6] = static_cast<std::uint8_t>(c);
+    send_bytes(&f, sizeof f);
+  }
+  while (device_->read_into(sink_) > 0) {
+  }
+  EXPECT_EQ(device_->status().counter_resets, 1u);
+  ASSERT_EQ(sink_.samples.size(), 30u + 1u);
+  const Sample& mark = sink_.samples[20];
+  EXPECT_EQ(mark.channel, kSegmentStart);
+  // Numbered on from the receive time: about 300 samples of 10 kHz after the last before it
+  // (the sleep, and a scheduler's slack of at most 20 ms).
+  EXPECT_GE(mark.index, 40009 + 300);
+  EXPECT_LE(mark.index, 40009 + 300 + 200);
+  for (std::size_t i = 21; i < sink_.samples.size(); ++i) EXPECT_EQ(sink_.samples[i].index, mark.index + static_cast<std::int64_t>(i - 21) / 2);
+}
+
+TEST_F(CanPair, AWrappingCountGoesOnPastItsWidth) {
+  // A counter card's signed 32-bit count, 1 urad per step: 340 turns and on.
+  CanSignal count = sig("table", 0x301, 0, 0, 32, ByteOrder::LittleEndian, true, 1e-6);
+  count.wraps = true;
+  open(CanFrameMap{{count}});
+  const std::int64_t start = 2'147'483'000;   // 600 steps below INT32_MAX
+  for (std::int64_t k = 0; k < 40; ++k) {
+    const std::int64_t truth = start + 37 * k - (k > 30 ? 80 * (k - 30) : 0);   // through the wrap, and back
+    can_frame f{};
+    f.can_id = 0x301;
+    f.len = 4;
+    const auto raw = static_cast<std::uint32_t>(truth);
+    for (int b = 0; b < 4; ++b) f.data[b] = static_cast<std::uint8_t>(raw >> (8 * b));
+    send_bytes(&f, sizeof f);
+    ASSERT_EQ(device_->read_into(sink_), 1u);
+    EXPECT_NEAR(sink_.samples.back().value, 1e-6 * static_cast<double>(truth), 1e-9) << k;
+  }
+}
+
+TEST_F(CanPair, ReadingsOutsideTheirRangeAreInvalidKeptAndCounted) {
+  CanSignal v = sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, true, 0.5);
+  v.min = -10.0;
+  v.max = 20.0;
+  open(CanFrameMap{{v}});
+  for (const std::int8_t raw : {std::int8_t{0}, std::int8_t{40}, std::int8_t{41}, std::int8_t{-20}, std::int8_t{-21}, std::int8_t{127}})
+    send_classic(0x10, {static_cast<std::uint8_t>(raw)});
+  EXPECT_EQ(device_->read_into(sink_), 6u);
+  const bool expected_valid[6] = {true, true, false, true, false, false};
+  for (std::size_t i = 0; i < 6; ++i) EXPECT_EQ(sink_.samples[i].valid, expected_valid[i]) << i;
+  EXPECT_DOUBLE_EQ(sink_.samples[2].value, 20.5) << "the reading is kept, marked";
+  EXPECT_EQ(device_->status().range_faults, 3u);
+}
+
+TEST(ReceiveControl, CarriesTheStampAndTheKernelsDropCount) {
+  // The control messages as the kernel lays them out (SOL_SOCKET: SCM_TIMESTAMPNS, SO_RXQ_OVFL);
+  // an AF_UNIX socket does not report drops, so they are built here.
+  alignas(cmsghdr) std::uint8_t control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))] = {};
+  msghdr msg{};
+  msg.msg_control = control;
+  msg.msg_controllen = sizeof control;
+  cmsghdr* c = CMSG_FIRSTHDR(&msg);
+  c->cmsg_level = SOL_SOCKET;
+  c->cmsg_type = SCM_TIMESTAMPNS;
+  c->cmsg_len = CMSG_LEN(sizeof(timespec));
+  const timespec ts{1700000000, 123456789};
+  std::memcpy(CMSG_DATA(c), &ts, sizeof ts);
+  c = CMSG_NXTHDR(&msg, c);
+  ASSERT_NE(c, nullptr);
+  c->cmsg_level = SOL_SOCKET;
+  c->cmsg_type = SO_RXQ_OVFL;
+  c->cmsg_len = CMSG_LEN(sizeof(std::uint32_t));
+  const std::uint32_t drops = 4242;
+  std::memcpy(CMSG_DATA(c), &drops, sizeof drops);
+  const ReceiveControl got = read_receive_control(msg);
+  EXPECT_EQ(got.realtime_ns, 1700000000LL * 1'000'000'000 + 123456789);
+  EXPECT_TRUE(got.has_drops);
+  EXPECT_EQ(got.drops, 4242u);
+  msg.msg_controllen = CMSG_SPACE(sizeof(timespec));   // the stamp alone
+  EXPECT_FALSE(read_receive_control(msg).has_drops);
+}
+
+// CLOCK_REALTIME as the device sees it, stepped by the test (NTP setting the clock at boot).
+std::atomic<std::int64_t> g_realtime_step_ns{0};
+std::int64_t stepped_realtime_ns() noexcept {
+  timespec ts{};
+  ::clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec + g_realtime_step_ns.load();
+}
+
+TEST_F(CanPair, AStepOfTheRealtimeClockNeverMakesAStampEarly) {
+  // Frames are stamped on CLOCK_REALTIME by the kernel; the device maps them with the offset it
+  // reads. A step of +50 ms between the frames and the read would put their stamps 50 ms early,
+  // which would pull a clock fit that follows the earliest stamps. The kernel's stamps here stay
+  // on the unstepped clock, so the step the device sees is taken back before the frames after it
+  // (two steps, +50 ms and back): the reads across either use the read's time, late but never
+  // early, and the read after them the kernel's stamps again. Checked against CLOCK_MONOTONIC
+  // around each send: no stamp is ever before its frame was sent.
+  g_realtime_step_ns = 0;
+  open(CanFrameMap{{sig("v", 0x10, 0, 0, 8, ByteOrder::LittleEndian, false)}}, 64, true, 0.0, stepped_realtime_ns);
+  std::vector<std::int64_t> sent_after;   // monotonic time before each send: its stamp is not earlier
+  auto send_some = [&](int n) {
+    for (int i = 0; i < n; ++i) {
+      sent_after.push_back(monotonic_now_ns());
+      send_classic(0x10, {static_cast<std::uint8_t>(sent_after.size())});
+      ::usleep(1000);
+    }
+  };
+  send_some(5);
+  device_->read_into(sink_);
+  EXPECT_EQ(device_->status().clock_steps, 0u);
+  for (const std::int64_t step_ns : {50'000'000LL, -50'000'000LL}) {
+    send_some(5);
+    g_realtime_step_ns += step_ns;
+    const std::int64_t read_at = monotonic_now_ns();
+    device_->read_into(sink_);
+    for (std::size_t i = sink_.samples.size() - 5; i < sink_.samples.size(); ++i) {
+      EXPECT_GE(sink_.samples[i].t_ns, sent_after[i]) << "step " << step_ns << ": frame " << i << " stamped early";
+      EXPECT_GE(sink_.samples[i].t_ns, read_at) << "the read's time stands in for the stamp";
+    }
+  }
+  send_some(5);
+  device_->read_into(sink_);   // no step since the previous read: the kernel's stamps again
+  for (std::size_t i = sink_.samples.size() - 5; i < sink_.samples.size(); ++i) {
+    EXPECT_GE(sink_.samples[i].t_ns, sent_after[i] - 1'000'000);
+    EXPECT_LT(sink_.samples[i].t_ns, sent_after[i] + 1'000'000) << "the kernel's stamp, not the read's time";
+  }
+  EXPECT_EQ(device_->status().clock_steps, 2u);
+  ASSERT_EQ(sink_.samples.size(), 20u);
+}
+
+TEST_F(CanPair, TheReceiveBufferIsAskedForOneSecondOfFrames) {
+  open(counted_map(), 64, true, 1000.0);
+  const ReceiveBuffer& b = device_->receive_buffer();
+  EXPECT_EQ(b.wanted, 1000u * CanDevice::kBufferBytesPerFrame);
+  int have = 0;
+  socklen_t len = sizeof have;
+  ASSERT_EQ(::getsockopt(device_->wait_fd(), SOL_SOCKET, SO_RCVBUF, &have, &len), 0);
+  EXPECT_EQ(b.granted, static_cast<std::size_t>(have));
+  // Without CAP_NET_ADMIN the kernel caps the request at net.core.rmem_max (and doubles it).
+  std::size_t rmem_max = 0;
+  std::ifstream("/proc/sys/net/core/rmem_max") >> rmem_max;
+  ASSERT_GT(rmem_max, 0u);
+  EXPECT_GE(b.granted, std::min(b.wanted, 2 * rmem_max));
 }
 
 TEST_F(CanPair, ErrorFramesDriveBusStateAndRestartRecovers) {

@@ -175,6 +175,31 @@ TEST_F(BenchModbus, NanAndInfiniteRegistersArePolledAsInvalidOthersStayValid) {
   EXPECT_EQ(c->link().health().errors, 0u);   // the link is fine: the values are what is missing
 }
 
+TEST_F(BenchModbus, AReadingOutsideItsRangeIsInvalidKeptAndCountedAtEveryPoll) {
+  // A broken thermocouple reads 850 degC: the fixture's sensor range is -40..150. Checked at every
+  // poll (not only by inertia-daqd --check); the request itself succeeded.
+  BenchControllerState s;
+  s.frozen = true;
+  s.temperature_degC = 85.0;
+  s.table_rate_rad_s = -0.75;
+  start(s);
+  const int t = config_.map.find("temperature");
+  ASSERT_GE(t, 0);
+  config_.map.registers[static_cast<std::size_t>(t)].range_min = -40.0;
+  config_.map.registers[static_cast<std::size_t>(t)].range_max = 80.0;
+  auto c = connect();
+  ASSERT_NE(c, nullptr);
+  for (int poll = 0; poll < 3; ++poll) {
+    const PolledValue& v = c->poll()[static_cast<std::size_t>(t)];
+    EXPECT_FALSE(v.valid);
+    EXPECT_TRUE(v.out_of_range);
+    EXPECT_DOUBLE_EQ(v.value, 85.0) << "kept as read, for the log";
+  }
+  EXPECT_EQ(c->range_faults(), 3u);
+  EXPECT_DOUBLE_EQ(value(*c, "table_rate"), -0.75) << "the others stay valid";
+  EXPECT_EQ(c->link().health().errors, 0u) << "an implausible reading is no link error";
+}
+
 TEST_F(BenchModbus, SetpointWritesAreOffUnlessEnabledThenClamped) {
   BenchControllerState s;
   s.frozen = true;

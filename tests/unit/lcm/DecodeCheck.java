@@ -89,6 +89,8 @@ public class DecodeCheck {
         check("devices[0].decode_errors", d0.decode_errors, 2L);
         check("devices[0].read_time_max_us", d0.read_time_max_us, 42.5);
         check("devices[0].num_faults", d0.num_faults, 0);
+        check("devices[0].counter_resets", d0.counter_resets, 2L);
+        check("devices[0].encoder_overflows", d0.encoder_overflows, 11L);
         inertia.device_status_t d1 = m.devices[1];
         check("devices[1].device", d1.device, "modbus_thermal");
         check("devices[1].state", d1.state, inertia.device_status_t.STATE_FAILED);

@@ -63,6 +63,16 @@ inline daq_status_t known_daq_status() {
   d0.clock_residual_us = 3.5;
   d0.lost_samples = 12;
   d0.late_samples = 1;
+  d0.counter_resets = 2;
+  d0.short_frames = 3;
+  d0.duplicate_frames = 4;
+  d0.out_of_order_frames = 5;
+  d0.kernel_drops = 6;
+  d0.link_reopens = 7;
+  d0.clock_steps = 8;
+  d0.range_faults = 9;
+  d0.stuck_samples = 10;
+  d0.encoder_overflows = 11;
   device_status_t d1;
   d1.device = "modbus_thermal";
   d1.state = device_status_t::STATE_FAILED;
@@ -78,6 +88,21 @@ inline daq_status_t known_daq_status() {
   d1.read_time_max_us = 1500.25;
   d1.num_faults = 1;
   d1.faults = {"modbus-gone"};
+  // Every field set: an LCM type leaves its numbers uninitialised.
+  d1.clock_drift_ppm = 0.0;
+  d1.clock_residual_us = 0.0;
+  d1.lost_samples = 0;
+  d1.late_samples = 0;
+  d1.counter_resets = 0;
+  d1.short_frames = 0;
+  d1.duplicate_frames = 0;
+  d1.out_of_order_frames = 0;
+  d1.kernel_drops = 0;
+  d1.link_reopens = 0;
+  d1.clock_steps = 0;
+  d1.range_faults = 4;
+  d1.stuck_samples = 0;
+  d1.encoder_overflows = 0;
   m.num_devices = 2;
   m.devices = {d0, d1};
   m.lcm_messages = 40000;
@@ -226,6 +251,16 @@ inline void expect_equal(const device_status_t& a, const device_status_t& b) {
   EXPECT_EQ(a.clock_residual_us, b.clock_residual_us);
   EXPECT_EQ(a.lost_samples, b.lost_samples);
   EXPECT_EQ(a.late_samples, b.late_samples);
+  EXPECT_EQ(a.counter_resets, b.counter_resets);
+  EXPECT_EQ(a.short_frames, b.short_frames);
+  EXPECT_EQ(a.duplicate_frames, b.duplicate_frames);
+  EXPECT_EQ(a.out_of_order_frames, b.out_of_order_frames);
+  EXPECT_EQ(a.kernel_drops, b.kernel_drops);
+  EXPECT_EQ(a.link_reopens, b.link_reopens);
+  EXPECT_EQ(a.clock_steps, b.clock_steps);
+  EXPECT_EQ(a.range_faults, b.range_faults);
+  EXPECT_EQ(a.stuck_samples, b.stuck_samples);
+  EXPECT_EQ(a.encoder_overflows, b.encoder_overflows);
 }
 
 inline void expect_equal(const daq_status_t& a, const daq_status_t& b) {
