@@ -306,9 +306,13 @@ void ModbusSampler::stop() {
 void ModbusSampler::run() noexcept {
   ::pthread_setname_np(::pthread_self(), ("smp-" + slot_->name).substr(0, 15).c_str());
   RingSink sink(*slot_);
-  timespec next{};
-  ::clock_gettime(CLOCK_MONOTONIC, &next);
   const std::int64_t interval_ns = static_cast<std::int64_t>(poll_interval_ms_) * 1'000'000;
+  // Polls on a grid of CLOCK_MONOTONIC: poll k is due at first + k * interval and carries k as its
+  // sample number. After an overrun (a request timing out) the grid points it covered are skipped,
+  // not polled in a burst: their numbers are missing, so the publisher's clock fit maps every poll
+  // to its own time and the gap shows as lost samples, never as later rows stamped early.
+  std::int64_t next_ns = hal::monotonic_now_ns();
+  std::int64_t index = 0;
   std::int64_t next_simulated = SimulatedClock::kNotYet;
   while (!stop_.load(std::memory_order_acquire)) {
     std::int64_t stamp = 0;   // the poll's time: its start on CLOCK_MONOTONIC, or the simulated time it is due
@@ -340,7 +344,7 @@ void ModbusSampler::run() noexcept {
       // One row per poll, all stamped with the poll's start so the row stays aligned.
       // An implausible reading keeps its value, marked invalid (the log shows what came).
       (void)sink.push(static_cast<std::uint32_t>(i), stamp, values[i].valid || values[i].out_of_range ? values[i].value : 0.0,
-                      values[i].valid, hal::kNoSampleIndex);
+                      values[i].valid, clock_ ? hal::kNoSampleIndex : index);
     }
     sink.flush();
     if (slot_->doorbell) slot_->doorbell->ring();
@@ -363,20 +367,17 @@ void ModbusSampler::run() noexcept {
       if (port_) port_->serve(*controller_);
       continue;
     }
-    // Absolute schedule; after an overrun (a request timing out) restart from now, no burst.
-    next.tv_nsec += static_cast<long>(poll_interval_ms_) * 1'000'000L;
-    while (next.tv_nsec >= 1'000'000'000L) {
-      next.tv_nsec -= 1'000'000'000L;
-      ++next.tv_sec;
+    next_ns += interval_ns;
+    ++index;
+    if (const std::int64_t late = hal::monotonic_now_ns() - next_ns; late > 0) {
+      const std::int64_t skipped = late / interval_ns + 1;
+      next_ns += skipped * interval_ns;
+      index += skipped;
     }
-    timespec now{};
-    ::clock_gettime(CLOCK_MONOTONIC, &now);
-    if (now.tv_sec > next.tv_sec || (now.tv_sec == next.tv_sec && now.tv_nsec > next.tv_nsec)) next = now;
     // Sleep in slices so stop() is seen within 20 ms; the executive's commands wake it at once.
     for (;;) {
       if (port_) port_->serve(*controller_);
-      ::clock_gettime(CLOCK_MONOTONIC, &now);
-      const std::int64_t left = (next.tv_sec - now.tv_sec) * 1'000'000'000LL + (next.tv_nsec - now.tv_nsec);
+      const std::int64_t left = next_ns - hal::monotonic_now_ns();
       if (left <= 0 || stop_.load(std::memory_order_acquire)) break;
       const std::int64_t slice = std::min<std::int64_t>(left, 20'000'000);
       if (port_) {

@@ -18,7 +18,7 @@
 #include "common/lcm/sample_block_layout.hpp"
 #include "daq/sim_bench.hpp"
 #include "hal/sim/bench_simulation.hpp"
-#include "tests/integration/daqd_harness.hpp"
+#include "tests/integration/executive_bench.hpp"
 
 namespace inertia::daq::testing {
 namespace {
@@ -353,6 +353,76 @@ TEST(DaqdHardwareFaults, AGpioEncoderLineOverflowIsCountedResynchronizedAndOnlyI
   std::cout << "[ figures ] 17 edges of line A lost at 0.3 s: " << invalid << " samples invalid, count off by " << *offset
             << " after\n";
   EXPECT_EQ(offset_changes, 0);
+}
+
+}  // namespace
+}  // namespace inertia::daq::testing
+
+namespace inertia::daq::testing {
+namespace {
+
+TEST(DaqdHardwareFaults, AControllersRowsAfterItWentSilentKeepTheirOwnTimes) {
+  INERTIA_REQUIRE_LCM_ROUTE();
+  // The table turns at 1 rad/s: its position, polled every 20 ms, is a clock. A second of
+  // silence (every request times out, polls overrun) must leave the rows after it at their own
+  // times, not early by the polls that did not happen.
+  BenchControllerState turning;
+  turning.table_rate_rad_s = 1.0;
+  turning.table_rate_setpoint_rad_s = 1.0;
+  std::string why;
+  auto server = BenchControllerServer::start(0, &why, turning);
+  ASSERT_NE(server, nullptr) << why;
+  TempDir tmp;
+  const fs::path bench = tmp.path / "bench.toml";
+  std::ofstream(bench) << bench_head("operator") + controllers(server->port(), "false") + kTableCase;
+  DaqdProcess daqd({"--config", bench.string(), "--duration", "4", "--log", (tmp.path / "log").string(), "--lcm-url",
+                    private_lcm_url()},
+                   {}, tmp.path / "daqd.txt");
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  server->set_silent(true);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  server->set_silent(false);
+  ASSERT_EQ(daqd.wait(30), 0) << daqd.output();
+  const auto rows = decode_all<sample_block_t>(read_log_dir(tmp.path / "log"), "INERTIA_RAW_TABLE");
+  ASSERT_FALSE(rows.empty());
+  const int position = channel_index(rows[0], "position");
+  ASSERT_GE(position, 0);
+  std::vector<std::pair<double, double>> points;   // (time s, position rad), valid rows in order
+  for (const auto& b : rows)
+    for (std::int32_t s = 0; s < b.num_samples; ++s)
+      if (sample_valid(b, position, s))
+        points.emplace_back(static_cast<double>(b.t0_mono_ns) * 1e-9 + s * b.sample_period_s,
+                            b.values[static_cast<std::size_t>(position)][static_cast<std::size_t>(s)]);
+  ASSERT_GT(points.size(), 100u);
+  // The silence: the largest gap between valid rows. The line through the rows before it, then
+  // each row after it against that line, in seconds of the table's turning.
+  std::size_t gap = 1;
+  for (std::size_t i = 1; i < points.size(); ++i)
+    if (points[i].first - points[i - 1].first > points[gap].first - points[gap - 1].first) gap = i;
+  ASSERT_GT(points[gap].first - points[gap - 1].first, 0.5) << "the silence shows as a gap";
+  double st = 0, sp = 0, stt = 0, stp = 0;
+  const auto n = static_cast<double>(gap);
+  for (std::size_t i = 0; i < gap; ++i) {
+    st += points[i].first;
+    sp += points[i].second;
+    stt += points[i].first * points[i].first;
+    stp += points[i].first * points[i].second;
+  }
+  const double slope = (n * stp - st * sp) / (n * stt - st * st);
+  const double offset = (sp - slope * st) / n;
+  EXPECT_NEAR(slope, 1.0, 0.01);
+  double before = 0, after = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double error_s = std::abs(points[i].second - (offset + slope * points[i].first)) / slope;
+    (i < gap ? before : after) = std::max(i < gap ? before : after, error_s);
+  }
+  std::cout << "table rows against their own times: worst " << before * 1e3 << " ms before the silence, " << after * 1e3
+            << " ms after it\n";
+  // The simulated controller updates its position every physics step (20 ms): a reading is up to
+  // one step old, and the poll's stamp up to another step from the grid it was due on.
+  constexpr double kStepS = 0.02;
+  EXPECT_LT(before, 2 * kStepS);
+  EXPECT_LT(after, 2 * kStepS);
 }
 
 }  // namespace

@@ -178,17 +178,26 @@ namespace {
 // Without loss, `characterize --log` of the paced run equals `characterize --dataset` of the
 // simulator's own output within 3 combined sd; with loss, every lost frame is in the fusion's
 // exclusions; either way the live analyzer beside the daemon takes the stream without a gap.
-class RealStyleTiming : public ::testing::TestWithParam<double> {};
+// A 16-bit frame counter whose adapter resets mid-run (the counter restarts at 0 after 50 ms of
+// silence): the daemon opens a new clock segment there, and the log's model is the dataset's.
+struct TimingCase {
+  std::string name;
+  double frame_loss = 0.0;
+  std::string timing;                 // more [bench.sim_timing] keys
+  std::vector<std::string> faults;    // --fault SPEC
+};
+
+class RealStyleTiming : public ::testing::TestWithParam<TimingCase> {};
 
 TEST_P(RealStyleTiming, LogAgainstTheSimulatorsOwnDataset) {
-  const double frame_loss = GetParam();
+  const double frame_loss = GetParam().frame_loss;
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
   const fs::path config = tmp.path / "bench.toml";
   {
     std::ofstream out(config);
     out << read_text(source_path("config/sim-paper-daq.toml"))
-        << "\n[bench.sim_timing]\njitter_us = 200.0\nclock_ppm = 50.0\nframe_loss = " << frame_loss << "\n";
+        << "\n[bench.sim_timing]\njitter_us = 200.0\nclock_ppm = 50.0\nframe_loss = " << frame_loss << "\n" << GetParam().timing;
   }
   // The live analyzer beside the daemon, as an engineer runs it: it must take the real-style
   // stream without a gap or a refused block.
@@ -196,8 +205,9 @@ TEST_P(RealStyleTiming, LogAgainstTheSimulatorsOwnDataset) {
   DaqdProcess online({"online", "--config", config.string(), "--publish-hz", "10", "--lcm-url", url}, {},
                      tmp.path / "online.txt", analyze_binary());
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  DaqdProcess daqd({"--config", config.string(), "--log", (tmp.path / "log").string(), "--lcm-url", url}, {},
-                   tmp.path / "daqd.txt");
+  std::vector<std::string> daqd_args{"--config", config.string(), "--log", (tmp.path / "log").string(), "--lcm-url", url};
+  for (const std::string& f : GetParam().faults) daqd_args.insert(daqd_args.end(), {"--fault", f});
+  DaqdProcess daqd(daqd_args, {}, tmp.path / "daqd.txt");
   ASSERT_EQ(daqd.wait(120.0), 0) << daqd.output();
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
   online.signal(SIGINT);
@@ -205,7 +215,13 @@ TEST_P(RealStyleTiming, LogAgainstTheSimulatorsOwnDataset) {
   const std::string live = online.output();
   std::cout << "[ figures ] online: " << live.substr(live.find("online: received")) << "\n";
   EXPECT_NE(live.find("skipped 0 malformed, 0 oversized, 0 invalid, 0 refused; 0 queue drop(s)"), std::string::npos) << live;
-  EXPECT_NE(live.find(" 0 gap(s)"), std::string::npos) << live;
+  if (GetParam().faults.empty()) {
+    EXPECT_NE(live.find(" 0 gap(s)"), std::string::npos) << live;
+  } else {
+    // The reset's silence, and nothing else: 50 ms at the bench's 1 kHz.
+    EXPECT_NE(live.find(" 1 gap(s)"), std::string::npos) << live;
+    EXPECT_NE(live.find("gap: accel missing 50 sample(s)"), std::string::npos) << live;
+  }
   EXPECT_EQ(live.find("overlap"), std::string::npos) << live;
   const std::string daqd_out = daqd.output();
   std::smatch lost_match;
@@ -236,6 +252,10 @@ TEST_P(RealStyleTiming, LogAgainstTheSimulatorsOwnDataset) {
   const std::regex invalid(R"(case \S+: (\d+) sample\(s\) excluded: accel\.acc1 invalid)");
   for (std::sregex_iterator it(out.begin(), out.end(), invalid), end; it != end; ++it) excluded += std::stol((*it)[1]);
   EXPECT_EQ(excluded, frames_lost) << out;
+  if (!GetParam().faults.empty()) {
+    const std::string daqd_out_now = daqd.output();
+    EXPECT_NE(daqd_out_now.find("clock segments 2"), std::string::npos) << "the reset opened a new clock segment\n" << daqd_out_now;
+  }
   EXPECT_EQ(out.find("overlapping"), std::string::npos);
 
   const model::ModelFile fused = model::read_model(tmp.path / "out" / "model.toml");
@@ -260,10 +280,10 @@ TEST_P(RealStyleTiming, LogAgainstTheSimulatorsOwnDataset) {
   EXPECT_GE(common, 2);
 }
 
-INSTANTIATE_TEST_SUITE_P(JitterDriftAndLoss, RealStyleTiming, ::testing::Values(0.0, 0.001),
-                         [](const ::testing::TestParamInfo<double>& info) {
-                           return info.param == 0.0 ? std::string("NoFrameLost") : std::string("OneFrameInAThousandLost");
-                         });
+INSTANTIATE_TEST_SUITE_P(JitterDriftAndLoss, RealStyleTiming,
+                         ::testing::Values(TimingCase{"NoFrameLost", 0.0, "", {}}, TimingCase{"OneFrameInAThousandLost", 0.001, "", {}},
+                                           TimingCase{"SixteenBitCounterReset", 0.0, "counter_bits = 16\n", {"can-reset@5.3+0.05"}}),
+                         [](const ::testing::TestParamInfo<TimingCase>& info) { return info.param.name; });
 
 // Issue 13: a log without a single plan marker (a real bench nobody marked) is cut into the
 // plan's cases and phases from the references' motion; the model equals the marked log's within
