@@ -34,29 +34,12 @@ std::int64_t wall_us() {
   return static_cast<std::int64_t>(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
 }
 
-class Authority : public ::testing::Test {
+class Authority : public RealBenchTest {
  protected:
   void SetUp() override {
-    std::string why;
-    controllers_ = BenchControllerServer::start(0, &why, moving_controllers());
-    ASSERT_NE(controllers_, nullptr) << why;
+    RealBenchTest::SetUp();
     // Another user must reach the socket in this directory.
-    ::chmod(dir_.path.c_str(), 0755);
-  }
-  fs::path write(const std::string& name, const std::string& text, mode_t mode = 0644) {
-    const fs::path p = dir_.path / name;
-    std::ofstream(p) << text;
-    ::chmod(p.c_str(), mode);
-    return p;
-  }
-  [[nodiscard]] std::string socket_path() const { return (dir_.path / "command.sock").string(); }
-  static bool wait_for(const DaqdProcess& daqd, const std::string& text, double timeout_s) {
-    const std::int64_t deadline = mono_now_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
-    while (mono_now_ns() < deadline) {
-      if (daqd.output().find(text) != std::string::npos) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    return false;
+    fs::permissions(dir_.path, fs::perms(0755));
   }
   /// `inertia-daqd ARGS... --socket PATH` as uid 65534 with the given supplementary groups.
   std::pair<int, std::string> as_nobody(std::vector<std::string> args, const std::string& groups = "") {
@@ -78,15 +61,13 @@ class Authority : public ::testing::Test {
     return out;
   }
 
-  TempDir dir_;
-  std::unique_ptr<BenchControllerServer> controllers_;
   int n_ = 0;
 };
 
 TEST_F(Authority, AnUnprivilegedUsersMarkEndAndArmAreRefusedJournalledAndLeaveNoMarkerTheirStopIsTaken) {
   INERTIA_REQUIRE_LCM_ROUTE();
   if (::geteuid() != 0) INERTIA_SKIP_OR_FAIL_IN_CI("another user's requests need root to run them (setpriv)");
-  const fs::path bench = write("bench.toml", bench_head("operator") + controllers(controllers_->port()) + kTableCase);
+  const fs::path bench = write(bench_head("operator") + controllers(controllers_->port()) + kTableCase);
   TempDir tmp;
   DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--duration", "60", "--log",
                     (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
@@ -124,7 +105,7 @@ TEST_F(Authority, AnUnprivilegedUsersMarkEndAndArmAreRefusedJournalledAndLeaveNo
 TEST_F(Authority, AnOperatorsMarksAreAcceptedAtOnceAndTheLogSaysWhoMarked) {
   INERTIA_REQUIRE_LCM_ROUTE();
   if (::geteuid() != 0) INERTIA_SKIP_OR_FAIL_IN_CI("another user's requests need root to run them (setpriv)");
-  const fs::path bench = write("bench.toml", bench_head("operator") + controllers(controllers_->port()) + kTableCase);
+  const fs::path bench = write(bench_head("operator") + controllers(controllers_->port()) + kTableCase);
   TempDir tmp;
   DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--operator-group", kOperatorGid, "--duration",
                     "60", "--log", (tmp.path / "log").string(), "--lcm-url", private_lcm_url()},
@@ -183,8 +164,8 @@ TEST_F(Authority, AnOperatorsMarksAreAcceptedAtOnceAndTheLogSaysWhoMarked) {
 TEST_F(Authority, SignedRequestsAreTakenForgedReplayedStaleAndUnsignedOnesRefusedAndCounted) {
   INERTIA_REQUIRE_LCM_ROUTE();
   const std::string secret = "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff";
-  const fs::path key_file = write("command.key", "# the operators' key\nlab-pc-2 " + secret + "\n", 0640);
-  const fs::path bench = write("bench.toml", bench_head("operator") + controllers(controllers_->port()) + kTableCase);
+  const fs::path key_file = write("# the operators' key\nlab-pc-2 " + secret + "\n", "command.key", fs::perms(0640));
+  const fs::path bench = write(bench_head("operator") + controllers(controllers_->port()) + kTableCase);
   const std::string url = private_lcm_url();
   LcmCollector live(url);
   ASSERT_TRUE(live.good());
@@ -324,8 +305,8 @@ TEST_F(Authority, SignedRequestsAreTakenForgedReplayedStaleAndUnsignedOnesRefuse
 
 TEST_F(Authority, AKeyFileOthersCanReadIsRefusedAtStartWithTheFix) {
   const fs::path key_file =
-      write("command.key", "lab-pc-2 00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n", 0644);
-  const fs::path bench = write("bench.toml", bench_head("operator") + controllers(controllers_->port()) + kTableCase);
+      write("lab-pc-2 00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n", "command.key", fs::perms(0644));
+  const fs::path bench = write(bench_head("operator") + controllers(controllers_->port()) + kTableCase);
   TempDir tmp;
   DaqdProcess daqd({"--config", bench.string(), "--command-socket", socket_path(), "--command-key", key_file.string(), "--duration",
                     "5", "--lcm-url", private_lcm_url()},
@@ -339,7 +320,7 @@ TEST_F(Authority, AKeyFileOthersCanReadIsRefusedAtStartWithTheFix) {
 
 TEST_F(Authority, MalformedAndOversizedRequestsOnTheSocketAreDroppedCountedAndTheDaemonGoesOn) {
   INERTIA_REQUIRE_LCM_ROUTE();
-  const fs::path bench = write("bench.toml", bench_head("operator") + controllers(controllers_->port()) + kTableCase);
+  const fs::path bench = write(bench_head("operator") + controllers(controllers_->port()) + kTableCase);
   const std::string url = private_lcm_url();
   LcmCollector live(url);
   ASSERT_TRUE(live.good());

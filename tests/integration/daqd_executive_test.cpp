@@ -20,32 +20,7 @@
 namespace inertia::daq::testing {
 namespace {
 
-class Executive : public ::testing::Test {
- protected:
-  void SetUp() override {
-    std::string why;
-    controllers_ = BenchControllerServer::start(0, &why, moving_controllers());
-    ASSERT_NE(controllers_, nullptr) << why;
-  }
-  fs::path write(const std::string& text) {
-    const fs::path p = dir_.path / "bench.toml";
-    std::ofstream(p) << text;
-    return p;
-  }
-  /// Polls the daemon's output until `text` appears; false after `timeout_s`.
-  static bool wait_for(const DaqdProcess& daqd, const std::string& text, double timeout_s) {
-    const std::int64_t deadline = mono_now_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
-    while (mono_now_ns() < deadline) {
-      if (daqd.output().find(text) != std::string::npos) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    return false;
-  }
-  /// The daemon's command socket (inertia-daqd mark and arm reach it with --socket).
-  [[nodiscard]] std::string socket_path() const { return (dir_.path / "command.sock").string(); }
-  TempDir dir_;
-  std::unique_ptr<BenchControllerServer> controllers_;
-};
+using Executive = RealBenchTest;
 
 TEST_F(Executive, RunsThePlanOnTheControllersEachCommandReadBackSettledAndMarked) {
   INERTIA_REQUIRE_LCM_ROUTE();

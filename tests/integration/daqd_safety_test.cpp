@@ -30,29 +30,8 @@ const std::string kLongTurn =
     "\n[[case]]\nname = \"table\"\nkind = \"rotation_table\"\nm_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n"
     "[[case.phase]]\nkind = \"rotation\"\naxis = [0.0, 0.0, 1.0]\nrate_deg_s = 90.0\nduration_s = 60.0\n";
 
-class Safety : public ::testing::Test {
+class Safety : public RealBenchTest {
  protected:
-  void SetUp() override { start_controllers(moving_controllers()); }
-  void start_controllers(const BenchControllerState& state) {
-    std::string why;
-    controllers_ = BenchControllerServer::start(0, &why, state);
-    ASSERT_NE(controllers_, nullptr) << why;
-  }
-  fs::path write(const std::string& text) {
-    const fs::path p = dir_.path / "bench.toml";
-    std::ofstream(p) << text;
-    return p;
-  }
-  static bool wait_for(const DaqdProcess& daqd, const std::string& text, double timeout_s) {
-    const std::int64_t deadline = mono_now_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
-    while (mono_now_ns() < deadline) {
-      if (daqd.output().find(text) != std::string::npos) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    return false;
-  }
-  /// The daemon's command socket (inertia-daqd mark and arm reach it with --socket).
-  [[nodiscard]] std::string socket_path() const { return (dir_.path / "command.sock").string(); }
   /// `inertia-daqd VERB ARGS... --socket PATH`: its exit status and output.
   std::pair<int, std::string> command(std::vector<std::string> args) {
     args.insert(args.end(), {"--socket", socket_path()});
@@ -83,8 +62,6 @@ class Safety : public ::testing::Test {
     return n;
   }
 
-  TempDir dir_;
-  std::unique_ptr<BenchControllerServer> controllers_;
   int commands_ = 0;
 };
 

@@ -4,9 +4,14 @@
 // wired as three devices with their roles, safe values and heartbeats, and the test plans.
 #include <time.h>
 
+#include <gtest/gtest.h>
+
+#include <chrono>
 #include <cmath>
+#include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "hal/wire_sim/bench_controllers.hpp"
 #include "tests/integration/daqd_harness.hpp"
@@ -110,5 +115,36 @@ inline BenchControllerState moving_controllers() {
   return s;
 }
 
+
+/// A test on a real bench of the simulated controllers: the controllers' server, a scratch
+/// directory for the bench file and the daemon's command socket, and a wait on the daemon's output.
+class RealBenchTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string why;
+    controllers_ = BenchControllerServer::start(0, &why, moving_controllers());
+    ASSERT_NE(controllers_, nullptr) << why;
+  }
+  /// `text` as `name` in the scratch directory, with `mode`.
+  fs::path write(const std::string& text, const std::string& name = "bench.toml", fs::perms mode = fs::perms(0644)) {
+    const fs::path p = dir_.path / name;
+    std::ofstream(p) << text;
+    fs::permissions(p, mode);
+    return p;
+  }
+  /// The daemon's command socket (inertia-daqd mark and arm reach it with --socket).
+  [[nodiscard]] std::string socket_path() const { return (dir_.path / "command.sock").string(); }
+  /// Polls the daemon's output until `text` appears; false after `timeout_s`.
+  static bool wait_for(const DaqdProcess& daqd, const std::string& text, double timeout_s) {
+    const std::int64_t deadline = mono_now_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
+    while (mono_now_ns() < deadline) {
+      if (daqd.output().find(text) != std::string::npos) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return false;
+  }
+  TempDir dir_;
+  std::unique_ptr<BenchControllerServer> controllers_;
+};
 
 }  // namespace inertia::daq::testing

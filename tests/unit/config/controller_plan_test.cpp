@@ -13,6 +13,7 @@
 #include "common/config/bench_config.hpp"
 #include "common/config/controller_plan.hpp"
 #include "common/input_error.hpp"
+#include "tests/unit/config/bench_file_test.hpp"
 
 namespace {
 
@@ -86,35 +87,7 @@ const std::string kThermalCase =
     "[[case]]\nname = \"warm\"\nkind = \"thermal\"\norientation = \"IA\"\n"
     "[[case.phase]]\nkind = \"thermal_step\"\nsetpoint_c = 40.0\nduration_s = 1.0\n";
 
-class ControllerPlan : public ::testing::Test {
- protected:
-  fs::path write(const std::string& text) {
-    const fs::path dir = fs::temp_directory_path() /
-                         ("inertia_controller_plan_" + std::to_string(::getpid()) + "_" +
-                          ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir);
-    const fs::path p = dir / "bench.toml";
-    std::ofstream(p) << text;
-    return p;
-  }
-  InputError error_of(const std::string& text) {
-    try {
-      (void)load_bench_config(write(text));
-    } catch (const InputError& e) {
-      return e;
-    }
-    ADD_FAILURE() << "no InputError for:\n" << text;
-    return InputError("none");
-  }
-  /// 1-based line of the n-th (1-based) line of `text` starting with `prefix`.
-  static std::size_t line_of(const std::string& text, const std::string& prefix, int nth = 1) {
-    std::istringstream in(text);
-    std::string line;
-    for (std::size_t n = 1; std::getline(in, line); ++n)
-      if (line.rfind(prefix, 0) == 0 && --nth == 0) return n;
-    return 0;
-  }
-};
+using ControllerPlan = inertia::config::testing::BenchFileTest;
 
 TEST_F(ControllerPlan, RolesAndSettlingKeysLoadAndEachPhaseCommandsItsRoles) {
   const std::string text = bench_head("plan") + table() + shaker() + thermal() + kRotationCase + kShakerCase + kThermalCase;

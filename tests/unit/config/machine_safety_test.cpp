@@ -14,6 +14,7 @@
 #include "common/config/bench_config.hpp"
 #include "common/config/machine_safety.hpp"
 #include "common/input_error.hpp"
+#include "tests/unit/config/bench_file_test.hpp"
 
 namespace {
 
@@ -34,33 +35,7 @@ std::string heartbeat(const std::string& keys = "timeout_s = 2.0\nstop_s = 2.0\n
          "max = 65535\nrole = \"heartbeat\"\n" + keys;
 }
 
-class MachineSafety : public ::testing::Test {
- protected:
-  fs::path write(const std::string& text) {
-    const fs::path dir = fs::temp_directory_path() / ("inertia_machine_safety_" + std::to_string(::getpid()) + "_" +
-                                                      ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir);
-    const fs::path p = dir / "bench.toml";
-    std::ofstream(p) << text;
-    return p;
-  }
-  InputError error_of(const std::string& text) {
-    try {
-      (void)load_bench_config(write(text));
-    } catch (const InputError& e) {
-      return e;
-    }
-    ADD_FAILURE() << "no InputError for:\n" << text;
-    return InputError("none");
-  }
-  static std::size_t line_of(const std::string& text, const std::string& prefix, int nth = 1) {
-    std::istringstream in(text);
-    std::string line;
-    for (std::size_t n = 1; std::getline(in, line); ++n)
-      if (line.rfind(prefix, 0) == 0 && --nth == 0) return n;
-    return 0;
-  }
-};
+using MachineSafety = inertia::config::testing::BenchFileTest;
 
 TEST_F(MachineSafety, AHeartbeatLoadsWithItsControllersTimeoutAndStopTime) {
   const BenchConfig b = load_bench_config(write(kHead + "stop_within_s = 4.0\n" + device("", kRate + heartbeat("period_s = 0.2\ntimeout_s = 1.5\nstop_s = 2.5\n"))));
