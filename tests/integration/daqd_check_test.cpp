@@ -130,6 +130,38 @@ TEST_F(DeviceCheck, EveryRegisterOfTheSimulatedControllersOverTcpAndRtuIsReadyEx
   EXPECT_GE(rtu_->server().requests_served(), 3u);
 }
 
+TEST_F(DeviceCheck, TheHeartbeatIsWrittenOnceAndItsStopTimeHeldAgainstTheBenchs) {
+  // The setpoint (the last of controller_registers()) commanded, with writes enabled, and the
+  // controller's watchdog on holding 0x1007.
+  const std::string commanded =
+      "role = \"thermal_setpoint\"\nmax_rate = 1.0\nsafe = 25.0\n"
+      "[[modbus_device.register]]\nname = \"watchdog\"\naddress = 0x1007\nkind = \"holding\"\nwritable = true\nmin = 0\n"
+      "max = 65535\nrole = \"heartbeat\"\ntimeout_s = 1.5\nstop_s = 2.0\n";
+  const std::string device = tcp_device("thermal", tcp_->port(), "writes_enabled = true\n", controller_registers() + commanded);
+  const std::uint16_t before = tcp_->state().heartbeat;
+  CheckRun r = run_check(write(kRealBench + device));
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("heartbeat watchdog"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("and read back; the controller stops 1.5 s after the daemon's last heartbeat and is at rest 3.5 s after it; "
+                       "the bench gives no stop_within_s"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(tcp_->state().heartbeat, before) << "written";
+  // Within the bench's stop distance, and beyond it.
+  const std::string head_ok = "[bench]\nname = \"check-bench\"\nbackend = \"real\"\nsample_rate_hz = 1000.0\nstop_within_s = 4.0\n\n";
+  r = run_check(write(head_ok + device));
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("within the bench's stop_within_s = 4 s"), std::string::npos) << r.out;
+  std::string head_short = head_ok;
+  head_short.replace(head_short.find("4.0"), 3, "3.0");
+  const std::string text = head_short + device;
+  r = run_check(write(text));
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("is at rest 3.5 s after it, more than the bench's stop_within_s = 3 s"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bench.toml:" + std::to_string(line_of(text, "name = \"watchdog\"") - 1)), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("fix: shorten the controller's communication-loss timeout"), std::string::npos) << r.out;
+}
+
 TEST_F(DeviceCheck, AbsentInterfaceChipAndSerialPortAreNamedWithTheirLineAndAFix) {
   const std::string missing_port = (dir_.path / "ttyUSB7").string();
   tcp_->stop();  // nobody listens on that port any more
