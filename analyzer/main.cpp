@@ -1,4 +1,4 @@
-// inertia-analyze: one binary, several verbs (design.md, "Command line").
+// inertia-analyze: one binary, several verbs (docs/design.md, "Command line").
 // Exit status: 0 success, 2 bad input (InputError, CLI misuse), 1 anything else.
 #include <CLI/CLI.hpp>
 #include <malloc.h>

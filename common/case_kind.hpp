@@ -1,6 +1,6 @@
 #pragma once
 // The kind of a test case, shared by the bench file's test plan (common/config) and the dataset
-// contract (common/dataset, design.md "dataset.toml": kind = rotation_table | shaker | thermal |
+// contract (common/dataset, docs/design.md "dataset.toml": kind = rotation_table | shaker | thermal |
 // static): one enum, so a case keeps its kind from the plan through the log to the analyzer.
 #include <optional>
 #include <string_view>

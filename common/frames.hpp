@@ -1,5 +1,5 @@
 #pragma once
-// Frames and direction cosine matrices (design.md, "Units and frames").
+// Frames and direction cosine matrices (docs/design.md, "Units and frames").
 // A DCM M_A^B maps coordinates from F_A to F_B (v_B = M_A^B v_A); its rows are the axes of F_B
 // written in F_A. Frames: F_E external (table/shaker), F_C sensor case (IRA, XRA, YRA),
 // F_S sensor (i input, p pendulous, o output).

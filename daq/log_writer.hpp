@@ -1,5 +1,5 @@
 #pragma once
-// The durable event log (design.md: "UDP can drop; the log cannot: the log is the record").
+// The durable event log (docs/design.md: "UDP can drop; the log cannot: the log is the record").
 // Every message the publisher sends is copied into a slot of a preallocated pool and handed to
 // the writer thread through an SPSC ring; the writer appends it in LCM's log format
 // (lcm_eventlog, so lcm-logplayer replays it and lcm-spy decodes it) with one write() per

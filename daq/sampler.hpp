@@ -1,5 +1,5 @@
 #pragma once
-// One sampling thread per device (design.md): waits for input on the device's descriptors,
+// One sampling thread per device (docs/design.md): waits for input on the device's descriptors,
 // calls Device::read_into() with a sink that writes the device's SPSC ring, and mirrors the
 // device's health into the slot's atomics.
 //

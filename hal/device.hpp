@@ -1,5 +1,5 @@
 #pragma once
-// The device interface of the HAL (design.md, "The hardware abstraction layer"; style.md §3-5, §7).
+// The device interface of the HAL (docs/design.md, "The hardware abstraction layer"; style.md §3-5, §7).
 // A device produces timestamped samples for named channels. The daemon owns the lifecycle
 // (Unconfigured -> Inactive -> Active -> Inactive -> Finalized, plus Failed) and applies the
 // transition table; a device only answers each transition with a Step and keeps health counters.

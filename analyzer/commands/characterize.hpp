@@ -1,6 +1,6 @@
 #pragma once
 // `inertia-analyze characterize --dataset DIR|--log FILE --out DIR`: the paper's Fig. 1 procedure on a
-// dataset folder or an event log (fused into the same dataset, analyzer/fusion/log_dataset.hpp); writes model.toml (design.md "Model file"), report.md and plots.
+// dataset folder or an event log (fused into the same dataset, analyzer/fusion/log_dataset.hpp); writes model.toml (docs/design.md "Model file"), report.md and plots.
 #include <filesystem>
 #include <iosfwd>
 #include <map>

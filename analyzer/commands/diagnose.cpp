@@ -20,7 +20,7 @@ namespace inertia::commands {
 namespace {
 
 // Per case and phase: the detail that sits beside the contract's residual_rms number
-// (design.md, "Recorded extensions": residual_rms is the overall RMS, never an object).
+// (docs/design.md, "Command line": residual_rms is the overall RMS, never an object).
 nlohmann::json rms_by_case_json(const diagnose::DiagnoseResult& r, const diagnose::ResidualSummary& s) {
   nlohmann::json cases = nlohmann::json::object();
   for (std::size_t c = 0; c < r.case_names.size(); ++c) {

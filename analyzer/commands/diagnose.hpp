@@ -1,7 +1,7 @@
 #pragma once
 // `inertia-analyze diagnose --model MODEL.toml --dataset DIR|--log FILE --json OUT.json [--report DIR]`:
 // the discrepancy workflow (analyzer/diagnose/discrepancy.hpp) on a dataset folder; writes the
-// JSON of design.md ("Command line"), the augmented model file and, with --report, report.md.
+// JSON of docs/design.md ("Command line"), the augmented model file and, with --report, report.md.
 #include <filesystem>
 #include <iosfwd>
 #include <string>

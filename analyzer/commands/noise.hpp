@@ -3,7 +3,7 @@
 // the sensor's noise from the static stretches of a dataset or an event log (noise/noise_analysis.hpp):
 // Allan and modified Allan deviation with 95 % intervals, the fit of Q, N, B, K, R with their
 // intervals and tau ranges, the Welch PSD with the fitted model. Writes noise.toml (its [noise]
-// table is a model file's, design.md "Model file"), report.md and plots/ (adev.png, psd.png).
+// table is a model file's, docs/design.md "Model file"), report.md and plots/ (adev.png, psd.png).
 #include <filesystem>
 #include <iosfwd>
 #include <string>

@@ -1,6 +1,6 @@
 #pragma once
 // `inertia-analyze online --config FILE [--model [SENSOR=]MODEL.toml ...] [--duration S]`
-// (design.md "Command line"): subscribes to the daemon's stream (INERTIA_BENCH, INERTIA_RAW_*,
+// (docs/design.md "Command line"): subscribes to the daemon's stream (INERTIA_BENCH, INERTIA_RAW_*,
 // INERTIA_EVENT), fuses the references into ground truth as the samples arrive
 // (fusion/stream_assembler: a few samples behind the stream), runs the live estimator per sensor
 // under test (online/online_estimator) and publishes, at --publish-hz:
@@ -38,7 +38,7 @@ struct OnlineCommandOptions {
 };
 
 /// Runs until stopped; prints a line per estimate whose sample count changed (at most one a
-/// second) and, at the end, when each coefficient settled. Exit status per design.md: 0, 2 for
+/// second) and, at the end, when each coefficient settled. Exit status per docs/design.md: 0, 2 for
 /// bad input (bench, model, options), 1 when LCM cannot start.
 int run_online(const OnlineCommandOptions& options, std::ostream& out);
 

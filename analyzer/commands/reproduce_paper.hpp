@@ -3,7 +3,7 @@
 // over several seeds, its test cases (1), (2) and (3), and a case (4) the paper proposed and did not
 // run (model selection with dynamics and coloured noise); tables 2, 3 and 4 printed beside the
 // paper's numbers. Lives beside main.cpp, not in inertia_analyzer: it is where the simulator and
-// the analysis meet (design.md: analyzer -> common only).
+// the analysis meet (docs/design.md: analyzer -> common only).
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>

@@ -1,6 +1,6 @@
 #pragma once
 // The library of candidate effects the discrepancy workflow can name: every term of the paper's
-// equations 1-6 and 12 (design.md "Model terms"), evaluated on the residual of a model.
+// equations 1-6 and 12 (docs/design.md "Model terms"), evaluated on the residual of a model.
 #include <vector>
 
 #include "analyzer/ident/term.hpp"

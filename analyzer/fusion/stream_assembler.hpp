@@ -1,5 +1,5 @@
 #pragma once
-// From the daemon's messages to fused ground truth for one sensor under test (design.md: "The
+// From the daemon's messages to fused ground truth for one sensor under test (docs/design.md: "The
 // event log written by the daemon and lcm-logger carries the same information [as the dataset
 // folder]"). StreamAssembler is pushed bench_config_t, sample_block_t and plan_event_t in the
 // order they arrive (an event log, or live LCM for `online`) and hands out fused rows as soon as

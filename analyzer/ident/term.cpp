@@ -89,7 +89,7 @@ Term Term::from_factors(std::vector<Factor> factors) {
     }
   }
   // The unlagged output goes first: y*T, y*w_i read as the output-multiplied (rational) terms
-  // they are, as design.md spells them; everything else follows the variable order.
+  // they are, as docs/design.md spells them; everything else follows the variable order.
   std::sort(term.factors_.begin(), term.factors_.end(), [](const Factor& a, const Factor& b) {
     const bool a_first = a.variable == Variable::Y && a.lag == 0;
     const bool b_first = b.variable == Variable::Y && b.lag == 0;

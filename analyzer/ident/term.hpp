@@ -1,5 +1,5 @@
 #pragma once
-// Model terms (design.md, "Model terms"): the names that appear in reports, JSON and model files,
+// Model terms (docs/design.md, "Model terms"): the names that appear in reports, JSON and model files,
 // and the structure the regressor builder evaluates.
 //
 // Grammar (whitespace between tokens is ignored on input and never printed):
@@ -15,11 +15,12 @@
 //   T             temperature minus the dataset's t_ref, degC
 //   y             the sensor output: only lagged, or unlagged inside a product with another
 //                 factor (the output-multiplied terms of rational models, paper eq. 5: y*T, y*w_i)
-//   e             EXTENSION to design.md: the one-step prediction residual (noise) v(k) of the
-//                 paper's eqs. 2 and 4; only lagged (e[k-1] is c_1 v(k-1), the MA part). Its
-//                 values are supplied by the estimator (extended least squares), not the dataset.
+//   e             the one-step prediction residual (noise) v(k) of the paper's eqs. 2 and 4 (an
+//                 extension of the paper's variables); only lagged (e[k-1] is c_1 v(k-1), the MA
+//                 part). Its values are supplied by the estimator (extended least squares), not
+//                 the dataset.
 //
-// Canonical form (to_string): the unlagged output y first when present (design.md spells the
+// Canonical form (to_string): the unlagged output y first when present (docs/design.md spells the
 // output-multiplied terms y*T, y*w_i), then factors sorted by variable (order above), then by lag
 // (current sample first), then plain < abs < sign; equal factors merged into powers; a lagged plain
 // factor prints its power before the lag (`a_o^2[k-1]` = a_o[k-1]^2); abs and sign print the lag
@@ -114,7 +115,7 @@ std::vector<Term> parse_terms(const std::vector<std::string>& texts);
 /// The canonical text of each term.
 std::vector<std::string> to_strings(const std::vector<Term>& terms);
 
-/// Physical meaning of a term for a sensor of `kind`, as it appears in reports (design.md list):
+/// Physical meaning of a term for a sensor of `kind`, as it appears in reports (docs/design.md list):
 /// "bias", "scale factor", "misalignment/cross-axis sensitivity", "second-order nonlinearity",
 /// "cross-coupling (vibropendulous)", "rectification", "odd quadratic", "asymmetry/hysteresis",
 /// "bias temperature coefficient", "scale-factor temperature coefficient", "dynamics",

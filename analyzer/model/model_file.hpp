@@ -1,5 +1,5 @@
 #pragma once
-// The model file (design.md, "Model file"): written by characterize, read by diagnose and
+// The model file (docs/design.md, "Model file"): written by characterize, read by diagnose and
 // simulate.
 //
 //   sensor = "accelerometer"                  # or "gyroscope"

@@ -1,5 +1,5 @@
 #pragma once
-// The live half of the analyzer (design.md: "`online` subscribes, fuses the references into ground
+// The live half of the analyzer (docs/design.md: "`online` subscribes, fuses the references into ground
 // truth and runs the recursive ULS per sensor under test, publishing estimates"): one estimator
 // per sensor under test, fed the fused rows as the stream assembler makes them final, answering
 // at any time with the same answer the batch procedure gives on the same rows.
@@ -81,7 +81,7 @@ struct MountingEstimate {
 
 struct CandidateEstimate {
   std::string term;
-  std::string effect;                 // physical name (design.md)
+  std::string effect;                 // physical name (docs/design.md)
   double err = 0.0, value = 0.0, sd = 0.0, t = 0.0;
   bool significant = false;
 };

@@ -22,7 +22,7 @@
 //                              level appends the [[case]] tables of other files (paths relative to
 //                              the including file), so one bench can run several plans.
 // Units: as the paper's tables, accelerations in config are in g and angles in degrees (suffix
-// _g, _deg); everything is converted to SI here, at the edge (design.md, "Units and frames").
+// _g, _deg); everything is converted to SI here, at the edge (docs/design.md, "Units and frames").
 // Unknown keys are errors: a typo must not silently fall back to a default.
 #include <Eigen/Dense>
 #include <algorithm>
@@ -283,7 +283,7 @@ struct ModbusDevice {
   double reconnect_initial_s = 0.5;
   double reconnect_max_s = 8.0;
   int timeouts_before_reconnect = 3;
-  bool writes_enabled = false;      // setpoint writes are off unless enabled (design.md)
+  bool writes_enabled = false;      // setpoint writes are off unless enabled (docs/design.md)
   std::vector<ModbusRegister> registers;
 };
 

@@ -1,5 +1,5 @@
 #pragma once
-// The name a phase kind has in a dataset's phase column and on INERTIA_EVENT (design.md, dataset
+// The name a phase kind has in a dataset's phase column and on INERTIA_EVENT (docs/design.md, dataset
 // folder): the simulator, the daemon's markers and the analyzer's log segmenter all use it.
 #include "common/config/bench_config.hpp"
 

@@ -1,4 +1,4 @@
-// Dataset folder I/O (design.md, "Dataset folder"). The CSVs are large (10 kHz for minutes, a few
+// Dataset folder I/O (docs/design.md, "Dataset folder"). The CSVs are large (10 kHz for minutes, a few
 // million rows), so a case file is read into one buffer and parsed in place with std::from_chars;
 // nothing allocates per field. Numbers are written with std::to_chars' shortest round-trip form,
 // which makes read(write(x)) == x bit for bit and the bytes a function of the data alone.

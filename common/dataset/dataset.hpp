@@ -1,5 +1,5 @@
 #pragma once
-// The dataset folder contract (design.md, "Dataset folder"): dataset.toml plus one CSV per case.
+// The dataset folder contract (docs/design.md, "Dataset folder"): dataset.toml plus one CSV per case.
 // Everything in memory is SI: a_e in m/s^2, w_e in rad/s, temp in degC, t in s.
 #include <Eigen/Dense>
 #include <cstdint>

@@ -1,5 +1,5 @@
 #pragma once
-// The LCM channel names of design.md ("LCM"), in one place: the daemon publishes them, the
+// The LCM channel names of docs/design.md ("LCM"), in one place: the daemon publishes them, the
 // analyzer subscribes to them and reads them from logs, and scripts outside the code tail them.
 #include <string>
 #include <string_view>

@@ -1,5 +1,5 @@
 #pragma once
-// x4 quadrature decoding of both-edge line events (design.md: shaker armature and rotation-table
+// x4 quadrature decoding of both-edge line events (docs/design.md: shaker armature and rotation-table
 // encoders through libgpiod v1 both-edge events with kernel timestamps).
 //
 // State s = gray index of (A, B): 0 = (0,0), 1 = (1,0), 2 = (1,1), 3 = (0,1); forward motion

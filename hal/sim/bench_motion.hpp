@@ -1,7 +1,7 @@
 #pragma once
 // One test case of the test plan as bench motion, sampled at the bench rate: what the rotation
 // table or the shaker does to the fixture, the fixture temperature, and the phase labels.
-// Frames and conventions (design.md): F_E is the table top / shaker frame; the reference is the
+// Frames and conventions (docs/design.md): F_E is the table top / shaker frame; the reference is the
 // specific force f = a - g written in F_E (at rest, level: +1 g along z_E, "gravity reaction").
 //  - rotation_table: the table top's attitude in the lab (z up) starts at the case's
 //    start_attitude (F_E = lab rotated by it) and rotates about each phase's axis (fixed in F_E

@@ -1,7 +1,7 @@
 #pragma once
 // The truth parameters of simulated sensors under test: from [sensor.truth] (same names as the
 // fields of AccelerometerParams / FogParams) to the structs, and back out as truth.toml with the
-// equivalent model terms in the model-file form of design.md ("Model file").
+// equivalent model terms in the model-file form of docs/design.md ("Model file").
 #include <toml++/toml.h>
 
 #include "common/config/bench_config.hpp"

@@ -1,6 +1,6 @@
 #pragma once
 // `inertia-analyze simulate --bench CONFIG --out DIR`: runs the bench file's test plan through the
-// simulated bench and writes a dataset folder (design.md, "Dataset folder") per sensor under test:
+// simulated bench and writes a dataset folder (docs/design.md, "Dataset folder") per sensor under test:
 // with one [[sensor]], OUT itself; with several, OUT/<sensor-name>/. Each dataset folder also gets
 // truth.toml: the truth parameters ([params]), the equivalent model terms in the model-file form
 // (sensor, m_cs, [terms], [noise]) and per case the true orientation chain ([[case]]).
@@ -18,7 +18,7 @@ namespace inertia::sim {
 /// (the caller maps it to exit status 2).
 int run_simulate(const std::filesystem::path& bench, const std::filesystem::path& out, std::ostream& summary);
 
-/// The dataset (design.md contract, in memory) of sensor under test `sensor_index`: nominal m_ec,
+/// The dataset (docs/design.md contract, in memory) of sensor under test `sensor_index`: nominal m_ec,
 /// the references it saw, its output. write_simulation writes exactly this.
 dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSimulation& sim, std::size_t sensor_index);
 

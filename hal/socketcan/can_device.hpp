@@ -1,5 +1,5 @@
 #pragma once
-// A device that decodes CAN frames into samples by a signal map (design.md: CAN-attached ADC
+// A device that decodes CAN frames into samples by a signal map (docs/design.md: CAN-attached ADC
 // modules, kernel receive timestamps). It reads from ANY descriptor that carries one
 // struct can_frame (16 bytes) or struct canfd_frame (72 bytes) per record: in production a
 // CAN_RAW socket; in tests and the simulator one end of a socketpair(AF_UNIX, SOCK_SEQPACKET).

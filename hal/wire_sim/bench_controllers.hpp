@@ -1,5 +1,5 @@
 #pragma once
-// Simulated bench controllers behind one Modbus TCP server (design.md: thermal controller of the
+// Simulated bench controllers behind one Modbus TCP server (docs/design.md: thermal controller of the
 // temperature-controlled fixture, rotation-table controller, shaker controller status), with
 // the register map a client uses for them (bench_controller_register_map()).
 //

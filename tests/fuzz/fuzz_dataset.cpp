@@ -1,4 +1,4 @@
-// libFuzzer target: the dataset folder (design.md "Dataset folder"), common/dataset.
+// libFuzzer target: the dataset folder (docs/design.md "Dataset folder"), common/dataset.
 // Input: dataset.toml, NUL, the CSV of its case(s) (named case.csv in the seeds). The CSV alone
 // also goes through read_case_csv, so CSV mutations are explored whatever the TOML became.
 // Bad input must be an InputError; anything else (a crash, another exception, a sanitizer

@@ -449,7 +449,7 @@ TEST(LogCharacterize, AThermalBenchFromAFastLogCarriesTheFixtureTemperature) {
 }
 
 TEST(ModelRoundTrip, SimulateFromAModelFileThenCharacterizeGivesTheModelBack) {
-  // A model file (design.md "Model file") as an engineer would write or characterize would: the
+  // A model file (docs/design.md "Model file") as an engineer would write or characterize would: the
   // paper bench's plan simulated with this output, then characterized with the same terms.
   TempDir tmp;
   const fs::path model_file = tmp.path / "model.toml";

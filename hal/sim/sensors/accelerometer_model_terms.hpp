@@ -9,7 +9,7 @@
 
 namespace inertia::sim {
 
-/// Terms of y = sum coefficient * term, in canonical names (design.md "Model terms") with inputs in
+/// Terms of y = sum coefficient * term, in canonical names (docs/design.md "Model terms") with inputs in
 /// SI (a_* in m/s^2 in the sensor frame, T in degC): "1", "a_i", "a_i*a_p", "a_i*a_o", "a_p*a_o",
 /// "sign(a_i)", "abs(a_i)", "a_i*abs(a_i)", "a_i^2", "a_p^2", "a_o^2", "T", then, when
 /// scale_tc_per_degc != 0, each of those times T ("a_i*T", "a_i*a_p*T", ..., "T^2"), in that order.

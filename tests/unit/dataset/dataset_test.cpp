@@ -1,4 +1,4 @@
-// Dataset folder contract (design.md, "Dataset folder"): round trip, deterministic bytes, and a
+// Dataset folder contract (docs/design.md, "Dataset folder"): round trip, deterministic bytes, and a
 // file:line:column for every kind of bad CSV or dataset.toml.
 #include <gtest/gtest.h>
 

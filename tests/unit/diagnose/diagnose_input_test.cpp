@@ -163,7 +163,7 @@ TEST_F(DiagnoseCommand, WritesJsonAugmentedModelAndReport) {
   const std::string text((std::istreambuf_iterator<char>(j)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("\"findings\""), std::string::npos);
   EXPECT_NE(text.find("\"a_i*a_p\""), std::string::npos);
-  // The contract (design.md): residual_rms is a number, the per-case detail sits beside it.
+  // The contract (docs/design.md): residual_rms is a number, the per-case detail sits beside it.
   const nlohmann::json parsed = nlohmann::json::parse(text);
   for (const char* step : {"baseline", "final"}) {
     ASSERT_TRUE(parsed[step]["residual_rms"].is_number()) << step << ": " << parsed[step]["residual_rms"].dump();

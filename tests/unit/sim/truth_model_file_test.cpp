@@ -1,4 +1,4 @@
-// truth.toml is a model file (design.md "Model file"): the analyzer's reader accepts it, every
+// truth.toml is a model file (docs/design.md "Model file"): the analyzer's reader accepts it, every
 // term name is canonical in the analyzer's grammar, and the coefficients are equation 12's.
 #include <gtest/gtest.h>
 

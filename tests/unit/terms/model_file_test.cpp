@@ -1,4 +1,4 @@
-// Model file contract (design.md, "Model file"; analyzer/model/model_file.hpp).
+// Model file contract (docs/design.md, "Model file"; analyzer/model/model_file.hpp).
 #include <gtest/gtest.h>
 
 #include <filesystem>

@@ -1,4 +1,4 @@
-// Term grammar (design.md, "Model terms"; analyzer/ident/term.hpp).
+// Term grammar (docs/design.md, "Model terms"; analyzer/ident/term.hpp).
 #include <gtest/gtest.h>
 
 #include <random>
@@ -55,7 +55,7 @@ TEST(Term, OrderIsVariablesThenLagThenFunction) {
   // The design's variable order, checked on a product of all of them.
   EXPECT_EQ(parse_term("e[k-1]*y[k-1]*T*w_z*w_y*w_x*w_o*w_p*w_i*a_z*a_y*a_x*a_o*a_p*a_i").to_string(),
             "a_i*a_p*a_o*a_x*a_y*a_z*w_i*w_p*w_o*w_x*w_y*w_z*T*y[k-1]*e[k-1]");
-  // ...except that the unlagged output leads (design.md: y*T, y*w_i).
+  // ...except that the unlagged output leads (docs/design.md: y*T, y*w_i).
   EXPECT_EQ(parse_term("a_i*y[k-1]*T*y").to_string(), "y*a_i*T*y[k-1]");
   EXPECT_EQ(parse_term("sign(a_i[k-1])*abs(a_i[k-1])*sign(a_i)*a_i[k-2]").to_string(),
             "sign(a_i)*a_i[k-1]*a_i[k-2]");  // sign*abs at one lag is the plain variable
