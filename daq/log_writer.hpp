@@ -6,7 +6,7 @@
 // record, and rotates the file at a size limit or on request (SIGHUP). A syncer thread fsyncs
 // every fsync_interval_ms beside it.
 //
-// Crash bounds (README "Crash safety"): a record is in the kernel once written, so a SIGKILL of
+// Crash bounds (docs/bench-pc.md "Crash safety"): a record is in the kernel once written, so a SIGKILL of
 // the daemon loses only what waits in the queue: the writer drains it every 2 ms and never
 // waits on an fsync, so about one block. A power cut loses what the last fsync did not cover:
 // one fsync interval, plus the fsync in progress.

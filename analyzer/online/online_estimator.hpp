@@ -25,7 +25,7 @@
 // noise). Models with output-multiplied terms keep white noise (the ULS correction is derived for
 // white noise on the output).
 //
-// Converged: defined in the README ("Live estimates"); see OnlineSnapshot::converged.
+// Converged: defined in docs/live-estimates.md ("Converged"); see OnlineSnapshot::converged.
 #include <Eigen/Dense>
 
 #include <cstdint>
@@ -97,7 +97,7 @@ struct OnlineSnapshot {
   std::vector<MountingEstimate> mountings;
   std::int64_t samples_used = 0;             // rows in the estimate
   std::int64_t cases_used = 0;
-  /// Honest convergence (README): every term determined, at least two cases, and leaving any one
+  /// Honest convergence (docs/live-estimates.md): every term determined, at least two cases, and leaving any one
   /// case out moves no coefficient by more than the noise allows (z of the nested difference below
   /// the Bonferroni bound at convergence_alpha).
   bool converged = false;

@@ -8,8 +8,8 @@ namespace inertia::channels {
 
 inline constexpr std::string_view kEvent = "INERTIA_EVENT";     // plan_event_t
 inline constexpr std::string_view kStatus = "INERTIA_STATUS";   // daq_status_t, 1 Hz
-inline constexpr std::string_view kBench = "INERTIA_BENCH";     // bench_config_t (extension, README)
-// Operator requests to the daemon (`inertia-daqd mark`) and its answers: plan_command_t (extension, README).
+inline constexpr std::string_view kBench = "INERTIA_BENCH";     // bench_config_t (extension, docs/design.md)
+// Operator requests to the daemon (`inertia-daqd mark`) and its answers: plan_command_t (extension, docs/design.md).
 // A request on kCommand carries no identity: refused and counted. From another machine a request
 // is signed (signed_command_t on kCommandSigned); on this one it goes through the daemon's command
 // socket (daq/command_socket.hpp). Every accepted request is also published on kOperator, and

@@ -1,5 +1,5 @@
 // Crash safety (issue 15): a SIGKILL of the daemon loses at most what its log writer had not yet
-// flushed (README "Crash safety": one --fsync-ms interval and the block in flight); the next start
+// flushed (docs/bench-pc.md "Crash safety": one --fsync-ms interval and the block in flight); the next start
 // writes a new file beside the old one; the readers of a torn log use every whole record before
 // the tear and say where it is; and a SIGKILL of the online analyzer leaves the daemon alone.
 // Real processes, real signals, real files, LCM on a private multicast port.
@@ -92,7 +92,7 @@ TEST(DaqdCrash, SigkillLosesAtMostTheLastFsyncIntervalAndTheNextStartWritesANewF
             << kBlockMs << " ms)" << (stop_reason.empty() ? "" : "; torn tail: " + stop_reason) << "\n";
   // A record is in the kernel once written; the writer drains its queue every 2 ms and never
   // waits on an fsync (its own thread does): a kill costs the blocks in the queue, about one.
-  // The bound asserted is the README's, one fsync interval; the figure above is the measurement.
+  // The bound asserted is docs/bench-pc.md's, one fsync interval; the figure above is the measurement.
   EXPECT_LE(lost_ms, kFsyncMs);
 
   // The next start writes a new file; the killed one stays as it was.

@@ -221,7 +221,7 @@ TEST(DaqdService, UnitFilePassesSystemdAnalyzeVerify) {
   std::stringstream os;
   os << o.rdbuf();
   EXPECT_EQ(rc, 0) << os.str();
-  // Exposure at most 1.8; README, "On the bench PC", says what sets the floor.
+  // Exposure at most 1.8; docs/bench-pc.md, "Hardening", says what sets the floor.
   const std::string security = "systemd-analyze security --offline=yes " + path.string() + " 2>&1 | grep 'Overall exposure' > " +
                                (tmp.path / "security.txt").string();
   ASSERT_EQ(std::system(security.c_str()), 0) << "systemd-analyze security --offline=yes needs systemd >= 250";

@@ -1,7 +1,7 @@
 // The live estimator against the batch procedure and against known truth: on the same rows it
 // gives the batch pipeline's answer (two mountings, algorithm 1 on each, the squares' high pass),
 // chunking does not matter, the corner comes back when it is searched, and the convergence flag
-// means what the README says.
+// means what docs/live-estimates.md ("Converged") says.
 #include "analyzer/online/online_estimator.hpp"
 
 #include <gtest/gtest.h>
@@ -488,8 +488,9 @@ TEST(OnlineEstimator, ATumblesPlacementScatterIsNotNamedAsCrossTerms) {
 }
 
 TEST(OnlineEstimator, ConvergedNeverWhileOneMoreCaseWouldMoveACoefficientByThreeSd) {
-  // The README's definition, tested as stated: over a plan of repeated orientations, whenever the
-  // flag is set after a case, the next case moves every coefficient by less than 3 of its sd.
+  // The definition in docs/live-estimates.md ("Converged"), tested as stated: over a plan of
+  // repeated orientations, whenever the flag is set after a case, the next case moves every
+  // coefficient by less than 3 of its sd.
   int converged_count = 0;
   for (std::uint32_t seed = 1; seed <= 4; ++seed) {
     Plan p = two_mountings(500.0, 1e-3, 100 * seed, 4000, 2000);
