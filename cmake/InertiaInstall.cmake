@@ -1,5 +1,5 @@
 # Install rules (`cmake --install`) for the bench PC, and the pieces only an install has: the
-# lcm-spy launcher pointing at installed paths and the man pages (issue 14). The Debian package
+# lcm-spy launcher pointing at installed paths and the man pages. The Debian package
 # (cmake/InertiaPackage.cmake) is these rules run under /usr.
 #
 #   bin/inertia-daqd, bin/inertia-analyze

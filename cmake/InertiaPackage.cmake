@@ -1,4 +1,4 @@
-# The Debian binary package, inertia_<version>_amd64.deb (issue 14): CPack's DEB generator over
+# The Debian binary package, inertia_<version>_amd64.deb: CPack's DEB generator over
 # the install rules of cmake/InertiaInstall.cmake, under /usr.
 #   cmake --build build --target package      (or: cd build && cpack -G DEB)
 #

@@ -23,7 +23,7 @@ if(INERTIA_SANITIZE)
   endif()
 endif()
 
-# INERTIA_FUZZ: the libFuzzer targets of tests/fuzz (issue 15). libFuzzer ships with clang only.
+# INERTIA_FUZZ: the libFuzzer targets of tests/fuzz. libFuzzer ships with clang only.
 # Every library is compiled with the fuzzer's coverage hooks and ASan+UBSan; build only the
 # fuzz targets in such a tree (cmake --build build-fuzz --target fuzz_model_file ...), so only
 # the libraries they link are compiled.

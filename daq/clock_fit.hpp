@@ -1,5 +1,5 @@
 #pragma once
-// One time base for every device (issue "a real bench end to end"): a device's samples are timed
+// One time base for every device on a real bench: a device's samples are timed
 // by its own sample clock (the frame counter it sends, or the count of its samples), mapped to
 // CLOCK_MONOTONIC by an online fit of offset and drift to the host stamps of its samples.
 //

@@ -1,7 +1,7 @@
 #pragma once
 // inertia-daqd --check --config FILE: opens every device of the bench file without sampling and
 // says, per device and per thing it needs, whether it is there and set up as the bench file
-// expects (issue 14):
+// expects:
 //   CAN     the kernel has SocketCAN; the interface exists, is CAN, is up, at the bit rates and
 //           in the FD mode the bench wants, its controller not bus-off; a CAN_RAW socket binds
 //           with the device's filters;

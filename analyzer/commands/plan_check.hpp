@@ -1,6 +1,6 @@
 #pragma once
 // `inertia-analyze plan-check --bench CONFIG`: before anything runs, what the bench's test plan
-// will determine about the sensor under test and how well (issue "any test plan").
+// will determine about the sensor under test and how well.
 //
 // The prediction is the procedure's own: the plan is simulated once with the sensor's expected
 // parameters and noise ([sensor.truth]: what a datasheet gives), and characterize's pipeline runs

@@ -1,5 +1,5 @@
 #pragma once
-// The discrepancy workflow (issue 5): simulate a model on the measured references, locate where
+// The discrepancy workflow: simulate a model on the measured references, locate where
 // the residual exceeds the noise the model claims, name the missing effect from a library of
 // candidate terms (ERR on the residual, then a t-test with honest standard deviations and AIC),
 // add it, re-estimate, re-simulate, repeat until no candidate is significant.

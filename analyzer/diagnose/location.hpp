@@ -1,7 +1,6 @@
 #pragma once
-// Where the residual exceeds the model's own noise, by frequency band and by operating condition
-// (issue 5, "locate the disagreement"). The per case/phase test lives in discrepancy.cpp (on
-// NoiseModel::stretch); these two complete it:
+// Where the residual exceeds the model's own noise, by frequency band and by operating condition.
+// The per case/phase test lives in discrepancy.cpp (on NoiseModel::stretch); these two complete it:
 //  - bands: per case, the residual's Welch PSD (Hann, 50% overlap) against the PSD the model's
 //    noise explains (NoiseModel), in octave bands up to Nyquist. Per band the statistic is the sum
 //    over segments and bins of periodogram / expected, a quadratic form in the residual whose mean

@@ -98,7 +98,7 @@ MotionClassifier::MotionClassifier(const config::BenchConfig& bench) {
 
 void MotionClassifier::push(const sample_block_t& block) {
   // A block the assembler would refuse (sample_block_layout.hpp) is no motion either: its times
-  // could lie anywhere (issue 15: fuzz_event_log met one whose window index overflowed int64).
+  // could lie anywhere (fuzz_event_log met one whose window index overflowed int64).
   if (block.num_samples <= 0 || !block_shape_error(block).empty()) return;
   const double period_ns = block.sample_period_s * 1e9;
   for (std::int32_t c = 0; c < block.num_channels; ++c) {

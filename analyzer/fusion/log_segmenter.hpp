@@ -1,6 +1,6 @@
 #pragma once
 // A log without plan markers (a real bench whose phases nobody marked): the cases and phases of
-// the bench's plan cut from the references instead (issue 13), so that characterize and diagnose
+// the bench's plan cut from the references instead, so that characterize and diagnose
 // still run, and say where they cut.
 //
 // Motion is classed per window of the references (kSegmentWindowS, shorter for short phases): rotation while the table encoder turns faster

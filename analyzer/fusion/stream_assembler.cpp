@@ -921,7 +921,7 @@ struct StreamAssembler::Impl {
     flush_chunk();
     if (s.piece_rows == 0) return;
     // In rows of the output's period; a hostile period (1e-150 s) would make the count overflow
-    // int64 (issue 15: fuzz_stream_assembler): no segment is that long, so it keeps none.
+    // int64 (found by fuzz_stream_assembler): no segment is that long, so it keeps none.
     const double min_rows = std::ceil(options.min_segment_s / (output_period_ns() * 1e-9));
     const std::int64_t min_len = min_rows < 9.0e18 ? static_cast<std::int64_t>(min_rows) : std::numeric_limits<std::int64_t>::max();
     const bool kept = s.piece_rows >= std::max<std::int64_t>(min_len, 3);

@@ -1,5 +1,5 @@
 #pragma once
-// What a test plan's excitation can determine (issue "any test plan"): one rule, used by the
+// What a test plan's excitation can determine, for any plan: one rule, used by the
 // batch pipeline on data and by the live solver on its sufficient statistics.
 //
 // A mounting's misalignment is read from the sensitivities theta = k n_i along the case axes

@@ -403,7 +403,7 @@ struct SourceFile {
   std::string text;
 };
 
-/// Who runs the plan on a real bench (issue 13). Operator: the operator moves the bench and marks
+/// Who runs the plan on a real bench. Operator: the operator moves the bench and marks
 /// the phases (`inertia-daqd mark`); the daemon commands nothing but the safe state. Plan: the
 /// daemon's test executive commands the controllers phase by phase and marks each phase itself.
 enum class Executive { Operator, Plan };

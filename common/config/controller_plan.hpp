@@ -1,5 +1,5 @@
 #pragma once
-// The test plan in terms of a real bench's controllers (issue 13): which Modbus register each
+// The test plan in terms of a real bench's controllers: which Modbus register each
 // command role is mapped to, what every phase commands, and whether the plan stays within the
 // registers' limits. One meaning of a phase for the loader, which refuses a plan beyond the
 // limits with the plan key's file:line, and for the daemon's test executive, which sends exactly

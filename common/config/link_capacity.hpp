@@ -1,5 +1,5 @@
 #pragma once
-// Whether a real bench's links can carry the rates its bench file asks of them (issue 13), checked
+// Whether a real bench's links can carry the rates its bench file asks of them, checked
 // once at load so that a bench that would lose data silently is refused with the numbers instead:
 //   - a CAN bus: the worst-case time of every frame the bench expects on it (bit stuffing at its
 //     worst, CAN FD's two bit rates) against the bus's bit rate;

@@ -6,7 +6,7 @@
 // message before they check that its bytes are there, and assign strings of length `len - 1`
 // unchecked. A 60-byte sample_block_t that claims 2^31 - 1 samples makes decode() zero-fill
 // 16 GiB; a string length of 0 or a negative count throws std::length_error out of decode()
-// (found by tests/fuzz/fuzz_lcm_decode, issue 15). decode_outside() walks the encoding first,
+// (found by tests/fuzz/fuzz_lcm_decode). decode_outside() walks the encoding first,
 // with every count and length checked against the bytes left, and decodes only a message whose
 // layout fits its size exactly; nothing is allocated for one that does not.
 #include <cstddef>

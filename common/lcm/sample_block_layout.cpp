@@ -36,7 +36,7 @@ std::string block_shape_error(const sample_block_t& b) {
   }
   if (!(b.sample_period_s > 0.0) || !(b.sample_period_s < 1e6)) return "sample period " + std::to_string(b.sample_period_s) + " s";
   // Clock and counters within [0, 2^62), the block's last sample too: then readers' sums and
-  // differences of two of them stay within int64 (issue 15: fuzz_event_log met a block whose
+  // differences of two of them stay within int64 (fuzz_event_log met a block whose
   // sample times overflowed a conversion to int64).
   if (b.t0_mono_ns < 0 || b.t0_mono_ns >= kMaxStreamCount)
     return "t0_mono_ns " + std::to_string(b.t0_mono_ns) + " outside [0, 2^62)";

@@ -53,7 +53,7 @@ double decode(const RegisterSpec& spec, std::span<const std::uint16_t> words) no
 /// The register as a sample: its SI value, or nullopt when the words hold no reading. A float32
 /// NaN or infinity is what a controller sends for a broken or absent sensor, and a scale can
 /// carry a large raw value past the double range; either pushed as a valid sample would poison
-/// every estimate downstream (issue 15). Real-time safe.
+/// every estimate downstream. Real-time safe.
 std::optional<double> decode_reading(const RegisterSpec& spec, std::span<const std::uint16_t> words) noexcept;
 /// Words for an SI value: raw = round((value - offset) / scale), saturated to the type's range.
 /// Returns the SI value the words stand for (what the device will hold).

@@ -1,13 +1,14 @@
-// inertia-daqd end to end (issue 4 targets), as measured runs of the real binary:
+// inertia-daqd end to end against its latency and throughput targets, as measured runs of the
+// real binary:
 //  * PacedNominal: the nominal bench (tests/integration/configs/daq-nominal.toml: 9 accelerometer
 //    channels + sample counter on CAN, encoder, thermal controller; 10 kHz) paced in real time for
 //    DAQ_BENCH_PACED_S seconds (default 60): ring overflows, sequence gaps in the log, live LCM
 //    loss, sample-to-LCM-receive latency p50/p99 of each block's newest sample, daemon CPU %.
 //    It prints the latency distribution (percentiles to p99.99 and a histogram), the longest
 //    interval between two blocks' arrivals and where in the run it fell, and whether the daemon
-//    got SCHED_FIFO (issue 15: "where FIFO is not permitted, say so"). DAQ_BENCH_HOG=1 runs a
-//    process spinning on the last CPU beside it for the whole run (issue 15's "one CPU hog on the
-//    other core"); DAQ_BENCH_FIFO=0 runs the daemon without SCHED_FIFO.
+//    got SCHED_FIFO (where it is not permitted, the run says so). DAQ_BENCH_HOG=1 runs a
+//    process spinning on the last CPU beside it for the whole run (one CPU hog on the other
+//    core); DAQ_BENCH_FIFO=0 runs the daemon without SCHED_FIFO.
 //  * FastNominal / FastWide: as fast as possible for 20 simulated seconds: channel-samples per
 //    second into the log (from READY to exit, the daemon's own count checked against the log).
 // Counters carry the figures; each benchmark runs once (Iterations(1)). The machine may be

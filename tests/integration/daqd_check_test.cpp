@@ -1,4 +1,4 @@
-// inertia-daqd --check and a real bench's devices (issue 14), on the real binary: the simulated
+// inertia-daqd --check and a real bench's devices, on the real binary: the simulated
 // bench controllers served over Modbus TCP on loopback and Modbus RTU on a pseudo-terminal;
 // CAN interfaces, GPIO chips and serial ports that this machine does not have (no AF_CAN, no
 // vcan, no /dev/gpiochip*), which must be reported with their bench-file line and a fix, never

@@ -1,4 +1,4 @@
-// Crash safety (issue 15): a SIGKILL of the daemon loses at most what its log writer had not yet
+// Crash safety: a SIGKILL of the daemon loses at most what its log writer had not yet
 // flushed (docs/bench-pc.md "Crash safety": one --fsync-ms interval and the block in flight); the next start
 // writes a new file beside the old one; the readers of a torn log use every whole record before
 // the tear and say where it is; and a SIGKILL of the online analyzer leaves the daemon alone.

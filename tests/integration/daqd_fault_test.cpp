@@ -306,7 +306,7 @@ TEST(DaqdFaults, FullDiskKeepsSamplingAndPublishingCountsTheMissingBlocksAndResu
             << " written\n";
 }
 
-// Issue 13: a refused SCHED_FIFO or mlock is on INERTIA_STATUS for the whole run, not one stderr
+// A refused SCHED_FIFO or mlock is on INERTIA_STATUS for the whole run, not one stderr
 // line. The daemon runs as nobody with RLIMIT_RTPRIO 0 and a 64 KiB RLIMIT_MEMLOCK, so the
 // kernel refuses both, as it would on a bench PC without the unit's limits.
 TEST(DaqdFaults, RefusedRealTimeSettingsAreFaultsOnTheStatusChannel) {

@@ -1,4 +1,4 @@
-// Faults on the systemd journal as structured entries (issue 14): the real daemon, in a private
+// Faults on the systemd journal as structured entries: the real daemon, in a private
 // mount namespace whose /run holds a socket of ours at /run/systemd/journal/socket, so that
 // sd_journal_send's datagrams (the journal's native protocol, KEY=VALUE lines) come to the test
 // as they would come to journald. Skipped where a mount namespace cannot be made (not root).

@@ -1,4 +1,4 @@
-// The real kernel paths of the CAN and encoder devices (issue 14), where the kernel offers them:
+// The real kernel paths of the CAN and encoder devices, where the kernel offers them:
 //   vcan      a virtual CAN bus (needs AF_CAN and the vcan module): --check, the daemon sampling
 //             frames sent on it by this test, and a bus-off and restart told by error frames;
 //   gpio-sim  simulated GPIO chips in configfs (needs gpio-sim): --check, a line held by another

@@ -1,4 +1,4 @@
-// The real-bench time base on every shipped simulated bench (issue 13): with [bench.sim_timing]
+// The real-bench time base on every shipped simulated bench: with [bench.sim_timing]
 // the simulator's CAN frames carry a counter, arrive with exponential receive jitter, run on a
 // sample clock off the host's by clock_ppm and are lost at frame_loss, so the daemon takes the
 // path real hardware takes (daq/clock_fit.hpp, numbered blocks). Each bench runs paced for 10

@@ -171,7 +171,7 @@ TEST(LogCharacterize, DaqdLogToModelMatchesTheSimulatorTruth) {
 namespace inertia::daq::testing {
 namespace {
 
-// Issue 13: the simulated bench with what real hardware does to time ([bench.sim_timing]: CAN
+// The simulated bench with what real hardware does to time ([bench.sim_timing]: CAN
 // receive stamps 200 us late on average, one-sided; the bench's sample clock 50 ppm fast against
 // CLOCK_MONOTONIC; 0.1 % of the CAN frames lost). The daemon times each device by its own clock
 // (numbered frames, daq/clock_fit.hpp) and a lost frame leaves exactly its samples invalid.
@@ -285,7 +285,7 @@ INSTANTIATE_TEST_SUITE_P(JitterDriftAndLoss, RealStyleTiming,
                                            TimingCase{"SixteenBitCounterReset", 0.0, "counter_bits = 16\n", {"can-reset@5.3+0.05"}}),
                          [](const ::testing::TestParamInfo<TimingCase>& info) { return info.param.name; });
 
-// Issue 13: a log without a single plan marker (a real bench nobody marked) is cut into the
+// A log without a single plan marker (a real bench nobody marked) is cut into the
 // plan's cases and phases from the references' motion; the model equals the marked log's within
 // 3 combined sd, and the output says where it cut.
 TEST(LogCharacterize, ALogWithoutMarkersIsSegmentedFromTheReferences) {

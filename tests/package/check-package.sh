@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# tests/package/check-package.sh [BUILD_DIR]: the Debian package on a fresh Debian 12 (issue 14).
+# tests/package/check-package.sh [BUILD_DIR]: the Debian package on a fresh Debian 12.
 #
 # Builds inertia_<version>_amd64.deb from BUILD_DIR (default: build), installs it with apt into a
 # minimal Debian 12 root made by debootstrap, and checks, in that root:

@@ -1,4 +1,4 @@
-// Scenario tests of the discrepancy workflow (issue 5): the bench simulator produces data from a
+// Scenario tests of the discrepancy workflow: the bench simulator produces data from a
 // known truth, diagnose gets the truth's model minus one or two terms, and must name exactly
 // what was hidden. The benches use white noise only (pink and brown set to zero) and no case or
 // fixture misalignment, so the truth is exactly a model in the library's terms and the noise
@@ -420,7 +420,7 @@ TEST(DiagnoseScenario, WeakOddQuadraticHonestStdPinkNoise) { expect_honest_std(5
 /// Control under pink noise: the prewhitened t-test must keep the false-alarm rate too.
 TEST(DiagnoseScenario, ControlPinkNoiseFalseAlarmRate) { expect_false_alarm_rate(5e-4, 500, "control, pink noise"); }
 
-/// Issue 16: the bench's pink noise (five times its white) and a model whose [noise] holds the
+/// The bench's pink noise (five times its white) and a model whose [noise] holds the
 /// terms `inertia-analyze noise` estimates on a 30 s static run of the same sensor (a run of its
 /// own, its own seed), the determined ones with their sd ([noise.std]). With the white noise alone every seed's low bands, its segments and its
 /// condition bins read as excess (the control, asserted so the test can fail). With the law, each

@@ -1,4 +1,4 @@
-// Issue 12: every simulated bench in config/ characterizes with default options, and what it
+// Every simulated bench in config/ characterizes with default options, and what it
 // reports as determined is within 3 sd of the simulator's truth. The sensors, simulated in-process
 // over several seeds:
 //   sim-paper-daq acc1 (the paper's plan at 1 kHz: a table mounting and a three-orientation shaker
@@ -13,8 +13,7 @@
 //   thermal fixture: eq. 5's temperature terms c_T and epsilon_T).
 // A term the truth does not have counts against 0. Misalignment: each aligned mounting's angles
 // about p and o against the true M_C^S relative to its nominal case frame.
-// The seeds here are what CI time allows (INERTIA_SCENARIO_SEEDS raises them; the closing note of
-// issue 12 quotes 20).
+// The seeds here are what CI time allows (INERTIA_SCENARIO_SEEDS raises them, e.g. to 20).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -124,7 +123,7 @@ void score(const PipelineResult& r, const inertia::sim::BenchSimulation& sim, st
 struct Bench {
   const char* file;
   std::size_t sensor;
-  /// Issue 12's target: at least this share of the estimates within 3 sd of the truth.
+  /// The target: at least this share of the estimates within 3 sd of the truth.
   double required = 0.95;
 };
 

@@ -1,4 +1,4 @@
-// Issue 12, "excitation check before the test": inertia-analyze plan-check predicts from the bench
+// The excitation check before the test: inertia-analyze plan-check predicts from the bench
 // file alone what the plan determines and each parameter's sd, and with --seeds checks that
 // prediction against the spread over simulated runs, as the bench would.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Issue 3's paper targets, end to end: the real `inertia-analyze reproduce-paper` over its 10
+// The paper's targets, end to end: the real `inertia-analyze reproduce-paper` over its 10
 // default seeds of the simulated section 3 experiment (sim-paper.toml, 10 kHz), read back from
 // the JSON contract that scripts outside the code use. Medians over seeds, as the paper's tables.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Issue 3's selection target through algorithm 2 (blocks 5-6 with the misalignment hook), not only
+// The selection target through algorithm 2 (blocks 5-6 with the misalignment hook), not only
 // through the hook-free engine (tests/unit/ident/selection_test.cpp): per seed, a random sparse
 // true model drawn from the eq. 3 candidate set with a random order r in 0..2, a random small case
 // misalignment, three orientations of one mounting under random vibration, white noise of known

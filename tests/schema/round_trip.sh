@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The model file round trip and the diagnose output contract, on the real binary (issue 15):
+# The model file round trip and the diagnose output contract, on the real binary:
 #   simulate (config/sim-tumble.toml) -> characterize -> model.toml -> diagnose --json
 # The model characterize wrote must load in diagnose (and in online --model, which reads it at
 # start); diagnose's JSON and the augmented model it writes must be valid: the JSON against

@@ -1,7 +1,7 @@
 #pragma once
 // A test whose real part cannot run here (no multicast route for LCM, not root for a small tmpfs
 // or a mount namespace, a tool missing) skips with the reason on a developer's machine, and fails
-// under CI=true (issue 15): CTest counts a skip as a pass, so a CI machine without the route
+// under CI=true: CTest counts a skip as a pass, so a CI machine without the route
 // would be green with the daemon untested. .ci/run (through inertia.sh) sets up what these tests
 // need and runs as root. Tests of kernel features this machine's kernel lacks (vcan, gpio-sim)
 // skip everywhere, with the reason: no script can give a kernel a module it does not have.

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Term selection and run time: SysIdentPy's FROLS beside inertia's ERR ranking and selection
-engine, on the same candidate matrix and data (issue 3, "Peer").
+engine, on the same candidate matrix and data.
 
 SysIdentPy is not vendored: fetch it (github wilsonrljr/sysidentpy), extract a work tree, and
 give its path. Needs Debian's python3-numpy, python3-scipy, python3-matplotlib.

@@ -128,7 +128,7 @@ TEST(ShippedConfigs, PaperExperimentIsSection3) {
 TEST(ShippedConfigs, TemplateKeepsRealBenchWiring) {
   const BenchConfig b = load_bench_config(kConfigDir / "bench-template.toml");
   EXPECT_FALSE(b.simulated);
-  // Issue 13: every 10 kHz adapter on CAN FD, one frame per sample with a frame counter; the
+  // Every 10 kHz adapter on CAN FD, one frame per sample with a frame counter; the
   // encoders through a counter on CAN FD, none on GPIO (their edge rates would not fit).
   ASSERT_EQ(b.can_devices.size(), 3u);
   EXPECT_EQ(b.can_devices[0].signals[1].byte_offset, 3u);

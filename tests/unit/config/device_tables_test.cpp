@@ -1,4 +1,4 @@
-// The bench file's real-device tables (issue 14): a register map that overlaps itself and a CAN
+// The bench file's real-device tables: a register map that overlaps itself and a CAN
 // signal that does not fit its frame are refused at load with file:line:column; Modbus RTU
 // settings, CAN bit rates and FD mode, `optional`, `range`, and the positions the device check
 // and the daemon quote when an interface, chip, line or serial port is not there.

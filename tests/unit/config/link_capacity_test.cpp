@@ -1,4 +1,4 @@
-// Whether a real bench's links carry its rates (issue 13): CAN frame times against the published
+// Whether a real bench's links carry its rates: CAN frame times against the published
 // worst cases, bus loads summed per interface, encoder edge rates from the plan's fastest motion,
 // and the loader refusing what a link cannot carry, at the device's table, with the numbers.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// The log segmenter (issue 13): a log without plan markers cut into the plan's cases and phases
+// The log segmenter: a log without plan markers cut into the plan's cases and phases
 // from the references' motion, on synthetic blocks whose true boundaries are known.
 #include <gtest/gtest.h>
 

@@ -348,7 +348,7 @@ TEST(StreamAssembler, InvalidSamplesAreExcludedNeverFilled) {
   EXPECT_LT((last.a_e.row(100).transpose() - truth_at(2000 + 1601).a).norm(), 1e-6);
 }
 
-// Issue 13: a lost frame of the accel device (the output and every monitor invalid for three
+// A lost frame of the accel device (the output and every monitor invalid for three
 // samples, the encoders intact) cuts the output there, and nothing else: the fusion goes on
 // through the hole (the table's differences, the shaker's filter coasting on its encoder), so the
 // rows after it equal an unbroken stream's. Restarting the fusion there put a 2 m/s^2 offset on
@@ -391,7 +391,7 @@ TEST(StreamAssembler, ALostFrameCutsTheOutputButNotTheFusion) {
   EXPECT_EQ(acc1, 6);
 }
 
-// Found by fuzz_event_log (issue 15): a linear-encoder block whose sample period is 5.4e-23 s put
+// Found by fuzz_event_log: a linear-encoder block whose sample period is 5.4e-23 s put
 // the sample index of the next row past the int64 range (an undefined conversion, reported by
 // UBSan). Those rows have the encoder missing, as after a lost block; nothing is read for them.
 // The bench, a shaker case with its sine phase open, and the table encoder's first block: what

@@ -164,7 +164,7 @@ TEST(FrameMap, ValidationNamesTheSignal) {
   EXPECT_TRUE(map.is_valid(&why)) << why;
 }
 
-// Found by tests/fuzz/fuzz_can_frame_map (issue 15): a map whose scale takes a raw value past the
+// Found by tests/fuzz/fuzz_can_frame_map: a map whose scale takes a raw value past the
 // double range decoded a valid sample as infinity. Such a map is refused at load, naming the signal.
 TEST(FrameMap, ScaleThatOverflowsADoubleIsRefused) {
   CanFrameMap map{{sig("huge", 0x10, 0, 0, 64, ByteOrder::LittleEndian, false)}};

@@ -74,7 +74,7 @@ TEST(RegisterMap, ValidationNamesTheRegister) {
   EXPECT_NE(why.find("twice"), std::string::npos) << why;
 }
 
-// Issue 15: a controller sends NaN (or infinity) in a float register for a broken sensor; such a
+// A controller sends NaN (or infinity) in a float register for a broken sensor; such a
 // word is no reading, never a sample (tests/fuzz/fuzz_modbus_registers checks every word).
 TEST(RegisterMap, NonFiniteFloatRegistersAreNoReading) {
   const RegisterSpec f = spec(DataType::Float32, WordOrder::ABCD);

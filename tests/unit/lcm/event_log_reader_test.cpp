@@ -1,6 +1,6 @@
 // EventLogReader (common/lcm/event_log_reader.hpp): the records of an LCM event log as written by
 // lcm_eventlog, every whole record before a torn tail, garbage or a length the file cannot hold,
-// and why reading stopped (issue 15).
+// and why reading stopped.
 #include <gtest/gtest.h>
 #include <lcm/eventlog.h>
 

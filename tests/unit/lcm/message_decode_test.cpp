@@ -1,5 +1,5 @@
 // decode_outside (common/lcm/message_decode.hpp): what comes from the multicast group or a log
-// is walked before lcm-gen's decode() may allocate for it (issue 15).
+// is walked before lcm-gen's decode() may allocate for it.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -111,8 +111,8 @@ TEST(DecodeOutside, RefusesTruncatedTrailingAndForeignBytes) {
   EXPECT_NE(decode_outside(bytes.data(), bytes.size(), e), "");
 }
 
-// The defects issue 15 names, pinned where every reader checks a decoded block (they were fixed
-// before this issue; fuzz_lcm_decode reads every validity bit of every block that passes).
+// Malformed blocks, refused where every reader checks a decoded block (fuzz_lcm_decode reads
+// every validity bit of every block that passes).
 TEST(BlockShape, ValidBytesMustMatchNumSamples) {
   sample_block_t b = two_channel_block();
   EXPECT_EQ(block_shape_error(b), "");
@@ -133,7 +133,7 @@ TEST(BlockShape, NanInfiniteOrNonPositivePeriodIsRefused) {
 }
 
 // Clock and counters stay within [0, 2^62), so that readers' int64 arithmetic on them cannot
-// overflow (issue 15; see StreamAssembler.ReferenceWithAnAbsurdPeriodIsMissingNotRead).
+// overflow (see StreamAssembler.ReferenceWithAnAbsurdPeriodIsMissingNotRead).
 TEST(BlockShape, TimesAndCountersOutsideTheStreamRangeAreRefused) {
   sample_block_t b = two_channel_block();
   b.t0_mono_ns = -1;

@@ -86,7 +86,7 @@ TEST(ColouredNoise, WhiteSpectrumGivesTheClassicalForm) {
 
 /// A least-squares fit of a slow and a fast sine (and a mean) under white plus 1/f noise: the
 /// classical sd takes the 1/f power at the slow sine's frequency as white and is optimistic; the
-/// sandwich with the residual's fitted spectrum matches the spread over seeds (issue 16's target:
+/// sandwich with the residual's fitted spectrum matches the spread over seeds (the target:
 /// z-scores with an sd within [0.8, 1.25]). The mean is not scored: what lies below the record's
 /// lowest frequency is the offsets between cases (cluster_offsets), not one record's business.
 TEST(ColouredNoise, SandwichSdMatchesTheSpreadUnderFlickerNoise) {
