@@ -60,7 +60,7 @@ TEST(Err, FewTermsOnDataMatchWholeGram) {
   const Eigen::Index p = 40;
   Eigen::MatrixXd phi = random_matrix(7, n, p);
   phi.col(0).setOnes();
-  phi.col(11) = phi.col(5) + phi.col(9);  // exactly dependent on two true terms, never tied with them
+  phi.col(11) = phi.col(5) + phi.col(9);  // exactly dependent on two true terms
   phi.col(20) += 0.9 * phi.col(5);              // correlated with a true term
   const Eigen::VectorXd y = (3.0 + 0.7 * phi.col(5).array() - 0.4 * phi.col(9).array() + 0.2 * phi.col(20).array() +
                              0.05 * random_matrix(8, n, 1).col(0).array())
@@ -71,7 +71,12 @@ TEST(Err, FewTermsOnDataMatchWholeGram) {
   options.max_terms = 5;  // 4 * (5 + 1) <= 40: the data path
   const ErrRanking on_data = err_rank(phi, y, options);
   const ErrRanking on_gram = err_rank(ErrGram::from_data(phi, y).matrix(), options);
-  ASSERT_EQ(on_data.order, on_gram.order);
+  // Once 5 is chosen, 9 and 11 = 5 + 9 have the same part orthogonal to the chosen columns: an
+  // exact tie, which rounding breaks (differently on the two paths, and on another CPU's or
+  // build's arithmetic). The paths agree up to that swap; everything else is asserted exactly.
+  const auto tie = [](Eigen::Index c) { return c == 11 ? Eigen::Index{9} : c; };
+  ASSERT_EQ(on_data.order.size(), on_gram.order.size());
+  for (std::size_t k = 0; k < on_data.order.size(); ++k) EXPECT_EQ(tie(on_data.order[k]), tie(on_gram.order[k])) << k;
   EXPECT_EQ(on_data.order[0], 0);
   // Three terms after the bias span the truth: 20 and two of the dependent triple {5, 9, 11};
   // the third member of the triple is then caught by the guard.
@@ -83,7 +88,8 @@ TEST(Err, FewTermsOnDataMatchWholeGram) {
     const bool guarded = std::find(on_data.dependent.begin(), on_data.dependent.end(), c) != on_data.dependent.end();
     EXPECT_NE(chosen, guarded) << c;
   }
-  EXPECT_EQ(on_data.dependent, on_gram.dependent);
+  ASSERT_EQ(on_data.dependent.size(), on_gram.dependent.size());
+  for (std::size_t k = 0; k < on_data.dependent.size(); ++k) EXPECT_EQ(tie(on_data.dependent[k]), tie(on_gram.dependent[k])) << k;
   EXPECT_LT((on_data.err - on_gram.err).cwiseAbs().maxCoeff(), 1e-12);
   EXPECT_NEAR(on_data.reference_energy, on_gram.reference_energy, 1e-9 * on_gram.reference_energy);
   EXPECT_NEAR(on_data.unexplained, on_gram.unexplained, 1e-12);
