@@ -7,7 +7,7 @@
 #   lib/sysusers.d/inertia.conf, lib/tmpfiles.d/inertia.conf
 #   share/inertia/config/*.toml               (the bench template and the simulated benches)
 #   share/inertia/inertia-lcm-spy, share/inertia/inertia_lcm_types.jar
-#   share/doc/inertia/README.md, README.daq.md, copyright
+#   share/doc/inertia/README.md, README.daq.md, docs/ (the pages the README links), copyright
 #   share/man/man1/inertia-daqd.1.gz, inertia-analyze.1.gz   (help2man, when installed)
 #   /etc/inertia/bench.toml                   (the template; never overwritten once there)
 
@@ -56,6 +56,8 @@ install(PROGRAMS ${PROJECT_BINARY_DIR}/install/inertia-lcm-spy DESTINATION ${INE
 
 install(FILES README.md DESTINATION ${INERTIA_DOC_DIR})
 install(FILES daq/README.md DESTINATION ${INERTIA_DOC_DIR} RENAME README.daq.md)
+# The README's links point into docs/: the pages travel with it.
+install(DIRECTORY docs/ DESTINATION ${INERTIA_DOC_DIR}/docs FILES_MATCHING PATTERN "*.md" PATTERN "*.png")
 install(FILES cmake/debian/copyright DESTINATION ${INERTIA_DOC_DIR})
 
 # Man pages from --help (help2man), so they never drift from the options the binaries take.

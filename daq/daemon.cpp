@@ -131,8 +131,8 @@ std::filesystem::path run_record_dir(const DaemonOptions& o) {
 const char* usage() {
   return "usage: inertia-daqd --config FILE [--duration S] [--log DIR] [options]\n"
          "       inertia-daqd --check --config FILE\n"
-         "       inertia-daqd mark --case NAME [--phase KIND] | --end | --stop [--lcm-url URL]  (mark --help)\n"
-         "       inertia-daqd arm [--lcm-url URL]   start the plan on a daemon that runs it (arm --help)\n"
+         "       inertia-daqd mark --case NAME [--phase KIND] | --end | --stop [--socket PATH | --key FILE]  (mark --help)\n"
+         "       inertia-daqd arm [--socket PATH]   start the plan on a daemon that runs it (arm --help)\n"
          "  --arm                real bench, executive = \"plan\": an attended start, the plan armed at\n"
          "                       once (otherwise the daemon starts disarmed, the controllers held in\n"
          "                       their safe state, until an operator runs inertia-daqd arm)\n"

@@ -72,7 +72,7 @@ echo "package-test: $(basename "$deb"): $(du -k "$deb" | cut -f1) KiB, installed
 echo "package-test: Depends: $depends"
 echo "package-test: Recommends: $recommends"
 if echo "$depends" | tr ',' '\n' | grep -Eq -- '-dev( |$)'; then fail "a development package among the Depends: $depends"; fi
-for lib in libmodbus5 libgpiod2 liblcm1 libsystemd0 libstdc++6 libc6 systemd procps; do
+for lib in libmodbus5 libgpiod2 liblcm1 libsystemd0 libssl3 libstdc++6 libc6 systemd procps; do
   case "$depends" in *"$lib"*) ;; *) fail "Depends lacks $lib: $depends" ;; esac
 done
 dpkg-deb -c "$deb" | awk '{print $6}' >"$work/contents"
@@ -80,6 +80,7 @@ for f in ./usr/bin/inertia-daqd ./usr/bin/inertia-analyze ./usr/lib/systemd/syst
   ./usr/lib/sysusers.d/inertia.conf ./usr/lib/tmpfiles.d/inertia.conf ./etc/inertia/bench.toml \
   ./usr/share/inertia/config/bench-template.toml ./usr/share/inertia/config/sim-paper-daq.toml \
   ./usr/share/inertia/inertia-lcm-spy ./usr/share/inertia/inertia_lcm_types.jar ./usr/share/doc/inertia/README.md \
+  ./usr/share/doc/inertia/docs/design.md ./usr/share/doc/inertia/docs/test-executive.md \
   ./usr/share/doc/inertia/copyright ./usr/share/man/man1/inertia-daqd.1.gz ./usr/share/man/man1/inertia-analyze.1.gz; do
   grep -qx "$f" "$work/contents" || fail "the package lacks $f"
 done
