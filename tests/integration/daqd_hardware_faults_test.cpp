@@ -419,10 +419,12 @@ TEST(DaqdHardwareFaults, AControllersRowsAfterItWentSilentKeepTheirOwnTimes) {
   std::cout << "table rows against their own times: worst " << before * 1e3 << " ms before the silence, " << after * 1e3
             << " ms after it\n";
   // The simulated controller updates its position every physics step (20 ms): a reading is up to
-  // one step old, and the poll's stamp up to another step from the grid it was due on.
+  // a step old, its poll up to a step late on a loaded machine, and after the gap the time base
+  // slews the fit's new estimate in over the next blocks rather than jumping. Timed by the count
+  // of polls, the rows after the silence would be early by the polls it skipped: most of its 1 s.
   constexpr double kStepS = 0.02;
   EXPECT_LT(before, 2 * kStepS);
-  EXPECT_LT(after, 2 * kStepS);
+  EXPECT_LT(after, 5 * kStepS);
 }
 
 }  // namespace
