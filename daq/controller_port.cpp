@@ -7,12 +7,6 @@
 #include "hal/device.hpp"
 
 namespace inertia::daq {
-namespace {
-
-std::int64_t seconds_ns(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
-
-}  // namespace
-
 ControllerPort::ControllerPort(std::string device, std::vector<SafeValue> safe_values, std::optional<Heartbeat> heartbeat,
                                std::shared_ptr<const LifeSign> life)
     : device_(std::move(device)),
@@ -140,7 +134,7 @@ void ControllerPort::serve_safe_state(hal::modbus::ModbusController& controller,
     safe_.confirmed_ns = done_ns;
     reconnects_seen_ = controller.link().health().reconnects;
   } else {
-    next_safe_attempt_ns_ = done_ns + seconds_ns(kSafeRetryS);
+    next_safe_attempt_ns_ = done_ns + hal::seconds_to_ns(kSafeRetryS);
   }
 }
 

@@ -101,7 +101,6 @@ hal::gpiod::QuadratureConfig to_hal(const config::GpiodEncoder& e, double bench_
 
 namespace {
 
-std::int64_t seconds_to_ns(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
 
 /// Samples in a row that make a channel stuck, from its stuck_after_s at its device's rate (0: off).
 std::uint32_t stuck_samples(double stuck_after_s, double rate_hz) {
@@ -150,7 +149,7 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     std::vector<ChannelInfo> info;
     for (const auto& s : d.signals) info.push_back({s.name, s.unit, next_id++});
     auto slot = std::make_shared<DeviceSlot>(d.name, std::move(info), rate_hz, ring_capacity);
-    slot->silent_timeout_ns = seconds_to_ns(d.availability.silent_timeout_s);
+    slot->silent_timeout_ns = hal::seconds_to_ns(d.availability.silent_timeout_s);
     slot->latency_floor_ns = d.availability.latency_floor_ns;
     for (const auto& s : d.signals) slot->stuck_samples.push_back(stuck_samples(s.stuck_after_s, rate_hz));
     const int fd = dev->wait_fd();
@@ -174,7 +173,7 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     std::vector<ChannelInfo> info{{"count", "1", next_id}, {"position", e.rotary ? "rad" : "m", next_id + 1}};
     next_id += 2;
     auto slot = std::make_shared<DeviceSlot>(e.name, std::move(info), bench.sample_rate_hz, ring_capacity);
-    slot->silent_timeout_ns = seconds_to_ns(e.availability.silent_timeout_s);
+    slot->silent_timeout_ns = hal::seconds_to_ns(e.availability.silent_timeout_s);
     slot->latency_floor_ns = e.availability.latency_floor_ns;
     out.samplers.push_back(std::make_unique<DeviceSampler>(std::move(dev), std::move(fds), slot, rows));
   }
@@ -191,7 +190,7 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     std::vector<ChannelInfo> info;
     for (const auto& r : m.registers) info.push_back({r.name, r.unit, next_id++});
     auto slot = std::make_shared<DeviceSlot>(m.name, std::move(info), 1000.0 / m.poll_interval_ms, ring_capacity);
-    slot->silent_timeout_ns = seconds_to_ns(m.availability.silent_timeout_s);
+    slot->silent_timeout_ns = hal::seconds_to_ns(m.availability.silent_timeout_s);
     slot->latency_floor_ns = m.availability.latency_floor_ns;
     for (const auto& r : m.registers) slot->stuck_samples.push_back(stuck_samples(r.stuck_after_s, slot->nominal_rate_hz));
     std::vector<ControllerPort::SafeValue> safe;
@@ -200,8 +199,8 @@ RealBench open_real_bench(const config::BenchConfig& bench, std::size_t ring_cap
     std::optional<ControllerPort::Heartbeat> heartbeat;
     if (const auto h = config::heartbeat_register(m); h && m.writes_enabled) {
       const config::ModbusRegister& reg = m.registers[*h];
-      heartbeat = ControllerPort::Heartbeat{*h, seconds_to_ns(reg.heartbeat_period_s), reg.min, reg.max, std::abs(reg.scale),
-                                            seconds_to_ns(reg.heartbeat_timeout_s)};
+      heartbeat = ControllerPort::Heartbeat{*h, hal::seconds_to_ns(reg.heartbeat_period_s), reg.min, reg.max, std::abs(reg.scale),
+                                            hal::seconds_to_ns(reg.heartbeat_timeout_s)};
     }
     auto port = std::make_shared<ControllerPort>(m.name, std::move(safe), heartbeat, life);
     out.ports[m.name] = port;

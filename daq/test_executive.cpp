@@ -23,7 +23,6 @@ using config::RegisterRole;
 
 constexpr std::int64_t kNsPerS = 1'000'000'000;
 
-std::int64_t seconds_ns(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
 
 std::string ms_text(std::int64_t ns) {
   std::ostringstream s;
@@ -244,7 +243,7 @@ void TestExecutive::run_plan() {
       journal_plan({"phase-start", "plan: " + phase_text(c, p) + " started" +
                                        (start > commanded ? ", settled " + s_text(start - commanded) + " after its command" : ""),
                     6, tc.name, std::to_string(p) + " " + config::phase_label(tc.phases[p].kind)});
-      const std::int64_t end = start + seconds_ns(tc.phases[p].duration_s);
+      const std::int64_t end = start + hal::seconds_to_ns(tc.phases[p].duration_s);
       while (hal::monotonic_now_ns() < end) pump(true);
     }
     end_case(hal::monotonic_now_ns());
@@ -257,7 +256,7 @@ std::int64_t TestExecutive::execute(const config::PhaseCommand& command, std::si
   if (held != holds_.end() && held->second == command.value) return commanded_ns;  // already there, settled
   holds_.erase(command.role);
   const std::string what = b.device->name + "." + b.reg->name + " = " + value_text(b, command.value);
-  const std::int64_t answer_ns = seconds_ns(b.device->response_timeout_s * 3 + kAnswerMarginS);
+  const std::int64_t answer_ns = hal::seconds_to_ns(b.device->response_timeout_s * 3 + kAnswerMarginS);
   int steps = 0;
   ControllerPort::Outcome outcome;
   for (;;) {
@@ -282,7 +281,7 @@ std::int64_t TestExecutive::execute(const config::PhaseCommand& command, std::si
     }
     if (!r.rate_limited) break;
     // Ramping: the next step one tick after this one was posted.
-    while (hal::monotonic_now_ns() < posted + seconds_ns(kRampTickS)) pump(true);
+    while (hal::monotonic_now_ns() < posted + hal::seconds_to_ns(kRampTickS)) pump(true);
   }
   const auto& r = outcome.result;
   std::ostringstream line;
@@ -315,8 +314,8 @@ std::int64_t TestExecutive::settle(const Binding& b, double target, std::int64_t
     if (reg.role == RegisterRole::ShakerRun) return ((mask == 0 ? bits != 0 : (bits & mask) != 0)) == (target != 0.0);
     return mask == 0 ? bits != 0 : (bits & mask) == mask;
   };
-  const std::int64_t deadline = confirmed_ns + seconds_ns(reg.settle_timeout_s);
-  const std::int64_t hold_ns = seconds_ns(reg.settle_s);
+  const std::int64_t deadline = confirmed_ns + hal::seconds_to_ns(reg.settle_timeout_s);
+  const std::int64_t hold_ns = hal::seconds_to_ns(reg.settle_s);
   bool holding = false;            // the criterion has held since since_ns
   std::int64_t since_ns = 0;
   std::uint64_t seen = 0;
@@ -414,7 +413,7 @@ std::optional<std::string> TestExecutive::controller_fault() const {
     const ControllerPort::Poll poll = b.port->latest();
     // Silent: no valid answer for three polls and two response timeouts (one slow request is not a fault).
     const std::int64_t silent_ns = 3 * static_cast<std::int64_t>(b.device->poll_interval_ms) * 1'000'000 +
-                                   seconds_ns(2 * b.device->response_timeout_s);
+                                   hal::seconds_to_ns(2 * b.device->response_timeout_s);
     if (!poll.connected || now - poll.last_valid_ns > silent_ns)
       return "device fault: controller " + b.device->name + (poll.connected ? " gave no valid reading for " + s_text(now - poll.last_valid_ns)
                                                                               : std::string(" link down"));
@@ -457,7 +456,7 @@ void TestExecutive::account_safe_state(std::string headline, std::string case_na
   // Each device's thread writes at once; one with a dead link gives up a round after its response
   // timeouts (and goes on trying, which the watch reports).
   account_ = SafeStateAccount{std::move(headline), std::move(case_name), since_ns,
-                              hal::monotonic_now_ns() + seconds_ns(4 * longest_s + 1.0), priority, std::move(stop_request)};
+                              hal::monotonic_now_ns() + hal::seconds_to_ns(4 * longest_s + 1.0), priority, std::move(stop_request)};
 }
 
 void TestExecutive::close_safe_state_account(bool final) {
@@ -514,12 +513,12 @@ void TestExecutive::watch_safe_state() {
     const bool unconfirmed = st.held && !st.confirmed && !st.failures.empty();
     if (unconfirmed) {
       faults.push_back("safe-state-unconfirmed:" + name);
-      if (!w.raised || now - w.journalled_ns >= seconds_ns(kUnconfirmedRepeatS)) {
+      if (!w.raised || now - w.journalled_ns >= hal::seconds_to_ns(kUnconfirmedRepeatS)) {
         std::string failures;
         for (const std::string& f : st.failures) failures += (failures.empty() ? "" : "; ") + f;
         journal_plan({"safe-state", std::string("plan: SAFE STATE NOT CONFIRMED on device '") + name + "'" +
                                         (w.raised ? " (still, " + s_text(now - st.held_ns) + " after it was commanded)" : "") + ": " +
-                                        failures + "; retrying every " + s_text(seconds_ns(ControllerPort::kSafeRetryS)),
+                                        failures + "; retrying every " + s_text(hal::seconds_to_ns(ControllerPort::kSafeRetryS)),
                       3, std::string(), std::string(), name});
         w.journalled_ns = now;
       }
@@ -589,7 +588,7 @@ void TestExecutive::begin_phase(std::size_t phase_index, std::int64_t t_ns) {
   open_->phase = phase_index;
   open_->phase_start_ns = t_ns;
   const double duration = bench_.cases[open_->index].phases[phase_index].duration_s;
-  mark(plan_event_t::MARK_PHASE_START, open_->index, static_cast<std::int32_t>(phase_index), t_ns, t_ns, t_ns + seconds_ns(duration));
+  mark(plan_event_t::MARK_PHASE_START, open_->index, static_cast<std::int32_t>(phase_index), t_ns, t_ns, t_ns + hal::seconds_to_ns(duration));
 }
 
 void TestExecutive::end_phase(std::int64_t t_ns) {

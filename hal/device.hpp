@@ -3,6 +3,7 @@
 // A device produces timestamped samples for named channels. The daemon owns the lifecycle
 // (Unconfigured -> Inactive -> Active -> Inactive -> Finalized, plus Failed) and applies the
 // transition table; a device only answers each transition with a Step and keeps health counters.
+#include <cmath>
 #include <cstdint>
 #include <ctime>
 #include <span>
@@ -102,6 +103,9 @@ class Device {
 };
 
 /// CLOCK_MONOTONIC now in nanoseconds. Real-time safe (vDSO, no syscall on x86-64/arm64).
+/// A duration in seconds as integer nanoseconds (rounded), the unit of every stamp above.
+inline std::int64_t seconds_to_ns(double s) noexcept { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
 inline std::int64_t monotonic_now_ns() noexcept {
   timespec ts{};
   ::clock_gettime(CLOCK_MONOTONIC, &ts);
