@@ -21,8 +21,9 @@ namespace {
 
 constexpr std::string_view kDomain = "inertia-command-v1";
 
-void put_be64(std::vector<std::uint8_t>& out, std::int64_t v) {
-  for (int shift = 56; shift >= 0; shift -= 8) out.push_back(static_cast<std::uint8_t>(static_cast<std::uint64_t>(v) >> shift));
+std::uint8_t* put_be64(std::uint8_t* out, std::int64_t v) {
+  for (int shift = 56; shift >= 0; shift -= 8) *out++ = static_cast<std::uint8_t>(static_cast<std::uint64_t>(v) >> shift);
+  return out;
 }
 
 int hex_digit(char c) {
@@ -80,12 +81,14 @@ std::vector<CommandKey> load_command_keys(const std::filesystem::path& file) {
 
 std::array<std::uint8_t, 32> command_mac(const CommandKey& key, std::int64_t utime_us, std::int64_t nonce,
                                          std::span<const std::uint8_t> command) {
-  std::vector<std::uint8_t> message(kDomain.begin(), kDomain.end());
-  message.insert(message.end(), key.id.begin(), key.id.end());
-  message.push_back(0);
-  put_be64(message, utime_us);
-  put_be64(message, nonce);
-  message.insert(message.end(), command.begin(), command.end());
+  // domain | key id | 0 | utime (big-endian) | nonce (big-endian) | command bytes
+  std::vector<std::uint8_t> message(kDomain.size() + key.id.size() + 1 + 2 * sizeof(std::int64_t) + command.size());
+  std::uint8_t* out = std::copy(kDomain.begin(), kDomain.end(), message.data());
+  out = std::copy(key.id.begin(), key.id.end(), out);
+  *out++ = 0;
+  out = put_be64(out, utime_us);
+  out = put_be64(out, nonce);
+  std::copy(command.begin(), command.end(), out);
   std::array<std::uint8_t, 32> mac{};
   std::size_t length = 0;
   if (EVP_Q_mac(nullptr, "HMAC", nullptr, "SHA256", nullptr, key.secret.data(), key.secret.size(), message.data(),

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <mutex>
 
 namespace inertia::daq {
 
@@ -30,9 +31,14 @@ void send_entry(const std::string& text, int priority, std::vector<std::string> 
   fields.insert(fields.begin(), {"MESSAGE=" + message, "PRIORITY=" + std::to_string(priority), "SYSLOG_IDENTIFIER=inertia-daqd"});
   std::vector<iovec> iov;
   for (std::string& f : fields) iov.push_back(iovec{f.data(), f.size()});
+  // The supervisor, the executive and the command thread all write here, rarely. One writer at a
+  // time: libsystemd opens its journal socket on first use from whichever thread comes first, and
+  // that is ordered for the thread sanitizer only by this lock (libsystemd is not instrumented);
+  // the stderr lines do not interleave either.
+  static std::mutex writer;
+  const std::lock_guard lock(writer);
   // Fails (without a journal socket) quietly: the stderr line below is then the record.
   (void)sd_journal_sendv(iov.data(), static_cast<int>(iov.size()));
-  // One insertion: lines from the executive's thread and the supervisor's do not interleave.
   if (!stderr_is_journal()) std::cerr << (message + "\n") << std::flush;
 }
 
