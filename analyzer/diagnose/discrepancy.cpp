@@ -142,15 +142,11 @@ struct ColumnFit {
   std::vector<Index> newly_fixed;    // model columns found unidentifiable on the way
 };
 
-/// The IdentifiabilityError handling shared by both fits: the model column to hold, if any.
+/// The IdentifiabilityError handling shared by both fits: the model column to hold, if any (the
+/// batch's rule, ident::column_to_leave; the candidate under test is never the one held).
 std::optional<std::size_t> column_to_hold(const std::vector<Index>& fit, const std::vector<std::string>& labels,
                                           const ident::IdentifiabilityError& e, Index candidate) {
-  std::optional<std::size_t> drop;
-  for (std::size_t j = 0; j < fit.size(); ++j) {
-    if (fit[j] == candidate) continue;
-    if (std::find(e.labels().begin(), e.labels().end(), labels[j]) != e.labels().end()) drop = j;
-  }
-  return drop;
+  return ident::column_to_leave(e, labels, [&](std::size_t j) { return fit[j] == candidate; });
 }
 
 /// fit_columns for polynomial terms, on the lagged Gram matrices only: least squares, the AR

@@ -113,6 +113,18 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
                                double sigma2, const std::vector<int>& cluster, int estimated_elsewhere = 0,
                                const Eigen::VectorXd& loading = Eigen::VectorXd(), const ColouredNoise* noise = nullptr);
 
+/// Whether a column lives between the clusters: less than kClusterLevelShare of its sum of
+/// squares `energy` varies within them (`between`: the sum over clusters of (cluster sum)^2 / rows,
+/// what the clusters' means hold). A static pose's terms are such: they are determined by the
+/// clusters' means alone, and told apart from the clusters' offsets only by the clusters left
+/// over. The share leaves room for what a whitened constant column gains at each phase's start
+/// (the whitening's transient) and for the reference's noise, both orders of magnitude below a
+/// column that moves within a phase (half of its energy or more).
+inline constexpr double kClusterLevelShare = 1e-2;
+[[nodiscard]] inline bool cluster_level(double energy, double between) {
+  return energy > 0.0 && energy - between < kClusterLevelShare * energy;
+}
+
 /// The random-effects (feasible GLS) estimate under offsets `cluster_offsets` estimated: each
 /// cluster's mean keeps the share w_g = m_g / (m_g + tau_g^2) of its information, m_g = v_g / n_g^2
 /// the variance the noise puts in it (v_g: of its sum), the rest of the estimate coming from within

@@ -504,4 +504,12 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   return res;
 }
 
+std::optional<std::size_t> column_to_leave(const IdentifiabilityError& e, const std::vector<std::string>& labels,
+                                           const std::function<bool(std::size_t)>& kept) {
+  std::optional<std::size_t> out;
+  for (std::size_t j = 0; j < labels.size(); ++j)
+    if (!kept(j) && std::find(e.labels().begin(), e.labels().end(), labels[j]) != e.labels().end()) out = j;
+  return out;
+}
+
 }  // namespace inertia::ident

@@ -19,6 +19,9 @@
 // are ordinary polynomial terms that need no correction at all.
 #include <Eigen/Dense>
 
+#include <functional>
+#include <optional>
+
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -75,6 +78,13 @@ class IdentifiabilityError : public std::runtime_error {
   std::vector<std::string> labels_;
   double rcond_;
 };
+
+/// The column a near-dependence takes out of a fit: of `labels` (the fit's columns in the order
+/// they were ranked: forced first, then by ERR), the last one the error names that `kept` (an
+/// index into `labels`) does not protect; none when it names protected columns only. The batch,
+/// the live solver and diagnose leave columns by this one rule, refit, and name what left.
+[[nodiscard]] std::optional<std::size_t> column_to_leave(const IdentifiabilityError& e, const std::vector<std::string>& labels,
+                                                         const std::function<bool(std::size_t)>& kept);
 
 struct UlsResult {
   std::vector<std::string> labels;  ///< process labels, then "e[k-1]" .. "e[k-n_e]"

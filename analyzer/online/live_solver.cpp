@@ -206,18 +206,17 @@ StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vect
       out.gram_inverse = sol.gram_inverse;
       return out;
     } catch (const ident::IdentifiabilityError& e) {
-      // Leave out the named column ranked last that is not forced, as the batch pipeline does.
-      auto victim = columns.end();
-      for (auto it = columns.begin(); it != columns.end(); ++it) {
-        const Index term = terms[static_cast<std::size_t>(*it)];
-        const std::string label = basis_.terms()[static_cast<std::size_t>(term)].to_string();
-        const bool is_forced = std::find(eo.forced.begin(), eo.forced.end(), *it) != eo.forced.end();
-        if (!is_forced && std::find(e.labels().begin(), e.labels().end(), label) != e.labels().end()) victim = it;
-      }
-      if (victim == columns.end()) {
+      // The batch's rule (ident::column_to_leave): the named column ranked last, never a sensitivity.
+      std::vector<std::string> ranked;
+      for (const Index j : columns)
+        ranked.push_back(basis_.terms()[static_cast<std::size_t>(terms[static_cast<std::size_t>(j)])].to_string());
+      const std::optional<std::size_t> leaves =
+          ident::column_to_leave(e, ranked, [&](std::size_t j) { return ident::is_sensitivity_label(ranked[j]); });
+      if (!leaves) {
         out.why = e.what();
         return out;
       }
+      const auto victim = columns.begin() + static_cast<std::ptrdiff_t>(*leaves);
       out.undetermined.push_back(terms[static_cast<std::size_t>(*victim)]);
       columns.erase(victim);
     } catch (const std::runtime_error& e) {
@@ -227,7 +226,7 @@ StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vect
   }
 }
 
-MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double> known_bias) const {
+MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<double> known_bias) const {
   MountingFit out;
   out.m_cs = m.m_cs;
   if (m.info.samples() == 0) {
@@ -268,15 +267,7 @@ MountingFit LiveSolver::fit_mounting(const MountingData& m, std::optional<double
   for (Index t : model_) {
     const Term& term = basis_.terms()[static_cast<std::size_t>(t)];
     if (std::find(axis_terms.begin(), axis_terms.end(), term) != axis_terms.end()) continue;
-    if (m.rotation_table && options_.ieee_rotation_table_exclusions &&
-        (term == plain_term(Variable::Ap, 2) || term == plain_term(Variable::Ao, 2))) {
-      excluded.push_back(term.to_string());
-      continue;
-    }
-    // IEEE 1293: on the shaker the bias is confounded with the other parameters; it is left out
-    // when another mounting supplies it. Without one (a shaker-only plan) it stays, and the
-    // data's rank decides whether it is determined.
-    if (m.shaker_only && options_.ieee_shaker_exclusions && known_bias && term.is_bias()) {
+    if (procedure::ieee_1293_excluded(term, m.kind, known_bias.has_value(), options_.ieee_1293)) {
       excluded.push_back(term.to_string());
       continue;
     }
@@ -410,7 +401,7 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
   for (std::size_t k = 0; k < m_cs.size(); ++k)
     if (k != reference && aligned[k] && infos[k]->samples() > 0) turning.push_back(k);
   constexpr double kStep = kTurnDifferenceStepRad;
-  for (int iteration = 0; iteration < 12 && !turning.empty(); ++iteration) {
+  for (int iteration = 0; iteration < procedure::kTurnMaxSteps && !turning.empty(); ++iteration) {
     std::vector<std::pair<std::size_t, int>> parameters;   // (mounting, axis of procedure::turned())
     for (std::size_t k : turning)
       for (int axis = 0; axis < 3; ++axis) parameters.emplace_back(k, axis);
@@ -539,7 +530,7 @@ std::vector<Index> LiveSolver::phase_level_terms(const StatFit& batch, const std
     }
   }
   for (Index j = 0; j < p; ++j)
-    if (energy(j) > 0.0 && (energy(j) - between(j)) < kLevelShare * energy(j)) out.push_back(batch.terms[static_cast<std::size_t>(j)]);
+    if (ident::cluster_level(energy(j), between(j))) out.push_back(batch.terms[static_cast<std::size_t>(j)]);
   return out;
 }
 

@@ -4,9 +4,9 @@
 //  - Per mounting (blocks 5-6): the model in its external-frame form (eq. 1: the scale factor
 //    split over a_x a_y a_z of the mounting's nominal case frame, the other terms in F_S) fitted
 //    with M_C^S from algorithm 1 on its own sensitivities, to the fixed point. The mountings'
-//    rules are the batch pipeline's (procedure/pipeline.hpp): on a rotation table a_p^2 and a_o^2
-//    are left out (IEEE 1293 12.3.5.7), a mounting of shaker cases only takes the bias from the
-//    mountings that determine it.
+//    rules are the batch pipeline's (procedure/mounting_rules.hpp): on a rotation table a_p^2 and
+//    a_o^2 are left out (IEEE 1293 12.3.5.7), a mounting of shaker cases only takes the bias from
+//    the mountings that determine it.
 //  - The batch (blocks 10-11): the model in F_S over every mounting, each with its M_C^S.
 //  - The squares' corner b of eq. 12: the corner (or static squares) with the least residual sum
 //    of squares, found as the batch pipeline finds it (the grid's nodes, then Brent's method
@@ -26,6 +26,7 @@
 #include "analyzer/online/information.hpp"
 #include "analyzer/online/live_basis.hpp"
 #include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/mounting_rules.hpp"
 #include "common/dataset/dataset.hpp"
 
 namespace inertia::online {
@@ -48,11 +49,10 @@ struct StatFit {
 };
 
 /// A mounting's statistics and what is known of its misalignment.
-struct MountingData {
+struct MountingStatistics {
   std::string name;
   Information info;
-  bool rotation_table = false;
-  bool shaker_only = true;
+  procedure::MountingKind kind;
   Eigen::Matrix3d m_cs = Eigen::Matrix3d::Identity();   // warm start of algorithm 1
   /// Hold the angles the inputs do not excite (procedure::axis_excitation). Off: every axis is
   /// fitted, as free regressors, for the least residual (what the noise model is fitted on).
@@ -99,8 +99,7 @@ struct SolverOptions {
   ident::UlsOptions uls;
   int max_refinements = 50;                 // algorithm 1's fixed point
   double refinement_tolerance_rad = 1e-10;
-  bool ieee_rotation_table_exclusions = true;
-  bool ieee_shaker_exclusions = true;
+  procedure::Ieee1293Rules ieee_1293;       // the batch's (procedure::PipelineOptions::ieee_1293)
   double structure_alpha = 0.01;
   /// procedure::PipelineOptions::batch_relative_twist and mounting_tolerance_rad, the same here.
   bool relative_twist = true;
@@ -136,7 +135,7 @@ class LiveSolver {
              dataset::SensorKind sensor, CornerGrid grid, bool static_option, SolverOptions options);
 
   /// Blocks 5-6 on one mounting; `known_bias` is subtracted first (shaker-only mountings).
-  [[nodiscard]] MountingFit fit_mounting(const MountingData& m, std::optional<double> known_bias) const;
+  [[nodiscard]] MountingFit fit_mounting(const MountingStatistics& m, std::optional<double> known_bias) const;
   /// Blocks 10-11: the model over the mountings, each with its M_C^S.
   [[nodiscard]] StatFit fit_batch(const std::vector<const Information*>& infos,
                                   const std::vector<Eigen::Matrix3d>& m_cs) const;
@@ -163,12 +162,11 @@ class LiveSolver {
   /// lose that many degrees of freedom); -1: the bias alone, when fitted.
   CaseScatter add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
                                const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain, int level_parameters = -1) const;
-  /// Of batch.terms, those whose column is constant within every phase of `cases` (less than
-  /// kLevelShare of its energy varies inside the phases): a static pose's terms. Such terms and
-  /// the phases' offsets (a pose's placement) are told apart only by the phases left over.
+  /// Of batch.terms, those whose column is constant within every phase of `cases`
+  /// (ident::cluster_level, the batch's rule): a static pose's terms. Such terms and the phases'
+  /// offsets (a pose's placement) are told apart only by the phases left over.
   [[nodiscard]] std::vector<Eigen::Index> phase_level_terms(const StatFit& batch, const std::vector<const Information*>& cases,
                                                             const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const;
-  static constexpr double kLevelShare = 1e-3;
   /// The same solver for another model (a subset of the basis's terms).
   [[nodiscard]] LiveSolver with_model(std::vector<Eigen::Index> model) const {
     LiveSolver s = *this;

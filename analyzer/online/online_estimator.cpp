@@ -67,8 +67,7 @@ struct OnlineEstimator::Impl {
   struct MountingState {
     std::string name;
     std::vector<std::size_t> cases;
-    bool rotation_table = false;
-    bool shaker_only = true;
+    procedure::MountingKind kind;
     bool poses_only = true;   // static and thermal cases only: its tilts are read from the poses' levels
     frames::Dcm m_cs = frames::Dcm::Identity();
     MountingFit fit;
@@ -104,7 +103,7 @@ struct OnlineEstimator::Impl {
   bool noise_fitted = false;
   // The fixture temperature's range over the rows pushed (temperature_moved()).
   double temp_lo = std::numeric_limits<double>::infinity(), temp_hi = -std::numeric_limits<double>::infinity();
-  bool hold_unexcited = true;   // MountingData::hold_unexcited of the next solve()
+  bool hold_unexcited = true;   // MountingStatistics::hold_unexcited of the next solve()
   Eigen::VectorXd ar;
   std::int64_t rows_total = 0;
   double nominal_period = 0.0;
@@ -176,8 +175,7 @@ struct OnlineEstimator::Impl {
       mountings.push_back(std::move(ms));
     }
     MountingState& ms = mountings[m];
-    ms.rotation_table = ms.rotation_table || tc.kind == CaseKind::RotationTable;
-    ms.shaker_only = ms.shaker_only && tc.kind == CaseKind::Shaker;
+    ms.kind.add_case(tc.kind);
     ms.poses_only = ms.poses_only && (tc.kind == CaseKind::Static || tc.kind == CaseKind::Thermal);
     CaseState cs;
     cs.plan_case = plan_case;
@@ -511,11 +509,12 @@ struct OnlineEstimator::Impl {
     s.infos.assign(mountings.size(), empty_information());
     for (std::size_t c = 0; c < cases.size(); ++c)
       if (const std::optional<Information> info = case_information(c, left_out)) s.infos[cases[c].mounting].add(*info);
-    // Mountings that determine the bias first: shaker-only ones take it from them.
-    for (std::size_t m = 0; m < mountings.size(); ++m)
-      if (!mountings[m].shaker_only) s.order.push_back(m);
-    for (std::size_t m = 0; m < mountings.size(); ++m)
-      if (mountings[m].shaker_only) s.order.push_back(m);
+    // The mounting rules' order (procedure/mounting_rules.hpp), as the batch takes them.
+    {
+      std::vector<procedure::MountingKind> kinds;
+      for (const MountingState& ms : mountings) kinds.push_back(ms.kind);
+      s.order = procedure::mounting_order(kinds);
+    }
     if (fixed_m_cs != nullptr) {
       s.m_cs = *fixed_m_cs;
       std::vector<const Information*> infos;
@@ -537,18 +536,16 @@ struct OnlineEstimator::Impl {
     std::optional<double> bias;
     std::vector<MountingFit> fits(mountings.size());
     for (std::size_t m : s.order) {
-      MountingData d;
+      MountingStatistics d;
       d.name = mountings[m].name;
       d.info = s.infos[m];
-      d.rotation_table = mountings[m].rotation_table;
-      d.shaker_only = mountings[m].shaker_only;
+      d.kind = mountings[m].kind;
       // Algorithm 1 starts where the batch starts it, every time: a start from an earlier, less
       // determined estimate (one orientation so far) can lead the fixed point elsewhere.
       d.m_cs = model_m_cs;
       d.hold_unexcited = hold_unexcited;
-      const bool use_bias = d.shaker_only && options.solver.ieee_shaker_exclusions;
-      fits[m] = active.fit_mounting(d, use_bias ? bias : std::nullopt);
-      if (!bias && !d.shaker_only && fits[m].bias) bias = fits[m].bias;
+      fits[m] = active.fit_mounting(d, procedure::takes_bias(d.kind, options.solver.ieee_1293) ? bias : std::nullopt);
+      if (!bias && procedure::hands_on_bias(d.kind) && fits[m].bias) bias = fits[m].bias;
     }
     // A mounting whose data does not fix its misalignment keeps the nominal frame (the batch's
     // rule: another mounting's M_C^S is another fixture's), within the mounting tolerance.

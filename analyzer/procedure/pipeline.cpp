@@ -21,6 +21,7 @@
 #include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/noise/noise_analysis.hpp"
 #include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/mounting_rules.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
@@ -91,31 +92,29 @@ std::vector<Term> parse_fixed(const std::vector<std::string>& texts, const char*
 
 /// One mounting's cases with their references turned into the nominal case frame, so that the
 /// shared misalignment is a single M_C^S (with m_ec = I in the copies).
-struct MountingData {
+struct MountingCases {
   std::vector<dataset::CaseData> cases;     // copies in the nominal case frame
   std::vector<double> weights;
-  bool rotation_table = false;
-  bool shaker_only = true;
+  MountingKind kind;
 };
 
-MountingData mounting_data(const dataset::Dataset& data, const std::vector<std::size_t>& cases,
+MountingCases mounting_cases(const dataset::Dataset& data, const std::vector<std::size_t>& cases,
                            const PipelineOptions& options, std::optional<double> known_bias) {
-  MountingData m;
+  MountingCases m;
   for (std::size_t index : cases) {
     dataset::CaseData c = data.cases.at(index);
     c.a_e = c.a_e * c.m_ec.transpose();   // rows: (M_E^C a_E)^T
     if (c.w_e) *c.w_e = *c.w_e * c.m_ec.transpose();
     c.m_ec = frames::Dcm::Identity();
     if (known_bias) c.y.array() -= *known_bias;
-    m.rotation_table = m.rotation_table || c.kind == dataset::CaseKind::RotationTable;
-    m.shaker_only = m.shaker_only && c.kind == dataset::CaseKind::Shaker;
+    m.kind.add_case(c.kind);
     m.weights.push_back(case_weight(options, c));
     m.cases.push_back(std::move(c));
   }
   return m;
 }
 
-std::vector<StackInput> stack_inputs(const MountingData& m, const std::vector<std::size_t>& cases,
+std::vector<StackInput> stack_inputs(const MountingCases& m, const std::vector<std::size_t>& cases,
                                      const frames::Dcm& m_cs) {
   std::vector<StackInput> inputs;
   for (std::size_t i = 0; i < m.cases.size(); ++i) inputs.push_back({cases[i], &m.cases[i], m_cs, m.weights[i]});
@@ -128,11 +127,6 @@ int max_lag_of(const std::vector<Term>& terms) {
   return lag;
 }
 
-bool is_sensitivity_label(const std::string& label) {
-  return label == "a_x" || label == "a_y" || label == "a_z" || label == "a_i" || label == "w_x" || label == "w_y" ||
-         label == "w_z" || label == "w_i";
-}
-
 /// ERR order of the columns of a stacked problem (sensitivities forced first, the bias after
 /// them), without the columns the data cannot separate from the ones before them.
 std::vector<Eigen::Index> identifiable_ranking(const StackedRegression& s, const ident::ErrOptions& base,
@@ -140,7 +134,7 @@ std::vector<Eigen::Index> identifiable_ranking(const StackedRegression& s, const
   ident::ErrOptions options = base;
   options.forced.clear();
   for (std::size_t j = 0; j < s.labels.size(); ++j) {
-    if (is_sensitivity_label(s.labels[j])) options.forced.push_back(static_cast<Eigen::Index>(j));
+    if (ident::is_sensitivity_label(s.labels[j])) options.forced.push_back(static_cast<Eigen::Index>(j));
   }
   for (std::size_t j = 0; j < s.labels.size(); ++j) {
     if (s.labels[j] == "1") options.forced.push_back(static_cast<Eigen::Index>(j));
@@ -160,14 +154,12 @@ ident::UlsResult fit_identifiable(const StackedRegression& s, std::vector<Eigen:
     try {
       return ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, sorted);
     } catch (const ident::IdentifiabilityError& e) {
-      auto victim = columns.end();
-      for (auto it = columns.begin(); it != columns.end(); ++it) {
-        const std::string& label = s.labels[static_cast<std::size_t>(*it)];
-        if (!is_sensitivity_label(label) && std::find(e.labels().begin(), e.labels().end(), label) != e.labels().end()) {
-          victim = it;   // keep the last one in ranked order
-        }
-      }
-      if (victim == columns.end()) throw;
+      std::vector<std::string> ranked;
+      for (const Eigen::Index j : columns) ranked.push_back(s.labels[static_cast<std::size_t>(j)]);
+      const std::optional<std::size_t> leaves =
+          ident::column_to_leave(e, ranked, [&](std::size_t j) { return ident::is_sensitivity_label(ranked[j]); });
+      if (!leaves) throw;
+      const auto victim = columns.begin() + static_cast<std::ptrdiff_t>(*leaves);
       dropped.push_back(s.labels[static_cast<std::size_t>(*victim)]);
       columns.erase(victim);
     }
@@ -194,7 +186,7 @@ void apply_square_model(StackedRegression& s, const dataset::Dataset& data, std:
 
 /// One mounting's regression as algorithm 2 fits it: its cases stacked with M_C^S = m_cs, the
 /// squares through the mounting's high pass, AR-whitened.
-StackedRegression whitened_regression(std::span<const Term> terms, const MountingData& m, const std::vector<std::size_t>& cases,
+StackedRegression whitened_regression(std::span<const Term> terms, const MountingCases& m, const std::vector<std::size_t>& cases,
                                       const frames::Dcm& m_cs, const dataset::Dataset& data, std::string_view label,
                                       Eigen::Index first_row, std::optional<double> square_corner,
                                       const ArWhitener& whitener) {
@@ -276,7 +268,7 @@ void set_angles(MountingResult& result, const Eigen::Vector3d& sd) {
 /// problem of the ranked terms built with it.
 class MisalignmentHook final : public ident::FitHook {
  public:
-  MisalignmentHook(const MountingData& m, const std::vector<std::size_t>& cases, const std::vector<Term>& es_terms,
+  MisalignmentHook(const MountingCases& m, const std::vector<std::size_t>& cases, const std::vector<Term>& es_terms,
                    const dataset::Dataset& data, std::string_view label, Eigen::Index first_row,
                    const ArWhitener& whitener, std::optional<double> square_corner, double twist,
                    std::array<bool, 2> tilt_axes)
@@ -321,7 +313,7 @@ class MisalignmentHook final : public ident::FitHook {
   }
 
  private:
-  const MountingData& m_;
+  const MountingCases& m_;
   const std::vector<std::size_t>& cases_;
   const std::vector<Term>& es_terms_;
   const dataset::Dataset& data_;
@@ -725,7 +717,7 @@ HonestResult honest_prune(const HonestPrune& h, std::vector<Eigen::Index>& colum
       Eigen::VectorXd between = Eigen::VectorXd::Zero(p);
       for (const auto& [id, sum] : sums) between += sum.first.cwiseAbs2() / sum.second;
       const Eigen::VectorXd total = x_process.colwise().squaredNorm().transpose();
-      for (Eigen::Index j = 0; j < p; ++j) phase_level[std::size_t(j)] = total(j) > 0.0 && total(j) - between(j) < 1e-2 * total(j);
+      for (Eigen::Index j = 0; j < p; ++j) phase_level[std::size_t(j)] = ident::cluster_level(total(j), between(j));
     }
     // When the phases' means are all the model's columns say (every term constant within each
     // phase: static poses) and their offsets differ, each mean is weighed by what its offset
@@ -918,9 +910,7 @@ RelativeTwists relative_twists(StackedRegression& batch, const BatchAt& batch_at
   const std::vector<Eigen::Vector3d> nominal(result.mountings.size(), Eigen::Vector3d::Zero());
   ident::UlsOptions uls = options.selection.uls;
   uls.noise_lags = 0;
-  // A twist of a degree or two is nearly linear in the columns: each step gains about three digits.
-  constexpr int kMaxSteps = 6;
-  for (int iteration = 0; iteration < kMaxSteps && !turning.empty(); ++iteration) {
+  for (int iteration = 0; iteration < kTurnMaxSteps && !turning.empty(); ++iteration) {
     struct Parameter {
       std::size_t mounting;
       int axis;   // of turned(): 0, 1 tilts, 2 twist
@@ -1069,7 +1059,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   MountingResult result;
   result.mounting = mounting;
   result.cases = cases;
-  const MountingData m = mounting_data(data, cases, options, known_bias);
+  const MountingCases m = mounting_cases(data, cases, options, known_bias);
   result.known_bias = known_bias;
   const bool gyro = data.sensor == dataset::SensorKind::Gyroscope;
 
@@ -1091,25 +1081,10 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
                                    ? ident::candidate_terms(data.sensor, ident::ModelFrame::ExternalAndSensor,
                                                             with_measured_temperature(options.misalignment.candidates, data, options))
                                    : parse_fixed(options.misalignment.fixed_terms, "misalignment");
-  if (m.rotation_table && options.ieee_rotation_table_exclusions) {
-    const auto ieee_excluded = [](const Term& t) {
-      const auto& f = t.factors();
-      return f.size() == 1 && f[0].power == 2 && f[0].function == ident::FactorFunction::Plain &&
-             (f[0].variable == ident::Variable::Ap || f[0].variable == ident::Variable::Ao);
-    };
-    for (const Term& t : es_terms) {
-      if (ieee_excluded(t)) result.excluded.push_back(t.to_string());
-    }
-    std::erase_if(es_terms, ieee_excluded);
+  for (const Term& t : es_terms) {
+    if (ieee_1293_excluded(t, m.kind, known_bias.has_value(), options.ieee_1293)) result.excluded.push_back(t.to_string());
   }
-  if (m.shaker_only && options.ieee_shaker_exclusions) {
-    // On a slip table gravity is constant in every orientation: per orientation each column is a
-    // combination of 1, v and v^2 (v the vibration), and the bias is what gets confounded.
-    for (const Term& t : es_terms) {
-      if (t.is_bias()) result.excluded.push_back(t.to_string());
-    }
-    std::erase_if(es_terms, [](const Term& t) { return t.is_bias(); });
-  }
+  std::erase_if(es_terms, [&](const Term& t) { return ieee_1293_excluded(t, m.kind, known_bias.has_value(), options.ieee_1293); });
   {
     const std::array<const char*, 3> names = sensitivity_names(data.sensor);
     for (int axis = 1; axis < 3; ++axis) {
@@ -1253,7 +1228,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     honest.loading = &loading;
     honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, selected.ranking.size()));
     honest.protect = [&](const std::string& label) {
-      return is_sensitivity_label(label) || label == "1" || std::find(tilts.begin(), tilts.end(), label) != tilts.end();
+      return ident::is_sensitivity_label(label) || label == "1" || std::find(tilts.begin(), tilts.end(), label) != tilts.end();
     };
     if (stage_law) honest.below_record = stage_law->below_record(whitener);
     if (square_corner) {
@@ -1358,18 +1333,17 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   PipelineResult result;
   result.cases.resize(data.cases.size());
 
-  // Blocks 5-6. Mountings that can estimate the bias go first, so shaker-only mountings can use it.
-  auto groups = mountings_of(data, &result.notes);
-  const auto shaker_only = [&](const std::vector<std::size_t>& cases) {
-    return std::all_of(cases.begin(), cases.end(),
-                       [&](std::size_t i) { return data.cases[i].kind == dataset::CaseKind::Shaker; });
-  };
-  std::stable_partition(groups.begin(), groups.end(), [&](const auto& g) { return !shaker_only(g.second); });
+  // Blocks 5-6, in the order and with the bias the mounting rules give (mounting_rules.hpp).
+  const MountingGroups groups = mountings_of(data, &result.notes);
+  std::vector<MountingKind> kinds(groups.size());
+  for (std::size_t g = 0; g < groups.size(); ++g)
+    for (std::size_t index : groups[g].second) kinds[g].add_case(data.cases[index].kind);
   std::optional<double> bias;
-  for (const auto& [mounting, cases] : groups) {
-    const bool use_bias = shaker_only(cases) && options.ieee_shaker_exclusions && options.shaker_bias_from_other_mountings;
-    MountingResult m = estimate_mounting(data, cases, mounting, options, dataset_label, use_bias ? bias : std::nullopt);
-    if (!bias) {
+  for (const std::size_t g : mounting_order(kinds)) {
+    const auto& [mounting, cases] = groups[g];
+    MountingResult m = estimate_mounting(data, cases, mounting, options, dataset_label,
+                                         takes_bias(kinds[g], options.ieee_1293) ? bias : std::nullopt);
+    if (!bias && hands_on_bias(kinds[g])) {
       for (std::size_t j = 0; j < m.s_fit.labels.size(); ++j) {
         if (m.s_fit.labels[j] == "1") bias = m.s_fit.theta(static_cast<Eigen::Index>(j));
       }
@@ -1482,7 +1456,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
     const char own = data.sensor == dataset::SensorKind::Gyroscope ? 'w' : 'a';   // a gyro's a_i is a g-sensitivity
     for (const Eigen::Index j : ranking) {
       const std::string& label = batch.labels[static_cast<std::size_t>(j)];
-      if (label == "1" || (is_sensitivity_label(label) && label.front() == own)) problem.kept.push_back(j);
+      if (label == "1" || (ident::is_sensitivity_label(label) && label.front() == own)) problem.kept.push_back(j);
     }
     const ident::SelectionResult selected = ident::select_model(problem, selection, nullptr);
     columns = selected.best_model().columns;
@@ -1508,7 +1482,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
   honest.loading = &loading;
   honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
   honest.may_remove = options.batch.select;
-  honest.protect = [](const std::string& label) { return is_sensitivity_label(label) || label == "1"; };
+  honest.protect = [](const std::string& label) { return ident::is_sensitivity_label(label) || label == "1"; };
   if (batch_law) honest.below_record = batch_law->below_record(whitener);
   // The searches whose results the batch's columns are built with: the squares' corner and each
   // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the

@@ -24,6 +24,7 @@
 #include "analyzer/ident/term.hpp"
 #include "analyzer/ident/uls_batch.hpp"
 #include "analyzer/procedure/excitation.hpp"
+#include "analyzer/procedure/mounting_rules.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/frames.hpp"
 
@@ -51,18 +52,11 @@ struct PipelineOptions {
   /// --order 2 on the paper dataset: 3.1, 3.3 and 5.8 s of user time.
   int whitening_max_order = 120;
   int max_refinements = 6;                  // step-1 fixed point: nonlinear F_S terms need M_E^S
-  /// IEEE 1293 12.3.5.7 (paper section 3.2): on a rotation table a_p^2 and a_o^2 cannot be
-  /// estimated together with the bias and a_i^2 (a_i^2 + a_p^2 + a_o^2 = g^2), so blocks 5-6 leave
-  /// them out of rotation-table mountings.
-  bool ieee_rotation_table_exclusions = true;
-  /// The same section 3.2 on the shaker: the bias cannot be estimated together with the other
-  /// parameters there, so blocks 5-6 leave the bias out of mountings that are all shaker cases.
-  bool ieee_shaker_exclusions = true;
-  /// The bias such a mounting cannot estimate is a property of the sensor, not of the mounting:
-  /// take it from the mountings that can (rotation table, static), estimated first, and remove it
-  /// from the output before the shaker fit. Without it, the bias leaks into theta_x, theta_y,
-  /// theta_z (gravity points along a different case axis in each orientation) and tilts n_i.
-  bool shaker_bias_from_other_mountings = true;
+  /// Which terms blocks 5-6 leave out of a mounting and which bias it takes from another
+  /// (mounting_rules.hpp). A bias a shaker-only mounting fitted itself would leak into theta_x,
+  /// theta_y, theta_z (gravity points along a different case axis in each orientation) and tilt
+  /// n_i: it takes the bias of the mountings that determine it (rotation table, static).
+  Ieee1293Rules ieee_1293;
   /// Eq. 12 (section 3.1): the squares a_i^2, a_p^2, a_o^2 act through first-order high-pass
   /// filters K_jj(s) = K_jj s / (s + b). A static model of them is structurally wrong on the
   /// shaker (the filter removes the large mean of v^2 and shifts the phase of the 2 g v part)

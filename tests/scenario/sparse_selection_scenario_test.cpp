@@ -165,11 +165,10 @@ TEST(SparseSelectionScenario, Algorithm2RecoversRandomSparseModelsWithMisalignme
     p.misalignment.select = true;
     p.misalignment.candidates.r = truth.r;
     // White noise of known sd and static terms: the prewhitening, the squares' high pass and the
-    // IEEE shaker exclusion (which would remove a true bias) are not part of this target.
+    // IEEE exclusions (the rotation-table squares, a bias taken from elsewhere) are not part of this target.
     p.whitening_max_order = 0;
     p.square_highpass = false;
-    p.ieee_shaker_exclusions = false;
-    p.ieee_rotation_table_exclusions = false;
+    p.ieee_1293 = {.rotation_table = false, .shaker = false};
     const procedure::MountingResult m =
         procedure::estimate_mounting(data, {0, 1, 2}, "fixture", p, "sparse-scenario");
     const std::set<std::string> chosen(m.s_fit.labels.begin(), m.s_fit.labels.end());
