@@ -1,0 +1,269 @@
+// The live solver on sufficient statistics (online/live_solver.hpp) against least squares solved
+// directly on the same rows: noiseless data gives back the coefficients it was made with, noisy
+// data the QR solution with its residual, variance and sd; columns the data cannot tell apart are
+// named undetermined, not guessed; algorithm 1 on a mounting finds the input axis it was made
+// with, and a mounting whose inputs excite no axis of its own is held at the nominal frame.
+#include "analyzer/online/live_solver.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <random>
+
+#include "analyzer/ident/regressors.hpp"
+#include "common/frames.hpp"
+
+namespace inertia::online {
+namespace {
+
+using Eigen::Index;
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+constexpr double kPeriod = 1e-3;
+constexpr double kTRef = 25.0;
+
+/// Case-frame specific force, one row per sample.
+using Inputs = Eigen::Matrix<double, Eigen::Dynamic, 3>;
+
+/// Correlated axes with means (a table sweep with vibration): every monomial varies on its own.
+Inputs random_inputs(Index n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Inputs a(n, 3);
+  for (Index k = 0; k < n; ++k) {
+    const double u = g(rng), v = g(rng), w = g(rng);
+    a.row(k) << 2.0 + 5.0 * u, -1.0 + 2.0 * u + 4.0 * v, 9.0 + 3.0 * w - 1.0 * v;
+  }
+  return a;
+}
+
+dataset::CaseData case_of(const Inputs& a) {
+  dataset::CaseData c;
+  c.name = "case";
+  const Index n = a.rows();
+  c.sample_period_s = kPeriod;
+  c.t = VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * kPeriod);
+  c.a_e = a;
+  c.y = VectorXd::Zero(n);
+  return c;
+}
+
+/// The model's columns in F_S = M_C^S times the case frame, built by the batch's regressor builder.
+MatrixXd sensor_frame_columns(const std::vector<ident::Term>& terms, const Inputs& a, const Eigen::Matrix3d& m_cs) {
+  const dataset::CaseData c = case_of(a);
+  return ident::build_regression(terms, ident::signals_from_case(c, m_cs, kTRef)).phi;
+}
+
+/// A basis holding `model` and the external-frame sensitivities, static squares only.
+struct Fixture {
+  std::vector<ident::Term> model_terms;
+  std::unique_ptr<LiveBasis> basis;
+  std::vector<Index> model, sensitivities;
+
+  explicit Fixture(const std::vector<std::string>& model_names) : model_terms(ident::parse_terms(model_names)) {
+    std::vector<ident::Term> all = model_terms;
+    for (const char* s : {"a_x", "a_y", "a_z"}) all.push_back(ident::parse_term(s));
+    basis = std::make_unique<LiveBasis>(all, std::vector<ident::Term>{});
+    for (const ident::Term& t : model_terms) model.push_back(basis->find(t));
+    for (const char* s : {"a_x", "a_y", "a_z"}) sensitivities.push_back(basis->find(ident::parse_term(s)));
+  }
+
+  [[nodiscard]] LiveSolver solver() const {
+    return LiveSolver(*basis, model, sensitivities, dataset::SensorKind::Accelerometer, CornerGrid(), true, SolverOptions{});
+  }
+
+  /// The statistics of rows `a` (case frame) with output y.
+  [[nodiscard]] Information statistics(const Inputs& a, const VectorXd& y) const {
+    dataset::CaseData c = case_of(a);
+    c.y = y;
+    MatrixXd b(a.rows(), basis->base_size());
+    basis->evaluate(ident::signals_from_case(c, Eigen::Matrix3d::Identity(), kTRef), 0, b);
+    Information info(basis->base_size(), 0, 0);
+    info.add(b, {}, y);
+    info.add_inputs(a);
+    return info;
+  }
+};
+
+/// The size of a coefficient that would carry the whole output on column j alone: the scale a
+/// coefficient's rounding error is measured against.
+VectorXd coefficient_scales(const MatrixXd& phi, const VectorXd& y) {
+  VectorXd s(phi.cols());
+  for (Index j = 0; j < phi.cols(); ++j) s(j) = y.norm() / phi.col(j).norm();
+  return s;
+}
+
+const std::vector<std::string> kModel = {"1", "a_i", "a_p", "a_o", "a_i^2", "a_i*a_p"};
+
+VectorXd truth() {
+  VectorXd t(6);
+  t << 3.44e-3, 0.0877, 2.0e-4, -1.5e-4, 5.3e-6, 8.9e-6;
+  return t;
+}
+
+TEST(LiveSolver, NoiselessBatchGivesBackTheCoefficients) {
+  const Fixture fx(kModel);
+  const Inputs a = random_inputs(3000, 1);
+  const Eigen::Matrix3d m_cs = frames::frame_rotation(Eigen::Vector3d(0.2, 0.5, 1.0).normalized(), 0.03);
+  const MatrixXd phi = sensor_frame_columns(fx.model_terms, a, m_cs);
+  const VectorXd y = phi * truth();
+  const Information info = fx.statistics(a, y);
+  const StatFit f = fx.solver().fit_batch({&info}, {m_cs});
+  ASSERT_TRUE(f.ok) << f.why;
+  EXPECT_TRUE(f.undetermined.empty());
+  ASSERT_EQ(f.terms, fx.model);
+  EXPECT_FALSE(f.corner_rad_s.has_value()) << "no grid: static squares";
+  const VectorXd scale = coefficient_scales(phi, y);
+  for (Index j = 0; j < 6; ++j) EXPECT_NEAR(f.theta(j), truth()(j), 1e-9 * scale(j)) << kModel[static_cast<std::size_t>(j)];
+  EXPECT_LT(std::abs(f.rss), 1e-12 * y.squaredNorm());
+  EXPECT_EQ(f.weight, 3000.0);
+}
+
+TEST(LiveSolver, NoisyBatchIsTheQrSolutionWithItsStatistics) {
+  const Fixture fx(kModel);
+  const Inputs a = random_inputs(3000, 2);
+  const Eigen::Matrix3d m_cs = frames::frame_rotation(Eigen::Vector3d(-0.4, 1.0, 0.3).normalized(), 0.02);
+  const MatrixXd phi = sensor_frame_columns(fx.model_terms, a, m_cs);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 1e-3);
+  VectorXd y = phi * truth();
+  for (Index k = 0; k < y.size(); ++k) y(k) += noise(rng);
+  const Information info = fx.statistics(a, y);
+  const StatFit f = fx.solver().fit_batch({&info}, {m_cs});
+  ASSERT_TRUE(f.ok) << f.why;
+  ASSERT_EQ(f.terms, fx.model);
+  // Ordinary least squares on the rows: theta, rss, s^2 = rss / (n - p), sd^2 = s^2 (Phi'Phi)^-1.
+  const VectorXd theta = phi.colPivHouseholderQr().solve(y);
+  const double rss = (y - phi * theta).squaredNorm();
+  const double s2 = rss / (3000.0 - 6.0);
+  const VectorXd sd = (s2 * (phi.transpose() * phi).inverse().diagonal()).cwiseSqrt();
+  const VectorXd scale = coefficient_scales(phi, y);
+  for (Index j = 0; j < 6; ++j) {
+    EXPECT_NEAR(f.theta(j), theta(j), 1e-9 * scale(j)) << kModel[static_cast<std::size_t>(j)];
+    EXPECT_NEAR(f.sd(j), sd(j), 1e-6 * sd(j)) << kModel[static_cast<std::size_t>(j)];
+  }
+  // The statistics' rss is y'y - 2 theta'Phi'y + theta'Phi'Phi theta: its rounding is a few eps y'y.
+  EXPECT_NEAR(f.rss, rss, 1e-12 * y.squaredNorm());
+  EXPECT_NEAR(f.s2, s2, 1e-6 * s2);
+}
+
+TEST(LiveSolver, ACollinearColumnIsNamedNotGuessed) {
+  // a_o is gravity alone (constant): it is the bias's column times 9.80665. The bias takes
+  // b + k_o g; a_o has no value of its own.
+  const Fixture fx({"1", "a_i", "a_p", "a_o"});
+  Inputs a = random_inputs(2000, 4);
+  a.col(2).setConstant(9.80665);
+  const VectorXd k = (VectorXd(4) << 3.44e-3, 0.0877, 2.0e-4, -1.5e-4).finished();
+  const MatrixXd phi = sensor_frame_columns(fx.model_terms, a, Eigen::Matrix3d::Identity());
+  const VectorXd y = phi * k;
+  const Information info = fx.statistics(a, y);
+  const StatFit f = fx.solver().fit_batch({&info}, {Eigen::Matrix3d::Identity()});
+  ASSERT_TRUE(f.ok) << f.why;
+  EXPECT_EQ(f.undetermined, std::vector<Index>(1, fx.model[3]));
+  EXPECT_FALSE(f.value(fx.model[3]).has_value());
+  ASSERT_TRUE(f.value(fx.model[0]).has_value());
+  EXPECT_NEAR(*f.value(fx.model[0]), k(0) + k(3) * 9.80665, 1e-12);
+  EXPECT_NEAR(*f.value(fx.model[1]), k(1), 1e-12);
+  EXPECT_NEAR(*f.value(fx.model[2]), k(2), 1e-12);
+
+  // a_p = 2 a_i on every row: a_i (the scale factor, ranked first) carries k_i + 2 k_p.
+  Inputs b = random_inputs(2000, 5);
+  b.col(1) = 2.0 * b.col(0);
+  const MatrixXd phi_b = sensor_frame_columns(fx.model_terms, b, Eigen::Matrix3d::Identity());
+  const VectorXd y_b = phi_b * k;
+  const Information info_b = fx.statistics(b, y_b);
+  const StatFit g = fx.solver().fit_batch({&info_b}, {Eigen::Matrix3d::Identity()});
+  ASSERT_TRUE(g.ok) << g.why;
+  EXPECT_EQ(g.undetermined, std::vector<Index>(1, fx.model[2]));
+  EXPECT_FALSE(g.value(fx.model[2]).has_value());
+  EXPECT_NEAR(*g.value(fx.model[1]), k(1) + 2.0 * k(2), 1e-12);
+  EXPECT_NEAR(*g.value(fx.model[3]), k(3), 1e-12);
+  EXPECT_NEAR(*g.value(fx.model[0]), k(0), 1e-11);
+}
+
+TEST(LiveSolver, BatchOverTwoMountingsIsOneSolveOnTheStackedRows) {
+  // Each mounting's rows turned by its own M_C^S, one model over both.
+  const Fixture fx(kModel);
+  const Inputs a1 = random_inputs(1500, 6), a2 = random_inputs(1200, 7);
+  const Eigen::Matrix3d m1 = frames::frame_rotation(Eigen::Vector3d(0.0, 0.3, 1.0).normalized(), 0.035);
+  const Eigen::Matrix3d m2 = frames::frame_rotation(Eigen::Vector3d(0.0, 1.0, -0.6).normalized(), 0.026);
+  MatrixXd phi(2700, 6);
+  phi << sensor_frame_columns(fx.model_terms, a1, m1), sensor_frame_columns(fx.model_terms, a2, m2);
+  std::mt19937_64 rng(8);
+  std::normal_distribution<double> noise(0.0, 1e-3);
+  VectorXd y = phi * truth();
+  for (Index k = 0; k < y.size(); ++k) y(k) += noise(rng);
+  const Information i1 = fx.statistics(a1, y.head(1500));
+  const Information i2 = fx.statistics(a2, y.tail(1200));
+  const StatFit f = fx.solver().fit_batch({&i1, &i2}, {m1, m2});
+  ASSERT_TRUE(f.ok) << f.why;
+  EXPECT_EQ(f.weight, 2700.0);
+  const VectorXd theta = phi.colPivHouseholderQr().solve(y);
+  const VectorXd scale = coefficient_scales(phi, y);
+  for (Index j = 0; j < 6; ++j) EXPECT_NEAR(f.theta(j), theta(j), 1e-9 * scale(j)) << kModel[static_cast<std::size_t>(j)];
+}
+
+TEST(LiveSolver, MountingFindsTheInputAxisItWasMadeWith) {
+  // y = b + k a_i + k2 a_i^2 with a_i = n_i . a: algorithm 1 on the sensitivities k n_i of a_x a_y
+  // a_z, to the fixed point, gives n_i; the F_S fit gives b and k2.
+  const Fixture fx({"1", "a_i", "a_i^2"});
+  const Inputs a = random_inputs(3000, 9);
+  const Eigen::Matrix3d m_true = frames::frame_rotation(Eigen::Vector3d(0.0, 0.3, 1.0).normalized(), 0.035);
+  const VectorXd k = (VectorXd(3) << 3.44e-3, 0.0877, 5.3e-4).finished();
+  const VectorXd y = sensor_frame_columns(fx.model_terms, a, m_true) * k;
+  MountingStatistics m;
+  m.name = "table";
+  m.info = fx.statistics(a, y);
+  m.kind.shaker_only = false;
+  const MountingFit fit = fx.solver().fit_mounting(m, std::nullopt);
+  ASSERT_TRUE(fit.determined) << fit.note;
+  const Eigen::Vector3d n_i = m_true.row(0).transpose();
+  EXPECT_LT((fit.m_cs.row(0).transpose() - n_i).norm(), 1e-9);
+  for (std::size_t c = 0; c < 3; ++c) {
+    ASSERT_TRUE(fit.fit.value(fx.sensitivities[c]).has_value());
+    EXPECT_NEAR(*fit.fit.value(fx.sensitivities[c]), k(1) * n_i(static_cast<Index>(c)), 1e-10);
+  }
+  ASSERT_TRUE(fit.fit.value(fx.model[2]).has_value());
+  EXPECT_NEAR(*fit.fit.value(fx.model[2]), k(2), 1e-11);
+  ASSERT_TRUE(fit.bias.has_value());
+  EXPECT_NEAR(*fit.bias, k(0), 1e-10);
+}
+
+TEST(LiveSolver, AMountingWithoutExcitationIsHeldAtTheNominalFrame) {
+  // One static pose: gravity along IRA and the references' noise (1e-4 g). With the bias estimated
+  // nothing varies on its own (procedure::axis_excitation): M_C^S stays the warm start and both
+  // tilts carry the mounting tolerance.
+  const Fixture fx({"1", "a_i"});
+  std::mt19937_64 rng(10);
+  std::normal_distribution<double> noise(0.0, 1e-4 * 9.80665);
+  Inputs a(2000, 3);
+  for (Index k = 0; k < a.rows(); ++k) a.row(k) << 9.80665 + noise(rng), noise(rng), noise(rng);
+  const VectorXd y = sensor_frame_columns(fx.model_terms, a, Eigen::Matrix3d::Identity()) * Eigen::Vector2d(1e-3, 0.0877);
+  MountingStatistics m;
+  m.name = "pose";
+  m.info = fx.statistics(a, y);
+  m.kind.shaker_only = false;
+  m.m_cs = frames::frame_rotation(Eigen::Vector3d::UnitZ(), 0.01);
+  const SolverOptions defaults;
+  const MountingFit fit = fx.solver().fit_mounting(m, std::nullopt);
+  EXPECT_FALSE(fit.determined);
+  EXPECT_EQ(fit.m_cs, m.m_cs);
+  EXPECT_FALSE(fit.note.empty());
+  EXPECT_DOUBLE_EQ(fit.angles_sd(1), defaults.mounting_tolerance_rad);
+  EXPECT_DOUBLE_EQ(fit.angles_sd(2), defaults.mounting_tolerance_rad);
+  EXPECT_TRUE(std::isnan(fit.angles(0))) << "the turn about n_i is not observable";
+}
+
+TEST(LiveSolver, NoSamplesNoFit) {
+  const Fixture fx(kModel);
+  const Information empty(fx.basis->base_size(), 0, 0);
+  const StatFit f = fx.solver().fit_batch({&empty}, {Eigen::Matrix3d::Identity()});
+  EXPECT_FALSE(f.ok);
+  EXPECT_FALSE(f.why.empty());
+}
+
+}  // namespace
+}  // namespace inertia::online
