@@ -86,24 +86,21 @@ struct MountingState {
   std::vector<std::vector<std::string>> cases;
 };
 
+/// The batch's mountings (procedure::mountings_of): the cases one M_C^S is shared by.
 MountingState mountings_of(const dataset::Dataset& data) {
   MountingState m;
-  for (const dataset::CaseData& c : data.cases) {
-    const std::string& name = c.mounting_group();
-    auto it = std::find(m.names.begin(), m.names.end(), name);
-    if (it == m.names.end()) {
-      m.names.push_back(name);
-      m.cases.emplace_back();
-      it = m.names.end() - 1;
-    }
-    m.cases[static_cast<std::size_t>(it - m.names.begin())].push_back(c.name);
+  for (const auto& [label, members] : procedure::mountings_of(data)) {
+    m.names.push_back(label);
+    m.cases.emplace_back();
+    for (const std::size_t i : members) m.cases.back().push_back(data.cases[i].name);
   }
   return m;
 }
 
 int mounting_index(const MountingState& m, const dataset::CaseData& c) {
-  const std::string& name = c.mounting_group();
-  return static_cast<int>(std::find(m.names.begin(), m.names.end(), name) - m.names.begin());
+  for (std::size_t g = 0; g < m.cases.size(); ++g)
+    if (std::find(m.cases[g].begin(), m.cases[g].end(), c.name) != m.cases[g].end()) return static_cast<int>(g);
+  throw std::logic_error("diagnose: case '" + c.name + "' in no mounting");
 }
 
 Eigen::Matrix3d small_rotation(const Eigen::Vector3d& v) {
@@ -113,23 +110,6 @@ Eigen::Matrix3d small_rotation(const Eigen::Vector3d& v) {
 }
 
 
-
-/// Statistics of a polynomial fit from its Gram matrix, as UlsStatistics::from_data builds them
-/// from data (RMS-scaled), so solve_uls gives the estimate and its identifiability check.
-ident::UlsStatistics statistics_from_gram(const Eigen::MatrixXd& gram, const Eigen::VectorXd& cross, double yy,
-                                          Index samples) {
-  ident::UlsStatistics s;
-  s.samples = samples;
-  s.scale = (gram.diagonal() / static_cast<double>(std::max<Index>(samples, 1))).cwiseMax(0.0).cwiseSqrt();
-  const Eigen::VectorXd inv = (s.scale.array() > 0.0).select(s.scale.array().inverse(), 1.0).matrix();
-  s.gram = inv.asDiagonal() * gram * inv.asDiagonal();
-  s.cross = inv.asDiagonal() * cross;
-  s.yy = yy;
-  s.s11 = static_cast<double>(samples);
-  s.den_gram.resize(0, 0);
-  s.den_sum.resize(0);
-  return s;
-}
 
 struct ColumnFit {
   bool ok = false;
@@ -175,7 +155,12 @@ ColumnFit fit_on_statistics(const Workspace& w, const std::vector<Index>& fit,
   auto stats = [&](const Eigen::MatrixXd& m, Index samples) {
     const Eigen::MatrixXd g = e.transpose() * m * e;
     const Eigen::VectorXd c = e.transpose() * (m * wy);
-    return statistics_from_gram(g, c, wy.dot(m * wy), samples);
+    Eigen::MatrixXd augmented(nfit + 1, nfit + 1);   // [Phi y]'[Phi y], as UlsStatistics::from_gram takes it
+    augmented.topLeftCorner(nfit, nfit) = g;
+    augmented.topRightCorner(nfit, 1) = c;
+    augmented.bottomLeftCorner(1, nfit) = c.transpose();
+    augmented(nfit, nfit) = wy.dot(m * wy);
+    return ident::UlsStatistics::from_gram(augmented, samples);
   };
   ident::UlsSolution sol;
   try {
