@@ -49,6 +49,22 @@ function(inertia_add_library name)
   target_link_libraries(${name} PUBLIC ${ARG_DEPENDS} PRIVATE inertia_warnings)
 endfunction()
 
+# The test binaries' heavy headers (GoogleTest, Eigen, the standard library's), precompiled once
+# into inertia_test_pch and reused by every test target: parsed once per build instead of once
+# per test file. GCC takes a precompiled header only when the flags it was made with match (the
+# sanitizer's, -march, the definitions below), and otherwise reads the headers as text: a mismatch
+# costs time, never correctness. Off: each test file parses them itself.
+option(INERTIA_TEST_PCH "Precompile the test binaries' common headers once" ON)
+set(INERTIA_TEST_DEFINITIONS INERTIA_SOURCE_DIR="${PROJECT_SOURCE_DIR}" INERTIA_BINARY_DIR="${PROJECT_BINARY_DIR}")
+if(INERTIA_TEST_PCH AND NOT INERTIA_FUZZ)
+  add_library(inertia_test_pch STATIC ${PROJECT_SOURCE_DIR}/tests/support/pch_anchor.cpp)
+  target_link_libraries(inertia_test_pch PRIVATE GTest::gtest Eigen3::Eigen inertia_warnings)
+  target_compile_definitions(inertia_test_pch PRIVATE ${INERTIA_TEST_DEFINITIONS})
+  target_precompile_headers(inertia_test_pch PRIVATE
+    <gtest/gtest.h> <Eigen/Dense> <algorithm> <chrono> <cmath> <filesystem> <fstream> <functional> <map>
+    <memory> <optional> <random> <set> <sstream> <string> <thread> <vector>)
+endif()
+
 # inertia_add_gtest(name SOURCES ... DEPENDS ... [LABELS ...]): one GoogleTest binary, each test a CTest test.
 function(inertia_add_gtest name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPENDS;LABELS" ${ARGN})
@@ -58,8 +74,10 @@ function(inertia_add_gtest name)
   # are never merged into one unity source (CI builds the sanitizer jobs' libraries that way).
   set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/tests UNITY_BUILD OFF)
   target_link_libraries(${name} PRIVATE ${ARG_DEPENDS} GTest::gtest_main inertia_warnings)
-  target_compile_definitions(${name} PRIVATE INERTIA_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
-                             INERTIA_BINARY_DIR="${PROJECT_BINARY_DIR}")
+  target_compile_definitions(${name} PRIVATE ${INERTIA_TEST_DEFINITIONS})
+  if(TARGET inertia_test_pch)
+    target_precompile_headers(${name} REUSE_FROM inertia_test_pch)
+  endif()
   # Labels go on the directory (every test folder holds one area): a list passed through
   # gtest_discover_tests' PROPERTIES keeps only its first element in CMake 3.25.
   set_property(DIRECTORY APPEND PROPERTY LABELS ${ARG_LABELS})
