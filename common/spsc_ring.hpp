@@ -1,5 +1,5 @@
 #pragma once
-// Single-producer single-consumer lock-free ring (style.md section 8), after rigtorp's
+// Single-producer single-consumer lock-free ring, after rigtorp's
 // SPSCQueue: fixed capacity chosen at construction, no copies or moves, indices on their own
 // cache lines, each side caching the other side's index so that the common case touches no
 // cache line the other thread writes.

@@ -283,7 +283,7 @@ int run_daemon(const DaemonOptions& command_line) {
   if (mlock_refused)
     std::cerr << "inertia-daqd: warning: mlockall: " << std::strerror(errno) << " (needs CAP_IPC_LOCK or LimitMEMLOCK); running without it\n";
 
-  // LCM self-check: udpm needs a multicast route even on one host (daq.md section 1).
+  // LCM self-check: udpm needs a multicast route even on one host.
   const std::string url = !o.lcm_url.empty() ? o.lcm_url : (std::getenv("LCM_DEFAULT_URL") ? std::getenv("LCM_DEFAULT_URL") : "");
   const bool udpm = url.empty() || url.rfind("udpm://", 0) == 0;
   if (udpm && !has_multicast_route()) {

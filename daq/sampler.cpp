@@ -14,7 +14,7 @@ namespace inertia::daq {
 namespace {
 
 /// The ring writer every device pushes into. Real-time: try_stage only; a full ring is a
-/// counted drop (style.md section 8), never a wait. Samples become visible to the publisher at
+/// counted drop, never a wait. Samples become visible to the publisher at
 /// flush(), once per read_into() call rather than once per sample, and the counters are the
 /// sampling thread's own (plain increments, stored to the slot's atomics at flush): per-sample
 /// atomic read-modify-writes and index stores were most of the sink's cost at 10^6 samples/s.

@@ -33,7 +33,7 @@ struct RealtimeOptions {
 class Sampler {
  public:
   virtual ~Sampler() = default;
-  /// Lifecycle (style.md section 4): configure, then activate. False + why naming the device
+  /// Lifecycle: configure, then activate. False + why naming the device
   /// (the slot's state says Failed). Control thread, before start().
   virtual bool bring_up(std::string* why) = 0;
   virtual void start(const RealtimeOptions& rt) = 0;
@@ -84,7 +84,7 @@ class DeviceSampler final : public Sampler {
 };
 
 /// A Modbus controller polled at its interval. Thread: its own, NOT real-time (each request may
-/// block up to the response timeout; daq.md section 3 says never in a sampling thread of a
+/// block up to the response timeout, which must never hold up a sampling thread of a
 /// fast device, so it has a thread of its own and a ring like every device).
 /// With a ControllerPort the same thread also carries the test executive's commands to the
 /// device (the only thread that talks to it), between polls and at once when posted.

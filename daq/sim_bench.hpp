@@ -1,5 +1,5 @@
 #pragma once
-// A simulated bench (backend = "sim") standing behind the real wires (docs/design.md, style.md §6):
+// A simulated bench (backend = "sim") standing behind the real wires (docs/design.md):
 // the bench physics of hal/sim is computed for the whole test plan, then a driver thread plays
 // it in simulated time into
 //   * one CAN bus "accel": every accelerometer channel (sensors under test, monitors, the

@@ -1,5 +1,5 @@
 #pragma once
-// The device interface of the HAL (docs/design.md, "The hardware abstraction layer"; style.md §3-5, §7).
+// The device interface of the HAL (docs/design.md, "The hardware abstraction layer").
 // A device produces timestamped samples for named channels. The daemon owns the lifecycle
 // (Unconfigured -> Inactive -> Active -> Inactive -> Finalized, plus Failed) and applies the
 // transition table; a device only answers each transition with a Step and keeps health counters.
@@ -44,7 +44,7 @@ class SampleSink {
   ~SampleSink() = default;
 };
 
-/// Health is numbers, not log lines (style §7); published per device in INERTIA_STATUS at 1 Hz.
+/// Health is numbers, not log lines; published per device in INERTIA_STATUS at 1 Hz.
 /// Backends keep their own extra counters (CanStatus, QuadratureCounters, ModbusHealth).
 /// Thread: written by the sampling thread; read it there (copy it out with the samples).
 struct DeviceHealth {

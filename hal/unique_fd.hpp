@@ -1,5 +1,5 @@
 #pragma once
-// One owning wrapper per C handle (style §10): a file descriptor closed exactly once.
+// One owning wrapper per C handle: a file descriptor closed exactly once.
 #include <unistd.h>
 
 #include <utility>

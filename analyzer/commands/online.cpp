@@ -542,7 +542,7 @@ class Receiver {
 };
 
 /// The URL with a receive buffer large enough for a burst of sample blocks (the default 208 KiB
-/// holds about three; daq.md section 1), unless the user set one.
+/// holds about three), unless the user set one.
 std::string with_receive_buffer(const std::string& url) {
   if (!is_udpm(url) || url.find("recv_buf_size") != std::string::npos) return url;
   const std::string base = url.empty() ? "udpm://239.255.76.67:7667?ttl=0" : url;

@@ -1,5 +1,5 @@
 #pragma once
-// Error reduction ratio (paper equation 8) and forward orthogonal ranking (FROLS, notes §5),
+// Error reduction ratio (paper equation 8) and forward orthogonal ranking (FROLS),
 // computed on the Gram matrix G = [Phi Y]'[Phi Y] instead of the data:
 //   ERR_j = (q_j'Y)^2 / (q_j'q_j  Y'Y) = G(j,Y)^2 / (G(j,j) G(Y,Y))   after orthogonalization,
 // and orthogonalizing against a selected column m is the Schur complement
@@ -75,7 +75,7 @@ ErrRanking err_rank(const Eigen::Ref<const Eigen::MatrixXd>& gram, const ErrOpti
 ErrRanking err_rank(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                     const Eigen::Ref<const Eigen::VectorXd>& y, const ErrOptions& options);
 
-/// Bias-corrected Gram matrix for output-multiplied candidates (notes §5.4). Column c listed in
+/// Bias-corrected Gram matrix for output-multiplied candidates. Column c listed in
 /// `output_multiplied` holds y(k) p_b(k) as given (not negated); `factors` holds p_b (N x q, same
 /// order). With y = y0 + e the inner products are inflated by the noise:
 ///   (c_i, c_j) -= sigma2 sum p_i p_j,  (c_i, Y) -= sigma2 sum p_i,  (Y, Y) -= sigma2 N,

@@ -245,7 +245,7 @@ UlsSolution solve_uls(const UlsStatistics& stats, const std::vector<std::string>
     out.theta = inv_scale.cwiseProduct(theta);
     return out;
   }
-  // PD guard (notes §3 step 3): only the q x q block of R^-1 D matters.
+  // PD guard: only the q x q block of R^-1 D matters.
   Eigen::MatrixXd r_inv_bb(q, q);
   for (Index a = 0; a < q; ++a)
     for (Index b = 0; b < q; ++b) r_inv_bb(a, b) = r_inv(den[a], den[b]);
@@ -393,7 +393,7 @@ UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
     // The linear-form residual zeta is what the regression leaves; for b == 1 it equals eps.
     out.covariance = (zeta.squaredNorm() / dof) * solution.gram_inverse;
   } else {
-    // notes §6.1: g_k = phi_lin(k) zeta(k) + sigma^2 [0; p_b(k) b(k)],  S = sum g g'.
+    // The sandwich's meat: g_k = phi_lin(k) zeta(k) + sigma^2 [0; p_b(k) b(k)],  S = sum g g'.
     Eigen::MatrixXd s = Eigen::MatrixXd::Zero(p, p);
     Eigen::MatrixXd g(std::min(kBlockRows, n), p);
     for (Index k0 = 0; k0 < n; k0 += kBlockRows) {
@@ -473,7 +473,7 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   UlsResult res = finish_uls(x.leftCols(p), y, xlabels, xcols, xr, xf, sol, options);
   if (n_e == 0) return res;
 
-  // ELS (notes §3 step 5): rebuild e[k-i] from the current residuals and refit until stable.
+  // ELS: rebuild e[k-i] from the current residuals and refit until stable.
   xcols.resize(static_cast<std::size_t>(p + n_e));
   std::iota(xcols.begin(), xcols.end(), Index{0});
   Eigen::VectorXd previous = Eigen::VectorXd::Zero(p + n_e);

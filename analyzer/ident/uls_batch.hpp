@@ -1,11 +1,10 @@
 #pragma once
-// Batch unified least squares (ULS) after Zhu & Billings, as reconstructed in
-// shared/notes/uls.md §3: plain LS for polynomial terms, the sigma^2 bias correction
+// Batch unified least squares (ULS) after Zhu & Billings: plain LS for polynomial terms, the sigma^2 bias correction
 // (R - s^2 Psi) theta = r + s^2 psi for output-multiplied (rational denominator) terms, and
 // extended least squares for MA noise lags. Works on plain Eigen matrices; term names only
 // travel along as labels so that errors and results can name them.
 //
-// Model and sign convention (notes §1). A column listed in OutputMultiplied holds
+// Model and sign convention. A column listed in OutputMultiplied holds
 // c_j(k) = y(k) p_b,j(k). The model is
 //     y(k) = a(k) / b(k) + e(k),   a(k) = sum_num theta_i phi_i(k),   b(k) = 1 + sum_den theta_j p_b,j(k)
 // and is fitted in its linear form
@@ -15,7 +14,7 @@
 // The normalising denominator term p_b,1 is the constant 1 (b = 1 + ...).
 // The sigma^2 correction assumes the noise is additive on the output reading (y = a/b + e); if
 // the implicit equation itself carries the noise (y b = a + v) the correction is not the right
-// one (notes §1, modelling caution), and products of the output with *known* reference signals
+// one (a modelling caution), and products of the output with *known* reference signals
 // are ordinary polynomial terms that need no correction at all.
 #include <Eigen/Dense>
 
@@ -42,15 +41,15 @@ struct OutputMultiplied {
 enum class CovarianceKind {
   Auto,       ///< Classical without output-multiplied columns, Sandwich with them.
   Classical,  ///< s^2 (Phi' Phi)^-1, s^2 = sum eps^2 / (N - p).
-  Sandwich,   ///< M^-1 S M^-1 of notes §6.1 (M = R - s^2 Psi); rational models.
+  Sandwich,   ///< M^-1 S M^-1, the sandwich (M = R - s^2 Psi); rational models.
 };
 
 struct UlsOptions {
-  int noise_lags = 0;               ///< n_e: columns e[k-1] .. e[k-n_e] appended (ELS, notes §3 step 5)
-  int max_iterations = 50;          ///< sigma^2 fixed-point iterations (notes §3 step 6)
+  int noise_lags = 0;               ///< n_e: columns e[k-1] .. e[k-n_e] appended (ELS)
+  int max_iterations = 50;          ///< sigma^2 fixed-point iterations
   int max_noise_iterations = 100;   ///< ELS outer iterations (residuals rebuilt each time)
   double tolerance = 1e-8;          ///< relative change of theta and sigma^2 that ends an iteration
-  /// PD guard (notes §3 step 3): sigma^2 lambda_max([R^-1]_bb D) is clamped to this, so the
+  /// PD guard: sigma^2 lambda_max([R^-1]_bb D) is clamped to this, so the
   /// corrected matrix R - sigma^2 Psi keeps at least (1 - max_correction) of R in every direction.
   double max_correction = 0.95;
   /// Identifiability threshold on the RMS-scaled Gram matrix R_s = S^-1 Phi'Phi S^-1 / N, whose
@@ -94,7 +93,7 @@ struct UlsResult {
   Eigen::MatrixXd covariance;
   Eigen::VectorXd std_dev;
   /// eps(k) = y(k) - (a(k) + noise terms) / b(k): one-step-ahead residual, the quantity the
-  /// model predicts (notes §6.3); for b == 1 the usual LS residual.
+  /// model predicts; for b == 1 the usual LS residual.
   Eigen::VectorXd residuals;
   double sigma2 = 0.0;             ///< noise variance of the ULS ratio estimator sum zeta^2 / sum b^2
   double residual_variance = 0.0;  ///< sum eps^2 / (N - p), p counting noise terms too
@@ -112,7 +111,7 @@ struct UlsResult {
 /// prediction from the coefficients, a case offset read against them, reads the columns so.
 [[nodiscard]] Eigen::VectorXd linear_form_signs(Index columns, std::span<const Index> output_multiplied_columns);
 
-/// Sufficient statistics of the linear form in RMS-scaled units (notes §3 step 0).
+/// Sufficient statistics of the linear form in RMS-scaled units.
 /// Column j of the linear form is phi_lin,j = sign_j * phi_j (sign -1 for output-multiplied
 /// columns), scaled: phi_s,j = phi_lin,j / scale_j. Built in one O(N p^2) pass; every subset fit
 /// afterwards costs O(p^3) and no data pass, so trying many candidate models reuses one object.
@@ -161,7 +160,7 @@ struct UlsSolution {
   bool converged = false;
 };
 
-/// notes §3 steps 1-4 and 6 on statistics: identifiability check, LS start, ratio sigma^2
+/// ULS on statistics: identifiability check, LS start, ratio sigma^2
 /// estimator, PD guard, corrected solve, iterate. labels[j] names column j of `stats` in errors.
 /// Throws IdentifiabilityError (names the dependent columns) or std::runtime_error when the
 /// corrected matrix is not positive definite.
@@ -175,7 +174,7 @@ Eigen::MatrixXd denominator_factors(const Eigen::Ref<const Eigen::MatrixXd>& phi
                                     const OutputMultiplied& rational,
                                     const std::vector<std::string>& labels);
 
-/// Full batch ULS on the columns `columns` of phi (all columns when empty): notes §3 with ELS
+/// Full batch ULS on the columns `columns` of phi (all columns when empty): ULS with ELS
 /// noise lags, residuals and covariance. labels has one entry per column of phi.
 /// Not real-time: allocates O(N) for residuals; O(N p^2) per ELS pass.
 UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,

@@ -1,6 +1,6 @@
 #pragma once
 // LCM's UDP multicast provider refuses to start on a host without a route for 224.0.0.0/4, even
-// when every peer is on this host (daq.md section 1). Both the daemon and `inertia-analyze online`
+// when every peer is on this host. Both the daemon and `inertia-analyze online`
 // check it first, so the user reads how to fix it instead of LCM's bare failure.
 #include <string>
 

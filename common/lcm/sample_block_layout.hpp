@@ -16,7 +16,7 @@ namespace inertia {
 
 /// LCM 1.3.1 sends a message as one datagram only when channel name + NUL + encoded message is
 /// below this (lcm_udpm.c: `payload_size < LCM_SHORT_MESSAGE_MAX_SIZE`); above it the message
-/// is fragmented and one lost fragment loses all of it (daq.md section 1).
+/// is fragmented and one lost fragment loses all of it.
 inline constexpr std::size_t kLcmShortMessageMaxSize = 65499;
 
 /// Sets num_channels, num_samples and valid_bytes and sizes every array to match, values 0.0,

@@ -1,8 +1,8 @@
 #pragma once
 // Modbus client link, TCP or RTU (serial line): one owning wrapper of libmodbus' modbus_t
-// (style §10) that reconnects by itself. Recovery is ours, not libmodbus':
+// that reconnects by itself. Recovery is ours, not libmodbus':
 // MODBUS_ERROR_RECOVERY_LINK makes 3.1.x loop "until successful" inside a call (libmodbus
-// issues #39, #199, #618; daq.md §3), so the mode stays NONE and a dropped link is closed, then
+// issues #39, #199, #618), so the mode stays NONE and a dropped link is closed, then
 // reconnected on a later call after an exponential, capped back-off. Calls never wait for the
 // back-off: they fail at once (ENOTCONN).
 // On a serial line there is no connection to lose: a controller that stops answering shows as

@@ -1,5 +1,5 @@
 #pragma once
-// The encoder's wire as this machine allows it (no GPIO chips, daq.md §2): one pipe per line
+// The encoder's wire as this machine allows it (a kernel without GPIO chips): one pipe per line
 // carrying the kernel's struct gpioevent_data records (16 bytes, <linux/gpio.h>), which is
 // exactly what libgpiod's gpiod_line_event_read_fd_multiple() reads from a line event fd.
 #include <array>

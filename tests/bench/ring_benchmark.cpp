@@ -1,5 +1,5 @@
-// bench_ring: inertia::SpscRing against boost::lockfree::spsc_queue in the same binary (style.md
-// section 14), producer on this thread and consumer on another, pinned to different CPUs when
+// bench_ring: inertia::SpscRing against boost::lockfree::spsc_queue in the same binary (a peer
+// measured in the same run), producer on this thread and consumer on another, pinned to different CPUs when
 // there are two. Both queues get the same capacity and element type and both consumers copy
 // each element out, so the only difference is the queue. BM_RingRatio runs both back to back in
 // alternating order inside every iteration and reports ratio = ours / boost throughput.

@@ -288,7 +288,7 @@ class NotifySocket {
   fs::path path_;
 };
 
-/// Sequence continuity of one device's blocks (style.md section 9): block seq +1 each, every
+/// Sequence continuity of one device's blocks (docs/design.md, the LCM channels): block seq +1 each, every
 /// channel's channel_seq continuing where the previous block ended. Returns the gaps found.
 inline std::int64_t sequence_gaps(const std::vector<sample_block_t>& blocks) {
   std::int64_t gaps = 0;

@@ -1,5 +1,5 @@
 // CanDevice through socketpair(AF_UNIX, SOCK_SEQPACKET): the real recvmsg path with real
-// can_frame/canfd_frame bytes (daq.md §4: this kernel has no AF_CAN).
+// can_frame/canfd_frame bytes (the test machine's kernel has no AF_CAN).
 #include <fcntl.h>
 #include <linux/can.h>
 #include <linux/can/error.h>
@@ -649,7 +649,7 @@ TEST(CanDeviceOpen, InterfaceOpenFailsWithAReason) {
   EXPECT_EQ(CanDevice::open_interface(config, &why), nullptr);
   const int probe = ::socket(PF_CAN, SOCK_RAW, 1 /*CAN_RAW*/);
   if (probe < 0) {
-    EXPECT_NE(why.find("no SocketCAN"), std::string::npos) << why;  // this machine (daq.md §4)
+    EXPECT_NE(why.find("no SocketCAN"), std::string::npos) << why;  // a kernel without AF_CAN
   } else {
     ::close(probe);
     EXPECT_NE(why.find("nosuchcan9"), std::string::npos) << why;   // a kernel with CAN

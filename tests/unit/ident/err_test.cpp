@@ -138,7 +138,7 @@ TEST(Err, BiasForcedGivesCenteredErr) {
   EXPECT_LT(plain.err[1], 1e-5);
 }
 
-// The corrected Gram matrix approximates the noise-free one (notes §5.4) where the plain one is
+// The corrected Gram matrix approximates the noise-free one where the plain one is
 // inflated by sigma^2 sum p_b^2.
 TEST(Err, BiasCorrectedGramRemovesNoiseInflation) {
   const double sigma = 0.1;

@@ -9,7 +9,7 @@
 
 namespace inertia::ident::testing {
 
-/// Billings & Zhu (1991) rational example (notes §3):
+/// Billings & Zhu (1991) rational example:
 ///   y(k) = (0.2 y(k-1) + 0.1 y(k-1) u(k-1) + u(k-1)) / (1 + y(k-1)^2 + y(k-2)^2) + e(k),
 /// u ~ U(-1, 1), e ~ N(0, sigma^2). Columns: y[k-1], y[k-1]*u[k-1], u[k-1] (numerator) and the
 /// output-multiplied y*y[k-1]^2, y*y[k-2]^2 (denominator), truth (0.2, 0.1, 1, 1, 1).
@@ -59,7 +59,7 @@ inline RationalExample rational_example(unsigned seed, Eigen::Index samples, dou
   return ex;
 }
 
-/// SysIdentPy book ARMAX-like example (notes §4.2):
+/// SysIdentPy book ARMAX-like example:
 ///   y = 0.2 y[k-1] + 0.1 y[k-1] x[k-1] + 0.9 x[k-2] + e,  e = nu + 0.8 nu[k-1],  nu ~ N(0, sigma^2)
 /// x ~ U(-1, 1). Columns y[k-1], y[k-1]*x[k-1], x[k-2]; truth (0.2, 0.1, 0.9), MA coefficient 0.8.
 struct ArmaxExample {

@@ -42,7 +42,7 @@ TEST(UlsBatch, LinearModelMatchesClosedForm) {
   EXPECT_TRUE(fit.converged);
 }
 
-// Billings-Zhu 1991: ULS unbiased within Monte-Carlo spread, LS visibly biased (notes §2 table).
+// Billings-Zhu 1991: ULS unbiased within Monte-Carlo spread, LS visibly biased.
 TEST(UlsBatch, BillingsZhuRationalExampleIsUnbiased) {
   const int runs = 20;
   const Eigen::Index n = 3000;
@@ -69,7 +69,7 @@ TEST(UlsBatch, BillingsZhuRationalExampleIsUnbiased) {
   for (int j = 0; j < 5; ++j) {
     const double se_mean = mc_sd[j] / std::sqrt(double(runs));
     EXPECT_NEAR(mean[j], truth[j], 4.0 * se_mean) << "ULS parameter " << j;
-    // Reported (sandwich) sd agrees with the Monte-Carlo spread: notes §6.1 found it within
+    // Reported (sandwich) sd agrees with the Monte-Carlo spread: it was found within
     // -5%..+35%; allow the sampling error of a 20-run sd (~16%) on top.
     const double ratio = sd.col(j).mean() / mc_sd[j];
     EXPECT_GT(ratio, 0.6) << j;
@@ -83,7 +83,7 @@ TEST(UlsBatch, BillingsZhuRationalExampleIsUnbiased) {
   EXPECT_NEAR(sigma2.mean(), sigma * sigma, 4.0 * sigma * sigma * std::sqrt(2.0 / double(n * runs)));
 }
 
-// ELS on an ARMAX-like model with MA(1) noise (notes §4.2: LS 0.288, ELS 0.2003).
+// ELS on an ARMAX-like model with MA(1) noise (LS 0.288, ELS 0.2003 in the SysIdentPy book).
 TEST(UlsBatch, ExtendedLeastSquaresRemovesMaBias) {
   const int runs = 20;
   const Eigen::Index n = 3000;

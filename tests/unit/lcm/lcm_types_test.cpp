@@ -57,7 +57,7 @@ TEST(LcmTypes, FingerprintsAreDistinct) {
 }
 
 TEST(LcmTypes, BlockLongerThanInt16LengthsRoundTrips) {
-  // daq.md: an int16_t length made publish() fail at 100000 values. 40000 > INT16_MAX.
+  // An int16_t length would make publish() fail at 100000 values. 40000 > INT16_MAX.
   sample_block_t block;
   shape_sample_block(block, 1, 40000);
   block.channel_names = {"y"};
