@@ -1,5 +1,6 @@
 #include "analyzer/procedure/misalignment.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -70,6 +71,11 @@ double input_axis_error(const frames::Dcm& m_es_true, const frames::Dcm& m_es_es
 
 double full_dcm_error(const frames::Dcm& m_es_true, const frames::Dcm& m_es_estimated) {
   return frames::angle_between(m_es_true, m_es_estimated);
+}
+
+bool uses_cross_axes(std::span<const ident::Term> terms) {
+  return std::any_of(terms.begin(), terms.end(),
+                     [](const ident::Term& t) { return t.uses(ident::Variable::Ap) || t.uses(ident::Variable::Ao); });
 }
 
 }  // namespace inertia::procedure

@@ -1,6 +1,9 @@
 #pragma once
 // Misalignment estimation, the paper's section 2.5 and algorithm 1.
 #include <Eigen/Dense>
+#include <span>
+
+#include "analyzer/ident/term.hpp"
 
 #include "common/frames.hpp"
 
@@ -27,6 +30,10 @@ frames::Dcm with_twist(const frames::Dcm& m, double psi);
 /// about p tilts it toward o, psi about n_i twists n_p and n_o (the turns a mounting's angles are
 /// refined or held by).
 frames::Dcm turned(const frames::Dcm& m_cs, const Eigen::Vector3d& turn);
+
+/// Whether a model uses the cross axes (a_p or a_o): only then does the twist about n_i, which
+/// algorithm 1 fixes by convention, change its columns.
+bool uses_cross_axes(std::span<const ident::Term> terms);
 
 /// A turn (a, b, psi) of turned() as the angles about i, p, o it makes (psi, -b, a), and back: the
 /// map is its own inverse. To first order, for the small turns of a misalignment's uncertainty.

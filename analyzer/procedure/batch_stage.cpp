@@ -1,0 +1,274 @@
+#include "analyzer/procedure/batch_stage.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "analyzer/ident/selection.hpp"
+#include "analyzer/ident/statistics.hpp"
+#include "analyzer/procedure/batch_regression.hpp"
+#include "analyzer/procedure/identifiable_fit.hpp"
+#include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/plan_validation.hpp"
+#include "analyzer/procedure/post_selection_inference.hpp"
+#include "analyzer/procedure/relative_twists.hpp"
+#include "analyzer/procedure/square_highpass.hpp"
+#include "analyzer/procedure/whitened_problem.hpp"
+#include "common/units.hpp"
+
+namespace inertia::procedure {
+namespace {
+
+using ident::Term;
+
+/// One angle a mounting's excitation does not determine (excitation.hpp), held at the nominal
+/// frame in blocks 5-6 and estimated in the batch with the tolerance as prior.
+struct HeldColumn {
+  std::size_t mounting = 0;                 // into the result's mountings
+  int axis = 1;                             // 1: tilt of n_i toward p (turn about o), 2: toward o (about p),
+                                            // 3: twist about n_i (PipelineOptions::batch_relative_twist)
+};
+
+std::vector<HeldColumn> held_columns(const std::vector<MountingResult>& mountings) {
+  std::vector<HeldColumn> held;
+  for (std::size_t m = 0; m < mountings.size(); ++m) {
+    for (int axis = 1; axis < 3; ++axis) {
+      if (!mountings[m].excitation.determined[static_cast<std::size_t>(axis)]) held.push_back({m, axis});
+    }
+  }
+  return held;
+}
+
+}  // namespace
+
+PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& data, const PipelineOptions& options,
+                              std::string_view dataset_label) {
+  PipelineResult result = std::move(mounted);
+  if (std::optional<std::string> note = temperature_note(data, options)) result.notes.push_back(std::move(*note));
+  const std::vector<Term> candidates = offered_terms(options.batch, ident::ModelFrame::Sensor, data, options, "batch");
+  // Held angles (excitation.hpp) stay at the nominal frame; after the selection their tolerance
+  // is propagated into the coefficients' covariance (below).
+  const std::vector<HeldColumn> held = held_columns(result.mountings);
+  const std::vector<Eigen::Vector3d> nominal(result.mountings.size(), Eigen::Vector3d::Zero());
+  set_case_frames(data, result.mountings, nominal, result.cases);
+  // The squares' high pass (eq. 12), its corner estimated on the whole batch as in blocks 5-6.
+  WhitenedProblem whitened =
+      whiten_problem(stack_regressions(candidates, batch_inputs(data, options, result.cases), data.t_ref, dataset_label), data,
+                     whitening_options(options, options.square_highpass && options.batch_square_highpass, std::nullopt));
+  result.square_corner_rad_s = whitened.square_corner_rad_s;
+  result.whitening = whitened.whitener.coefficients();
+  const std::optional<StaticNoiseLaw> batch_law = std::move(whitened.noise_law);
+  const ArWhitener& whitener = whitened.whitener;
+  // The batch's whitened regression rebuilt with the mountings turned or the corner moved: what the
+  // searched parameters' derivatives and the held angles' refits need.
+  const BatchRegression batch_at(data, options, dataset_label, ident::first_usable_row(candidates), whitener);
+  RelativeTwists twists = relative_twists(std::move(whitened.regression), std::move(result.mountings), batch_at, candidates,
+                                          result.square_corner_rad_s, data, options);
+  const StackedRegression batch = std::move(twists.batch);
+  result.mountings = std::move(twists.mountings);
+  result.notes.insert(result.notes.end(), twists.notes.begin(), twists.notes.end());
+  set_case_frames(data, result.mountings, nominal, result.cases);   // the cases' M_E^S with the turns
+  for (const CaseRows& rows : batch.cases) {
+    CaseOutcome& c = result.cases[rows.case_index];
+    c.first_row = rows.first_sample;
+    c.begin = rows.begin;
+    c.rows = rows.rows;
+  }
+
+  // Block 10 or 11.
+  ident::UlsOptions uls = options.selection.uls;
+  uls.noise_lags = options.batch.noise_lags;
+  std::vector<Eigen::Index> columns;
+  const std::vector<Eigen::Index> ranking = identifiable_ranking(batch, options.selection.err);
+  for (UndeterminedTerm& u : undetermined_columns(batch, ranking)) result.undetermined.push_back(std::move(u));
+  if (options.batch.select) {
+    ident::SelectionOptions selection = options.selection;
+    selection.uls.noise_lags = 0;   // structure first; the noise model joins the final fit
+    ident::SelectionProblem problem{batch.phi, batch.y, batch.labels, batch.rational, ranking};
+    // Every inertial sensor has a bias and a scale factor: the t-test of step 9 weighs the other
+    // terms against them, never them against a candidate. Pruning the weaker of a near-collinear
+    // pair first, it took the bias out of sim-gyro-thermal's model (seed 116: t 0.9 beside a_p's
+    // 1.3, with the bias's 2e-6 rad/s in the p axis' mean specific force) and named a_p at t 7.8.
+    const char own = data.sensor == dataset::SensorKind::Gyroscope ? 'w' : 'a';   // a gyro's a_i is a g-sensitivity
+    for (const Eigen::Index j : ranking) {
+      const std::string& label = batch.labels[static_cast<std::size_t>(j)];
+      if (label == "1" || (ident::is_sensitivity_label(label) && label.front() == own)) problem.kept.push_back(j);
+    }
+    const ident::SelectionResult selected = ident::select_model(problem, selection, nullptr);
+    columns = selected.best_model().columns;
+  } else {
+    columns = ranking;
+  }
+  std::vector<std::string> dropped;
+  ident::UlsResult selected_fit = fit_identifiable(batch, columns, uls, dropped);
+  // Honest inference on the selected model (the selection's t-tests take every sample as
+  // independent): (1) the cluster jackknife covariance over the cases' contiguous phases, where
+  // it is larger (coloured residual within a phase, offsets between phases and cases, a model
+  // error that repeats per phase, a term only a few phases carry), with Student's t on G - 1 dof; (2) each held angle turned by the
+  // mounting tolerance moves the coefficients by d (the exact refit, nonlinear terms included),
+  // and the covariance gains d d'. A term whose t then falls below the selection's level is not
+  // determined by this plan: it leaves and the rest is refitted.
+  const std::vector<int> clusters = phase_clusters(batch, data);
+  const Eigen::VectorXd loading = cross_axis_loading(batch, candidates, data, result.cases, dataset_label);
+  InferenceProblem honest;
+  honest.s = &batch;
+  honest.clusters = &clusters;
+  const std::vector<CaseRows> noise_runs = plan_case_rows(batch, data);
+  honest.noise_runs = &noise_runs;
+  honest.loading = &loading;
+  honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
+  honest.may_remove = options.batch.select;
+  honest.protect = [](const std::string& label) { return ident::is_sensitivity_label(label) || label == "1"; };
+  if (batch_law) honest.below_record = batch_law->below_record(whitener);
+  // The searches whose results the batch's columns are built with: the squares' corner and each
+  // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the
+  // between-phase dof no longer count the angles separately.
+  struct Searched {
+    std::size_t mounting = 0;
+    int axis = 0;   // 0: the squares' corner; 1, 2, 3: the mounting's turn (turned(): tilts, twist)
+  };
+  std::vector<Searched> searches;
+  if (result.square_corner_rad_s) searches.push_back({0, 0});
+  for (std::size_t k = 0; k < result.mountings.size(); ++k)
+    for (int axis = 1; axis < 3; ++axis)
+      if (result.mountings[k].excitation.determined[static_cast<std::size_t>(axis)]) searches.push_back({k, axis});
+  for (std::size_t k : twists.estimated) searches.push_back({k, 3});
+  honest.searched = [&](const ident::UlsResult& fit) {
+    SearchedColumns out;
+    Eigen::MatrixXd& columns = out.derivatives;
+    columns.resize(batch.phi.rows(), 0);
+    for (std::size_t i = 0; i < searches.size(); ++i) {
+      const Searched& search = searches[i];
+      if (search.axis == 0 && !has_square_term(fit)) continue;
+      const auto stack_at = [&](std::span<const Term> terms, double moved) {
+        std::vector<Eigen::Vector3d> tilts = nominal;
+        if (search.axis > 0) tilts[search.mounting](search.axis - 1) = moved;
+        return batch_at(terms, result.mountings, tilts,
+                        search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s);
+      };
+      // Steps: 1 % of the corner; 1e-4 rad of a turn (the columns are smooth in both).
+      const double step = search.axis == 0 ? 1e-2 * *result.square_corner_rad_s : 1e-4;
+      columns.conservativeResize(Eigen::NoChange, columns.cols() + 1);
+      columns.col(columns.cols() - 1) = prediction_derivative(fit, step, stack_at);
+      out.ids.push_back(i);
+    }
+    return out;
+  };
+  // Held angles and held twists: each turned by the tolerance moves the coefficients by d.
+  std::vector<HeldColumn> held_turns = held;
+  for (std::size_t k : twists.held) held_turns.push_back({k, 3});
+  if (!held_turns.empty() && options.mounting_tolerance_rad > 0.0) {
+    honest.held_covariance = [&](const ident::UlsResult& fit) {
+      const Eigen::Index p = fit.process_terms;
+      Eigen::MatrixXd held_part = Eigen::MatrixXd::Zero(p, p);
+      std::vector<Term> terms;
+      for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
+      for (const HeldColumn& h : held_turns) {
+        std::vector<Eigen::Vector3d> tilts = nominal;
+        tilts[h.mounting](h.axis - 1) = options.mounting_tolerance_rad;
+        const StackedRegression s = batch_at(terms, result.mountings, tilts, result.square_corner_rad_s);
+        std::vector<Eigen::Index> all(terms.size());
+        for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
+        const ident::UlsResult moved = ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all);
+        const Eigen::VectorXd d = moved.theta.head(p) - fit.theta.head(p);
+        held_part += d * d.transpose();
+      }
+      return held_part;
+    };
+  }
+  InferenceOutcome inference = infer_after_selection(honest, std::move(columns), std::move(selected_fit), uls);
+  for (const PrunedTerm& pruned : inference.pruned) result.undetermined.push_back({pruned.term, pruned_reason(pruned, "batch model")});
+  columns = std::move(inference.columns);
+  result.fit = std::move(inference.fit);
+  if (!held.empty() && options.batch.select) {
+    // Held angles leave the model in a frame that is not the sensor's. A turn within the tolerance
+    // is allowed for above; a misfit the model cannot absorb shows as an innovation that still
+    // follows the sensitive input. Then the frame-dependent terms (everything but the bias, the
+    // scale factor and temperature terms) are not determined by this plan: they leave.
+    const auto input_column = std::find_if(batch.labels.begin(), batch.labels.end(),
+                                           [](const std::string& l) { return l == "a_i" || l == "w_i"; });
+    const bool none_aligned =
+        std::none_of(result.mountings.begin(), result.mountings.end(), [](const MountingResult& m) { return m.aligned; });
+    if (input_column != batch.labels.end() && batch.phi.rows() == result.fit.residuals.size()) {
+      const ident::CorrelationCheck check = ident::residual_input_correlation(
+          result.fit.residuals, batch.phi.col(input_column - batch.labels.begin()), 20);
+      if (!check.pass || none_aligned) {
+        // Linear in the sensitive input (times temperature, output or lags) holds in any frame near
+        // the sensor's; squares, |a_i|, sign and the cross-axis inputs do not.
+        std::vector<Eigen::Index> kept;
+        for (Eigen::Index c : columns) {
+          const std::string& label = batch.labels[static_cast<std::size_t>(c)];
+          if (frame_free(ident::parse_term(label))) {
+            kept.push_back(c);
+          } else {
+            result.undetermined.push_back(
+                {label, none_aligned
+                            ? std::string("not determined by this plan: no mounting is aligned, so the sensor frame's p and o "
+                                          "axes are not known in any case and a term that depends on them has no frame; an "
+                                          "aligned mounting (a table or tumble case, or one mounting label shared by the "
+                                          "shaker orientations) determines them")
+                            : fmt::format("not determined by this plan: the held mounting angles leave a misfit the model "
+                                          "cannot absorb (the innovation still follows the sensitive input: {} of {} lags "
+                                          "outside the 95 % band), so the terms that depend on the sensor frame's p and o "
+                                          "axes are not known; an aligned mounting determines them",
+                                          check.outside, check.lags.size())});
+          }
+        }
+        if (kept.size() < columns.size()) {
+          columns = kept;
+          honest.may_remove = false;
+          ident::UlsResult frame_free_fit = fit_identifiable(batch, columns, uls, dropped);
+          inference = infer_after_selection(honest, std::move(columns), std::move(frame_free_fit), uls);
+          columns = std::move(inference.columns);
+          result.fit = std::move(inference.fit);
+        }
+      }
+    }
+  }
+  result.inference = inference.offsets;
+  result.test_dof = inference.dof;
+  const Eigen::MatrixXd& held_part = inference.held_covariance;
+  result.held_sd = held_part.rows() == result.fit.process_terms ? Eigen::VectorXd(held_part.diagonal().cwiseMax(0.0).cwiseSqrt())
+                                                                  : Eigen::VectorXd::Zero(result.fit.process_terms);
+  // The angles the batch refined (relative_twists) get their sd from its joint covariance.
+  for (std::size_t c = 0; c < inference.searched_ids.size() && static_cast<Eigen::Index>(c) < inference.searched_covariance.rows(); ++c) {
+    const Searched& search = searches[inference.searched_ids[c]];
+    if (search.axis == 0 || std::find(twists.estimated.begin(), twists.estimated.end(), search.mounting) == twists.estimated.end())
+      continue;
+    const auto i = static_cast<Eigen::Index>(c);
+    result.mountings[search.mounting].angles_sd(angle_of_turn(search.axis - 1)) =
+        std::sqrt(std::max(0.0, inference.searched_covariance(i, i)));
+  }
+  for (std::size_t k : twists.estimated) {
+    const MountingResult& m = result.mountings[k];
+    result.notes.push_back(fmt::format("mounting '{}' is turned {:+.4f} +- {:.4f} deg about n_i against '{}' (found in the batch, "
+                                       "with its tilts: one set of cross-axis terms holds in both; the sensor's p and o axes "
+                                       "are those of '{}''s nominal frame, as algorithm 1 takes them)",
+                                       m.mounting, rad_to_deg(m.angles(0)), rad_to_deg(m.angles_sd(0)), m.twist_reference,
+                                       m.twist_reference));
+  }
+  if (!held_turns.empty() && options.mounting_tolerance_rad > 0.0) {
+    result.notes.push_back(fmt::format("{} mounting angle(s) held at the nominal case frame; each is assumed within "
+                                       "+-{:.2f} deg (--mounting-tolerance-deg), and what that moves is in the sd",
+                                       held_turns.size(), rad_to_deg(options.mounting_tolerance_rad)));
+  }
+  for (const std::string& label : result.fit.labels) {
+    if (result.terms.size() < static_cast<std::size_t>(result.fit.process_terms)) result.terms.push_back(ident::parse_term(label));
+  }
+  result.t_test = ident::parameter_t_test(result.fit.process_theta(), result.fit.std_dev.head(result.fit.process_terms),
+                                          result.fit.residuals.size());
+  for (Eigen::Index j = 0; j < result.t_test.p_value.size() && j < result.test_dof.size(); ++j) {
+    result.t_test.p_value(j) = ident::student_t_two_sided_p(result.t_test.t(j), result.test_dof(j));
+  }
+  result.residual_mean = ident::residual_mean_test(result.fit.residuals);
+  result.aic = ident::aic(result.fit.residuals, result.fit.theta.size());
+  return result;
+}
+
+}  // namespace inertia::procedure
