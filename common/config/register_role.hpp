@@ -1,7 +1,7 @@
 #pragma once
 // The test executive's keys of a [[modbus_device.register]]: `role` and, for a
 // setpoint the executive commands, its rate limit, safe value and settling criterion; for a
-// fault status word, its mask. Part of the bench file loader (bench_config.cpp), kept apart
+// fault status word, its mask. Part of the bench file loader (read by bench_devices.cpp), kept apart
 // because it is one concept: how a register takes part in running the plan.
 // Not real-time: used once, at load.
 #include <vector>

@@ -1,0 +1,203 @@
+// The online estimator's estimate from its statistics (live_estimate.hpp).
+#include "analyzer/online/live_estimate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "analyzer/ident/regressors.hpp"
+#include "analyzer/ident/statistics.hpp"
+#include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/stacked_regression.hpp"
+
+namespace inertia::online {
+
+using Eigen::Index;
+using ident::Variable;
+
+LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftOut>& left_out,
+                                   const std::vector<Eigen::Matrix3d>* fixed_m_cs,
+                                   const std::vector<Eigen::Matrix3d>* fixed_angle_covariances,
+                                   const LiveEstimate* fixed_from) {
+  LiveEstimate s;
+  s.infos.assign(statistics.mountings.size(), live.empty_information());
+  for (std::size_t c = 0; c < statistics.cases.size(); ++c)
+    if (const std::optional<Information> info = statistics.case_information(c, left_out)) s.infos[statistics.cases[c].mounting].add(*info);
+  // The mounting rules' order (procedure/mounting_rules.hpp), as the batch takes them.
+  {
+    std::vector<procedure::MountingKind> kinds;
+    for (const CaseAccumulator::MountingState& ms : statistics.mountings) kinds.push_back(ms.kind);
+    s.order = procedure::mounting_order(kinds);
+  }
+  if (fixed_m_cs != nullptr) {
+    s.m_cs = *fixed_m_cs;
+    std::vector<const Information*> infos;
+    for (const Information& i : s.infos) infos.push_back(&i);
+    // The terms the full solution determined (what it dropped or could not determine stays out:
+    // of three squares that sum to one with the bias, which one goes is rounding's choice) and
+    // its count of phase-level parameters.
+    const LiveSolver batch_solver = fixed_from != nullptr ? live.solver->with_model(fixed_from->batch.terms) : *live.solver;
+    s.aligned = fixed_from == nullptr || fixed_from->aligned;
+    s.model = batch_solver.model();
+    s.batch = batch_solver.fit_batch(infos, s.m_cs);
+    if (fixed_angle_covariances != nullptr) batch_solver.add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances);
+    const CaseStatistics cs = case_statistics(s.m_cs, left_out);
+    if (s.batch.ok) s.level_parameters = level_parameters(s.batch, batch_solver, cs, nullptr);
+    add_case_scatter(s, cs, batch_solver);
+    return s;
+  }
+  const LiveSolver active = active_solver(live.model);
+  std::optional<double> bias;
+  std::vector<MountingFit> fits(statistics.mountings.size());
+  for (std::size_t m : s.order) {
+    MountingStatistics d;
+    d.name = statistics.mountings[m].name;
+    d.info = s.infos[m];
+    d.kind = statistics.mountings[m].kind;
+    // Algorithm 1 starts where the batch starts it, every time: a start from an earlier, less
+    // determined estimate (one orientation so far) can lead the fixed point elsewhere.
+    d.m_cs = live.model_m_cs;
+    d.hold_unexcited = hold_unexcited;
+    fits[m] = active.fit_mounting(d, procedure::takes_bias(d.kind, live.options.solver.ieee_1293) ? bias : std::nullopt);
+    if (!bias && procedure::hands_on_bias(d.kind) && fits[m].bias) bias = fits[m].bias;
+  }
+  // A mounting whose data does not fix its misalignment keeps the nominal frame (the batch's
+  // rule: another mounting's M_C^S is another fixture's), within the mounting tolerance.
+  std::optional<std::size_t> reference;
+  for (std::size_t m : s.order)
+    if (fits[m].determined && !reference) reference = m;
+  // With none aligned, the sensor frame's p and o axes are not known in any case: only the
+  // terms that hold in any frame near it are fitted (procedure::frame_free), as in the batch.
+  const LiveSolver batch_solver = reference ? active : active_solver(live.frame_free_model);
+  std::vector<const Information*> infos;
+  std::vector<Eigen::Matrix3d> m_cs;
+  for (std::size_t m = 0; m < statistics.mountings.size(); ++m) {
+    infos.push_back(&s.infos[m]);
+    m_cs.push_back(fits[m].m_cs);
+    if (update_states) {
+      if (fits[m].determined) statistics.mountings[m].m_cs = fits[m].m_cs;
+      statistics.mountings[m].fit = fits[m];
+    }
+  }
+  s.batch = batch_solver.fit_batch(infos, m_cs);
+  // The twists about n_i against the reference, as the batch pipeline finds them (at the corner
+  // found first, which the pipeline keeps).
+  std::vector<RelativeTurn> turns(statistics.mountings.size());
+  if (reference && s.batch.ok) {
+    std::vector<bool> aligned(fits.size());
+    for (std::size_t m = 0; m < fits.size(); ++m) aligned[m] = fits[m].determined;
+    turns = active.relative_turns(infos, m_cs, *reference, aligned, s.batch.corner_rad_s);
+    if (std::any_of(turns.begin(), turns.end(), [](const RelativeTurn& t) { return t.estimated; }))
+      s.batch = active.fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
+  }
+  std::vector<Eigen::Matrix3d> angle_covariances;
+  for (std::size_t m = 0; m < statistics.mountings.size(); ++m) {
+    Eigen::Matrix3d c = fits[m].angles_covariance;   // a held angle: the tolerance
+    if (turns[m].estimated) {
+      c = turns[m].covariance;
+      // The tilts as algorithm 1 reads them (of n_i alone); about i the twist found.
+      MountingFit& f = fits[m];
+      f.m_cs = m_cs[m];
+      f.angles = procedure::rotation_vector(
+          procedure::misalignment_from_sensitivities(m_cs[m].row(0).transpose(), frames::Dcm::Identity()));
+      f.angles(0) = turns[m].twist_rad;
+      f.angles_covariance = c;
+      f.angles_sd = c.diagonal().cwiseMax(0.0).cwiseSqrt();
+      if (update_states) {
+        statistics.mountings[m].m_cs = f.m_cs;
+        statistics.mountings[m].fit = f;
+      }
+    }
+    if (turns[m].held) c += turns[m].covariance;
+    angle_covariances.push_back(c);
+  }
+  const CaseStatistics cs = case_statistics(m_cs, left_out);
+  const LiveSolver fitted = drop_confounded(s, batch_solver, infos, m_cs, cs, fits);
+  fitted.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
+  add_case_scatter(s, cs, fitted);
+  s.model = fitted.model();
+  s.aligned = reference.has_value();
+  s.m_cs = std::move(m_cs);
+  s.angle_covariances = std::move(angle_covariances);
+  return s;
+}
+
+LiveSolver EstimateSolver::active_solver(const std::vector<Index>& terms) const {
+  if (statistics.temperature_moved()) return live.solver->with_model(terms);
+  std::vector<Index> kept;
+  for (Index t : terms)
+    if (!live.basis->terms()[static_cast<std::size_t>(t)].uses(Variable::T)) kept.push_back(t);
+  return live.solver->with_model(std::move(kept));
+}
+
+EstimateSolver::CaseStatistics EstimateSolver::case_statistics(const std::vector<Eigen::Matrix3d>& m_cs,
+                                                               const std::optional<LeftOut>& left_out) const {
+  CaseStatistics out;
+  out.with_open.reserve(statistics.cases.size());
+  for (std::size_t c = 0; c < statistics.cases.size(); ++c) {
+    std::optional<Information> info = statistics.case_information(c, left_out);
+    if (!info) continue;
+    out.with_open.push_back(std::move(*info));
+    out.m_cs.push_back(m_cs[statistics.cases[c].mounting]);
+  }
+  for (const Information& i : out.with_open) out.infos.push_back(&i);
+  return out;
+}
+
+int EstimateSolver::level_parameters(const StatFit& batch, const LiveSolver& batch_solver, const CaseStatistics& cs,
+                                     const std::vector<MountingFit>* fits) const {
+  int n = static_cast<int>(batch_solver.phase_level_terms(batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum()).size());
+  for (std::size_t m = 0; m < statistics.mountings.size(); ++m) {
+    const bool determined = fits != nullptr ? (*fits)[m].determined : statistics.mountings[m].fit.determined;
+    if (statistics.mountings[m].poses_only && determined) n += 2;
+  }
+  return n;
+}
+
+void EstimateSolver::add_case_scatter(LiveEstimate& s, const CaseStatistics& cs, const LiveSolver& batch_solver) {
+  s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum(), s.level_parameters);
+}
+
+LiveSolver EstimateSolver::drop_confounded(LiveEstimate& s, const LiveSolver& batch_solver,
+                                           const std::vector<const Information*>& infos,
+                                           const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
+                                           const std::vector<MountingFit>& fits) {
+  std::optional<LiveSolver> current(batch_solver);
+  const Index axis = live.basis->find(plain_term(live.sensor == dataset::SensorKind::Gyroscope ? Variable::Wi : Variable::Ai));
+  const double gain = 1.0 - noise.ar.sum();
+  int runs = 0;
+  for (const Information* i : cs.infos)
+    for (std::size_t r = 0; r < i->runs(); ++r) runs += i->run_samples(r) >= 2 ? 1 : 0;
+  for (;;) {
+    if (!s.batch.ok) break;
+    const std::vector<Index> level = current->phase_level_terms(s.batch, cs.infos, cs.m_cs, gain);
+    s.level_parameters = level_parameters(s.batch, *current, cs, &fits);
+    const int dof = runs - s.level_parameters;
+    StatFit trial = s.batch;
+    if (dof >= 1) (void)current->add_case_scatter(trial, cs.infos, cs.m_cs, gain, s.level_parameters);
+    std::optional<Index> weakest;
+    double weakest_t = std::numeric_limits<double>::infinity();
+    int droppable = 0;
+    for (std::size_t k = 0; k < trial.terms.size(); ++k) {
+      const Index t = trial.terms[k];
+      if (t == current->bias_term() || t == axis || std::find(level.begin(), level.end(), t) == level.end()) continue;
+      ++droppable;
+      const double z = std::abs(trial.theta(static_cast<Index>(k)) / trial.sd(static_cast<Index>(k)));
+      if (z < weakest_t) {
+        weakest_t = z;
+        weakest = t;
+      }
+    }
+    if (!weakest) break;
+    if (dof >= 1 && ident::student_t_two_sided_p(weakest_t, dof) <= live.options.solver.structure_alpha / droppable) break;
+    s.confounded.push_back(*weakest);
+    std::vector<Index> kept = current->model();
+    std::erase(kept, *weakest);
+    current.emplace(current->with_model(std::move(kept)));
+    s.batch = current->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
+  }
+  return *current;
+}
+
+}  // namespace inertia::online

@@ -1,0 +1,109 @@
+// The online estimator's noise model (live_noise_model.hpp): fitted once on the window's rows.
+#include "analyzer/online/live_noise_model.hpp"
+
+#include <algorithm>
+#include <memory>
+#include <utility>
+
+#include "analyzer/online/case_accumulator.hpp"
+#include "analyzer/online/live_estimate.hpp"
+#include "analyzer/online/live_model.hpp"
+#include "analyzer/procedure/prewhitening.hpp"
+#include "analyzer/procedure/square_highpass.hpp"
+#include "analyzer/procedure/stacked_regression.hpp"
+
+namespace inertia::online {
+
+using Eigen::Index;
+
+void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateSolver& estimates) {
+  fitted = true;
+  if (live.options.whitening_max_order <= 0) {
+    buffer.clear();
+    return;
+  }
+  // Residuals of the current (white-noise) fit over the kept rows. Every tilt is fitted: an angle
+  // held at the nominal frame leaves a misfit that follows the input, which is no noise.
+  estimates.hold_unexcited = false;
+  LiveEstimate s = estimates.solve(false);
+  estimates.hold_unexcited = true;
+  if (!s.batch.ok) {
+    buffer.clear();
+    return;
+  }
+  std::vector<Index> fitted_terms = s.batch.terms;
+  const Eigen::VectorXd predicting = s.batch.theta.cwiseProduct(live.solver->prediction_signs(fitted_terms));
+  std::vector<procedure::CaseRows> layout;
+  Eigen::VectorXd residuals(buffered_rows);
+  Index at = 0;
+  std::vector<procedure::HighpassState> hp;
+  std::pair<std::size_t, int> current{static_cast<std::size_t>(-1), -1};
+  for (const BufferedRows& b : buffer) {
+    Eigen::MatrixXd tb, tf;
+    live.basis->transform(fitted_terms, s.m_cs[statistics.cases[b.state].mounting], s.batch.corner_rad_s.has_value(), tb, tf);
+    Eigen::VectorXd fit = b.base * (tb.transpose() * predicting);
+    if (s.batch.corner_rad_s) {
+      if (current != std::pair{b.state, b.segment}) hp.assign(live.basis->filtered_sources().size(), {});
+      Eigen::MatrixXd f(b.base.rows(), live.basis->filtered_size());
+      for (Index j = 0; j < f.cols(); ++j) {
+        f.col(j) = b.base.col(live.basis->filtered_sources()[static_cast<std::size_t>(j)]);
+        procedure::highpass_in_place(f.col(j), *s.batch.corner_rad_s, b.period,
+                                     hp[static_cast<std::size_t>(j)]);
+      }
+      fit += f * (tf.transpose() * predicting);
+    }
+    if (current != std::pair{b.state, b.segment}) {
+      layout.push_back({layout.size(), at, 0, 0});
+      current = {b.state, b.segment};
+    }
+    residuals.segment(at, b.y.size()) = b.y - fit;
+    layout.back().rows += b.y.size();
+    at += b.y.size();
+  }
+  // An AR(m) fit wants ten rows per order (ArWhitener::fit): a low-rate bench's window holds fewer.
+  const int max_order = std::min<int>(live.options.whitening_max_order, static_cast<int>(residuals.size() / 10));
+  const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, max_order);
+  if (live.rational) {
+    // ULS's correction is derived for white equation errors, so the rows stay unfiltered; the
+    // noise model scales the variances instead: by the residual's long-run variance (its
+    // spectrum at zero, innovation variance / A(1)^2) over its variance. Exact for columns
+    // constant over the noise's memory (rate phases, poses), conservative for faster ones under
+    // noise whose spectrum falls with frequency (the sensors' 1/f, brown, AR with a positive pole).
+    const double gain = 1.0 - noise.coefficients().sum();
+    if (gain > 0.0) {
+      live.solver->set_long_run_variance_factor(std::max(1.0, noise.variance_ratio() / (gain * gain)));
+    }
+    buffer.clear();
+    buffered_rows = 0;
+    return;
+  }
+  ar = noise.coefficients();
+  // Every row so far again, through the noise model.
+  for (CaseAccumulator::CaseState& c : statistics.cases) c.stats.clear();
+  std::unique_ptr<SegmentPipeline> p;
+  RunStatistics stats;
+  current = {static_cast<std::size_t>(-1), -1};
+  const auto settle = [&] {
+    if (current.first == static_cast<std::size_t>(-1)) return;
+    if (statistics.open && statistics.open->state == current.first && statistics.open->segment == current.second) {
+      statistics.open->pipeline = std::move(p);
+      statistics.open->stats = std::move(stats);   // its rows go on in its last run
+    } else {
+      statistics.cases[current.first].stats.add(std::move(stats));
+    }
+    stats = RunStatistics();
+  };
+  for (const BufferedRows& b : buffer) {
+    if (current != std::pair{b.state, b.segment}) {
+      settle();
+      current = {b.state, b.segment};
+      p = statistics.pipeline(b.period);
+    }
+    statistics.add_rows(*p, stats, b.period, b.base, b.y, b.inputs, b.phase, b.plan_phase);
+  }
+  settle();
+  buffer.clear();
+  buffered_rows = 0;
+}
+
+}  // namespace inertia::online

@@ -1,0 +1,43 @@
+#pragma once
+// The online estimator's noise model (online_estimator.hpp, "Noise"): the first noise_window_s of
+// rows are kept; then an autoregressive model is fitted to the residuals of the white-noise fit
+// on them (AIC order up to whitening_max_order, as the batch), and every row so far enters the
+// statistics again through it. A model with output-multiplied terms keeps its rows unfiltered and
+// scales the variances by the residual's long-run variance instead.
+#include <Eigen/Dense>
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace inertia::online {
+
+struct LiveModel;
+class CaseAccumulator;
+class EstimateSolver;
+
+/// Rows of the noise window as they entered the statistics (basis columns, output, inputs).
+struct BufferedRows {
+  std::size_t state = 0;
+  std::size_t plan_case = 0;
+  int segment = 0;
+  double period = 0.0;
+  Eigen::MatrixXd base;
+  Eigen::VectorXd y;
+  Eigen::MatrixX3d inputs;   // along the case axes (Information::add_inputs)
+  std::vector<std::uint16_t> phase;   // per row: the chunk's phase label
+  std::vector<std::int32_t> plan_phase;   // per row: the plan's phase index
+};
+
+struct LiveNoiseModel {
+  std::vector<BufferedRows> buffer;   // the window's rows, until the model is fitted
+  std::int64_t buffered_rows = 0;
+  bool fitted = false;
+  Eigen::VectorXd ar;                 // AR coefficients (empty: white)
+
+  /// Fits the model on the window (the white-noise estimate from `estimates`), then sends every
+  /// row of the window through it into `statistics` again, or scales the solver's variances.
+  void fit(LiveModel& live, CaseAccumulator& statistics, EstimateSolver& estimates);
+};
+
+}  // namespace inertia::online
