@@ -18,7 +18,7 @@
 // Below the record's lowest frequency (one cycle per record), where a flicker or random-walk
 // spectrum rises without bound, a fitted spectrum keeps its white part, or what the caller knows
 // of the noise there from elsewhere (the plan's static stretches: StaticNoiseLaw in
-// procedure/pipeline.cpp); what a stretch's offset holds beyond that is the offsets between
+// procedure/whitened_problem.hpp); what a stretch's offset holds beyond that is the offsets between
 // stretches' business (ident::cluster_offsets), measured from their scatter.
 #include <Eigen/Dense>
 

@@ -142,7 +142,7 @@ class LiveSolver {
   /// The same at a given corner (none: static squares).
   [[nodiscard]] StatFit fit_batch_at(const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs,
                                      std::optional<double> corner) const;
-  /// The batch pipeline's relative twists (procedure/pipeline.cpp, relative_twists) from the
+  /// The batch pipeline's relative twists (procedure/relative_twists.hpp) from the
   /// statistics: each aligned mounting but `reference` turned (its twist about n_i and its tilts)
   /// to the least residual of the batch model at `corner`, by Newton steps on central
   /// differences of that residual. A twist whose sd with the tilts free exceeds the tolerance is

@@ -1,7 +1,8 @@
 #pragma once
 // The rules of blocks 5-6 that depend on what kind of cases a mounting holds: which terms IEEE
 // Std 1293 leaves out of its fit, in what order the mountings are estimated, and which bias is
-// handed from one mounting to another. The batch pipeline (pipeline.cpp) and the live solver
+// handed from one mounting to another. The mounting stage (mounting_stage.cpp), the procedure's composition
+// (pipeline.cpp) and the live solver
 // (online/live_solver.cpp, online/live_estimate.cpp) both call these; neither states them.
 #include <cstddef>
 #include <span>

@@ -50,7 +50,7 @@ struct MountingResult {
   /// Degrees of freedom of the angles' sd (few when the offsets between the mounting's phases
   /// dominate them, as a tumble's placement errors do): intervals use Student's t with them.
   double angles_dof = std::numeric_limits<double>::infinity();
-  /// The part of angles_sd a held twist's tolerance adds (relative_twists in pipeline.cpp): a
+  /// The part of angles_sd a held twist's tolerance adds (relative_twists.hpp): a
   /// bound on a systematic error, the same in every run of the plan.
   Eigen::Vector3d angles_held_sd = Eigen::Vector3d::Zero();
   std::string twist_reference;              // the mounting angles(0) is relative to (empty: none)

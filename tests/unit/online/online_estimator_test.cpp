@@ -198,7 +198,7 @@ procedure::PipelineOptions fixed_model_pipeline() {
 /// the sd. Both include what the mountings' misalignment uncertainty moves, by two first-order
 /// routes: the live one propagates each mounting's angle covariance through the coefficients
 /// (delta method, angle and coefficient errors taken as independent); the batch fits the angles'
-/// derivative columns jointly with the terms (procedure/pipeline.cpp, HonestPrune::searched), so
+/// derivative columns jointly with the terms (procedure/post_selection_inference.hpp, SearchedColumns), so
 /// the rows both use count once. The joint route is the larger: on this plan the live sd are 0.89
 /// to 0.99 of the batch's (measured 2026-11-26). Asserted: never above the batch's but for its
 /// white level, an estimate from a case's 3000 rows (1/sqrt(3000) in variance, half that in sd;
