@@ -302,10 +302,17 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
 
   // The F_E-and-F_S candidates (eq. 2), or the fixed model.
   std::vector<Term> es_terms = offered_terms(options.misalignment, ident::ModelFrame::ExternalAndSensor, data, options, "misalignment");
-  for (const Term& t : es_terms) {
-    if (ieee_1293_excluded(t, m.kind, known_bias.has_value(), options.ieee_1293)) result.excluded.push_back(t.to_string());
+  {
+    std::vector<Term> kept;
+    for (Term& t : es_terms) {
+      if (ieee_1293_excluded(t, m.kind, known_bias.has_value(), options.ieee_1293)) {
+        result.excluded.push_back(t.to_string());
+      } else {
+        kept.push_back(std::move(t));
+      }
+    }
+    es_terms = std::move(kept);
   }
-  std::erase_if(es_terms, [&](const Term& t) { return ieee_1293_excluded(t, m.kind, known_bias.has_value(), options.ieee_1293); });
   {
     const std::array<const char*, 3> names = sensitivity_names(data.sensor);
     for (int axis = 1; axis < 3; ++axis) {
