@@ -9,6 +9,8 @@
 #include <cmath>
 #include <random>
 
+#include "tests/support/reference_highpass.hpp"
+
 namespace inertia::online {
 namespace {
 
@@ -242,19 +244,7 @@ TEST(RunStatistics, RunsPerPhaseAndTheirSum) {
   EXPECT_EQ(stats.total().weight(), 200.0);
 }
 
-/// The header's high pass, settled start, written out.
-VectorXd reference_highpass(const VectorXd& x, double b, double period) {
-  const double c = b / std::tan(b * period / 2.0);
-  const double p = (c - b) / (c + b), g = c / (c + b);
-  VectorXd h(x.size());
-  double hk = 0.0, previous = x(0);
-  for (Index k = 0; k < x.size(); ++k) {
-    hk = p * hk + g * (x(k) - previous);
-    previous = x(k);
-    h(k) = hk;
-  }
-  return h;
-}
+using inertia::testing::reference_highpass;
 
 TEST(SegmentPipeline, ChunksGiveTheFilteredRowsOfTheWholeSegment) {
   // A(q) = 1 - 0.5 q^-1 + 0.2 q^-2 on [B y], the first two rows lost; the high pass at each corner

@@ -11,24 +11,14 @@
 #include <numbers>
 #include <random>
 
+#include "tests/support/reference_highpass.hpp"
+
 namespace inertia::procedure {
 namespace {
 
 using Eigen::Index;
 
-/// The header's recursion, written out: settled start (h = 0, x(-1) = x(0)).
-Eigen::VectorXd reference_highpass(const Eigen::VectorXd& x, double b, double period) {
-  const double c = b / std::tan(b * period / 2.0);
-  const double p = (c - b) / (c + b), g = c / (c + b);
-  Eigen::VectorXd h(x.size());
-  double previous_h = 0.0, previous_x = x.size() > 0 ? x(0) : 0.0;
-  for (Index k = 0; k < x.size(); ++k) {
-    previous_h = p * previous_h + g * (x(k) - previous_x);
-    previous_x = x(k);
-    h(k) = previous_h;
-  }
-  return h;
-}
+using inertia::testing::reference_highpass;
 
 TEST(SquareHighpass, ConstantInputGivesZero) {
   // Zero DC gain and a settled start: a constant never leaves the filter.
