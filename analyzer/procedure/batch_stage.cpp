@@ -114,14 +114,10 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   // mounting tolerance moves the coefficients by d (the exact refit, nonlinear terms included),
   // and the covariance gains d d'. A term whose t then falls below the selection's level is not
   // determined by this plan: it leaves and the rest is refitted.
-  const std::vector<int> clusters = phase_clusters(batch, data);
-  const Eigen::VectorXd loading = cross_axis_loading(batch, candidates, data, result.cases, dataset_label);
+  const PhaseLayout layout = phase_layout(batch, candidates, data, result.cases, dataset_label);
   InferenceProblem honest;
   honest.s = &batch;
-  honest.clusters = &clusters;
-  const std::vector<CaseRows> noise_runs = plan_case_rows(batch, data);
-  honest.noise_runs = &noise_runs;
-  honest.loading = &loading;
+  honest.layout = &layout;
   honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
   honest.may_remove = options.batch.select;
   honest.protect = [](const std::string& label) { return ident::is_sensitivity_label(label) || label == "1"; };

@@ -379,7 +379,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   const std::vector<std::string> tilts = hook.tilts(best.ranked_terms);
   result.s_fit = best.fit;
   {
-    // Honest inference on the selected model (as the batch's, run_pipeline): offsets between the
+    // Honest inference on the selected model (as the batch stage's): offsets between the
     // mounting's phases (a pose's placement) are not information about its terms.
     std::vector<Term> selected_terms;
     for (const std::string& label : best.fit.labels) selected_terms.push_back(ident::parse_term(label));
@@ -387,14 +387,10 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
                                                         first_row, square_corner, whitener);
     std::vector<CaseOutcome> outcomes(data.cases.size());
     for (std::size_t index : cases) outcomes[index].m_es = *best_misalignment * data.cases[index].m_ec;
-    const std::vector<int> clusters = phase_clusters(stage, data);
-    const Eigen::VectorXd loading = cross_axis_loading(stage, selected_terms, data, outcomes, dataset_label);
+    const PhaseLayout layout = phase_layout(stage, selected_terms, data, outcomes, dataset_label);
     InferenceProblem honest;
     honest.s = &stage;
-    honest.clusters = &clusters;
-    const std::vector<CaseRows> noise_runs = plan_case_rows(stage, data);
-    honest.noise_runs = &noise_runs;
-    honest.loading = &loading;
+    honest.layout = &layout;
     honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, selected.ranking.size()));
     honest.protect = [&](const std::string& label) {
       return ident::is_sensitivity_label(label) || label == "1" || std::find(tilts.begin(), tilts.end(), label) != tilts.end();

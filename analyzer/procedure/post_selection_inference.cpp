@@ -131,6 +131,11 @@ Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step,
   return (up.phi - down.phi) * fit.theta.head(p) / (2.0 * step);
 }
 
+PhaseLayout phase_layout(const StackedRegression& s, std::span<const Term> candidates, const dataset::Dataset& data,
+                         const std::vector<CaseOutcome>& cases, std::string_view label) {
+  return {phase_clusters(s, data), plan_case_rows(s, data), cross_axis_loading(s, candidates, data, cases, label)};
+}
+
 std::string pruned_reason(const PrunedTerm& pruned, std::string_view model) {
   if (pruned.saturated) {
     return fmt::format("left out of the {} after selection: it had as many parameters at the level of the {} phases' means "
@@ -185,24 +190,24 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     x.rightCols(searched.cols()) = searched;
     if (spectra.empty()) {
       std::map<int, Eigen::Index> order;   // cluster id -> column of Z (ascending ids)
-      for (const int id : *h.clusters) order.emplace(id, 0);
+      for (const int id : h.layout->clusters) order.emplace(id, 0);
       for (auto& [id, column] : order) {
         column = static_cast<Eigen::Index>(coloured.cluster_ids.size());
         coloured.cluster_ids.push_back(id);
       }
       const auto g_count = static_cast<Eigen::Index>(order.size());
       coloured.sums_covariance = Eigen::MatrixXd::Zero(g_count, g_count);
-      for (const CaseRows& rows : *h.noise_runs) {
+      for (const CaseRows& rows : h.layout->noise_runs) {
         spectra.push_back(noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows), h.below_record));
         // The covariance of the sums of this case's phases (each phase a run of rows within it).
         std::vector<Eigen::Index> columns;
         for (Eigen::Index k = rows.begin; k < rows.begin + rows.rows; ++k) {
-          const Eigen::Index g = order.at((*h.clusters)[static_cast<std::size_t>(k)]);
+          const Eigen::Index g = order.at(h.layout->clusters[static_cast<std::size_t>(k)]);
           if (std::find(columns.begin(), columns.end(), g) == columns.end()) columns.push_back(g);
         }
         Eigen::MatrixXd z = Eigen::MatrixXd::Zero(rows.rows, static_cast<Eigen::Index>(columns.size()));
         for (Eigen::Index k = 0; k < rows.rows; ++k) {
-          const Eigen::Index g = order.at((*h.clusters)[static_cast<std::size_t>(rows.begin + k)]);
+          const Eigen::Index g = order.at(h.layout->clusters[static_cast<std::size_t>(rows.begin + k)]);
           z(k, std::find(columns.begin(), columns.end(), g) - columns.begin()) = 1.0;
         }
         const Eigen::MatrixXd zrz = z.transpose() * noise::covariance_times(spectra.back(), z);
@@ -214,7 +219,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     const auto noise_times = [&](const Eigen::MatrixXd& m) {
       Eigen::MatrixXd out = Eigen::MatrixXd::Zero(m.rows(), m.cols());
       for (std::size_t r = 0; r < spectra.size(); ++r) {
-        const CaseRows& run = (*h.noise_runs)[r];
+        const CaseRows& run = h.layout->noise_runs[r];
         out.middleRows(run.begin, run.rows) = noise::covariance_times(spectra[r], m.middleRows(run.begin, run.rows));
       }
       return out;
@@ -223,21 +228,21 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     coloured.meat = x.transpose() * rx;
     coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
     for (Eigen::Index k = 0; k < x.rows(); ++k) {
-      const int id = (*h.clusters)[static_cast<std::size_t>(k)];
+      const int id = h.layout->clusters[static_cast<std::size_t>(k)];
       const auto g = std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), id) - coloured.cluster_ids.begin();
       coloured.cross.col(g) += rx.row(k).transpose();
     }
     coloured.meat = (0.5 * (coloured.meat + coloured.meat.transpose())).eval();
     // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
-    out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, *h.clusters, 0,
-                                         h.loading != nullptr ? *h.loading : Eigen::VectorXd(), &coloured);
+    out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, h.layout->clusters, 0,
+                                         h.layout->loading, &coloured);
     const Eigen::MatrixXd x_process = x.leftCols(p);
     // Which terms live between the phases: little of their column varies within one.
     std::vector<bool> phase_level(static_cast<std::size_t>(p), false);
     {
       std::map<int, std::pair<Eigen::VectorXd, double>> sums;
       for (Eigen::Index k = 0; k < x.rows(); ++k) {
-        auto [it, fresh] = sums.try_emplace((*h.clusters)[static_cast<std::size_t>(k)]);
+        auto [it, fresh] = sums.try_emplace(h.layout->clusters[static_cast<std::size_t>(k)]);
         if (fresh) it->second = {Eigen::VectorXd::Zero(p), 0.0};
         it->second.first += x_process.row(k).transpose();
         it->second.second += 1.0;
@@ -258,7 +263,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     std::optional<ident::RandomEffectsFit> weighed;
     const bool means_only = std::all_of(phase_level.begin(), phase_level.end(), [](bool b) { return b; });
     if (means_only && out.offsets.tau2 > 0.0 && output_multiplied.empty() && fit.theta.size() == p)
-      weighed = random_effects(x, p, s.y, *h.clusters, h.loading, out.offsets, coloured, noise_times);
+      weighed = random_effects(x, p, s.y, h.layout->clusters, &h.layout->loading, out.offsets, coloured, noise_times);
     if (weighed) {
       out.offsets.within = weighed->within;
       out.offsets.covariance = weighed->covariance;

@@ -59,11 +59,20 @@ struct SearchedColumns {
   std::vector<std::size_t> ids;
 };
 
+/// How a stacked problem's rows fall into the phases and noise processes of the plan.
+struct PhaseLayout {
+  std::vector<int> clusters;                // phase_clusters
+  std::vector<CaseRows> noise_runs;         // one noise process each (plan_case_rows)
+  Eigen::VectorXd loading;                  // cross_axis_loading
+};
+
+/// The layout of the whitened problem `s` stacked over `candidates` with the cases' M_E^S `cases`.
+PhaseLayout phase_layout(const StackedRegression& s, std::span<const ident::Term> candidates, const dataset::Dataset& data,
+                         const std::vector<CaseOutcome>& cases, std::string_view label);
+
 struct InferenceProblem {
   const StackedRegression* s = nullptr;     // whitened
-  const std::vector<int>* clusters = nullptr;          // phase_clusters of s
-  const std::vector<CaseRows>* noise_runs = nullptr;   // one noise process each (plan_case_rows)
-  const Eigen::VectorXd* loading = nullptr;            // cross_axis_loading of s
+  const PhaseLayout* layout = nullptr;      // of s
   double threshold = 0.01;                  // a term whose test's p-value is above it leaves
   bool may_remove = true;
   std::function<bool(const std::string&)> protect;     // terms that never leave
