@@ -402,9 +402,4 @@ const char* physical_name(const Term& term, dataset::SensorKind kind) {
   return "higher-order nonlinearity";
 }
 
-bool is_sensitivity_label(std::string_view label) {
-  return label == "a_x" || label == "a_y" || label == "a_z" || label == "a_i" || label == "w_x" || label == "w_y" ||
-         label == "w_z" || label == "w_i";
-}
-
 }  // namespace inertia::ident

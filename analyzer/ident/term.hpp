@@ -131,8 +131,4 @@ std::vector<std::string> to_strings(const std::vector<Term>& terms);
 /// -> odd quadratic; sign(v) -> asymmetry/hysteresis.
 const char* physical_name(const Term& term, dataset::SensorKind kind);
 
-/// Whether `label` is a sensitivity (scale-factor) term: a_x a_y a_z a_i, w_x w_y w_z w_i. Fits
-/// rank these first and never leave them out: a model without its scale factor is no model.
-[[nodiscard]] bool is_sensitivity_label(std::string_view label);
-
 }  // namespace inertia::ident

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "analyzer/procedure/prewhitening.hpp"
+
 namespace inertia::online {
 
 using Eigen::Index;
@@ -248,8 +250,7 @@ void SegmentPipeline::push(const Eigen::Ref<const Eigen::MatrixXd>& base, const 
   }
   if (out == 0) return;
   const Index at = have + (n - out);   // position in raw_ of the first output row
-  white_ = raw_.middleRows(at, out);
-  for (Index j = 1; j <= m; ++j) white_.noalias() -= ar_(j - 1) * raw_.middleRows(at - j, out);
+  procedure::ar_filter(ar_, raw_.middleRows(at - m, out + m), white_);
   for (std::size_t k = 0; k < corners_.size(); ++k) {
     Eigen::MatrixXd& f = filtered_[k];
     f.resize(out, static_cast<Index>(sources_.size()));

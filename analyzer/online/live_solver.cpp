@@ -4,10 +4,10 @@
 #include <cmath>
 #include <limits>
 
-#include <boost/math/tools/minima.hpp>
-
 #include "analyzer/ident/err.hpp"
+#include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/statistics.hpp"
+#include "analyzer/procedure/corner_search.hpp"
 #include "analyzer/procedure/excitation.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "common/frames.hpp"
@@ -21,17 +21,6 @@ using ident::Variable;
 namespace {
 
 bool contains(const std::vector<Index>& v, Index x) { return std::find(v.begin(), v.end(), x) != v.end(); }
-
-/// The rows and columns `keep` (positions) of an augmented Gram matrix, with y (last) kept last.
-Eigen::MatrixXd select(const Eigen::MatrixXd& g, const std::vector<Index>& keep) {
-  const auto p = static_cast<Index>(keep.size());
-  const Index y = g.rows() - 1;
-  Eigen::MatrixXd out(p + 1, p + 1);
-  for (Index i = 0; i <= p; ++i)
-    for (Index j = 0; j <= p; ++j)
-      out(i, j) = g(i < p ? keep[static_cast<std::size_t>(i)] : y, j < p ? keep[static_cast<std::size_t>(j)] : y);
-  return out;
-}
 
 }  // namespace
 
@@ -55,36 +44,12 @@ LiveSolver::LiveSolver(const LiveBasis& basis, std::vector<Index> model, std::ve
 
 template <class FitAt>
 StatFit LiveSolver::best_corner(FitAt&& fit_at) const {
-  StatFit best;
-  const auto consider = [&best](StatFit f) {
-    if (f.ok && (!best.ok || f.rss < best.rss)) best = std::move(f);
-    else if (!best.ok && !f.ok && best.why.empty()) best = std::move(f);
-  };
-  if (static_option_) consider(fit_at(std::nullopt));
-  if (grid_.empty()) return best;
-  const std::vector<double>& nodes = grid_.nodes();
-  std::optional<std::size_t> best_node;
-  double best_node_rss = std::numeric_limits<double>::infinity();
-  for (std::size_t k = 0; k < nodes.size(); ++k) {
-    StatFit f = fit_at(nodes[k]);
-    if (f.ok && f.rss < best_node_rss) {
-      best_node_rss = f.rss;
-      best_node = k;
-    }
-    consider(std::move(f));
-  }
-  if (!best_node || nodes.size() < 2) return best;
-  // Brent's method on log b inside the best node's neighbours (as SquareCornerSearch::best).
-  const double a = std::log(nodes[*best_node == 0 ? 0 : *best_node - 1]);
-  const double b = std::log(nodes[std::min(nodes.size() - 1, *best_node + 1)]);
-  const auto [x, fx] = boost::math::tools::brent_find_minima(
-      [&](double log_b) {
-        const StatFit f = fit_at(std::exp(log_b));
+  const procedure::CornerChoice choice =
+      procedure::least_residual_corner(grid_.nodes(), static_option_, [&](std::optional<double> corner) {
+        const StatFit f = fit_at(corner);
         return f.ok ? f.rss : std::numeric_limits<double>::infinity();
-      },
-      a, b, 14);
-  if (fx < best.rss) consider(fit_at(std::exp(x)));
-  return best;
+      });
+  return fit_at(choice.corner_rad_s);
 }
 
 Eigen::MatrixXd LiveSolver::gram(const std::vector<Index>& terms, const std::vector<const Information*>& infos,
@@ -128,102 +93,67 @@ void LiveSolver::factor_statistics(const std::vector<Index>& terms, const std::v
 }
 
 StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vector<Index>& terms,
-                        const std::vector<Index>& forced, const std::vector<const Information*>& infos,
-                        const std::vector<Eigen::Matrix3d>& m_cs) const {
+                        const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs) const {
   StatFit out;
   out.weight = weight;
-  // Rank as the batch pipeline does: the forced terms first, the rest by ERR; columns with no
-  // energy left after the ones before them are not determined by this data.
-  ident::ErrOptions eo;
-  eo.reference = ident::ErrReference::AfterForced;
-  for (Index f : forced) {
-    const auto it = std::find(terms.begin(), terms.end(), f);
-    if (it != terms.end()) eo.forced.push_back(static_cast<Index>(it - terms.begin()));
-  }
-  if (bias_ >= 0 && !contains(forced, bias_)) {
-    const auto it = std::find(terms.begin(), terms.end(), bias_);
-    if (it != terms.end()) eo.forced.push_back(static_cast<Index>(it - terms.begin()));
-  }
-  const ident::ErrRanking ranking = ident::err_rank(g, eo);
-  std::vector<Index> columns = ranking.order;   // positions into terms
+  std::vector<Index> factor_positions;
+  Eigen::MatrixXd factor_gram;
+  Eigen::VectorXd factor_sum;
+  factor_statistics(terms, infos, m_cs, factor_positions, factor_gram, factor_sum);
+  std::vector<std::string> labels;
+  labels.reserve(terms.size());
+  for (const Index t : terms) labels.push_back(basis_.terms()[static_cast<std::size_t>(t)].to_string());
+  const ident::NormalEquations equations(g, static_cast<Index>(std::llround(weight)), std::move(labels), factor_positions,
+                                         factor_gram, factor_sum);
+  // The ranking and the dependence rule are the batch's (ident/normal_equations.hpp).
+  ident::IdentifiableRanking ranking = ident::rank_identifiable(equations, sensor_);
+  std::vector<Index> columns = std::move(ranking.order);   // positions into terms
   for (Index d : ranking.dependent) out.undetermined.push_back(terms[static_cast<std::size_t>(d)]);
-  std::vector<Index> all_positions;
-  Eigen::MatrixXd all_factor_gram;
-  Eigen::VectorXd all_factor_sum;
-  factor_statistics(terms, infos, m_cs, all_positions, all_factor_gram, all_factor_sum);
   // An output-multiplied column whose factor does not vary on its own is the output times a
   // constant (y*w_i in a dwell): it explains the output by itself, which ULS's correction does
   // not undo (it takes the noise out of the column's energy, not out of its correlation with the
   // output). Not determined until the factor moves (excitation.hpp's share).
-  for (std::size_t a = 0; a < all_positions.size(); ++a) {
+  for (std::size_t a = 0; a < factor_positions.size(); ++a) {
     const auto k = static_cast<Index>(a);
-    const double energy = all_factor_gram(k, k);
-    const double own = energy - all_factor_sum(k) * all_factor_sum(k) / weight;
+    const double energy = factor_gram(k, k);
+    const double own = energy - factor_sum(k) * factor_sum(k) / weight;
     if (energy > 0.0 && own >= procedure::kMinExcitationShare * energy) continue;
-    const auto it = std::find(columns.begin(), columns.end(), all_positions[a]);
+    const auto it = std::find(columns.begin(), columns.end(), factor_positions[a]);
     if (it == columns.end()) continue;
     out.undetermined.push_back(terms[static_cast<std::size_t>(*it)]);
     columns.erase(it);
   }
-  for (;;) {
-    if (columns.empty()) {
-      out.why = "no term is determined by the data";
-      return out;
-    }
-    std::vector<Index> sorted = columns;
-    std::sort(sorted.begin(), sorted.end());
-    std::vector<Index> den;
-    std::vector<Index> factor_rows;
-    for (std::size_t j = 0; j < sorted.size(); ++j) {
-      const auto it = std::find(all_positions.begin(), all_positions.end(), sorted[j]);
-      if (it == all_positions.end()) continue;
-      den.push_back(static_cast<Index>(j));
-      factor_rows.push_back(static_cast<Index>(it - all_positions.begin()));
-    }
-    Eigen::MatrixXd fg(den.size(), den.size());
-    Eigen::VectorXd fs(den.size());
-    for (std::size_t a = 0; a < den.size(); ++a) {
-      fs(static_cast<Index>(a)) = all_factor_sum(factor_rows[a]);
-      for (std::size_t b = 0; b < den.size(); ++b) fg(static_cast<Index>(a), static_cast<Index>(b)) = all_factor_gram(factor_rows[a], factor_rows[b]);
-    }
-    const Eigen::MatrixXd sub = select(g, sorted);
-    const auto samples = static_cast<Index>(std::llround(weight));
-    const ident::UlsStatistics stats = ident::UlsStatistics::from_gram(sub, samples, den, fg, fs);
-    std::vector<std::string> labels;
-    for (Index j : sorted) labels.push_back(basis_.terms()[static_cast<std::size_t>(terms[static_cast<std::size_t>(j)])].to_string());
-    try {
-      const ident::UlsSolution sol = ident::solve_uls(stats, labels, options_.uls);
-      out.ok = true;
-      out.terms.clear();
-      for (Index j : sorted) out.terms.push_back(terms[static_cast<std::size_t>(j)]);
-      out.theta = sol.theta;
-      out.rss = sol.zeta_energy;
-      const double dof = std::max(weight - static_cast<double>(sorted.size()), 1.0);
-      out.s2 = out.rss / dof;
-      out.covariance = options_.long_run_variance_factor * out.s2 * (den.empty() ? sol.gram_inverse : sol.corrected_inverse);
-      out.sd = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
-      out.conditional_sd = out.sd;
-      out.gram_inverse = sol.gram_inverse;
-      return out;
-    } catch (const ident::IdentifiabilityError& e) {
-      // The batch's rule (ident::column_to_leave): the named column ranked last, never a sensitivity.
-      std::vector<std::string> ranked;
-      for (const Index j : columns)
-        ranked.push_back(basis_.terms()[static_cast<std::size_t>(terms[static_cast<std::size_t>(j)])].to_string());
-      const std::optional<std::size_t> leaves =
-          ident::column_to_leave(e, ranked, [&](std::size_t j) { return ident::is_sensitivity_label(ranked[j]); });
-      if (!leaves) {
-        out.why = e.what();
-        return out;
-      }
-      const auto victim = columns.begin() + static_cast<std::ptrdiff_t>(*leaves);
-      out.undetermined.push_back(terms[static_cast<std::size_t>(*victim)]);
-      columns.erase(victim);
-    } catch (const std::runtime_error& e) {
-      out.why = e.what();
-      return out;
-    }
+  if (columns.empty()) {
+    out.why = "no term is determined by the data";
+    return out;
   }
+  std::vector<Index> left;
+  try {
+    const auto [ascending, sol] = ident::fit_identifiable(
+        columns, equations.labels(), sensor_, left, [&](std::span<const Index> positions) {
+          std::vector<std::string> names;
+          for (const Index j : positions) names.push_back(equations.labels()[static_cast<std::size_t>(j)]);
+          return std::pair(std::vector<Index>(positions.begin(), positions.end()),
+                           ident::solve_uls(equations.statistics(positions), names, options_.uls));
+        });
+    out.ok = true;
+    for (const Index j : ascending) out.terms.push_back(terms[static_cast<std::size_t>(j)]);
+    out.theta = sol.theta;
+    out.rss = sol.zeta_energy;
+    const double dof = std::max(weight - static_cast<double>(ascending.size()), 1.0);
+    out.s2 = out.rss / dof;
+    const bool rational = std::any_of(ascending.begin(), ascending.end(), [&](Index j) {
+      return std::find(factor_positions.begin(), factor_positions.end(), j) != factor_positions.end();
+    });
+    out.covariance = options_.long_run_variance_factor * out.s2 * (rational ? sol.corrected_inverse : sol.gram_inverse);
+    out.sd = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    out.conditional_sd = out.sd;
+    out.gram_inverse = sol.gram_inverse;
+  } catch (const std::runtime_error& e) {   // a near-dependence of sensitivities, or no positive-definite correction
+    out.why = e.what();
+  }
+  for (const Index j : left) out.undetermined.push_back(terms[static_cast<std::size_t>(j)]);
+  return out;
 }
 
 MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<double> known_bias) const {
@@ -299,12 +229,12 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
   for (out.refinements = 0; out.refinements < options_.max_refinements; ++out.refinements) {
     if (out.refinements < 2) {
       corner = best_corner([&](std::optional<double> b) {
-                 StatFit g = fit(gram_at(out.m_cs, b), weight, es, sensitivities, infos, {out.m_cs});
+                 StatFit g = fit(gram_at(out.m_cs, b), weight, es, infos, {out.m_cs});
                  g.corner_rad_s = b;
                  return g;
                }).corner_rad_s;
     }
-    f = fit(gram_at(out.m_cs, corner), weight, es, sensitivities, infos, {out.m_cs});
+    f = fit(gram_at(out.m_cs, corner), weight, es, infos, {out.m_cs});
     f.corner_rad_s = corner;
     Eigen::Vector3d theta = Eigen::Vector3d::Zero();   // a held axis: 0, its tilt stays nominal
     bool have = f.ok;
@@ -343,7 +273,7 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
     if (axis >= 0) s_terms.push_back(axis);
     for (Index t : es)
       if (!contains(sensitivities_, t)) s_terms.push_back(t);
-    const StatFit sf = fit(gram(s_terms, infos, {out.m_cs}, corner), weight, s_terms, {axis}, infos, {out.m_cs});
+    const StatFit sf = fit(gram(s_terms, infos, {out.m_cs}, corner), weight, s_terms, infos, {out.m_cs});
     out.bias = sf.value(bias_);
   }
   // Angles and their sd by the delta method through algorithm 1.
@@ -379,11 +309,7 @@ StatFit LiveSolver::fit_batch_at(const std::vector<const Information*>& infos, c
                                  std::optional<double> corner) const {
   double weight = 0.0;
   for (const Information* i : infos) weight += i->weight();
-  const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
-  const Index axis = basis_.find(plain_term(gyro ? Variable::Wi : Variable::Ai));
-  std::vector<Index> forced;
-  if (axis >= 0) forced.push_back(axis);
-  StatFit f = fit(gram(model_, infos, m_cs, corner), weight, model_, forced, infos, m_cs);
+  StatFit f = fit(gram(model_, infos, m_cs, corner), weight, model_, infos, m_cs);
   f.corner_rad_s = corner;
   return f;
 }
@@ -586,17 +512,13 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
 StatFit LiveSolver::fit_batch(const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs) const {
   double weight = 0.0;
   for (const Information* i : infos) weight += i->weight();
-  const bool gyro = sensor_ == dataset::SensorKind::Gyroscope;
-  const Index axis = basis_.find(plain_term(gyro ? Variable::Wi : Variable::Ai));
-  std::vector<Index> forced;
-  if (axis >= 0) forced.push_back(axis);
   if (weight <= 0.0) {
     StatFit none;
     none.why = "no samples";
     return none;
   }
   return best_corner([&](std::optional<double> b) {
-    StatFit f = fit(gram(model_, infos, m_cs, b), weight, model_, forced, infos, m_cs);
+    StatFit f = fit(gram(model_, infos, m_cs, b), weight, model_, infos, m_cs);
     f.corner_rad_s = b;
     return f;
   });

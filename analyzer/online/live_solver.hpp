@@ -9,9 +9,8 @@
 //    the mountings that determine it.
 //  - The batch (blocks 10-11): the model in F_S over every mounting, each with its M_C^S.
 //  - The squares' corner b of eq. 12: the corner (or static squares) with the least residual sum
-//    of squares, found as the batch pipeline finds it (the grid's nodes, then Brent's method
-//    between the best node's neighbours), on columns interpolated between the grid's nodes
-//    (corner_grid.hpp).
+//    of squares, by the batch's rule (procedure/corner_search.hpp), on columns interpolated
+//    between the grid's nodes (corner_grid.hpp).
 //  - What the data cannot determine (a column in the span of the others, or no excitation at
 //    all) is left out of the fit and named, never guessed.
 // Every step is a few small dense solves: the cost does not depend on how many samples came in.
@@ -191,15 +190,14 @@ class LiveSolver {
   /// [Phi y]'[Phi y] of `terms` summed over the mountings, at `corner` (none: static squares).
   Eigen::MatrixXd gram(const std::vector<Eigen::Index>& terms, const std::vector<const Information*>& infos,
                        const std::vector<Eigen::Matrix3d>& m_cs, std::optional<double> corner) const;
-  /// The fit at the corner with the least residual: `fit_at(corner)` for static squares (when
-  /// allowed), every node, then Brent's method in log b between the best node's neighbours.
+  /// The fit at the corner with the least residual (procedure::least_residual_corner over the
+  /// grid's nodes, the static squares competing when allowed).
   template <class FitAt>
   StatFit best_corner(FitAt&& fit_at) const;
-  /// ULS on `gram` (over `terms`), leaving out what the data does not determine; `forced`
-  /// (basis term indices) are ranked first and never left out.
+  /// ULS on `gram` (over `terms`), leaving out what the data does not determine, by the rules of
+  /// ident/normal_equations.hpp (the sensor's sensitivities ranked first and never left out).
   [[nodiscard]] StatFit fit(const Eigen::MatrixXd& gram, double weight, const std::vector<Eigen::Index>& terms,
-                            const std::vector<Eigen::Index>& forced, const std::vector<const Information*>& infos,
-                            const std::vector<Eigen::Matrix3d>& m_cs) const;
+                            const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs) const;
   /// Factor statistics of output-multiplied terms among `terms` (p_b sums, unwhitened).
   void factor_statistics(const std::vector<Eigen::Index>& terms, const std::vector<const Information*>& infos,
                          const std::vector<Eigen::Matrix3d>& m_cs, std::vector<Eigen::Index>& positions,

@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/selection.hpp"
 #include "analyzer/ident/statistics.hpp"
 #include "analyzer/procedure/batch_regression.hpp"
@@ -85,7 +86,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   ident::UlsOptions uls = options.selection.uls;
   uls.noise_lags = options.batch.noise_lags;
   std::vector<Eigen::Index> columns;
-  const std::vector<Eigen::Index> ranking = identifiable_ranking(batch, options.selection.err);
+  const std::vector<Eigen::Index> ranking = identifiable_ranking(batch, data.sensor, options.selection.err);
   for (UndeterminedTerm& u : undetermined_columns(batch, ranking)) result.undetermined.push_back(std::move(u));
   if (options.batch.select) {
     ident::SelectionOptions selection = options.selection;
@@ -95,18 +96,15 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
     // terms against them, never them against a candidate. Pruning the weaker of a near-collinear
     // pair first, it took the bias out of sim-gyro-thermal's model (seed 116: t 0.9 beside a_p's
     // 1.3, with the bias's 2e-6 rad/s in the p axis' mean specific force) and named a_p at t 7.8.
-    const char own = data.sensor == dataset::SensorKind::Gyroscope ? 'w' : 'a';   // a gyro's a_i is a g-sensitivity
-    for (const Eigen::Index j : ranking) {
-      const std::string& label = batch.labels[static_cast<std::size_t>(j)];
-      if (label == "1" || (ident::is_sensitivity_label(label) && label.front() == own)) problem.kept.push_back(j);
-    }
+    for (const Eigen::Index j : ident::sensitivities_then_bias(batch.labels, data.sensor))
+      if (std::find(ranking.begin(), ranking.end(), j) != ranking.end()) problem.kept.push_back(j);
     const ident::SelectionResult selected = ident::select_model(problem, selection, nullptr);
     columns = selected.best_model().columns;
   } else {
     columns = ranking;
   }
   std::vector<std::string> dropped;
-  ident::UlsResult selected_fit = fit_identifiable(batch, columns, uls, dropped);
+  ident::UlsResult selected_fit = fit_identifiable(batch, data.sensor, columns, uls, dropped);
   // Honest inference on the selected model (the selection's t-tests take every sample as
   // independent): (1) the cluster jackknife covariance over the cases' contiguous phases, where
   // it is larger (coloured residual within a phase, offsets between phases and cases, a model
@@ -120,7 +118,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   honest.layout = &layout;
   honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
   honest.may_remove = options.batch.select;
-  honest.protect = [](const std::string& label) { return ident::is_sensitivity_label(label) || label == "1"; };
+  honest.sensor = data.sensor;
   if (batch_law) honest.below_record = batch_law->below_record(whitener);
   // The searches whose results the batch's columns are built with: the squares' corner and each
   // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the
@@ -219,7 +217,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
         if (kept.size() < columns.size()) {
           columns = kept;
           honest.may_remove = false;
-          ident::UlsResult frame_free_fit = fit_identifiable(batch, columns, uls, dropped);
+          ident::UlsResult frame_free_fit = fit_identifiable(batch, data.sensor, columns, uls, dropped);
           inference = infer_after_selection(honest, std::move(columns), std::move(frame_free_fit), uls);
           columns = std::move(inference.columns);
           result.fit = std::move(inference.fit);

@@ -1,45 +1,23 @@
 #include "analyzer/procedure/identifiable_fit.hpp"
 
-#include <algorithm>
-#include <optional>
-
-#include "analyzer/ident/term.hpp"
+#include "analyzer/ident/normal_equations.hpp"
 
 namespace inertia::procedure {
 
-std::vector<Eigen::Index> identifiable_ranking(const StackedRegression& s, const ident::ErrOptions& base,
+std::vector<Eigen::Index> identifiable_ranking(const StackedRegression& s, dataset::SensorKind sensor, const ident::ErrOptions& base,
                                                const std::vector<Eigen::Index>& nuisance) {
-  ident::ErrOptions options = base;
-  options.forced.clear();
-  for (std::size_t j = 0; j < s.labels.size(); ++j) {
-    if (ident::is_sensitivity_label(s.labels[j])) options.forced.push_back(static_cast<Eigen::Index>(j));
-  }
-  for (std::size_t j = 0; j < s.labels.size(); ++j) {
-    if (s.labels[j] == "1") options.forced.push_back(static_cast<Eigen::Index>(j));
-  }
-  options.forced.insert(options.forced.end(), nuisance.begin(), nuisance.end());
-  options.reference = ident::ErrReference::AfterForced;
-  return ident::err_rank(s.phi, s.y, options).order;
+  const ident::NormalEquations equations = ident::NormalEquations::from_rows(s.phi, s.y, s.labels);
+  return ident::rank_identifiable(equations, sensor, base, nuisance).order;
 }
 
-ident::UlsResult fit_identifiable(const StackedRegression& s, std::vector<Eigen::Index>& columns,
+ident::UlsResult fit_identifiable(const StackedRegression& s, dataset::SensorKind sensor, std::vector<Eigen::Index>& columns,
                                   const ident::UlsOptions& uls, std::vector<std::string>& dropped) {
-  for (;;) {
-    std::vector<Eigen::Index> sorted = columns;
-    std::sort(sorted.begin(), sorted.end());
-    try {
-      return ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, sorted);
-    } catch (const ident::IdentifiabilityError& e) {
-      std::vector<std::string> ranked;
-      for (const Eigen::Index j : columns) ranked.push_back(s.labels[static_cast<std::size_t>(j)]);
-      const std::optional<std::size_t> leaves =
-          ident::column_to_leave(e, ranked, [&](std::size_t j) { return ident::is_sensitivity_label(ranked[j]); });
-      if (!leaves) throw;
-      const auto victim = columns.begin() + static_cast<std::ptrdiff_t>(*leaves);
-      dropped.push_back(s.labels[static_cast<std::size_t>(*victim)]);
-      columns.erase(victim);
-    }
-  }
+  std::vector<Eigen::Index> left;
+  ident::UlsResult fit = ident::fit_identifiable(columns, s.labels, sensor, left, [&](std::span<const Eigen::Index> ascending) {
+    return ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, ascending);
+  });
+  for (const Eigen::Index j : left) dropped.push_back(s.labels[static_cast<std::size_t>(j)]);
+  return fit;
 }
 
 }  // namespace inertia::procedure

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/selection.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
 #include "analyzer/procedure/misalignment.hpp"
@@ -242,7 +243,7 @@ MisalignmentFixedPoint misalignment_fixed_point(const MountingCases& m, const st
     ident::UlsOptions uls = options.selection.uls;
     uls.noise_lags = 0;
     std::vector<std::string> dropped;
-    const ident::UlsResult full = fit_identifiable(f.es, f.usable, uls, dropped);
+    const ident::UlsResult full = fit_identifiable(f.es, data.sensor, f.usable, uls, dropped);
     const auto theta = external_sensitivities(full.labels, full.theta, data.sensor, &full.covariance, &f.sensitivity_covariance);
     if (!theta) {
       throw std::runtime_error(fmt::format("mounting '{}': the model has no {} sensitivity", mounting,
@@ -346,8 +347,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     const std::vector<Term> s_terms = ident::to_sensor_frame(es_terms);
     StackedRegression s =
         whitened_regression(s_terms, m, m_cs, data, dataset_label, first_row, square_corner, whitener);
-    std::vector<Eigen::Index> columns = identifiable_ranking(s, options.selection.err);
-    result.s_fit = fit_identifiable(s, columns, options.selection.uls, result.excluded);
+    std::vector<Eigen::Index> columns = identifiable_ranking(s, data.sensor, options.selection.err);
+    result.s_fit = fit_identifiable(s, data.sensor, columns, options.selection.uls, result.excluded);
     result.s_terms = s.labels;
     result.candidates_tried = 1;
     set_angles(result, misalignment_angles(f.sensitivities, f.sensitivity_covariance).sd);
@@ -392,9 +393,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     honest.s = &stage;
     honest.layout = &layout;
     honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, selected.ranking.size()));
-    honest.protect = [&](const std::string& label) {
-      return ident::is_sensitivity_label(label) || label == "1" || std::find(tilts.begin(), tilts.end(), label) != tilts.end();
-    };
+    honest.sensor = data.sensor;
+    honest.protect = [&](const std::string& label) { return std::find(tilts.begin(), tilts.end(), label) != tilts.end(); };
     if (f.noise_law) honest.below_record = f.noise_law->below_record(whitener);
     if (square_corner) {
       honest.searched = [&](const ident::UlsResult& fit) {
@@ -409,7 +409,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     }
     std::vector<Eigen::Index> columns(selected_terms.size());
     for (std::size_t i = 0; i < columns.size(); ++i) columns[i] = static_cast<Eigen::Index>(i);
-    ident::UlsResult fit = fit_identifiable(stage, columns, options.selection.uls, result.excluded);
+    ident::UlsResult fit = fit_identifiable(stage, data.sensor, columns, options.selection.uls, result.excluded);
     InferenceOutcome inference = infer_after_selection(honest, std::move(columns), std::move(fit), options.selection.uls);
     result.s_fit = std::move(inference.fit);
     for (const PrunedTerm& pruned : inference.pruned) result.pruned.push_back({pruned.term, pruned_reason(pruned, "mounting's model")});
@@ -441,7 +441,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
         whitened_regression(s_terms, m, result.m_cs, data, dataset_label, first_row, square_corner, whitener);
     std::vector<Eigen::Index> columns(s_terms.size());
     for (std::size_t i = 0; i < columns.size(); ++i) columns[i] = static_cast<Eigen::Index>(i);
-    result.s_fit = fit_identifiable(s, columns, options.selection.uls, result.excluded);
+    result.s_fit = fit_identifiable(s, data.sensor, columns, options.selection.uls, result.excluded);
   }
   result.s_terms = result.s_fit.labels;
   return result;

@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
 
@@ -323,7 +324,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     double worst_p = -1.0, worst_t = 0.0;
     for (Eigen::Index j = 0; j < p; ++j) {
       const std::string& label = fit.labels[std::size_t(j)];
-      if (h.protect && h.protect(label)) continue;
+      if (label == "1" || ident::is_sensitivity_label(label, h.sensor) || (h.protect && h.protect(label))) continue;
       const double t = fit.theta(j) / fit.std_dev(j);
       double pv = 0.0;
       if (saturated) {
@@ -344,7 +345,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     pruned.push_back({label, saturated, worst_t, out.dof(worst), out.offsets.clusters, static_cast<bool>(h.held_covariance)});
     const auto at = std::find(s.labels.begin(), s.labels.end(), label);
     std::erase(columns, static_cast<Eigen::Index>(at - s.labels.begin()));
-    fit = fit_identifiable(s, columns, uls, dropped);
+    fit = fit_identifiable(s, h.sensor, columns, uls, dropped);
   }
 }
 

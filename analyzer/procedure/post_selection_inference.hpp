@@ -75,7 +75,8 @@ struct InferenceProblem {
   const PhaseLayout* layout = nullptr;      // of s
   double threshold = 0.01;                  // a term whose test's p-value is above it leaves
   bool may_remove = true;
-  std::function<bool(const std::string&)> protect;     // terms that never leave
+  dataset::SensorKind sensor = dataset::SensorKind::Accelerometer;   // its sensitivities and the bias never leave
+  std::function<bool(const std::string&)> protect;     // further terms that never leave
   std::function<SearchedColumns(const ident::UlsResult&)> searched;   // empty: none
   /// What angles held at the nominal frame add to the coefficients' covariance (the fit's
   /// response to each turned by the mounting tolerance); empty: none held.

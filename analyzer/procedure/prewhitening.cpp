@@ -78,9 +78,7 @@ void ArWhitener::apply(StackedRegression& s) const {
     const auto filter_into = [&](auto&& x) {
       for (Eigen::Index b = 0; b < rows; b += kBlock) {
         const Eigen::Index n = std::min(kBlock, rows - b);
-        auto part = scratch.segment(b, n);
-        part = x.segment(c.begin + m + b, n);
-        for (int j = 1; j <= m; ++j) part.noalias() -= a_(j - 1) * x.segment(c.begin + m - j + b, n);
+        ar_filter(a_, x.segment(c.begin + b, n + m), scratch.segment(b, n));
       }
       x.segment(out, rows) = scratch;
     };

@@ -40,6 +40,17 @@ class ArWhitener {
   double variance_ratio_ = 1.0;
 };
 
+/// A(q) = 1 - sum a_j q^-j on the rows of `x` whose m = a.size() predecessors are in `x` too: row
+/// r of `out` (x.rows() - m rows) is x(r + m) - sum_j a_j x(r + m - j). ArWhitener filters the
+/// stacked rows by it and the live estimator (online/information.hpp) its segments, chunk by chunk.
+template <class In, class Out>
+void ar_filter(const Eigen::VectorXd& a, const Eigen::DenseBase<In>& x, Out&& out) {
+  const Eigen::Index m = a.size();
+  const Eigen::Index n = x.rows() - m;
+  out = x.middleRows(m, n);
+  for (Eigen::Index j = 1; j <= m; ++j) out.noalias() -= a(j - 1) * x.middleRows(m - j, n);
+}
+
 /// Levinson-Durbin on autocovariances acov(0..M) pooled over n samples, the AR order chosen by
 /// AIC among 0..M: a_1..a_m of A(q) = 1 - sum a_j q^-j (empty: white, also when n < 10 M or
 /// acov(0) <= 0). innovation_variance (optional) receives the chosen order's innovation variance.

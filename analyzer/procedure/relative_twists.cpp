@@ -70,9 +70,9 @@ RelativeTwists relative_twists(StackedRegression batch, std::vector<MountingResu
         if (mountings[k].excitation.determined[static_cast<std::size_t>(axis) + 1]) parameters.push_back({k, axis});
       parameters.push_back({k, 2});
     }
-    std::vector<Eigen::Index> usable = identifiable_ranking(batch, options.selection.err);
+    std::vector<Eigen::Index> usable = identifiable_ranking(batch, data.sensor, options.selection.err);
     std::vector<std::string> dropped;
-    const ident::UlsResult fit = fit_identifiable(batch, usable, uls, dropped);
+    const ident::UlsResult fit = fit_identifiable(batch, data.sensor, usable, uls, dropped);
     Eigen::MatrixXd derivatives(batch.phi.rows(), static_cast<Eigen::Index>(parameters.size()));
     for (std::size_t i = 0; i < parameters.size(); ++i) {
       derivatives.col(static_cast<Eigen::Index>(i)) = prediction_derivative(fit, 1e-4, [&](std::span<const Term> terms, double moved) {

@@ -1,12 +1,13 @@
 #include "analyzer/procedure/square_highpass.hpp"
 
 #include <algorithm>
-#include <boost/math/tools/minima.hpp>
 
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <numbers>
+
+#include "analyzer/procedure/corner_search.hpp"
 
 namespace inertia::procedure {
 
@@ -134,31 +135,10 @@ double SquareCornerSearch::rss(std::optional<double> corner_rad_s) const {
 std::optional<double> SquareCornerSearch::best(double lo, double hi) const {
   if (!(lo > 0.0) || !(hi >= lo)) return std::nullopt;
   if (hi == lo) return lo;   // a given corner (a model's): used as given
-  const double static_rss = rss(std::nullopt);
-  constexpr int kGrid = kGridCorners;
+  std::vector<double> nodes(kGridCorners);
   const double l0 = std::log(lo), l1 = std::log(hi);
-  int best_index = 0;
-  double best_rss = std::numeric_limits<double>::infinity();
-  std::vector<double> grid(kGrid);
-  for (int i = 0; i < kGrid; ++i) {
-    grid[static_cast<std::size_t>(i)] = l0 + (l1 - l0) * i / (kGrid - 1);
-    const double r = rss(std::exp(grid[static_cast<std::size_t>(i)]));
-    if (r < best_rss) {
-      best_rss = r;
-      best_index = i;
-    }
-  }
-  // Brent's method (Boost.Math) inside the best grid point's neighbours, on log b: the rss is
-  // smooth there, so parabolic steps reach the tolerance in about a third of the evaluations
-  // golden section needs. 14 bits (tolerance 2^-13 relative to log b: ~8e-4 at b ~ 500 rad/s,
-  // 0.08% of b) is far below the corner's own scatter over seeds (~1.5%).
-  const double a = grid[static_cast<std::size_t>(std::max(0, best_index - 1))];
-  const double b = grid[static_cast<std::size_t>(std::min(kGrid - 1, best_index + 1))];
-  std::uintmax_t iterations = 40;
-  const auto [x, fx] = boost::math::tools::brent_find_minima([this](double log_b) { return rss(std::exp(log_b)); }, a,
-                                                             b, 14, iterations);
-  if (std::min(fx, best_rss) >= static_rss) return std::nullopt;
-  return fx <= best_rss ? std::exp(x) : std::exp(grid[static_cast<std::size_t>(best_index)]);
+  for (int i = 0; i < kGridCorners; ++i) nodes[static_cast<std::size_t>(i)] = std::exp(l0 + (l1 - l0) * i / (kGridCorners - 1));
+  return least_residual_corner(nodes, true, [this](std::optional<double> corner) { return rss(corner); }).corner_rad_s;
 }
 
 }  // namespace inertia::procedure

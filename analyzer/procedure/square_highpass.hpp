@@ -49,16 +49,16 @@ double max_corner(const std::vector<CaseRows>& layout, const dataset::Dataset& d
 /// (pipeline) and where a model without them is diagnosed (diagnose).
 class SquareCornerSearch {
  public:
-  /// Corners of the log-spaced grid the search starts from (golden section refines the best).
+  /// Corners of the log-spaced grid the search starts from (least_residual_corner refines the best).
   static constexpr int kGridCorners = 13;
 
   SquareCornerSearch(const StackedRegression& s, std::vector<Eigen::Index> squares, const dataset::Dataset& data);
 
   [[nodiscard]] double rss(std::optional<double> corner_rad_s) const;
 
-  /// The corner minimizing rss over [lo, hi] (a log-spaced grid, then Brent's method between the
-  /// best point's neighbours), or nullopt when the static squares fit better. lo == hi: that
-  /// corner (given, not searched).
+  /// The corner minimizing rss over [lo, hi] by least_residual_corner (corner_search.hpp) on a
+  /// log-spaced grid of kGridCorners, or nullopt when the static squares fit better. lo == hi:
+  /// that corner (given, not searched).
   [[nodiscard]] std::optional<double> best(double lo, double hi) const;
 
  private:

@@ -108,11 +108,11 @@ WhitenedProblem whiten_problem(StackedRegression stacked, const dataset::Dataset
   }
   apply_square_model(stacked, data, out.square_corner_rad_s);
   // The noise model from the residuals of the full candidate set (dependent columns left out).
-  out.identifiable = identifiable_ranking(stacked, options.err);
+  out.identifiable = identifiable_ranking(stacked, data.sensor, options.err);
   ident::UlsOptions uls = options.uls;
   uls.noise_lags = 0;
   std::vector<std::string> dropped;
-  const ident::UlsResult ols = fit_identifiable(stacked, out.identifiable, uls, dropped);
+  const ident::UlsResult ols = fit_identifiable(stacked, data.sensor, out.identifiable, uls, dropped);
   out.whitener = ArWhitener::fit(ols.residuals, stacked.cases, options.max_order);
   out.noise_law = static_noise_law(ols.residuals, stacked.cases, data);
   if (unfiltered) {

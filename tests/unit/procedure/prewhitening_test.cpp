@@ -72,5 +72,36 @@ TEST(ArWhitener, FiltersEachCaseWithoutCrossingItsStart) {
   EXPECT_EQ(s.cases[1].first_sample, 1);
 }
 
+// A(q) inverts the AR process that made the series: the filtered series is its innovations,
+// and the filter gives the same rows whether a series is filtered at once or in chunks that each
+// carry the last m rows of the one before (the live estimator's segments).
+TEST(ArFilter, UndoesTheArProcessAndChunksAgreeWithOnePass) {
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const Eigen::Vector2d a(1.2, -0.5);
+  const Eigen::Index n = 400;
+  Eigen::VectorXd e(n), x(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    e(k) = g(rng);
+    x(k) = e(k) + (k >= 1 ? a(0) * x(k - 1) : 0.0) + (k >= 2 ? a(1) * x(k - 2) : 0.0);
+  }
+  Eigen::VectorXd whole;
+  ar_filter(a, x, whole);
+  ASSERT_EQ(whole.size(), n - 2);
+  EXPECT_LT((whole - e.tail(n - 2)).cwiseAbs().maxCoeff(), 1e-12);
+  Eigen::MatrixXd columns(n, 2);
+  columns << x, 2.0 * x;
+  Eigen::MatrixXd chunked(n - 2, 2);
+  for (Eigen::Index begin = 2, length = 5; begin < n; begin += length, length += 7) {
+    const Eigen::Index rows = std::min(length, n - begin);
+    ar_filter(a, columns.middleRows(begin - 2, rows + 2), chunked.middleRows(begin - 2, rows));
+  }
+  EXPECT_EQ(chunked.col(0), whole);
+  EXPECT_EQ(chunked.col(1), 2.0 * whole);
+  Eigen::VectorXd none;
+  ar_filter(Eigen::VectorXd(), x, none);
+  EXPECT_EQ(none, x);
+}
+
 }  // namespace
 }  // namespace inertia::procedure
