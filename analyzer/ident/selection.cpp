@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 #include <utility>
 #include <stdexcept>
 
@@ -89,21 +90,19 @@ std::vector<Index> prune(const FitContext& context, std::vector<Index> columns,
   for (;;) {
     const auto [theta, sd] = context.theta_sd(columns);
     const ParameterTTest tt = parameter_t_test(theta, sd, context.samples());
-    Eigen::VectorXd p_value = tt.p_value;
-    for (Eigen::Index i = 0; i < p_value.size(); ++i) {
-      if (std::find(kept.begin(), kept.end(), columns[static_cast<std::size_t>(i)]) != kept.end()) p_value[i] = 0.0;
+    std::vector<double> p_value(tt.p_value.data(), tt.p_value.data() + tt.p_value.size());
+    for (std::size_t i = 0; i < p_value.size(); ++i) {
+      if (std::find(kept.begin(), kept.end(), columns[i]) != kept.end()) p_value[i] = std::numeric_limits<double>::quiet_NaN();
     }
-    if (p_value.size() == 0) break;
-    Eigen::Index worst = 0;
-    const double worst_p = p_value.maxCoeff(&worst);
-    if (!(worst_p > threshold)) break;  // NaN p-values (dof <= 0) stop pruning too
+    const std::optional<std::size_t> worst = term_to_prune(p_value, threshold);   // NaN p-values (dof <= 0) never leave
+    if (!worst) break;
     std::vector<Index> keep;
-    for (Eigen::Index i = 0; i < p_value.size(); ++i) {
-      const bool drop = options.one_at_a_time ? i == worst : p_value[i] > threshold;
+    for (std::size_t i = 0; i < p_value.size(); ++i) {
+      const bool drop = options.one_at_a_time ? i == *worst : p_value[i] > threshold;
       if (drop) {
-        model.removed.push_back(context.labels()[static_cast<std::size_t>(columns[static_cast<std::size_t>(i)])]);
+        model.removed.push_back(context.labels()[static_cast<std::size_t>(columns[i])]);
       } else {
-        keep.push_back(columns[static_cast<std::size_t>(i)]);
+        keep.push_back(columns[i]);
       }
     }
     columns = std::move(keep);

@@ -69,6 +69,15 @@ ParameterTTest parameter_t_test(const Eigen::Ref<const Eigen::VectorXd>& theta,
   return out;
 }
 
+std::optional<std::size_t> term_to_prune(std::span<const double> p_values, double threshold) {
+  std::optional<std::size_t> worst;
+  for (std::size_t j = 0; j < p_values.size(); ++j) {
+    if (!(p_values[j] > threshold)) continue;   // NaN too
+    if (!worst || p_values[j] > p_values[*worst]) worst = j;
+  }
+  return worst;
+}
+
 double aic_from_variance(double sigma2_ml, Eigen::Index samples, Eigen::Index parameters) {
   if (!(sigma2_ml > 0.0)) return -std::numeric_limits<double>::infinity();
   return static_cast<double>(samples) * std::log(sigma2_ml) + 2.0 * static_cast<double>(parameters);

@@ -5,6 +5,8 @@
 
 #include <functional>
 #include <map>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -24,6 +26,14 @@ struct ParameterTTest {
 ParameterTTest parameter_t_test(const Eigen::Ref<const Eigen::VectorXd>& theta,
                                 const Eigen::Ref<const Eigen::VectorXd>& std_dev,
                                 Eigen::Index samples);
+
+/// Which term leaves a model, by the rule algorithm 2's step 9, the post-selection inference and
+/// the live estimate share: of the terms whose p-value exceeds `threshold`, the one with the
+/// largest; none when every term passes. One at a time, refitting in between: correlated terms
+/// share their variance, and removing both members of a pair at once can remove a real effect.
+/// A NaN p-value marks a term that never leaves (a sensitivity, the bias, a term the test does not
+/// weigh).
+[[nodiscard]] std::optional<std::size_t> term_to_prune(std::span<const double> p_values, double threshold);
 
 /// Equation 9: AIC = N ln(sigma_e^2) + 2 p with sigma_e^2 = sum e^2 / N, the maximum-likelihood
 /// variance the criterion is derived from (the mean is not removed: a residual offset is a model

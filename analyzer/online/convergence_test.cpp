@@ -62,7 +62,9 @@ void ConvergenceTest::update(const LiveEstimate& s, const OnlineSnapshot& out, c
     beyond_plan += fmt::format("; left out, constant within each phase with no phase to spare for the offsets between "
                                "them (placement, drift): {}",
                                fmt::join(out.confounded, ", "));
-  const std::size_t beyond = out.plan_undetermined.size() + out.confounded.size();
+  if (!out.insignificant.empty())
+    beyond_plan += fmt::format("; left out, not significant: {}", fmt::join(out.insignificant, ", "));
+  const std::size_t beyond = out.plan_undetermined.size() + out.confounded.size() + out.insignificant.size();
   if (out.undetermined.size() > beyond) {
     convergence = fmt::format("{} term(s) not determined yet{}", out.undetermined.size() - beyond, beyond_plan);
     return;
@@ -89,7 +91,8 @@ void ConvergenceTest::update(const LiveEstimate& s, const OnlineSnapshot& out, c
     for (std::size_t j = 0; j < live.model.size(); ++j) {
       const std::string name = live.model_terms[j].to_string();
       if (std::find(out.plan_undetermined.begin(), out.plan_undetermined.end(), name) != out.plan_undetermined.end() ||
-          std::find(out.confounded.begin(), out.confounded.end(), name) != out.confounded.end())
+          std::find(out.confounded.begin(), out.confounded.end(), name) != out.confounded.end() ||
+          std::find(out.insignificant.begin(), out.insignificant.end(), name) != out.insignificant.end())
         continue;
       std::optional<Index> a, b;
       for (std::size_t k = 0; k < s.batch.terms.size(); ++k)

@@ -113,7 +113,7 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     angle_covariances.push_back(c);
   }
   const CaseStatistics cs = case_statistics(m_cs, left_out);
-  const LiveSolver fitted = drop_confounded(s, batch_solver, infos, m_cs, cs, fits);
+  const LiveSolver fitted = prune_terms(s, batch_solver, infos, m_cs, cs, fits);
   fitted.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
   add_case_scatter(s, cs, fitted);
   s.model = fitted.model();
@@ -159,10 +159,10 @@ void EstimateSolver::add_case_scatter(LiveEstimate& s, const CaseStatistics& cs,
   s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum(), s.level_parameters);
 }
 
-LiveSolver EstimateSolver::drop_confounded(LiveEstimate& s, const LiveSolver& batch_solver,
-                                           const std::vector<const Information*>& infos,
-                                           const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
-                                           const std::vector<MountingFit>& fits) {
+LiveSolver EstimateSolver::prune_terms(LiveEstimate& s, const LiveSolver& batch_solver,
+                                       const std::vector<const Information*>& infos,
+                                       const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
+                                       const std::vector<MountingFit>& fits) {
   std::optional<LiveSolver> current(batch_solver);
   const Index axis = live.basis->find(plain_term(live.sensor == dataset::SensorKind::Gyroscope ? Variable::Wi : Variable::Ai));
   const double gain = 1.0 - noise.ar.sum();
@@ -176,24 +176,31 @@ LiveSolver EstimateSolver::drop_confounded(LiveEstimate& s, const LiveSolver& ba
     const int dof = runs - s.level_parameters;
     StatFit trial = s.batch;
     if (dof >= 1) (void)current->add_case_scatter(trial, cs.infos, cs.m_cs, gain, s.level_parameters);
-    std::optional<Index> weakest;
-    double weakest_t = std::numeric_limits<double>::infinity();
-    int droppable = 0;
+    // Saturated (no phase to spare): the weakest phase-level term leaves whatever its test.
+    const bool saturated = dof < 1;
+    const double samples_dof = trial.weight - static_cast<double>(trial.terms.size());
+    std::vector<double> p_values(trial.terms.size(), std::numeric_limits<double>::quiet_NaN());
+    int tested = 0;
     for (std::size_t k = 0; k < trial.terms.size(); ++k) {
       const Index t = trial.terms[k];
-      if (t == current->bias_term() || t == axis || std::find(level.begin(), level.end(), t) == level.end()) continue;
-      ++droppable;
+      if (t == current->bias_term() || t == axis) continue;
+      const bool at_level = std::find(level.begin(), level.end(), t) != level.end();
+      if (!at_level && (saturated || !live.searched)) continue;
+      ++tested;
       const double z = std::abs(trial.theta(static_cast<Index>(k)) / trial.sd(static_cast<Index>(k)));
-      if (z < weakest_t) {
-        weakest_t = z;
-        weakest = t;
-      }
+      if (saturated) p_values[k] = 1.0 / (1.0 + z);
+      else p_values[k] = ident::student_t_two_sided_p(z, at_level ? static_cast<double>(dof) : samples_dof);
     }
-    if (!weakest) break;
-    if (dof >= 1 && ident::student_t_two_sided_p(weakest_t, dof) <= live.options.solver.structure_alpha / droppable) break;
-    s.confounded.push_back(*weakest);
+    if (tested == 0) break;
+    const std::optional<std::size_t> leaves =
+        ident::term_to_prune(p_values, saturated ? -std::numeric_limits<double>::infinity()
+                                                 : live.options.solver.structure_alpha / static_cast<double>(tested));
+    if (!leaves) break;
+    const Index weakest = trial.terms[*leaves];
+    if (std::find(level.begin(), level.end(), weakest) != level.end()) s.confounded.push_back(weakest);
+    else s.insignificant.push_back(weakest);
     std::vector<Index> kept = current->model();
-    std::erase(kept, *weakest);
+    std::erase(kept, weakest);
     current.emplace(current->with_model(std::move(kept)));
     s.batch = current->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
   }

@@ -31,6 +31,7 @@ struct LiveEstimate {
   bool aligned = true;                     // some mounting aligned (else the frame-free terms only)
   std::vector<Eigen::Index> model;         // the terms the batch fitted (the solver's model)
   std::vector<Eigen::Index> confounded;    // left out: at the phases' level, with no phase to spare
+  std::vector<Eigen::Index> insignificant; // left out of a searched model: its test failed (ident::term_to_prune)
   int level_parameters = -1;               // fitted at the level of the phases' means (case scatter's dof)
 };
 
@@ -72,13 +73,17 @@ class EstimateSolver {
                                      const std::vector<MountingFit>* fits) const;
   /// The cases' offsets the noise model does not explain, into the batch's covariance.
   void add_case_scatter(LiveEstimate& s, const CaseStatistics& cs, const LiveSolver& batch_solver);
-  /// Terms at the level of the phases' means (constant within every phase: a tumble's poses) are
-  /// told from the phases' offsets (a pose's placement) only by the phases left over. As the
-  /// batch's honest inference: the weakest such term is left out while none are left over, or while
-  /// its t, with the offsets' scatter in its sd, fails Student's test on that many degrees of freedom
-  /// (Bonferroni over those terms). Never the bias or the scale factor. Refits s.batch with what is
-  /// left; returns the solver of that model.
-  LiveSolver drop_confounded(LiveEstimate& s, const LiveSolver& batch_solver, const std::vector<const Information*>& infos,
+  /// The batch's post-selection inference on the statistics (procedure/post_selection_inference.hpp),
+  /// one term at a time by ident::term_to_prune, never the bias or the scale factor:
+  ///  - terms at the level of the phases' means (constant within every phase: a tumble's poses)
+  ///    are told from the phases' offsets (a pose's placement) only by the phases left over: the
+  ///    weakest such term leaves while none are left over, or while its t, with the offsets'
+  ///    scatter in its sd, fails Student's test on that many degrees of freedom (s.confounded);
+  ///  - in a searched model (LiveModel::searched) every other term is tested too, on the samples'
+  ///    degrees of freedom (s.insignificant), as the batch's selection and inference test them.
+  /// Bonferroni over the terms tested. Refits s.batch with what is left; returns the solver of that
+  /// model.
+  LiveSolver prune_terms(LiveEstimate& s, const LiveSolver& batch_solver, const std::vector<const Information*>& infos,
                              const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
                              const std::vector<MountingFit>& fits);
 };

@@ -70,6 +70,7 @@ LiveModel::LiveModel(dataset::SensorKind sensor, const std::optional<model::Mode
     if (model_file->square_highpass_rad_s) grid = CornerGrid::single(*model_file->square_highpass_rad_s);
   } else {
     model_terms = default_terms(sensor, options.temperature_candidates);
+    searched = true;
   }
   for (const Term& t : model_terms) {
     if (t.is_noise_term()) {

@@ -42,6 +42,9 @@ struct LiveModel {
   CornerGrid grid;   // the squares' corner: the model's, or the nodes it is interpolated on
   bool rational = false;
   Eigen::Index model_max_lag = 0;
+  /// The default terms (no model file): a search, whose terms the data must show significant;
+  /// a model file's terms are fitted as given.
+  bool searched = false;
 
   /// Statistics of no rows in the basis.
   [[nodiscard]] Information empty_information() const {

@@ -84,6 +84,8 @@ struct OnlineEstimator::Impl {
       out.undetermined.push_back(live.model_terms[j].to_string());
       if (std::find(s.confounded.begin(), s.confounded.end(), live.model[j]) != s.confounded.end())
         out.confounded.push_back(live.model_terms[j].to_string());
+      else if (std::find(s.insignificant.begin(), s.insignificant.end(), live.model[j]) != s.insignificant.end())
+        out.insignificant.push_back(live.model_terms[j].to_string());
       else if ((!s.aligned && !procedure::frame_free(live.model_terms[j])) || statistics.whole_plan_in())
         out.plan_undetermined.push_back(live.model_terms[j].to_string());
     }

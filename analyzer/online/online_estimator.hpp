@@ -93,6 +93,7 @@ struct OnlineSnapshot {
   std::vector<std::string> undetermined;     // those terms
   std::vector<std::string> plan_undetermined;   // of those, the ones this plan cannot determine (no mounting aligned)
   std::vector<std::string> confounded;   // of those, left out: constant within each phase, no phase to spare (placement)
+  std::vector<std::string> insignificant;   // of those, left out of the default model: not significant (LiveEstimate)
   double residual_variance = 0.0;            // of the (whitened) residual
   std::vector<MountingEstimate> mountings;
   std::int64_t samples_used = 0;             // rows in the estimate

@@ -320,26 +320,19 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       return v > 0.0 && std::isfinite(v) ? std::sqrt(v) : std::numeric_limits<double>::infinity();
     });
     const bool saturated = out.offsets.clusters >= 2 && out.offsets.between_dof <= 0;
-    Eigen::Index worst = -1;
-    double worst_p = -1.0, worst_t = 0.0;
+    // Saturated: the weakest phase-level term leaves whatever its test, ranked by its classical t.
+    std::vector<double> p_values(static_cast<std::size_t>(p), std::numeric_limits<double>::quiet_NaN());
     for (Eigen::Index j = 0; j < p; ++j) {
       const std::string& label = fit.labels[std::size_t(j)];
       if (label == "1" || ident::is_sensitivity_label(label, h.sensor) || (h.protect && h.protect(label))) continue;
       const double t = fit.theta(j) / fit.std_dev(j);
-      double pv = 0.0;
-      if (saturated) {
-        if (!phase_level[std::size_t(j)]) continue;
-        pv = 1.0 / (1.0 + std::abs(t));   // the weakest phase-level term by its classical t
-      } else {
-        pv = ident::student_t_two_sided_p(t, out.dof(j));
-        if (!(pv > h.threshold)) continue;
-      }
-      if (pv > worst_p) {
-        worst = j;
-        worst_p = pv;
-        worst_t = t;
-      }
+      if (!saturated) p_values[std::size_t(j)] = ident::student_t_two_sided_p(t, out.dof(j));
+      else if (phase_level[std::size_t(j)]) p_values[std::size_t(j)] = 1.0 / (1.0 + std::abs(t));
     }
+    const std::optional<std::size_t> leaves =
+        ident::term_to_prune(p_values, saturated ? -std::numeric_limits<double>::infinity() : h.threshold);
+    const Eigen::Index worst = leaves ? static_cast<Eigen::Index>(*leaves) : -1;
+    const double worst_t = leaves ? fit.theta(worst) / fit.std_dev(worst) : 0.0;
     if (worst < 0 || !h.may_remove) return finish();
     const std::string label = fit.labels[std::size_t(worst)];
     pruned.push_back({label, saturated, worst_t, out.dof(worst), out.offsets.clusters, static_cast<bool>(h.held_covariance)});

@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+#include <optional>
+
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -330,6 +333,23 @@ TEST(Statistics, ClusterOffsetsOnANearlyDependentDesignGiveVariancesNotRoundingN
     EXPECT_GT(out.covariance(j, j), 0.0) << j;
     EXPECT_GE(out.covariance(j, j), out.within(j, j) * (1.0 - 1e-6)) << j;
   }
+}
+
+TEST(TermToPrune, TheLargestPValueAboveTheThresholdLeavesOneAtATime) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<double> p{0.001, 0.4, nan, 0.9, 0.02};
+  EXPECT_EQ(term_to_prune(p, 0.01), std::optional<std::size_t>(3));
+  // A protected term (NaN) never leaves, however weak its coefficient would be.
+  const std::vector<double> only_protected{nan, nan};
+  EXPECT_FALSE(term_to_prune(only_protected, 0.01));
+  // Every p-value at or below the threshold: nothing leaves.
+  const std::vector<double> significant{0.001, 0.01, 0.0};
+  EXPECT_FALSE(term_to_prune(significant, 0.01));
+  // A tie goes to the first; any p-value leaves below an infinite threshold (a saturated design).
+  const std::vector<double> tie{0.5, 0.5, 0.0};
+  EXPECT_EQ(term_to_prune(tie, 0.01), std::optional<std::size_t>(0));
+  EXPECT_EQ(term_to_prune(significant, -std::numeric_limits<double>::infinity()), std::optional<std::size_t>(1));
+  EXPECT_FALSE(term_to_prune(std::vector<double>{}, 0.01));
 }
 
 }  // namespace

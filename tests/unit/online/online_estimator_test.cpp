@@ -76,7 +76,7 @@ dataset::CaseData shaker_rows(Index n, std::uint32_t seed) {
 /// y of the model on the case's references with M_E^S = m_cs * m_ec, squares through s/(s + corner),
 /// plus white noise.
 void set_output(dataset::CaseData& c, const frames::Dcm& m_cs, const frames::Dcm& m_ec, double corner, double noise_sd,
-                std::uint32_t seed) {
+                std::uint32_t seed, const Eigen::VectorXd& truth) {
   const Index n = c.a_e.rows();
   c.sample_period_s = kPeriod;
   c.t = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * kPeriod);
@@ -89,7 +89,7 @@ void set_output(dataset::CaseData& c, const frames::Dcm& m_cs, const frames::Dcm
   for (Index j = 2; j <= 4; ++j) procedure::highpass_in_place(phi.col(j), corner, kPeriod);
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0.0, noise_sd);
-  c.y = phi * truth_values();
+  c.y = phi * truth;
   for (Index k = 0; k < n; ++k) c.y(k) += noise(rng);
 }
 
@@ -100,21 +100,22 @@ struct Plan {
 
 /// A table mounting (one case) and a shaker fixture carrying three orientations (one mounting),
 /// each with its own case misalignment, as the paper's Fig. 2 bench.
-Plan two_mountings(double corner, double noise_sd, std::uint32_t seed, Index table_n = 6000, Index shaker_n = 3000) {
+Plan two_mountings(double corner, double noise_sd, std::uint32_t seed, Index table_n = 6000, Index shaker_n = 3000,
+                   const Eigen::VectorXd& truth = truth_values()) {
   Plan p;
   // Rotations about axes normal to the input axis: algorithm 1 sees all of them (a turn about n_i
   // itself is not observable from one axis and would leave a_p, a_o in another frame than truth's).
   p.table_m_cs = frames::frame_rotation(Eigen::Vector3d(0.0, 0.3, 1.0), deg_to_rad(2.0));
   p.shaker_m_cs = frames::frame_rotation(Eigen::Vector3d(0.0, 1.0, -0.6), deg_to_rad(1.5));
   PlanCase table{test_case("rotation-table", CaseKind::RotationTable, frames::Dcm::Identity(), ""), table_rows(table_n, seed)};
-  set_output(table.data, p.table_m_cs, table.tc.m_ec, corner, noise_sd, seed + 1);
+  set_output(table.data, p.table_m_cs, table.tc.m_ec, corner, noise_sd, seed + 1, truth);
   p.cases.push_back(std::move(table));
   const char* names[3] = {"shaker-ia", "shaker-pa", "shaker-oa"};
   const config::Orientation orientations[3] = {config::Orientation::IA, config::Orientation::PA, config::Orientation::OA};
   for (int o = 0; o < 3; ++o) {
     const frames::Dcm m_ec = config::slot_orientation(orientations[o], deg_to_rad(25.0));
     PlanCase c{test_case(names[o], CaseKind::Shaker, m_ec, "shaker-fixture"), shaker_rows(shaker_n, seed + 10 + static_cast<std::uint32_t>(o))};
-    set_output(c.data, p.shaker_m_cs, m_ec, corner, noise_sd, seed + 20 + static_cast<std::uint32_t>(o));
+    set_output(c.data, p.shaker_m_cs, m_ec, corner, noise_sd, seed + 20 + static_cast<std::uint32_t>(o), truth);
     p.cases.push_back(std::move(c));
   }
   return p;
@@ -351,6 +352,29 @@ TEST(OnlineEstimator, TheSquaresCornerIsFoundBetweenTheGridsNodes) {
     // Interpolation costs at most 1.1e-3 of the squares' response: a bound on top of the noise.
     EXPECT_NEAR(s.values(j), truth(j), 4.0 * s.std_devs(j) + 3e-3 * std::abs(truth(j))) << s.terms[static_cast<std::size_t>(j)];
   }
+}
+
+TEST(OnlineEstimator, TheDefaultModelLeavesOutATermTheDataShowsInsignificantAModelFileKeepsIt) {
+  // A sensor without cross-coupling between p and o: the default terms are a search, and the term
+  // leaves as the batch's inference takes it out (ident::term_to_prune); a model file's terms are
+  // fitted as given.
+  Eigen::VectorXd truth = truth_values();
+  truth(7) = 0.0;   // a_p*a_o
+  const Plan p = two_mountings(500.0, 1e-4, 31, 6000, 3000, truth);
+  OnlineEstimator searched(dataset::SensorKind::Accelerometer, std::nullopt, 25.0, white_noise());
+  feed(searched, p, 4);
+  const OnlineSnapshot s = searched.snapshot();
+  EXPECT_EQ(s.insignificant, std::vector<std::string>{"a_p*a_o"}) << s.convergence;
+  EXPECT_TRUE(std::isnan(s.values(7)));
+  EXPECT_NE(s.convergence.find("not significant: a_p*a_o"), std::string::npos) << s.convergence;
+  for (Index j = 0; j < 7; ++j)
+    EXPECT_NEAR(s.values(j), truth(j), 4.0 * s.std_devs(j) + 3e-3 * std::abs(truth(j))) << s.terms[static_cast<std::size_t>(j)];
+  OnlineEstimator given(dataset::SensorKind::Accelerometer, model_file(kModel, 500.0), 25.0, white_noise());
+  feed(given, p, 4);
+  const OnlineSnapshot g = given.snapshot();
+  EXPECT_TRUE(g.insignificant.empty());
+  ASSERT_TRUE(std::isfinite(g.values(7)));
+  EXPECT_NEAR(g.values(7), 0.0, 4.0 * g.std_devs(7));
 }
 
 TEST(OnlineEstimator, NotDeterminedYetIsSaidNotGuessed) {
