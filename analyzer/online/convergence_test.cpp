@@ -86,7 +86,7 @@ void ConvergenceTest::update(const LiveEstimate& s, const OnlineSnapshot& out, c
     // (re-running algorithm 1 without a case would break the procedure's own structure: a
     // shaker fixture left without the mounting that gives it the bias, an orientation missing
     // that separated a tilt from the cross-couplings).
-    const LiveEstimate without = estimates.solve(false, left_out, &s.m_cs, &s.angle_covariances, &s);
+    const LiveEstimate without = estimates.solve(false, left_out, &s.m_cs, &s.angle_covariances, &s.held_angles, &s);
     if (!without.batch.ok) return std::string("the model");
     for (std::size_t j = 0; j < live.model.size(); ++j) {
       const std::string name = live.model_terms[j].to_string();

@@ -19,6 +19,7 @@ using ident::Variable;
 LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftOut>& left_out,
                                    const std::vector<Eigen::Matrix3d>* fixed_m_cs,
                                    const std::vector<Eigen::Matrix3d>* fixed_angle_covariances,
+                                   const std::vector<std::array<bool, 3>>* fixed_held_angles,
                                    const LiveEstimate* fixed_from) {
   LiveEstimate s;
   s.infos.assign(statistics.mountings.size(), live.empty_information());
@@ -41,7 +42,8 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     s.aligned = fixed_from == nullptr || fixed_from->aligned;
     s.model = batch_solver.model();
     s.batch = batch_solver.fit_batch(infos, s.m_cs);
-    if (fixed_angle_covariances != nullptr) batch_solver.add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances);
+    if (fixed_angle_covariances != nullptr && fixed_held_angles != nullptr)
+      batch_solver.add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances, *fixed_held_angles);
     const CaseStatistics cs = case_statistics(s.m_cs, left_out);
     if (s.batch.ok) s.level_parameters = level_parameters(s.batch, batch_solver, cs, nullptr);
     add_case_scatter(s, cs, batch_solver);
@@ -92,8 +94,10 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
       s.batch = active.fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
   }
   std::vector<Eigen::Matrix3d> angle_covariances;
+  std::vector<std::array<bool, 3>> held_angles;
   for (std::size_t m = 0; m < statistics.mountings.size(); ++m) {
     Eigen::Matrix3d c = fits[m].angles_covariance;   // a held angle: the tolerance
+    std::array<bool, 3> held = fits[m].held;
     if (turns[m].estimated) {
       c = turns[m].covariance;
       // The tilts as algorithm 1 reads them (of n_i alone); about i the twist found.
@@ -104,22 +108,29 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
       f.angles(0) = turns[m].twist_rad;
       f.angles_covariance = c;
       f.angles_sd = c.diagonal().cwiseMax(0.0).cwiseSqrt();
+      f.held = {};
+      held = {};
       if (update_states) {
         statistics.mountings[m].m_cs = f.m_cs;
         statistics.mountings[m].fit = f;
       }
     }
-    if (turns[m].held) c += turns[m].covariance;
+    if (turns[m].held) {
+      c += turns[m].covariance;
+      held[0] = true;
+    }
     angle_covariances.push_back(c);
+    held_angles.push_back(held);
   }
   const CaseStatistics cs = case_statistics(m_cs, left_out);
   const LiveSolver fitted = prune_terms(s, batch_solver, infos, m_cs, cs, fits);
-  fitted.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances);
+  fitted.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances, held_angles);
   add_case_scatter(s, cs, fitted);
   s.model = fitted.model();
   s.aligned = reference.has_value();
   s.m_cs = std::move(m_cs);
   s.angle_covariances = std::move(angle_covariances);
+  s.held_angles = std::move(held_angles);
   return s;
 }
 

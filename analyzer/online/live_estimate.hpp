@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 
 #include <cstddef>
+#include <array>
 #include <optional>
 #include <vector>
 
@@ -26,6 +27,7 @@ struct LiveEstimate {
   std::vector<Information> infos;          // per mounting
   std::vector<Eigen::Matrix3d> m_cs;       // per mounting, as the batch used it
   std::vector<Eigen::Matrix3d> angle_covariances;
+  std::vector<std::array<bool, 3>> held_angles;   // per mounting (MountingFit::held, a held twist)
   StatFit batch;
   CaseScatter scatter;
   bool aligned = true;                     // some mounting aligned (else the frame-free terms only)
@@ -52,6 +54,7 @@ class EstimateSolver {
   LiveEstimate solve(bool update_states, const std::optional<LeftOut>& left_out = std::nullopt,
                      const std::vector<Eigen::Matrix3d>* fixed_m_cs = nullptr,
                      const std::vector<Eigen::Matrix3d>* fixed_angle_covariances = nullptr,
+                     const std::vector<std::array<bool, 3>>* fixed_held_angles = nullptr,
                      const LiveEstimate* fixed_from = nullptr);
 
  private:

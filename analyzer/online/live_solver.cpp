@@ -185,6 +185,7 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
     out.angles(0) = kNaN;
     out.angles_covariance = Eigen::Vector3d(0.0, tolerance2, tolerance2).asDiagonal();
     out.angles_sd = Eigen::Vector3d(kNaN, options_.mounting_tolerance_rad, options_.mounting_tolerance_rad);
+    out.held = {false, true, true};
     return out;
   }
   // Rotation-vector components (i, p, o) of the angles a tilt axis turns: XRA's about o, YRA's about p.
@@ -250,6 +251,7 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
       out.m_cs = m.m_cs;
       out.note = f.ok ? "no excitation along the sensitive axis in this mounting" : f.why;
       out.angles_covariance = Eigen::Vector3d(0.0, tolerance2, tolerance2).asDiagonal();
+      out.held = {false, true, true};
       return out;
     }
     const frames::Dcm next = procedure::misalignment_from_sensitivities(theta, frames::Dcm::Identity());
@@ -301,6 +303,7 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
     out.angles_covariance.col(k).setZero();
     out.angles_covariance(k, k) = tolerance2;
     out.angles_sd(k) = options_.mounting_tolerance_rad;
+    out.held[static_cast<std::size_t>(k)] = true;
   }
   return out;
 }
@@ -405,29 +408,46 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
 
 void LiveSolver::add_misalignment_uncertainty(StatFit& batch, const std::vector<const Information*>& infos,
                                               const std::vector<Eigen::Matrix3d>& m_cs,
-                                              const std::vector<Eigen::Matrix3d>& angle_covariances) const {
+                                              const std::vector<Eigen::Matrix3d>& angle_covariances,
+                                              const std::vector<std::array<bool, 3>>& held) const {
   if (!batch.ok) return;
   const auto p = static_cast<Index>(batch.terms.size());
   Eigen::MatrixXd added = Eigen::MatrixXd::Zero(p, p);
+  const auto response = [&](const std::vector<Eigen::Matrix3d>& moved) -> std::optional<Eigen::VectorXd> {
+    const StatFit f = fit_batch_at(infos, moved, batch.corner_rad_s);
+    if (!f.ok || f.terms != batch.terms) return std::nullopt;
+    return f.theta;
+  };
   for (std::size_t m = 0; m < m_cs.size(); ++m) {
     if (infos[m]->samples() == 0 || !angle_covariances[m].allFinite()) continue;
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(angle_covariances[m]);
+    Eigen::Matrix3d estimated = angle_covariances[m];
+    for (int k = 0; k < 3; ++k) {
+      if (!held[m][static_cast<std::size_t>(k)]) continue;
+      estimated.row(k).setZero();
+      estimated.col(k).setZero();
+      const std::optional<Eigen::VectorXd> d = procedure::held_angle_response(
+          batch.theta, k, options_.mounting_tolerance_rad, [&](const Eigen::Vector3d& turn) {
+            std::vector<Eigen::Matrix3d> moved = m_cs;
+            moved[m] = procedure::turned(m_cs[m], turn);
+            return response(moved);
+          });
+      if (d) added.noalias() += *d * d->transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(estimated);
     for (int k = 0; k < 3; ++k) {
       const double lambda = eig.eigenvalues()(k);
       if (!(lambda > 0.0)) continue;
       const Eigen::Vector3d step = std::sqrt(lambda) * eig.eigenvectors().col(k);
       // The step turns M_C^S in its own frame (about o, -about p, about i: procedure::turned), so a
       // turn about i is about n_i itself. Added to M_C^S's rotation vector in case axes instead, a
-      // twist's large variance (a degree) leaked into the tilts (0.02 deg per degree at a 1.5 deg
-      // tilt) and inflated the sd of every term up to 11 times.
+      // twist's large variance (a degree) leaked into the tilts and inflated the sd of every term.
       const Eigen::Vector3d turn = procedure::turn_angles() * step;
       std::vector<Eigen::Matrix3d> plus = m_cs, minus = m_cs;
       plus[m] = procedure::turned(m_cs[m], turn);
       minus[m] = procedure::turned(m_cs[m], -turn);
-      const StatFit a = fit_batch_at(infos, plus, batch.corner_rad_s);
-      const StatFit b = fit_batch_at(infos, minus, batch.corner_rad_s);
-      if (!a.ok || !b.ok || a.terms != batch.terms || b.terms != batch.terms) continue;
-      const Eigen::VectorXd d = 0.5 * (a.theta - b.theta);
+      const std::optional<Eigen::VectorXd> a = response(plus), b = response(minus);
+      if (!a || !b) continue;
+      const Eigen::VectorXd d = 0.5 * (*a - *b);
       added.noalias() += d * d.transpose();
     }
   }

@@ -16,6 +16,7 @@
 // Every step is a few small dense solves: the cost does not depend on how many samples came in.
 #include <Eigen/Dense>
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -66,6 +67,9 @@ struct MountingFit {
   Eigen::Vector3d angles = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   Eigen::Vector3d angles_sd = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   Eigen::Matrix3d angles_covariance = Eigen::Matrix3d::Zero();   // of the rotation vector (rank 2: no twist)
+  /// The rotation vector's components (i, p, o) held at the nominal frame: not determined by the
+  /// mounting's inputs, assumed within the mounting tolerance (angles_covariance carries its square).
+  std::array<bool, 3> held{};
   std::optional<double> bias;               // the external-frame fit's bias, when it has one
   int refinements = 0;
   StatFit fit;
@@ -149,12 +153,19 @@ class LiveSolver {
   [[nodiscard]] std::vector<RelativeTurn> relative_turns(const std::vector<const Information*>& infos,
                                                          std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
                                                          const std::vector<bool>& aligned, std::optional<double> corner) const;
-  /// What the mountings' misalignment uncertainty adds to the batch's covariance: the batch refitted
-  /// with each M_C^S turned by +-1 sd along each principal direction of its angles' covariance
-  /// (the batch's own covariance treats M_C^S as known). Added to batch.covariance and sd.
+  /// What the mountings' misalignment uncertainty adds to the batch's covariance (the batch's own
+  /// covariance treats M_C^S as known), by the batch's rules:
+  ///  - estimated angles: the batch refitted with each M_C^S turned by +-1 sd along each principal
+  ///    direction of their covariance, half the difference;
+  ///  - a held angle (`held`, per mounting the rotation vector's components): the batch refitted with
+  ///    the mounting turned by the tolerance about it, less the batch (procedure::held_angle_response):
+  ///    where the angle's first-order effect vanishes (a static pose's scale factor goes as its
+  ///    cosine) a symmetric difference would add nothing.
+  /// Added to batch.covariance and sd.
   void add_misalignment_uncertainty(StatFit& batch, const std::vector<const Information*>& infos,
                                     const std::vector<Eigen::Matrix3d>& m_cs,
-                                    const std::vector<Eigen::Matrix3d>& angle_covariances) const;
+                                    const std::vector<Eigen::Matrix3d>& angle_covariances,
+                                    const std::vector<std::array<bool, 3>>& held) const;
   /// Adds the case scatter to batch.covariance and sd (see CaseScatter). `cases`: each case's
   /// statistics and its mounting's M_C^S; `noise_gain`: A(1) = 1 - sum a_j of the noise model.
   /// `level_parameters`: the parameters fitted at the level of the phases' means (their offsets

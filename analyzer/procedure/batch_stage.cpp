@@ -164,14 +164,18 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
       std::vector<Term> terms;
       for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
       for (const HeldColumn& h : held_turns) {
-        std::vector<Eigen::Vector3d> tilts = nominal;
-        tilts[h.mounting](h.axis - 1) = options.mounting_tolerance_rad;
-        const StackedRegression s = batch_at(terms, result.mountings, tilts, result.square_corner_rad_s);
-        std::vector<Eigen::Index> all(terms.size());
-        for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
-        const ident::UlsResult moved = ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all);
-        const Eigen::VectorXd d = moved.theta.head(p) - fit.theta.head(p);
-        held_part += d * d.transpose();
+        // HeldColumn's axis 1, 2, 3 turn about o, p, i.
+        const std::optional<Eigen::VectorXd> d = held_angle_response(
+            fit.theta.head(p), 3 - h.axis, options.mounting_tolerance_rad,
+            [&](const Eigen::Vector3d& turn) -> std::optional<Eigen::VectorXd> {
+              std::vector<Eigen::Vector3d> tilts = nominal;
+              tilts[h.mounting] = turn;
+              const StackedRegression s = batch_at(terms, result.mountings, tilts, result.square_corner_rad_s);
+              std::vector<Eigen::Index> all(terms.size());
+              for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
+              return ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all).theta.head(p);
+            });
+        if (d) held_part += *d * d->transpose();
       }
       return held_part;
     };

@@ -1,6 +1,7 @@
 #pragma once
 // Misalignment estimation, the paper's section 2.5 and algorithm 1.
 #include <Eigen/Dense>
+#include <optional>
 #include <span>
 
 #include "analyzer/ident/term.hpp"
@@ -40,6 +41,23 @@ bool uses_cross_axes(std::span<const ident::Term> terms);
 inline Eigen::Matrix3d turn_angles() { return (Eigen::Matrix3d() << 0, 0, 1, 0, -1, 0, 1, 0, 0).finished(); }
 /// The angle (0 about i, 1 about p, 2 about o) that component `c` of a turn of turned() moves.
 constexpr int angle_of_turn(int c) { return 2 - c; }
+/// What an angle held at the nominal frame does to a fit's coefficients, by the rule the batch
+/// (batch_stage) and the live estimate (online::LiveSolver::add_misalignment_uncertainty) share:
+/// the refit with the mounting turned by `tolerance` about the rotation vector's component `angle`
+/// (0 about i, 1 about p, 2 about o), less `theta`; its outer product joins the covariance. One
+/// sided: where the angle's first-order effect vanishes (a static pose's scale factor goes as its
+/// cosine) the shift is the second-order one, which a symmetric difference would miss.
+/// `refit(turn)`: the coefficients with the mounting turned by `turn` (turned()'s parameters),
+/// none when that fit fails.
+template <class Refit>
+std::optional<Eigen::VectorXd> held_angle_response(const Eigen::VectorXd& theta, int angle, double tolerance, Refit&& refit) {
+  Eigen::Vector3d turn = Eigen::Vector3d::Zero();
+  turn(2 - angle) = tolerance;   // the component of turned() that moves `angle` (angle_of_turn)
+  const std::optional<Eigen::VectorXd> moved = refit(turn);
+  if (!moved) return std::nullopt;
+  return Eigen::VectorXd(*moved - theta);
+}
+
 /// A search for a mounting's turn (the batch's Gauss-Newton on its rows, the live solver's Newton
 /// steps on its statistics) stops once every step is at most this fraction of its parameter's sd:
 /// far below what the data determine, and above the searches' own rounding.

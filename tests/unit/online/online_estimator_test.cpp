@@ -377,6 +377,42 @@ TEST(OnlineEstimator, TheDefaultModelLeavesOutATermTheDataShowsInsignificantAMod
   EXPECT_NEAR(g.values(7), 0.0, 4.0 * g.std_devs(7));
 }
 
+TEST(OnlineEstimator, AHeldTiltsSecondOrderShiftIsInAStaticPosesScaleFactorSd) {
+  // Two static poses, the input axis up and down: no pose excites a tilt, so both are held within
+  // the mounting tolerance, and the scale factor read as K cos(tilt) is uncertain by
+  // K (1 - cos(tolerance)) per held tilt, the batch's one-sided refit (procedure::held_angle_response).
+  // A symmetric difference gives 0 there, and the sd would be the noise's alone.
+  const double k = 0.0877, bias = 3e-3, noise_sd = 1e-5;
+  const Index n = 4000;
+  std::vector<PlanCase> poses;
+  for (int pose = 0; pose < 2; ++pose) {
+    dataset::CaseData c;
+    c.sample_period_s = kPeriod;
+    c.t = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * kPeriod);
+    c.a_e = dataset::Matrix3Columns::Zero(n, 3);
+    c.a_e.col(0).setConstant(pose == 0 ? kG : -kG);
+    c.w_e = dataset::Matrix3Columns::Zero(n, 3);
+    std::mt19937_64 rng(77 + static_cast<std::uint64_t>(pose));
+    std::normal_distribution<double> noise(0.0, noise_sd);
+    c.y.resize(n);
+    for (Index r = 0; r < n; ++r) c.y(r) = bias + k * c.a_e(r, 0) + noise(rng);
+    poses.push_back({test_case(pose == 0 ? "up" : "down", CaseKind::Static, frames::Dcm::Identity(), "poses"), c});
+  }
+  model::ModelFile m = model_file({"1", "a_i"}, std::nullopt);
+  OnlineEstimator est(dataset::SensorKind::Accelerometer, m, 25.0, white_noise());
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    est.push(chunk_of(poses[i], i, 0, n), poses[i].tc);
+    est.end_segment({i, poses[i].tc.name, 0, n, true});
+  }
+  const OnlineSnapshot s = est.snapshot();
+  ASSERT_TRUE(std::isfinite(s.values(1))) << s.convergence;
+  const double held = std::sqrt(2.0) * k * (1.0 - std::cos(SolverOptions{}.mounting_tolerance_rad));
+  const double noise_alone = noise_sd / (kG * std::sqrt(2.0 * static_cast<double>(n)));
+  ASSERT_LT(noise_alone, 1e-3 * held);
+  EXPECT_NEAR(s.std_devs(1), held, 1e-3 * held);
+  EXPECT_NEAR(s.values(1), k, 4.0 * noise_alone);
+}
+
 TEST(OnlineEstimator, NotDeterminedYetIsSaidNotGuessed) {
   // The table alone: the squares cannot be told from the bias (a_i^2 + a_p^2 + a_o^2 = g^2).
   const Plan p = two_mountings(500.0, 1e-3, 41, 4000, 2000);

@@ -71,5 +71,29 @@ TEST(Misalignment, GyroMisalignmentComposesCaseToSensorWithMounting) {
   EXPECT_TRUE(case_to_sensor(m_es, m_ec).isApprox(m_cs, 1e-14));
 }
 
+// A static pose reads K cos(theta) along its input axis: a held tilt's first-order effect
+// vanishes, and the response is the second-order shift K (cos(tolerance) - 1), one-sided.
+TEST(HeldAngleResponse, IsTheRefitTurnedByTheToleranceLessTheFit) {
+  const double k = 0.0877, tolerance = deg_to_rad(1.0);
+  const Eigen::VectorXd theta = Eigen::Vector2d(3e-3, k);
+  int turned_component = -1;
+  const auto refit = [&](const Eigen::Vector3d& turn) -> std::optional<Eigen::VectorXd> {
+    for (int c = 0; c < 3; ++c)
+      if (turn(c) != 0.0) turned_component = c;
+    return Eigen::VectorXd(Eigen::Vector2d(3e-3, k * std::cos(turn.norm())));
+  };
+  const std::optional<Eigen::VectorXd> d = held_angle_response(theta, 1, tolerance, refit);   // about p
+  ASSERT_TRUE(d);
+  EXPECT_EQ(turned_component, 1);
+  EXPECT_EQ(angle_of_turn(turned_component), 1);
+  EXPECT_DOUBLE_EQ((*d)(0), 0.0);
+  EXPECT_NEAR((*d)(1), k * (std::cos(tolerance) - 1.0), 1e-15 * k);   // k cos - k against k (cos - 1): rounding of k
+  (void)held_angle_response(theta, 2, tolerance, refit);   // about o: turned()'s first component
+  EXPECT_EQ(turned_component, 0);
+  (void)held_angle_response(theta, 0, tolerance, refit);   // about i: the twist, the third
+  EXPECT_EQ(turned_component, 2);
+  EXPECT_FALSE(held_angle_response(theta, 1, tolerance, [](const Eigen::Vector3d&) { return std::optional<Eigen::VectorXd>(); }));
+}
+
 }  // namespace
 }  // namespace inertia::procedure
