@@ -36,6 +36,11 @@ namespace inertia::ident {
 /// go: a model without its scale factor is no model.
 [[nodiscard]] bool is_sensitivity_label(std::string_view label, dataset::SensorKind sensor);
 
+/// Whether a term is never pruned from `sensor`'s model: its sensitivities and the bias.
+[[nodiscard]] inline bool never_pruned(std::string_view label, dataset::SensorKind sensor) {
+  return label == "1" || is_sensitivity_label(label, sensor);
+}
+
 /// The columns every fit of `sensor`'s model ranks first: its sensitivities among `labels`, in
 /// column order, then the bias ("1").
 [[nodiscard]] std::vector<Index> sensitivities_then_bias(const std::vector<std::string>& labels,

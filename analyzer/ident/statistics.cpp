@@ -212,12 +212,9 @@ Eigen::MatrixXd sandwich(const Eigen::MatrixXd& b, const Eigen::MatrixXd& meat) 
 }
 }  // namespace
 
-ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
-                               double sigma2, const std::vector<int>& cluster, int estimated_elsewhere,
-                               const Eigen::VectorXd& loading, const ColouredNoise* noise) {
+ClusterSums ClusterSums::from_rows(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                                  const std::vector<int>& cluster, const Eigen::VectorXd& loading) {
   const Eigen::Index n = x.rows(), p = x.cols();
-  if (noise != nullptr && (noise->meat.rows() != p || noise->meat.cols() != p))
-    throw std::invalid_argument("cluster_offsets: the coloured noise's meat is not p x p");
   if (residuals.size() != n || static_cast<Eigen::Index>(cluster.size()) != n || (loading.size() != 0 && loading.size() != n))
     throw std::invalid_argument("cluster_offsets: x, residuals, loading and cluster ids differ in length");
   struct Part {
@@ -236,28 +233,79 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
     it->second.rows += static_cast<double>(end - begin);
     begin = end;
   }
-  ClusterOffsets out;
-  out.clusters = static_cast<int>(parts.size());
-  const Eigen::Index g_count = out.clusters;
-  Eigen::MatrixXd means(g_count, p), sums(p, g_count);
-  Eigen::VectorXd mean_square(g_count), q(g_count), rows(g_count);
-  std::vector<int> ids;
+  ClusterSums out;
+  const auto g_count = static_cast<Eigen::Index>(parts.size());
+  out.columns.resize(p, g_count);
+  out.residuals.resize(g_count);
+  out.rows.resize(g_count);
+  if (loading.size() != 0) out.loading.resize(g_count);
   for (const auto& [id, part] : parts) {
-    const auto g = static_cast<Eigen::Index>(ids.size());
-    ids.push_back(id);
-    sums.col(g) = part.column_sums;
-    means.row(g) = part.column_sums.transpose() / part.rows;
-    const double m = part.residual_sum / part.rows;
-    mean_square(g) = m * m;
-    q(g) = part.loading_sum / part.rows;
-    rows(g) = part.rows;
+    const auto g = static_cast<Eigen::Index>(out.ids.size());
+    out.ids.push_back(id);
+    out.columns.col(g) = part.column_sums;
+    out.residuals(g) = part.residual_sum;
+    out.rows(g) = part.rows;
+    if (loading.size() != 0) out.loading(g) = part.loading_sum / part.rows;
   }
+  return out;
+}
+
+GramFactor GramFactor::from_rows(const Eigen::Ref<const Eigen::MatrixXd>& x) {
+  GramFactor out;
+  out.inverse_factor = inverse_gram_factor(x);
+  out.column_rms = (x.colwise().norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(x.rows(), 1)))).transpose();
+  return out;
+}
+
+GramFactor GramFactor::from_gram(const Eigen::Ref<const Eigen::MatrixXd>& gram, double rows) {
+  const Eigen::Index p = gram.rows();
+  if (gram.cols() != p) throw std::invalid_argument("GramFactor: the Gram is not square");
+  Eigen::VectorXd scale = gram.diagonal().cwiseMax(0.0).cwiseSqrt();
+  for (Eigen::Index j = 0; j < p; ++j)
+    if (!(scale(j) > 0.0)) scale(j) = 1.0;
+  const Eigen::MatrixXd scaled = scale.cwiseInverse().asDiagonal() * gram * scale.cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (scaled + scaled.transpose()));
+  // The floor of inverse_gram_factor's R diagonal, squared: a dependent column gets an enormous
+  // variance, not an infinite one.
+  Eigen::VectorXd lambda = eig.eigenvalues();
+  const double floor = p > 0 ? 1e-30 * std::max(lambda.maxCoeff(), 0.0) : 0.0;
+  for (Eigen::Index k = 0; k < p; ++k) lambda(k) = std::max(lambda(k), floor > 0.0 ? floor : 1.0);
+  GramFactor out;
+  out.inverse_factor = lambda.cwiseSqrt().cwiseInverse().asDiagonal() * eig.eigenvectors().transpose() * scale.cwiseInverse().asDiagonal();
+  out.column_rms = gram.diagonal().cwiseMax(0.0).cwiseSqrt() / std::sqrt(std::max(rows, 1.0));
+  return out;
+}
+
+ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                               double sigma2, const std::vector<int>& cluster, int estimated_elsewhere,
+                               const Eigen::VectorXd& loading, const ColouredNoise* noise) {
+  return cluster_offsets(ClusterSums::from_rows(x, residuals, cluster, loading), GramFactor::from_rows(x), sigma2,
+                         estimated_elsewhere, noise);
+}
+
+ClusterOffsets cluster_offsets(const ClusterSums& cs, const GramFactor& gram, double sigma2, int estimated_elsewhere,
+                               const ColouredNoise* noise) {
+  const Eigen::Index p = gram.inverse_factor.rows();
+  const auto g_count = static_cast<Eigen::Index>(cs.ids.size());
+  if (noise != nullptr && (noise->meat.rows() != p || noise->meat.cols() != p))
+    throw std::invalid_argument("cluster_offsets: the coloured noise's meat is not p x p");
+  if (gram.inverse_factor.cols() != p || gram.column_rms.size() != p || cs.columns.rows() != p || cs.columns.cols() != g_count ||
+      cs.residuals.size() != g_count || cs.rows.size() != g_count || (cs.loading.size() != 0 && cs.loading.size() != g_count))
+    throw std::invalid_argument("cluster_offsets: the clusters' sums and the Gram differ in size");
+  const Eigen::VectorXd& rows = cs.rows;
+  const Eigen::MatrixXd& sums = cs.columns;
+  const std::vector<int>& ids = cs.ids;
+  ClusterOffsets out;
+  out.clusters = static_cast<int>(g_count);
+  const Eigen::MatrixXd means = (sums * rows.cwiseInverse().asDiagonal()).transpose();
+  const Eigen::VectorXd mean_square = cs.residuals.cwiseQuotient(rows).cwiseAbs2();
+  const Eigen::VectorXd q = cs.loading.size() != 0 ? cs.loading : Eigen::VectorXd::Zero(g_count);
   if (noise != nullptr && (noise->cluster_ids != ids || noise->cross.rows() != p || noise->cross.cols() != g_count ||
                            noise->sums_covariance.rows() != g_count || noise->sums_covariance.cols() != g_count))
     throw std::invalid_argument("cluster_offsets: the coloured noise's clusters are not the rows'");
   // Rank of the cluster-mean design, each column scaled by its RMS over the rows: a column whose
   // phase means are nothing against its own size (a vibration about zero) adds no rank.
-  Eigen::VectorXd scale = (x.colwise().norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(n, 1)))).transpose();
+  Eigen::VectorXd scale = gram.column_rms;
   for (Eigen::Index j = 0; j < p; ++j)
     if (!(scale(j) > 0.0)) scale(j) = 1.0;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(means * scale.cwiseInverse().asDiagonal());
@@ -266,7 +314,7 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
   for (Eigen::Index k = 0; k < sv.size(); ++k)
     if (sv(k) > 1e-6 * sv(0)) ++rank;
   out.between_dof = out.clusters - rank - estimated_elsewhere;
-  const Eigen::MatrixXd factor = inverse_gram_factor(x);
+  const Eigen::MatrixXd& factor = gram.inverse_factor;
   const Eigen::MatrixXd inverse = factor.transpose() * factor;
   out.classical = sigma2 * inverse;
   out.within = noise != nullptr ? sandwich(factor, noise->meat) : out.classical;
@@ -302,7 +350,7 @@ ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const
     // intervals cover (95.6 %).
     double t0 = std::max(0.0, excess.mean()), t1 = 0.0;
     bool exact_share = false;
-    const bool varying = loading.size() != 0 && out.between_dof >= 2 && (q.array() - q.mean()).abs().maxCoeff() > 0.0;
+    const bool varying = cs.loading.size() != 0 && out.between_dof >= 2 && (q.array() - q.mean()).abs().maxCoeff() > 0.0;
     if (varying) {
       Eigen::MatrixXd a(g_count, 2);
       a.col(0).setOnes();

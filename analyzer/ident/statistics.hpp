@@ -114,11 +114,36 @@ struct ClusterOffsets {
   /// least squares.
   Eigen::VectorXd weights;
 };
-/// x: the regression columns in the linear form of the fit, residuals of that fit, sigma2 its
-/// white-noise variance, cluster: one id per row (rows of one id need not be contiguous).
-/// `estimated_elsewhere`: parameters fitted to the same cluster means outside this model (a
-/// mounting's angles, estimated in an earlier stage), taken off the between-cluster dof.
-/// `loading`: one value per row (empty: none, tau_1 = 0).
+/// What cluster_offsets reads of a regression's rows, per cluster in ascending id order. Sums add
+/// over rows, so the batch builds them from its rows (from_rows) and the live estimator from the
+/// runs it keeps (online/information.hpp): both then take the offsets by the same rule.
+struct ClusterSums {
+  std::vector<int> ids;        ///< ascending
+  Eigen::MatrixXd columns;     ///< S = X'Z (p x G): each cluster's column sums
+  Eigen::VectorXd residuals;   ///< each cluster's residual sum
+  Eigen::VectorXd rows;        ///< n_g
+  Eigen::VectorXd loading;     ///< each cluster's mean loading q_g; empty: none (tau_1 = 0)
+  /// cluster: one id per row (rows of one id need not be contiguous); loading: one value per row or empty.
+  static ClusterSums from_rows(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                               const std::vector<int>& cluster, const Eigen::VectorXd& loading = Eigen::VectorXd());
+};
+/// The regression's Gram as cluster_offsets reads it.
+struct GramFactor {
+  Eigen::MatrixXd inverse_factor;   ///< B (p x p) with (X'X)^-1 = B'B: sandwiches B'(B M B')B stay semidefinite
+  Eigen::VectorXd column_rms;       ///< sqrt(diag(X'X) / N): the scale at which a column's cluster means count
+  /// From the rows, through the QR of the columns scaled to unit norm (X's condition, not its square).
+  static GramFactor from_rows(const Eigen::Ref<const Eigen::MatrixXd>& x);
+  /// From X'X over `rows` rows, through the eigen decomposition of the Gram scaled to unit diagonal,
+  /// where only the statistics are kept.
+  static GramFactor from_gram(const Eigen::Ref<const Eigen::MatrixXd>& gram, double rows);
+};
+/// sums: of the regression columns in the linear form of the fit and of that fit's residuals;
+/// sigma2 its white-noise variance. `estimated_elsewhere`: parameters fitted to the same cluster
+/// means outside this model (a mounting's angles, estimated in an earlier stage), taken off the
+/// between-cluster dof.
+ClusterOffsets cluster_offsets(const ClusterSums& sums, const GramFactor& gram, double sigma2, int estimated_elsewhere = 0,
+                               const ColouredNoise* noise = nullptr);
+/// The same from the rows: x the columns, residuals, cluster one id per row, loading one value per row (empty: none).
 ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
                                double sigma2, const std::vector<int>& cluster, int estimated_elsewhere = 0,
                                const Eigen::VectorXd& loading = Eigen::VectorXd(), const ColouredNoise* noise = nullptr);

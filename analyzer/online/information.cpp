@@ -44,14 +44,21 @@ void Information::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::
   weight_ += static_cast<double>(n);
 }
 
-void Information::add_inputs(const Eigen::Ref<const Eigen::MatrixX3d>& inputs) {
-  const Index n = inputs.rows();
-  if (n == 0) return;
-  inputs_.topLeftCorner<3, 3>().noalias() += inputs.transpose() * inputs;
+namespace {
+/// [u 1]'[u 1] of the rows `inputs` added to `gram`.
+void add_input_rows(Eigen::Matrix4d& gram, const Eigen::Ref<const Eigen::MatrixX3d>& inputs) {
+  gram.topLeftCorner<3, 3>().noalias() += inputs.transpose() * inputs;
   const Eigen::RowVector3d sums = inputs.colwise().sum();
-  inputs_.block<1, 3>(3, 0) += sums;
-  inputs_.block<3, 1>(0, 3) += sums.transpose();
-  inputs_(3, 3) += static_cast<double>(n);
+  gram.block<1, 3>(3, 0) += sums;
+  gram.block<3, 1>(0, 3) += sums.transpose();
+  gram(3, 3) += static_cast<double>(inputs.rows());
+}
+}  // namespace
+
+void Information::add_inputs(const Eigen::Ref<const Eigen::MatrixX3d>& inputs) {
+  if (inputs.rows() == 0) return;
+  add_input_rows(inputs_, inputs);
+  if (run_open_) add_input_rows(runs_.back().inputs, inputs);   // else the rows went before a run opened
 }
 
 void Information::add(const Information& other, bool continues_run) {
@@ -70,6 +77,7 @@ void Information::add(const Information& other, bool continues_run) {
     last.base += from->base;
     for (std::size_t k = 0; k < last.filtered.size(); ++k) last.filtered[k] += from->filtered[k];
     last.samples += from->samples;
+    last.inputs += from->inputs;
     ++from;
   }
   runs_.insert(runs_.end(), from, other.runs_.end());
@@ -99,6 +107,7 @@ void Information::scale(double factor) {
   inputs_ *= factor;
   for (Run& r : runs_) {
     r.base *= factor;
+    r.inputs *= factor;
     for (Eigen::VectorXd& f : r.filtered) f *= factor;
   }
   gram_.matrix() *= factor;

@@ -43,6 +43,8 @@ class Information {
   /// The rows added from now on form a new run (a long phase is cut into clusters of a minute).
   void start_run() { run_open_ = false; }
   [[nodiscard]] std::int64_t run_samples(std::size_t r) const { return runs_[r].samples; }
+  /// input_gram() over the inputs added while run r was the last.
+  [[nodiscard]] const Eigen::Matrix4d& run_input_gram(std::size_t r) const { return runs_[r].inputs; }
   /// model_constant_products over the rows of run r alone.
   [[nodiscard]] Eigen::VectorXd run_constant_products(std::size_t r, const Eigen::MatrixXd& t_base,
                                                       const Eigen::MatrixXd& t_filtered, const CornerWeights& corner) const;
@@ -86,6 +88,7 @@ class Information {
     Eigen::VectorXd base;                   // [B y]' c   (b + 1)
     std::vector<Eigen::VectorXd> filtered;  // per node: F_k' c
     std::int64_t samples = 0;
+    Eigen::Matrix4d inputs = Eigen::Matrix4d::Zero();   // as inputs_
   };
   /// Products of `v` (base, filtered at each node, output) with the constant, as model_constant_products.
   static Eigen::VectorXd constant_products(const Eigen::VectorXd& base_sums, const std::vector<Eigen::VectorXd>& filtered_sums,

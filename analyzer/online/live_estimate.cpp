@@ -6,6 +6,7 @@
 #include <limits>
 #include <utility>
 
+#include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/ident/statistics.hpp"
 #include "analyzer/procedure/misalignment.hpp"
@@ -45,7 +46,7 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     if (fixed_angle_covariances != nullptr && fixed_held_angles != nullptr)
       batch_solver.add_misalignment_uncertainty(s.batch, infos, s.m_cs, *fixed_angle_covariances, *fixed_held_angles);
     const CaseStatistics cs = case_statistics(s.m_cs, left_out);
-    if (s.batch.ok) s.level_parameters = level_parameters(s.batch, batch_solver, cs, nullptr);
+    s.angles_from_means = angles_from_means(nullptr);
     add_case_scatter(s, cs, batch_solver);
     return s;
   }
@@ -156,9 +157,8 @@ EstimateSolver::CaseStatistics EstimateSolver::case_statistics(const std::vector
   return out;
 }
 
-int EstimateSolver::level_parameters(const StatFit& batch, const LiveSolver& batch_solver, const CaseStatistics& cs,
-                                     const std::vector<MountingFit>* fits) const {
-  int n = static_cast<int>(batch_solver.phase_level_terms(batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum()).size());
+int EstimateSolver::angles_from_means(const std::vector<MountingFit>* fits) const {
+  int n = 0;
   for (std::size_t m = 0; m < statistics.mountings.size(); ++m) {
     const bool determined = fits != nullptr ? (*fits)[m].determined : statistics.mountings[m].fit.determined;
     if (statistics.mountings[m].poses_only && determined) n += 2;
@@ -167,7 +167,7 @@ int EstimateSolver::level_parameters(const StatFit& batch, const LiveSolver& bat
 }
 
 void EstimateSolver::add_case_scatter(LiveEstimate& s, const CaseStatistics& cs, const LiveSolver& batch_solver) {
-  s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum(), s.level_parameters);
+  s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum(), s.angles_from_means);
 }
 
 LiveSolver EstimateSolver::prune_terms(LiveEstimate& s, const LiveSolver& batch_solver,
@@ -175,32 +175,33 @@ LiveSolver EstimateSolver::prune_terms(LiveEstimate& s, const LiveSolver& batch_
                                        const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
                                        const std::vector<MountingFit>& fits) {
   std::optional<LiveSolver> current(batch_solver);
-  const Index axis = live.basis->find(plain_term(live.sensor == dataset::SensorKind::Gyroscope ? Variable::Wi : Variable::Ai));
+  const auto never_pruned = [&](Index t) {
+    return ident::never_pruned(live.basis->terms()[static_cast<std::size_t>(t)].to_string(), live.sensor);
+  };
   const double gain = 1.0 - noise.ar.sum();
-  int runs = 0;
-  for (const Information* i : cs.infos)
-    for (std::size_t r = 0; r < i->runs(); ++r) runs += i->run_samples(r) >= 2 ? 1 : 0;
+  s.angles_from_means = angles_from_means(&fits);
   for (;;) {
     if (!s.batch.ok) break;
     const std::vector<Index> level = current->phase_level_terms(s.batch, cs.infos, cs.m_cs, gain);
-    s.level_parameters = level_parameters(s.batch, *current, cs, &fits);
-    const int dof = runs - s.level_parameters;
     StatFit trial = s.batch;
-    if (dof >= 1) (void)current->add_case_scatter(trial, cs.infos, cs.m_cs, gain, s.level_parameters);
-    // Saturated (no phase to spare): the weakest phase-level term leaves whatever its test.
-    const bool saturated = dof < 1;
+    const CaseScatter scatter = current->add_case_scatter(trial, cs.infos, cs.m_cs, gain, s.angles_from_means);
+    const int dof = scatter.dof;
+    // Saturated (no phase to spare): the weakest phase-level term that may leave does, whatever its test.
+    const bool saturated = scatter.clusters >= 2 && dof < 1 && std::any_of(level.begin(), level.end(), [&](Index t) {
+                             return !never_pruned(t);
+                           });
     const double samples_dof = trial.weight - static_cast<double>(trial.terms.size());
     std::vector<double> p_values(trial.terms.size(), std::numeric_limits<double>::quiet_NaN());
     int tested = 0;
     for (std::size_t k = 0; k < trial.terms.size(); ++k) {
       const Index t = trial.terms[k];
-      if (t == current->bias_term() || t == axis) continue;
+      if (never_pruned(t)) continue;
       const bool at_level = std::find(level.begin(), level.end(), t) != level.end();
       if (!at_level && (saturated || !live.searched)) continue;
       ++tested;
       const double z = std::abs(trial.theta(static_cast<Index>(k)) / trial.sd(static_cast<Index>(k)));
       if (saturated) p_values[k] = 1.0 / (1.0 + z);
-      else p_values[k] = ident::student_t_two_sided_p(z, at_level ? static_cast<double>(dof) : samples_dof);
+      else p_values[k] = ident::student_t_two_sided_p(z, at_level && dof >= 1 ? static_cast<double>(dof) : samples_dof);
     }
     if (tested == 0) break;
     const std::optional<std::size_t> leaves =

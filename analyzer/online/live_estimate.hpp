@@ -34,7 +34,7 @@ struct LiveEstimate {
   std::vector<Eigen::Index> model;         // the terms the batch fitted (the solver's model)
   std::vector<Eigen::Index> confounded;    // left out: at the phases' level, with no phase to spare
   std::vector<Eigen::Index> insignificant; // left out of a searched model: its test failed (ident::term_to_prune)
-  int level_parameters = -1;               // fitted at the level of the phases' means (case scatter's dof)
+  int angles_from_means = 0;               // mounting angles read from the poses' means (case scatter's dof)
 };
 
 class EstimateSolver {
@@ -70,10 +70,9 @@ class EstimateSolver {
   [[nodiscard]] LiveSolver active_solver(const std::vector<Eigen::Index>& terms) const;
   [[nodiscard]] CaseStatistics case_statistics(const std::vector<Eigen::Matrix3d>& m_cs,
                                                const std::optional<LeftOut>& left_out) const;
-  /// Parameters fitted at the level of the phases' means: the terms constant within every phase,
-  /// and the tilts of mountings read from poses (static and thermal cases: from the poses' levels).
-  [[nodiscard]] int level_parameters(const StatFit& batch, const LiveSolver& batch_solver, const CaseStatistics& cs,
-                                     const std::vector<MountingFit>* fits) const;
+  /// The mounting angles fitted to the phases' means outside the model: the tilts of mountings
+  /// read from poses (static and thermal cases: from the poses' levels).
+  [[nodiscard]] int angles_from_means(const std::vector<MountingFit>* fits) const;
   /// The cases' offsets the noise model does not explain, into the batch's covariance.
   void add_case_scatter(LiveEstimate& s, const CaseStatistics& cs, const LiveSolver& batch_solver);
   /// The batch's post-selection inference on the statistics (procedure/post_selection_inference.hpp),

@@ -489,42 +489,63 @@ Eigen::VectorXd LiveSolver::prediction_signs(const std::vector<Index>& terms) co
 
 CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
                                          const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain,
-                                         int level_parameters) const {
+                                         int angles_from_means) const {
   CaseScatter out;
   if (!batch.ok || !(noise_gain > 0.0)) return out;
   const auto p = static_cast<Index>(batch.terms.size());
   const CornerWeights weights = batch.corner_rad_s ? grid_.at(*batch.corner_rad_s) : CornerWeights{};
-  std::vector<Eigen::VectorXd> responses;
-  Eigen::MatrixXd tb, tf;
-  double excess = 0.0;
-  // batch.gram_inverse is of the columns signed as the prediction takes them.
+  // The columns in the linear form of the fit, as batch.theta and batch.covariance take them.
   const Eigen::VectorXd sign = prediction_signs(batch.terms);
+  std::vector<Eigen::VectorXd> column_sums;
+  std::vector<double> residual_sums, rows, loading;
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p, p);
+  double weight = 0.0;
+  Eigen::MatrixXd tb, tf;
   for (std::size_t c = 0; c < cases.size(); ++c) {
+    if (cases[c]->samples() == 0) continue;
     basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
-    // Each contiguous phase of the case on its own (the batch's phase clusters): a fixture's
-    // placement, a thermal step's slow drift, move a phase's rows together.
+    gram += cases[c]->model_gram(tb, tf, weights).topLeftCorner(p, p);
+    weight += cases[c]->weight();
+    const Eigen::Vector3d input_axis = m_cs[c].row(0).transpose();
     for (std::size_t r = 0; r < cases[c]->runs(); ++r) {
       const double n = static_cast<double>(cases[c]->run_samples(r));
-      if (n < 2.0) continue;
-      Eigen::VectorXd v = cases[c]->run_constant_products(r, tb, tf, weights) / noise_gain;   // row sums
+      if (n < 1.0) continue;
+      // The run's sums of the whitened columns and output (the constant is A(1) on every row).
+      Eigen::VectorXd v = cases[c]->run_constant_products(r, tb, tf, weights) / noise_gain;
       v.head(p).array() *= sign.array();
-      // A constant offset d of the run's output adds A(1) d to each whitened row.
-      const double offset = (v(p) - batch.theta.dot(v.head(p))) / (n * noise_gain);
-      const double sd = std::sqrt(options_.long_run_variance_factor * batch.s2 / n) / noise_gain;
-      out.offsets.push_back(offset);
-      out.offset_sd.push_back(sd);
-      out.chi_square += (offset / sd) * (offset / sd);
-      excess += offset * offset - sd * sd;
-      responses.push_back(batch.gram_inverse * v.head(p) * noise_gain);
+      column_sums.push_back(v.head(p));
+      residual_sums.push_back(v(p) - batch.theta.dot(v.head(p)));
+      rows.push_back(n);
+      // The input across the sensitive axis, squared, on the run's mean: |u|^2 - (n_i . u)^2.
+      const Eigen::Matrix4d& u = cases[c]->run_input_gram(r);
+      loading.push_back(u(3, 3) > 0.0 ? (u.topLeftCorner<3, 3>().trace() - input_axis.dot(u.topLeftCorner<3, 3>() * input_axis)) / u(3, 3)
+                                      : 0.0);
     }
   }
-  const int consumed = level_parameters >= 0 ? level_parameters
-                       : (bias_ >= 0 && std::find(batch.terms.begin(), batch.terms.end(), bias_) != batch.terms.end() ? 1 : 0);
-  out.dof = static_cast<int>(out.offsets.size()) - consumed;
-  if (out.dof < 1) return out;
-  out.tau2 = std::max(0.0, excess / out.dof);
-  if (out.tau2 == 0.0) return out;
-  for (const Eigen::VectorXd& r : responses) batch.covariance.noalias() += out.tau2 * r * r.transpose();
+  ident::ClusterSums sums;
+  const auto g_count = static_cast<Index>(rows.size());
+  sums.columns.resize(p, g_count);
+  sums.residuals.resize(g_count);
+  sums.rows.resize(g_count);
+  sums.loading.resize(g_count);
+  for (Index g = 0; g < g_count; ++g) {
+    sums.ids.push_back(static_cast<int>(g));
+    sums.columns.col(g) = column_sums[static_cast<std::size_t>(g)];
+    sums.residuals(g) = residual_sums[static_cast<std::size_t>(g)];
+    sums.rows(g) = rows[static_cast<std::size_t>(g)];
+    sums.loading(g) = loading[static_cast<std::size_t>(g)];
+  }
+  out.clusters = static_cast<int>(g_count);
+  if (g_count < 2) return out;
+  gram = sign.asDiagonal() * gram * sign.asDiagonal();
+  const ident::ClusterOffsets offsets = ident::cluster_offsets(sums, ident::GramFactor::from_gram(gram, weight),
+                                                               options_.long_run_variance_factor * batch.s2, angles_from_means);
+  out.dof = offsets.between_dof;
+  out.tau2 = offsets.tau2 / (noise_gain * noise_gain);
+  if (out.dof < 1 || !(offsets.tau2 > 0.0)) return out;
+  // What the offsets add to the fit's own covariance (whatever that is: ULS's corrected one for
+  // output-multiplied columns), as the batch adds it.
+  batch.covariance += offsets.covariance - offsets.within;
   batch.sd = batch.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   return out;
 }

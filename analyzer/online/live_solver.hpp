@@ -76,18 +76,15 @@ struct MountingFit {
   std::string note;
 };
 
-/// Offsets between the contiguous phases of the cases (Information::start_run) that the noise
-/// model does not explain: 1/f noise below an AR model's reach (it is flat below its
-/// resolution), a fixture remounted between cases, a thermal step's drift. Each phase's mean
-/// residual is set against the sd the noise model gives a mean over that many rows; their excess
-/// variance tau^2 (method of moments, one dof to the bias) is what every estimate's covariance
-/// gains through the estimate's response to an offset of each phase.
+/// Offsets between the clusters of the cases' rows (Information's runs: a phase, or a minute of a
+/// long one) that the noise model does not explain: 1/f noise below an AR model's reach, a fixture
+/// remounted between cases, a pose's placement, a thermal step's drift. Taken by the batch's rule,
+/// ident::cluster_offsets, on the runs' sums: the offsets' variance (common, and in proportion to
+/// the cluster's cross-axis loading), its dof, and what it adds to every estimate's covariance.
 struct CaseScatter {
-  std::vector<double> offsets;      // per case, output unit (the noise model undone)
-  std::vector<double> offset_sd;    // what the noise model gives a case mean
-  double tau2 = 0.0;                // excess offset variance between cases
-  double chi_square = 0.0;          // sum (offset / offset_sd)^2
-  int dof = 0;
+  int clusters = 0;
+  int dof = 0;                      // between-cluster dof left by the model's cluster means and the angles
+  double tau2 = 0.0;                // mean offset variance per cluster, output unit squared (the noise model undone)
 };
 
 struct CandidateStat {
@@ -168,10 +165,10 @@ class LiveSolver {
                                     const std::vector<std::array<bool, 3>>& held) const;
   /// Adds the case scatter to batch.covariance and sd (see CaseScatter). `cases`: each case's
   /// statistics and its mounting's M_C^S; `noise_gain`: A(1) = 1 - sum a_j of the noise model.
-  /// `level_parameters`: the parameters fitted at the level of the phases' means (their offsets
-  /// lose that many degrees of freedom); -1: the bias alone, when fitted.
+  /// `angles_from_means`: the mounting angles estimated from the same clusters' means outside the
+  /// model (ident::cluster_offsets' estimated_elsewhere).
   CaseScatter add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
-                               const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain, int level_parameters = -1) const;
+                               const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain, int angles_from_means = 0) const;
   /// Of batch.terms, those whose column is constant within every phase of `cases`
   /// (ident::cluster_level, the batch's rule): a static pose's terms. Such terms and the phases'
   /// offsets (a pose's placement) are told apart only by the phases left over.

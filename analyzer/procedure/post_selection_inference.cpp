@@ -324,7 +324,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     std::vector<double> p_values(static_cast<std::size_t>(p), std::numeric_limits<double>::quiet_NaN());
     for (Eigen::Index j = 0; j < p; ++j) {
       const std::string& label = fit.labels[std::size_t(j)];
-      if (label == "1" || ident::is_sensitivity_label(label, h.sensor) || (h.protect && h.protect(label))) continue;
+      if (ident::never_pruned(label, h.sensor) || (h.protect && h.protect(label))) continue;
       const double t = fit.theta(j) / fit.std_dev(j);
       if (!saturated) p_values[std::size_t(j)] = ident::student_t_two_sided_p(t, out.dof(j));
       else if (phase_level[std::size_t(j)]) p_values[std::size_t(j)] = 1.0 / (1.0 + std::abs(t));

@@ -310,6 +310,44 @@ TEST(Statistics, ClusterOffsetsOfPlacementsAreUnbiasedOnATumble) {
   EXPECT_NEAR(mean, tau2, 3.0 * sd / std::sqrt(double(kSeeds)));
 }
 
+// The offsets from the clusters' sums and the Gram alone (what the live estimator keeps) are the
+// offsets from the rows: the same tau's, dof and covariance, to rounding.
+TEST(Statistics, ClusterOffsetsFromSumsAndTheGramEqualThoseFromTheRows) {
+  constexpr Eigen::Index kRows = 40;
+  const std::vector<std::array<double, 3>> poses{{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1},
+                                                 {0.7, 0.7, 0}, {0, -0.7, 0.7}};
+  const auto g_count = static_cast<Eigen::Index>(poses.size());
+  const Eigen::Index n = g_count * kRows;
+  Eigen::MatrixXd x(n, 4);
+  Eigen::VectorXd loading(n), y(n);
+  std::vector<int> cluster;
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> normal;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const auto& pose = poses[std::size_t(k / kRows)];
+    x.row(k) << 1.0, pose[0], pose[1] + 0.01 * normal(rng), pose[2] * pose[2];
+    loading(k) = pose[1] * pose[1] + pose[2] * pose[2];
+    cluster.push_back(int(10 - k / kRows));   // descending ids: the sums are kept in ascending order
+  }
+  for (Eigen::Index g = 0; g < g_count; ++g) {
+    const double offset = 0.5 * std::sqrt(loading(g * kRows)) * normal(rng);
+    for (Eigen::Index r = 0; r < kRows; ++r) y(g * kRows + r) = 2.0 + 0.3 * x(g * kRows + r, 1) + offset + 0.1 * normal(rng);
+  }
+  const Eigen::VectorXd residual = y - x * x.colPivHouseholderQr().solve(y);
+  const double s2 = residual.squaredNorm() / double(n - 4);
+  const ClusterOffsets rows = cluster_offsets(x, residual, s2, cluster, 1, loading);
+  const ClusterSums sums = ClusterSums::from_rows(x, residual, cluster, loading);
+  ASSERT_EQ(sums.ids.front(), 3);
+  const ClusterOffsets statistics = cluster_offsets(sums, GramFactor::from_gram(x.transpose() * x, double(n)), s2, 1);
+  ASSERT_GT(rows.between_dof, 0);
+  EXPECT_EQ(statistics.between_dof, rows.between_dof);
+  EXPECT_GT(rows.tau2, 0.0);
+  EXPECT_NEAR(statistics.tau2_common, rows.tau2_common, 1e-9 * rows.tau2);
+  EXPECT_NEAR(statistics.tau2_per_loading, rows.tau2_per_loading, 1e-9 * rows.tau2);
+  EXPECT_LT((statistics.covariance - rows.covariance).norm(), 1e-9 * rows.covariance.norm());
+  EXPECT_LT((statistics.within - rows.within).norm(), 1e-9 * rows.within.norm());
+}
+
 // Columns a hair from dependent (conditions near 1e9, so 1e18 for X'X): the sandwich stays a
 // covariance, each variance positive and finite.
 TEST(Statistics, ClusterOffsetsOnANearlyDependentDesignGiveVariancesNotRoundingNoise) {
