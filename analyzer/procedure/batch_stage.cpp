@@ -32,16 +32,19 @@ using ident::Term;
 /// frame in blocks 5-6 and estimated in the batch with the tolerance as prior.
 struct HeldColumn {
   std::size_t mounting = 0;                 // into the result's mountings
-  int axis = 1;                             // 1: tilt of n_i toward p (turn about o), 2: toward o (about p),
-                                            // 3: twist about n_i (PipelineOptions::batch_relative_twist)
+  /// The held turn's rotation-vector component (procedure::held_angle_response): 0 the twist about
+  /// n_i (PipelineOptions::batch_relative_twist), 1 about p (a tilt of n_i toward o), 2 about o
+  /// (toward p).
+  int component = 2;
 };
 
 std::vector<HeldColumn> held_columns(const std::vector<MountingResult>& mountings) {
   std::vector<HeldColumn> held;
   for (std::size_t m = 0; m < mountings.size(); ++m) {
-    for (int axis = 1; axis < 3; ++axis) {
-      if (!mountings[m].excitation.determined[static_cast<std::size_t>(axis)]) held.push_back({m, axis});
-    }
+    const AxisExcitation& e = mountings[m].excitation;
+    // Case axis XRA unexcited: the tilt toward p is not determined; YRA: the tilt toward o.
+    if (!e.determined[1]) held.push_back({m, 2});
+    if (!e.determined[2]) held.push_back({m, 1});
   }
   return held;
 }
@@ -156,7 +159,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   };
   // Held angles and held twists: each turned by the tolerance moves the coefficients by d.
   std::vector<HeldColumn> held_turns = held;
-  for (std::size_t k : twists.held) held_turns.push_back({k, 3});
+  for (std::size_t k : twists.held) held_turns.push_back({k, 0});
   if (!held_turns.empty() && options.mounting_tolerance_rad > 0.0) {
     honest.held_covariance = [&](const ident::UlsResult& fit) {
       const Eigen::Index p = fit.process_terms;
@@ -164,9 +167,8 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
       std::vector<Term> terms;
       for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
       for (const HeldColumn& h : held_turns) {
-        // HeldColumn's axis 1, 2, 3 turn about o, p, i.
         const std::optional<Eigen::VectorXd> d = held_angle_response(
-            fit.theta.head(p), 3 - h.axis, options.mounting_tolerance_rad,
+            fit.theta.head(p), h.component, options.mounting_tolerance_rad,
             [&](const Eigen::Vector3d& turn) -> std::optional<Eigen::VectorXd> {
               std::vector<Eigen::Vector3d> tilts = nominal;
               tilts[h.mounting] = turn;
