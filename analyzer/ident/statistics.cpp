@@ -457,4 +457,74 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, 
   return out;
 }
 
+RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gram, const ClusterSums& sums,
+                                    const Eigen::VectorXd& y_sums, Eigen::Index estimated, const Eigen::VectorXd& tau2,
+                                    double sigma2) {
+  const Eigen::Index p = gram.rows() - 1, g_count = static_cast<Eigen::Index>(sums.ids.size());
+  if (gram.cols() != p + 1 || sums.columns.rows() != p || sums.columns.cols() != g_count || sums.rows.size() != g_count ||
+      y_sums.size() != g_count || tau2.size() != g_count || estimated < 1 || estimated > p)
+    throw std::invalid_argument("random_effects_fit: the Gram, the clusters' sums and tau2 differ in size, or no column is estimated");
+  if (!(sigma2 > 0.0)) throw std::invalid_argument("random_effects_fit: a cluster's noise or offset variance is not positive");
+  RandomEffectsFit out;
+  out.weights.resize(g_count);
+  Eigen::MatrixXd once = gram;            // [X~ y~]'[X~ y~]
+  Eigen::MatrixXd twice = gram.topLeftCorner(p, p);   // X2'X2
+  Eigen::MatrixXd offsets_meat = Eigen::MatrixXd::Zero(p, p);
+  for (Eigen::Index g = 0; g < g_count; ++g) {
+    const double n = sums.rows(g);
+    const double m = sigma2 / n;          // the noise's variance of the cluster's mean
+    if (!(m > 0.0) || !(tau2(g) >= 0.0)) throw std::invalid_argument("random_effects_fit: a cluster's noise or offset variance is not positive");
+    const double w = m / (m + tau2(g));
+    out.weights(g) = w;
+    Eigen::VectorXd mean(p + 1);
+    mean.head(p) = sums.columns.col(g) / n;
+    mean(p) = y_sums(g) / n;
+    const double lambda = 1.0 - std::sqrt(w);
+    once.noalias() -= (2.0 * lambda - lambda * lambda) * n * mean * mean.transpose();
+    twice.noalias() -= (2.0 * (1.0 - w) - (1.0 - w) * (1.0 - w)) * n * mean.head(p) * mean.head(p).transpose();
+    const Eigen::VectorXd sum = w * sums.columns.col(g);   // X2' 1_g
+    offsets_meat.noalias() += tau2(g) * sum * sum.transpose();
+  }
+  // The weighed columns, scaled to unit diagonal: dependent where the smallest eigenvalue is at
+  // rounding's level (a column's square-root condition beyond 1e12).
+  const Eigen::MatrixXd a = once.topLeftCorner(p, p);
+  const Eigen::MatrixXd ae = a.topLeftCorner(estimated, estimated);
+  Eigen::VectorXd scale = ae.diagonal().cwiseMax(0.0).cwiseSqrt();
+  for (Eigen::Index j = 0; j < estimated; ++j)
+    if (!(scale(j) > 0.0)) scale(j) = 1.0;
+  const Eigen::MatrixXd scaled = scale.cwiseInverse().asDiagonal() * ae * scale.cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (scaled + scaled.transpose()));
+  if (!(eig.eigenvalues().minCoeff() > 1e-24 * eig.eigenvalues().maxCoeff()))
+    throw std::invalid_argument("random_effects_fit: the weighed columns are linearly dependent");
+  const Eigen::VectorXd rhs = once.col(p).head(estimated).cwiseQuotient(scale);
+  out.theta = (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() * eig.eigenvectors().transpose() * rhs)
+                  .cwiseQuotient(scale);
+  const Eigen::MatrixXd b = GramFactor::from_gram(a, sums.rows.sum()).inverse_factor;
+  out.within = sandwich(b, sigma2 * twice);
+  out.covariance = out.within + sandwich(b, offsets_meat);
+  return out;
+}
+
+std::optional<RandomEffectsFit> weighed_by_offsets(const ClusterOffsets& offsets, const Eigen::VectorXd& loading,
+                                                   const Eigen::VectorXd& noise_sum_variance,
+                                                   const std::function<RandomEffectsFit(const Eigen::VectorXd& tau2)>& fit) {
+  const Eigen::Index g_count = noise_sum_variance.size();
+  if (g_count < 2 || (loading.size() != 0 && loading.size() != g_count)) return std::nullopt;
+  Eigen::VectorXd tau2(g_count);
+  for (Eigen::Index g = 0; g < g_count; ++g) {
+    tau2(g) = offsets.tau2_common + offsets.tau2_per_loading * (loading.size() != 0 ? loading(g) : 0.0);
+    if (!(noise_sum_variance(g) > 0.0)) return std::nullopt;
+  }
+  if (!(tau2.maxCoeff() > kDistinctOffsets * tau2.minCoeff())) return std::nullopt;
+  std::optional<RandomEffectsFit> out;
+  try {
+    out = fit(tau2);
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;   // the weighed columns are dependent
+  }
+  if (!(out->weights.maxCoeff() > kDistinctOffsets * out->weights.minCoeff())) return std::nullopt;
+  if (!out->covariance.allFinite() || (out->covariance.diagonal().array() < 0.0).any()) return std::nullopt;
+  return out;
+}
+
 }  // namespace inertia::ident

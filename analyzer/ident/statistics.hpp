@@ -186,6 +186,33 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, 
                                     const Eigen::Ref<const Eigen::VectorXd>& y, const std::vector<int>& cluster,
                                     const Eigen::VectorXd& tau2, const Eigen::VectorXd& noise_sum_variance,
                                     const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& noise_times);
+/// The same estimate from statistics alone, under white noise of variance sigma2 (R = sigma2 I, so
+/// a cluster's noise sum has variance sigma2 n_g): gram = [X y]'[X y] over every row, sums.columns
+/// the clusters' column sums, y_sums their output sums. The quasi-demeaned Gram follows from them:
+///   X~'X~ = X'X - sum_g (2 l_g - l_g^2) n_g m_g m_g',   X~'y~ likewise with the output's means,
+///   X2'X2 = X'X - sum_g (2 (1 - w_g) - (1 - w_g)^2) n_g m_g m_g',   m_g the cluster's column means.
+RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gram, const ClusterSums& sums,
+                                    const Eigen::VectorXd& y_sums, Eigen::Index estimated, const Eigen::VectorXd& tau2,
+                                    double sigma2);
+
+/// Offset variances, or weights, that differ between clusters by less than this factor leave
+/// least squares as it is (weighed_by_offsets).
+inline constexpr double kDistinctOffsets = 10.0;
+/// Whether the clusters' means are weighed by what their offsets leave of them, and the weighed
+/// estimate when they are: each cluster's offset variance is the offsets' common part plus their
+/// part per unit loading times its mean loading (`loading`, per cluster; empty: none), and `fit`
+/// (random_effects_fit on rows or on statistics) weighs by them. None, where least squares with
+/// the offsets' sandwich stands:
+///  - fewer than 2 clusters, or a cluster whose noise sum has no variance;
+///  - an offset alike in every cluster (within kDistinctOffsets): the weights would only trade the
+///    means against what varies within the clusters, which in static phases is the whitening's
+///    transients and the reference's noise (on sim-tumble seed 31, under a common offset, the
+///    weighed fit's covariance came out indefinite);
+///  - dependent weighed columns, weights alike (the offsets small against the noise in every
+///    cluster), or a covariance that is not one.
+std::optional<RandomEffectsFit> weighed_by_offsets(const ClusterOffsets& offsets, const Eigen::VectorXd& loading,
+                                                   const Eigen::VectorXd& noise_sum_variance,
+                                                   const std::function<RandomEffectsFit(const Eigen::VectorXd& tau2)>& fit);
 
 /// fitness = p_res * p_AIC (section 2.7).
 inline double fitness(double p_res, double p_aic) { return p_res * p_aic; }

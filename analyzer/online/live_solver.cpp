@@ -497,14 +497,14 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   // The columns in the linear form of the fit, as batch.theta and batch.covariance take them.
   const Eigen::VectorXd sign = prediction_signs(batch.terms);
   std::vector<Eigen::VectorXd> column_sums;
-  std::vector<double> residual_sums, rows, loading;
-  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p, p);
+  std::vector<double> output_sums, residual_sums, rows, loading;
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p + 1, p + 1);   // [X y]'[X y]
   double weight = 0.0;
   Eigen::MatrixXd tb, tf;
   for (std::size_t c = 0; c < cases.size(); ++c) {
     if (cases[c]->samples() == 0) continue;
     basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
-    gram += cases[c]->model_gram(tb, tf, weights).topLeftCorner(p, p);
+    gram += cases[c]->model_gram(tb, tf, weights);
     weight += cases[c]->weight();
     const Eigen::Vector3d input_axis = m_cs[c].row(0).transpose();
     for (std::size_t r = 0; r < cases[c]->runs(); ++r) {
@@ -514,6 +514,7 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
       Eigen::VectorXd v = cases[c]->run_constant_products(r, tb, tf, weights) / noise_gain;
       v.head(p).array() *= sign.array();
       column_sums.push_back(v.head(p));
+      output_sums.push_back(v(p));
       residual_sums.push_back(v(p) - batch.theta.dot(v.head(p)));
       rows.push_back(n);
       // The input across the sensitive axis, squared, on the run's mean: |u|^2 - (n_i . u)^2.
@@ -537,15 +538,40 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   }
   out.clusters = static_cast<int>(g_count);
   if (g_count < 2) return out;
-  gram = sign.asDiagonal() * gram * sign.asDiagonal();
-  const ident::ClusterOffsets offsets = ident::cluster_offsets(sums, ident::GramFactor::from_gram(gram, weight),
-                                                               options_.long_run_variance_factor * batch.s2, angles_from_means);
+  Eigen::VectorXd signs = Eigen::VectorXd::Ones(p + 1);
+  signs.head(p) = sign;
+  gram = signs.asDiagonal() * gram * signs.asDiagonal();
+  const double sigma2 = options_.long_run_variance_factor * batch.s2;
+  const ident::ClusterOffsets offsets =
+      ident::cluster_offsets(sums, ident::GramFactor::from_gram(gram.topLeftCorner(p, p), weight), sigma2, angles_from_means);
   out.dof = offsets.between_dof;
   out.tau2 = offsets.tau2 / (noise_gain * noise_gain);
   if (out.dof < 1 || !(offsets.tau2 > 0.0)) return out;
-  // What the offsets add to the fit's own covariance (whatever that is: ULS's corrected one for
-  // output-multiplied columns), as the batch adds it.
-  batch.covariance += offsets.covariance - offsets.within;
+  // When every column is constant within the clusters (static poses) and no column is the output's,
+  // the clusters' means are weighed by what their offsets leave of them, as the batch weighs them
+  // (ident::weighed_by_offsets); otherwise least squares with the offsets' sandwich.
+  bool means_only = (sign.array() > 0.0).all();
+  for (Index j = 0; j < p && means_only; ++j) {
+    const double between = (sums.columns.row(j).array().square() / sums.rows.transpose().array()).sum();
+    means_only = ident::cluster_level(gram(j, j), between);
+  }
+  std::optional<ident::RandomEffectsFit> weighed;
+  if (means_only) {
+    Eigen::VectorXd y_sums(g_count);
+    for (Index g = 0; g < g_count; ++g) y_sums(g) = output_sums[static_cast<std::size_t>(g)];
+    weighed = ident::weighed_by_offsets(offsets, sums.loading, sigma2 * sums.rows, [&](const Eigen::VectorXd& tau2) {
+      return ident::random_effects_fit(gram, sums, y_sums, p, tau2, sigma2);
+    });
+  }
+  // What the offsets (or the weighing) make of the fit's own covariance, as the batch does; the
+  // fit's own is ULS's corrected one where a column is the output's.
+  if (weighed) {
+    batch.theta = weighed->theta;
+    batch.covariance += weighed->covariance - offsets.classical;
+    out.weighed = true;
+  } else {
+    batch.covariance += offsets.covariance - offsets.within;
+  }
   batch.sd = batch.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   return out;
 }

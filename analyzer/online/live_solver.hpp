@@ -85,6 +85,7 @@ struct CaseScatter {
   int clusters = 0;
   int dof = 0;                      // between-cluster dof left by the model's cluster means and the angles
   double tau2 = 0.0;                // mean offset variance per cluster, output unit squared (the noise model undone)
+  bool weighed = false;             // the clusters' means weighed by their offsets (ident::weighed_by_offsets)
 };
 
 struct CandidateStat {

@@ -24,48 +24,6 @@ bool continues_plan_case(const dataset::CaseData& c, const std::string* previous
   return previous_plan_case != nullptr && !c.piece_of.empty() && *previous_plan_case == c.plan_case();
 }
 
-/// Offset variances, or weights, that differ between clusters by less than this factor leave
-/// least squares as it is.
-constexpr double kDistinct = 10.0;
-
-/// The random-effects estimate (ident::random_effects_fit) under the offsets `offsets` found, with
-/// the noise model of the plan's cases (noise_times(M) = R M).
-std::optional<ident::RandomEffectsFit> random_effects(const Eigen::MatrixXd& x, Eigen::Index estimated, const Eigen::VectorXd& y,
-                                                      const std::vector<int>& clusters, const Eigen::VectorXd* loading,
-                                                      const ident::ClusterOffsets& offsets, const ident::ColouredNoise& coloured,
-                                                      const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& noise_times) {
-  const auto g_count = static_cast<Eigen::Index>(coloured.cluster_ids.size());
-  if (g_count < 2) return std::nullopt;
-  Eigen::VectorXd loading_sum = Eigen::VectorXd::Zero(g_count), rows = Eigen::VectorXd::Zero(g_count);
-  for (std::size_t k = 0; k < clusters.size(); ++k) {
-    const auto g = std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), clusters[k]) - coloured.cluster_ids.begin();
-    if (loading != nullptr && loading->size() != 0) loading_sum(g) += (*loading)(static_cast<Eigen::Index>(k));
-    rows(g) += 1.0;
-  }
-  Eigen::VectorXd tau2(g_count), noise_sums(g_count);
-  for (Eigen::Index g = 0; g < g_count; ++g) {
-    tau2(g) = offsets.tau2_common + offsets.tau2_per_loading * loading_sum(g) / rows(g);
-    noise_sums(g) = coloured.sums_covariance(g, g);
-    if (!(noise_sums(g) > 0.0)) return std::nullopt;
-  }
-  // An offset alike in every phase leaves the combination of the phases' means as least squares
-  // has it, and the weights then only trade those means against what varies within the phases,
-  // which in static phases is the whitening's transients and the reference's noise: on sim-tumble
-  // seed 31, under a common offset, the weighed fit's covariance came out indefinite.
-  if (!(tau2.maxCoeff() > kDistinct * tau2.minCoeff())) return std::nullopt;
-  std::optional<ident::RandomEffectsFit> out;
-  try {
-    out = ident::random_effects_fit(x, estimated, y, clusters, tau2, noise_sums, noise_times);
-  } catch (const std::invalid_argument&) {
-    return std::nullopt;   // the weighed columns are dependent: least squares with the sandwich stands
-  }
-  // Weights alike: the offsets are small against the noise in every phase, and least squares is
-  // as good.
-  if (!(out->weights.maxCoeff() > kDistinct * out->weights.minCoeff())) return std::nullopt;
-  if (!out->covariance.allFinite() || (out->covariance.diagonal().array() < 0.0).any()) return std::nullopt;
-  return out;
-}
-
 }  // namespace
 
 std::vector<int> phase_clusters(const StackedRegression& s, const dataset::Dataset& data) {
@@ -235,8 +193,8 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     }
     coloured.meat = (0.5 * (coloured.meat + coloured.meat.transpose())).eval();
     // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
-    out.offsets = ident::cluster_offsets(x, fit.residuals, fit.residual_variance, h.layout->clusters, 0,
-                                         h.layout->loading, &coloured);
+    const ident::ClusterSums cluster_sums = ident::ClusterSums::from_rows(x, fit.residuals, h.layout->clusters, h.layout->loading);
+    out.offsets = ident::cluster_offsets(cluster_sums, ident::GramFactor::from_rows(x), fit.residual_variance, 0, &coloured);
     const Eigen::MatrixXd x_process = x.leftCols(p);
     // Which terms live between the phases: little of their column varies within one.
     std::vector<bool> phase_level(static_cast<std::size_t>(p), false);
@@ -264,7 +222,11 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     std::optional<ident::RandomEffectsFit> weighed;
     const bool means_only = std::all_of(phase_level.begin(), phase_level.end(), [](bool b) { return b; });
     if (means_only && out.offsets.tau2 > 0.0 && output_multiplied.empty() && fit.theta.size() == p)
-      weighed = random_effects(x, p, s.y, h.layout->clusters, &h.layout->loading, out.offsets, coloured, noise_times);
+      weighed = ident::weighed_by_offsets(out.offsets, cluster_sums.loading, coloured.sums_covariance.diagonal(),
+                                          [&](const Eigen::VectorXd& tau2) {
+                                            return ident::random_effects_fit(x, p, s.y, h.layout->clusters, tau2,
+                                                                             coloured.sums_covariance.diagonal(), noise_times);
+                                          });
     if (weighed) {
       out.offsets.within = weighed->within;
       out.offsets.covariance = weighed->covariance;

@@ -220,6 +220,64 @@ TEST(Statistics, RandomEffectsBiasIsThePrecisionWeighedMeanOfTheClusterMeans) {
   EXPECT_THROW(random_effects_fit(x, 1, y, cluster, tau, sums, white(s2)), std::invalid_argument);
 }
 
+// The random-effects estimate from the Gram and the clusters' sums (the live estimator's
+// statistics) is the one from the rows under white noise: the same coefficients, weights and
+// covariance, to rounding. The rule that decides whether to weigh (weighed_by_offsets) takes either.
+TEST(Statistics, RandomEffectsFromStatisticsEqualsTheRowsUnderWhiteNoise) {
+  constexpr Eigen::Index kRows = 120;
+  const std::vector<double> input{1.0, -1.0, 0.002, -0.001, 0.0015, -0.002};
+  const std::vector<double> loading{0.0, 0.0, 1.0, 1.0, 1.0, 1.0};
+  const auto g_count = static_cast<Eigen::Index>(input.size());
+  const Eigen::Index n = g_count * kRows;
+  Eigen::MatrixXd x(n, 2);
+  Eigen::VectorXd y(n), row_loading(n);
+  std::vector<int> cluster;
+  std::mt19937_64 rng(29);
+  std::normal_distribution<double> normal;
+  const double s2 = 1e-2;
+  for (Eigen::Index g = 0; g < g_count; ++g) {
+    const double offset = 0.2 * loading[std::size_t(g)] * normal(rng);
+    for (Eigen::Index r = 0; r < kRows; ++r) {
+      const Eigen::Index k = g * kRows + r;
+      x.row(k) << 1.0, input[std::size_t(g)];
+      y(k) = 0.3 + 2.0 * input[std::size_t(g)] + offset + std::sqrt(s2) * normal(rng);
+      row_loading(k) = loading[std::size_t(g)];
+      cluster.push_back(int(g));
+    }
+  }
+  const Eigen::VectorXd residual = y - x * x.colPivHouseholderQr().solve(y);
+  const ClusterSums sums = ClusterSums::from_rows(x, residual, cluster, row_loading);
+  Eigen::VectorXd y_sums(g_count);
+  for (Eigen::Index g = 0; g < g_count; ++g) y_sums(g) = y.segment(g * kRows, kRows).sum();
+  Eigen::MatrixXd xy(n, 3);
+  xy << x, y;
+  const Eigen::MatrixXd gram = xy.transpose() * xy;
+  ClusterOffsets offsets;   // the truth's: placements reach the four loaded poses alone
+  offsets.tau2_per_loading = 0.04;
+  const Eigen::VectorXd noise_sums = s2 * sums.rows;
+  const std::optional<RandomEffectsFit> rows = weighed_by_offsets(offsets, sums.loading, noise_sums, [&](const Eigen::VectorXd& tau2) {
+    return random_effects_fit(x, 2, y, cluster, tau2, noise_sums, white(s2));
+  });
+  const std::optional<RandomEffectsFit> statistics = weighed_by_offsets(offsets, sums.loading, noise_sums, [&](const Eigen::VectorXd& tau2) {
+    return random_effects_fit(gram, sums, y_sums, 2, tau2, s2);
+  });
+  ASSERT_TRUE(rows && statistics);
+  EXPECT_LT((statistics->theta - rows->theta).cwiseAbs().maxCoeff(), 1e-9 * rows->theta.cwiseAbs().maxCoeff());
+  EXPECT_LT((statistics->weights - rows->weights).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((statistics->covariance - rows->covariance).norm(), 1e-8 * rows->covariance.norm());
+  EXPECT_LT((statistics->within - rows->within).norm(), 1e-8 * rows->within.norm());
+  // An offset alike in every cluster leaves least squares as it is.
+  ClusterOffsets common = offsets;
+  common.tau2_common = 1.0;
+  common.tau2_per_loading = 0.0;
+  EXPECT_FALSE(weighed_by_offsets(common, sums.loading, noise_sums, [&](const Eigen::VectorXd& tau2) {
+    return random_effects_fit(gram, sums, y_sums, 2, tau2, s2);
+  }));
+  // Bad input: sizes that differ, a noise that is not positive.
+  EXPECT_THROW(random_effects_fit(gram, sums, y_sums.head(3), 2, Eigen::VectorXd::Ones(g_count), s2), std::invalid_argument);
+  EXPECT_THROW(random_effects_fit(gram, sums, y_sums, 2, Eigen::VectorXd::Ones(g_count), 0.0), std::invalid_argument);
+}
+
 // A tumble's shape: a bias and a scale factor over six static poses, the input +-1 in two and
 // about 0 in four, whose offsets (a placement tilt's) reach only the four. Over seeds the
 // random-effects estimate spreads as its covariance says (rms z within 3 standard errors of an
