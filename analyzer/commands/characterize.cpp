@@ -13,6 +13,7 @@
 #include "analyzer/fusion/log_dataset.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/noise/noise_analysis.hpp"
+#include "analyzer/procedure/batch_stage.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/report/characterization_report.hpp"
 #include "common/dataset/dataset.hpp"
@@ -63,7 +64,7 @@ model::ModelFile characterized_model(const procedure::PipelineResult& result, co
     model.terms.push_back({ident::parse_term(result.fit.labels[static_cast<std::size_t>(j)]), result.fit.theta(j),
                            result.fit.std_dev(j)});
   }
-  model.white_sd = std::sqrt(result.fit.residual_variance);
+  model.white_sd = std::sqrt(procedure::batch_innovation(result).variance);
   model.square_highpass_rad_s = result.square_corner_rad_s;
   // The sensor's noise terms from the plan's static stretches, as `inertia-analyze noise` reads
   // them: [noise] carries the determined ones (diagnose's band test expects them).
@@ -127,7 +128,7 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   }
   for (const procedure::UndeterminedTerm& u : result.undetermined) fmt::print(out, "{}: {}\n", u.term, u.reason);
   fmt::print(out, "batch model ({} rows, residual sd {:.4g} {}):\n", result.fit.residuals.size(),
-             std::sqrt(result.fit.residual_variance), data.output_unit);
+             std::sqrt(procedure::batch_innovation(result).variance), data.output_unit);
   // The truth column of the summary's tables: empty without truth.toml, "-" for a term it lacks.
   const auto truth_text = [&](const std::string& term) -> std::string {
     if (!truth) return "";

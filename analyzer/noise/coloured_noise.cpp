@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <complex>
+#include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <unsupported/Eigen/FFT>
 #include <vector>
@@ -43,7 +45,16 @@ SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double
   return out;
 }
 
-SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual, const std::function<double(double)>& below_record) {
+namespace {
+
+/// A fitted noise's two-sided density per sample at f cycles per sample, and what it is.
+struct FittedDensity {
+  std::function<double(double)> density;
+  std::optional<NoiseFit> fit;
+  std::string model;
+};
+
+FittedDensity fitted_density(const Eigen::Ref<const Eigen::VectorXd>& residual, const std::function<double(double)>& below_record) {
   const Eigen::Index n = residual.size();
   std::optional<NoiseFit> fit;
   if (n >= 64) {
@@ -59,7 +70,8 @@ SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residua
       fit.reset();   // too few octaves: white below
     }
   }
-  SegmentSpectrum out;
+  FittedDensity out;
+  const double lowest = 1.0 / static_cast<double>(std::max<Eigen::Index>(n, 1));
   if (fit) {
     // Below the record's lowest frequency (one cycle in n samples) the residual cannot tell a
     // flicker or random walk from an offset of the whole stretch: there only the white part, or
@@ -67,12 +79,11 @@ SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residua
     // offsets' (ident::cluster_offsets).
     NoiseFit white = *fit;
     for (const NoiseTerm t : {NoiseTerm::B, NoiseTerm::K, NoiseTerm::R}) white.terms[static_cast<std::size_t>(t)].value = 0.0;
-    const double lowest = 1.0 / static_cast<double>(n);
-    out = spectrum_of(n, [&](double f) {
-      if (f >= lowest) return 0.5 * model_psd(*fit, f, 1.0);
+    out.density = [full = *fit, white, lowest, below_record](double f) {
+      if (f >= lowest) return 0.5 * model_psd(full, f, 1.0);
       const double floor = 0.5 * model_psd(white, f, 1.0);
       return below_record ? std::max(floor, below_record(f)) : floor;
-    });
+    };
     std::string terms;
     for (int t = 0; t < kNoiseTerms; ++t) {
       const NoiseCoefficient& c = fit->terms[static_cast<std::size_t>(t)];
@@ -82,11 +93,35 @@ SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residua
     out.fit = std::move(fit);
   } else {
     const double variance = n > 0 ? residual.squaredNorm() / static_cast<double>(n) : 0.0;
-    const double lowest = 1.0 / static_cast<double>(std::max<Eigen::Index>(n, 1));
-    out = spectrum_of(std::max<Eigen::Index>(n, 1),
-                      [&](double f) { return f < lowest && below_record ? std::max(variance, below_record(f)) : variance; });
+    out.density = [variance, lowest, below_record](double f) {
+      return f < lowest && below_record ? std::max(variance, below_record(f)) : variance;
+    };
     out.model = fmt::format("white {:.3g} (too short for the Allan fit)", variance);
   }
+  return out;
+}
+
+}  // namespace
+
+SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual, const std::function<double(double)>& below_record) {
+  FittedDensity fitted = fitted_density(residual, below_record);
+  SegmentSpectrum out = spectrum_of(std::max<Eigen::Index>(residual.size(), 1), fitted.density);
+  out.fit = std::move(fitted.fit);
+  out.model = std::move(fitted.model);
+  return out;
+}
+
+SegmentSpectrum fitted_spectrum_through_ar(const Eigen::Ref<const Eigen::VectorXd>& innovation, const Eigen::VectorXd& ar,
+                                           Eigen::Index rows, const std::function<double(double)>& below_record) {
+  if (rows < innovation.size()) throw std::invalid_argument("fitted_spectrum_through_ar: fewer rows than the innovation's");
+  FittedDensity fitted = fitted_density(innovation, below_record);
+  SegmentSpectrum out = spectrum_of(std::max<Eigen::Index>(rows, 1), [&](double f) {
+    std::complex<double> a = 1.0;   // A(e^{2 pi i f}) = 1 - sum a_j e^{-2 pi i f j}
+    for (Eigen::Index j = 1; j <= ar.size(); ++j) a -= ar(j - 1) * std::polar(1.0, -2.0 * std::numbers::pi * f * static_cast<double>(j));
+    return fitted.density(f) / std::norm(a);
+  });
+  out.fit = std::move(fitted.fit);
+  out.model = fmt::format("{} through AR({})", fitted.model, ar.size());
   return out;
 }
 

@@ -47,6 +47,13 @@ struct SegmentSpectrum {
 SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual,
                                 const std::function<double(double)>& below_record = {});
 
+/// The spectrum on `rows` rows of a noise that the AR model A(q) = 1 - sum a_j q^-j (`ar`) turns
+/// into `innovation` (the rows filtered by it, fewer by its order): `innovation`'s fitted spectrum
+/// (as fitted_spectrum, `below_record` in the innovation's terms) over |A(e^{2 pi i f})|^2. The
+/// covariance of rows kept unfiltered under the same noise model the filtered rows would have.
+SegmentSpectrum fitted_spectrum_through_ar(const Eigen::Ref<const Eigen::VectorXd>& innovation, const Eigen::VectorXd& ar,
+                                           Eigen::Index rows, const std::function<double(double)>& below_record = {});
+
 /// A stationary noise of two-sided density `density(f)` (f in cycles per sample, 0..0.5) on n rows.
 SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double)>& density);
 

@@ -63,9 +63,8 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
   // An AR(m) fit wants ten rows per order (ArWhitener::fit): a low-rate bench's window holds fewer.
   const int max_order = std::min<int>(live.options.whitening_max_order, static_cast<int>(residuals.size() / 10));
   const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, max_order);
-  if (live.rational) {
-    // ULS's correction is derived for white equation errors, so the rows stay unfiltered; the
-    // noise model scales the variances instead: by the residual's long-run variance (its
+  if (!procedure::filters_rows(live.rational)) {
+    // The noise model scales the variances instead: by the residual's long-run variance (its
     // spectrum at zero, innovation variance / A(1)^2) over its variance. Exact for columns
     // constant over the noise's memory (rate phases, poses), conservative for faster ones under
     // noise whose spectrum falls with frequency (the sensors' 1/f, brown, AR with a positive pole).

@@ -51,6 +51,19 @@ std::vector<HeldColumn> held_columns(const std::vector<MountingResult>& mounting
 
 }  // namespace
 
+BatchInnovation batch_innovation(const PipelineResult& result) {
+  StackedRegression stack;
+  stack.y = result.fit.residuals;
+  stack.phi.resize(stack.y.size(), 0);
+  for (const CaseOutcome& c : result.cases)
+    if (c.rows > 0) stack.cases.push_back({c.case_index, c.begin, c.rows, c.first_row});
+  std::sort(stack.cases.begin(), stack.cases.end(), [](const CaseRows& a, const CaseRows& b) { return a.begin < b.begin; });
+  if (!result.rows_filtered) ArWhitener::of(result.whitening).apply(stack);
+  const Eigen::Index dof = stack.y.size() - result.fit.theta.size();
+  const double variance = dof > 0 ? stack.y.squaredNorm() / static_cast<double>(dof) : result.fit.residual_variance;
+  return {std::move(stack.y), std::move(stack.cases), result.rows_filtered ? result.fit.residual_variance : variance};
+}
+
 PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& data, const PipelineOptions& options,
                               std::string_view dataset_label) {
   PipelineResult result = std::move(mounted);
@@ -74,37 +87,48 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   const BatchRegression batch_at(data, options, dataset_label, ident::first_usable_row(candidates), whitener);
   RelativeTwists twists = relative_twists(std::move(whitened.regression), std::move(result.mountings), batch_at, candidates,
                                           result.square_corner_rad_s, data, options);
-  const StackedRegression batch = std::move(twists.batch);
+  const StackedRegression& filtered = twists.batch;
   result.mountings = std::move(twists.mountings);
   result.notes.insert(result.notes.end(), twists.notes.begin(), twists.notes.end());
   set_case_frames(data, result.mountings, nominal, result.cases);   // the cases' M_E^S with the turns
-  for (const CaseRows& rows : batch.cases) {
-    CaseOutcome& c = result.cases[rows.case_index];
-    c.first_row = rows.first_sample;
-    c.begin = rows.begin;
-    c.rows = rows.rows;
-  }
 
-  // Block 10 or 11.
+  // Block 10 or 11, the structure on the filtered rows.
   ident::UlsOptions uls = options.selection.uls;
   uls.noise_lags = options.batch.noise_lags;
   std::vector<Eigen::Index> columns;
-  const std::vector<Eigen::Index> ranking = identifiable_ranking(batch, data.sensor, options.selection.err);
-  for (UndeterminedTerm& u : undetermined_columns(batch, ranking)) result.undetermined.push_back(std::move(u));
+  const std::vector<Eigen::Index> ranking = identifiable_ranking(filtered, data.sensor, options.selection.err);
+  for (UndeterminedTerm& u : undetermined_columns(filtered, ranking)) result.undetermined.push_back(std::move(u));
   if (options.batch.select) {
     ident::SelectionOptions selection = options.selection;
     selection.uls.noise_lags = 0;   // structure first; the noise model joins the final fit
-    ident::SelectionProblem problem{batch.phi, batch.y, batch.labels, batch.rational, ranking};
+    ident::SelectionProblem problem{filtered.phi, filtered.y, filtered.labels, filtered.rational, ranking};
     // Every inertial sensor has a bias and a scale factor: the t-test of step 9 weighs the other
     // terms against them, never them against a candidate. Pruning the weaker of a near-collinear
     // pair first, it took the bias out of sim-gyro-thermal's model (seed 116: t 0.9 beside a_p's
     // 1.3, with the bias's 2e-6 rad/s in the p axis' mean specific force) and named a_p at t 7.8.
-    for (const Eigen::Index j : ident::sensitivities_then_bias(batch.labels, data.sensor))
+    for (const Eigen::Index j : ident::sensitivities_then_bias(filtered.labels, data.sensor))
       if (std::find(ranking.begin(), ranking.end(), j) != ranking.end()) problem.kept.push_back(j);
     const ident::SelectionResult selected = ident::select_model(problem, selection, nullptr);
     columns = selected.best_model().columns;
   } else {
     columns = ranking;
+  }
+  // The selected model's coefficients and inference: on the filtered rows, or, with ULS's
+  // output-multiplied terms (filters_rows), on the same rows unfiltered with the noise model in
+  // the covariance. The candidates' columns keep their indices.
+  result.rows_filtered = filters_rows(std::any_of(columns.begin(), columns.end(), [&](Eigen::Index c) {
+    return std::find(filtered.rational.columns.begin(), filtered.rational.columns.end(), c) != filtered.rational.columns.end();
+  }));
+  const BatchRegression unfiltered_at(data, options, dataset_label, ident::first_usable_row(candidates), ArWhitener());
+  const BatchRegression& rows_at = result.rows_filtered ? batch_at : unfiltered_at;
+  std::optional<StackedRegression> unfiltered;
+  if (!result.rows_filtered) unfiltered = unfiltered_at(candidates, result.mountings, nominal, result.square_corner_rad_s);
+  const StackedRegression& batch = unfiltered ? *unfiltered : filtered;
+  for (const CaseRows& rows : batch.cases) {
+    CaseOutcome& c = result.cases[rows.case_index];
+    c.first_row = rows.first_sample;
+    c.begin = rows.begin;
+    c.rows = rows.rows;
   }
   std::vector<std::string> dropped;
   ident::UlsResult selected_fit = fit_identifiable(batch, data.sensor, columns, uls, dropped);
@@ -123,6 +147,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   honest.may_remove = options.batch.select;
   honest.sensor = data.sensor;
   if (batch_law) honest.below_record = batch_law->below_record(whitener);
+  if (!result.rows_filtered) honest.unfiltered_rows_ar = whitener.coefficients();
   // The searches whose results the batch's columns are built with: the squares' corner and each
   // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the
   // between-phase dof no longer count the angles separately.
@@ -146,8 +171,8 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
       const auto stack_at = [&](std::span<const Term> terms, double moved) {
         std::vector<Eigen::Vector3d> tilts = nominal;
         if (search.axis > 0) tilts[search.mounting](search.axis - 1) = moved;
-        return batch_at(terms, result.mountings, tilts,
-                        search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s);
+        return rows_at(terms, result.mountings, tilts,
+                       search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s);
       };
       // Steps: 1 % of the corner; 1e-4 rad of a turn (the columns are smooth in both).
       const double step = search.axis == 0 ? 1e-2 * *result.square_corner_rad_s : 1e-4;
@@ -172,7 +197,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
             [&](const Eigen::Vector3d& turn) -> std::optional<Eigen::VectorXd> {
               std::vector<Eigen::Vector3d> tilts = nominal;
               tilts[h.mounting] = turn;
-              const StackedRegression s = batch_at(terms, result.mountings, tilts, result.square_corner_rad_s);
+              const StackedRegression s = rows_at(terms, result.mountings, tilts, result.square_corner_rad_s);
               std::vector<Eigen::Index> all(terms.size());
               for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
               return ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all).theta.head(p);
@@ -195,9 +220,10 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
                                            [](const std::string& l) { return l == "a_i" || l == "w_i"; });
     const bool none_aligned =
         std::none_of(result.mountings.begin(), result.mountings.end(), [](const MountingResult& m) { return m.aligned; });
-    if (input_column != batch.labels.end() && batch.phi.rows() == result.fit.residuals.size()) {
+    const BatchInnovation innovation = batch_innovation(result);   // the filtered rows' layout
+    if (input_column != batch.labels.end() && filtered.phi.rows() == innovation.values.size()) {
       const ident::CorrelationCheck check = ident::residual_input_correlation(
-          result.fit.residuals, batch.phi.col(input_column - batch.labels.begin()), 20);
+          innovation.values, filtered.phi.col(input_column - batch.labels.begin()), 20);
       if (!check.pass || none_aligned) {
         // Linear in the sensitive input (times temperature, output or lags) holds in any frame near
         // the sensor's; squares, |a_i|, sign and the cross-axis inputs do not.

@@ -3,13 +3,27 @@
 // cases concatenated (optionally weighted, section 3.4) and whitened, the aligned mountings'
 // relative twists, the batch model fixed or selected (section 2.7.2), and the inference after
 // selection with what the searched and the held angles add to it.
+#include <Eigen/Dense>
 #include <string_view>
+#include <vector>
 
 #include "analyzer/procedure/pipeline_options.hpp"
 #include "analyzer/procedure/pipeline_result.hpp"
+#include "analyzer/procedure/stacked_regression.hpp"
 #include "common/dataset/dataset.hpp"
 
 namespace inertia::procedure {
+
+/// The batch model's innovation: its residual, through its AR noise model where the rows were kept
+/// unfiltered (PipelineResult::rows_filtered), stacked case by case as `cases` say (the
+/// dataset's case, its first sample), and its variance (on the residual's dof).
+struct BatchInnovation {
+  Eigen::VectorXd values;
+  std::vector<CaseRows> cases;
+  double variance = 0.0;
+};
+
+BatchInnovation batch_innovation(const PipelineResult& result);
 
 /// The batch model of `data` on the mountings of `mounted` (blocks 5-6: its mountings, the cases'
 /// M_E^S, M_C^S and the notes so far), which it returns completed.

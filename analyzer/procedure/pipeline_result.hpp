@@ -75,6 +75,10 @@ struct PipelineResult {
   double aic = 0.0;
   frames::Dcm m_cs = frames::Dcm::Identity();   // of the first mounting (model file)
   Eigen::VectorXd whitening;                // batch AR noise model a_1..a_m (empty: white)
+  /// Whether the batch's rows went through `whitening` (filters_rows). If not (ULS's
+  /// output-multiplied terms), fit.residuals are unfiltered and the innovation is `whitening`
+  /// applied to them (batch_innovation).
+  bool rows_filtered = true;
   /// With square_highpass: the corner b of the batch's squares (a_i^2, a_p^2, a_o^2 enter as
   /// s/(s + b) a_j^2, so their coefficients are the high-frequency gains K_jj of eq. 12);
   /// none: static squares. A model file must carry it to mean the same model.

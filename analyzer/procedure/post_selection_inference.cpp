@@ -12,6 +12,7 @@
 #include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
+#include "analyzer/procedure/prewhitening.hpp"
 
 namespace inertia::procedure {
 namespace {
@@ -157,7 +158,15 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       const auto g_count = static_cast<Eigen::Index>(order.size());
       coloured.sums_covariance = Eigen::MatrixXd::Zero(g_count, g_count);
       for (const CaseRows& rows : h.layout->noise_runs) {
-        spectra.push_back(noise::fitted_spectrum(fit.residuals.segment(rows.begin, rows.rows), h.below_record));
+        const auto run = fit.residuals.segment(rows.begin, rows.rows);
+        const Eigen::VectorXd& ar = h.unfiltered_rows_ar;
+        if (ar.size() == 0 || rows.rows <= ar.size()) {
+          spectra.push_back(noise::fitted_spectrum(run, h.below_record));
+        } else {
+          Eigen::VectorXd innovation(rows.rows - ar.size());
+          ar_filter(ar, run, innovation);
+          spectra.push_back(noise::fitted_spectrum_through_ar(innovation, ar, rows.rows, h.below_record));
+        }
         // The covariance of the sums of this case's phases (each phase a run of rows within it).
         std::vector<Eigen::Index> columns;
         for (Eigen::Index k = rows.begin; k < rows.begin + rows.rows; ++k) {

@@ -84,6 +84,10 @@ struct InferenceProblem {
   /// The whitened residual's density below one cycle per case (StaticNoiseLaw::below_record);
   /// empty: its white part alone.
   std::function<double(double)> below_record;
+  /// Rows kept unfiltered (filters_rows): their AR noise model, through which each run's residual
+  /// is whitened for its spectrum's fit (noise::fitted_spectrum_through_ar); empty: the rows are
+  /// whitened already.
+  Eigen::VectorXd unfiltered_rows_ar;
 };
 
 /// A selected term the inference took out, and why.

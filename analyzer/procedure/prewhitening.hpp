@@ -10,6 +10,7 @@
 // paper's eqs. 2 and 4 (v(k) coloured) in its autoregressive form; the MA form stays available in
 // ULS (noise lags) for models that need it.
 #include <Eigen/Dense>
+#include <utility>
 #include <vector>
 
 #include "analyzer/procedure/stacked_regression.hpp"
@@ -20,6 +21,13 @@ class ArWhitener {
  public:
   /// The identity (no filtering).
   ArWhitener() = default;
+
+  /// A(q) of the coefficients a_1..a_m (a model fitted before, as PipelineResult::whitening).
+  static ArWhitener of(Eigen::VectorXd coefficients) {
+    ArWhitener w;
+    w.a_ = std::move(coefficients);
+    return w;
+  }
 
   /// Fits A(q) = 1 - a_1 q^-1 - ... - a_m q^-m to `residuals` (the stacked rows of `layout`;
   /// autocovariances are summed within cases only) by Levinson-Durbin, with the order chosen by
@@ -39,6 +47,14 @@ class ArWhitener {
   Eigen::VectorXd a_;
   double variance_ratio_ = 1.0;
 };
+
+/// Whether a model's rows go through its AR noise model. ULS's correction for output-multiplied
+/// terms (the y* columns of eq. 5) is derived for a white equation error, and filtering such a
+/// column breaks it: the estimate is biased by more than its spread. A model with such terms keeps
+/// its rows unfiltered, and the same noise model enters its covariance instead (the batch: the
+/// sandwich under the noise's spectrum; live: the long-run variance). The batch and the live
+/// estimator both ask here.
+inline bool filters_rows(bool output_multiplied_terms) { return !output_multiplied_terms; }
 
 /// A(q) = 1 - sum a_j q^-j on the rows of `x` whose m = a.size() predecessors are in `x` too: row
 /// r of `out` (x.rows() - m rows) is x(r + m) - sum_j a_j x(r + m - j). ArWhitener filters the

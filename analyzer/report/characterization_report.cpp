@@ -11,6 +11,7 @@
 
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/ident/statistics.hpp"
+#include "analyzer/procedure/batch_stage.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
@@ -32,7 +33,7 @@ struct CaseTraces {
 };
 
 CaseTraces traces_of(const dataset::Dataset& data, const procedure::CaseOutcome& outcome, const procedure::PipelineResult& r,
-                     const std::string& label) {
+                     const procedure::BatchInnovation& innovation, const std::string& label) {
   const dataset::CaseData& c = data.cases[outcome.case_index];
   const ident::SignalSet signals = ident::signals_from_case(c, outcome.m_es, data.t_ref, label);
   const Eigen::VectorXd theta = r.fit.process_theta();
@@ -42,10 +43,13 @@ CaseTraces traces_of(const dataset::Dataset& data, const procedure::CaseOutcome&
       procedure::simulate_model(r.terms, theta, signals, first, r.square_corner_rad_s, c.sample_period_s) - c.y.tail(rows);
   tr.t = c.t.tail(rows);
   if (!c.phase.empty()) tr.phase.assign(c.phase.end() - rows, c.phase.end());
-  tr.innovation = r.fit.residuals.segment(outcome.begin, outcome.rows);
-  tr.t_innovation = c.t.segment(outcome.first_row, outcome.rows);
+  const auto rows_of_case = std::find_if(innovation.cases.begin(), innovation.cases.end(),
+                                         [&](const procedure::CaseRows& k) { return k.case_index == outcome.case_index; });
+  if (rows_of_case == innovation.cases.end()) return tr;
+  tr.innovation = innovation.values.segment(rows_of_case->begin, rows_of_case->rows);
+  tr.t_innovation = c.t.segment(rows_of_case->first_sample, rows_of_case->rows);
   tr.a_i = signals.get(data.sensor == dataset::SensorKind::Gyroscope ? ident::Variable::Wi : ident::Variable::Ai)
-               .segment(outcome.first_row, outcome.rows);
+               .segment(rows_of_case->first_sample, rows_of_case->rows);
   return tr;
 }
 
@@ -165,8 +169,14 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   }
 
   md << fmt::format("\n## Model (blocks 9-11)\n\n{} rows; innovation standard deviation {:.4g} {} (the residual after "
-                    "the AR({}) noise model); AIC {:.6g}.\n\n",
-                    r.fit.residuals.size(), std::sqrt(r.fit.residual_variance), data.output_unit, r.whitening.size(), r.aic);
+                    "the AR({}) noise model); AIC {:.6g}.{}\n\n",
+                    r.fit.residuals.size(), std::sqrt(procedure::batch_innovation(r).variance), data.output_unit,
+                    r.whitening.size(), r.aic,
+                    r.rows_filtered ? ""
+                                    : " The rows were not filtered by the noise model: ULS's correction for the "
+                                      "output-multiplied terms holds for a white equation error, so the noise model "
+                                      "enters the coefficients' covariance instead (the sandwich under its spectrum), "
+                                      "and AIC is the unfiltered residual's.");
   md << fmt::format("Inference: the cases' contiguous phases are {} clusters; the offsets between them that the noise model "
                     "does not explain (placement of a pose, drift, 1/f noise below the AR model's reach) have sd {:.3g} {} "
                     "(between-phase dof {}), and every standard deviation includes what they do to the estimate; a term "
@@ -244,9 +254,10 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     gp_res << "set multiplot layout " << data.cases.size() << ",1 title 'Innovation per case (one-step residual after the noise model, "
            << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";
   }
+  const procedure::BatchInnovation innovation = procedure::batch_innovation(r);
   for (const procedure::CaseOutcome& c : r.cases) {
     const dataset::CaseData& cd = data.cases[c.case_index];
-    const CaseTraces tr = traces_of(data, c, r, in.dataset_label);
+    const CaseTraces tr = traces_of(data, c, r, innovation, in.dataset_label);
     const auto white = ident::residual_autocorrelation(tr.innovation, 20);
     const auto indep = ident::residual_input_correlation(tr.innovation, tr.a_i, 20);
     const ident::ResidualMeanTest mean = ident::residual_mean_test(tr.verification);
