@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "analyzer/commands/characterize.hpp"
+#include "analyzer/procedure/batch_stage.hpp"
 #include "analyzer/procedure/pipeline.hpp"
 #include "common/config/bench_config.hpp"
 #include "common/input_error.hpp"
@@ -157,7 +158,7 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
     any_held = any_held || v.held_sd > 0.0;
   }
   fmt::print(out, "determined by this plan ({} batch rows, residual sd {:.4g} {}):\n", predicted.fit.residuals.size(),
-             std::sqrt(predicted.fit.residual_variance), sut.output_unit);
+             std::sqrt(procedure::batch_innovation(predicted).variance), sut.output_unit);
   if (options.seeds == 0) {
     fmt::print(out, "  {:<32} {:>14} {:>12}\n", "parameter", "one run", "predicted sd");
     for (const PlannedParameter& p : planned) fmt::print(out, "  {:<32} {:>14.6g} {:>12.3g}\n", p.name, p.value, p.predicted_sd);

@@ -262,11 +262,13 @@ ColumnFit fit_columns(const Workspace& w, const std::vector<Index>& fit,
     out.theta = r.process_theta();
     out.std_dev = r.std_dev.head(r.process_terms);
     out.dof = static_cast<double>(y.size() - r.process_terms - 1);
-    // Rational columns hold y itself: filtering them is not the filtered model, so their fits
-    // keep the ULS sandwich covariance (white-noise assumption; stated in the report).
-    if (rational_cols.empty() && options.max_ar_order > 0) {
+    // Output-multiplied columns keep their rows unfiltered (filters_rows), their sd scaled by the
+    // noise's long-run variance.
+    if (options.max_ar_order > 0) {
       const procedure::ArWhitener whitener = procedure::ArWhitener::fit(r.residuals, s.cases, options.max_ar_order);
-      if (whitener.order() > 0) {
+      if (!procedure::filters_rows(!rational_cols.empty())) {
+        out.std_dev *= std::sqrt(whitener.long_run_variance_ratio());
+      } else if (whitener.order() > 0) {
         procedure::StackedRegression ws{std::move(phi), std::move(y), s.cases, labels, {}};
         whitener.apply(ws);
         const ident::UlsResult g = ident::uls_batch(ws.phi, ws.y, labels, {}, ident::UlsOptions{});

@@ -64,14 +64,8 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
   const int max_order = std::min<int>(live.options.whitening_max_order, static_cast<int>(residuals.size() / 10));
   const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, max_order);
   if (!procedure::filters_rows(live.rational)) {
-    // The noise model scales the variances instead: by the residual's long-run variance (its
-    // spectrum at zero, innovation variance / A(1)^2) over its variance. Exact for columns
-    // constant over the noise's memory (rate phases, poses), conservative for faster ones under
-    // noise whose spectrum falls with frequency (the sensors' 1/f, brown, AR with a positive pole).
-    const double gain = 1.0 - noise.coefficients().sum();
-    if (gain > 0.0) {
-      live.solver->set_long_run_variance_factor(std::max(1.0, noise.variance_ratio() / (gain * gain)));
-    }
+    // The noise model scales the variances instead, by the residual's long-run variance.
+    live.solver->set_long_run_variance_factor(noise.long_run_variance_ratio());
     buffer.clear();
     buffered_rows = 0;
     return;

@@ -10,6 +10,7 @@
 // paper's eqs. 2 and 4 (v(k) coloured) in its autoregressive form; the MA form stays available in
 // ULS (noise lags) for models that need it.
 #include <Eigen/Dense>
+#include <algorithm>
 #include <utility>
 #include <vector>
 
@@ -38,6 +39,15 @@ class ArWhitener {
   [[nodiscard]] const Eigen::VectorXd& coefficients() const { return a_; }
   /// Innovation variance / residual variance: the share of the residual power left after whitening.
   [[nodiscard]] double variance_ratio() const { return variance_ratio_; }
+
+  /// The residual's long-run variance (its spectrum at zero, innovation variance / A(1)^2) over
+  /// its variance: the factor on a least-squares variance of unfiltered rows (filters_rows) for a
+  /// column constant over the noise's memory (a rate phase, a pose), conservative for faster ones
+  /// under noise whose spectrum falls with frequency. Never below 1; 1 when A(1) <= 0.
+  [[nodiscard]] double long_run_variance_ratio() const {
+    const double gain = 1.0 - a_.sum();
+    return gain > 0.0 ? std::max(1.0, variance_ratio_ / (gain * gain)) : 1.0;
+  }
 
   /// Filters y and every column in place, case by case; each case loses its first order() rows
   /// (their filtered values would need samples from before the case). Updates s.cases.
