@@ -276,6 +276,18 @@ GramFactor GramFactor::from_gram(const Eigen::Ref<const Eigen::MatrixXd>& gram, 
   return out;
 }
 
+std::vector<bool> phase_level_columns(const ClusterSums& sums, const Eigen::Ref<const Eigen::VectorXd>& energy) {
+  if (energy.size() > sums.columns.rows()) throw std::invalid_argument("phase_level_columns: more energies than columns");
+  std::vector<bool> out(static_cast<std::size_t>(energy.size()));
+  for (Eigen::Index j = 0; j < energy.size(); ++j) {
+    double between = 0.0;
+    for (Eigen::Index g = 0; g < sums.columns.cols(); ++g)
+      if (sums.rows(g) > 0.0) between += sums.columns(j, g) * sums.columns(j, g) / sums.rows(g);
+    out[static_cast<std::size_t>(j)] = cluster_level(energy(j), between);
+  }
+  return out;
+}
+
 ClusterOffsets cluster_offsets(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
                                double sigma2, const std::vector<int>& cluster, int estimated_elsewhere,
                                const Eigen::VectorXd& loading, const ColouredNoise* noise) {

@@ -160,6 +160,10 @@ inline constexpr double kClusterLevelShare = 1e-2;
   return energy > 0.0 && energy - between < kClusterLevelShare * energy;
 }
 
+/// Per column j < energy.size() of `sums`: cluster_level(energy(j), sum over clusters of
+/// (cluster sum)^2 / rows), with `energy` the columns' sums of squares.
+[[nodiscard]] std::vector<bool> phase_level_columns(const ClusterSums& sums, const Eigen::Ref<const Eigen::VectorXd>& energy);
+
 /// The random-effects (feasible GLS) estimate under offsets `cluster_offsets` estimated: each
 /// cluster's mean keeps the share w_g = m_g / (m_g + tau_g^2) of its information, m_g = v_g / n_g^2
 /// the variance the noise puts in it (v_g: of its sum), the rest of the estimate coming from within

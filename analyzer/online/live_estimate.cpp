@@ -182,9 +182,9 @@ LiveSolver EstimateSolver::prune_terms(LiveEstimate& s, const LiveSolver& batch_
   s.angles_from_means = angles_from_means(&fits);
   for (;;) {
     if (!s.batch.ok) break;
-    const std::vector<Index> level = current->phase_level_terms(s.batch, cs.infos, cs.m_cs, gain);
     StatFit trial = s.batch;
     const CaseScatter scatter = current->add_case_scatter(trial, cs.infos, cs.m_cs, gain, s.angles_from_means);
+    const std::vector<Index>& level = scatter.phase_level;
     const int dof = scatter.dof;
     // Saturated (no phase to spare): the weakest phase-level term that may leave does, whatever its test.
     const bool saturated = scatter.clusters >= 2 && dof < 1 && std::any_of(level.begin(), level.end(), [&](Index t) {

@@ -455,31 +455,6 @@ void LiveSolver::add_misalignment_uncertainty(StatFit& batch, const std::vector<
   batch.sd = batch.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
 }
 
-std::vector<Index> LiveSolver::phase_level_terms(const StatFit& batch, const std::vector<const Information*>& cases,
-                                                 const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const {
-  std::vector<Index> out;
-  if (!batch.ok || !(noise_gain > 0.0)) return out;
-  const auto p = static_cast<Index>(batch.terms.size());
-  const CornerWeights weights = batch.corner_rad_s ? grid_.at(*batch.corner_rad_s) : CornerWeights{};
-  Eigen::VectorXd energy = Eigen::VectorXd::Zero(p), between = Eigen::VectorXd::Zero(p);
-  Eigen::MatrixXd tb, tf;
-  for (std::size_t c = 0; c < cases.size(); ++c) {
-    if (cases[c]->samples() == 0) continue;
-    basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
-    energy += cases[c]->model_gram(tb, tf, weights).diagonal().head(p);
-    for (std::size_t r = 0; r < cases[c]->runs(); ++r) {
-      const double n = static_cast<double>(cases[c]->run_samples(r));
-      if (n < 1.0) continue;
-      // The run's mean of each column (the constant is A(1) on every whitened row), squared, n times.
-      const Eigen::VectorXd sums = cases[c]->run_constant_products(r, tb, tf, weights).head(p) / noise_gain;
-      between += sums.cwiseAbs2() / n;
-    }
-  }
-  for (Index j = 0; j < p; ++j)
-    if (ident::cluster_level(energy(j), between(j))) out.push_back(batch.terms[static_cast<std::size_t>(j)]);
-  return out;
-}
-
 Eigen::VectorXd LiveSolver::prediction_signs(const std::vector<Index>& terms) const {
   std::vector<Index> output_multiplied;
   for (std::size_t j = 0; j < terms.size(); ++j)
@@ -537,6 +512,9 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
     sums.loading(g) = loading[static_cast<std::size_t>(g)];
   }
   out.clusters = static_cast<int>(g_count);
+  const std::vector<bool> phase_level = ident::phase_level_columns(sums, gram.diagonal().head(p));
+  for (Index j = 0; j < p; ++j)
+    if (phase_level[static_cast<std::size_t>(j)]) out.phase_level.push_back(batch.terms[static_cast<std::size_t>(j)]);
   if (g_count < 2) return out;
   Eigen::VectorXd signs = Eigen::VectorXd::Ones(p + 1);
   signs.head(p) = sign;
@@ -550,11 +528,8 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   // When every column is constant within the clusters (static poses) and no column is the output's,
   // the clusters' means are weighed by what their offsets leave of them, as the batch weighs them
   // (ident::weighed_by_offsets); otherwise least squares with the offsets' sandwich.
-  bool means_only = (sign.array() > 0.0).all();
-  for (Index j = 0; j < p && means_only; ++j) {
-    const double between = (sums.columns.row(j).array().square() / sums.rows.transpose().array()).sum();
-    means_only = ident::cluster_level(gram(j, j), between);
-  }
+  const bool means_only =
+      (sign.array() > 0.0).all() && std::all_of(phase_level.begin(), phase_level.end(), [](bool b) { return b; });
   std::optional<ident::RandomEffectsFit> weighed;
   if (means_only) {
     Eigen::VectorXd y_sums(g_count);

@@ -86,6 +86,10 @@ struct CaseScatter {
   int dof = 0;                      // between-cluster dof left by the model's cluster means and the angles
   double tau2 = 0.0;                // mean offset variance per cluster, output unit squared (the noise model undone)
   bool weighed = false;             // the clusters' means weighed by their offsets (ident::weighed_by_offsets)
+  /// The fit's terms whose column is constant within every cluster (ident::phase_level_columns,
+  /// the batch's rule): a static pose's terms. Such terms and the clusters' offsets (a pose's
+  /// placement) are told apart only by the clusters left over.
+  std::vector<Eigen::Index> phase_level;
 };
 
 struct CandidateStat {
@@ -170,11 +174,6 @@ class LiveSolver {
   /// model (ident::cluster_offsets' estimated_elsewhere).
   CaseScatter add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
                                const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain, int angles_from_means = 0) const;
-  /// Of batch.terms, those whose column is constant within every phase of `cases`
-  /// (ident::cluster_level, the batch's rule): a static pose's terms. Such terms and the phases'
-  /// offsets (a pose's placement) are told apart only by the phases left over.
-  [[nodiscard]] std::vector<Eigen::Index> phase_level_terms(const StatFit& batch, const std::vector<const Information*>& cases,
-                                                            const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain) const;
   /// The same solver for another model (a subset of the basis's terms).
   [[nodiscard]] LiveSolver with_model(std::vector<Eigen::Index> model) const {
     LiveSolver s = *this;

@@ -206,20 +206,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     out.offsets = ident::cluster_offsets(cluster_sums, ident::GramFactor::from_rows(x), fit.residual_variance, 0, &coloured);
     const Eigen::MatrixXd x_process = x.leftCols(p);
     // Which terms live between the phases: little of their column varies within one.
-    std::vector<bool> phase_level(static_cast<std::size_t>(p), false);
-    {
-      std::map<int, std::pair<Eigen::VectorXd, double>> sums;
-      for (Eigen::Index k = 0; k < x.rows(); ++k) {
-        auto [it, fresh] = sums.try_emplace(h.layout->clusters[static_cast<std::size_t>(k)]);
-        if (fresh) it->second = {Eigen::VectorXd::Zero(p), 0.0};
-        it->second.first += x_process.row(k).transpose();
-        it->second.second += 1.0;
-      }
-      Eigen::VectorXd between = Eigen::VectorXd::Zero(p);
-      for (const auto& [id, sum] : sums) between += sum.first.cwiseAbs2() / sum.second;
-      const Eigen::VectorXd total = x_process.colwise().squaredNorm().transpose();
-      for (Eigen::Index j = 0; j < p; ++j) phase_level[std::size_t(j)] = ident::cluster_level(total(j), between(j));
-    }
+    const std::vector<bool> phase_level = ident::phase_level_columns(cluster_sums, x_process.colwise().squaredNorm().transpose());
     // When the phases' means are all the model's columns say (every term constant within each
     // phase: static poses) and their offsets differ, each mean is weighed by what its offset
     // leaves of it (random effects). Where a column varies within the phases the weights would

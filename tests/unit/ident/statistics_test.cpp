@@ -370,6 +370,27 @@ TEST(Statistics, ClusterOffsetsOfPlacementsAreUnbiasedOnATumble) {
 
 // The offsets from the clusters' sums and the Gram alone (what the live estimator keeps) are the
 // offsets from the rows: the same tau's, dof and covariance, to rounding.
+/// A column constant within each cluster (a pose's gravity, the bias) lives between the clusters;
+/// one that moves within them (a rate ramp, a sine) does not, nor does one whose within-cluster
+/// part is 2 % of its energy, above the 1 % share.
+TEST(Statistics, PhaseLevelColumnsAreThoseConstantWithinTheClusters) {
+  const Eigen::Index per = 50, clusters = 4, n = per * clusters;
+  Eigen::MatrixXd x(n, 4);
+  std::vector<int> ids(static_cast<std::size_t>(n));
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const auto g = static_cast<double>(k / per);
+    ids[static_cast<std::size_t>(k)] = static_cast<int>(k / per);
+    const double wobble = (k % 2 == 0 ? 1.0 : -1.0);
+    x.row(k) << 1.0, 2.0 - g, std::sin(0.3 * double(k)), (g + 1.0) * (1.0 + 0.1414 * wobble);
+  }
+  const ClusterSums sums = ClusterSums::from_rows(x, Eigen::VectorXd::Zero(n), ids);
+  const std::vector<bool> level = phase_level_columns(sums, x.colwise().squaredNorm().transpose());
+  EXPECT_EQ(level, (std::vector<bool>{true, true, false, false}));
+  // Only the columns given energies are judged.
+  EXPECT_EQ(phase_level_columns(sums, x.leftCols(2).colwise().squaredNorm().transpose()).size(), 2U);
+  EXPECT_THROW((void)phase_level_columns(sums, Eigen::VectorXd::Ones(5)), std::invalid_argument);
+}
+
 TEST(Statistics, ClusterOffsetsFromSumsAndTheGramEqualThoseFromTheRows) {
   constexpr Eigen::Index kRows = 40;
   const std::vector<std::array<double, 3>> poses{{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1},
