@@ -21,6 +21,24 @@ double ar1_density(double f, double phi, double s2) {
   return s2 / (1.0 - 2.0 * phi * std::cos(2.0 * std::numbers::pi * f) + phi * phi);
 }
 
+/// A seed's z-scores of coefficients 1 and 2 of a least-squares fit, under the sandwich and the
+/// classical covariance, appended per coefficient.
+void add_z(const Eigen::Vector3d& estimate, const Eigen::Vector3d& theta, const Eigen::Matrix3d& sandwich,
+           const Eigen::Matrix3d& classical, std::vector<double> (&z_sandwich)[2], std::vector<double> (&z_classical)[2]) {
+  for (int j = 1; j <= 2; ++j) {
+    z_sandwich[j - 1].push_back((estimate(j) - theta(j)) / std::sqrt(sandwich(j, j)));
+    z_classical[j - 1].push_back((estimate(j) - theta(j)) / std::sqrt(classical(j, j)));
+  }
+}
+
+/// The sample standard deviation of z.
+double sd_of(const std::vector<double>& z) {
+  double m = 0.0, v = 0.0;
+  for (double e : z) m += e / double(z.size());
+  for (double e : z) v += (e - m) * (e - m) / double(z.size() - 1);
+  return std::sqrt(v);
+}
+
 TEST(ColouredNoise, QuadraticFormEqualsTheToeplitzForm) {
   const double phi = 0.9, s2 = 0.3;
   const Eigen::Index n = 300;
@@ -110,17 +128,9 @@ TEST(ColouredNoise, SandwichSdMatchesTheSpreadUnderFlickerNoise) {
     const Eigen::VectorXd residual = y - x * estimate;
     const double s2 = residual.squaredNorm() / double(n - 3);
     const Eigen::Matrix3d sandwich = xx_inverse * quadratic_form(fitted_spectrum(residual), x) * xx_inverse;
-    for (int j = 1; j <= 2; ++j) {
-      z_sandwich[j - 1].push_back((estimate(j) - theta(j)) / std::sqrt(sandwich(j, j)));
-      z_classical[j - 1].push_back((estimate(j) - theta(j)) / std::sqrt(s2 * xx_inverse(j, j)));
-    }
+    add_z(estimate, theta, sandwich, s2 * xx_inverse, z_sandwich, z_classical);
   }
-  const auto sd = [](const std::vector<double>& z) {
-    double m = 0.0, v = 0.0;
-    for (double e : z) m += e / double(z.size());
-    for (double e : z) v += (e - m) * (e - m) / double(z.size() - 1);
-    return std::sqrt(v);
-  };
+  const auto sd = sd_of;
   const char* names[2] = {"slow sine (0.05 Hz)", "fast sine (11 Hz)"};
   for (int j = 0; j < 2; ++j) {
     std::printf("%s: z sd over %d seeds: sandwich %.2f, classical %.2f\n", names[j], kSeeds, sd(z_sandwich[j]), sd(z_classical[j]));
@@ -164,17 +174,9 @@ TEST(ColouredNoise, SpectrumThroughTheArModelGivesTheSdOfUnfilteredRows) {
     }
     const Eigen::Matrix3d sandwich = xx_inverse * quadratic_form(spectrum, x) * xx_inverse;
     const double s2 = residual.squaredNorm() / double(n - 3);
-    for (int j = 1; j <= 2; ++j) {
-      z_sandwich[j - 1].push_back((estimate(j) - theta(j)) / std::sqrt(sandwich(j, j)));
-      z_classical[j - 1].push_back((estimate(j) - theta(j)) / std::sqrt(s2 * xx_inverse(j, j)));
-    }
+    add_z(estimate, theta, sandwich, s2 * xx_inverse, z_sandwich, z_classical);
   }
-  const auto sd = [](const std::vector<double>& z) {
-    double m = 0.0, v = 0.0;
-    for (double e : z) m += e / double(z.size());
-    for (double e : z) v += (e - m) * (e - m) / double(z.size() - 1);
-    return std::sqrt(v);
-  };
+  const auto sd = sd_of;
   const char* names[2] = {"slow sine", "fast sine"};
   for (int j = 0; j < 2; ++j) {
     std::printf("%s: z sd over %d seeds: through the AR model %.2f, classical %.2f\n", names[j], kSeeds, sd(z_sandwich[j]),
