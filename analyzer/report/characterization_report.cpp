@@ -102,6 +102,7 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   if (in.data == nullptr || in.result == nullptr) throw std::invalid_argument("report: no dataset or result");
   const dataset::Dataset& data = *in.data;
   const procedure::PipelineResult& r = *in.result;
+  const procedure::BatchInnovation innovation = procedure::batch_innovation(r);
   std::filesystem::create_directories(out);
   const std::filesystem::path plots = out / "plots";
   if (in.plots) std::filesystem::create_directories(plots);
@@ -170,7 +171,7 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
 
   md << fmt::format("\n## Model (blocks 9-11)\n\n{} rows; innovation standard deviation {:.4g} {} (the residual after "
                     "the AR({}) noise model); AIC {:.6g}.{}\n\n",
-                    r.fit.residuals.size(), std::sqrt(procedure::batch_innovation(r).variance), data.output_unit,
+                    r.fit.residuals.size(), std::sqrt(innovation.variance), data.output_unit,
                     r.whitening.size(), r.aic,
                     r.rows_filtered ? ""
                                     : " The rows were not filtered by the noise model: ULS's correction for the "
@@ -254,7 +255,6 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     gp_res << "set multiplot layout " << data.cases.size() << ",1 title 'Innovation per case (one-step residual after the noise model, "
            << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";
   }
-  const procedure::BatchInnovation innovation = procedure::batch_innovation(r);
   for (const procedure::CaseOutcome& c : r.cases) {
     const dataset::CaseData& cd = data.cases[c.case_index];
     const CaseTraces tr = traces_of(data, c, r, innovation, in.dataset_label);
