@@ -105,33 +105,53 @@ void ClockFit::refit() noexcept {
   std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(count_ / 2),
                    sorted.begin() + static_cast<std::ptrdiff_t>(count_));
   const double cut = std::max(5.0 * 1.4826 * sorted[count_ / 2], 20e3);
-  double ss = 0.0, n = 0.0, sx = 0.0, sxx = 0.0, se = 0.0;
+  std::array<double, 512> kept_x{}, kept_excess{};
+  std::size_t n = 0;
+  double ss = 0.0, se = 0.0, sx = 0.0;
   for (std::size_t k = 0; k < count_; ++k) {
     if (excess[k] > cut) continue;
+    kept_x[n] = xs[k];
+    kept_excess[n] = excess[k];
     ss += excess[k] * excess[k];
     se += excess[k];
-    n += 1.0;
     sx += xs[k];
-    sxx += xs[k] * xs[k];
+    ++n;
   }
-  residual_ns_ = n > 0.0 ? std::sqrt(ss / n) : 0.0;
+  residual_ns_ = n > 0 ? std::sqrt(ss / static_cast<double>(n)) : 0.0;
+  drift_sd_ppm_ = 0.0;
+  if (n < 2) return;
   // The period's uncertainty as a line through points that scatter by the residual would have
-  // it, widened for their correlation: a host's load comes and goes over seconds, so
-  // neighbouring windows wait alike and carry less than one point's worth each (the lag-one
-  // autocorrelation's AR(1) factor, sqrt((1 + rho) / (1 - rho))).
-  const double mean_excess = n > 0.0 ? se / n : 0.0;
-  double lag0 = 0.0, lag1 = 0.0, previous = std::nan("");
-  for (std::size_t k = 0; k < count_; ++k) {
-    if (excess[k] > cut) continue;
-    const double d = excess[k] - mean_excess;
-    lag0 += d * d;
-    if (!std::isnan(previous)) lag1 += d * previous;
-    previous = d;
+  // it, with their autocorrelation: a host's load comes and goes over seconds, so windows up to
+  // a few seconds apart wait alike, and a load that eases over the run tilts the floor. The
+  // slope's variance is w' Gamma w (w_k = (x_k - mean x) / Sxx) with the excess's
+  // autocorrelations up to sqrt(n) windows apart, Bartlett-tapered (Newey-West), scaled by the
+  // residual about the floor; never below the white-noise value.
+  const double kept_mean_x = sx / static_cast<double>(n), mean_excess = se / static_cast<double>(n);
+  std::array<double, 512> w{}, centred{};
+  double spread = 0.0, gamma0 = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    w[k] = kept_x[k] - kept_mean_x;
+    spread += w[k] * w[k];
+    centred[k] = kept_excess[k] - mean_excess;
+    gamma0 += centred[k] * centred[k];
   }
-  const double rho = lag0 > 0.0 ? std::clamp(lag1 / lag0, 0.0, 0.95) : 0.0;
-  const double scatter_ns = residual_ns_ * std::sqrt((1.0 + rho) / (1.0 - rho));
-  const double spread = n > 1.0 ? sxx - sx * sx / n : 0.0;
-  drift_sd_ppm_ = spread > 0.0 ? scatter_ns / std::sqrt(spread) / nominal_ns_ * 1e6 : 0.0;
+  if (spread <= 0.0) return;
+  for (std::size_t k = 0; k < n; ++k) w[k] /= spread;
+  const double white = 1.0 / spread;   // sum of w_k^2
+  double weighted = white;
+  if (gamma0 > 0.0) {
+    const auto lags = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(n))));
+    for (std::size_t lag = 1; lag <= lags && lag < n; ++lag) {
+      double gamma = 0.0, ww = 0.0;
+      for (std::size_t k = lag; k < n; ++k) {
+        gamma += centred[k] * centred[k - lag];
+        ww += w[k] * w[k - lag];
+      }
+      const double taper = 1.0 - static_cast<double>(lag) / static_cast<double>(lags + 1);
+      weighted += 2.0 * taper * (gamma / gamma0) * ww;
+    }
+  }
+  drift_sd_ppm_ = residual_ns_ * std::sqrt(std::max(weighted, white)) / nominal_ns_ * 1e6;
 }
 
 double ClockFit::time_ns(std::int64_t index) const noexcept {

@@ -40,7 +40,9 @@ class ClockFit {
   /// (period / nominal - 1) in ppm: the device clock's error against the host's.
   [[nodiscard]] double drift_ppm() const noexcept { return (period_ns_ / nominal_ns_ - 1.0) * 1e6; }
   /// Standard deviation of drift_ppm(): a line through the kept points scattering by the
-  /// residual (0 before two points).
+  /// residual, with the scatter's autocorrelation over up to sqrt(points) windows (0 before two
+  /// points). A load that only eases (or only grows) over the whole span is a tilt of the floor
+  /// that no stamp tells from drift; it is not in this sd.
   [[nodiscard]] double drift_sd_ppm() const noexcept { return drift_sd_ppm_; }
   /// RMS of the kept points about the line (us): the floor's wander, what the fit cannot follow.
   [[nodiscard]] double residual_us() const noexcept { return residual_ns_ * 1e-3; }
