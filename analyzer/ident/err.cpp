@@ -52,6 +52,7 @@ ErrRanking rank_on_columns(const Eigen::VectorXd& diagonal, const Eigen::VectorX
   out.reference_energy = total;
   std::vector<double> errs;
 
+  const auto explained = [&](Eigen::Index j) { return toward_y[j] * toward_y[j] / energy[j]; };
   auto dependent = [&](Eigen::Index j) {
     return !(energy[j] > options.dependence_tolerance * diagonal[j]) || !(diagonal[j] > 0.0);
   };
@@ -66,6 +67,15 @@ ErrRanking rank_on_columns(const Eigen::VectorXd& diagonal, const Eigen::VectorX
     energy -= col.head(p).cwiseAbs2();
     toward_y -= col * col(p);
     l.col(selected++) = col;
+    // A column whose preferred form this is, and which explains next to nothing once it is in,
+    // has nothing of its own: it is not ranked.
+    if (options.preferred.empty() || options.tie_energy <= 0.0) return;
+    for (Eigen::Index j = 0; j < p; ++j) {
+      if (options.preferred[static_cast<std::size_t>(j)] != m || used[static_cast<std::size_t>(j)]) continue;
+      if (!dependent(j) && explained(j) >= options.tie_energy) continue;
+      out.dependent.push_back(j);
+      used[static_cast<std::size_t>(j)] = true;
+    }
   };
 
   for (Eigen::Index m : options.forced) {
@@ -98,6 +108,12 @@ ErrRanking rank_on_columns(const Eigen::VectorXd& diagonal, const Eigen::VectorX
       }
     }
     if (best < 0) break;
+    if (!options.preferred.empty()) {
+      const Eigen::Index alternative = options.preferred[static_cast<std::size_t>(best)];
+      if (alternative >= 0 && !used[static_cast<std::size_t>(alternative)] && !dependent(alternative) &&
+          explained(best) - explained(alternative) < options.tie_energy)
+        best = alternative;
+    }
     select(best, reference);
   }
   std::sort(out.dependent.begin(), out.dependent.end());

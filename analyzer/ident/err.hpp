@@ -53,6 +53,14 @@ struct ErrOptions {
   /// own energy is dependent: never selected, listed in ErrRanking::dependent.
   double dependence_tolerance = 1e-10;
   Eigen::Index max_terms = -1;  ///< stop after this many terms (-1: rank every candidate)
+  /// Per candidate column, the column that takes its step when the two explain the output alike
+  /// (-1: none; empty: no column has one): when j ranks best and preferred[j] is still a candidate
+  /// whose explained energy G(k,Y)^2 / G(k,k), after the columns selected so far, falls short of
+  /// j's by less than tie_energy. When preferred[j] is selected and j then explains less than
+  /// tie_energy beyond the selection, j is dependent (what another column takes from it later
+  /// does not count). rank_identifiable gives a lagged term its unlagged form.
+  std::vector<Eigen::Index> preferred;
+  double tie_energy = 0.0;
 };
 
 struct ErrRanking {

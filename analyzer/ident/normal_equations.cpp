@@ -1,7 +1,14 @@
 // The normal equations and the identifiability rules on them (normal_equations.hpp).
 #include "analyzer/ident/normal_equations.hpp"
 
+#include <boost/math/distributions/chi_squared.hpp>
+
+#include <algorithm>
+#include <optional>
 #include <stdexcept>
+
+#include "analyzer/ident/term.hpp"
+#include "common/input_error.hpp"
 
 namespace inertia::ident {
 
@@ -83,13 +90,56 @@ UlsStatistics NormalEquations::statistics(std::span<const Index> positions) cons
   return UlsStatistics::from_gram(augmented(positions), samples_, den, fg, fs);
 }
 
+namespace {
+
+/// Per label, the column of the same term with every lag less by its smallest (T[k-1] -> T,
+/// T[k-2]^2 -> T[k-1]^2), or -1. Only the temperature's terms have such a form: it moves over
+/// minutes, so one sample's lag is no information of its own unless the data say so. A motion
+/// input's lag is the dynamics the model order r was chosen for, and its lags rank as they come.
+std::vector<Index> unlagged_forms(const std::vector<std::string>& labels) {
+  std::vector<Index> out(labels.size(), -1);
+  std::vector<std::optional<Term>> terms;
+  for (const std::string& label : labels) {
+    try {
+      terms.push_back(parse_term(label));
+    } catch (const InputError&) {
+      terms.emplace_back();   // a column that is no term (a nuisance parameter's)
+    }
+  }
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    if (!terms[j] || terms[j]->factors().empty()) continue;
+    std::vector<Factor> factors = terms[j]->factors();
+    if (std::any_of(factors.begin(), factors.end(), [](const Factor& f) { return f.variable != Variable::T; })) continue;
+    const int least = std::min_element(factors.begin(), factors.end(), [](const Factor& a, const Factor& b) {
+                        return a.lag < b.lag;
+                      })->lag;
+    if (least == 0) continue;
+    for (Factor& f : factors) f.lag -= least;
+    const Term unlagged = Term::from_factors(std::move(factors));
+    for (std::size_t k = 0; k < terms.size(); ++k)
+      if (terms[k] && *terms[k] == unlagged) out[j] = static_cast<Index>(k);
+  }
+  return out;
+}
+
+}  // namespace
+
 IdentifiableRanking rank_identifiable(const NormalEquations& equations, dataset::SensorKind sensor, const ErrOptions& base,
                                       std::span<const Index> nuisance) {
   ErrOptions options = base;
   options.forced = sensitivities_then_bias(equations.labels(), sensor);
   options.forced.insert(options.forced.end(), nuisance.begin(), nuisance.end());
   options.reference = ErrReference::AfterForced;
+  options.preferred = unlagged_forms(equations.labels());
+  options.tie_energy = 0.0;
   ErrRanking ranking = err_rank(equations.augmented(), options);
+  const bool lagged_pairs = std::any_of(options.preferred.begin(), options.preferred.end(), [](Index k) { return k >= 0; });
+  const auto dof = static_cast<double>(equations.samples() - static_cast<Index>(ranking.order.size()));
+  if (lagged_pairs && dof > 0.0) {
+    const double sigma2 = std::max(0.0, ranking.unexplained * ranking.reference_energy) / dof;
+    options.tie_energy = boost::math::quantile(boost::math::complement(boost::math::chi_squared(1.0), kLagTieLevel)) * sigma2;
+    ranking = err_rank(equations.augmented(), options);
+  }
   return {std::move(ranking.order), std::move(ranking.dependent)};
 }
 

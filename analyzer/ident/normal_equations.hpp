@@ -84,8 +84,16 @@ struct IdentifiableRanking {
   std::vector<Index> dependent;   ///< columns the data cannot separate from those ranked before them
 };
 
-/// The ranking described above. `base` gives the ERR options but the forced columns and the
-/// reference, which this rule sets.
+/// The ranking described above. `base` gives the ERR options but the forced columns, the
+/// reference and the preferred columns, which this rule sets: a temperature term at a lag
+/// (T[k-1]) ranks before its unlagged form (T) only when it explains more of the output by the
+/// chi-square(1) quantile at `kLagTieLevel` times the noise variance (the F test of their
+/// difference, sigma^2 from the residual of every candidate), and is not ranked at all when, once
+/// its unlagged form is selected, it explains less than that. A temperature moves slowly against
+/// the sample rate: the two columns are nearly one, and the data's noise would otherwise pick one
+/// at random. Motion inputs' lags are the model's dynamics and rank by ERR alone.
+inline constexpr double kLagTieLevel = 0.01;
+
 [[nodiscard]] IdentifiableRanking rank_identifiable(const NormalEquations& equations, dataset::SensorKind sensor,
                                                     const ErrOptions& base = ErrOptions(),
                                                     std::span<const Index> nuisance = {});
