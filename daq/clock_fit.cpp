@@ -122,8 +122,7 @@ void ClockFit::refit() noexcept {
   if (n < 2) return;
   // The period's uncertainty as a line through points that scatter by the residual would have
   // it, with their autocorrelation: a host's load comes and goes over seconds, so windows up to
-  // a few seconds apart wait alike, and a load that eases over the run tilts the floor. The
-  // slope's variance is w' Gamma w (w_k = (x_k - mean x) / Sxx) with the excess's
+  // a few seconds apart wait alike. The slope's variance is w' Gamma w (w_k = (x_k - mean x) / Sxx) with the excess's
   // autocorrelations up to sqrt(n) windows apart, Bartlett-tapered (Newey-West), scaled by the
   // residual about the floor; never below the white-noise value.
   const double kept_mean_x = sx / static_cast<double>(n), mean_excess = se / static_cast<double>(n);
