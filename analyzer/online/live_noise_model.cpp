@@ -2,6 +2,8 @@
 #include "analyzer/online/live_noise_model.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <utility>
 
@@ -15,6 +17,22 @@
 namespace inertia::online {
 
 using Eigen::Index;
+
+std::vector<procedure::CaseRows> noise_pieces(Eigen::VectorXd& residuals, std::vector<procedure::CaseRows> pieces) {
+  std::vector<double> power(pieces.size(), 0.0);
+  double floor = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < pieces.size(); ++k) {
+    auto e = residuals.segment(pieces[k].begin, pieces[k].rows);
+    e.array() -= e.mean();
+    power[k] = e.squaredNorm() / static_cast<double>(std::max<Index>(1, e.size()));
+    if (e.size() >= kNoiseFloorRows) floor = std::min(floor, power[k]);
+  }
+  if (!std::isfinite(floor)) return pieces;
+  std::vector<procedure::CaseRows> kept;
+  for (std::size_t k = 0; k < pieces.size(); ++k)
+    if (pieces[k].rows >= kNoiseFloorRows && power[k] <= kNoiseFloorPowerRatio * floor) kept.push_back(pieces[k]);
+  return kept;
+}
 
 void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateSolver& estimates) {
   fitted = true;
@@ -38,6 +56,7 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
   Index at = 0;
   std::vector<procedure::HighpassState> hp;
   std::pair<std::size_t, int> current{static_cast<std::size_t>(-1), -1};
+  std::int32_t current_phase = 0;
   for (const BufferedRows& b : buffer) {
     Eigen::MatrixXd tb, tf;
     live.basis->transform(fitted_terms, s.m_cs[statistics.cases[b.state].mounting], s.batch.corner_rad_s.has_value(), tb, tf);
@@ -52,16 +71,22 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
       }
       fit += f * (tf.transpose() * predicting);
     }
-    if (current != std::pair{b.state, b.segment}) {
-      layout.push_back({layout.size(), at, 0, 0});
-      current = {b.state, b.segment};
-    }
+    const bool new_run = current != std::pair{b.state, b.segment};
+    current = {b.state, b.segment};
     residuals.segment(at, b.y.size()) = b.y - fit;
-    layout.back().rows += b.y.size();
+    for (Index i = 0; i < b.y.size(); ++i) {
+      const std::int32_t phase = b.plan_phase.empty() ? 0 : b.plan_phase[static_cast<std::size_t>(i)];
+      if (layout.empty() || (new_run && i == 0) || phase != current_phase) layout.push_back({layout.size(), at + i, 0, 0});
+      current_phase = phase;
+      ++layout.back().rows;
+    }
     at += b.y.size();
   }
+  layout = noise_pieces(residuals, std::move(layout));
+  Index noise_rows = 0;
+  for (const procedure::CaseRows& piece : layout) noise_rows += piece.rows;
   // An AR(m) fit wants ten rows per order (ArWhitener::fit): a low-rate bench's window holds fewer.
-  const int max_order = std::min<int>(live.options.whitening_max_order, static_cast<int>(residuals.size() / 10));
+  const int max_order = std::min<int>(live.options.whitening_max_order, static_cast<int>(noise_rows / 10));
   const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, max_order);
   if (!procedure::filters_rows(live.rational)) {
     // The noise model scales the variances instead, by the residual's long-run variance.

@@ -10,6 +10,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "analyzer/procedure/stacked_regression.hpp"
+
 namespace inertia::online {
 
 struct LiveModel;
@@ -28,6 +30,18 @@ struct BufferedRows {
   std::vector<std::uint16_t> phase;   // per row: the chunk's phase label
   std::vector<std::int32_t> plan_phase;   // per row: the plan's phase index
 };
+
+/// The noise in the window's residuals: per piece (one per run and plan phase) what is left about
+/// the piece's own level (taken off in `residuals`), and only the pieces of at least
+/// kNoiseFloorRows rows whose power is within kNoiseFloorPowerRatio of the quietest such piece.
+/// The model is fitted on the window's rows before the plan determines it (over two poses, a
+/// bias alone): the phases' levels it cannot yet explain are no noise, and would read as a near
+/// unit root; nor is the misfit that follows a phase's changing input (a table's move between
+/// poses, tens of times the noise). Noise is the same in every phase; a factor of 4 in power (2
+/// in rms) is the band its sampling and its slow part leave between phases.
+inline constexpr Eigen::Index kNoiseFloorRows = 50;
+inline constexpr double kNoiseFloorPowerRatio = 4.0;
+[[nodiscard]] std::vector<procedure::CaseRows> noise_pieces(Eigen::VectorXd& residuals, std::vector<procedure::CaseRows> pieces);
 
 struct LiveNoiseModel {
   std::vector<BufferedRows> buffer;   // the window's rows, until the model is fitted
