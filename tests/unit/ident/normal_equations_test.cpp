@@ -127,45 +127,48 @@ TEST(NormalEquations, RankingForcesTheSensitivitiesThenTheBiasAndNamesTheDepende
   EXPECT_EQ(with_nuisance.order[2], 5);
 }
 
+/// 20000 rows of w_i, 1, T, T[k-1] and the output; `temperature(k, draw)` and
+/// `output(w, t, previous, draw)` take their noise from `draw`, temperature first on each row.
+/// Before the first row T[k-1] is `first_previous` (NaN: the row's own T).
+template <class Temperature, class Output>
+IdentifiableRanking rank_temperature_rows(std::uint64_t seed, double first_previous, Temperature temperature, Output output) {
+  const std::vector<std::string> labels{"w_i", "1", "T", "T[k-1]"};
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  const auto draw = [&] { return normal(rng); };
+  const Index n = 20000;
+  Eigen::MatrixXd phi(n, 4);
+  Eigen::VectorXd y(n);
+  double previous = first_previous;
+  for (Index k = 0; k < n; ++k) {
+    const double t = temperature(double(k) / double(n), draw);
+    const double w = std::sin(1e-3 * double(k));
+    if (std::isnan(previous)) previous = t;
+    phi.row(k) << w, 1.0, t, previous;
+    y(k) = output(w, t, previous, draw);
+    previous = t;
+  }
+  return rank_identifiable(NormalEquations::from_rows(phi, y, labels), SensorKind::Gyroscope);
+}
+
 /// A gyro's output with a temperature term on T(k) (the simulator's c_t1), temperature read with
 /// 0.02 degC noise per sample while it drifts slowly: T and T[k-1] explain the output alike. Over
 /// 30 seeds the ranking takes T and names T[k-1] as not told apart from it, whatever the noise
 /// favours; with a temperature that moves fast enough for its lag to show, the lag it depends on
 /// is ranked.
 TEST(NormalEquations, ALaggedTermRanksOnlyForWhatItExplainsBeyondItsUnlaggedForm) {
-  const std::vector<std::string> labels{"w_i", "1", "T", "T[k-1]"};
   for (int seed = 0; seed < 30; ++seed) {
-    std::mt19937_64 rng(static_cast<std::uint64_t>(700 + seed));
-    std::normal_distribution<double> normal;
-    const Index n = 20000;
-    Eigen::MatrixXd phi(n, 4);
-    Eigen::VectorXd y(n);
-    double previous = 0.0;
-    for (Index k = 0; k < n; ++k) {
-      const double t = 10.0 * std::sin(2.0 * std::numbers::pi * double(k) / double(n)) + 0.02 * normal(rng);
-      const double w = std::sin(1e-3 * double(k));
-      phi.row(k) << w, 1.0, t, k == 0 ? t : previous;
-      y(k) = 1.0005 * w + 2e-6 + 1e-6 * t + 1e-5 * normal(rng);
-      previous = t;
-    }
-    const IdentifiableRanking ranking = rank_identifiable(NormalEquations::from_rows(phi, y, labels), SensorKind::Gyroscope);
+    const IdentifiableRanking ranking = rank_temperature_rows(
+        static_cast<std::uint64_t>(700 + seed), std::nan(""),
+        [](double x, auto& draw) { return 10.0 * std::sin(2.0 * std::numbers::pi * x) + 0.02 * draw(); },
+        [](double w, double t, double, auto& draw) { return 1.0005 * w + 2e-6 + 1e-6 * t + 1e-5 * draw(); });
     EXPECT_NE(std::find(ranking.order.begin(), ranking.order.end(), 2), ranking.order.end()) << seed;
     EXPECT_EQ(ranking.dependent, std::vector<Index>{3}) << seed;
   }
   // Temperature noise of 2 degC per sample and the output on T[k-1]: the lag is what the data say.
-  std::mt19937_64 rng(9);
-  std::normal_distribution<double> normal;
-  const Index n = 20000;
-  Eigen::MatrixXd phi(n, 4);
-  Eigen::VectorXd y(n);
-  double previous = 0.0;
-  for (Index k = 0; k < n; ++k) {
-    const double t = 2.0 * normal(rng), w = std::sin(1e-3 * double(k));
-    phi.row(k) << w, 1.0, t, previous;
-    y(k) = 1.0005 * w + 1e-5 * previous + 1e-5 * normal(rng);
-    previous = t;
-  }
-  const IdentifiableRanking ranking = rank_identifiable(NormalEquations::from_rows(phi, y, labels), SensorKind::Gyroscope);
+  const IdentifiableRanking ranking = rank_temperature_rows(
+      9, 0.0, [](double, auto& draw) { return 2.0 * draw(); },
+      [](double w, double, double previous, auto& draw) { return 1.0005 * w + 1e-5 * previous + 1e-5 * draw(); });
   ASSERT_GE(ranking.order.size(), 3U);
   EXPECT_EQ(ranking.order[2], 3) << "T[k-1], the term in the output, before T";
 }
