@@ -10,7 +10,7 @@ Both read the same rows, so where the rules are the same their answers are nearl
 far below 1; a term set that differs or a z near or above 1 points at a rule the two paths apply
 differently. Exit status 1 when any sensor's terms differ or any |z| exceeds --max-z.
 
-usage: tests/parity/live_offline_parity.py [--build build] [--max-z 1] [BENCH:SENSOR,SENSOR ...]
+usage: tests/parity/live_offline_parity.py [--build build] [--max-z 1] [--noise-window S] [BENCH:SENSOR,SENSOR ...]
 """
 import argparse
 import csv
@@ -49,6 +49,7 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--build", default=str(ROOT / "build"))
     p.add_argument("--max-z", type=float, default=1.0)
+    p.add_argument("--noise-window", type=float, help="online's --noise-window (s); its default if not given")
     p.add_argument("benches", nargs="*", default=BENCHES)
     a = p.parse_args()
     binary = pathlib.Path(a.build) / "bin"
@@ -61,8 +62,9 @@ def main():
             run([binary / "inertia-daqd", "--config", config, "--fast", "--log", d / "log",
                  "--lcm-url", "udpm://239.255.76.67:7698?ttl=0"], d / "daqd.txt")
             log = next((d / "log").glob("*.lcmlog"))
+            window = [] if a.noise_window is None else ["--noise-window", str(a.noise_window)]
             run([binary / "inertia-analyze", "online", "--config", config, "--replay", log,
-                 "--history", d / "history.csv"], d / "online.txt")
+                 "--history", d / "history.csv", *window], d / "online.txt")
             header, last = last_live_rows(d / "history.csv")
             for sensor in sensors.split(","):
                 run([binary / "inertia-analyze", "characterize", "--log", log, "--sensor", sensor,
