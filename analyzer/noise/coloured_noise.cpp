@@ -7,6 +7,7 @@
 #include <numbers>
 #include <optional>
 #include <stdexcept>
+#include <utility>
 #include <unsupported/Eigen/FFT>
 #include <vector>
 
@@ -163,6 +164,91 @@ Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::R
     for (Eigen::Index k = 0; k <= half; ++k) bins[static_cast<std::size_t>(k)] *= spectrum.density(k);
     fft.inv(column, bins, static_cast<std::size_t>(spectrum.length));
     out.col(j) = Eigen::Map<const Eigen::VectorXd>(column.data(), x.rows());
+  }
+  return out;
+}
+
+namespace {
+
+/// Sums of r(i - j) over blocks of rows from the autocovariance's running sums, in extended
+/// precision: a block's sum is a difference of second running sums that grow with n^2.
+///   P1(k) = sum_{t = -(n-1)}^{k-1} r(t),  P2(k) = sum_{u = -(n-1)}^{k-1} P1(u),
+///   sum_{j = b0}^{b1-1} r(i - j) = P1(i - b0 + 1) - P1(i - b1 + 1),
+///   sum_{i = a0}^{a1-1} sum_{j = b0}^{b1-1} r(i - j) = P2(a1 - b0 + 1) - P2(a0 - b0 + 1) - P2(a1 - b1 + 1) + P2(a0 - b1 + 1).
+class LagSums {
+ public:
+  explicit LagSums(const Eigen::VectorXd& autocovariance) : n_(autocovariance.size()) {
+    first_.assign(static_cast<std::size_t>(2 * n_), 0.0L);
+    second_.assign(static_cast<std::size_t>(2 * n_ + 1), 0.0L);
+    for (Eigen::Index i = 0; i + 1 < 2 * n_; ++i)
+      first_[std::size_t(i + 1)] = first_[std::size_t(i)] + static_cast<long double>(autocovariance(std::abs(i - (n_ - 1))));
+    for (Eigen::Index i = 0; i < 2 * n_; ++i) second_[std::size_t(i + 1)] = second_[std::size_t(i)] + first_[std::size_t(i)];
+  }
+
+  /// sum over j in [b0, b1) of r(i - j), rows i, b0, b1 of the stretch.
+  [[nodiscard]] long double row(Eigen::Index i, Eigen::Index b0, Eigen::Index b1) const { return p1(i - b0 + 1) - p1(i - b1 + 1); }
+
+  /// sum over i in [a0, a1), j in [b0, b1) of r(i - j).
+  [[nodiscard]] long double block(Eigen::Index a0, Eigen::Index a1, Eigen::Index b0, Eigen::Index b1) const {
+    return (p2(a1 - b0 + 1) - p2(a0 - b0 + 1)) - (p2(a1 - b1 + 1) - p2(a0 - b1 + 1));
+  }
+
+ private:
+  [[nodiscard]] long double p1(Eigen::Index k) const { return first_[std::size_t(k + n_ - 1)]; }
+  [[nodiscard]] long double p2(Eigen::Index k) const { return second_[std::size_t(k + n_ - 1)]; }
+
+  Eigen::Index n_;
+  std::vector<long double> first_, second_;
+};
+
+/// Each group's maximal runs of consecutive rows, [begin, end).
+std::vector<std::vector<std::pair<Eigen::Index, Eigen::Index>>> group_runs(const RowGroups& rows) {
+  std::vector<std::vector<std::pair<Eigen::Index, Eigen::Index>>> runs(static_cast<std::size_t>(rows.groups));
+  const auto n = static_cast<Eigen::Index>(rows.group.size());
+  for (Eigen::Index k = 0; k < n;) {
+    const Eigen::Index g = rows.group[std::size_t(k)];
+    if (g < 0 || g >= rows.groups) throw std::invalid_argument("group_runs: a row's group is out of range");
+    Eigen::Index end = k + 1;
+    while (end < n && rows.group[std::size_t(end)] == g) ++end;
+    runs[std::size_t(g)].emplace_back(k, end);
+    k = end;
+  }
+  return runs;
+}
+
+}  // namespace
+
+Eigen::MatrixXd group_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows) {
+  if (static_cast<Eigen::Index>(rows.group.size()) != spectrum.rows) throw std::invalid_argument("group_covariance: rows differ from the spectrum's");
+  const LagSums sums(spectrum.autocovariance);
+  const auto runs = group_runs(rows);
+  Eigen::MatrixXd out(rows.groups, rows.groups);
+  for (Eigen::Index g = 0; g < rows.groups; ++g) {
+    for (Eigen::Index h = 0; h <= g; ++h) {
+      long double s = 0.0L;
+      for (const auto& [a0, a1] : runs[std::size_t(g)])
+        for (const auto& [b0, b1] : runs[std::size_t(h)]) s += sums.block(a0, a1, b0, b1);
+      out(g, h) = out(h, g) = static_cast<double>(s);
+    }
+  }
+  return out;
+}
+
+Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows,
+                                       const Eigen::Ref<const Eigen::MatrixXd>& x) {
+  if (static_cast<Eigen::Index>(rows.group.size()) != spectrum.rows || x.rows() != spectrum.rows)
+    throw std::invalid_argument("group_cross_covariance: rows differ from the spectrum's");
+  const LagSums sums(spectrum.autocovariance);
+  const auto runs = group_runs(rows);
+  Eigen::MatrixXd out(x.cols(), rows.groups);
+  Eigen::VectorXd rz(x.rows());   // R z_h
+  for (Eigen::Index h = 0; h < rows.groups; ++h) {
+    for (Eigen::Index i = 0; i < x.rows(); ++i) {
+      long double s = 0.0L;
+      for (const auto& [b0, b1] : runs[std::size_t(h)]) s += sums.row(i, b0, b1);
+      rz(i) = static_cast<double>(s);
+    }
+    out.col(h).noalias() = x.transpose() * rz;
   }
   return out;
 }

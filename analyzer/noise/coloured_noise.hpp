@@ -25,6 +25,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "analyzer/noise/noise_fit.hpp"
 
@@ -64,6 +65,23 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
 /// noise with each column's weighted sum of it, x'(R x) = quadratic_form, and z'(R x) for any
 /// other columns z of the same rows.
 Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x);
+
+/// The rows of a stretch sorted into groups (the phases of a case): `group[k]` in 0 .. groups-1
+/// for row k. With Z the groups' indicator columns, Z'RZ is the covariance of the noise's sums
+/// over the groups and X'RZ that of each column's weighted sum with them. Both are sums of the
+/// autocovariance over blocks of rows, taken from its running sums: no transform, and Z is never
+/// formed.
+struct RowGroups {
+  std::vector<Eigen::Index> group;
+  Eigen::Index groups = 0;
+};
+
+/// Z'RZ (groups x groups) under the spectrum (group.size() == spectrum.rows).
+Eigen::MatrixXd group_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows);
+
+/// X'RZ (x.cols() x groups) under the spectrum (x.rows() == spectrum.rows == group.size()).
+Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows,
+                                       const Eigen::Ref<const Eigen::MatrixXd>& x);
 
 
 }  // namespace inertia::noise

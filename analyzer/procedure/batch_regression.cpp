@@ -25,12 +25,18 @@ std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const Pipelin
   return inputs;
 }
 
-StackedRegression BatchRegression::operator()(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
+StackedRegression BatchRegression::unwhitened(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
                                               const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const {
   std::vector<CaseOutcome> cases(data_.cases.size());
   set_case_frames(data_, mountings, turns, cases);
   StackedRegression s = stack_regressions(terms, batch_inputs(data_, options_, cases), data_.t_ref, label_, first_row_);
   apply_square_model(s, data_, corner);
+  return s;
+}
+
+StackedRegression BatchRegression::operator()(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
+                                              const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const {
+  StackedRegression s = unwhitened(terms, mountings, turns, corner);
   whitener_.apply(s);
   return s;
 }

@@ -38,6 +38,10 @@ class BatchRegression {
 
   [[nodiscard]] StackedRegression operator()(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
                                              const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const;
+  /// The same regression before its whitener (prediction_derivative whitens what it needs of it).
+  [[nodiscard]] StackedRegression unwhitened(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
+                                             const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const;
+  [[nodiscard]] const ArWhitener& whitener() const { return whitener_; }
 
  private:
   const dataset::Dataset& data_;

@@ -85,14 +85,22 @@ int max_lag_of(const std::vector<Term>& terms) {
   return lag;
 }
 
-/// One mounting's regression as algorithm 2 fits it: its cases stacked with M_C^S = m_cs, the
-/// squares through the mounting's high pass, AR-whitened.
+/// One mounting's regression as algorithm 2 fits it before whitening: its cases stacked with
+/// M_C^S = m_cs, the squares through the mounting's high pass.
+StackedRegression mounting_regression(std::span<const Term> terms, const MountingCases& m, const frames::Dcm& m_cs,
+                                      const dataset::Dataset& data, std::string_view label,
+                                      Eigen::Index first_row, std::optional<double> square_corner) {
+  StackedRegression s = stack_regressions(terms, stack_inputs(m, m_cs), data.t_ref, label, first_row);
+  apply_square_model(s, data, square_corner);
+  return s;
+}
+
+/// The same, AR-whitened: the rows algorithm 2 fits.
 StackedRegression whitened_regression(std::span<const Term> terms, const MountingCases& m, const frames::Dcm& m_cs,
                                       const dataset::Dataset& data, std::string_view label,
                                       Eigen::Index first_row, std::optional<double> square_corner,
                                       const ArWhitener& whitener) {
-  StackedRegression s = stack_regressions(terms, stack_inputs(m, m_cs), data.t_ref, label, first_row);
-  apply_square_model(s, data, square_corner);
+  StackedRegression s = mounting_regression(terms, m, m_cs, data, label, first_row, square_corner);
   whitener.apply(s);
   return s;
 }
@@ -400,9 +408,9 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
       honest.searched = [&](const ident::UlsResult& fit) {
         if (!has_square_term(fit)) return SearchedColumns{};
         // The columns are smooth in the corner: 1 % keeps the difference far above rounding.
-        return SearchedColumns{Eigen::MatrixXd(prediction_derivative(fit, 1e-2 * *square_corner, [&](std::span<const Term> terms, double moved) {
-                                 return whitened_regression(terms, m, *best_misalignment, data, dataset_label, first_row,
-                                                            *square_corner + moved, whitener);
+        return SearchedColumns{Eigen::MatrixXd(prediction_derivative(fit, 1e-2 * *square_corner, whitener, [&](std::span<const Term> terms, double moved) {
+                                 return mounting_regression(terms, m, *best_misalignment, data, dataset_label, first_row,
+                                                            *square_corner + moved);
                                })),
                                {0}};
       };

@@ -82,13 +82,18 @@ Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<
   return out;
 }
 
-Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step,
+Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step, const ArWhitener& whitener,
                                       const std::function<StackedRegression(std::span<const Term>, double)>& stack_at) {
   const Eigen::Index p = fit.process_terms;
   std::vector<Term> terms;
   for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
   const StackedRegression up = stack_at(terms, step), down = stack_at(terms, -step);
-  return (up.phi - down.phi) * fit.theta.head(p) / (2.0 * step);
+  StackedRegression difference;
+  difference.y = (up.phi - down.phi) * fit.theta.head(p) / (2.0 * step);
+  difference.phi.resize(difference.y.size(), 0);
+  difference.cases = up.cases;
+  whitener.apply(difference);
+  return std::move(difference.y);
 }
 
 PhaseLayout phase_layout(const StackedRegression& s, std::span<const Term> candidates, const dataset::Dataset& data,
@@ -118,6 +123,8 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
   // column of the meat X'RX with it, and the residual it leaves behind differs by a term that
   // tested as nothing.
   std::vector<noise::SegmentSpectrum> spectra;
+  std::vector<noise::RowGroups> run_phases;                 // per noise run: each row's phase within it
+  std::vector<std::vector<Eigen::Index>> run_phase_columns;  // per noise run: its phases' columns of Z
   ident::ColouredNoise coloured;
   for (;;) {
     InferenceOutcome out;
@@ -168,17 +175,17 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
           spectra.push_back(noise::fitted_spectrum_through_ar(innovation, ar, rows.rows, h.below_record));
         }
         // The covariance of the sums of this case's phases (each phase a run of rows within it).
-        std::vector<Eigen::Index> columns;
-        for (Eigen::Index k = rows.begin; k < rows.begin + rows.rows; ++k) {
-          const Eigen::Index g = order.at(h.layout->clusters[static_cast<std::size_t>(k)]);
-          if (std::find(columns.begin(), columns.end(), g) == columns.end()) columns.push_back(g);
-        }
-        Eigen::MatrixXd z = Eigen::MatrixXd::Zero(rows.rows, static_cast<Eigen::Index>(columns.size()));
+        std::vector<Eigen::Index>& columns = run_phase_columns.emplace_back();
+        noise::RowGroups& phases = run_phases.emplace_back();
+        phases.group.resize(static_cast<std::size_t>(rows.rows));
         for (Eigen::Index k = 0; k < rows.rows; ++k) {
           const Eigen::Index g = order.at(h.layout->clusters[static_cast<std::size_t>(rows.begin + k)]);
-          z(k, std::find(columns.begin(), columns.end(), g) - columns.begin()) = 1.0;
+          auto at = std::find(columns.begin(), columns.end(), g);
+          if (at == columns.end()) at = columns.insert(columns.end(), g);
+          phases.group[static_cast<std::size_t>(k)] = at - columns.begin();
         }
-        const Eigen::MatrixXd zrz = z.transpose() * noise::covariance_times(spectra.back(), z);
+        phases.groups = static_cast<Eigen::Index>(columns.size());
+        const Eigen::MatrixXd zrz = noise::group_covariance(spectra.back(), phases);
         for (std::size_t a = 0; a < columns.size(); ++a)
           for (std::size_t b = 0; b < columns.size(); ++b) coloured.sums_covariance(columns[a], columns[b]) = zrz(Eigen::Index(a), Eigen::Index(b));
       }
@@ -192,15 +199,16 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       }
       return out;
     };
-    const Eigen::MatrixXd rx = noise_times(x);
-    coloured.meat = x.transpose() * rx;
+    // X'RX and X'RZ, case by case (R is block diagonal over the noise runs).
+    coloured.meat = Eigen::MatrixXd::Zero(x.cols(), x.cols());
     coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
-    for (Eigen::Index k = 0; k < x.rows(); ++k) {
-      const int id = h.layout->clusters[static_cast<std::size_t>(k)];
-      const auto g = std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), id) - coloured.cluster_ids.begin();
-      coloured.cross.col(g) += rx.row(k).transpose();
+    for (std::size_t r = 0; r < spectra.size(); ++r) {
+      const CaseRows& run = h.layout->noise_runs[r];
+      const auto xr = x.middleRows(run.begin, run.rows);
+      coloured.meat += noise::quadratic_form(spectra[r], xr);
+      const Eigen::MatrixXd cross = noise::group_cross_covariance(spectra[r], run_phases[r], xr);
+      for (std::size_t a = 0; a < run_phase_columns[r].size(); ++a) coloured.cross.col(run_phase_columns[r][a]) += cross.col(Eigen::Index(a));
     }
-    coloured.meat = (0.5 * (coloured.meat + coloured.meat.transpose())).eval();
     // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
     const ident::ClusterSums cluster_sums = ident::ClusterSums::from_rows(x, fit.residuals, h.layout->clusters, h.layout->loading);
     out.offsets = ident::cluster_offsets(cluster_sums, ident::GramFactor::from_rows(x), fit.residual_variance, 0, &coloured);

@@ -22,6 +22,7 @@
 #include "analyzer/ident/term.hpp"
 #include "analyzer/ident/uls_batch.hpp"
 #include "analyzer/procedure/pipeline_result.hpp"
+#include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
 #include "common/dataset/dataset.hpp"
 
@@ -44,9 +45,11 @@ Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<
                                    std::string_view label);
 
 /// The derivative of a fit's prediction with respect to a parameter its regression was built
-/// with, by a central difference: `stack_at(terms, offset)` rebuilds the whitened regression of
-/// the fit's terms with the parameter moved by `offset`.
-Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step,
+/// with, by a central difference, as a whitened column: `stack_at(terms, offset)` rebuilds the
+/// regression of the fit's terms with the parameter moved by `offset`, before whitening. The
+/// whitener is linear and acts case by case, so the difference of the two predictions is whitened
+/// once instead of every column of both regressions.
+Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step, const ArWhitener& whitener,
                                       const std::function<StackedRegression(std::span<const ident::Term>, double)>& stack_at);
 
 /// Parameters the fit's columns depend on that were estimated by a search on the same data (the

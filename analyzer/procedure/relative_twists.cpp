@@ -75,11 +75,12 @@ RelativeTwists relative_twists(StackedRegression batch, std::vector<MountingResu
     const ident::UlsResult fit = fit_identifiable(batch, data.sensor, usable, uls, dropped);
     Eigen::MatrixXd derivatives(batch.phi.rows(), static_cast<Eigen::Index>(parameters.size()));
     for (std::size_t i = 0; i < parameters.size(); ++i) {
-      derivatives.col(static_cast<Eigen::Index>(i)) = prediction_derivative(fit, 1e-4, [&](std::span<const Term> terms, double moved) {
-        std::vector<Eigen::Vector3d> turns = nominal;
-        turns[parameters[i].mounting](parameters[i].axis) = moved;
-        return batch_at(terms, mountings, turns, square_corner);
-      });
+      derivatives.col(static_cast<Eigen::Index>(i)) =
+          prediction_derivative(fit, 1e-4, batch_at.whitener(), [&](std::span<const Term> terms, double moved) {
+            std::vector<Eigen::Vector3d> turns = nominal;
+            turns[parameters[i].mounting](parameters[i].axis) = moved;
+            return batch_at.unwhitened(terms, mountings, turns, square_corner);
+          });
     }
     Eigen::MatrixXd information;
     const Eigen::VectorXd delta = gauss_newton_step(batch, fit, derivatives, information);

@@ -72,6 +72,38 @@ TEST(ColouredNoise, CovarianceTimesEqualsTheToeplitzProduct) {
   EXPECT_LT((x.transpose() * covariance_times(spectrum, x) - quadratic_form(spectrum, x)).norm(), 1e-10 * direct.norm());
 }
 
+TEST(ColouredNoise, GroupSumsEqualTheToeplitzFormOfTheIndicators) {
+  // A long memory (phi 0.999: r falls by e in 1000 lags) makes every block's sum large against
+  // its neighbours', where the running sums' differences lose most digits. Groups split into
+  // several runs and a one-row group exercise the runs.
+  const double phi = 0.999, s2 = 0.7;
+  const Eigen::Index n = 1500;
+  const SegmentSpectrum spectrum = spectrum_of(n, [&](double f) { return ar1_density(f, phi, s2); });
+  RowGroups rows;
+  rows.groups = 4;
+  rows.group.resize(std::size_t(n));
+  for (Eigen::Index k = 0; k < n; ++k) rows.group[std::size_t(k)] = k < 400 || k >= 1300 ? 0 : k < 700 ? 1 : 2;
+  rows.group[900] = 3;
+  Eigen::MatrixXd z = Eigen::MatrixXd::Zero(n, rows.groups);
+  for (Eigen::Index k = 0; k < n; ++k) z(k, rows.group[std::size_t(k)]) = 1.0;
+  Eigen::MatrixXd r(n, n);
+  for (Eigen::Index a = 0; a < n; ++a)
+    for (Eigen::Index b = 0; b < n; ++b) r(a, b) = spectrum.autocovariance(std::abs(a - b));
+  const Eigen::MatrixXd x = Eigen::MatrixXd::Random(n, 3);
+  const Eigen::MatrixXd zrz = z.transpose() * r * z, xrz = x.transpose() * r * z;
+  const Eigen::MatrixXd by_sums = group_covariance(spectrum, rows), cross_by_sums = group_cross_covariance(spectrum, rows, x);
+  for (Eigen::Index g = 0; g < rows.groups; ++g) {
+    for (Eigen::Index h = 0; h < rows.groups; ++h)
+      EXPECT_NEAR(by_sums(g, h), zrz(g, h), 1e-12 * std::sqrt(zrz(g, g) * zrz(h, h))) << g << " " << h;
+    for (Eigen::Index j = 0; j < x.cols(); ++j)
+      EXPECT_NEAR(cross_by_sums(j, g), xrz(j, g), 1e-12 * std::sqrt((x.col(j).transpose() * r * x.col(j)).value() * zrz(g, g)))
+          << j << " " << g;
+  }
+  // A row's group out of range is refused.
+  rows.group[3] = 4;
+  EXPECT_THROW((void)group_covariance(spectrum, rows), std::invalid_argument);
+}
+
 /// What is known of the noise below one cycle per record from elsewhere (the plan's static
 /// stretches) replaces the white part there, and only there; where it is lower the white part stays.
 TEST(ColouredNoise, BelowTheRecordsLowestFrequencyTheKnownLawHolds) {
