@@ -60,40 +60,90 @@ Eigen::VectorXd ar_from_autocovariance(const Eigen::VectorXd& acov, double n, do
   return best_order > 0 ? best : Eigen::VectorXd();
 }
 
+namespace {
+
+/// The rows an AR filter of order m keeps of the stacked `cases`: each case loses its first m,
+/// and the rest move up to follow the previous case's.
+std::vector<CaseRows> filtered_layout(const std::vector<CaseRows>& cases, Eigen::Index m) {
+  std::vector<CaseRows> out;
+  Eigen::Index begin = 0;
+  for (const CaseRows& c : cases) {
+    const Eigen::Index rows = c.rows - m;
+    if (rows <= 0) continue;
+    out.push_back(CaseRows{c.case_index, begin, rows, c.first_sample + m});
+    begin += rows;
+  }
+  return out;
+}
+
+/// x (one stacked vector, rows laid out as `from`) filtered by A(q) case by case into the rows
+/// of `to` (filtered_layout). Row r of a case's result is sample r + m of the case:
+/// x[k] - sum a_j x[k - j]. Per lag a whole block of rows at once (vectorized; the same per-sample
+/// order of operations as a scalar loop) into `scratch`, then copied to rows already consumed
+/// (to.begin <= from.begin), so in place is safe. Blocks of kBlock rows keep the m passes over a
+/// block in L1/L2 instead of a trip to memory per lag.
+template <class X>
+void filter_stacked(const Eigen::VectorXd& a, X&& x, const std::vector<CaseRows>& from, const std::vector<CaseRows>& to,
+                    Eigen::VectorXd& scratch) {
+  constexpr Eigen::Index kBlock = 2048;
+  const Eigen::Index m = a.size();
+  std::size_t k = 0;
+  for (const CaseRows& c : from) {
+    if (c.rows - m <= 0) continue;
+    const CaseRows& out = to[k++];
+    for (Eigen::Index b = 0; b < out.rows; b += kBlock) {
+      const Eigen::Index n = std::min(kBlock, out.rows - b);
+      ar_filter(a, x.segment(c.begin + b, n + m), scratch.segment(b, n));
+    }
+    x.segment(out.begin, out.rows) = scratch.head(out.rows);
+  }
+}
+
+Eigen::Index longest(const std::vector<CaseRows>& cases) {
+  Eigen::Index rows = 0;
+  for (const CaseRows& c : cases) rows = std::max(rows, c.rows);
+  return rows;
+}
+
+Eigen::Index total_rows(const std::vector<CaseRows>& cases) {
+  Eigen::Index rows = 0;
+  for (const CaseRows& c : cases) rows += c.rows;
+  return rows;
+}
+
+}  // namespace
+
 void ArWhitener::apply(StackedRegression& s) const {
   const int m = order();
   if (m == 0) return;
-  Eigen::Index out = 0;
-  std::vector<CaseRows> cases;
-  for (const CaseRows& c : s.cases) {
-    const Eigen::Index rows = c.rows - m;
-    if (rows <= 0) continue;
-    // Row r of the result (r >= 0) is sample r + m of the case: x[k] - sum a_j x[k - j]. Per lag a
-    // whole block of rows at once (vectorized; the same per-sample order of operations as a scalar
-    // loop) into a scratch vector, then copied to rows already consumed (out <= c.begin), so in
-    // place is safe. Blocks of kBlock rows keep the m passes over a block in L1/L2: whole-case
-    // segments (3 MB on the paper's rotation table) made every lag a trip to memory.
-    constexpr Eigen::Index kBlock = 2048;
-    Eigen::VectorXd scratch(rows);
-    const auto filter_into = [&](auto&& x) {
-      for (Eigen::Index b = 0; b < rows; b += kBlock) {
-        const Eigen::Index n = std::min(kBlock, rows - b);
-        ar_filter(a_, x.segment(c.begin + b, n + m), scratch.segment(b, n));
-      }
-      x.segment(out, rows) = scratch;
-    };
-    filter_into(s.y);
-    for (Eigen::Index col = 0; col < s.phi.cols(); ++col) filter_into(s.phi.col(col));
-    // The factors of output-multiplied columns are not filtered (stacked_regression.hpp): they
-    // only lose the same first rows.
-    if (s.rational.factors.rows() > 0) s.rational.factors.middleRows(out, rows) = s.rational.factors.middleRows(c.begin + m, rows).eval();
-    cases.push_back(CaseRows{c.case_index, out, rows, c.first_sample + m});
-    out += rows;
+  std::vector<CaseRows> cases = filtered_layout(s.cases, m);
+  Eigen::VectorXd scratch(longest(cases));
+  filter_stacked(a_, s.y, s.cases, cases, scratch);
+  for (Eigen::Index col = 0; col < s.phi.cols(); ++col) filter_stacked(a_, s.phi.col(col), s.cases, cases, scratch);
+  // The factors of output-multiplied columns are not filtered (stacked_regression.hpp): they only
+  // lose the same first rows.
+  if (s.rational.factors.rows() > 0) {
+    std::size_t k = 0;
+    for (const CaseRows& c : s.cases) {
+      if (c.rows - m <= 0) continue;
+      const CaseRows& out = cases[k++];
+      s.rational.factors.middleRows(out.begin, out.rows) = s.rational.factors.middleRows(c.begin + m, out.rows).eval();
+    }
   }
+  const Eigen::Index out = total_rows(cases);
   s.phi.conservativeResize(out, Eigen::NoChange);
   s.y.conservativeResize(out);
   if (s.rational.factors.rows() > 0) s.rational.factors.conservativeResize(out, Eigen::NoChange);
   s.cases = std::move(cases);
+}
+
+void ArWhitener::apply_to_columns(Eigen::MatrixXd& x, const std::vector<CaseRows>& cases) const {
+  const int m = order();
+  if (m == 0) return;
+  const std::vector<CaseRows> filtered = filtered_layout(cases, m);
+  Eigen::VectorXd scratch(longest(filtered));
+  for (Eigen::Index col = 0; col < x.cols(); ++col) filter_stacked(a_, x.col(col), cases, filtered, scratch);
+  x.conservativeResize(total_rows(filtered), Eigen::NoChange);
 }
 
 }  // namespace inertia::procedure

@@ -53,6 +53,10 @@ class ArWhitener {
   /// (their filtered values would need samples from before the case). Updates s.cases.
   void apply(StackedRegression& s) const;
 
+  /// The same filter on the columns of x alone, rows laid out as `cases` (a stacked regression's):
+  /// x keeps the rows apply() keeps, in the same order.
+  void apply_to_columns(Eigen::MatrixXd& x, const std::vector<CaseRows>& cases) const;
+
  private:
   Eigen::VectorXd a_;
   double variance_ratio_ = 1.0;

@@ -116,11 +116,28 @@ WhitenedProblem whiten_problem(StackedRegression stacked, const dataset::Dataset
   out.whitener = ArWhitener::fit(ols.residuals, stacked.cases, options.max_order);
   out.noise_law = static_noise_law(ols.residuals, stacked.cases, data);
   if (unfiltered) {
-    StackedRegression whitened = *unfiltered;
+    // Only the squares depend on the corner: the other columns are whitened once, for the
+    // corner's search and as the result, and the squares pass the corner's high pass and the
+    // whitener on their own.
+    stacked = StackedRegression();
+    const std::vector<Eigen::Index> squares = square_columns(unfiltered->labels);
+    const std::vector<CaseRows> layout = unfiltered->cases;
+    Eigen::MatrixXd through(unfiltered->phi.rows(), static_cast<Eigen::Index>(squares.size()));
+    std::vector<Eigen::Index> all(squares.size());
+    for (std::size_t i = 0; i < squares.size(); ++i) {
+      through.col(static_cast<Eigen::Index>(i)) = unfiltered->phi.col(squares[i]);
+      all[i] = static_cast<Eigen::Index>(i);
+    }
+    StackedRegression whitened = std::move(*unfiltered);
     out.whitener.apply(whitened);
     out.square_corner_rad_s = search_corner(whitened);
-    stacked = std::move(*unfiltered);
-    apply_square_model(stacked, data, out.square_corner_rad_s);
+    if (out.square_corner_rad_s) {
+      highpass_columns(through, all, layout, data, *out.square_corner_rad_s);
+      out.whitener.apply_to_columns(through, layout);
+      for (std::size_t i = 0; i < squares.size(); ++i) whitened.phi.col(squares[i]) = through.col(static_cast<Eigen::Index>(i));
+    }
+    out.regression = std::move(whitened);
+    return out;
   }
   out.whitener.apply(stacked);
   out.regression = std::move(stacked);

@@ -72,6 +72,28 @@ TEST(ArWhitener, FiltersEachCaseWithoutCrossingItsStart) {
   EXPECT_EQ(s.cases[1].first_sample, 1);
 }
 
+// Columns filtered on their own keep the rows, and the values, of the same columns filtered in
+// a stacked regression: a case shorter than the order drops out of both, and the blocks of rows
+// the filter works in (2048) are crossed.
+TEST(ArWhitener, ColumnsAloneMatchTheStackedRegressionsRows) {
+  const ArWhitener w = ArWhitener::of(Eigen::Vector3d(0.6, -0.2, 0.1));
+  StackedRegression s;
+  s.cases = {CaseRows{0, 0, 5000, 0}, CaseRows{1, 5000, 2, 0}, CaseRows{2, 5002, 3000, 7}};
+  s.phi = Eigen::MatrixXd::Random(8002, 3);
+  s.y = Eigen::VectorXd::Random(8002);
+  s.labels = {"a_i", "a_p", "a_o"};
+  const std::vector<CaseRows> layout = s.cases;
+  Eigen::MatrixXd alone = s.phi.rightCols(2);
+  w.apply(s);
+  w.apply_to_columns(alone, layout);
+  ASSERT_EQ(alone.rows(), s.phi.rows());
+  EXPECT_EQ(alone.rows(), 4997 + 2997);
+  EXPECT_EQ(alone, s.phi.rightCols(2));   // the same operations in the same order: equal, not near
+  ASSERT_EQ(s.cases.size(), 2U);
+  EXPECT_EQ(s.cases[1].begin, 4997);
+  EXPECT_EQ(s.cases[1].first_sample, 10);
+}
+
 // A(q) inverts the AR process that made the series: the filtered series is its innovations,
 // and the filter gives the same rows whether a series is filtered at once or in chunks that each
 // carry the last m rows of the one before (the live estimator's segments).
