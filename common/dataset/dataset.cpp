@@ -23,6 +23,7 @@
 #include <fmt/format.h>
 
 #include "common/dataset/huge_pages.hpp"
+#include "common/disk_space.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::dataset {
@@ -415,6 +416,34 @@ void append_double(std::string& out, double v) {
 
 constexpr std::size_t kWriteChunk = std::size_t{1} << 20;
 
+/// A case CSV's header line (the columns the case has).
+std::string csv_header(const CaseData& c) {
+  std::string csv = "t,a_x,a_y,a_z";
+  if (c.w_e) csv += ",w_x,w_y,w_z";
+  if (c.temp) csv += ",temp";
+  csv += ",y";
+  if (!c.phase.empty()) csv += ",phase";
+  csv += '\n';
+  return csv;
+}
+
+/// Row k of a case's CSV, appended to `csv`.
+void append_csv_row(std::string& csv, const CaseData& c, Eigen::Index k) {
+  append_double(csv, c.t[k]);
+  for (int a = 0; a < 3; ++a) { csv += ','; append_double(csv, c.a_e(k, a)); }
+  if (c.w_e) {
+    for (int a = 0; a < 3; ++a) { csv += ','; append_double(csv, (*c.w_e)(k, a)); }
+  }
+  if (c.temp) { csv += ','; append_double(csv, (*c.temp)[k]); }
+  csv += ',';
+  append_double(csv, c.y[k]);
+  if (!c.phase.empty()) {
+    csv += ',';
+    csv += c.phase_names[c.phase[static_cast<std::size_t>(k)]];
+  }
+  csv += '\n';
+}
+
 void write_file(const std::filesystem::path& file, const std::string& bytes) {
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.c_str(), "wb"), &std::fclose);
   if (!f) {
@@ -524,6 +553,23 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
   return data;
 }
 
+std::uintmax_t csv_bytes(const Dataset& data) {
+  // Each case's rows formatted up to kSampledRows, the rest taken at their mean length: the
+  // shortest round-trip form varies with the digits a value needs, not with the record's length.
+  constexpr Eigen::Index kSampledRows = 4096;
+  double bytes = 0.0;
+  std::string csv;
+  for (const CaseData& c : data.cases) {
+    csv = csv_header(c);
+    const std::size_t header = csv.size();
+    const Eigen::Index sampled = std::min(c.size(), kSampledRows);
+    for (Eigen::Index k = 0; k < sampled; ++k) append_csv_row(csv, c, k);
+    bytes += static_cast<double>(header);
+    if (sampled > 0) bytes += static_cast<double>(csv.size() - header) * static_cast<double>(c.size()) / static_cast<double>(sampled);
+  }
+  return static_cast<std::uintmax_t>(std::ceil(bytes));
+}
+
 void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
   std::string toml_text;
   toml_text += "sensor = " + toml_quote(to_string(data.sensor)) + "\n";
@@ -565,6 +611,7 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
     toml_text += "]\n";
   }
 
+  require_free_space(dir, toml_text.size() + csv_bytes(data), fmt::format("dataset {}", dir.string()));
   std::filesystem::create_directories(dir);
   write_file(dir / "dataset.toml", toml_text);
 
@@ -582,26 +629,9 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
       }
       csv.clear();
     };
-    csv = "t,a_x,a_y,a_z";
-    if (c.w_e) csv += ",w_x,w_y,w_z";
-    if (c.temp) csv += ",temp";
-    csv += ",y";
-    if (!c.phase.empty()) csv += ",phase";
-    csv += '\n';
+    csv = csv_header(c);
     for (Eigen::Index k = 0; k < c.size(); ++k) {
-      append_double(csv, c.t[k]);
-      for (int a = 0; a < 3; ++a) { csv += ','; append_double(csv, c.a_e(k, a)); }
-      if (c.w_e) {
-        for (int a = 0; a < 3; ++a) { csv += ','; append_double(csv, (*c.w_e)(k, a)); }
-      }
-      if (c.temp) { csv += ','; append_double(csv, (*c.temp)[k]); }
-      csv += ',';
-      append_double(csv, c.y[k]);
-      if (!c.phase.empty()) {
-        csv += ',';
-        csv += c.phase_names[c.phase[static_cast<std::size_t>(k)]];
-      }
-      csv += '\n';
+      append_csv_row(csv, c, k);
       if (csv.size() >= kWriteChunk) flush();
     }
     flush();

@@ -94,7 +94,13 @@ void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostrea
 /// Phase labels are written as given; a label holding a comma, quote or line break cannot be
 /// written into this CSV dialect and throws InputError. Also throws InputError when a case's
 /// columns differ in length, and std::filesystem::filesystem_error / std::runtime_error on I/O.
+/// Refused with InputError before anything is written when the filesystem lacks the room for it
+/// (csv_bytes, common/disk_space.hpp).
 void write_dataset(const std::filesystem::path& dir, const Dataset& data);
+
+/// About the bytes of the CSVs write_dataset writes for `data` (each case's first rows formatted,
+/// the rest at their mean length).
+std::uintmax_t csv_bytes(const Dataset& data);
 
 const char* to_string(SensorKind kind);   // "accelerometer", "gyroscope" (the dataset.toml spelling)
 std::optional<SensorKind> sensor_kind_from_string(std::string_view text);

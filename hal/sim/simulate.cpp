@@ -11,6 +11,7 @@
 
 #include "common/config/phase_label.hpp"
 #include "common/dataset/dataset.hpp"
+#include "common/disk_space.hpp"
 #include "common/input_error.hpp"
 #include "common/units.hpp"
 #include "hal/sim/sensor_truth.hpp"
@@ -142,12 +143,20 @@ dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSim
 }
 
 void write_simulation(const config::BenchConfig& bench, const BenchSimulation& sim, const std::filesystem::path& out) {
-  std::filesystem::create_directories(out);
   for (std::size_t s = 0; s < bench.sensors.size(); ++s) {
     const std::filesystem::path dir = sensor_dir(bench, s, out);
-    dataset::write_dataset(dir, sensor_dataset(bench, sim, s));
+    const dataset::Dataset data = sensor_dataset(bench, sim, s);
+    // Every sensor's dataset and the references hold the same rows: room for all of them is asked
+    // for before the first is written, the references (monitoring and control channels, encoder
+    // counts) taken as two datasets' worth.
+    if (s == 0) {
+      require_free_space(out, (bench.sensors.size() + 2) * dataset::csv_bytes(data), fmt::format("simulation {}", out.string()));
+      std::filesystem::create_directories(out);
+    }
+    dataset::write_dataset(dir, data);
     write_truth(bench, sim, s, dir / "truth.toml");
   }
+  std::filesystem::create_directories(out);
   std::filesystem::create_directories(out / "references");
   for (std::size_t c = 0; c < bench.cases.size(); ++c) {
     write_references(bench, sim.cases[c], out / "references" / (bench.cases[c].name + ".csv"));

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "common/dataset/dataset.hpp"
+#include "common/disk_space.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::dataset {
@@ -153,6 +154,46 @@ TEST(Dataset, RoundTripIsExactAndBytesAreDeterministic) {
     EXPECT_EQ(slurp(a / file), slurp(b / file)) << file;
   }
   EXPECT_EQ(slurp(a / "shaker-ia.csv").substr(0, 40), "t,a_x,a_y,a_z,w_x,w_y,w_z,temp,y,phase\n1");
+}
+
+// The size write_dataset asks the disk for: a long case whose first rows are shorter than the
+// rest (small times, then long ones) is estimated within a few percent of what it writes, and a
+// case shorter than the sample exactly.
+TEST(Dataset, TheCsvBytesAskedForAreWhatIsWritten) {
+  Dataset d = sample_dataset();
+  CaseData& long_case = d.cases[1];
+  const Eigen::Index n = 200000;
+  long_case.t = Eigen::VectorXd::LinSpaced(n, 0.0, 0.001 * double(n - 1));
+  long_case.a_e = Matrix3Columns::Random(n, 3);
+  long_case.y = Eigen::VectorXd::Random(n);
+  const fs::path dir = fresh_dir("csv-bytes");
+  write_dataset(dir, d);
+  const auto written = double(fs::file_size(dir / "shaker-ia.csv") + fs::file_size(dir / "table.csv"));
+  const auto asked = double(csv_bytes(d));
+  EXPECT_NEAR(asked, written, 0.03 * written) << asked << " asked, " << written << " written";
+  Dataset short_only;
+  short_only.cases = {d.cases[0]};
+  EXPECT_EQ(csv_bytes(short_only), fs::file_size(dir / "shaker-ia.csv"));
+}
+
+// More bytes than the disk has free are refused with both figures, before anything is created;
+// what fits is let through. The filesystem is this test's own (its free space read at the call).
+TEST(Dataset, AWriteLargerThanTheFreeSpaceIsRefusedWithTheFigures) {
+  const fs::path dir = fs::path(INERTIA_BINARY_DIR) / "test-data" / "dataset" / "no-room" / "deeper";
+  fs::remove_all(dir.parent_path());
+  const std::uintmax_t free = free_bytes_for(dir);
+  ASSERT_GT(free, 0U);
+  try {
+    require_free_space(dir, free + (std::uintmax_t{1} << 40), "dataset " + dir.string());
+    ADD_FAILURE() << "a write of a terabyte more than is free was let through";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("to write"), std::string::npos) << what;
+    EXPECT_NE(what.find("free"), std::string::npos) << what;
+    EXPECT_NE(what.find("MB"), std::string::npos) << what;
+  }
+  EXPECT_FALSE(fs::exists(dir.parent_path()));
+  EXPECT_NO_THROW(require_free_space(dir, 1, "one byte"));
 }
 
 TEST(Dataset, AnyColumnOrderCrlfAndUnknownColumnsWarnOncePerColumn) {
