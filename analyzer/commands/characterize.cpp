@@ -155,9 +155,11 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   std::string no_noise;
   const model::ModelFile model = characterized_model(result, data, noise_analysis, no_noise);
   if (!no_noise.empty()) fmt::print(out, "noise terms not estimated: {}\n", no_noise);
+  // model.toml is written last, and an earlier run's is removed first: a folder holding one is
+  // a complete characterization, whenever this run is stopped.
   std::filesystem::create_directories(options.out);
-  model::write_model(options.out / "model.toml", model);
-  fmt::print(out, "wrote {}\n", (options.out / "model.toml").string());
+  const std::filesystem::path model_file = options.out / "model.toml";
+  std::filesystem::remove(model_file);
   report::ReportInputs in;
   in.data = &data;
   in.result = &result;
@@ -172,6 +174,8 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
                         options.plots ? options.out / "plots" : std::filesystem::path());
   }
   fmt::print(out, "wrote {}\n", report_file.string());
+  model::write_model(model_file, model);
+  fmt::print(out, "wrote {}\n", model_file.string());
   return kExitOk;
 }
 

@@ -10,6 +10,7 @@
 #include <memory>
 #include <system_error>
 #include <toml++/toml.h>
+#include <unistd.h>
 
 #include <fmt/format.h>
 
@@ -246,10 +247,24 @@ std::string format_model(const ModelFile& model) {
 
 void write_model(const std::filesystem::path& file, const ModelFile& model) {
   const std::string text = format_model(model);
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(file.c_str(), "wb"), &std::fclose);
-  if (!f) throw std::system_error(errno, std::generic_category(), "cannot open " + file.string() + " for writing");
-  if (std::fwrite(text.data(), 1, text.size(), f.get()) != text.size() || std::fflush(f.get()) != 0) {
-    throw std::system_error(errno, std::generic_category(), "cannot write " + file.string());
+  std::filesystem::path temporary = file;
+  temporary += fmt::format(".partial-{}", ::getpid());
+  {
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(temporary.c_str(), "wb"), &std::fclose);
+    if (!f) throw std::system_error(errno, std::generic_category(), "cannot open " + temporary.string() + " for writing");
+    if (std::fwrite(text.data(), 1, text.size(), f.get()) != text.size() || std::fflush(f.get()) != 0 ||
+        ::fsync(::fileno(f.get())) != 0) {
+      const int error = errno;
+      f.reset();
+      std::filesystem::remove(temporary);
+      throw std::system_error(error, std::generic_category(), "cannot write " + temporary.string());
+    }
+  }
+  std::error_code error;
+  std::filesystem::rename(temporary, file, error);
+  if (error) {
+    std::filesystem::remove(temporary);
+    throw std::system_error(error, "cannot rename " + temporary.string() + " to " + file.string());
   }
 }
 

@@ -82,7 +82,9 @@ ModelFile parse_model(std::string_view text, const std::string& source_name);
 /// == m bit for bit), terms in the order given. Throws InputError for a non-finite number.
 std::string format_model(const ModelFile& model);
 
-/// Writes format_model(model) to `file`. Throws std::system_error on I/O failure.
+/// Writes format_model(model) to `file` whole or not at all: into a temporary file beside it,
+/// flushed to the disk, then renamed over it, so a reader (or a run killed part way) sees the
+/// old file or the new one, never a part. Throws std::system_error on I/O failure.
 void write_model(const std::filesystem::path& file, const ModelFile& model);
 
 }  // namespace inertia::model

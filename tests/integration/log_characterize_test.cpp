@@ -533,5 +533,36 @@ TEST(LogCharacterize, OptionsForALogAloneAreRefusedWithADataset) {
   }
 }
 
+// A characterize stopped by SIGINT stops at once and leaves the folder as the last complete run
+// left it: its model.toml and report.md, byte for byte, and no temporary file. --order 2 keeps
+// the run in its computation well past the half second the signal waits.
+TEST(Characterize, AnInterruptedRunLeavesTheLastCompleteOutputAsItWas) {
+  TempDir tmp;
+  const fs::path data = tmp.path / "data", out = tmp.path / "out";
+  ASSERT_EQ(run_command(analyze_binary() + " simulate --bench " + std::string(INERTIA_SOURCE_DIR) +
+                            "/config/sim-rotation-table.toml --out " + data.string(),
+                        tmp.path / "simulate.txt"),
+            0)
+      << read_text(tmp.path / "simulate.txt");
+  const fs::path dataset = data / "acc1";
+  ASSERT_EQ(run_command(analyze_binary() + " characterize --dataset " + dataset.string() + " --out " + out.string(),
+                        tmp.path / "first.txt"),
+            0)
+      << read_text(tmp.path / "first.txt");
+  const std::string model = read_text(out / "model.toml"), report = read_text(out / "report.md");
+  ASSERT_FALSE(model.empty());
+  DaqdProcess run({"characterize", "--dataset", dataset.string(), "--out", out.string(), "--order", "2"}, {},
+                  tmp.path / "second.txt", analyze_binary());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const auto signalled = std::chrono::steady_clock::now();
+  run.signal(SIGINT);
+  EXPECT_EQ(run.wait(5.0), 128 + SIGINT) << run.output();
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled).count(), 1.0);
+  EXPECT_EQ(read_text(out / "model.toml"), model);
+  EXPECT_EQ(read_text(out / "report.md"), report);
+  for (const fs::directory_entry& e : fs::directory_iterator(out))
+    EXPECT_EQ(e.path().filename().string().find(".partial"), std::string::npos) << e.path();
+}
+
 }  // namespace
 }  // namespace inertia::daq::testing
