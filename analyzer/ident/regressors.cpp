@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -27,30 +28,43 @@ const Eigen::VectorXd& SignalSet::get(Variable v) const {
   return *slot;
 }
 
+VariableSet variables_of(std::span<const Term> terms) {
+  VariableSet out;
+  for (const Term& t : terms)
+    for (const Variable v : t.variables()) out.set(static_cast<std::size_t>(v));
+  return out;
+}
+
 SignalSet signals_from_case(const dataset::CaseData& c, const Eigen::Matrix3d& m_es, double t_ref,
-                            std::string_view dataset_label) {
+                            std::string_view dataset_label, const std::optional<VariableSet>& only) {
   std::string origin = fmt::format("case '{}'", c.name);
   if (!dataset_label.empty()) origin += fmt::format(" of dataset {}", dataset_label);
   SignalSet s(c.size(), std::move(origin));
+  const auto wanted = [&only](Variable v) { return !only || only->test(static_cast<std::size_t>(v)); };
+  const auto any_wanted = [&wanted](std::initializer_list<Variable> vs) { return std::any_of(vs.begin(), vs.end(), wanted); };
   // Rows of a_e are samples: a_S^T = a_E^T (M_E^S)^T.
-  const Eigen::Matrix<double, Eigen::Dynamic, 3> a_s = c.a_e * m_es.transpose();
-  s.set(Variable::Ai, a_s.col(0));
-  s.set(Variable::Ap, a_s.col(1));
-  s.set(Variable::Ao, a_s.col(2));
-  s.set(Variable::Ax, c.a_e.col(0));
-  s.set(Variable::Ay, c.a_e.col(1));
-  s.set(Variable::Az, c.a_e.col(2));
-  if (c.w_e) {
-    const Eigen::Matrix<double, Eigen::Dynamic, 3> w_s = *c.w_e * m_es.transpose();
-    s.set(Variable::Wi, w_s.col(0));
-    s.set(Variable::Wp, w_s.col(1));
-    s.set(Variable::Wo, w_s.col(2));
-    s.set(Variable::Wx, c.w_e->col(0));
-    s.set(Variable::Wy, c.w_e->col(1));
-    s.set(Variable::Wz, c.w_e->col(2));
+  if (any_wanted({Variable::Ai, Variable::Ap, Variable::Ao})) {
+    const Eigen::Matrix<double, Eigen::Dynamic, 3> a_s = c.a_e * m_es.transpose();
+    if (wanted(Variable::Ai)) s.set(Variable::Ai, a_s.col(0));
+    if (wanted(Variable::Ap)) s.set(Variable::Ap, a_s.col(1));
+    if (wanted(Variable::Ao)) s.set(Variable::Ao, a_s.col(2));
   }
-  if (c.temp) s.set(Variable::T, (c.temp->array() - t_ref).matrix());
-  s.set(Variable::Y, c.y);
+  if (wanted(Variable::Ax)) s.set(Variable::Ax, c.a_e.col(0));
+  if (wanted(Variable::Ay)) s.set(Variable::Ay, c.a_e.col(1));
+  if (wanted(Variable::Az)) s.set(Variable::Az, c.a_e.col(2));
+  if (c.w_e) {
+    if (any_wanted({Variable::Wi, Variable::Wp, Variable::Wo})) {
+      const Eigen::Matrix<double, Eigen::Dynamic, 3> w_s = *c.w_e * m_es.transpose();
+      if (wanted(Variable::Wi)) s.set(Variable::Wi, w_s.col(0));
+      if (wanted(Variable::Wp)) s.set(Variable::Wp, w_s.col(1));
+      if (wanted(Variable::Wo)) s.set(Variable::Wo, w_s.col(2));
+    }
+    if (wanted(Variable::Wx)) s.set(Variable::Wx, c.w_e->col(0));
+    if (wanted(Variable::Wy)) s.set(Variable::Wy, c.w_e->col(1));
+    if (wanted(Variable::Wz)) s.set(Variable::Wz, c.w_e->col(2));
+  }
+  if (c.temp && wanted(Variable::T)) s.set(Variable::T, (c.temp->array() - t_ref).matrix());
+  if (wanted(Variable::Y)) s.set(Variable::Y, c.y);
   return s;
 }
 

@@ -9,6 +9,7 @@
 // a sample inside the case: rows are never padded with invented values.
 #include <Eigen/Dense>
 #include <array>
+#include <bitset>
 #include <optional>
 #include <span>
 #include <string>
@@ -43,12 +44,19 @@ class SignalSet {
   std::array<std::optional<Eigen::VectorXd>, kVariableCount> values_;
 };
 
+/// Which variables a caller needs of a case (the variables of its terms).
+using VariableSet = std::bitset<kVariableCount>;
+
+/// The variables `terms` are built from.
+VariableSet variables_of(std::span<const Term> terms);
+
 /// Signals of one case: a_i, a_p, a_o = M_E^S a_E per sample; a_x, a_y, a_z = a_E; w likewise
 /// when the case has w_x, w_y, w_z; T = temp - t_ref when it has temp; y. Not e: the estimator
 /// sets it (SignalSet::set(Variable::E, residuals)) once it has residuals.
-/// `dataset_label` names the dataset in error messages (its folder, usually).
+/// `dataset_label` names the dataset in error messages (its folder, usually). With `only`, just
+/// those variables (a stack of some terms copies no column it does not use).
 SignalSet signals_from_case(const dataset::CaseData& c, const Eigen::Matrix3d& m_es, double t_ref,
-                            std::string_view dataset_label = {});
+                            std::string_view dataset_label = {}, const std::optional<VariableSet>& only = std::nullopt);
 
 /// The same for case `case_index` of `data` (t_ref and the label from `data`).
 SignalSet signals_from_dataset(const dataset::Dataset& data, std::size_t case_index, const Eigen::Matrix3d& m_es);

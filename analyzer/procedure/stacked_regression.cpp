@@ -28,9 +28,10 @@ StackedRegression stack_regressions(std::span<const ident::Term> terms, std::spa
     factor_terms.push_back(terms[j].denominator_factor());
   }
   out.rational.factors.resize(factor_terms.empty() ? 0 : total, static_cast<Eigen::Index>(factor_terms.size()));
+  const ident::VariableSet needed = ident::variables_of(terms) | ident::variables_of(factor_terms);
   Eigen::Index row = 0;
   for (const StackInput& in : inputs) {
-    const ident::SignalSet signals = ident::signals_from_case(*in.data, in.m_es, t_ref, dataset_label);
+    const ident::SignalSet signals = ident::signals_from_case(*in.data, in.m_es, t_ref, dataset_label, needed);
     const Eigen::Index rows = std::max<Eigen::Index>(0, in.data->size() - first_row);
     if (rows == 0) continue;
     // Fill straight into the stack: no per-case copy of a matrix that can be hundreds of MB.
