@@ -317,6 +317,7 @@ class Worker {
       } catch (const InputError& e) {
         fmt::print(out_, "{}: {}\n", p->name, e.what());
       }
+      p->estimator->end_of_stream();
     }
     publish();
     status();
@@ -328,7 +329,8 @@ class Worker {
     process(m);
   }
   void publish_now() { publish(); }
-  /// The end of a replayed log: the rows held back, fused; one estimate per sensor published.
+  /// The end of a replayed log: the rows held back, fused; a noise window the log did not fill,
+  /// fitted on its rows; one estimate per sensor published.
   void finish_replay() {
     for (auto& p : pipelines_) {
       if (!p->assembler->has_bench()) continue;
@@ -337,6 +339,7 @@ class Worker {
       } catch (const InputError& e) {
         fmt::print(out_, "{}: {}\n", p->name, e.what());
       }
+      p->estimator->end_of_stream();
     }
     publish();
   }

@@ -38,6 +38,10 @@ struct OnlineEstimator::Impl {
       noise.fit(live, statistics, estimates);
   }
 
+  void end_of_stream() {
+    if (!noise.fitted && noise.buffered_rows > 0) noise.fit(live, statistics, estimates);
+  }
+
   OnlineSnapshot snapshot() {
     OnlineSnapshot out;
     for (const Term& t : live.model_terms) out.terms.push_back(t.to_string());
@@ -127,6 +131,7 @@ OnlineEstimator::~OnlineEstimator() = default;
 
 void OnlineEstimator::push(const fusion::FusedChunk& chunk, const config::TestCase& tc) { impl_->push(chunk, tc); }
 void OnlineEstimator::end_segment(const fusion::SegmentEnd& end) { impl_->statistics.end_segment(end); }
+void OnlineEstimator::end_of_stream() { impl_->end_of_stream(); }
 OnlineSnapshot OnlineEstimator::snapshot() { return impl_->snapshot(); }
 std::int64_t OnlineEstimator::rows_pushed() const { return impl_->statistics.rows_total; }
 std::vector<std::string> OnlineEstimator::terms() const { return ident::to_strings(impl_->live.model_terms); }

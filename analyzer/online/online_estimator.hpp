@@ -22,7 +22,9 @@
 // Noise: the first noise_window_s of rows are kept; then an autoregressive noise model is fitted
 // to the residuals of the fit on them (AIC order up to whitening_max_order, as the batch) and
 // every row from the first one on enters the statistics through it (GLS, honest sd under 1/f
-// noise). Models with output-multiplied terms keep white noise (the ULS correction is derived for
+// noise). A stream that ends before its window fills (end_of_stream) has the model fitted on every
+// row it brought, so a window at least as long as a record fits the noise on the whole record, as
+// the batch does. Models with output-multiplied terms keep white noise (the ULS correction is derived for
 // white noise on the output).
 //
 // Converged: defined in docs/live-estimates.md ("Converged"); see OnlineSnapshot::converged.
@@ -131,6 +133,10 @@ class OnlineEstimator {
   void push(const fusion::FusedChunk& chunk, const config::TestCase& tc);
   /// The segment ended; not kept: its rows leave the estimate.
   void end_segment(const fusion::SegmentEnd& end);
+
+  /// The stream ended (a replayed log's end): the noise model, if the window never filled, is
+  /// fitted on the rows there are. Rows pushed after it enter through that model.
+  void end_of_stream();
 
   /// The current estimate. Allocates; call at the publishing rate, not per row.
   [[nodiscard]] OnlineSnapshot snapshot();

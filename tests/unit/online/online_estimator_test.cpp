@@ -752,6 +752,40 @@ TEST(OnlineEstimator, AWhiteModelsSdCarryTheNoisesLongRunPower) {
   EXPECT_NEAR(factor, 19.0, 4.0);
 }
 
+TEST(OnlineEstimator, AStreamShorterThanItsNoiseWindowHasTheModelFittedAtItsEnd) {
+  // The window is longer than the stream: the rows stay on white noise while they come, and the
+  // end of the stream fits the noise model on every one of them (AR(1) of pole 0.9: a long-run
+  // power of 19 times the innovation's over the white fit's, as in the test above).
+  OnlineOptions options;
+  options.nominal_sample_period_s = kPeriod;
+  options.noise_window_s = 1e9;
+  const PlanCase table = rate_phases(77, 0.9);
+  model::ModelFile m = model_file({"1", "w_i", "y*w_i"}, std::nullopt);
+  m.sensor = dataset::SensorKind::Gyroscope;
+  OnlineEstimator est(dataset::SensorKind::Gyroscope, m, 25.0, options);
+  const Index n = table.data.y.size();
+  for (Index from = 0; from < n; from += 1000) est.push(chunk_of(table, 0, from, 1000), table.tc);
+  est.end_segment({0, "rates", 0, n, true});
+  const OnlineSnapshot before = est.snapshot();
+  EXPECT_FALSE(before.noise_model_fitted);
+  EXPECT_EQ(before.long_run_variance_factor, 1.0);
+  est.end_of_stream();
+  const OnlineSnapshot after = est.snapshot();
+  EXPECT_TRUE(after.noise_model_fitted);
+  EXPECT_NEAR(after.long_run_variance_factor, 19.0, 4.0);
+  const Eigen::Vector3d truth(kGyroBias, kGyroScale, kGyroNonlinearity);
+  for (Index j = 0; j < 3; ++j) {
+    EXPECT_EQ(after.values(j), before.values(j)) << "scaled variances, the same rows";
+    // The sd are the white fit's scaled by the factor's root (to 1e-6 relative; a small part of the
+    // covariance is not scaled).
+    EXPECT_NEAR(after.std_devs(j) / before.std_devs(j) / std::sqrt(after.long_run_variance_factor), 1.0, 1e-6);
+    EXPECT_NEAR(after.values(j), truth(j), 4.0 * after.std_devs(j));
+  }
+  // Once fitted, the end of the stream fits nothing again.
+  est.end_of_stream();
+  EXPECT_EQ(est.snapshot().long_run_variance_factor, after.long_run_variance_factor);
+}
+
 TEST(OnlineEstimator, StandardDeviationsCoverTheTruthOverSeeds) {
   // The sd include what each mounting's misalignment uncertainty does to the batch: z = (estimate
   // - truth) / sd over seeds and terms is standard normal when they are honest.
