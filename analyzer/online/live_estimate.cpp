@@ -89,8 +89,13 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
   std::vector<RelativeTurn> turns(statistics.mountings.size());
   if (reference && s.batch.ok) {
     std::vector<bool> aligned(fits.size());
-    for (std::size_t m = 0; m < fits.size(); ++m) aligned[m] = fits[m].determined;
-    turns = active.relative_turns(infos, m_cs, *reference, aligned, s.batch.corner_rad_s);
+    std::vector<std::array<bool, 2>> tilts_determined(fits.size());
+    for (std::size_t m = 0; m < fits.size(); ++m) {
+      aligned[m] = fits[m].determined;
+      for (int axis = 0; axis < 2; ++axis)
+        tilts_determined[m][static_cast<std::size_t>(axis)] = !fits[m].held[static_cast<std::size_t>(procedure::angle_of_turn(axis))];
+    }
+    turns = active.relative_turns(infos, m_cs, *reference, aligned, tilts_determined, s.batch.corner_rad_s);
     if (std::any_of(turns.begin(), turns.end(), [](const RelativeTurn& t) { return t.estimated; }))
       s.batch = active.fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
   }
@@ -109,8 +114,8 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
       f.angles(0) = turns[m].twist_rad;
       f.angles_covariance = c;
       f.angles_sd = c.diagonal().cwiseMax(0.0).cwiseSqrt();
-      f.held = {};
-      held = {};
+      f.held = turns[m].held_angles;
+      held = f.held;
       if (update_states) {
         statistics.mountings[m].m_cs = f.m_cs;
         statistics.mountings[m].fit = f;

@@ -10,6 +10,7 @@
 #include "analyzer/procedure/corner_search.hpp"
 #include "analyzer/procedure/excitation.hpp"
 #include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/turn_search.hpp"
 #include "common/frames.hpp"
 
 namespace inertia::online {
@@ -317,37 +318,27 @@ StatFit LiveSolver::fit_batch_at(const std::vector<const Information*>& infos, c
   return f;
 }
 
-std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Information*>& infos,
-                                                     std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
-                                                     const std::vector<bool>& aligned, std::optional<double> corner) const {
-  std::vector<RelativeTurn> out(m_cs.size());
-  const bool cross = std::any_of(model_.begin(), model_.end(), [&](Index t) {
-    const Term& term = basis_.terms()[static_cast<std::size_t>(t)];
-    return term.uses(Variable::Ap) || term.uses(Variable::Ao);
-  });
-  if (!options_.relative_twist || sensor_ != dataset::SensorKind::Accelerometer || !cross) return out;
-  std::vector<std::size_t> turning;
-  for (std::size_t k = 0; k < m_cs.size(); ++k)
-    if (k != reference && aligned[k] && infos[k]->samples() > 0) turning.push_back(k);
-  constexpr double kStep = kTurnDifferenceStepRad;
-  for (int iteration = 0; iteration < procedure::kTurnMaxSteps && !turning.empty(); ++iteration) {
-    std::vector<std::pair<std::size_t, int>> parameters;   // (mounting, axis of procedure::turned())
-    for (std::size_t k : turning)
-      for (int axis = 0; axis < 3; ++axis) parameters.emplace_back(k, axis);
+namespace {
+
+/// The batch turned on the live statistics: each step a Newton step on central differences of the
+/// batch model's residual sum, which the statistics give at any turn.
+class StatisticsTurns final : public procedure::TurnedBatch {
+ public:
+  StatisticsTurns(const LiveSolver& solver, const std::vector<const Information*>& infos, std::vector<Eigen::Matrix3d>& m_cs,
+                  std::optional<double> corner, double long_run_variance_factor, double tolerance_rad,
+                  std::vector<RelativeTurn>& out)
+      : solver_(solver), infos_(infos), m_cs_(m_cs), corner_(corner), long_run_variance_factor_(long_run_variance_factor),
+        tolerance_rad_(tolerance_rad), out_(out) {}
+
+  std::optional<procedure::TurnStep> step(std::span<const procedure::TurnParameter> parameters) override {
+    constexpr double kStep = LiveSolver::kTurnDifferenceStepRad;
     const auto n = static_cast<Index>(parameters.size());
-    const auto moved = [&](const Eigen::VectorXd& x) {
-      std::vector<Eigen::Vector3d> turns(m_cs.size(), Eigen::Vector3d::Zero());
-      for (Index i = 0; i < n; ++i) turns[parameters[static_cast<std::size_t>(i)].first](parameters[static_cast<std::size_t>(i)].second) = x(i);
-      std::vector<Eigen::Matrix3d> turned_m_cs = m_cs;
-      for (std::size_t k : turning) turned_m_cs[k] = procedure::turned(m_cs[k], turns[k]);
-      return turned_m_cs;
-    };
     const auto rss_at = [&](const Eigen::VectorXd& x) {
-      const StatFit f = fit_batch_at(infos, moved(x), corner);
+      const StatFit f = solver_.fit_batch_at(infos_, moved(parameters, x), corner_);
       return f.ok ? f.rss : std::numeric_limits<double>::quiet_NaN();
     };
-    const StatFit at = fit_batch_at(infos, m_cs, corner);
-    if (!at.ok || !(at.s2 > 0.0)) return out;
+    const StatFit at = solver_.fit_batch_at(infos_, m_cs_, corner_);
+    if (!at.ok || !(at.s2 > 0.0)) return std::nullopt;
     Eigen::VectorXd gradient(n);
     Eigen::MatrixXd hessian(n, n);
     for (Index i = 0; i < n; ++i) {
@@ -369,40 +360,94 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
         hessian(i, j) = hessian(j, i) = (rss_at(pp) - rss_at(pm) - rss_at(mp) + rss_at(mm)) / (4.0 * kStep * kStep);
       }
     }
-    if (!gradient.allFinite() || !hessian.allFinite()) return out;
+    if (!gradient.allFinite() || !hessian.allFinite()) return std::nullopt;
     // rss = sum r^2: its Hessian is 2 J'J, the information J'J / sigma^2.
-    const Eigen::MatrixXd inverse = (hessian / (2.0 * options_.long_run_variance_factor * at.s2)).ldlt().solve(Eigen::MatrixXd::Identity(n, n));
-    const Eigen::VectorXd sd = inverse.diagonal().cwiseMax(0.0).cwiseSqrt();
-    if (iteration == 0) {
-      std::vector<std::size_t> determined;
-      for (Index i = 0; i < n; ++i) {
-        if (parameters[static_cast<std::size_t>(i)].second != 2) continue;
-        RelativeTurn& r = out[parameters[static_cast<std::size_t>(i)].first];
-        r.twist_sd_rad = sd(i);
-        if (std::isfinite(sd(i)) && sd(i) > 0.0 && sd(i) <= options_.mounting_tolerance_rad) {
-          determined.push_back(parameters[static_cast<std::size_t>(i)].first);
-        } else {
-          r.held = true;
-          r.covariance(0, 0) = options_.mounting_tolerance_rad * options_.mounting_tolerance_rad;
-        }
-      }
-      if (determined.size() < turning.size()) {
-        turning = determined;
-        continue;
-      }
-    }
-    const Eigen::VectorXd delta = -hessian.ldlt().solve(gradient);
-    m_cs = moved(delta);
-    for (Index i0 = 0; i0 < n; i0 += 3) {
-      const std::size_t k = parameters[static_cast<std::size_t>(i0)].first;
-      const Eigen::Matrix3d to_angles = procedure::turn_angles();
-      out[k].estimated = true;
-      out[k].covariance = to_angles * inverse.block<3, 3>(i0, i0) * to_angles.transpose();
-      out[k].twist_rad += delta(i0 + 2);
-      out[k].twist_sd_rad = sd(i0 + 2);
-    }
-    if ((delta.array().abs() <= procedure::kTurnConvergence * sd.array()).all()) break;
+    procedure::TurnStep out;
+    out.information = hessian / (2.0 * long_run_variance_factor_ * at.s2);
+    out.delta = -hessian.ldlt().solve(gradient);
+    return out;
   }
+
+  void turn(std::span<const procedure::TurnParameter> parameters, const Eigen::VectorXd& delta,
+            const Eigen::MatrixXd& covariance) override {
+    m_cs_ = moved(parameters, delta);
+    const Eigen::Matrix3d to_angles = procedure::turn_angles();
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+      const std::size_t k = parameters[i].mounting;
+      if (parameters[i].axis != 2) continue;
+      // The turn's covariance over turned()'s axes: a tilt the mounting's excitation does not
+      // determine was not searched, and stays held within the tolerance.
+      Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
+      std::array<bool, 3> held{};
+      for (int axis = 0; axis < 2; ++axis) {
+        held[static_cast<std::size_t>(procedure::angle_of_turn(axis))] = true;
+        c(axis, axis) = tolerance_rad_ * tolerance_rad_;
+      }
+      for (std::size_t a = 0; a < parameters.size(); ++a) {
+        if (parameters[a].mounting != k) continue;
+        held[static_cast<std::size_t>(procedure::angle_of_turn(parameters[a].axis))] = false;
+        for (std::size_t b = 0; b < parameters.size(); ++b)
+          if (parameters[b].mounting == k)
+            c(parameters[a].axis, parameters[b].axis) = covariance(static_cast<Index>(a), static_cast<Index>(b));
+      }
+      out_[k].estimated = true;
+      out_[k].covariance = to_angles * c * to_angles.transpose();
+      out_[k].held_angles = held;
+      out_[k].twist_rad += delta(static_cast<Index>(i));
+      out_[k].twist_sd_rad = std::sqrt(std::max(0.0, covariance(static_cast<Index>(i), static_cast<Index>(i))));
+    }
+  }
+
+  void hold(std::span<const procedure::TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd&,
+            double sd) override {
+    RelativeTurn& r = out_[parameters[twist].mounting];
+    r.twist_sd_rad = sd;
+    r.held = true;
+    r.covariance(0, 0) = tolerance_rad_ * tolerance_rad_;
+  }
+
+ private:
+  /// The mountings' M_C^S with the parameters turned by `x`.
+  std::vector<Eigen::Matrix3d> moved(std::span<const procedure::TurnParameter> parameters, const Eigen::VectorXd& x) const {
+    std::vector<Eigen::Vector3d> turns(m_cs_.size(), Eigen::Vector3d::Zero());
+    std::vector<bool> turning(m_cs_.size(), false);
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+      turns[parameters[i].mounting](parameters[i].axis) = x(static_cast<Index>(i));
+      turning[parameters[i].mounting] = true;
+    }
+    std::vector<Eigen::Matrix3d> turned_m_cs = m_cs_;
+    for (std::size_t k = 0; k < m_cs_.size(); ++k)
+      if (turning[k]) turned_m_cs[k] = procedure::turned(m_cs_[k], turns[k]);
+    return turned_m_cs;
+  }
+
+  const LiveSolver& solver_;
+  const std::vector<const Information*>& infos_;
+  std::vector<Eigen::Matrix3d>& m_cs_;
+  std::optional<double> corner_;
+  double long_run_variance_factor_;
+  double tolerance_rad_;
+  std::vector<RelativeTurn>& out_;
+};
+
+}  // namespace
+
+std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Information*>& infos,
+                                                     std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
+                                                     const std::vector<bool>& aligned,
+                                                     const std::vector<std::array<bool, 2>>& tilts_determined,
+                                                     std::optional<double> corner) const {
+  std::vector<RelativeTurn> out(m_cs.size());
+  const bool cross = std::any_of(model_.begin(), model_.end(), [&](Index t) {
+    const Term& term = basis_.terms()[static_cast<std::size_t>(t)];
+    return term.uses(Variable::Ap) || term.uses(Variable::Ao);
+  });
+  if (!options_.relative_twist || sensor_ != dataset::SensorKind::Accelerometer || !cross) return out;
+  std::vector<std::size_t> turning;
+  for (std::size_t k = 0; k < m_cs.size(); ++k)
+    if (k != reference && aligned[k] && infos[k]->samples() > 0) turning.push_back(k);
+  StatisticsTurns statistics(*this, infos, m_cs, corner, options_.long_run_variance_factor, options_.mounting_tolerance_rad, out);
+  procedure::search_turns(statistics, std::move(turning), tilts_determined, options_.mounting_tolerance_rad);
   return out;
 }
 

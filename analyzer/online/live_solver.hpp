@@ -124,6 +124,10 @@ struct RelativeTurn {
   /// Of the turn found, as a rotation vector about i, p, o (the information's inverse; for a held
   /// twist the tolerance about i): what add_misalignment_uncertainty propagates.
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  /// Of a turn found, the tilts not searched (not determined by the mounting's excitation): held
+  /// at where the mounting's fit left them, within the tolerance (in `covariance`). Angles about
+  /// i, p, o, as MountingFit::held.
+  std::array<bool, 3> held_angles{};
 };
 
 class LiveSolver {
@@ -147,14 +151,17 @@ class LiveSolver {
   /// The same at a given corner (none: static squares).
   [[nodiscard]] StatFit fit_batch_at(const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs,
                                      std::optional<double> corner) const;
-  /// The batch pipeline's relative twists (procedure/relative_twists.hpp) from the
-  /// statistics: each aligned mounting but `reference` turned (its twist about n_i and its tilts)
-  /// to the least residual of the batch model at `corner`, by Newton steps on central
-  /// differences of that residual. A twist whose sd with the tilts free exceeds the tolerance is
-  /// held. Turns `m_cs` by what it finds.
+  /// The batch pipeline's relative twists (procedure::search_turns, the search both share) on the
+  /// statistics: each aligned mounting but `reference` turned (its twist about n_i and the tilts
+  /// `tilts_determined[mounting]` says its excitation determines, turned()'s axes 0 and 1) to the
+  /// least residual of the batch model at `corner`, by Newton steps on central differences of that
+  /// residual. A twist whose sd with the tilts free exceeds the tolerance is held. Turns `m_cs` by
+  /// what it finds.
   [[nodiscard]] std::vector<RelativeTurn> relative_turns(const std::vector<const Information*>& infos,
                                                          std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
-                                                         const std::vector<bool>& aligned, std::optional<double> corner) const;
+                                                         const std::vector<bool>& aligned,
+                                                         const std::vector<std::array<bool, 2>>& tilts_determined,
+                                                         std::optional<double> corner) const;
   /// What the mountings' misalignment uncertainty adds to the batch's covariance (the batch's own
   /// covariance treats M_C^S as known), by the batch's rules:
   ///  - estimated angles: the batch refitted with each M_C^S turned by +-1 sd along each principal

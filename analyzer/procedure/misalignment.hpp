@@ -58,15 +58,6 @@ std::optional<Eigen::VectorXd> held_angle_response(const Eigen::VectorXd& theta,
   return Eigen::VectorXd(*moved - theta);
 }
 
-/// A search for a mounting's turn (the batch's Gauss-Newton on its rows, the live solver's Newton
-/// steps on its statistics) stops once every step is at most this fraction of its parameter's sd:
-/// far below what the data determine, and above the searches' own rounding.
-inline constexpr double kTurnConvergence = 1e-6;
-/// ... and gives up after this many steps (a twist of a degree or two is nearly linear in the
-/// columns: each step gains about three digits, so a search that has not converged by then is
-/// wandering on a flat residual).
-inline constexpr int kTurnMaxSteps = 12;
-
 /// The rotation vector of M_C^S (rad, case axes): M_C^S = frame_rotation(v / |v|, |v|). Its
 /// components are the angles of F_S from the nominal case frame about IRA, XRA, YRA (i, p, o).
 Eigen::Vector3d rotation_vector(const frames::Dcm& m_cs);

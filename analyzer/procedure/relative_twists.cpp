@@ -9,6 +9,7 @@
 #include "analyzer/procedure/identifiable_fit.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/post_selection_inference.hpp"
+#include "analyzer/procedure/turn_search.hpp"
 #include "common/units.hpp"
 
 namespace inertia::procedure {
@@ -35,6 +36,101 @@ Eigen::VectorXd gauss_newton_step(const StackedRegression& s, const ident::UlsRe
   return jj.ldlt().solve(projected.transpose() * fit.residuals);
 }
 
+/// The batch's turned regression on its whitened rows: each step a Gauss-Newton step of the
+/// identifiable candidates' fit, with the prediction's derivatives by the batch rebuilt at moved
+/// turns (prediction_derivative).
+class RowTurns final : public TurnedBatch {
+ public:
+  RowTurns(StackedRegression& batch, std::vector<MountingResult>& mountings, const BatchRegression& batch_at,
+           std::span<const Term> candidates, std::optional<double> square_corner, const dataset::Dataset& data,
+           const PipelineOptions& options, RelativeTwists& out, std::string reference)
+      : batch_(batch), mountings_(mountings), batch_at_(batch_at), candidates_(candidates), square_corner_(square_corner),
+        data_(data), options_(options), out_(out), reference_(std::move(reference)),
+        nominal_(mountings.size(), Eigen::Vector3d::Zero()) {
+    uls_ = options.selection.uls;
+    uls_.noise_lags = 0;
+  }
+
+  std::optional<TurnStep> step(std::span<const TurnParameter> parameters) override {
+    std::vector<Eigen::Index> usable = identifiable_ranking(batch_, data_.sensor, options_.selection.err);
+    std::vector<std::string> dropped;
+    const ident::UlsResult fit = fit_identifiable(batch_, data_.sensor, usable, uls_, dropped);
+    Eigen::MatrixXd derivatives(batch_.phi.rows(), static_cast<Eigen::Index>(parameters.size()));
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+      derivatives.col(static_cast<Eigen::Index>(i)) =
+          prediction_derivative(fit, 1e-4, batch_at_.whitener(), [&](std::span<const Term> terms, double moved) {
+            std::vector<Eigen::Vector3d> turns = nominal_;
+            turns[parameters[i].mounting](parameters[i].axis) = moved;
+            return batch_at_.unwhitened(terms, mountings_, turns, square_corner_);
+          });
+    }
+    TurnStep out;
+    out.delta = gauss_newton_step(batch_, fit, derivatives, out.information);
+    return out;
+  }
+
+  void turn(std::span<const TurnParameter> parameters, const Eigen::VectorXd& delta, const Eigen::MatrixXd&) override {
+    std::vector<Eigen::Vector3d> turns = nominal_;
+    std::vector<bool> moved(mountings_.size(), false);
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+      turns[parameters[i].mounting](parameters[i].axis) = delta(static_cast<Eigen::Index>(i));
+      moved[parameters[i].mounting] = true;
+    }
+    for (std::size_t k = 0; k < mountings_.size(); ++k) {
+      if (!moved[k]) continue;
+      MountingResult& m = mountings_[k];
+      m.m_cs = turned(m.m_cs, turns[k]);
+      m.twist_rad += turns[k](2);
+      m.twist_reference = reference_;
+      m.angles(0) = (std::isnan(m.angles(0)) ? 0.0 : m.angles(0)) + turns[k](2);
+    }
+    batch_ = batch_at_(candidates_, mountings_, nominal_, square_corner_);
+  }
+
+  void hold(std::span<const TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd& information,
+            double sd) override {
+    MountingResult& m = mountings_[parameters[twist].mounting];
+    out_.held.push_back(parameters[twist].mounting);
+    m.twist_reference = reference_;
+    m.angles(0) = 0.0;
+    m.angles_sd(0) = 0.0;   // held
+    // A held twist leaks into the tilts the stage estimated with it: by how much, for a twist of
+    // the tolerance, is the regression of the tilts on the twist in the information (the other
+    // parameters free). It widens the angles' sd as the batch's refit widens the terms'.
+    const auto j = static_cast<Eigen::Index>(twist);
+    std::vector<Eigen::Index> others;
+    for (Eigen::Index r = 0; r < information.rows(); ++r)
+      if (r != j) others.push_back(r);
+    const Eigen::MatrixXd i_oo = information(others, others);
+    const Eigen::VectorXd shift = -i_oo.ldlt().solve(information(others, j)) * options_.mounting_tolerance_rad;
+    for (std::size_t r = 0; r < others.size(); ++r) {
+      const TurnParameter& tilt = parameters[static_cast<std::size_t>(others[r])];
+      if (tilt.mounting != parameters[twist].mounting || !std::isfinite(shift(static_cast<Eigen::Index>(r)))) continue;
+      const int angle = angle_of_turn(tilt.axis);
+      m.angles_sd(angle) = std::hypot(m.angles_sd(angle), shift(static_cast<Eigen::Index>(r)));
+      m.angles_held_sd(angle) = std::abs(shift(static_cast<Eigen::Index>(r)));
+    }
+    out_.notes.push_back(fmt::format(
+        "the twist about n_i of mounting '{}' against '{}' is not determined by this plan (sd {:.2g} deg with its "
+        "tilts free, more than the {:.2f} deg mounting tolerance): held at the nominal frame, and what the tolerance "
+        "moves is in the sd; more cross-axis excitation (a_p, a_o) in both mountings determines it",
+        m.mounting, reference_, rad_to_deg(sd), rad_to_deg(options_.mounting_tolerance_rad)));
+  }
+
+ private:
+  StackedRegression& batch_;
+  std::vector<MountingResult>& mountings_;
+  const BatchRegression& batch_at_;
+  std::span<const Term> candidates_;
+  std::optional<double> square_corner_;
+  const dataset::Dataset& data_;
+  const PipelineOptions& options_;
+  RelativeTwists& out_;
+  std::string reference_;
+  std::vector<Eigen::Vector3d> nominal_;
+  ident::UlsOptions uls_;
+};
+
 }  // namespace
 
 RelativeTwists relative_twists(StackedRegression batch, std::vector<MountingResult> mountings, const BatchRegression& batch_at,
@@ -52,97 +148,14 @@ RelativeTwists relative_twists(StackedRegression batch, std::vector<MountingResu
       std::find_if(mountings.begin(), mountings.end(), [](const MountingResult& m) { return m.aligned; });
   if (reference_at == mountings.end()) return finish();
   const auto reference_index = static_cast<std::size_t>(reference_at - mountings.begin());
-  const std::string reference = reference_at->mounting;
   std::vector<std::size_t> turning;
-  for (std::size_t k = 0; k < mountings.size(); ++k)
+  std::vector<std::array<bool, 2>> tilts_determined(mountings.size());
+  for (std::size_t k = 0; k < mountings.size(); ++k) {
     if (mountings[k].aligned && k != reference_index) turning.push_back(k);
-  const std::vector<Eigen::Vector3d> nominal(mountings.size(), Eigen::Vector3d::Zero());
-  ident::UlsOptions uls = options.selection.uls;
-  uls.noise_lags = 0;
-  for (int iteration = 0; iteration < kTurnMaxSteps && !turning.empty(); ++iteration) {
-    struct Parameter {
-      std::size_t mounting;
-      int axis;   // of turned(): 0, 1 tilts, 2 twist
-    };
-    std::vector<Parameter> parameters;
-    for (std::size_t k : turning) {
-      for (int axis = 0; axis < 2; ++axis)
-        if (mountings[k].excitation.determined[static_cast<std::size_t>(axis) + 1]) parameters.push_back({k, axis});
-      parameters.push_back({k, 2});
-    }
-    std::vector<Eigen::Index> usable = identifiable_ranking(batch, data.sensor, options.selection.err);
-    std::vector<std::string> dropped;
-    const ident::UlsResult fit = fit_identifiable(batch, data.sensor, usable, uls, dropped);
-    Eigen::MatrixXd derivatives(batch.phi.rows(), static_cast<Eigen::Index>(parameters.size()));
-    for (std::size_t i = 0; i < parameters.size(); ++i) {
-      derivatives.col(static_cast<Eigen::Index>(i)) =
-          prediction_derivative(fit, 1e-4, batch_at.whitener(), [&](std::span<const Term> terms, double moved) {
-            std::vector<Eigen::Vector3d> turns = nominal;
-            turns[parameters[i].mounting](parameters[i].axis) = moved;
-            return batch_at.unwhitened(terms, mountings, turns, square_corner);
-          });
-    }
-    Eigen::MatrixXd information;
-    const Eigen::VectorXd delta = gauss_newton_step(batch, fit, derivatives, information);
-    const Eigen::VectorXd sd = information.ldlt()
-                                   .solve(Eigen::MatrixXd::Identity(information.rows(), information.cols()))
-                                   .diagonal()
-                                   .cwiseMax(0.0)
-                                   .cwiseSqrt();
-    if (iteration == 0) {
-      std::vector<std::size_t> determined;
-      for (std::size_t i = 0; i < parameters.size(); ++i) {
-        if (parameters[i].axis != 2) continue;
-        const double twist_sd = sd(static_cast<Eigen::Index>(i));
-        MountingResult& m = mountings[parameters[i].mounting];
-        if (std::isfinite(twist_sd) && twist_sd > 0.0 && twist_sd <= options.mounting_tolerance_rad) {
-          determined.push_back(parameters[i].mounting);
-        } else {
-          out.held.push_back(parameters[i].mounting);
-          m.twist_reference = reference;
-          m.angles(0) = 0.0;
-          m.angles_sd(0) = 0.0;   // held
-          // A held twist leaks into the tilts the stage estimated with it: by how much, for a twist
-          // of the tolerance, is the regression of the tilts on the twist in the information (the
-          // other parameters free). It widens the angles' sd as the batch's refit widens the terms'.
-          const auto j = static_cast<Eigen::Index>(i);
-          std::vector<Eigen::Index> others;
-          for (Eigen::Index r = 0; r < information.rows(); ++r)
-            if (r != j) others.push_back(r);
-          const Eigen::MatrixXd i_oo = information(others, others);
-          const Eigen::VectorXd shift = -i_oo.ldlt().solve(information(others, j)) * options.mounting_tolerance_rad;
-          for (std::size_t r = 0; r < others.size(); ++r) {
-            const Parameter& tilt = parameters[static_cast<std::size_t>(others[r])];
-            if (tilt.mounting != parameters[i].mounting || !std::isfinite(shift(static_cast<Eigen::Index>(r)))) continue;
-            const int angle = angle_of_turn(tilt.axis);
-            m.angles_sd(angle) = std::hypot(m.angles_sd(angle), shift(static_cast<Eigen::Index>(r)));
-            m.angles_held_sd(angle) = std::abs(shift(static_cast<Eigen::Index>(r)));
-          }
-          out.notes.push_back(fmt::format(
-              "the twist about n_i of mounting '{}' against '{}' is not determined by this plan (sd {:.2g} deg with its "
-              "tilts free, more than the {:.2f} deg mounting tolerance): held at the nominal frame, and what the tolerance "
-              "moves is in the sd; more cross-axis excitation (a_p, a_o) in both mountings determines it",
-              m.mounting, reference, rad_to_deg(twist_sd), rad_to_deg(options.mounting_tolerance_rad)));
-        }
-      }
-      if (determined.size() < turning.size()) {
-        turning = determined;
-        continue;   // the step again, without the held twists
-      }
-    }
-    std::vector<Eigen::Vector3d> turns = nominal;
-    for (std::size_t i = 0; i < parameters.size(); ++i) turns[parameters[i].mounting](parameters[i].axis) = delta(static_cast<Eigen::Index>(i));
-    for (std::size_t k : turning) {
-      MountingResult& m = mountings[k];
-      m.m_cs = turned(m.m_cs, turns[k]);
-      m.twist_rad += turns[k](2);
-      m.twist_reference = reference;
-      m.angles(0) = (std::isnan(m.angles(0)) ? 0.0 : m.angles(0)) + turns[k](2);
-    }
-    batch = batch_at(candidates, mountings, nominal, square_corner);
-    if ((delta.array().abs() <= kTurnConvergence * sd.array()).all()) break;
+    tilts_determined[k] = {mountings[k].excitation.determined[1], mountings[k].excitation.determined[2]};
   }
-  out.estimated = turning;
+  RowTurns rows(batch, mountings, batch_at, candidates, square_corner, data, options, out, reference_at->mounting);
+  out.estimated = search_turns(rows, std::move(turning), tilts_determined, options.mounting_tolerance_rad);
   for (std::size_t k : out.estimated) {
     // The tilts as algorithm 1 reads them: of n_i alone (the twist is angles(0)).
     MountingResult& m = mountings[k];

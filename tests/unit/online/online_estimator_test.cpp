@@ -14,6 +14,7 @@
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/procedure/pipeline.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
+#include "analyzer/procedure/turn_search.hpp"
 #include "common/frames.hpp"
 #include "common/input_error.hpp"
 #include "common/units.hpp"

@@ -1,0 +1,67 @@
+#pragma once
+// The search for the aligned mountings' turns against the reference mounting (relative_twists.hpp),
+// written once. The batch (relative_twists, on its whitened rows) and the live estimate
+// (online::LiveSolver::relative_turns, on its statistics) implement TurnedBatch, what the search
+// asks of a regression; the parameters, which twist is held, the steps and when they stop are this
+// file's.
+#include <Eigen/Dense>
+
+#include <array>
+#include <cstddef>
+#include <optional>
+#include <span>
+#include <vector>
+
+namespace inertia::procedure {
+
+/// A search for a mounting's turn stops once every step is at most this fraction of its
+/// parameter's sd: far below what the data determine, and above the searches' own rounding.
+inline constexpr double kTurnConvergence = 1e-6;
+/// ... and gives up after this many steps (a twist of a degree or two is nearly linear in the
+/// columns: each step gains about three digits, so a search that has not converged by then is
+/// wandering on a flat residual).
+inline constexpr int kTurnMaxSteps = 12;
+
+/// One parameter of the search: component `axis` of a turn of mounting `mounting` (turned()'s
+/// parameters: 0 and 1 the tilts, 2 the twist about n_i).
+struct TurnParameter {
+  std::size_t mounting = 0;
+  int axis = 2;
+};
+
+/// A step of the search and the parameters' information there (the model's terms re-fitted at
+/// every value, the other parameters free).
+struct TurnStep {
+  Eigen::VectorXd delta;
+  Eigen::MatrixXd information;
+};
+
+/// What the search asks of the batch regression whose mountings it turns.
+class TurnedBatch {
+ public:
+  virtual ~TurnedBatch() = default;
+  /// The step toward the batch's least residual from the mountings' current turns; none when the
+  /// batch has no fit there.
+  virtual std::optional<TurnStep> step(std::span<const TurnParameter> parameters) = 0;
+  /// Turns the parameters' mountings by `delta`. `covariance`: the parameters' (the information's
+  /// inverse at the step).
+  virtual void turn(std::span<const TurnParameter> parameters, const Eigen::VectorXd& delta,
+                    const Eigen::MatrixXd& covariance) = 0;
+  /// The twist `parameters[twist]` is not determined (its sd `sd` exceeds the mounting tolerance):
+  /// it stays at the nominal frame. `information`: of every parameter at the first step.
+  virtual void hold(std::span<const TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd& information,
+                    double sd) = 0;
+};
+
+/// The mountings `turning` turned against the reference, each by its twist about n_i and the tilts
+/// its excitation determines (`tilts_determined[mounting][axis]`, turned()'s axes 0 and 1): the
+/// tilts join because a held twist leaks into them. At the first step a twist whose sd with the
+/// tilts free exceeds `tolerance_rad` is held (TurnedBatch::hold) and the step is taken again
+/// without it; then steps until kTurnConvergence or kTurnMaxSteps. Returns the mountings turned.
+std::vector<std::size_t> search_turns(TurnedBatch& batch, std::vector<std::size_t> turning,
+                                      std::span<const std::array<bool, 2>> tilts_determined, double tolerance_rad);
+
+/// The sd of the parameters: the square roots of the diagonal of the information's inverse.
+Eigen::VectorXd turn_sd(const Eigen::MatrixXd& information, Eigen::MatrixXd* covariance = nullptr);
+
+}  // namespace inertia::procedure
