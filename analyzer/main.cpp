@@ -24,6 +24,7 @@
 #include "analyzer/commands/reproduce_paper.hpp"
 #include "analyzer/commands/simulate_model.hpp"
 #include "common/input_error.hpp"
+#include "common/parallel.hpp"
 #include "hal/sim/simulate.hpp"
 
 namespace {
@@ -163,6 +164,14 @@ int run(int argc, char** argv) {
   online->add_option("--compare", online_compare,
                      "[SENSOR=]MODEL.toml: at the end, print that sensor's live estimate beside this model file (read then)");
 
+  // The offline verbs' threads (common/parallel.hpp); online keeps one, beside the daemon.
+  int jobs = 0;
+  for (CLI::App* verb : {characterize, diagnose, noise, plan_check, paper})
+    verb->add_option("--jobs", jobs, "threads for the per-column filters and transforms (0: the machine's cores); "
+                                     "the results do not depend on it")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -170,6 +179,8 @@ int run(int argc, char** argv) {
     return code == 0 ? inertia::kExitOk : inertia::kExitBadInput;
   }
 
+  if (characterize->parsed() || diagnose->parsed() || noise->parsed() || plan_check->parsed() || paper->parsed())
+    inertia::parallel::set_jobs(jobs);
   if (simulate->parsed()) {
     simulate_options.models = parse_models(simulate_models);
     return inertia::commands::run_simulate(simulate_options, std::cout);
@@ -219,6 +230,10 @@ int main(int argc, char** argv) {
   // MB there). A process-wide allocator policy, so it is set here and not in the library.
   mallopt(M_MMAP_THRESHOLD, 1024 * 1024 * 1024);
   mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
+  // One arena for every thread: the --jobs threads' buffers (a transform's plan and columns,
+  // tens of MB each) then return to the heap the next matrix reuses, instead of staying in an
+  // arena of their own.
+  mallopt(M_ARENA_MAX, 1);
   reserve_heap_with_huge_pages(768u << 20);
   try {
     return run(argc, argv);

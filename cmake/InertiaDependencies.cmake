@@ -7,6 +7,13 @@ find_package(nlohmann_json 3.10 REQUIRED)
 find_package(spectra 1.0 REQUIRED)         # header-only: leading eigenvalues by Lanczos (diagnose)
 find_package(Boost 1.74 REQUIRED)          # header-only parts: Math (Student's t), Lockfree (benchmark peer)
 find_package(Threads REQUIRED)
+# OpenMP (GCC's libgomp, which comes with the compiler): the analyzer's per-column loops run on
+# --jobs threads (common/parallel.hpp). Optional: without it (clang lacking libomp, as the fuzz
+# build) the loops run serially. Eigen's own products stay single-threaded in every file
+# (EIGEN_DONT_PARALLELIZE): a product split over threads would sum in another order with another
+# thread count, and Eigen inlines differently in files with and without OpenMP.
+find_package(OpenMP COMPONENTS CXX)
+add_compile_definitions(EIGEN_DONT_PARALLELIZE)
 find_package(OpenSSL 3 REQUIRED COMPONENTS Crypto)   # libcrypto: HMAC-SHA256 of signed operator requests
 find_package(GTest REQUIRED)
 find_package(benchmark REQUIRED)

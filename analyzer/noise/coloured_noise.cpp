@@ -13,6 +13,7 @@
 
 #include "analyzer/noise/allan.hpp"
 #include "analyzer/noise/noise_analysis.hpp"
+#include "common/parallel.hpp"
 
 namespace inertia::noise {
 namespace {
@@ -130,18 +131,28 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
   if (x.rows() != spectrum.rows) throw std::invalid_argument("quadratic_form: rows differ from the spectrum's");
   const Eigen::Index p = x.cols(), half = spectrum.length / 2;
   Eigen::MatrixXcd weighted(half + 1, p);
-  Eigen::FFT<double> fft;
-  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
-  std::vector<double> column(static_cast<std::size_t>(spectrum.length), 0.0);
-  std::vector<std::complex<double>> bins;
   // Each bin k in 1 .. L/2-1 stands for k and L-k (a real column's spectrum is symmetric).
   Eigen::VectorXd weight(half + 1);
   for (Eigen::Index k = 0; k <= half; ++k)
     weight(k) = std::sqrt((k == 0 || k == half ? 1.0 : 2.0) * spectrum.density(k) / static_cast<double>(spectrum.length));
-  for (Eigen::Index j = 0; j < p; ++j) {
-    Eigen::Map<Eigen::VectorXd>(column.data(), x.rows()) = x.col(j);
-    fft.fwd(bins, column);
-    weighted.col(j) = Eigen::Map<const Eigen::VectorXcd>(bins.data(), half + 1).cwiseProduct(weight);
+  // The columns' transforms split over parallel::jobs() threads, each with its own transform
+  // (its plan cache) and buffers.
+#ifdef _OPENMP
+#pragma omp parallel num_threads(parallel::threads_for(p))
+#endif
+  {
+    Eigen::FFT<double> fft;
+    fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+    std::vector<double> column(static_cast<std::size_t>(spectrum.length), 0.0);
+    std::vector<std::complex<double>> bins;
+#ifdef _OPENMP
+#pragma omp for schedule(static)
+#endif
+    for (Eigen::Index j = 0; j < p; ++j) {
+      Eigen::Map<Eigen::VectorXd>(column.data(), x.rows()) = x.col(j);
+      fft.fwd(bins, column);
+      weighted.col(j) = Eigen::Map<const Eigen::VectorXcd>(bins.data(), half + 1).cwiseProduct(weight);
+    }
   }
   Eigen::MatrixXd out = (weighted.adjoint() * weighted).real();
   return 0.5 * (out + out.transpose());

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "common/parallel.hpp"
+
 namespace inertia::procedure {
 
 ArWhitener ArWhitener::fit(const Eigen::VectorXd& residuals, const std::vector<CaseRows>& layout, int max_order) {
@@ -105,6 +107,23 @@ Eigen::Index longest(const std::vector<CaseRows>& cases) {
   return rows;
 }
 
+/// Every column of x through filter_stacked, the columns split over parallel::jobs() threads
+/// (each column's arithmetic is the same on any thread), each thread with its own scratch.
+void filter_columns(const Eigen::VectorXd& a, Eigen::MatrixXd& x, const std::vector<CaseRows>& from,
+                    const std::vector<CaseRows>& to) {
+  const Eigen::Index columns = x.cols();
+#ifdef _OPENMP
+#pragma omp parallel num_threads(parallel::threads_for(columns))
+#endif
+  {
+    Eigen::VectorXd scratch(longest(to));
+#ifdef _OPENMP
+#pragma omp for schedule(static)
+#endif
+    for (Eigen::Index col = 0; col < columns; ++col) filter_stacked(a, x.col(col), from, to, scratch);
+  }
+}
+
 Eigen::Index total_rows(const std::vector<CaseRows>& cases) {
   Eigen::Index rows = 0;
   for (const CaseRows& c : cases) rows += c.rows;
@@ -117,9 +136,11 @@ void ArWhitener::apply(StackedRegression& s) const {
   const int m = order();
   if (m == 0) return;
   std::vector<CaseRows> cases = filtered_layout(s.cases, m);
-  Eigen::VectorXd scratch(longest(cases));
-  filter_stacked(a_, s.y, s.cases, cases, scratch);
-  for (Eigen::Index col = 0; col < s.phi.cols(); ++col) filter_stacked(a_, s.phi.col(col), s.cases, cases, scratch);
+  {
+    Eigen::VectorXd scratch(longest(cases));
+    filter_stacked(a_, s.y, s.cases, cases, scratch);
+  }
+  filter_columns(a_, s.phi, s.cases, cases);
   // The factors of output-multiplied columns are not filtered (stacked_regression.hpp): they only
   // lose the same first rows.
   if (s.rational.factors.rows() > 0) {
@@ -141,8 +162,7 @@ void ArWhitener::apply_to_columns(Eigen::MatrixXd& x, const std::vector<CaseRows
   const int m = order();
   if (m == 0) return;
   const std::vector<CaseRows> filtered = filtered_layout(cases, m);
-  Eigen::VectorXd scratch(longest(filtered));
-  for (Eigen::Index col = 0; col < x.cols(); ++col) filter_stacked(a_, x.col(col), cases, filtered, scratch);
+  filter_columns(a_, x, cases, filtered);
   x.conservativeResize(total_rows(filtered), Eigen::NoChange);
 }
 

@@ -6,8 +6,10 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <span>
 
 #include "analyzer/procedure/corner_search.hpp"
+#include "common/parallel.hpp"
 
 namespace inertia::procedure {
 
@@ -43,8 +45,10 @@ void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, doubl
   state.output = h;
 }
 
-void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns, const std::vector<CaseRows>& layout,
-                      const dataset::Dataset& data, double corner_rad_s) {
+namespace {
+
+void highpass_columns_side_by_side(Eigen::MatrixXd& x, std::span<const Eigen::Index> columns, const std::vector<CaseRows>& layout,
+                                   const dataset::Dataset& data, double corner_rad_s) {
   // The columns run side by side, sample by sample: one column's recursion is a chain of
   // dependent multiply-adds, so interleaving independent ones keeps the pipeline full (the corner
   // search filters the squares some 40 times per fit). Same arithmetic as highpass_in_place.
@@ -70,6 +74,24 @@ void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& colum
         col[i][k] = h[i];
       }
     }
+  }
+}
+
+}  // namespace
+
+void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns, const std::vector<CaseRows>& layout,
+                      const dataset::Dataset& data, double corner_rad_s) {
+  // The columns split into one contiguous share per thread (parallel::jobs()), each share side by
+  // side; a column's arithmetic does not depend on its share.
+  const auto n = static_cast<long>(columns.size());
+  const int threads = parallel::threads_for(n);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static, 1) num_threads(threads)
+#endif
+  for (int t = 0; t < threads; ++t) {
+    const long begin = n * t / threads, end = n * (t + 1) / threads;
+    highpass_columns_side_by_side(x, std::span<const Eigen::Index>(columns).subspan(static_cast<std::size_t>(begin), static_cast<std::size_t>(end - begin)),
+                                  layout, data, corner_rad_s);
   }
 }
 
