@@ -320,8 +320,9 @@ StatFit LiveSolver::fit_batch_at(const std::vector<const Information*>& infos, c
 
 namespace {
 
-/// The batch turned on the live statistics: each step a Newton step on central differences of the
-/// batch model's residual sum, which the statistics give at any turn.
+/// The batch turned on the live statistics: each step the batch's Gauss-Newton step
+/// (relative_twists.cpp), from the Gram of the fitted columns, the prediction's derivatives and
+/// the output (LiveSolver::turn_derivative_gram) instead of from the rows.
 class StatisticsTurns final : public procedure::TurnedBatch {
  public:
   StatisticsTurns(const LiveSolver& solver, const std::vector<const Information*>& infos, std::vector<Eigen::Matrix3d>& m_cs,
@@ -331,40 +332,23 @@ class StatisticsTurns final : public procedure::TurnedBatch {
         tolerance_rad_(tolerance_rad), out_(out) {}
 
   std::optional<procedure::TurnStep> step(std::span<const procedure::TurnParameter> parameters) override {
-    constexpr double kStep = LiveSolver::kTurnDifferenceStepRad;
-    const auto n = static_cast<Index>(parameters.size());
-    const auto rss_at = [&](const Eigen::VectorXd& x) {
-      const StatFit f = solver_.fit_batch_at(infos_, moved(parameters, x), corner_);
-      return f.ok ? f.rss : std::numeric_limits<double>::quiet_NaN();
-    };
     const StatFit at = solver_.fit_batch_at(infos_, m_cs_, corner_);
     if (!at.ok || !(at.s2 > 0.0)) return std::nullopt;
-    Eigen::VectorXd gradient(n);
-    Eigen::MatrixXd hessian(n, n);
-    for (Index i = 0; i < n; ++i) {
-      Eigen::VectorXd up = Eigen::VectorXd::Zero(n), down = up;
-      up(i) = kStep;
-      down(i) = -kStep;
-      const double f_up = rss_at(up), f_down = rss_at(down);
-      // Richardson's extrapolation of the central difference (error h^4): the gradient decides
-      // where the search stops, and the batch's Gauss-Newton finds the same point.
-      const double half = (rss_at(0.5 * up) - rss_at(0.5 * down)) / kStep;
-      gradient(i) = (4.0 * half - (f_up - f_down) / (2.0 * kStep)) / 3.0;
-      hessian(i, i) = (f_up - 2.0 * at.rss + f_down) / (kStep * kStep);
-      for (Index j = 0; j < i; ++j) {
-        Eigen::VectorXd pp = Eigen::VectorXd::Zero(n), pm = pp, mp = pp, mm = pp;
-        pp(i) = pm(i) = kStep;
-        mp(i) = mm(i) = -kStep;
-        pp(j) = mp(j) = kStep;
-        pm(j) = mm(j) = -kStep;
-        hessian(i, j) = hessian(j, i) = (rss_at(pp) - rss_at(pm) - rss_at(mp) + rss_at(mm)) / (4.0 * kStep * kStep);
-      }
-    }
-    if (!gradient.allFinite() || !hessian.allFinite()) return std::nullopt;
-    // rss = sum r^2: its Hessian is 2 J'J, the information J'J / sigma^2.
+    const Eigen::MatrixXd g = solver_.turn_derivative_gram(at, parameters, infos_, m_cs_, procedure::kTurnDerivativeStepRad);
+    const auto p = static_cast<Index>(at.terms.size()), q = static_cast<Index>(parameters.size());
+    const Eigen::VectorXd predicting = at.theta.cwiseProduct(solver_.prediction_signs(at.terms));
+    // With J the derivatives and the fitted columns X projected out (the terms re-fitted at every
+    // turn), the step is (J~'J~)^-1 J~'r and J~'J~ / sigma^2 the turns' information; r = y - X theta.
+    const Eigen::MatrixXd xx = g.topLeftCorner(p, p), xd = g.block(0, p, p, q), dd = g.block(p, p, q, q);
+    const Eigen::VectorXd xr = g.block(0, p + q, p, 1) - xx * predicting;
+    const Eigen::VectorXd dr = g.block(p, p + q, q, 1) - xd.transpose() * predicting;
+    const Eigen::LDLT<Eigen::MatrixXd> gram(xx);
+    const Eigen::MatrixXd jj = dd - xd.transpose() * gram.solve(xd);
+    const Eigen::VectorXd jr = dr - xd.transpose() * gram.solve(xr);
+    if (!jj.allFinite() || !jr.allFinite()) return std::nullopt;
     procedure::TurnStep out;
-    out.information = hessian / (2.0 * long_run_variance_factor_ * at.s2);
-    out.delta = -hessian.ldlt().solve(gradient);
+    out.information = jj / (long_run_variance_factor_ * at.s2);
+    out.delta = jj.ldlt().solve(jr);
     return out;
   }
 
@@ -431,6 +415,35 @@ class StatisticsTurns final : public procedure::TurnedBatch {
 };
 
 }  // namespace
+
+Eigen::MatrixXd LiveSolver::turn_derivative_gram(const StatFit& at, std::span<const procedure::TurnParameter> parameters,
+                                                  const std::vector<const Information*>& infos,
+                                                  const std::vector<Eigen::Matrix3d>& m_cs, double step) const {
+  const auto p = static_cast<Index>(at.terms.size()), q = static_cast<Index>(parameters.size());
+  const Eigen::VectorXd predicting = at.theta.cwiseProduct(prediction_signs(at.terms));
+  const CornerWeights weights = at.corner_rad_s ? grid_.at(*at.corner_rad_s) : CornerWeights{};
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(p + q + 1, p + q + 1);
+  Eigen::MatrixXd tb, tf, up_b, up_f, down_b, down_f;
+  for (std::size_t m = 0; m < infos.size(); ++m) {
+    if (infos[m]->samples() == 0) continue;
+    basis_.transform(at.terms, m_cs[m], weights.filtered(), tb, tf);
+    Eigen::MatrixXd with_b = Eigen::MatrixXd::Zero(p + q, tb.cols()), with_f = Eigen::MatrixXd::Zero(p + q, tf.cols());
+    with_b.topRows(p) = tb;
+    with_f.topRows(p) = tf;
+    for (Index i = 0; i < q; ++i) {
+      const procedure::TurnParameter& parameter = parameters[static_cast<std::size_t>(i)];
+      if (parameter.mounting != m) continue;
+      Eigen::Vector3d turn = Eigen::Vector3d::Zero();
+      turn(parameter.axis) = step;
+      basis_.transform(at.terms, procedure::turned(m_cs[m], turn), weights.filtered(), up_b, up_f);
+      basis_.transform(at.terms, procedure::turned(m_cs[m], -turn), weights.filtered(), down_b, down_f);
+      with_b.row(p + i) = predicting.transpose() * (up_b - down_b) / (2.0 * step);
+      if (tf.cols() > 0) with_f.row(p + i) = predicting.transpose() * (up_f - down_f) / (2.0 * step);
+    }
+    g += infos[m]->model_gram(with_b, with_f, weights);
+  }
+  return g;
+}
 
 std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Information*>& infos,
                                                      std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,

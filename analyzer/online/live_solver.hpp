@@ -18,6 +18,7 @@
 
 #include <array>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,7 @@
 #include "analyzer/online/information.hpp"
 #include "analyzer/online/live_basis.hpp"
 #include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/turn_search.hpp"
 #include "analyzer/procedure/mounting_rules.hpp"
 #include "common/dataset/dataset.hpp"
 
@@ -132,11 +134,6 @@ struct RelativeTurn {
 
 class LiveSolver {
  public:
-  /// relative_turns' difference step: the residual sum comes from the statistics as
-  /// y'y - 2 theta'Phi'y + theta'Phi'Phi theta and carries that cancellation's rounding (a few
-  /// eps y'y); steps of this size move it far above that and stay in its quadratic range.
-  static constexpr double kTurnDifferenceStepRad = 1e-3;
-
   /// `model`: basis term indices of the model (F_S); `sensitivities`: of a_x a_y a_z (w_x w_y
   /// w_z for a gyroscope); `grid`: the nodes the filtered statistics were kept at (empty: static
   /// squares only); `static_option`: static squares compete with the high pass.
@@ -154,9 +151,9 @@ class LiveSolver {
   /// The batch pipeline's relative twists (procedure::search_turns, the search both share) on the
   /// statistics: each aligned mounting but `reference` turned (its twist about n_i and the tilts
   /// `tilts_determined[mounting]` says its excitation determines, turned()'s axes 0 and 1) to the
-  /// least residual of the batch model at `corner`, by Newton steps on central differences of that
-  /// residual. A twist whose sd with the tilts free exceeds the tolerance is held. Turns `m_cs` by
-  /// what it finds.
+  /// least residual of the batch model at `corner`, by the batch's Gauss-Newton steps from the
+  /// statistics (turn_derivative_gram). A twist whose sd with the tilts free exceeds the tolerance
+  /// is held. Turns `m_cs` by what it finds.
   [[nodiscard]] std::vector<RelativeTurn> relative_turns(const std::vector<const Information*>& infos,
                                                          std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
                                                          const std::vector<bool>& aligned,
@@ -191,6 +188,13 @@ class LiveSolver {
   /// Per term of `terms`: +1, or -1 for an output-multiplied one, which ULS's prediction negates
   /// (uls_batch.hpp): the prediction is sum sign_j theta_j phi_j.
   [[nodiscard]] Eigen::VectorXd prediction_signs(const std::vector<Eigen::Index>& terms) const;
+  /// [Phi D y]'[Phi D y] over `infos`: Phi the fitted terms of `at` (each mounting with its M_C^S),
+  /// D per turn parameter the derivative of the fitted prediction Phi(theta) with respect to it
+  /// (its mounting turned by +-`step` rad, central difference of the transform; zero on the other
+  /// mountings' rows). What a Gauss-Newton step of the turn search reads (procedure::search_turns).
+  [[nodiscard]] Eigen::MatrixXd turn_derivative_gram(const StatFit& at, std::span<const procedure::TurnParameter> parameters,
+                                                     const std::vector<const Information*>& infos,
+                                                     const std::vector<Eigen::Matrix3d>& m_cs, double step) const;
   void set_long_run_variance_factor(double factor) { options_.long_run_variance_factor = factor; }
   [[nodiscard]] double long_run_variance_factor() const { return options_.long_run_variance_factor; }
   /// ERR and t of each candidate (basis term indices) added alone to the batch fit `batch`.

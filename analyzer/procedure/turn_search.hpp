@@ -21,6 +21,10 @@ inline constexpr double kTurnConvergence = 1e-6;
 /// columns: each step gains about three digits, so a search that has not converged by then is
 /// wandering on a flat residual).
 inline constexpr int kTurnMaxSteps = 12;
+/// The step (rad) of the central differences that give the prediction's derivative with respect
+/// to a turn: the fitted prediction is smooth in the turn (products of the rotation's entries),
+/// so the difference's truncation (h^2) is far below the data's resolution.
+inline constexpr double kTurnDerivativeStepRad = 1e-4;
 
 /// One parameter of the search: component `axis` of a turn of mounting `mounting` (turned()'s
 /// parameters: 0 and 1 the tilts, 2 the twist about n_i).
