@@ -393,15 +393,10 @@ class StatisticsTurns final : public procedure::TurnedBatch {
  private:
   /// The mountings' M_C^S with the parameters turned by `x`.
   std::vector<Eigen::Matrix3d> moved(std::span<const procedure::TurnParameter> parameters, const Eigen::VectorXd& x) const {
-    std::vector<Eigen::Vector3d> turns(m_cs_.size(), Eigen::Vector3d::Zero());
-    std::vector<bool> turning(m_cs_.size(), false);
-    for (std::size_t i = 0; i < parameters.size(); ++i) {
-      turns[parameters[i].mounting](parameters[i].axis) = x(static_cast<Index>(i));
-      turning[parameters[i].mounting] = true;
-    }
+    const std::vector<Eigen::Vector3d> turns = procedure::turns_of(parameters, x, m_cs_.size());
     std::vector<Eigen::Matrix3d> turned_m_cs = m_cs_;
-    for (std::size_t k = 0; k < m_cs_.size(); ++k)
-      if (turning[k]) turned_m_cs[k] = procedure::turned(m_cs_[k], turns[k]);
+    for (const procedure::TurnParameter& twist : parameters)
+      if (twist.axis == 2) turned_m_cs[twist.mounting] = procedure::turned(m_cs_[twist.mounting], turns[twist.mounting]);
     return turned_m_cs;
   }
 

@@ -70,14 +70,10 @@ class RowTurns final : public TurnedBatch {
   }
 
   void turn(std::span<const TurnParameter> parameters, const Eigen::VectorXd& delta, const Eigen::MatrixXd&) override {
-    std::vector<Eigen::Vector3d> turns = nominal_;
-    std::vector<bool> moved(mountings_.size(), false);
-    for (std::size_t i = 0; i < parameters.size(); ++i) {
-      turns[parameters[i].mounting](parameters[i].axis) = delta(static_cast<Eigen::Index>(i));
-      moved[parameters[i].mounting] = true;
-    }
-    for (std::size_t k = 0; k < mountings_.size(); ++k) {
-      if (!moved[k]) continue;
+    const std::vector<Eigen::Vector3d> turns = turns_of(parameters, delta, mountings_.size());
+    for (const TurnParameter& twist : parameters) {
+      if (twist.axis != 2) continue;
+      const std::size_t k = twist.mounting;
       MountingResult& m = mountings_[k];
       m.m_cs = turned(m.m_cs, turns[k]);
       m.twist_rad += turns[k](2);

@@ -4,6 +4,13 @@
 
 namespace inertia::procedure {
 
+std::vector<Eigen::Vector3d> turns_of(std::span<const TurnParameter> parameters, const Eigen::VectorXd& x,
+                                      std::size_t mountings) {
+  std::vector<Eigen::Vector3d> turns(mountings, Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < parameters.size(); ++i) turns[parameters[i].mounting](parameters[i].axis) = x(static_cast<Eigen::Index>(i));
+  return turns;
+}
+
 Eigen::VectorXd turn_sd(const Eigen::MatrixXd& information, Eigen::MatrixXd* covariance) {
   const Eigen::MatrixXd inverse = information.ldlt().solve(Eigen::MatrixXd::Identity(information.rows(), information.cols()));
   if (covariance != nullptr) *covariance = inverse;

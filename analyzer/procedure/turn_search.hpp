@@ -33,6 +33,11 @@ struct TurnParameter {
   int axis = 2;
 };
 
+/// Per mounting (`mountings` of them), the turn `x` gives the parameters: zero for a mounting none
+/// of them turns. Every turned mounting has its twist among the parameters (search_turns).
+std::vector<Eigen::Vector3d> turns_of(std::span<const TurnParameter> parameters, const Eigen::VectorXd& x,
+                                      std::size_t mountings);
+
 /// A step of the search and the parameters' information there (the model's terms re-fitted at
 /// every value, the other parameters free).
 struct TurnStep {
