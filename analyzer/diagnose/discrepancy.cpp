@@ -17,6 +17,7 @@
 #include "analyzer/ident/uls_batch.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
 #include "analyzer/procedure/pipeline.hpp"
+#include "analyzer/procedure/post_selection_inference.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
@@ -262,12 +263,12 @@ ColumnFit fit_columns(const Workspace& w, const std::vector<Index>& fit,
     out.theta = r.process_theta();
     out.std_dev = r.std_dev.head(r.process_terms);
     out.dof = static_cast<double>(y.size() - r.process_terms - 1);
-    // Output-multiplied columns keep their rows unfiltered (filters_rows), their sd scaled by the
-    // noise's long-run variance.
+    // Output-multiplied columns keep their rows unfiltered (filters_rows), their sd scaled as the
+    // live estimator scales them (procedure::unfiltered_long_run_ratio).
     if (options.max_ar_order > 0) {
       const procedure::ArWhitener whitener = procedure::ArWhitener::fit(r.residuals, s.cases, options.max_ar_order);
       if (!procedure::filters_rows(!rational_cols.empty())) {
-        out.std_dev *= std::sqrt(whitener.long_run_variance_ratio());
+        out.std_dev *= std::sqrt(procedure::unfiltered_long_run_ratio(r.residuals, s.cases, whitener.coefficients()));
       } else if (whitener.order() > 0) {
         procedure::StackedRegression ws{std::move(phi), std::move(y), s.cases, labels, {}};
         whitener.apply(ws);
@@ -649,7 +650,7 @@ ResidualSummary summarize(const dataset::Dataset& data, const Workspace& w, cons
         const boost::math::fisher_f f(static_cast<double>(p.n), static_cast<double>(reference_dof));
         seg.p_value = boost::math::cdf(boost::math::complement(f, p.sum_squares / (noise_sd * noise_sd) / static_cast<double>(p.n)));
       }
-      seg.excess = seg.p_value < alpha / static_cast<double>(std::max<std::size_t>(1, segments));
+      seg.excess = seg.p_value < ident::family_threshold(alpha, segments);
       s.segments.push_back(seg);
     }
     s.per_case.push_back(n > 0 ? std::sqrt(ss / static_cast<double>(n)) : std::nan(""));
@@ -796,7 +797,7 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
     const ident::ErrRanking ranking = ident::err_rank(g, eo);
     const std::size_t ranked = ranking.order.size() - ranking.forced_count;
     if (ranked == 0) break;
-    const double threshold = options.alpha / static_cast<double>(ranked);
+    const double threshold = ident::family_threshold(options.alpha, ranked);
 
     std::optional<ColumnFit> best;
     std::vector<Index> best_held;

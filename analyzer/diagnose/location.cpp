@@ -14,6 +14,7 @@
 #include <map>
 #include <numbers>
 
+#include "analyzer/ident/statistics.hpp"
 #include "common/units.hpp"
 
 namespace inertia::diagnose {
@@ -514,7 +515,7 @@ Location locate(const dataset::Dataset& data, const std::vector<CaseResidual>& r
     tests += out.bands.back().bands.size();
   }
   for (CaseBands& cb : out.bands) {
-    for (BandTest& b : cb.bands) b.excess = b.p_value < alpha / static_cast<double>(std::max<std::size_t>(tests, 1));
+    for (BandTest& b : cb.bands) b.excess = b.p_value < ident::family_threshold(alpha, tests);
   }
 
   // Conditions. Each phase's run is a stretch whose covariance the model states (StretchCovariance,
@@ -600,7 +601,7 @@ Location locate(const dataset::Dataset& data, const std::vector<CaseResidual>& r
   for (std::size_t i = 0; i < accel.size(); ++i) add("|a|", kAccelEdgesG[i], kAccelEdgesG[i + 1], accel[i]);
   for (std::size_t i = 0; i < temp.size(); ++i)
     add("T", t_base + kTempBinC * static_cast<double>(i), t_base + kTempBinC * static_cast<double>(i + 1), temp[i]);
-  for (ConditionBin& b : out.conditions) b.excess = b.p_value < alpha / static_cast<double>(out.conditions.size());
+  for (ConditionBin& b : out.conditions) b.excess = b.p_value < ident::family_threshold(alpha, out.conditions.size());
 
   std::string where;
   for (const CaseBands& cb : out.bands) {

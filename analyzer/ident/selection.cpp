@@ -155,13 +155,8 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
       options.max_terms < 0 ? out.ranking.size()
                             : std::min(out.ranking.size(), static_cast<std::size_t>(options.max_terms));
 
-  // Bonferroni over the search space: the j-th ranked term is the best of the candidates left,
-  // so its own p-value is optimistic; alpha / (number of candidates) bounds the family-wise rate
-  // of keeping any spurious term by alpha.
   const double threshold =
-      options.multiplicity == Multiplicity::Bonferroni
-          ? options.alpha / static_cast<double>(std::max<std::size_t>(out.ranking.size(), 1))
-          : options.alpha;
+      options.multiplicity == Multiplicity::Bonferroni ? family_threshold(options.alpha, out.ranking.size()) : options.alpha;
   StageProblem stage;
   Index scored_samples = -1;
   std::ptrdiff_t best = -1;

@@ -78,6 +78,41 @@ std::optional<std::size_t> term_to_prune(std::span<const double> p_values, doubl
   return worst;
 }
 
+double term_test_dof(const ClusterOffsets& offsets, Eigen::Index j, const TermTest& test) {
+  const bool determined = j < offsets.covariance.rows() && j < offsets.within.rows();
+  const bool offsets_dominate =
+      determined && offsets.tau2 > 0.0 && offsets.covariance(j, j) > 2.0 * offsets.within(j, j);
+  const bool between_only = test.phase_level && offsets.clusters >= 2 && offsets.between_dof >= 1;
+  if (!(offsets_dominate || between_only)) return test.samples_dof;
+  const double between_dof = std::max(1, offsets.between_dof);
+  if (offsets.weights.size() == 0 || !determined) return between_dof;
+  const double v = offsets.covariance(j, j), w = offsets.within(j, j), o = std::max(0.0, v - w);
+  return std::clamp(v * v / (o * o / between_dof + w * w / test.samples_dof), between_dof,
+                    std::max(between_dof, test.samples_dof));
+}
+
+bool saturated_by_clusters(const ClusterOffsets& offsets, std::span<const TermTest> tests) {
+  return offsets.clusters >= 2 && offsets.between_dof <= 0 &&
+         std::any_of(tests.begin(), tests.end(), [](const TermTest& t) { return t.phase_level && t.removable; });
+}
+
+std::optional<TermLeaving> term_leaving(const ClusterOffsets& offsets, std::span<const TermTest> tests, double threshold) {
+  const bool saturated = saturated_by_clusters(offsets, tests);
+  std::vector<double> p_values(tests.size(), std::numeric_limits<double>::quiet_NaN());
+  std::vector<double> dof(tests.size(), 0.0);
+  for (std::size_t j = 0; j < tests.size(); ++j) {
+    const TermTest& test = tests[j];
+    if (!test.removable) continue;
+    dof[j] = term_test_dof(offsets, static_cast<Eigen::Index>(j), test);
+    if (!saturated) p_values[j] = student_t_two_sided_p(test.t, dof[j]);
+    else if (test.phase_level) p_values[j] = 1.0 / (1.0 + std::abs(test.t));   // ranks by |t|: the weakest leaves
+  }
+  const std::optional<std::size_t> leaves =
+      term_to_prune(p_values, saturated ? -std::numeric_limits<double>::infinity() : threshold);
+  if (!leaves) return std::nullopt;
+  return TermLeaving{*leaves, saturated, dof[*leaves]};
+}
+
 double aic_from_variance(double sigma2_ml, Eigen::Index samples, Eigen::Index parameters) {
   if (!(sigma2_ml > 0.0)) return -std::numeric_limits<double>::infinity();
   return static_cast<double>(samples) * std::log(sigma2_ml) + 2.0 * static_cast<double>(parameters);

@@ -3,6 +3,7 @@
 // residual diagnostics. All functions are pure and thread-safe; none is real-time (they allocate).
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <functional>
 #include <map>
 #include <optional>
@@ -217,6 +218,51 @@ inline constexpr double kDistinctOffsets = 10.0;
 std::optional<RandomEffectsFit> weighed_by_offsets(const ClusterOffsets& offsets, const Eigen::VectorXd& loading,
                                                    const Eigen::VectorXd& noise_sum_variance,
                                                    const std::function<RandomEffectsFit(const Eigen::VectorXd& tau2)>& fit);
+
+/// A test level over a family of `candidates` (Bonferroni): alpha / candidates. A term picked as
+/// the best of the candidates left has an optimistic p-value of its own; the family's level
+/// bounds the probability of keeping any spurious term by alpha. Algorithm 2's step 9, the
+/// inference after it and the live estimate all test at alpha over their search space.
+[[nodiscard]] inline double family_threshold(double alpha, std::size_t candidates) {
+  return alpha / static_cast<double>(std::max<std::size_t>(candidates, 1));
+}
+
+/// One fitted term's test in the inference after a selection (the offline procedure's and the
+/// live estimate's: procedure/post_selection_inference.hpp, online/live_estimate.hpp).
+struct TermTest {
+  double t = 0.0;             ///< estimate over its sd, the clusters' offsets in the sd
+  double samples_dof = 0.0;   ///< the samples' dof (rows less parameters)
+  bool phase_level = false;   ///< constant within every cluster (phase_level_columns)
+  bool removable = true;      ///< may leave: not a sensitivity, the bias or a term the caller keeps
+};
+
+/// The dof of term j's test (`test`) once the clusters' offsets (`offsets`, cluster_offsets, with
+/// the weighed estimate's `within` and `covariance` when it weighed) are in its covariance:
+///  - the clusters' dof (between_dof, at least 1) for a term constant within each cluster, which
+///    only the clusters' means determine whatever the offsets' estimate (on few dof that estimate
+///    often comes out near 0), and for a term whose variance the offsets dominate (more than twice
+///    the noise's part);
+///  - weighed by clearly distinct offsets, the clusters' means carry the offsets' share of a term's
+///    variance by their weights, and only that share is known on the clusters' dof: the
+///    Welch-Satterthwaite dof of the two shares, between the clusters' dof and the samples';
+///  - otherwise the samples' dof.
+[[nodiscard]] double term_test_dof(const ClusterOffsets& offsets, Eigen::Index j, const TermTest& test);
+
+/// Whether a model's terms at the level of the clusters' means are as many as the clusters (the
+/// offsets cannot be told from them) and one of them may leave.
+[[nodiscard]] bool saturated_by_clusters(const ClusterOffsets& offsets, std::span<const TermTest> tests);
+
+/// Which term leaves a model after its selection, by the rule the offline inference and the live
+/// estimate share: when saturated_by_clusters, the removable phase-level term with the smallest
+/// |t|, whatever its test; otherwise term_to_prune of the removable terms' two-sided p-values
+/// (Student's t on term_test_dof) at `threshold`. None when nothing leaves.
+struct TermLeaving {
+  std::size_t term = 0;     ///< index into the tests
+  bool saturated = false;   ///< it left because the clusters were saturated
+  double dof = 0.0;         ///< of its test
+};
+[[nodiscard]] std::optional<TermLeaving> term_leaving(const ClusterOffsets& offsets, std::span<const TermTest> tests,
+                                                      double threshold);
 
 /// fitness = p_res * p_AIC (section 2.7).
 inline double fitness(double p_res, double p_aic) { return p_res * p_aic; }

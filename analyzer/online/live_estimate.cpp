@@ -129,9 +129,7 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     held_angles.push_back(held);
   }
   const CaseStatistics cs = case_statistics(m_cs, left_out);
-  const LiveSolver fitted = prune_terms(s, batch_solver, infos, m_cs, cs, fits);
-  fitted.add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances, held_angles);
-  add_case_scatter(s, cs, fitted);
+  const LiveSolver fitted = infer_and_prune(s, batch_solver, infos, m_cs, cs, fits, angle_covariances, held_angles);
   s.model = fitted.model();
   s.aligned = reference.has_value();
   s.m_cs = std::move(m_cs);
@@ -175,53 +173,42 @@ void EstimateSolver::add_case_scatter(LiveEstimate& s, const CaseStatistics& cs,
   s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum(), s.angles_from_means);
 }
 
-LiveSolver EstimateSolver::prune_terms(LiveEstimate& s, const LiveSolver& batch_solver,
-                                       const std::vector<const Information*>& infos,
-                                       const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
-                                       const std::vector<MountingFit>& fits) {
-  std::optional<LiveSolver> current(batch_solver);
+LiveSolver EstimateSolver::infer_and_prune(LiveEstimate& s, const LiveSolver& batch_solver,
+                                           const std::vector<const Information*>& infos,
+                                           const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
+                                           const std::vector<MountingFit>& fits,
+                                           const std::vector<Eigen::Matrix3d>& angle_covariances,
+                                           const std::vector<std::array<bool, 3>>& held_angles) {
+  std::optional<LiveSolver> current(batch_solver);   // LiveSolver holds its basis by reference: emplaced, not assigned
   const auto never_pruned = [&](Index t) {
     return ident::never_pruned(live.basis->terms()[static_cast<std::size_t>(t)].to_string(), live.sensor);
   };
-  const double gain = 1.0 - noise.ar.sum();
   s.angles_from_means = angles_from_means(&fits);
+  // Bonferroni over the model's terms the data determine (the search space, as algorithm 2's).
+  const double threshold = ident::family_threshold(live.options.solver.structure_alpha, s.batch.terms.size());
   for (;;) {
-    if (!s.batch.ok) break;
-    StatFit trial = s.batch;
-    const CaseScatter scatter = current->add_case_scatter(trial, cs.infos, cs.m_cs, gain, s.angles_from_means);
-    const std::vector<Index>& level = scatter.phase_level;
-    const int dof = scatter.dof;
-    // Saturated (no phase to spare): the weakest phase-level term that may leave does, whatever its test.
-    const bool saturated = scatter.clusters >= 2 && dof < 1 && std::any_of(level.begin(), level.end(), [&](Index t) {
-                             return !never_pruned(t);
-                           });
-    const double samples_dof = trial.weight - static_cast<double>(trial.terms.size());
-    std::vector<double> p_values(trial.terms.size(), std::numeric_limits<double>::quiet_NaN());
-    int tested = 0;
-    for (std::size_t k = 0; k < trial.terms.size(); ++k) {
-      const Index t = trial.terms[k];
-      if (never_pruned(t)) continue;
-      const bool at_level = std::find(level.begin(), level.end(), t) != level.end();
-      if (!at_level && (saturated || !live.searched)) continue;
-      ++tested;
-      const double z = std::abs(trial.theta(static_cast<Index>(k)) / trial.sd(static_cast<Index>(k)));
-      if (saturated) p_values[k] = 1.0 / (1.0 + z);
-      else p_values[k] = ident::student_t_two_sided_p(z, at_level && dof >= 1 ? static_cast<double>(dof) : samples_dof);
+    if (!s.batch.ok) return *current;
+    current->add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances, held_angles);
+    add_case_scatter(s, cs, *current);
+    const std::vector<Index>& level = s.scatter.phase_level;
+    std::vector<ident::TermTest> tests(s.batch.terms.size());
+    for (std::size_t k = 0; k < s.batch.terms.size(); ++k) {
+      const Index t = s.batch.terms[k];
+      ident::TermTest& test = tests[k];
+      test.t = s.batch.theta(static_cast<Index>(k)) / s.batch.sd(static_cast<Index>(k));
+      test.samples_dof = s.batch.weight - static_cast<double>(s.batch.terms.size());
+      test.phase_level = std::find(level.begin(), level.end(), t) != level.end();
+      test.removable = !never_pruned(t) && (test.phase_level || live.searched);
     }
-    if (tested == 0) break;
-    const std::optional<std::size_t> leaves =
-        ident::term_to_prune(p_values, saturated ? -std::numeric_limits<double>::infinity()
-                                                 : live.options.solver.structure_alpha / static_cast<double>(tested));
-    if (!leaves) break;
-    const Index weakest = trial.terms[*leaves];
-    if (std::find(level.begin(), level.end(), weakest) != level.end()) s.confounded.push_back(weakest);
-    else s.insignificant.push_back(weakest);
+    const std::optional<ident::TermLeaving> leaving = ident::term_leaving(s.scatter.offsets, tests, threshold);
+    if (!leaving) return *current;
+    const Index weakest = s.batch.terms[leaving->term];
+    (tests[leaving->term].phase_level ? s.confounded : s.insignificant).push_back(weakest);
     std::vector<Index> kept = current->model();
     std::erase(kept, weakest);
     current.emplace(current->with_model(std::move(kept)));
     s.batch = current->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
   }
-  return *current;
 }
 
 }  // namespace inertia::online

@@ -75,19 +75,22 @@ class EstimateSolver {
   [[nodiscard]] int angles_from_means(const std::vector<MountingFit>* fits) const;
   /// The cases' offsets the noise model does not explain, into the batch's covariance.
   void add_case_scatter(LiveEstimate& s, const CaseStatistics& cs, const LiveSolver& batch_solver);
-  /// The batch's post-selection inference on the statistics (procedure/post_selection_inference.hpp),
-  /// one term at a time by ident::term_to_prune, never the bias or the scale factor:
-  ///  - terms at the level of the phases' means (constant within every phase: a tumble's poses)
-  ///    are told from the phases' offsets (a pose's placement) only by the phases left over: the
-  ///    weakest such term leaves while none are left over, or while its t, with the offsets'
-  ///    scatter in its sd, fails Student's test on that many degrees of freedom (s.confounded);
-  ///  - in a searched model (LiveModel::searched) every other term is tested too, on the samples'
-  ///    degrees of freedom (s.insignificant), as the batch's selection and inference test them.
-  /// Bonferroni over the terms tested. Refits s.batch with what is left; returns the solver of that
-  /// model.
-  LiveSolver prune_terms(LiveEstimate& s, const LiveSolver& batch_solver, const std::vector<const Information*>& infos,
+  /// The batch's post-selection inference on the statistics (procedure/post_selection_inference.hpp):
+  /// the batch's covariance with the mountings' angle uncertainty (add_misalignment_uncertainty)
+  /// and the offsets between the phases (add_case_scatter), and one term at a time the term that
+  /// leaves by the rule the batch's inference applies (ident::term_leaving), never the bias or the
+  /// scale factor, at the structure's level over the model's terms (ident::family_threshold):
+  ///  - a term at the level of the phases' means (constant within every phase: a tumble's poses)
+  ///    is told from the phases' offsets (a pose's placement) only by the phases left over
+  ///    (s.confounded);
+  ///  - in a searched model (LiveModel::searched) every other term is tested too (s.insignificant);
+  ///    a model file's terms leave only when confounded.
+  /// Leaves s.batch the fit of what is left, its covariance complete, and s.scatter its offsets;
+  /// returns the solver of that model.
+  LiveSolver infer_and_prune(LiveEstimate& s, const LiveSolver& batch_solver, const std::vector<const Information*>& infos,
                              const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
-                             const std::vector<MountingFit>& fits);
+                             const std::vector<MountingFit>& fits, const std::vector<Eigen::Matrix3d>& angle_covariances,
+                             const std::vector<std::array<bool, 3>>& held_angles);
 };
 
 }  // namespace inertia::online

@@ -10,6 +10,7 @@
 #include "analyzer/online/case_accumulator.hpp"
 #include "analyzer/online/live_estimate.hpp"
 #include "analyzer/online/live_model.hpp"
+#include "analyzer/procedure/post_selection_inference.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
@@ -51,7 +52,8 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
   }
   std::vector<Index> fitted_terms = s.batch.terms;
   const Eigen::VectorXd predicting = s.batch.theta.cwiseProduct(live.solver->prediction_signs(fitted_terms));
-  std::vector<procedure::CaseRows> layout;
+  std::vector<procedure::CaseRows> layout;      // the rows by phase: the noise model's pieces are cut from them
+  std::vector<procedure::CaseRows> case_runs;   // by case segment: one noise process each
   Eigen::VectorXd residuals(buffered_rows);
   Index at = 0;
   std::vector<procedure::HighpassState> hp;
@@ -74,6 +76,8 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
     const bool new_run = current != std::pair{b.state, b.segment};
     current = {b.state, b.segment};
     residuals.segment(at, b.y.size()) = b.y - fit;
+    if (new_run || case_runs.empty()) case_runs.push_back({case_runs.size(), at, 0, 0});
+    case_runs.back().rows += b.y.size();
     for (Index i = 0; i < b.y.size(); ++i) {
       const std::int32_t phase = b.plan_phase.empty() ? 0 : b.plan_phase[static_cast<std::size_t>(i)];
       if (layout.empty() || (new_run && i == 0) || phase != current_phase) layout.push_back({layout.size(), at + i, 0, 0});
@@ -82,6 +86,8 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
     }
     at += b.y.size();
   }
+  // The whole segments' residual, transitions included, as the batch's inference reads its cases.
+  const Eigen::VectorXd case_residuals = residuals;
   layout = noise_pieces(residuals, std::move(layout));
   Index noise_rows = 0;
   for (const procedure::CaseRows& piece : layout) noise_rows += piece.rows;
@@ -89,8 +95,10 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
   const int max_order = std::min<int>(live.options.whitening_max_order, static_cast<int>(noise_rows / 10));
   const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, max_order);
   if (!procedure::filters_rows(live.rational)) {
-    // The noise model scales the variances instead, by the residual's long-run variance.
-    live.solver->set_long_run_variance_factor(noise.long_run_variance_ratio());
+    // The noise model scales the variances instead, by what the batch's sandwich makes of a
+    // column constant within each run.
+    live.solver->set_long_run_variance_factor(
+        procedure::unfiltered_long_run_ratio(case_residuals, case_runs, noise.coefficients()));
     buffer.clear();
     buffered_rows = 0;
     return;

@@ -3,7 +3,8 @@
 // rows are kept; then an autoregressive model is fitted to the residuals of the white-noise fit
 // on them (AIC order up to whitening_max_order, as the batch), and every row so far enters the
 // statistics again through it. A model with output-multiplied terms keeps its rows unfiltered and
-// scales the variances by the residual's long-run variance instead.
+// scales the variances instead, by what the batch's sandwich under that noise makes of a column
+// constant within each run (procedure::unfiltered_long_run_ratio).
 #include <Eigen/Dense>
 
 #include <cstddef>

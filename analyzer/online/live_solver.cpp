@@ -575,6 +575,7 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   const double sigma2 = options_.long_run_variance_factor * batch.s2;
   const ident::ClusterOffsets offsets =
       ident::cluster_offsets(sums, ident::GramFactor::from_gram(gram.topLeftCorner(p, p), weight), sigma2, angles_from_means);
+  out.offsets = offsets;
   out.dof = offsets.between_dof;
   out.tau2 = offsets.tau2 / (noise_gain * noise_gain);
   if (out.dof < 1 || !(offsets.tau2 > 0.0)) return out;
@@ -597,6 +598,9 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
     batch.theta = weighed->theta;
     batch.covariance += weighed->covariance - offsets.classical;
     out.weighed = true;
+    out.offsets.within = weighed->within.topLeftCorner(p, p);
+    out.offsets.covariance = weighed->covariance.topLeftCorner(p, p);
+    out.offsets.weights = weighed->weights;
   } else {
     batch.covariance += offsets.covariance - offsets.within;
   }
@@ -638,7 +642,7 @@ std::vector<CandidateStat> LiveSolver::structure(const std::vector<Index>& candi
     if (g(j, j) > 0.0) reference -= g(j, y) * g(j, y) / g(j, j);
   }
   const double dof = batch.weight - static_cast<double>(p) - 1.0;
-  const double alpha = options_.structure_alpha / static_cast<double>(candidates.size());
+  const double alpha = ident::family_threshold(options_.structure_alpha, candidates.size());
   for (std::size_t c = 0; c < candidates.size(); ++c) {
     const Index j = p + static_cast<Index>(c);
     CandidateStat s;

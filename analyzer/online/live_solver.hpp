@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "analyzer/ident/statistics.hpp"
 #include "analyzer/ident/uls_batch.hpp"
 #include "analyzer/online/corner_grid.hpp"
 #include "analyzer/online/information.hpp"
@@ -92,6 +93,10 @@ struct CaseScatter {
   /// the batch's rule): a static pose's terms. Such terms and the clusters' offsets (a pose's
   /// placement) are told apart only by the clusters left over.
   std::vector<Eigen::Index> phase_level;
+  /// The offsets as ident::cluster_offsets took them, in the fit's terms' order (the weighed
+  /// estimate's `within` and `covariance` when weighed): what each term's test reads
+  /// (ident::term_leaving).
+  ident::ClusterOffsets offsets;
 };
 
 struct CandidateStat {
@@ -112,8 +117,8 @@ struct SolverOptions {
   bool relative_twist = true;
   double mounting_tolerance_rad = 0.017453292519943295;
   /// For a model kept white (output-multiplied terms: no AR whitening), the residual's long-run
-  /// variance (its spectrum at zero frequency) over its variance: every variance the solver reports
-  /// is scaled by it. 1 for a whitened model.
+  /// variance over its variance (procedure::unfiltered_long_run_ratio): every variance the solver
+  /// reports is scaled by it. 1 for a whitened model.
   double long_run_variance_factor = 1.0;
 };
 

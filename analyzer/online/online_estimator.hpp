@@ -108,7 +108,7 @@ struct OnlineSnapshot {
   int noise_order = 0;                       // AR order of the noise model (0: white or not yet fitted)
   bool noise_model_fitted = false;
   /// A white model's (output-multiplied terms) variance scale: the residual's long-run variance
-  /// over its variance (LiveSolver's long_run_variance_factor); 1 when whitened.
+  /// over its variance (procedure::unfiltered_long_run_ratio); 1 when whitened.
   double long_run_variance_factor = 1.0;
   std::optional<double> corner_rad_s;        // squares' high pass (none: static)
   std::vector<CandidateEstimate> structure;  // candidates not in the model, by ERR

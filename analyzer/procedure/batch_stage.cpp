@@ -143,7 +143,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   InferenceProblem honest;
   honest.s = &batch;
   honest.layout = &layout;
-  honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, ranking.size()));
+  honest.threshold = ident::family_threshold(options.selection.alpha, ranking.size());
   honest.may_remove = options.batch.select;
   honest.sensor = data.sensor;
   if (batch_law) honest.below_record = batch_law->below_record(whitener);

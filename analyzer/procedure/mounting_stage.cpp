@@ -400,7 +400,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     InferenceProblem honest;
     honest.s = &stage;
     honest.layout = &layout;
-    honest.threshold = options.selection.alpha / static_cast<double>(std::max<std::size_t>(1, selected.ranking.size()));
+    honest.threshold = ident::family_threshold(options.selection.alpha, selected.ranking.size());
     honest.sensor = data.sensor;
     honest.protect = [&](const std::string& label) { return std::find(tilts.begin(), tilts.end(), label) != tilts.end(); };
     if (f.noise_law) honest.below_record = f.noise_law->below_record(whitener);

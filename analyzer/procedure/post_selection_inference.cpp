@@ -96,6 +96,26 @@ Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step, 
   return std::move(difference.y);
 }
 
+noise::SegmentSpectrum residual_spectrum(const Eigen::Ref<const Eigen::VectorXd>& run, const Eigen::VectorXd& ar,
+                                         const std::function<double(double)>& below_record) {
+  if (ar.size() == 0 || run.size() <= ar.size()) return noise::fitted_spectrum(run, below_record);
+  Eigen::VectorXd innovation(run.size() - ar.size());
+  ar_filter(ar, run, innovation);
+  return noise::fitted_spectrum_through_ar(innovation, ar, run.size(), below_record);
+}
+
+double unfiltered_long_run_ratio(const Eigen::VectorXd& residuals, const std::vector<CaseRows>& runs, const Eigen::VectorXd& ar) {
+  double long_run = 0.0, power = 0.0;
+  for (const CaseRows& rows : runs) {
+    if (rows.rows < 2) continue;
+    const auto run = residuals.segment(rows.begin, rows.rows);
+    const noise::SegmentSpectrum spectrum = residual_spectrum(run, ar);
+    long_run += noise::quadratic_form(spectrum, Eigen::VectorXd::Ones(rows.rows))(0, 0);
+    power += run.squaredNorm();
+  }
+  return power > 0.0 && std::isfinite(long_run) ? std::max(1.0, long_run / power) : 1.0;
+}
+
 PhaseLayout phase_layout(const StackedRegression& s, std::span<const Term> candidates, const dataset::Dataset& data,
                          const std::vector<CaseOutcome>& cases, std::string_view label) {
   return {phase_clusters(s, data), plan_case_rows(s, data), cross_axis_loading(s, candidates, data, cases, label)};
@@ -165,15 +185,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       const auto g_count = static_cast<Eigen::Index>(order.size());
       coloured.sums_covariance = Eigen::MatrixXd::Zero(g_count, g_count);
       for (const CaseRows& rows : h.layout->noise_runs) {
-        const auto run = fit.residuals.segment(rows.begin, rows.rows);
-        const Eigen::VectorXd& ar = h.unfiltered_rows_ar;
-        if (ar.size() == 0 || rows.rows <= ar.size()) {
-          spectra.push_back(noise::fitted_spectrum(run, h.below_record));
-        } else {
-          Eigen::VectorXd innovation(rows.rows - ar.size());
-          ar_filter(ar, run, innovation);
-          spectra.push_back(noise::fitted_spectrum_through_ar(innovation, ar, rows.rows, h.below_record));
-        }
+        spectra.push_back(residual_spectrum(fit.residuals.segment(rows.begin, rows.rows), h.unfiltered_rows_ar, h.below_record));
         // The covariance of the sums of this case's phases (each phase a run of rows within it).
         std::vector<Eigen::Index>& columns = run_phase_columns.emplace_back();
         noise::RowGroups& phases = run_phases.emplace_back();
@@ -249,26 +261,6 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     Eigen::MatrixXd covariance = weighed ? out.offsets.covariance
                                          : Eigen::MatrixXd(fit.covariance.topLeftCorner(p, p) + out.offsets.covariance -
                                                            out.offsets.classical);
-    // A term constant within each phase is determined by the phases' means alone, and is tested on
-    // their dof whatever the offsets' estimate: on few dof that estimate often comes out near 0
-    // (sim-tumble seed 119: 6 poses, 1 dof, and a_o^2 named from the placement scatter at t -22.8
-    // on the samples' 17774 dof; the mounting's angles then 250 of their sd from the truth).
-    // Weighed by clearly distinct offsets, the phases' means carry the offsets' share of a term's
-    // variance by its weights, and only that share is known on their dof (Welch-Satterthwaite):
-    // a tumble's bias and scale factor, from the two poses a placement tilt hardly moves, on the
-    // noise's; the angles, from the four it moves, on the poses'. The offsets' estimate here is
-    // clear of 0 (the weights differ: kDistinct), which is when the rule above would hide them.
-    for (Eigen::Index j = 0; j < p; ++j) {
-      const bool offsets_dominate = out.offsets.tau2 > 0.0 && out.offsets.covariance(j, j) > 2.0 * out.offsets.within(j, j);
-      const bool between_only = phase_level[std::size_t(j)] && out.offsets.clusters >= 2 && out.offsets.between_dof >= 1;
-      if (!(offsets_dominate || between_only)) continue;
-      const double samples_dof = out.dof(j), between_dof = std::max(1, out.offsets.between_dof);
-      out.dof(j) = between_dof;
-      if (weighed) {
-        const double v = out.offsets.covariance(j, j), w = out.offsets.within(j, j), o = std::max(0.0, v - w);
-        out.dof(j) = std::clamp(v * v / (o * o / between_dof + w * w / samples_dof), between_dof, samples_dof);
-      }
-    }
     if (h.held_covariance) {   // the least-squares fit's response to a held turn stands for the weighed one's
       out.held_covariance = h.held_covariance(fit);
       covariance += out.held_covariance;
@@ -285,23 +277,25 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     fit.std_dev = fit.covariance.diagonal().unaryExpr([](double v) {
       return v > 0.0 && std::isfinite(v) ? std::sqrt(v) : std::numeric_limits<double>::infinity();
     });
-    const bool saturated = out.offsets.clusters >= 2 && out.offsets.between_dof <= 0;
-    // Saturated: the weakest phase-level term leaves whatever its test, ranked by its classical t.
-    std::vector<double> p_values(static_cast<std::size_t>(p), std::numeric_limits<double>::quiet_NaN());
+    // Each term's test and which term leaves: ident::term_leaving, the rule the live estimate
+    // applies too. A tumble's bias and scale factor, from the two poses a placement tilt hardly
+    // moves, are then known on the noise's dof; the angles, from the four it moves, on the poses'.
+    std::vector<ident::TermTest> tests(static_cast<std::size_t>(p));
     for (Eigen::Index j = 0; j < p; ++j) {
       const std::string& label = fit.labels[std::size_t(j)];
-      if (ident::never_pruned(label, h.sensor) || (h.protect && h.protect(label))) continue;
-      const double t = fit.theta(j) / fit.std_dev(j);
-      if (!saturated) p_values[std::size_t(j)] = ident::student_t_two_sided_p(t, out.dof(j));
-      else if (phase_level[std::size_t(j)]) p_values[std::size_t(j)] = 1.0 / (1.0 + std::abs(t));
+      ident::TermTest& test = tests[std::size_t(j)];
+      test.t = fit.theta(j) / fit.std_dev(j);
+      test.samples_dof = out.dof(j);
+      test.phase_level = phase_level[std::size_t(j)];
+      test.removable = !(ident::never_pruned(label, h.sensor) || (h.protect && h.protect(label)));
+      out.dof(j) = ident::term_test_dof(out.offsets, j, test);
     }
-    const std::optional<std::size_t> leaves =
-        ident::term_to_prune(p_values, saturated ? -std::numeric_limits<double>::infinity() : h.threshold);
-    const Eigen::Index worst = leaves ? static_cast<Eigen::Index>(*leaves) : -1;
-    const double worst_t = leaves ? fit.theta(worst) / fit.std_dev(worst) : 0.0;
+    const std::optional<ident::TermLeaving> leaves = ident::term_leaving(out.offsets, tests, h.threshold);
+    const Eigen::Index worst = leaves ? static_cast<Eigen::Index>(leaves->term) : -1;
     if (worst < 0 || !h.may_remove) return finish();
     const std::string label = fit.labels[std::size_t(worst)];
-    pruned.push_back({label, saturated, worst_t, out.dof(worst), out.offsets.clusters, static_cast<bool>(h.held_covariance)});
+    pruned.push_back({label, leaves->saturated, tests[std::size_t(worst)].t, leaves->dof, out.offsets.clusters,
+                      static_cast<bool>(h.held_covariance)});
     const auto at = std::find(s.labels.begin(), s.labels.end(), label);
     std::erase(columns, static_cast<Eigen::Index>(at - s.labels.begin()));
     fit = fit_identifiable(s, h.sensor, columns, uls, dropped);

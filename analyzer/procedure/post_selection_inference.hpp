@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "analyzer/ident/statistics.hpp"
+#include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/ident/term.hpp"
 #include "analyzer/ident/uls_batch.hpp"
 #include "analyzer/procedure/pipeline_result.hpp"
@@ -61,6 +62,20 @@ struct SearchedColumns {
   Eigen::MatrixXd derivatives;
   std::vector<std::size_t> ids;
 };
+
+/// The noise spectrum of one run of a fit's residual (one noise process): the residual's own
+/// (noise::fitted_spectrum) where its rows are whitened (`ar` empty), or, where they are kept
+/// unfiltered (filters_rows), the AR noise model `ar` over the fitted spectrum of the innovation
+/// it leaves (noise::fitted_spectrum_through_ar). `below_record`: as fitted_spectrum's.
+noise::SegmentSpectrum residual_spectrum(const Eigen::Ref<const Eigen::VectorXd>& run, const Eigen::VectorXd& ar,
+                                         const std::function<double(double)>& below_record = {});
+
+/// For rows kept unfiltered under the AR noise model `ar`: what the residual's noise
+/// (residual_spectrum of each of `runs`) makes of the least-squares variance of a column constant
+/// within each run (a bias, a rate phase's rate, a pose's input), sum_r 1'R_r 1 / sum_r e_r'e_r:
+/// the sandwich of infer_after_selection for such a column. At least 1. The live estimator, which
+/// keeps statistics and no rows, scales its variances by it.
+double unfiltered_long_run_ratio(const Eigen::VectorXd& residuals, const std::vector<CaseRows>& runs, const Eigen::VectorXd& ar);
 
 /// How a stacked problem's rows fall into the phases and noise processes of the plan.
 struct PhaseLayout {

@@ -40,15 +40,6 @@ class ArWhitener {
   /// Innovation variance / residual variance: the share of the residual power left after whitening.
   [[nodiscard]] double variance_ratio() const { return variance_ratio_; }
 
-  /// The residual's long-run variance (its spectrum at zero, innovation variance / A(1)^2) over
-  /// its variance: the factor on a least-squares variance of unfiltered rows (filters_rows) for a
-  /// column constant over the noise's memory (a rate phase, a pose), conservative for faster ones
-  /// under noise whose spectrum falls with frequency. Never below 1; 1 when A(1) <= 0.
-  [[nodiscard]] double long_run_variance_ratio() const {
-    const double gain = 1.0 - a_.sum();
-    return gain > 0.0 ? std::max(1.0, variance_ratio_ / (gain * gain)) : 1.0;
-  }
-
   /// Filters y and every column in place, case by case; each case loses its first order() rows
   /// (their filtered values would need samples from before the case). Updates s.cases.
   void apply(StackedRegression& s) const;
@@ -66,7 +57,7 @@ class ArWhitener {
 /// terms (the y* columns of eq. 5) is derived for a white equation error, and filtering such a
 /// column breaks it: the estimate is biased by more than its spread. A model with such terms keeps
 /// its rows unfiltered, and the same noise model enters its covariance instead (the batch: the
-/// sandwich under the noise's spectrum; live: the long-run variance). The batch and the live
+/// sandwich under the noise's spectrum; live and diagnose: unfiltered_long_run_ratio). The batch and the live
 /// estimator both ask here.
 inline bool filters_rows(bool output_multiplied_terms) { return !output_multiplied_terms; }
 

@@ -469,5 +469,86 @@ TEST(TermToPrune, TheLargestPValueAboveTheThresholdLeavesOneAtATime) {
   EXPECT_FALSE(term_to_prune(std::vector<double>{}, 0.01));
 }
 
+ClusterOffsets offsets_of(int clusters, int between_dof, double tau2, const Eigen::VectorXd& within,
+                          const Eigen::VectorXd& covariance) {
+  ClusterOffsets o;
+  o.clusters = clusters;
+  o.between_dof = between_dof;
+  o.tau2 = tau2;
+  o.within = within.asDiagonal();
+  o.covariance = covariance.asDiagonal();
+  return o;
+}
+
+TEST(TermTestDof, ThePhasesDofForPhaseLevelTermsAndWhereTheOffsetsDominate) {
+  // Term 0 varies within the phases and the offsets hardly reach it; term 1 is phase level; term 2
+  // varies within the phases but the offsets dominate its variance (3 times the noise's part).
+  const ClusterOffsets o = offsets_of(6, 4, 1e-6, Eigen::Vector3d(1.0, 1.0, 1.0), Eigen::Vector3d(1.5, 1.1, 3.0));
+  const double samples = 1e4;
+  EXPECT_EQ(term_test_dof(o, 0, {2.0, samples, false, true}), samples);
+  EXPECT_EQ(term_test_dof(o, 1, {2.0, samples, true, true}), 4.0);
+  EXPECT_EQ(term_test_dof(o, 2, {2.0, samples, false, true}), 4.0);
+  // No offsets estimated (tau2 0): a phase-level term is still known on the phases' dof alone.
+  const ClusterOffsets none = offsets_of(6, 4, 0.0, Eigen::Vector3d::Ones(), Eigen::Vector3d::Ones());
+  EXPECT_EQ(term_test_dof(none, 1, {2.0, samples, true, true}), 4.0);
+  EXPECT_EQ(term_test_dof(none, 2, {2.0, samples, false, true}), samples);
+  // Saturated (no between-phase dof): nothing to test on but the samples' dof; term_leaving's
+  // saturation rule decides then.
+  const ClusterOffsets saturated = offsets_of(3, 0, 0.0, Eigen::Vector3d::Ones(), Eigen::Vector3d::Ones());
+  EXPECT_EQ(term_test_dof(saturated, 1, {2.0, samples, true, true}), samples);
+}
+
+TEST(TermTestDof, WeighedMeansGiveTheWelchSatterthwaiteDofOfTheTwoShares) {
+  // Variance v = w + o, the noise's share w known on the samples' dof, the offsets' o on the
+  // phases': dof = v^2 / (o^2 / between + w^2 / samples).
+  ClusterOffsets o = offsets_of(6, 4, 1e-6, Eigen::Vector2d(1.0, 1.0), Eigen::Vector2d(3.0, 1.0 + 1e-9));
+  o.weights = Eigen::VectorXd::Constant(6, 0.5);
+  const double samples = 1e4;
+  EXPECT_NEAR(term_test_dof(o, 0, {2.0, samples, false, true}), 9.0 / (4.0 / 4.0 + 1.0 / samples), 1e-12);
+  // Nearly all noise: the phases' dof is then a floor, since the term is phase level.
+  EXPECT_NEAR(term_test_dof(o, 1, {2.0, samples, true, true}), std::min(samples, 1.0 / (1e-18 / 4.0 + 1.0 / samples)), 1e-6);
+}
+
+TEST(TermLeaving, TheWeakestRemovableTermLeavesOnItsOwnDof) {
+  const ClusterOffsets o = offsets_of(6, 2, 1e-6, Eigen::Vector3d::Ones(), Eigen::Vector3d::Ones());
+  const double samples = 1e4;
+  // t 2.5 is significant at 1e-2 / 3 on nothing: term 1 (phase level, 2 dof: p 0.13) and term 2
+  // (samples' dof: p 0.012) both fail; the larger p-value leaves first, its dof reported.
+  std::vector<TermTest> tests{{50.0, samples, false, false}, {2.5, samples, true, true}, {2.5, samples, false, true}};
+  const std::optional<TermLeaving> leaving = term_leaving(o, tests, family_threshold(0.01, 3));
+  ASSERT_TRUE(leaving);
+  EXPECT_EQ(leaving->term, 1U);
+  EXPECT_FALSE(leaving->saturated);
+  EXPECT_EQ(leaving->dof, 2.0);
+  // A term that may not leave never does, however weak.
+  tests = {{0.1, samples, false, false}, {50.0, samples, true, true}};
+  EXPECT_FALSE(term_leaving(o, tests, family_threshold(0.01, 2)));
+}
+
+TEST(TermLeaving, SaturatedPhasesTakeTheWeakestPhaseLevelTermWhateverItsTest) {
+  const ClusterOffsets o = offsets_of(4, 0, 0.0, Eigen::Vector3d::Ones(), Eigen::Vector3d::Ones());
+  const double samples = 1e4;
+  // Both phase-level terms are strong by the samples' dof; the weaker leaves anyway. The term
+  // that varies within the phases (t 0.5) is not weighed while the phases are saturated.
+  const std::vector<TermTest> tests{{40.0, samples, true, true}, {-30.0, samples, true, true}, {0.5, samples, false, true}};
+  EXPECT_TRUE(saturated_by_clusters(o, tests));
+  const std::optional<TermLeaving> leaving = term_leaving(o, tests, 0.01);
+  ASSERT_TRUE(leaving);
+  EXPECT_EQ(leaving->term, 1U);
+  EXPECT_TRUE(leaving->saturated);
+  // No phase-level term may leave: not saturated for the test, and the others are tested as usual.
+  const std::vector<TermTest> kept{{40.0, samples, true, false}, {0.5, samples, false, true}};
+  EXPECT_FALSE(saturated_by_clusters(o, kept));
+  const std::optional<TermLeaving> weak = term_leaving(o, kept, 0.01);
+  ASSERT_TRUE(weak);
+  EXPECT_EQ(weak->term, 1U);
+  EXPECT_FALSE(weak->saturated);
+}
+
+TEST(FamilyThreshold, AlphaOverTheCandidatesAndNeverOverZero) {
+  EXPECT_DOUBLE_EQ(family_threshold(0.01, 20), 5e-4);
+  EXPECT_DOUBLE_EQ(family_threshold(0.01, 0), 0.01);
+}
+
 }  // namespace
 }  // namespace inertia::ident

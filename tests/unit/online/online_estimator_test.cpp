@@ -380,7 +380,7 @@ TEST(OnlineEstimator, TheSquaresCornerIsFoundBetweenTheGridsNodes) {
 
 TEST(OnlineEstimator, TheDefaultModelLeavesOutATermTheDataShowsInsignificantAModelFileKeepsIt) {
   // A sensor without cross-coupling between p and o: the default terms are a search, and the term
-  // leaves as the batch's inference takes it out (ident::term_to_prune); a model file's terms are
+  // leaves as the batch's inference takes it out (ident::term_leaving); a model file's terms are
   // fitted as given.
   Eigen::VectorXd truth = truth_values();
   truth(7) = 0.0;   // a_p*a_o
