@@ -167,8 +167,9 @@ int run(int argc, char** argv) {
   // The offline verbs' threads (common/parallel.hpp); online keeps one, beside the daemon.
   int jobs = 0;
   for (CLI::App* verb : {characterize, diagnose, noise, plan_check, paper})
-    verb->add_option("--jobs", jobs, "threads for the per-column filters and transforms (0: the machine's cores); "
-                                     "the results do not depend on it")
+    verb->add_option("--jobs", jobs, "threads for the per-column filters and transforms, and for the simulated runs "
+                                     "of plan-check and reproduce-paper side by side (0: the machine's cores); the "
+                                     "results do not depend on it")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
 

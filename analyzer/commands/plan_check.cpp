@@ -16,6 +16,7 @@
 #include "analyzer/procedure/pipeline.hpp"
 #include "common/config/bench_config.hpp"
 #include "common/input_error.hpp"
+#include "common/parallel.hpp"
 #include "common/units.hpp"
 #include "hal/sim/simulate.hpp"
 
@@ -134,9 +135,17 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
       ++reporting[name];
     }
   };
+  // The prediction's runs after the first, then the check's: independent runs, side by side on
+  // --jobs threads, each into its own slot.
+  std::vector<std::uint64_t> run_seeds;
+  for (int k = 1; k < kPredictionRuns; ++k) run_seeds.push_back(first_seed + kPredictionSeedOffset + static_cast<std::uint64_t>(k));
+  for (int s = 1; s <= options.seeds; ++s) run_seeds.push_back(first_seed + static_cast<std::uint64_t>(s));
+  std::vector<std::map<std::string, Reported>> runs(run_seeds.size());
+  parallel::for_each_index(static_cast<long>(run_seeds.size()),
+                           [&](long k) { runs[static_cast<std::size_t>(k)] = run_with_seed(run_seeds[static_cast<std::size_t>(k)]); });
   const std::map<std::string, Reported> first_run = reported_parameters(predicted);
   add_run(first_run);
-  for (int k = 1; k < kPredictionRuns; ++k) add_run(run_with_seed(first_seed + kPredictionSeedOffset + static_cast<std::uint64_t>(k)));
+  for (int k = 1; k < kPredictionRuns; ++k) add_run(runs[static_cast<std::size_t>(k - 1)]);
   fmt::print(out, "  predicted from {} simulated runs of the plan (seed {}, then {} and on) with the sensor's [sensor.truth] "
                   "and characterize's options: each sd is the RMS of what characterize reports over them\n",
              kPredictionRuns, bench.seed, first_seed + kPredictionSeedOffset + 1);
@@ -168,7 +177,7 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
   // The check: the spread of the estimates over more runs.
   std::map<std::string, std::vector<double>> values;
   for (int s = 1; s <= options.seeds; ++s) {
-    for (const auto& [name, v] : run_with_seed(first_seed + static_cast<std::uint64_t>(s))) values[name].push_back(v.value);
+    for (const auto& [name, v] : runs[static_cast<std::size_t>(kPredictionRuns - 2 + s)]) values[name].push_back(v.value);
   }
   if (any_held) {
     fmt::print(out, "  (predicted sd: the noise's part, which the spread over seeds measures; the held angles' tolerance "

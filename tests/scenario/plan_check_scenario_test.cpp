@@ -12,6 +12,7 @@
 
 #include "analyzer/commands/plan_check.hpp"
 #include "common/input_error.hpp"
+#include "common/parallel.hpp"
 
 namespace {
 
@@ -56,6 +57,32 @@ TEST(PlanCheck, ThePaperPlansPredictionAgainstTheSpreadOverSeeds) {
     EXPECT_LE(p.ratio(), 1.25) << p.name;
   }
   EXPECT_EQ(angles, 4);
+}
+
+// The runs of the prediction and of the check are independent (each reseeds the bench): with
+// --jobs 2 they run side by side, each on one thread, into slots of their own. The runs then do
+// the arithmetic of a one-thread run, and only the first (which sets the model, before the others)
+// splits its columns over the threads: the findings agree to rounding.
+TEST(PlanCheck, TheRunsSideBySideGiveTheFindingsOfOneThread) {
+  PlanCheckOptions options;
+  options.bench = config_path("sim-paper-daq.toml");
+  options.seeds = 6;
+  std::ostringstream one_out, two_out;
+  inertia::parallel::set_jobs(1);
+  const std::vector<PlannedParameter> one = inertia::commands::plan_check(options, one_out);
+  inertia::parallel::set_jobs(2);
+  const std::vector<PlannedParameter> two = inertia::commands::plan_check(options, two_out);
+  inertia::parallel::set_jobs(1);
+  ASSERT_EQ(one.size(), two.size());
+  const auto near = [](double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(std::abs(a), std::abs(b)) + 1e-300; };
+  for (std::size_t k = 0; k < one.size(); ++k) {
+    ASSERT_EQ(one[k].name, two[k].name);
+    EXPECT_TRUE(near(one[k].value, two[k].value)) << one[k].name << ": " << one[k].value << " " << two[k].value;
+    EXPECT_TRUE(near(one[k].predicted_sd, two[k].predicted_sd)) << one[k].name;
+    EXPECT_TRUE(near(one[k].spread, two[k].spread)) << one[k].name;
+    EXPECT_EQ(one[k].runs, options.seeds) << one[k].name;
+    EXPECT_EQ(two[k].runs, options.seeds) << one[k].name;
+  }
 }
 
 TEST(PlanCheck, WhatItCannotPredictFromExitsTwoSayingWhy) {
