@@ -51,7 +51,7 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
     return;
   }
   std::vector<Index> fitted_terms = s.batch.terms;
-  const Eigen::VectorXd predicting = s.batch.theta.cwiseProduct(live.solver->prediction_signs(fitted_terms));
+  const Eigen::VectorXd coefficients = live.solver->signed_theta(s.batch);
   std::vector<procedure::CaseRows> layout;      // the rows by phase: the noise model's pieces are cut from them
   std::vector<procedure::CaseRows> case_runs;   // by case segment: one noise process each
   Eigen::VectorXd residuals(buffered_rows);
@@ -62,7 +62,7 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
   for (const BufferedRows& b : buffer) {
     Eigen::MatrixXd tb, tf;
     live.basis->transform(fitted_terms, s.m_cs[statistics.cases[b.state].mounting], s.batch.corner_rad_s.has_value(), tb, tf);
-    Eigen::VectorXd fit = b.base * (tb.transpose() * predicting);
+    Eigen::VectorXd fit = b.base * (tb.transpose() * coefficients);
     if (s.batch.corner_rad_s) {
       if (current != std::pair{b.state, b.segment}) hp.assign(live.basis->filtered_sources().size(), {});
       Eigen::MatrixXd f(b.base.rows(), live.basis->filtered_size());
@@ -71,7 +71,7 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
         procedure::highpass_in_place(f.col(j), *s.batch.corner_rad_s, b.period,
                                      hp[static_cast<std::size_t>(j)]);
       }
-      fit += f * (tf.transpose() * predicting);
+      fit += f * (tf.transpose() * coefficients);
     }
     const bool new_run = current != std::pair{b.state, b.segment};
     current = {b.state, b.segment};

@@ -336,12 +336,12 @@ class StatisticsTurns final : public procedure::TurnedBatch {
     if (!at.ok || !(at.s2 > 0.0)) return std::nullopt;
     const Eigen::MatrixXd g = solver_.turn_derivative_gram(at, parameters, infos_, m_cs_, procedure::kTurnDerivativeStepRad);
     const auto p = static_cast<Index>(at.terms.size()), q = static_cast<Index>(parameters.size());
-    const Eigen::VectorXd predicting = at.theta.cwiseProduct(solver_.prediction_signs(at.terms));
+    const Eigen::VectorXd coefficients = solver_.signed_theta(at);
     // With J the derivatives and the fitted columns X projected out (the terms re-fitted at every
     // turn), the step is (J~'J~)^-1 J~'r and J~'J~ / sigma^2 the turns' information; r = y - X theta.
     const Eigen::MatrixXd xx = g.topLeftCorner(p, p), xd = g.block(0, p, p, q), dd = g.block(p, p, q, q);
-    const Eigen::VectorXd xr = g.block(0, p + q, p, 1) - xx * predicting;
-    const Eigen::VectorXd dr = g.block(p, p + q, q, 1) - xd.transpose() * predicting;
+    const Eigen::VectorXd xr = g.block(0, p + q, p, 1) - xx * coefficients;
+    const Eigen::VectorXd dr = g.block(p, p + q, q, 1) - xd.transpose() * coefficients;
     const Eigen::LDLT<Eigen::MatrixXd> gram(xx);
     const Eigen::MatrixXd jj = dd - xd.transpose() * gram.solve(xd);
     const Eigen::VectorXd jr = dr - xd.transpose() * gram.solve(xr);
@@ -415,7 +415,7 @@ Eigen::MatrixXd LiveSolver::turn_derivative_gram(const StatFit& at, std::span<co
                                                   const std::vector<const Information*>& infos,
                                                   const std::vector<Eigen::Matrix3d>& m_cs, double step) const {
   const auto p = static_cast<Index>(at.terms.size()), q = static_cast<Index>(parameters.size());
-  const Eigen::VectorXd predicting = at.theta.cwiseProduct(prediction_signs(at.terms));
+  const Eigen::VectorXd coefficients = signed_theta(at);
   const CornerWeights weights = at.corner_rad_s ? grid_.at(*at.corner_rad_s) : CornerWeights{};
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(p + q + 1, p + q + 1);
   Eigen::MatrixXd tb, tf, up_b, up_f, down_b, down_f;
@@ -432,8 +432,8 @@ Eigen::MatrixXd LiveSolver::turn_derivative_gram(const StatFit& at, std::span<co
       turn(parameter.axis) = step;
       basis_.transform(at.terms, procedure::turned(m_cs[m], turn), weights.filtered(), up_b, up_f);
       basis_.transform(at.terms, procedure::turned(m_cs[m], -turn), weights.filtered(), down_b, down_f);
-      with_b.row(p + i) = predicting.transpose() * (up_b - down_b) / (2.0 * step);
-      if (tf.cols() > 0) with_f.row(p + i) = predicting.transpose() * (up_f - down_f) / (2.0 * step);
+      with_b.row(p + i) = coefficients.transpose() * (up_b - down_b) / (2.0 * step);
+      if (tf.cols() > 0) with_f.row(p + i) = coefficients.transpose() * (up_f - down_f) / (2.0 * step);
     }
     g += infos[m]->model_gram(with_b, with_f, weights);
   }

@@ -193,6 +193,11 @@ class LiveSolver {
   /// Per term of `terms`: +1, or -1 for an output-multiplied one, which ULS's prediction negates
   /// (uls_batch.hpp): the prediction is sum sign_j theta_j phi_j.
   [[nodiscard]] Eigen::VectorXd prediction_signs(const std::vector<Eigen::Index>& terms) const;
+  /// The fit's coefficients as its prediction takes them, sign_j theta_j (prediction_signs): the
+  /// fitted prediction of rows is their basis columns, transformed to `fit.terms`, times this.
+  [[nodiscard]] Eigen::VectorXd signed_theta(const StatFit& fit) const {
+    return fit.theta.cwiseProduct(prediction_signs(fit.terms));
+  }
   /// [Phi D y]'[Phi D y] over `infos`: Phi the fitted terms of `at` (each mounting with its M_C^S),
   /// D per turn parameter the derivative of the fitted prediction Phi(theta) with respect to it
   /// (its mounting turned by +-`step` rad, central difference of the transform; zero on the other
