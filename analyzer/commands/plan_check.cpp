@@ -140,12 +140,13 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
   std::vector<std::uint64_t> run_seeds;
   for (int k = 1; k < kPredictionRuns; ++k) run_seeds.push_back(first_seed + kPredictionSeedOffset + static_cast<std::uint64_t>(k));
   for (int s = 1; s <= options.seeds; ++s) run_seeds.push_back(first_seed + static_cast<std::uint64_t>(s));
+  const std::size_t first_check_run = kPredictionRuns - 1;   // where the check's runs start in `runs`
   std::vector<std::map<std::string, Reported>> runs(run_seeds.size());
   parallel::for_each_index(static_cast<long>(run_seeds.size()),
                            [&](long k) { runs[static_cast<std::size_t>(k)] = run_with_seed(run_seeds[static_cast<std::size_t>(k)]); });
   const std::map<std::string, Reported> first_run = reported_parameters(predicted);
   add_run(first_run);
-  for (int k = 1; k < kPredictionRuns; ++k) add_run(runs[static_cast<std::size_t>(k - 1)]);
+  for (std::size_t k = 0; k < first_check_run; ++k) add_run(runs[k]);
   fmt::print(out, "  predicted from {} simulated runs of the plan (seed {}, then {} and on) with the sensor's [sensor.truth] "
                   "and characterize's options: each sd is the RMS of what characterize reports over them\n",
              kPredictionRuns, bench.seed, first_seed + kPredictionSeedOffset + 1);
@@ -177,7 +178,7 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
   // The check: the spread of the estimates over more runs.
   std::map<std::string, std::vector<double>> values;
   for (int s = 1; s <= options.seeds; ++s) {
-    for (const auto& [name, v] : runs[static_cast<std::size_t>(kPredictionRuns - 2 + s)]) values[name].push_back(v.value);
+    for (const auto& [name, v] : runs[first_check_run + static_cast<std::size_t>(s - 1)]) values[name].push_back(v.value);
   }
   if (any_held) {
     fmt::print(out, "  (predicted sd: the noise's part, which the spread over seeds measures; the held angles' tolerance "

@@ -86,15 +86,17 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
     }
     at += b.y.size();
   }
-  // The whole segments' residual, transitions included, as the batch's inference reads its cases.
-  const Eigen::VectorXd case_residuals = residuals;
+  // A model kept unfiltered scales its variances by the whole segments' residual, transitions
+  // included, as the batch's inference reads its cases; noise_pieces demeans the pieces it keeps.
+  const bool unfiltered = !procedure::filters_rows(live.rational);
+  const Eigen::VectorXd case_residuals = unfiltered ? residuals : Eigen::VectorXd();
   layout = noise_pieces(residuals, std::move(layout));
   Index noise_rows = 0;
   for (const procedure::CaseRows& piece : layout) noise_rows += piece.rows;
   // An AR(m) fit wants ten rows per order (ArWhitener::fit): a low-rate bench's window holds fewer.
   const int max_order = std::min<int>(live.options.whitening_max_order, static_cast<int>(noise_rows / 10));
   const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, max_order);
-  if (!procedure::filters_rows(live.rational)) {
+  if (unfiltered) {
     // The noise model scales the variances instead, by what the batch's sandwich makes of a
     // column constant within each run.
     live.solver->set_long_run_variance_factor(

@@ -109,8 +109,9 @@ double unfiltered_long_run_ratio(const Eigen::VectorXd& residuals, const std::ve
   for (const CaseRows& rows : runs) {
     if (rows.rows < 2) continue;
     const auto run = residuals.segment(rows.begin, rows.rows);
-    const noise::SegmentSpectrum spectrum = residual_spectrum(run, ar);
-    long_run += noise::quadratic_form(spectrum, Eigen::VectorXd::Ones(rows.rows))(0, 0);
+    // 1'R1: the run's rows as one group, its noise sum's variance from the autocovariance.
+    const noise::RowGroups whole{std::vector<Eigen::Index>(static_cast<std::size_t>(rows.rows), 0), 1};
+    long_run += noise::group_covariance(residual_spectrum(run, ar), whole)(0, 0);
     power += run.squaredNorm();
   }
   return power > 0.0 && std::isfinite(long_run) ? std::max(1.0, long_run / power) : 1.0;
