@@ -204,11 +204,11 @@ int run(int argc, char** argv) {
 
 /// Grows the heap by `bytes` (address space only: nothing is touched, so nothing is resident)
 /// and asks the kernel to back it with transparent huge pages. The regressor matrices then live
-/// on 2 MB pages: one TLB entry and one fault per 2 MB instead of per 4 kB, which took
-/// characterize --order 2 on the paper dataset from 4.9 to about 4.2 user s. The freed block
-/// stays in the heap (M_TRIM_THRESHOLD above), so later allocations reuse the advised range;
-/// beyond it the heap grows with ordinary pages. glibc's own switch for this (the tunable
-/// glibc.malloc.hugetlb) is read from the environment only at process start.
+/// on 2 MB pages: one TLB entry and one fault per 2 MB instead of per 4 kB, which saves a
+/// noticeable share of characterize's time (docs/validation.md, 'Evidence behind choices in the
+/// code'). The freed block stays in the heap (M_TRIM_THRESHOLD above), so later allocations reuse
+/// the advised range; beyond it the heap grows with ordinary pages. glibc's own switch for this
+/// (the tunable glibc.malloc.hugetlb) is read from the environment only at process start.
 void reserve_heap_with_huge_pages(std::size_t bytes) {
   char* const before = static_cast<char*>(::sbrk(0));
   void* block = std::malloc(bytes);
@@ -226,9 +226,10 @@ void reserve_heap_with_huge_pages(std::size_t bytes) {
 int main(int argc, char** argv) {
   // The analysis allocates and frees regressor matrices of tens of MB hundreds of times. glibc
   // serves each from a fresh mmap (or trims the heap after the free), so every one costs a page
-  // fault per 4 kB: on the paper dataset 0.6 M faults, a third of characterize's time in the
-  // kernel. Keeping freed memory in the heap lets the next matrix reuse it (peak RSS 390 -> 400
-  // MB there). A process-wide allocator policy, so it is set here and not in the library.
+  // fault per 4 kB, and on the paper dataset those faults are a large share of characterize's
+  // time. Keeping freed memory in the heap lets the next matrix reuse it, for little more peak
+  // RSS (docs/validation.md, 'Evidence behind choices in the code'). A process-wide allocator
+  // policy, so it is set here and not in the library.
   mallopt(M_MMAP_THRESHOLD, 1024 * 1024 * 1024);
   mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
   // One arena for every thread: the --jobs threads' buffers (a transform's plan and columns,

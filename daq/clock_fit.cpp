@@ -26,7 +26,7 @@ void ClockFit::add(std::int64_t index, std::int64_t host_ns) noexcept {
   // least is the one that waited least. Not over the fitted line itself: before the first window
   // closes its offset follows the earliest floor, and excesses taken against a line that moved
   // within the window would rank a sample of a late start-up burst above the prompt ones after
-  // it (5 ms of late first samples put the first fits 4 to 9 ms off for 0.4 s).
+  // it and put the first fits milliseconds off (ClockFit.AStartUpBurstIsNotTheWindowsLeastDelayedSample).
   const double excess = static_cast<double>(host_ns) - static_cast<double>(anchor_stamp_) -
                         period_ns_ * static_cast<double>(index - anchor_index_);
   if (!window_open_) {

@@ -12,10 +12,12 @@
 // the kept points of the last span_s (the line below all of them closest to them in sum: an edge
 // of their lower convex hull, as in one-way-delay skew estimation) gives offset and period; a
 // stretch of late windows lies above it and cannot tilt it. With 200 us rms exponential jitter
-// at 1 kHz a window of 100 samples keeps a point ~2 us above the floor and the floor of those
-// points is the clock's to 0.05 us (unit tests, asserted below 20 us, after 10 s at +-50 ppm and
-// 0.1 % lost samples; 3 s of extra load at the start moves the drift 0.06 ppm, a least-squares
-// line 8.6 ppm), and its period carries the device clock's error against the host's (drift_ppm).
+// at 1 kHz a window of 100 samples keeps a point ~2 us above the floor, and the floor of those
+// points follows the clock where a stretch of extra load would tilt a least-squares line (tests
+// ClockFit.SampleTimesWithinTwentyMicrosecondsAfterTenSeconds and
+// ClockFit.ALoadedStretchDoesNotTiltTheDrift; figures in docs/validation.md, 'Evidence behind
+// choices in the code'); its period carries the device clock's error against the host's
+// (drift_ppm).
 //
 // The constant part of the floor is not observable from the stamps; it is the device's
 // `latency_floor_ns` (config; default 0). Thread: the publisher's; not real-time (no allocation

@@ -56,7 +56,7 @@ struct RowMaker {
 
 // ---- CAN ----------------------------------------------------------------------------------
 
-/// The command that brings a controller up as the bench wants it (the example form).
+/// The command that brings a controller up as the bench wants it.
 std::string can_up_command(const config::CanDevice& d) {
   std::string cmd = "ip link set " + d.interface + " up type can bitrate " +
                     (d.bitrate != 0 ? std::to_string(d.bitrate) : std::string("<the bus's bit rate>"));

@@ -1,7 +1,8 @@
 #pragma once
 // The publisher's wake-up when a sampling thread has put samples in its ring (publisher.hpp): a
 // block goes out as soon as its last sample is in, not at the publisher's next idle poll. That
-// poll (1 ms) was most of the daemon's sample-to-publish time; docs/validation.md "Latency under load".
+// poll (1 ms) would be most of the daemon's sample-to-publish time (docs/validation.md, "Latency
+// under load").
 // An eventfd: ring() is one non-blocking write(2) that never waits and never allocates, fit for
 // a sampling thread; wait() sleeps in poll(2) until a ring or the timeout, and clears the count.
 // A ring between the publisher's drain and its wait leaves the count set, so no wake-up is lost.

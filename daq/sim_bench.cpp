@@ -543,7 +543,7 @@ void SimBench::run() noexcept {
       }
     }
     // Paced: the batch's newest sample is due now (the sleep above), so the whole batch goes out
-    // together, as before, only in one call.
+    // together, in one call.
     if ((n + 1) % batch == 0 || n + 1 == run_samples_) {
       if (real_timing_ && bench_.sim_timing.jitter_s > 0.0 && !can_bus_.pending.empty()) {
         // The batch waits a while longer (an ADC's transfer, a driver, a busy host): its software

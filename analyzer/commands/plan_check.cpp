@@ -122,10 +122,10 @@ std::vector<PlannedParameter> plan_check(const PlanCheckOptions& options, std::o
     return reported_parameters(run_once(b, sensor, fixed));
   };
   // The prediction: what characterize reports, as an RMS over kPredictionRuns runs. One run's sd
-  // is itself an estimate, on the few dof between phases where the offsets between them count:
-  // over 60 runs of the paper plan the bias's ran from 2.1e-4 to 7.5e-4 mA, and the one run the
-  // prediction used to be read 2.4e-4 against a spread of 3.8e-4 (ratio 1.61; the RMS over the
-  // 60 is 3.85e-4). Seeds apart from the check's (first_seed + 1 ..).
+  // is itself an estimate, on the few dof between phases where the offsets between them count,
+  // and over runs of the paper plan the bias's sd varies several-fold: one run's can lie far from
+  // the spread, where the RMS over many lies close to it (docs/validation.md, 'Evidence behind
+  // choices in the code'). Seeds apart from the check's (first_seed + 1 ..).
   std::map<std::string, std::pair<double, double>> squares;   // sum of sd^2 and held_sd^2 over runs
   std::map<std::string, int> reporting;
   const auto add_run = [&](const std::map<std::string, Reported>& run) {

@@ -19,7 +19,8 @@ struct LibraryOptions {
   /// The largest mounting rotation (deg) offered as a misalignment. The rotation columns are the
   /// linearised sensitivity, and a setup error of several degrees is a wrong nominal m_ec rather
   /// than a misalignment; past this bound the rotation stops being a model of the data and starts
-  /// fitting whatever the given model lacks (a datasheet model on sim-paper took 37.8 deg about x).
+  /// fitting whatever the given model lacks (a datasheet model on sim-paper took a rotation of
+  /// tens of degrees; docs/validation.md, 'Evidence behind choices in the code').
   double max_rotation_deg = 5.0;
 };
 

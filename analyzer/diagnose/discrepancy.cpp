@@ -396,8 +396,9 @@ Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& 
   w.stack = procedure::stack_regressions(w.columns, inputs, data.t_ref, label, w.first_row);
   w.rotation_of.assign(w.columns.size(), {-1, -1});
   // Only for datasets that declare mountings (`mounting` labels): with the rotation columns in
-  // the library, the pink-noise control of tests/scenario raised 2 false alarms (a_i^2) in 20
-  // seeds instead of 0, so they are not offered where the dataset says nothing about mountings.
+  // the library, the pink-noise control (DiagnoseScenario.ControlPinkNoiseFalseAlarmRate) raised
+  // false alarms (docs/validation.md, 'Evidence behind choices in the code'), so they are not
+  // offered where the dataset says nothing about mountings.
   const bool declared = std::any_of(data.cases.begin(), data.cases.end(), [](const dataset::CaseData& c) { return !c.mounting.empty(); });
   if (options.library.mounting_rotations && declared && mountings.names.size() >= 2) {
     add_rotation_columns(w, data, current, mountings);
@@ -679,10 +680,11 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
   model::ModelFile current = model;
   // A model with neither squares nor a corner (a datasheet model): eq. 12's squares act through
   // s / (s + b), and offered only as static squares they fit the wrong shape (on sim-paper the
-  // search named a_p^2 at 11x its gain and a_i*a_p with the wrong sign, leaving 120x the noise).
-  // The first time a static square wins a step, the corner is estimated and the step runs again
-  // on filtered squares. Not before: a corner fitted to a residual that holds no square is
-  // fitted to noise (searching it up front raised the pink-noise control's false alarms to 3/20).
+  // search named terms at many times their gain or with the wrong sign, and left a residual far
+  // above the noise). The first time a static square wins a step, the corner is estimated and the
+  // step runs again on filtered squares. Not before: a corner fitted to a residual that holds no
+  // square is fitted to noise (searching it up front raised the pink-noise control's false
+  // alarms). Figures for both: docs/validation.md, 'Evidence behind choices in the code'.
   bool corner_settled = model.square_highpass_rad_s.has_value() ||
                         std::any_of(model.terms.begin(), model.terms.end(),
                                     [](const model::ModelTerm& t) { return procedure::is_square_term(t.term); });
@@ -829,8 +831,8 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
       const double n = f.dof + static_cast<double>(f.columns.size()) + 1.0;
       const double daic = n * std::log(f.dof / (f.dof + t * t)) + 2.0;
       // A corner estimated here was chosen to make the squares fit best: their test pays for the
-      // search as for one test per grid corner (without it the pink-noise control named a square
-      // in 3 of 20 seeds).
+      // search as for one test per grid corner (without it the pink-noise control,
+      // DiagnoseScenario.ControlPinkNoiseFalseAlarmRate, names squares).
       const bool searched = w.square_corner_estimated && procedure::is_square_term(w.columns[static_cast<std::size_t>(col)]);
       const double needed = searched ? threshold / procedure::SquareCornerSearch::kGridCorners : threshold;
       if (!(pv < needed) || !(daic < 0.0) || !std::isfinite(t)) continue;
@@ -843,9 +845,9 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
       const double score = whitened_energy(w, trial_residual, f.ar) / whitened_energy(w, r, f.ar);
       // The free run must gain what the one-step test found: its whitened energy falls by at least
       // as much as a column at the needed t takes out of a fit on these rows (the energy ratio
-      // dof / (dof + t^2)). An output lag fits the noise's colour one step ahead and leaves the
-      // free run where it was: on sim-thermal's own characterize model y[k-1] came out 0.628 at
-      // t 446, and the free run's RMS stayed 0.00019337 mA.
+      // dof / (dof + t^2)). An output lag fits the noise's colour one step ahead with a large t
+      // and leaves the free run where it was (test
+      // DiagnoseScenario.ACharacterizedThermalModelOnItsOwnDataNamesNothing).
       const double free_t = std::sqrt(std::max(0.0, f.dof * (1.0 / score - 1.0)));
       if (!(ident::student_t_two_sided_p(free_t, f.dof) < needed)) continue;
       if (score < best_score) {

@@ -107,8 +107,8 @@ std::vector<std::pair<Index, Index>> octave_bands(Index length) {
 
 /// Variance of a band's statistic sum_{s,k} |X_sk|^2 / E_k for the lowest bins under a model with
 /// slow noise: the white formula (WindowCorrelation) takes segments more than half a window apart
-/// as independent, which 1/f noise is not at the lowest bins (over 60 simulated cases the lowest
-/// band's spread was 0.57 against that formula's 0.43, and 0.49 with this one). For Gaussian noise,
+/// as independent, which 1/f noise is not at the lowest bins, and so understates the lowest band's
+/// spread (docs/validation.md, 'Evidence behind choices in the code'). For Gaussian noise,
 ///   Var = sum_d (K - |d|) sum_{k,m} (|E X_{s,k} X*_{s+d,m}|^2 + |E X_{s,k} X_{s+d,m}|^2) / (E_k E_m),
 /// each expectation the integral of the whole model's two-sided PSD against the bins' kernels C_k,
 /// shifted by d hops: on the fine grid, one inverse DFT per pair of bins gives every shift. The
@@ -267,7 +267,8 @@ CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise)
     b.dof = 2.0 * mean * mean / variance;
     // The expected power is itself an estimate where the law's terms carry their sd: the ratio is
     // then F-like, the band's scaled chi-square over the reference's (its dof 2 / relative
-    // variance). Taken as exact, sim-thermal's top octave at x1.02 on 78000 dof read as excess.
+    // variance). Taken as exact, a law's small misfit on many dof reads as excess (sim-thermal's
+    // top octave; docs/validation.md, 'Evidence behind choices in the code').
     const double reference = noise.band_relative_variance(b.f_lo_hz, std::max(b.f_hi_hz, b.f_lo_hz * 1.0001), fs);
     b.reference_dof = reference > 0.0 ? 2.0 / reference : 0.0;
     b.p_value = b.reference_dof > 0.0 ? f_upper(b.dof, b.reference_dof, b.ratio) : chi2_upper(b.dof, b.dof * b.ratio);
@@ -526,7 +527,8 @@ Location locate(const dataset::Dataset& data, const std::vector<CaseResidual>& r
   // holding a share of a run gets that share of the run's dof: where its samples interleave
   // through the run (|a| under vibration) they share its slow noise and have more (conservative).
   // The scaled chi-square's tail is light where the noise is flicker across the whole band (few
-  // dominant eigenvalues): at p 0.01 it rejected 2.4 % of stretches of 4400 samples of such noise.
+  // dominant eigenvalues), so it rejects more such stretches than its level says
+  // (docs/validation.md, 'Evidence behind choices in the code').
   struct Acc {
     double ss = 0.0, expected = 0.0, half_variance = 0.0;
     Index n = 0;

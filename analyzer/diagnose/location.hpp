@@ -30,9 +30,9 @@ namespace inertia::diagnose {
 ///    random walk, ramp), as `inertia-analyze noise` or characterize measure them on the sensor's
 ///    own output. That output's noise is what the free-run residual holds (an ARMAX model's C/A is
 ///    inside it), and the law's terms come from one fit: its N and Q share the top octaves (their
-///    estimates trade off), so N is not replaced by white_sd. With white_sd in N's place and the
-///    law's Q, a 30 s law read a white band 1.18 times the model (DiagnoseScenario's
-///    pink-noise seed 1610).
+///    estimates trade off), so N is not replaced by white_sd: with white_sd in N's place and the
+///    law's Q, a white band can read above the model (DiagnoseScenario's pink-noise seeds;
+///    docs/validation.md, 'Evidence behind choices in the code').
 ///  - otherwise e white with sd `white_sd`, residual = C(q)/A(q) e, plus whatever slow terms the
 ///    law states (B, K, R without N).
 struct NoiseModel {

@@ -76,7 +76,8 @@ struct AssemblerOptions {
   /// Shorter valid stretches are dropped (counted). A stretch is a piece of its case when lost
   /// samples cut it (log_dataset: CaseData::piece_of): at 0.1 s it still keeps most of its rows
   /// after the prewhitening's warm-up (AR orders of tens of samples at 1 kHz), and at 0.1 % lost
-  /// frames it drops about 1 % of the rows (0.5 s dropped 14 % on the paper bench).
+  /// frames it drops about 1 % of the rows, where a longer minimum drops many more
+  /// (docs/validation.md, 'Evidence behind choices in the code').
   double min_segment_s = 0.1;
   double crossover_hz = 5.0;           // shaker: encoder below, monitors above
   /// How far (stream time) a device or the plan markers may stay behind the sensor output before

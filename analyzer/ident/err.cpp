@@ -138,11 +138,9 @@ ErrRanking err_rank(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   if (y.size() != phi.rows()) throw std::invalid_argument("err_rank: phi and y differ in length");
   const Eigen::Index wanted = std::max<Eigen::Index>(options.max_terms, static_cast<Eigen::Index>(options.forced.size()));
   // The Gram matrix is one level-3 SYRK; the left-looking ranking costs one memory-bound pass
-  // per selected term. Measured with AVX2/FMA (x86-64-v3), passes against Gram:
-  //   N = 1e5 (peer_frols_compare): p = 15, k = 3: 1.2 / 2.8 ms; p = 36, k = 6: 3.9 / 6.7 ms;
-  //   p = 78, k = 5: 8.4 / 23 ms;
-  //   N = 1e6, p = 60 (bench_ident_err): k = 6: 116 / 146 ms; k = 16: 257 / 147 ms.
-  // 3.5 (k + 1) <= p keeps every case above on the faster side except the last, at the edge.
+  // per selected term, so the passes win while few of many terms are wanted: 3.5 (k + 1) <= p.
+  // The timings of both (peer_frols_compare, bench_ident_err) are in docs/validation.md,
+  // 'Evidence behind choices in the code'.
   if (options.max_terms < 0 || 7 * (wanted + 1) > 2 * p) return err_rank(ErrGram::from_data(phi, y).matrix(), options);
   Eigen::VectorXd y_column(p + 1);
   y_column.head(p).noalias() = phi.transpose() * y;

@@ -83,8 +83,8 @@ struct Regression {
 /// Throws InputError for a missing variable (check_signals) or a case too short for the lags.
 /// Cost: every column is a product of lagged signal segments written straight into Phi (no
 /// temporaries); Phi's pages are advised as huge pages, since first-touching hundreds of MB in
-/// 4 KiB pages cost more than the arithmetic. N = 1e6 x 60 terms: ~0.14 s CPU per build, ~0.07 s
-/// into a reused Phi (tests/bench/regressors_benchmark.cpp). Not real-time: allocates Phi.
+/// 4 KiB pages cost more than the arithmetic (timings: tests/bench/regressors_benchmark.cpp;
+/// docs/validation.md, 'Evidence behind choices in the code'). Not real-time: allocates Phi.
 Regression build_regression(std::span<const Term> terms, const SignalSet& signals, Eigen::Index min_first_row = 0);
 
 /// Fills a caller-sized phi (signals.size() - first_row rows, terms.size() columns); allocates

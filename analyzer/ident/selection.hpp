@@ -86,9 +86,8 @@ struct SelectionOptions {
   /// Family-wise t-test significance level of step 9. 1%, not 5%: the exact structure is
   /// recovered in about 1 - alpha of the cases, and at bench sample counts (1e4-1e6) real effects
   /// have t far above the Bonferroni threshold (3.9 at 60 candidates), so the stricter level costs
-  /// no true term. Measured through algorithm 2 on 300 random sparse models
-  /// (SparseSelectionScenario, seeds 7000-7099, 8000-8099, 9000-9099): exact structure 278/300
-  /// at 0.05, 287/300 at 0.01.
+  /// no true term. SparseSelectionScenario measures the exact-structure rate of algorithm 2 on
+  /// random sparse models (figures: docs/validation.md, 'Evidence behind choices in the code').
   double alpha = 0.01;
   /// Default Bonferroni: with a per-term alpha, 15 spurious candidates of 20 leave at least one
   /// spurious term with probability up to 1 - 0.95^15 = 54%, and a kept spurious term lowers AIC

@@ -221,9 +221,9 @@ constexpr int kTwoComponentDof = 4;
 /// B with (X'X)^-1 = B'B, from the QR of X with its columns scaled to unit norm: X S^-1 = Q R P'
 /// gives B = R^-T P' S^-1. A sandwich B'(B M B')B then stays positive semidefinite for a
 /// semidefinite meat M where (X'X)^-1 M (X'X)^-1 through an LDLT of X'X, whose condition is the
-/// square of X's, came out with negative variances (sim-tumble seed 80: sign(a_i) and
-/// a_i*abs(a_i) differ from a_i only in the poses with the input axis level, and the batch's
-/// sandwich gave a_i a variance of -8e5, read as a t of infinity).
+/// square of X's, can give negative variances, read as a t of infinity, on nearly dependent
+/// columns (on a tumble, sign(a_i) and a_i*abs(a_i) differ from a_i only in the poses with the
+/// input axis level; docs/validation.md, 'Evidence behind choices in the code').
 Eigen::MatrixXd inverse_gram_factor(const Eigen::Ref<const Eigen::MatrixXd>& x) {
   const Eigen::Index p = x.cols();
   Eigen::VectorXd scale = x.colwise().norm().transpose();
@@ -231,7 +231,7 @@ Eigen::MatrixXd inverse_gram_factor(const Eigen::Ref<const Eigen::MatrixXd>& x) 
     if (!(scale(j) > 0.0)) scale(j) = 1.0;
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(x * scale.cwiseInverse().asDiagonal());
   Eigen::MatrixXd r = qr.matrixR().topLeftCorner(p, p).triangularView<Eigen::Upper>();
-  // A dependent column gets an enormous variance, not an infinite one (as the LDLT gave before).
+  // A dependent column gets an enormous variance, not an infinite one (as an LDLT of X'X gives).
   const double floor = p > 0 ? 1e-15 * std::abs(r(0, 0)) : 0.0;
   for (Eigen::Index j = 0; j < p; ++j)
     if (std::abs(r(j, j)) < floor) r(j, j) = std::copysign(floor, r(j, j));
@@ -382,19 +382,19 @@ ClusterOffsets cluster_offsets(const ClusterSums& cs, const GramFactor& gram, do
     const Eigen::VectorXd excess = mean_square - noise_part.cwiseQuotient(rows.cwiseAbs2());
     // The offsets' share the fit absorbed: G / dof on the whole. The exact share, (D - P)^2, takes
     // each phase's offset as independent of its neighbours'. Flicker below one cycle per case
-    // makes a case's offsets move together, and the exact share then put the paper plan's bias sd
-    // 2.45 times below its spread over 60 seeds (1.61 with G / dof; plan-check sim-paper-daq).
+    // makes a case's offsets move together, and the exact share then understates the bias's sd
+    // far more than G / dof does (plan-check on sim-paper-daq; docs/validation.md, 'Evidence
+    // behind choices in the code').
     const double inflate = static_cast<double>(out.clusters) / static_cast<double>(out.between_dof);
     // Non-negative least squares of excess on [1 q]: both, or the better single one. On fewer
     // than kTwoComponentDof between-cluster dof the residual means are one point in a space of 2
-    // or 3 dimensions, which either shape fits, and the split is noise: on sim-tumble (6 poses,
-    // 2 dof) the common part took most of it, and over 200 seeds the scale factor's sd came out 35
-    // times its spread (median |z| 0.024 against t(2)'s 0.82), the angles' a little small. There
-    // the offsets are taken as the placements': a small tilt moves a pose's output in proportion
-    // to the specific force across the input axis, and an offset common to the poses beyond the
-    // noise's (the static law below one cycle per case) would be a turn-on repeatability these
-    // few dof cannot tell from it. Then the scale factor's median |z| is 0.66, and 765 of 800
-    // intervals cover (95.6 %).
+    // or 3 dimensions, which either shape fits, and the split is noise: on a tumble (6 poses,
+    // 2 dof) the common part can take most of it and overstate the scale factor's sd many times.
+    // There the offsets are taken as the placements': a small tilt moves a pose's output in
+    // proportion to the specific force across the input axis, and an offset common to the poses
+    // beyond the noise's (the static law below one cycle per case) would be a turn-on
+    // repeatability these few dof cannot tell from it. The figures on sim-tumble over seeds:
+    // docs/validation.md, 'Evidence behind choices in the code'.
     double t0 = std::max(0.0, excess.mean()), t1 = 0.0;
     bool exact_share = false;
     const bool varying = cs.loading.size() != 0 && out.between_dof >= 2 && (q.array() - q.mean()).abs().maxCoeff() > 0.0;
@@ -416,10 +416,11 @@ ClusterOffsets cluster_offsets(const ClusterSums& cs, const GramFactor& gram, do
       if (placements_only) {
         // A placement is an act of its own, independent pose to pose, so the share of each offset
         // the fit absorbed is the exact one: a cluster's residual mean is ((D - P) u)_g / n_g, and
-        // E[m_g^2] = tau_1^2 sum_h ((D - P)_gh / n_g)^2 q_h. On sim-tumble the poses with the
-        // input axis level keep 0.28 of their offsets' variance in their residual means, and
-        // G / dof = 3 took the angles' variance 17 % low (median |z| 0.97 and 1.10 over 100
-        // seeds against t(2)'s 0.82; coverage 89 and 92 %).
+        // E[m_g^2] = tau_1^2 sum_h ((D - P)_gh / n_g)^2 q_h. On a tumble the poses with the input
+        // axis level keep 0.28 of their offsets' variance in their residual means, not the 1/3 of
+        // G / dof = 3, which would take the angles' variance low (test
+        // Statistics.ClusterOffsetsOfPlacementsAreUnbiasedOnATumble; docs/validation.md, 'Evidence
+        // behind choices in the code').
         const Eigen::MatrixXd kept_share = Eigen::MatrixXd(rows.asDiagonal()) - sums.transpose() * inverse_sums;   // D - P
         const Eigen::VectorXd reach = kept_share.cwiseAbs2() * q;
         const Eigen::VectorXd per_mean = reach.cwiseQuotient(rows.cwiseAbs2());

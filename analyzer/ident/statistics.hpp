@@ -59,7 +59,7 @@ struct ResidualMeanTest {
 /// Why: model residuals of dynamic sensors are autocorrelated, and the variance of the mean of an
 /// AR(1) series is s^2 (1 + r1) / (N (1 - r1)) for large N; the naive s^2 / N makes the test reject
 /// a zero-mean AR(1) with r1 = 0.9 about 65% of the time instead of 5% (test
-/// ResidualMeanTest.FalseAlarmRate). We prefer this one-parameter form to a Newey-West long-run
+/// Statistics.ResidualMeanTestFalseAlarmRate). We prefer this one-parameter form to a Newey-West long-run
 /// variance because it needs no bandwidth choice and is exact for the AR(1) residuals that
 /// dominate in practice; N_eff never exceeds N (negative r1 would claim more information than
 /// the samples hold; clamping keeps the test conservative).
@@ -172,9 +172,10 @@ inline constexpr double kClusterLevelShare = 1e-2;
 ///   x~_k = x_k - lambda_g mean_g(x),  lambda_g = 1 - sqrt(w_g),  theta = (X~'X~)^-1 X~'y~.
 /// Why: least squares weighs every cluster's mean alike. When the offsets differ between clusters
 /// (a tumble's placement tilt moves the poses with the input axis level and hardly those with it
-/// vertical) the estimate takes in the scattered clusters' offsets: on sim-tumble seed 1 the bias
-/// came out 1.24e-3 +- 8.5e-4 g against a truth of 2.505e-3, where the classical (up + down) / 2
-/// of the same data is 2.482e-3. Its covariance is the sandwich under the same model,
+/// vertical) the estimate takes in the scattered clusters' offsets, which the classical
+/// (up + down) / 2 of the same data leaves out (test
+/// Statistics.RandomEffectsCoverageAndGainWhereOffsetsReachSomeClusters measures the gain). Its
+/// covariance is the sandwich under the same model,
 ///   V = A^-1 (X2' R X2 + sum_g tau_g^2 (w_g n_g mean_g(x))(..)') A^-1,  A = X~'X~,
 ///   X2 = x_k - (1 - w_g) mean_g(x) (the transform applied twice),
 /// which holds whatever the weights, so weights from an estimated tau cost efficiency, not honesty.
@@ -211,8 +212,8 @@ inline constexpr double kDistinctOffsets = 10.0;
 ///  - fewer than 2 clusters, or a cluster whose noise sum has no variance;
 ///  - an offset alike in every cluster (within kDistinctOffsets): the weights would only trade the
 ///    means against what varies within the clusters, which in static phases is the whitening's
-///    transients and the reference's noise (on sim-tumble seed 31, under a common offset, the
-///    weighed fit's covariance came out indefinite);
+///    transients and the reference's noise, and the weighed fit's covariance can come out
+///    indefinite (docs/validation.md, 'Evidence behind choices in the code');
 ///  - dependent weighed columns, weights alike (the offsets small against the noise in every
 ///    cluster), or a covariance that is not one.
 std::optional<RandomEffectsFit> weighed_by_offsets(const ClusterOffsets& offsets, const Eigen::VectorXd& loading,

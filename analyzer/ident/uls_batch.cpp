@@ -377,9 +377,9 @@ UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   const Eigen::VectorXd zeta = y - lin;
   // eps = zeta / b: for raw rows the same as y - a / b (there c_j = y p_b,j, so y b - a = zeta),
   // and still right for rows through the noise model's A(q) (prewhitening.hpp), where the filtered
-  // c_j is not the filtered y times the (unfiltered) factor: y - a / b there left a misfit that
-  // follows the output-multiplied columns (1.7e-6 rad/s on a noise-free gyro on a rate table,
-  // where the free run is exact to 1e-9).
+  // c_j is not the filtered y times the (unfiltered) factor: y - a / b there leaves a misfit that
+  // follows the output-multiplied columns, far above rounding on a noise-free gyro on a rate table
+  // (docs/validation.md, 'Evidence behind choices in the code').
   out.residuals = zeta.cwiseQuotient(b);
   const double dof = static_cast<double>(std::max<Index>(n - p, 1));
   out.residual_variance = out.residuals.squaredNorm() / dof;

@@ -30,8 +30,8 @@ struct AllanAccumulator::Level {
 
   // History: 2m samples for d, 3m - 1 for the modified variance's sums of m of them. Each block
   // integrates the phase over the history again, so the block is at least as long: 2 additions a
-  // sample at a decimated level (32 kB with K = 10, as long as the rings were), 7/4 at level 0,
-  // which has every sample and every octave; at least 1024, so that the per-block passes are long.
+  // sample at a decimated level (32 kB with K = 10), 7/4 at level 0, which has every sample and
+  // every octave; at least 1024, so that the per-block passes are long.
   Level(int first, int last, bool with_modified)
       : first_octave(first), last_octave(last), modified(with_modified),
         history((with_modified ? 3 : 2) * (Eigen::Index{1} << last)),

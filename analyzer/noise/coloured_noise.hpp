@@ -6,8 +6,9 @@
 // noise keep rising while the AR model's spectrum is flat. The whitened residual is then white
 // at high frequency and coloured at low frequency, and the classical covariance sigma^2 (X'X)^-1
 // weighs the low-frequency information (gravity in a pose, the table's slow rotation, the shaker's
-// static orientation) as if the noise there were as quiet as at high frequency: 5 to 11 times
-// optimistic on the paper-daq bench (plan-check --seeds 20).
+// static orientation) as if the noise there were as quiet as at high frequency, and so is
+// several times optimistic (plan-check --seeds measures it; docs/validation.md, 'Evidence behind
+// choices in the code').
 //
 // Here the whitened residual of each case gets a noise model of its own, the sensor-noise terms
 // of noise_fit.hpp (Q, N, B, K, R: white, flicker, random walk ..) fitted to its Allan variance,

@@ -16,10 +16,10 @@ constexpr double kFlicker = 2.0 * std::numbers::ln2 / std::numbers::pi;
 
 /// Correlation of overlapping Allan variance estimates `octaves` apart, for the noise that
 /// dominates them: adjacent octaves share half their samples, and the redder the noise the more
-/// the long windows of one octave see what the other saw. Measured on 200 simulated records of
-/// 2^16 samples per noise type (spread of each figure about +-0.07): white FM 0.50, 0.15, 0.03;
-/// flicker FM 0.70, 0.33, 0.13; random-walk FM 0.88, 0.65, 0.48 for 1, 2, 3 octaves; farther
-/// octaves: the third's figure falling by 0.7 an octave. White PM and ramps take the nearest type.
+/// the long windows of one octave see what the other saw. The figures for 1, 2 and 3 octaves are
+/// empirical, from simulated records of each noise type (docs/validation.md, 'Evidence behind
+/// choices in the code'); farther octaves: the third's figure falling by 0.7 an octave. White PM
+/// and ramps take the nearest type.
 double octave_correlation(int alpha, int octaves) {
   if (octaves == 0) return 1.0;
   static constexpr double kWhite[3] = {0.50, 0.15, 0.03}, kFlicker[3] = {0.70, 0.33, 0.13}, kWalk[3] = {0.88, 0.65, 0.48};

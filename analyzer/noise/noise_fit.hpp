@@ -12,9 +12,9 @@
 // (the best of the non-negative subsets). Adjacent octaves of the overlapping estimator share
 // samples, so their estimates are correlated (0.5 between neighbours for white noise, 0.9 for a
 // random walk; measured, noise_fit.cpp): the coefficients' covariance is the sandwich of the
-// weighted fit with that full covariance. Over 20 simulated records (test NoiseFit.*) N, B, K lie
-// in their 95 % intervals 18-19 times and the intervals are 0.95-1.2 times the spread of the
-// estimates. Each term's interval is its variance coefficient's, clipped at 0.
+// weighted fit with that full covariance (its coverage and width over simulated records: test
+// NoiseFit.TermsLieInTheirIntervalsAndTheIntervalsMatchTheSpread). Each term's interval is its
+// variance coefficient's, clipped at 0.
 #include <array>
 #include <optional>
 #include <string>

@@ -6,8 +6,8 @@
 // stretch of it) a handful of lambdas dominate. The scaled chi-square that matches the mean and
 // variance alone (Satterthwaite) then puts the upper tail too light: for weights 10, 3, 1, 0.3 on
 // two dof each it gives 4.9e-8 where the truth is 5.0e-7. On diagnose's pink-noise shaker
-// scenario its segments fell below the Bonferroni threshold 3 times in 180 (1 expected), a 0.2 s
-// static phase at p 6e-5.
+// scenario that made segments fall below the Bonferroni threshold more often than expected
+// (docs/validation.md, 'Evidence behind choices in the code').
 //
 // Here the leading eigenvalues are kept as they are, and the rest (many and small) are one scaled
 // chi-square matched on their mean and variance. The tail comes from the saddlepoint

@@ -104,8 +104,9 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
     ident::SelectionProblem problem{filtered.phi, filtered.y, filtered.labels, filtered.rational, ranking};
     // Every inertial sensor has a bias and a scale factor: the t-test of step 9 weighs the other
     // terms against them, never them against a candidate. Pruning the weaker of a near-collinear
-    // pair first, it took the bias out of sim-gyro-thermal's model (seed 116: t 0.9 beside a_p's
-    // 1.3, with the bias's 2e-6 rad/s in the p axis' mean specific force) and named a_p at t 7.8.
+    // pair first, it could take the bias out of the model and name a_p in its place (a_p's column
+    // has a mean where the p axis' mean specific force is not zero; sim-gyro-thermal in
+    // docs/validation.md, 'Evidence behind choices in the code').
     for (const Eigen::Index j : ident::sensitivities_then_bias(filtered.labels, data.sensor))
       if (std::find(ranking.begin(), ranking.end(), j) != ranking.end()) problem.kept.push_back(j);
     const ident::SelectionResult selected = ident::select_model(problem, selection, nullptr);
@@ -150,7 +151,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   if (!result.rows_filtered) honest.unfiltered_rows_ar = whitener.coefficients();
   // The searches whose results the batch's columns are built with: the squares' corner and each
   // mounting's determined angles (blocks 5-6, on the same samples). They join the Jacobian, so the
-  // between-phase dof no longer count the angles separately.
+  // between-phase dof do not count the angles separately.
   struct Searched {
     std::size_t mounting = 0;
     int axis = 0;   // 0: the squares' corner; 1, 2, 3: the mounting's turn (turned(): tilts, twist)

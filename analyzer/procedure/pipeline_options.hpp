@@ -29,9 +29,9 @@ struct PipelineOptions {
   /// Largest order of the autoregressive noise model used to prewhiten every fit (GLS; see
   /// prewhitening.hpp); 0 fits by ordinary least squares as the paper does. At 10 kHz an AR model
   /// needs many lags to follow 1/f noise down toward the table's rotation frequency (AIC keeps
-  /// asking for the largest order on the table). Median complete-model table error over the 10
-  /// seeds of reproduce-paper: 0.0057 deg with 60, 0.0037 with 120, 0.0039 with 200; characterize
-  /// --order 2 on the paper dataset: 3.1, 3.3 and 5.8 s of user time.
+  /// asking for the largest order on the table). 120 lags: fewer leave reproduce-paper's
+  /// complete-model table error larger, and more gain nothing and cost time (docs/validation.md,
+  /// 'Evidence behind choices in the code').
   int whitening_max_order = 120;
   int max_refinements = 6;                  // step-1 fixed point: nonlinear F_S terms need M_E^S
   /// Which terms blocks 5-6 leave out of a mounting and which bias it takes from another
@@ -58,24 +58,25 @@ struct PipelineOptions {
   /// mounting whose true misalignment turns the case about n_i (e.g. 2 deg about case [1,1,1])
   /// evaluates a_p and a_o in a frame twisted against the sensor's. The terms in a_p, a_o are
   /// not closed under that twist (a_p^2 and a_o^2 pass a high pass, a_p*a_o does not; on the table
-  /// a_p^2 and a_o^2 are left out), so the twist leaves a model error that tilts theta_x..z
-  /// (0.003 deg on the noise-free shaker) and makes the mountings disagree in the batch. When
-  /// true, blocks 5-6 also estimate the twist about n_i of mountings whose model uses a_p or a_o,
-  /// by parabolic steps on the (prewhitened) residual sum of squares, one per refinement of step 1.
-  /// Off by default: on noise-free paper data it finds the shaker's 1.16 deg twist and takes the
-  /// shaker error from 0.003 to 0.00002 deg, but with table 1's noise the residual is nearly flat
-  /// in the twist (5e-6 relative over +-6 deg) and the steps wander (shaker error 0.019 deg).
+  /// a_p^2 and a_o^2 are left out), so the twist leaves a model error that tilts theta_x..z and
+  /// makes the mountings disagree in the batch. When true, blocks 5-6 also estimate the twist
+  /// about n_i of mountings whose model uses a_p or a_o, by parabolic steps on the (prewhitened)
+  /// residual sum of squares, one per refinement of step 1.
+  /// Off by default: on noise-free paper data it finds the shaker's twist and removes most of that
+  /// error, but with table 1's noise the residual is nearly flat in the twist and the steps wander,
+  /// leaving a larger error than the twist did (docs/validation.md, 'Evidence behind choices in
+  /// the code').
   bool estimate_twist = false;
   /// What the data do determine about the twist: how the mountings are turned about n_i against
   /// one another. The cross-axis terms (a_i*a_p, a_p*a_o, a_p^2 ..) are one set for the sensor,
   /// so a mounting held at its nominal twist while another is not forces the batch to fit one
-  /// set of terms in two frames (sim-paper: the shaker's 1.15 deg left a_i*a_p 97 of its sd from
-  /// the truth, a_i*a_o 51, a_p*a_o 48). When true, the batch estimates each further aligned
-  /// mounting's twist relative to the reference mounting (the first aligned one, whose nominal
-  /// twist defines the sensor's p and o axes, as algorithm 1 does), by Gauss-Newton on the
-  /// whitened residual of the batch candidates, and its uncertainty joins the coefficients'
-  /// covariance (a searched parameter). A twist the plan does not determine (its sd above
-  /// mounting_tolerance_rad) stays at the nominal frame, and the notes say so.
+  /// set of terms in two frames, which leaves those terms many sd from the truth (sim-paper in
+  /// docs/validation.md, 'Evidence behind choices in the code'). When true, the batch estimates
+  /// each further aligned mounting's twist relative to the reference mounting (the first aligned
+  /// one, whose nominal twist defines the sensor's p and o axes, as algorithm 1 does), by
+  /// Gauss-Newton on the whitened residual of the batch candidates, and its uncertainty joins the
+  /// coefficients' covariance (a searched parameter). A twist the plan does not determine (its sd
+  /// above mounting_tolerance_rad) stays at the nominal frame, and the notes say so.
   bool batch_relative_twist = true;
   /// Temperature terms join the candidates (T, a_i*T; gyros T, T[k-1], y*T) whenever every case
   /// has a temperature column: a thermal plan's effects must be offered to be found, and a plan

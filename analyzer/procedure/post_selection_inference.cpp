@@ -231,11 +231,11 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     // When the phases' means are all the model's columns say (every term constant within each
     // phase: static poses) and their offsets differ, each mean is weighed by what its offset
     // leaves of it (random effects). Where a column varies within the phases the weights would
-    // also trade the means against that variation, which leans on the within-phase noise model:
-    // on sim-paper-daq the weighed estimates spread up to 1.30 times their sd over 60 seeds, where
-    // least squares' spread 1.21 times theirs (plan-check), so there least squares with the
-    // sandwich above stays. So it does for ULS's output-multiplied columns and noise terms, which
-    // carry their own noise model.
+    // also trade the means against that variation, which leans on the within-phase noise model,
+    // and on sim-paper-daq the weighed estimates' sd understated their spread more than least
+    // squares' did (plan-check; docs/validation.md, 'Evidence behind choices in the code'), so
+    // there least squares with the sandwich above stays. So it does for ULS's output-multiplied
+    // columns and noise terms, which carry their own noise model.
     std::optional<ident::RandomEffectsFit> weighed;
     const bool means_only = std::all_of(phase_level.begin(), phase_level.end(), [](bool b) { return b; });
     if (means_only && out.offsets.tau2 > 0.0 && output_multiplied.empty() && fit.theta.size() == p)
@@ -274,7 +274,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     fit.covariance.topLeftCorner(p, p) = covariance;
     // A variance that rounding left at or below zero belongs to a column the joint design (with the
     // searched parameters' columns) cannot tell from the others: not determined, t 0, never a t of
-    // infinity (sim-tumble seed 31: sign(a_i) and a_i*abs(a_i) beside a_i).
+    // infinity (on a tumble: sign(a_i) and a_i*abs(a_i) beside a_i).
     fit.std_dev = fit.covariance.diagonal().unaryExpr([](double v) {
       return v > 0.0 && std::isfinite(v) ? std::sqrt(v) : std::numeric_limits<double>::infinity();
     });

@@ -74,8 +74,9 @@ std::optional<StaticNoiseLaw> static_noise_law(const Eigen::VectorXd& residuals,
   }
   // A law that does not hold on its own stretches is not carried below them. The gyro bench's
   // Gauss-Markov rate noise (correlation 0.1 s) in dwells of about a second reads as flicker and
-  // random walk (chi-square 42.7 on 6 dof), and that random walk, held at one cycle per plan,
-  // made w_i's sd 14 times the spread.
+  // random walk that fail the stretches' chi-square, and that random walk, held at one cycle per
+  // plan, would overstate w_i's sd many times (docs/validation.md, 'Evidence behind choices in
+  // the code').
   if (out.fit.dof > 0 && boost::math::cdf(boost::math::complement(boost::math::chi_squared(out.fit.dof), out.fit.chi_square)) < 1e-3)
     return std::nullopt;
   return out;

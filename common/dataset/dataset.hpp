@@ -79,8 +79,8 @@ inline constexpr double kRotationTolerance = 1e-6;
 /// dataset.toml (line and column of the key; an m_ec that is not a rotation). Blank lines are
 /// allowed only at the end, so line = row + 2 always. Unknown columns are ignored with one warning
 /// line per column on `warnings`. Thread: any. Speed: the CSV is mapped and parsed in place with
-/// std::from_chars, ~0.46 s CPU per million 9-column rows on the CI VM, dominated by from_chars
-/// itself (tests/bench/regressors_benchmark.cpp, BM_ReadDataset).
+/// std::from_chars, whose own cost dominates (BM_ReadDataset in tests/bench/regressors_benchmark.cpp
+/// measures it; docs/validation.md, 'Evidence behind choices in the code').
 Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings);
 Dataset read_dataset(const std::filesystem::path& dir);   // warnings go to std::cerr
 

@@ -1,10 +1,10 @@
 #pragma once
 // Large column buffers (a case's columns, a regression matrix: tens to hundreds of MB) are written
 // once right after allocation. With 4 KiB pages that first touch costs one page fault per 4 KiB,
-// which dominated both the CSV reader and the regressor builder (measured on the CI VM: 480 MB
-// first-touched in 2.9 s with 4 KiB pages, 0.07 s with transparent huge pages). Debian's default
-// THP mode is "madvise", so ask for huge pages explicitly. Advice only: no effect on results, and
-// a no-op where the kernel does not support it.
+// which dominates both the CSV reader and the regressor builder; transparent huge pages take a
+// small fraction of that time (docs/validation.md, 'Evidence behind choices in the code').
+// Debian's default THP mode is "madvise", so ask for huge pages explicitly. Advice only: no effect
+// on results, and a no-op where the kernel does not support it.
 #include <cstddef>
 #include <cstdint>
 

@@ -98,8 +98,8 @@ class CanDevice final : public Device {
  public:
   static constexpr std::size_t kMaxRecordsPerReadLimit = 1024;
   /// Records one recvmmsg() call takes at most. One system call per CAN frame costs more than
-  /// decoding the frame (perf on the simulated 10 kHz bench: recvmsg was 2/3 of the sampling
-  /// thread); 64 records bound the buffers to a few KiB.
+  /// decoding the frame (perf on the simulated 10 kHz bench; docs/validation.md, 'Evidence behind
+  /// choices in the code'); 64 records bound the buffers to a few KiB.
   static constexpr std::size_t kReceiveBatch = 64;
 
   /// Opens a CAN_RAW socket on config.interface. nullptr with the reason when that is impossible,

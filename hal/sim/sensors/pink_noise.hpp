@@ -9,9 +9,10 @@
 // deviation per sample of the whole component (the flat part below pink_min_hz included, ~5% of
 // the variance for 0.01 Hz .. 5 kHz) is exactly the requested one (computed from the stationary
 // covariance, not measured), and the state starts stationary (stationary_state.hpp).
-// Measured shape (Welch, 2^22 samples): log-log slope -0.98 .. -1.01 from 10 pink_min_hz up to
-// fs/4; the matched pole-zero mapping flattens the top octave below Nyquist (slope ~ -0.86
-// between fs/20 and 0.45 fs), where a 1/f band edge has to bend anyway.
+// The slope is close to -1 from 10 pink_min_hz up to fs/4 (test
+// AccelerometerModel.PinkNoisePsdFallsOneDecadePerDecade); the matched pole-zero mapping flattens
+// the top octave below Nyquist, where a 1/f band edge has to bend anyway (figures:
+// docs/validation.md, 'Evidence behind choices in the code').
 #include <array>
 #include <cstdint>
 
