@@ -64,6 +64,9 @@ class NormalEquations {
   [[nodiscard]] const std::vector<std::string>& labels() const { return labels_; }
   [[nodiscard]] const Eigen::MatrixXd& augmented() const { return augmented_; }
   [[nodiscard]] const std::vector<Index>& output_multiplied() const { return output_multiplied_; }
+  /// sum p_b p_b' and sum p_b of the output-multiplied columns' factors, in output_multiplied()'s order.
+  [[nodiscard]] const Eigen::MatrixXd& factor_gram() const { return factor_gram_; }
+  [[nodiscard]] const Eigen::VectorXd& factor_sum() const { return factor_sum_; }
 
   /// The augmented Gram matrix of the columns `positions` (any order), y last.
   [[nodiscard]] Eigen::MatrixXd augmented(std::span<const Index> positions) const;

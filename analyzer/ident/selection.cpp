@@ -11,55 +11,50 @@
 namespace inertia::ident {
 namespace {
 
-// One regression problem with its sufficient statistics, so that every subset fit costs O(p^3)
-// plus one O(N p) residual pass, and no copy of the data.
+// One regression problem as the selection reads it: the fits of column subsets, the t-test's
+// theta and sd, the scores of steps 11-12 and the ERR Gram matrix. Two sources: the rows
+// (RowsContext; offline) and the normal equations alone (EquationsContext; the live estimator).
 class FitContext {
  public:
-  FitContext(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
-             const std::vector<std::string>& labels, const OutputMultiplied& rational,
-             const UlsOptions& options)
-      : phi_(phi), y_(y), labels_(labels), rational_(rational), options_(options) {
-    if (static_cast<Index>(labels.size()) != phi.cols())
-      throw std::invalid_argument("selection: " + std::to_string(labels.size()) + " labels for " +
-                                  std::to_string(phi.cols()) + " columns");
-    if (y.size() != phi.rows()) throw std::invalid_argument("selection: y and Phi differ in length");
-    factors_ = denominator_factors(phi, y, rational, labels);
-    if (options.noise_lags == 0) stats_ = UlsStatistics::from_data(phi, y, rational.columns, factors_);
-  }
+  FitContext(const std::vector<std::string>& labels, const UlsOptions& options) : labels_(labels), options_(options) {}
+  FitContext(const FitContext&) = delete;
+  FitContext& operator=(const FitContext&) = delete;
+  virtual ~FitContext() = default;
 
-  UlsResult fit(const std::vector<Index>& columns) const {
-    if (options_.noise_lags > 0)
-      return uls_batch(phi_, y_, labels_, rational_, options_, columns);
-    std::vector<std::string> names;
-    for (Index c : columns) names.push_back(labels_[static_cast<std::size_t>(c)]);
-    const UlsSolution sol = solve_uls(stats_.subset(columns), names, options_);
-    return finish_uls(phi_, y_, labels_, columns, rational_, factors_, sol, options_);
-  }
+  /// Step 10: the fit of `columns` with its final covariance.
+  [[nodiscard]] virtual UlsResult fit(const std::vector<Index>& columns) const = 0;
+  /// theta and sd for the t-test of step 9.
+  [[nodiscard]] virtual std::pair<Eigen::VectorXd, Eigen::VectorXd> theta_sd(const std::vector<Index>& columns) const = 0;
+  /// Steps 11-12 of the fit of `columns`: the residual mean test and AIC (eq. 9).
+  virtual void score(const UlsResult& fit, const std::vector<Index>& columns, CandidateModel& model) const = 0;
+  /// The ERR Gram matrix [Phi y]'[Phi y] (ERR does not depend on column scale or sign).
+  [[nodiscard]] virtual Eigen::MatrixXd err_gram() const = 0;
+  [[nodiscard]] virtual Index samples() const = 0;
 
-  // theta and classical sd for the t-test of step 9. Polynomial fits without noise lags come from
-  // the statistics alone (O(p^3), no data pass): pruning j terms one at a time would otherwise
-  // cost O(N j^2) per candidate model. Rational or ELS fits need the data (sandwich, residuals).
-  std::pair<Eigen::VectorXd, Eigen::VectorXd> theta_sd(const std::vector<Index>& columns) const {
-    const bool rational = std::any_of(columns.begin(), columns.end(), [this](Index c) {
-      return std::find(rational_.columns.begin(), rational_.columns.end(), c) != rational_.columns.end();
+  [[nodiscard]] Index terms() const { return static_cast<Index>(labels_.size()); }
+  [[nodiscard]] const std::vector<std::string>& labels() const { return labels_; }
+
+ protected:
+  [[nodiscard]] bool has_output_multiplied(const std::vector<Index>& columns) const {
+    return std::any_of(columns.begin(), columns.end(), [this](Index c) {
+      return std::find(stats_.denominator.begin(), stats_.denominator.end(), c) != stats_.denominator.end();
     });
-    if (options_.noise_lags > 0 || rational) {
-      const UlsResult r = fit(columns);
-      return {r.process_theta(), r.std_dev.head(r.process_terms)};
-    }
-    std::vector<std::string> names;
-    for (Index c : columns) names.push_back(labels_[static_cast<std::size_t>(c)]);
-    const UlsSolution sol = solve_uls(stats_.subset(columns), names, options_);
-    const double dof = static_cast<double>(std::max<Index>(samples() - static_cast<Index>(columns.size()), 1));
-    const Eigen::VectorXd sd =
-        (sol.zeta_energy / dof * sol.gram_inverse.diagonal().cwiseMax(0.0)).cwiseSqrt();
-    return {sol.theta, sd};
   }
-
-  // The ERR Gram matrix [Phi y]'[Phi y]; from the statistics when they exist (ERR does not
-  // depend on column scale or sign), so the ranking costs no second data pass.
-  Eigen::MatrixXd err_gram() const {
-    if (options_.noise_lags > 0) return ErrGram::from_data(phi_, y_).matrix();
+  /// ULS on the statistics of `columns` (O(p^3), no data pass).
+  [[nodiscard]] UlsSolution solve(const std::vector<Index>& columns) const {
+    std::vector<std::string> names;
+    names.reserve(columns.size());
+    for (Index c : columns) names.push_back(labels_[static_cast<std::size_t>(c)]);
+    return solve_uls(stats_.subset(columns), names, options_);
+  }
+  /// The classical sd of a solution: sum zeta^2 / (N - p) times (Phi'Phi)^-1, or the corrected
+  /// inverse (Phi'Phi - sigma^2 Psi)^-1 with output-multiplied columns.
+  [[nodiscard]] Eigen::VectorXd solution_sd(const UlsSolution& sol, Index columns, bool output_multiplied) const {
+    const double dof = static_cast<double>(std::max<Index>(samples() - columns, 1));
+    const Eigen::MatrixXd& inverse = output_multiplied ? sol.corrected_inverse : sol.gram_inverse;
+    return (sol.zeta_energy / dof * inverse.diagonal().cwiseMax(0.0)).cwiseSqrt();
+  }
+  [[nodiscard]] Eigen::MatrixXd augmented_from_statistics() const {
     const Index p = stats_.terms();
     Eigen::MatrixXd g(p + 1, p + 1);
     g.topLeftCorner(p, p) = stats_.gram;
@@ -69,18 +64,130 @@ class FitContext {
     return g;
   }
 
-  [[nodiscard]] Index samples() const { return phi_.rows(); }
-  [[nodiscard]] Index terms() const { return phi_.cols(); }
-  [[nodiscard]] const std::vector<std::string>& labels() const { return labels_; }
+  const std::vector<std::string>& labels_;
+  const UlsOptions& options_;
+  UlsStatistics stats_;
+};
+
+class RowsContext final : public FitContext {
+ public:
+  RowsContext(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
+              const std::vector<std::string>& labels, const OutputMultiplied& rational, const UlsOptions& options)
+      : FitContext(labels, options), phi_(phi), y_(y), rational_(rational) {
+    if (static_cast<Index>(labels.size()) != phi.cols())
+      throw std::invalid_argument("selection: " + std::to_string(labels.size()) + " labels for " +
+                                  std::to_string(phi.cols()) + " columns");
+    if (y.size() != phi.rows()) throw std::invalid_argument("selection: y and Phi differ in length");
+    factors_ = denominator_factors(phi, y, rational, labels);
+    if (options.noise_lags == 0) stats_ = UlsStatistics::from_data(phi, y, rational.columns, factors_);
+  }
+
+  UlsResult fit(const std::vector<Index>& columns) const override {
+    if (options_.noise_lags > 0) return uls_batch(phi_, y_, labels_, rational_, options_, columns);
+    return finish_uls(phi_, y_, labels_, columns, rational_, factors_, solve(columns), options_);
+  }
+
+  // Polynomial fits without noise lags come from the statistics alone: pruning j terms one at a
+  // time would otherwise cost O(N j^2) per candidate model. Rational or ELS fits need the data
+  // (sandwich, residuals).
+  std::pair<Eigen::VectorXd, Eigen::VectorXd> theta_sd(const std::vector<Index>& columns) const override {
+    if (options_.noise_lags > 0 || has_output_multiplied(columns)) {
+      const UlsResult r = fit(columns);
+      return {r.process_theta(), r.std_dev.head(r.process_terms)};
+    }
+    const UlsSolution sol = solve(columns);
+    return {sol.theta, solution_sd(sol, static_cast<Index>(columns.size()), false)};
+  }
+
+  void score(const UlsResult& fit, const std::vector<Index>&, CandidateModel& model) const override {
+    model.residual_mean = residual_mean_test(fit.residuals);                        // step 12
+    model.aic = aic(fit.residuals, static_cast<Index>(fit.theta.size()));           // step 11
+  }
+
+  // From the statistics when they exist, so the ranking costs no second data pass.
+  Eigen::MatrixXd err_gram() const override {
+    if (options_.noise_lags > 0) return ErrGram::from_data(phi_, y_).matrix();
+    return augmented_from_statistics();
+  }
+
+  Index samples() const override { return phi_.rows(); }
 
  private:
   Eigen::Ref<const Eigen::MatrixXd> phi_;
   Eigen::Ref<const Eigen::VectorXd> y_;
-  const std::vector<std::string>& labels_;
   const OutputMultiplied& rational_;
-  const UlsOptions& options_;
   Eigen::MatrixXd factors_;
-  UlsStatistics stats_;
+};
+
+// The normal equations alone: every fit, test and score from the statistics, no residuals.
+//  - The output-multiplied columns' covariance is the classical one of the corrected inverse
+//    (the sandwich needs the rows).
+//  - AIC takes the residual energy from the statistics (yy - 2 theta'r + theta'R theta): exact
+//    to about log10(y'y / sum zeta^2) fewer digits than from the residuals, ample for the
+//    differences AIC compares at bench noise.
+//  - Step 12 reads the residual's sum through the bias candidate's column (constant: "1", or "1"
+//    through the noise model's A(q), whose gain is A(1)), whether the model holds it or not, on N
+//    samples: without the residual's lag products there is no N_eff. With no bias among the
+//    candidates the mean is not known: not tested (p_res = 1, mean NaN).
+class EquationsContext final : public FitContext {
+ public:
+  EquationsContext(const NormalEquations& equations, const UlsOptions& options)
+      : FitContext(equations.labels(), options), equations_(equations) {
+    if (options.noise_lags > 0)
+      throw std::invalid_argument("selection: noise lags need the residuals; the normal equations alone have none");
+    std::vector<Index> all(static_cast<std::size_t>(equations.columns()));
+    for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<Index>(i);
+    stats_ = equations.statistics(all);
+    const auto bias = std::find(labels_.begin(), labels_.end(), "1");
+    if (bias != labels_.end()) bias_ = static_cast<Index>(bias - labels_.begin());
+  }
+
+  UlsResult fit(const std::vector<Index>& columns) const override {
+    const UlsSolution sol = solve(columns);
+    const bool output_multiplied = has_output_multiplied(columns);
+    const Index p = static_cast<Index>(columns.size());
+    UlsResult out = solved_terms(sol, labels_, columns);
+    out.residual_variance = sol.zeta_energy / static_cast<double>(std::max<Index>(samples() - p, 1));
+    out.covariance = out.residual_variance * (output_multiplied ? sol.corrected_inverse : sol.gram_inverse);
+    out.std_dev = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    out.covariance_kind = CovarianceKind::Classical;
+    return out;
+  }
+
+  std::pair<Eigen::VectorXd, Eigen::VectorXd> theta_sd(const std::vector<Index>& columns) const override {
+    const UlsSolution sol = solve(columns);
+    return {sol.theta, solution_sd(sol, static_cast<Index>(columns.size()), has_output_multiplied(columns))};
+  }
+
+  void score(const UlsResult& fit, const std::vector<Index>& columns, CandidateModel& model) const override {
+    const Index n = samples();
+    const double energy = fit.residual_variance * static_cast<double>(std::max<Index>(n - fit.process_terms, 1));
+    model.aic = aic_from_variance(energy / static_cast<double>(n), n, static_cast<Index>(fit.theta.size()));
+    const Eigen::MatrixXd& a = equations_.augmented();
+    const Index y = a.rows() - 1;
+    if (bias_ < 0 || !(a(bias_, bias_) > 0.0)) {
+      model.residual_mean = ResidualMeanTest();
+      model.residual_mean.mean = std::numeric_limits<double>::quiet_NaN();
+      model.residual_mean.effective_samples = static_cast<double>(n);
+      return;
+    }
+    // bias' zeta = bias'y - sum_j sign_j theta_j bias'phi_j (ULS's linear form, uls_batch.hpp).
+    const Eigen::VectorXd signs = linear_form_signs(equations_.columns(), equations_.output_multiplied());
+    double product = a(bias_, y);
+    for (std::size_t j = 0; j < columns.size(); ++j)
+      product -= signs(columns[j]) * fit.theta(static_cast<Index>(j)) * a(bias_, columns[j]);
+    const double level = std::sqrt(a(bias_, bias_) / static_cast<double>(n));
+    const double mean = product / (level * static_cast<double>(n));
+    const double variance = (energy - static_cast<double>(n) * mean * mean) / static_cast<double>(n - 1);
+    model.residual_mean = residual_mean_test(mean, variance, static_cast<double>(n));
+  }
+
+  Eigen::MatrixXd err_gram() const override { return augmented_from_statistics(); }
+  Index samples() const override { return equations_.samples(); }
+
+ private:
+  const NormalEquations& equations_;
+  Index bias_ = -1;
 };
 
 // Step 9 (and the refits of step 10 inside it): the columns that survive the t-test.
@@ -112,12 +219,11 @@ std::vector<Index> prune(const FitContext& context, std::vector<Index> columns,
 
 // Steps 10-12 on the surviving columns.
 void score(const FitContext& context, const std::vector<Index>& columns, CandidateModel& model) {
-  UlsResult fit = context.fit(columns);  // with residuals and the final covariance
+  UlsResult fit = context.fit(columns);  // with the final covariance (and the residuals, from rows)
   model.t_test = parameter_t_test(fit.process_theta(), fit.std_dev.head(fit.process_terms),
                                   context.samples());
   model.columns = columns;
-  model.residual_mean = residual_mean_test(fit.residuals);                         // step 12
-  model.aic = aic(fit.residuals, static_cast<Index>(fit.theta.size()));            // step 11
+  context.score(fit, columns, model);
   model.fit = std::move(fit);
   model.ok = true;
 }
@@ -141,13 +247,13 @@ bool SelectionOptions::is_valid(std::string* why) const {
   return uls.is_valid(why);
 }
 
-SelectionResult select_model(const SelectionProblem& problem, const SelectionOptions& options,
-                             FitHook* hook) {
-  std::string why;
-  if (!options.is_valid(&why)) throw std::invalid_argument("selection options: " + why);
-  const FitContext base(problem.phi, problem.y, problem.labels, problem.rational, options.uls);
+namespace {
+
+// Algorithm 2 on `base`, whatever its source.
+SelectionResult select_on(const FitContext& base, std::vector<Index> ranking, const std::vector<Index>& kept_columns,
+                          const SelectionOptions& options, FitHook* hook) {
   SelectionResult out;
-  out.ranking = problem.ranking;
+  out.ranking = std::move(ranking);
   if (out.ranking.empty()) out.ranking = err_rank(base.err_gram(), options.err).order;
   for (Index c : out.ranking)
     if (c < 0 || c >= base.terms()) throw std::invalid_argument("selection: ranking index out of range");
@@ -171,7 +277,7 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
         model.transformed = hook->transform(j, ranked_fit, stage);
       }
       if (model.transformed) {
-        const FitContext staged(stage.phi, stage.y, stage.labels, stage.rational, options.uls);
+        const RowsContext staged(stage.phi, stage.y, stage.labels, stage.rational, options.uls);
         std::vector<Index> all(static_cast<std::size_t>(staged.terms()));
         for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<Index>(i);
         if (scored_samples >= 0 && staged.samples() != scored_samples)
@@ -184,7 +290,7 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
         if (scored_samples >= 0 && base.samples() != scored_samples)
           throw std::invalid_argument("selection: models scored on different sample counts");
         scored_samples = base.samples();
-        const std::vector<Index> kept = prune(base, ranked, options, threshold, model, problem.kept);
+        const std::vector<Index> kept = prune(base, ranked, options, threshold, model, kept_columns);
         std::vector<Index> key = kept;
         std::sort(key.begin(), key.end());
         const auto seen = scored.find(key);
@@ -248,6 +354,23 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
   }
   out.best = static_cast<std::size_t>(best);  // step 15: highest fitness (same order as log_score)
   return out;
+}
+
+}  // namespace
+
+SelectionResult select_model(const SelectionProblem& problem, const SelectionOptions& options, FitHook* hook) {
+  std::string why;
+  if (!options.is_valid(&why)) throw std::invalid_argument("selection options: " + why);
+  const RowsContext base(problem.phi, problem.y, problem.labels, problem.rational, options.uls);
+  return select_on(base, problem.ranking, problem.kept, options, hook);
+}
+
+SelectionResult select_model(const NormalEquations& equations, std::vector<Index> ranking, const std::vector<Index>& kept,
+                             const SelectionOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw std::invalid_argument("selection options: " + why);
+  const EquationsContext base(equations, options.uls);
+  return select_on(base, std::move(ranking), kept, options, nullptr);
 }
 
 }  // namespace inertia::ident

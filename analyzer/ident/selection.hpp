@@ -10,6 +10,7 @@
 //   step 10  re-estimate; step 11 AIC (equation 9); step 12 p_res;
 // then p_AIC (equation 10), fitness = p_res * p_AIC, and the model with the highest fitness wins.
 #include "analyzer/ident/err.hpp"
+#include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/statistics.hpp"
 #include "analyzer/ident/uls_batch.hpp"
 
@@ -139,5 +140,14 @@ struct SelectionResult {
 /// pruning step (sandwich covariance / residual lags).
 SelectionResult select_model(const SelectionProblem& problem, const SelectionOptions& options,
                              FitHook* hook = nullptr);
+
+/// Section 2.7.2 on the normal equations alone (no rows): what the live estimator keeps. The same
+/// steps and rules as above, the fits and scores from the statistics (step 12 through the bias
+/// candidate's column, without N_eff; selection.cpp's EquationsContext says how each differs from the rows'). The
+/// models' fits have no residuals. `ranking`: as SelectionProblem::ranking (empty: plain ERR);
+/// `kept`: as SelectionProblem::kept. Throws as above, and std::invalid_argument for noise lags
+/// (ELS needs the residuals).
+SelectionResult select_model(const NormalEquations& equations, std::vector<Index> ranking, const std::vector<Index>& kept,
+                             const SelectionOptions& options);
 
 }  // namespace inertia::ident

@@ -137,22 +137,29 @@ ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& res
                                     bool effective_size) {
   const Eigen::Index n = residuals.size();
   if (n < 3) throw std::invalid_argument("residual mean test needs at least 3 samples");
-  ResidualMeanTest out;
-  out.mean = residuals.mean();
-  const Eigen::VectorXd c = residuals.array() - out.mean;
+  const double mean = residuals.mean();
+  const Eigen::VectorXd c = residuals.array() - mean;
   const double ss = c.squaredNorm();
-  const double s2 = ss / static_cast<double>(n - 1);
-  out.lag1_autocorrelation = ss > 0.0 ? c.head(n - 1).dot(c.tail(n - 1)) / ss : 0.0;
+  const double r1 = ss > 0.0 ? c.head(n - 1).dot(c.tail(n - 1)) / ss : 0.0;
   double n_eff = static_cast<double>(n);
   if (effective_size) {
-    const double r1 = std::clamp(out.lag1_autocorrelation, -0.999, 0.999);
-    n_eff = std::clamp(static_cast<double>(n) * (1.0 - r1) / (1.0 + r1), 2.0, static_cast<double>(n));
+    const double clamped = std::clamp(r1, -0.999, 0.999);
+    n_eff = std::clamp(static_cast<double>(n) * (1.0 - clamped) / (1.0 + clamped), 2.0, static_cast<double>(n));
   }
-  out.effective_samples = n_eff;
-  out.std_error = std::sqrt(s2 / n_eff);
+  ResidualMeanTest out = residual_mean_test(mean, ss / static_cast<double>(n - 1), n_eff);
+  out.lag1_autocorrelation = r1;
+  return out;
+}
+
+ResidualMeanTest residual_mean_test(double mean, double variance, double effective_samples) {
+  if (!(effective_samples >= 2.0)) throw std::invalid_argument("residual mean test needs at least 2 effective samples");
+  ResidualMeanTest out;
+  out.mean = mean;
+  out.effective_samples = effective_samples;
+  out.std_error = std::sqrt(std::max(variance, 0.0) / effective_samples);
   if (out.std_error > 0.0) {
     out.t = out.mean / out.std_error;
-    out.p_value = student_t_two_sided_p(out.t, n_eff - 1.0);
+    out.p_value = student_t_two_sided_p(out.t, effective_samples - 1.0);
   } else {
     // Constant residual: exactly zero is a perfect fit, anything else a certain offset.
     out.t = out.mean == 0.0 ? 0.0 : std::numeric_limits<double>::infinity();

@@ -65,6 +65,9 @@ struct ResidualMeanTest {
 /// the samples hold; clamping keeps the test conservative).
 ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& residuals,
                                     bool effective_size = true);
+/// The same test from the residual's mean, variance (about the mean, N - 1 divisor) and effective
+/// sample count: what the normal equations alone give (select_model on NormalEquations).
+ResidualMeanTest residual_mean_test(double mean, double variance, double effective_samples);
 
 /// Offsets between clusters that the noise model does not explain, and what they do to a
 /// least-squares estimate (a variance-components model: y = X theta + u_g + e, u_g ~ N(0, tau^2)

@@ -329,6 +329,18 @@ Eigen::MatrixXd denominator_factors(const Eigen::Ref<const Eigen::MatrixXd>& phi
   return f;
 }
 
+UlsResult solved_terms(const UlsSolution& solution, const std::vector<std::string>& labels, std::span<const Index> columns) {
+  UlsResult out;
+  out.process_terms = static_cast<Index>(columns.size());
+  out.theta = solution.theta;
+  out.sigma2 = solution.sigma2;
+  out.iterations = solution.iterations;
+  out.converged = solution.converged;
+  out.condition_number = solution.condition_number;
+  for (Index c : columns) out.labels.push_back(labels[static_cast<std::size_t>(c)]);
+  return out;
+}
+
 UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                      const Eigen::Ref<const Eigen::VectorXd>& y,
                      const std::vector<std::string>& labels, std::span<const Index> columns,
@@ -337,14 +349,7 @@ UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                      const UlsOptions& options) {
   const Index n = phi.rows();
   const Index p = static_cast<Index>(columns.size());
-  UlsResult out;
-  out.process_terms = p;
-  out.theta = solution.theta;
-  out.sigma2 = solution.sigma2;
-  out.iterations = solution.iterations;
-  out.converged = solution.converged;
-  out.condition_number = solution.condition_number;
-  for (Index c : columns) out.labels.push_back(labels[static_cast<std::size_t>(c)]);
+  UlsResult out = solved_terms(solution, labels, columns);
 
   // a(k), b(k) and zeta(k) = y b - a without copying the columns. Row blocks outermost: the
   // block's accumulators stay in cache while each column segment streams through once, so the

@@ -182,6 +182,11 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                     const std::vector<std::string>& labels, const OutputMultiplied& rational,
                     const UlsOptions& options, std::span<const Index> columns = {});
 
+/// What a solution from solve_uls() fixes of a UlsResult over `columns` (positions into `labels`,
+/// in solution order): the labels, theta, sigma^2, the iterations and the condition number. The
+/// residuals and the covariance are the caller's: from the rows (finish_uls) or the statistics.
+UlsResult solved_terms(const UlsSolution& solution, const std::vector<std::string>& labels, std::span<const Index> columns);
+
 /// Residuals, covariance and the rest of a UlsResult for a model without noise lags whose
 /// solution came from solve_uls() on statistics: one O(N p) pass (O(N p^2) for the sandwich).
 /// columns: the columns of phi in the fit, in solution order; factors from denominator_factors().

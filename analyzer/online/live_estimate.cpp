@@ -128,8 +128,25 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     angle_covariances.push_back(c);
     held_angles.push_back(held);
   }
+  // A searched model's structure by algorithm 2 (section 2.7.2), as the batch selects its own
+  // before the inference. The terms the fit did not determine stay in the model, named as such.
+  std::optional<LiveSolver> selected(batch_solver);   // holds its basis by reference: emplaced, not assigned
+  const std::size_t search_space = s.batch.terms.size();
+  if (live.searched && s.batch.ok) {
+    const std::vector<Index> chosen = batch_solver.select(s.batch, infos, m_cs);
+    std::vector<Index> model = batch_solver.model();
+    for (const Index t : s.batch.terms) {
+      if (std::find(chosen.begin(), chosen.end(), t) != chosen.end()) continue;
+      s.insignificant.push_back(t);
+      std::erase(model, t);
+    }
+    if (!s.insignificant.empty()) {
+      selected.emplace(batch_solver.with_model(std::move(model)));
+      s.batch = selected->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
+    }
+  }
   const CaseStatistics cs = case_statistics(m_cs, left_out);
-  const LiveSolver fitted = infer_and_prune(s, batch_solver, infos, m_cs, cs, fits, angle_covariances, held_angles);
+  const LiveSolver fitted = infer_and_prune(s, *selected, search_space, infos, m_cs, cs, fits, angle_covariances, held_angles);
   s.model = fitted.model();
   s.aligned = reference.has_value();
   s.m_cs = std::move(m_cs);
@@ -173,7 +190,7 @@ void EstimateSolver::add_case_scatter(LiveEstimate& s, const CaseStatistics& cs,
   s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum(), s.angles_from_means);
 }
 
-LiveSolver EstimateSolver::infer_and_prune(LiveEstimate& s, const LiveSolver& batch_solver,
+LiveSolver EstimateSolver::infer_and_prune(LiveEstimate& s, const LiveSolver& batch_solver, std::size_t search_space,
                                            const std::vector<const Information*>& infos,
                                            const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
                                            const std::vector<MountingFit>& fits,
@@ -184,8 +201,7 @@ LiveSolver EstimateSolver::infer_and_prune(LiveEstimate& s, const LiveSolver& ba
     return ident::never_pruned(live.basis->terms()[static_cast<std::size_t>(t)].to_string(), live.sensor);
   };
   s.angles_from_means = angles_from_means(&fits);
-  // Bonferroni over the model's terms the data determine (the search space, as algorithm 2's).
-  const double threshold = ident::family_threshold(live.options.solver.structure_alpha, s.batch.terms.size());
+  const double threshold = ident::family_threshold(live.options.solver.structure_alpha, search_space);
   for (;;) {
     if (!s.batch.ok) return *current;
     current->add_misalignment_uncertainty(s.batch, infos, m_cs, angle_covariances, held_angles);

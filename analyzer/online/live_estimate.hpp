@@ -33,7 +33,7 @@ struct LiveEstimate {
   bool aligned = true;                     // some mounting aligned (else the frame-free terms only)
   std::vector<Eigen::Index> model;         // the terms the batch fitted (the solver's model)
   std::vector<Eigen::Index> confounded;    // left out: at the phases' level, with no phase to spare
-  std::vector<Eigen::Index> insignificant; // left out of a searched model: its test failed (ident::term_to_prune)
+  std::vector<Eigen::Index> insignificant; // left out of a searched model: by algorithm 2, or its test failed (ident::term_leaving)
   int angles_from_means = 0;               // mounting angles read from the poses' means (case scatter's dof)
 };
 
@@ -85,9 +85,12 @@ class EstimateSolver {
   ///    (s.confounded);
   ///  - in a searched model (LiveModel::searched) every other term is tested too (s.insignificant);
   ///    a model file's terms leave only when confounded.
+  /// Bonferroni over `search_space` terms: the terms the data determine before the selection, as
+  /// algorithm 2 counts its search space.
   /// Leaves s.batch the fit of what is left, its covariance complete, and s.scatter its offsets;
   /// returns the solver of that model.
-  LiveSolver infer_and_prune(LiveEstimate& s, const LiveSolver& batch_solver, const std::vector<const Information*>& infos,
+  LiveSolver infer_and_prune(LiveEstimate& s, const LiveSolver& batch_solver, std::size_t search_space,
+                             const std::vector<const Information*>& infos,
                              const std::vector<Eigen::Matrix3d>& m_cs, const CaseStatistics& cs,
                              const std::vector<MountingFit>& fits, const std::vector<Eigen::Matrix3d>& angle_covariances,
                              const std::vector<std::array<bool, 3>>& held_angles);

@@ -6,6 +6,7 @@
 
 #include "analyzer/ident/err.hpp"
 #include "analyzer/ident/normal_equations.hpp"
+#include "analyzer/ident/selection.hpp"
 #include "analyzer/ident/statistics.hpp"
 #include "analyzer/procedure/corner_search.hpp"
 #include "analyzer/procedure/excitation.hpp"
@@ -93,10 +94,9 @@ void LiveSolver::factor_statistics(const std::vector<Index>& terms, const std::v
   }
 }
 
-StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vector<Index>& terms,
-                        const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs) const {
-  StatFit out;
-  out.weight = weight;
+ident::NormalEquations LiveSolver::equations(const Eigen::MatrixXd& g, double weight, const std::vector<Index>& terms,
+                                             const std::vector<const Information*>& infos,
+                                             const std::vector<Eigen::Matrix3d>& m_cs) const {
   std::vector<Index> factor_positions;
   Eigen::MatrixXd factor_gram;
   Eigen::VectorXd factor_sum;
@@ -104,8 +104,18 @@ StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vect
   std::vector<std::string> labels;
   labels.reserve(terms.size());
   for (const Index t : terms) labels.push_back(basis_.terms()[static_cast<std::size_t>(t)].to_string());
-  const ident::NormalEquations equations(g, static_cast<Index>(std::llround(weight)), std::move(labels), factor_positions,
-                                         factor_gram, factor_sum);
+  return {g, static_cast<Index>(std::llround(weight)), std::move(labels), std::move(factor_positions), std::move(factor_gram),
+          std::move(factor_sum)};
+}
+
+StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vector<Index>& terms,
+                        const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs) const {
+  StatFit out;
+  out.weight = weight;
+  const ident::NormalEquations equations = this->equations(g, weight, terms, infos, m_cs);
+  const std::vector<Index>& factor_positions = equations.output_multiplied();
+  const Eigen::MatrixXd& factor_gram = equations.factor_gram();
+  const Eigen::VectorXd& factor_sum = equations.factor_sum();
   // The ranking and the dependence rule are the batch's (ident/normal_equations.hpp).
   ident::IdentifiableRanking ranking = ident::rank_identifiable(equations, sensor_);
   std::vector<Index> columns = std::move(ranking.order);   // positions into terms
@@ -621,6 +631,24 @@ StatFit LiveSolver::fit_batch(const std::vector<const Information*>& infos, cons
     f.corner_rad_s = b;
     return f;
   });
+}
+
+std::vector<Index> LiveSolver::select(const StatFit& batch, const std::vector<const Information*>& infos,
+                                      const std::vector<Eigen::Matrix3d>& m_cs) const {
+  if (!batch.ok) return batch.terms;
+  const ident::NormalEquations equations =
+      this->equations(gram(batch.terms, infos, m_cs, batch.corner_rad_s), batch.weight, batch.terms, infos, m_cs);
+  ident::IdentifiableRanking ranking = ident::rank_identifiable(equations, sensor_);
+  std::vector<Index> kept;
+  for (const Index j : ident::sensitivities_then_bias(equations.labels(), sensor_))
+    if (std::find(ranking.order.begin(), ranking.order.end(), j) != ranking.order.end()) kept.push_back(j);
+  ident::SelectionOptions options;
+  options.alpha = options_.structure_alpha;
+  options.uls = options_.uls;
+  const ident::SelectionResult selected = ident::select_model(equations, std::move(ranking.order), kept, options);
+  std::vector<Index> out;
+  for (const Index c : selected.best_model().columns) out.push_back(batch.terms[static_cast<std::size_t>(c)]);
+  return out;
 }
 
 std::vector<CandidateStat> LiveSolver::structure(const std::vector<Index>& candidates, const StatFit& batch,

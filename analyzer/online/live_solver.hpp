@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/statistics.hpp"
 #include "analyzer/ident/uls_batch.hpp"
 #include "analyzer/online/corner_grid.hpp"
@@ -207,6 +208,12 @@ class LiveSolver {
                                                      const std::vector<Eigen::Matrix3d>& m_cs, double step) const;
   void set_long_run_variance_factor(double factor) { options_.long_run_variance_factor = factor; }
   [[nodiscard]] double long_run_variance_factor() const { return options_.long_run_variance_factor; }
+  /// Algorithm 2 without the misalignment steps (section 2.7.2, ident::select_model on the normal
+  /// equations, as the batch's block 10-11 selection runs on rows) over the terms `batch` fitted,
+  /// at its corner: the terms it selects. The sensor's sensitivities and the bias are never left
+  /// out; the ranking is the batch's (ident::rank_identifiable).
+  [[nodiscard]] std::vector<Eigen::Index> select(const StatFit& batch, const std::vector<const Information*>& infos,
+                                                 const std::vector<Eigen::Matrix3d>& m_cs) const;
   /// ERR and t of each candidate (basis term indices) added alone to the batch fit `batch`.
   [[nodiscard]] std::vector<CandidateStat> structure(const std::vector<Eigen::Index>& candidates, const StatFit& batch,
                                                      const std::vector<const Information*>& infos,
@@ -223,6 +230,11 @@ class LiveSolver {
   /// grid's nodes, the static squares competing when allowed).
   template <class FitAt>
   StatFit best_corner(FitAt&& fit_at) const;
+  /// The normal equations of `terms` from their Gram matrix `gram` over `weight` samples, with the
+  /// output-multiplied terms' factor statistics.
+  [[nodiscard]] ident::NormalEquations equations(const Eigen::MatrixXd& gram, double weight, const std::vector<Eigen::Index>& terms,
+                                                 const std::vector<const Information*>& infos,
+                                                 const std::vector<Eigen::Matrix3d>& m_cs) const;
   /// ULS on `gram` (over `terms`), leaving out what the data does not determine, by the rules of
   /// ident/normal_equations.hpp (the sensor's sensitivities ranked first and never left out).
   [[nodiscard]] StatFit fit(const Eigen::MatrixXd& gram, double weight, const std::vector<Eigen::Index>& terms,

@@ -225,6 +225,62 @@ TEST(Selection, AKeptBiasIsNotReplacedByACandidateCollinearWithIt) {
   EXPECT_LE(candidate_named_kept, 2) << "a spurious term at the selection's 1 % family-wise level, 40 seeds";
 }
 
+// Section 2.7.2 on the normal equations alone (the live estimator's) against the rows: the same
+// ranking, pruning and scores, so the same model; its coefficients and classical sd to rounding.
+// AIC differs only by the residual energy taken from the statistics, step 12 by N_eff (the
+// rows' test reads the lag-1 autocorrelation of white residuals, close to 0).
+TEST(Selection, OnTheNormalEquationsSelectsWhatTheRowsSelect) {
+  constexpr int kSeeds = 40;
+  int same = 0;
+  for (int seed = 0; seed < kSeeds; ++seed) {
+    const SparseCase c = sparse_case(3000 + static_cast<unsigned>(seed), 2000, 0.5);
+    std::vector<Index> kept{0};   // the bias, as every fit of a sensor keeps it
+    SelectionProblem problem(c.phi, c.y, c.labels);
+    problem.kept = kept;
+    const SelectionResult rows = select_model(problem, SelectionOptions{});
+    const NormalEquations equations = NormalEquations::from_rows(c.phi, c.y, c.labels);
+    const SelectionResult statistics = select_model(equations, {}, kept, SelectionOptions{});
+    EXPECT_EQ(statistics.ranking, rows.ranking) << "seed " << seed;
+    const CandidateModel& a = rows.best_model();
+    const CandidateModel& b = statistics.best_model();
+    if (a.columns != b.columns) {
+      ADD_FAILURE() << "seed " << seed << ": rows and normal equations chose different models";
+      continue;
+    }
+    ++same;
+    EXPECT_EQ(a.removed, b.removed) << "seed " << seed;
+    EXPECT_TRUE(b.fit.residuals.size() == 0);
+    for (Eigen::Index j = 0; j < a.fit.theta.size(); ++j) {
+      EXPECT_NEAR(b.fit.theta(j), a.fit.theta(j), 1e-9 * std::abs(a.fit.theta(j)) + 1e-12) << "seed " << seed;
+      EXPECT_NEAR(b.fit.std_dev(j), a.fit.std_dev(j), 1e-9 * a.fit.std_dev(j)) << "seed " << seed;
+    }
+    EXPECT_NEAR(b.aic, a.aic, 1e-6 * std::abs(a.aic)) << "seed " << seed;
+    EXPECT_NEAR(b.residual_mean.mean, a.residual_mean.mean, 1e-9) << "seed " << seed;
+  }
+  EXPECT_EQ(same, kSeeds);
+}
+
+// Without the bias among the candidates the statistics cannot give the residual's mean: step 12 is
+// not tested there (p_res = 1, mean NaN), and noise lags, which need the residuals, are refused.
+TEST(Selection, OnTheNormalEquationsWithoutABiasTheMeanIsNotTested) {
+  SparseCase c = sparse_case(7, 1000, 0.2);
+  std::vector<Index> columns;
+  for (Index j = 1; j < c.phi.cols(); ++j) columns.push_back(j);
+  Eigen::MatrixXd phi(c.phi.rows(), static_cast<Index>(columns.size()));
+  std::vector<std::string> labels;
+  for (std::size_t i = 0; i < columns.size(); ++i) {
+    phi.col(static_cast<Index>(i)) = c.phi.col(columns[i]);
+    labels.push_back(c.labels[static_cast<std::size_t>(columns[i])]);
+  }
+  const NormalEquations equations = NormalEquations::from_rows(phi, c.y, labels);
+  const SelectionResult result = select_model(equations, {}, {}, SelectionOptions{});
+  EXPECT_TRUE(std::isnan(result.best_model().residual_mean.mean));
+  EXPECT_EQ(result.best_model().residual_mean.p_value, 1.0);
+  SelectionOptions els;
+  els.uls.noise_lags = 1;
+  EXPECT_THROW((void)select_model(equations, {}, {}, els), std::invalid_argument);
+}
+
 TEST(Selection, FailedCandidateIsReportedNotFatal) {
   SparseCase c = sparse_case(6, 500, 0.1);
   c.phi.col(19) = c.phi.col(1) * 2.0;  // "u3*u3[k-2]" made a copy of "u1"

@@ -86,6 +86,22 @@ TEST(Statistics, ResidualMeanTestFalseAlarmRate) {
   EXPECT_LT(residual_mean_test(shifted, true).p_value, 0.05);
 }
 
+// The test from moments equals the test of the rows that have them.
+TEST(Statistics, ResidualMeanTestFromMomentsEqualsTheRows) {
+  std::mt19937_64 rng(78);
+  for (const double offset : {0.0, 0.05, 0.2}) {
+    const Eigen::VectorXd e = ar1(rng, 500, 0.3).array() + offset;
+    const double mean = e.mean();
+    const double variance = (e.array() - mean).square().sum() / 499.0;
+    const ResidualMeanTest rows = residual_mean_test(e, false);
+    const ResidualMeanTest moments = residual_mean_test(mean, variance, 500.0);
+    EXPECT_DOUBLE_EQ(moments.mean, rows.mean);
+    EXPECT_NEAR(moments.t, rows.t, 1e-12 * std::max(1.0, std::abs(rows.t)));
+    EXPECT_NEAR(moments.p_value, rows.p_value, 1e-12);
+  }
+  EXPECT_THROW((void)residual_mean_test(0.0, 1.0, 1.0), std::invalid_argument);
+}
+
 TEST(Statistics, WhitenessVerdict) {
   std::mt19937_64 rng(8);
   std::normal_distribution<double> g(0.0, 1.0);
