@@ -47,15 +47,6 @@ SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double
   return out;
 }
 
-namespace {
-
-/// A fitted noise's two-sided density per sample at f cycles per sample, and what it is.
-struct FittedDensity {
-  std::function<double(double)> density;
-  std::optional<NoiseFit> fit;
-  std::string model;
-};
-
 FittedDensity fitted_density(const Eigen::Ref<const Eigen::VectorXd>& residual, const std::function<double(double)>& below_record) {
   const Eigen::Index n = residual.size();
   std::optional<NoiseFit> fit;
@@ -102,8 +93,6 @@ FittedDensity fitted_density(const Eigen::Ref<const Eigen::VectorXd>& residual, 
   }
   return out;
 }
-
-}  // namespace
 
 SegmentSpectrum fitted_spectrum(const Eigen::Ref<const Eigen::VectorXd>& residual, const std::function<double(double)>& below_record) {
   FittedDensity fitted = fitted_density(residual, below_record);

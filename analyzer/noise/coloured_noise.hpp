@@ -42,6 +42,18 @@ struct SegmentSpectrum {
   std::string model;                  // one line: which terms, for the report
 };
 
+/// A fitted noise's two-sided density per sample at f cycles per sample (f in 0..0.5), and what
+/// it is: the terms of `residual`'s Allan variance (tau0 = 1 sample; no rate ramp, a drift), or
+/// white with its mean square when the stretch is too short for the fit. Below one cycle per
+/// record the white part, or `below_record(f)` where that is larger.
+struct FittedDensity {
+  std::function<double(double)> density;
+  std::optional<NoiseFit> fit;
+  std::string model;
+};
+FittedDensity fitted_density(const Eigen::Ref<const Eigen::VectorXd>& residual,
+                             const std::function<double(double)>& below_record = {});
+
 /// The spectrum of `residual`'s noise: its Allan variance's terms (fit_noise, tau0 = 1 sample), or
 /// white with its mean square when the stretch is too short for the fit. Below one cycle per
 /// record the white part, or `below_record(f)` (f in cycles per sample) where that is larger: what

@@ -9,6 +9,7 @@
 #include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/ident/statistics.hpp"
+#include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
 
@@ -172,6 +173,7 @@ EstimateSolver::CaseStatistics EstimateSolver::case_statistics(const std::vector
     if (!info) continue;
     out.with_open.push_back(std::move(*info));
     out.m_cs.push_back(m_cs[statistics.cases[c].mounting]);
+    out.state.push_back(c);
   }
   for (const Information& i : out.with_open) out.infos.push_back(&i);
   return out;
@@ -186,8 +188,33 @@ int EstimateSolver::angles_from_means(const std::vector<MountingFit>* fits) cons
   return n;
 }
 
+std::vector<Eigen::MatrixXd> EstimateSolver::run_noise(const CaseStatistics& cs) {
+  std::vector<Eigen::MatrixXd> out(cs.infos.size());
+  run_noise_.resize(statistics.cases.size());
+  for (std::size_t k = 0; k < cs.infos.size(); ++k) {
+    const std::function<double(double)>& density = noise.density_of(cs.state[k]);
+    if (!density) continue;
+    const Information& info = *cs.infos[k];
+    std::vector<std::int64_t> rows(info.runs());
+    for (std::size_t r = 0; r < rows.size(); ++r) rows[r] = info.run_samples(r);
+    RunNoise& cached = run_noise_[cs.state[k]];
+    if (cached.rows != rows) {
+      // The case's runs one after the other (a case's phases, in the order they ran).
+      noise::RowGroups groups;
+      groups.groups = static_cast<Index>(rows.size());
+      for (std::size_t r = 0; r < rows.size(); ++r) groups.group.insert(groups.group.end(), static_cast<std::size_t>(rows[r]), static_cast<Index>(r));
+      cached.sums_covariance = groups.group.empty() ? Eigen::MatrixXd::Zero(groups.groups, groups.groups)
+                                                    : noise::group_covariance(noise::spectrum_of(static_cast<Index>(groups.group.size()), density), groups);
+      cached.rows = std::move(rows);
+    }
+    out[k] = cached.sums_covariance;
+  }
+  return out;
+}
+
 void EstimateSolver::add_case_scatter(LiveEstimate& s, const CaseStatistics& cs, const LiveSolver& batch_solver) {
-  s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum(), s.angles_from_means);
+  const std::vector<Eigen::MatrixXd> coloured = run_noise(cs);
+  s.scatter = batch_solver.add_case_scatter(s.batch, cs.infos, cs.m_cs, 1.0 - noise.ar.sum(), s.angles_from_means, &coloured);
 }
 
 LiveSolver EstimateSolver::infer_and_prune(LiveEstimate& s, const LiveSolver& batch_solver, std::size_t search_space,

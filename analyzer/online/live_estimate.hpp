@@ -7,8 +7,10 @@
 // with a case or some phases left out and the mountings' M_C^S held.
 #include <Eigen/Dense>
 
-#include <cstddef>
 #include <array>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -63,7 +65,17 @@ class EstimateSolver {
     std::vector<Information> with_open;
     std::vector<const Information*> infos;
     std::vector<Eigen::Matrix3d> m_cs;
+    std::vector<std::size_t> state;   // each one's case state (CaseAccumulator::cases)
   };
+  /// The covariance of the whitened noise's sums over a case's runs, under its density
+  /// (LiveNoiseModel::density_of), for the run lengths it was taken at.
+  struct RunNoise {
+    std::vector<std::int64_t> rows;
+    Eigen::MatrixXd sums_covariance;
+  };
+  std::vector<RunNoise> run_noise_;   // per case state
+  /// Per case of `cs`, its runs' noise sums' covariance (empty: white, no density fitted).
+  [[nodiscard]] std::vector<Eigen::MatrixXd> run_noise(const CaseStatistics& cs);
 
   /// The solver for what the rows so far can determine: terms of the temperature wait until it
   /// has moved (a near-constant T column stands in for the bias, and y*T for the output itself).

@@ -7,6 +7,7 @@
 #include <memory>
 #include <utility>
 
+#include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/online/case_accumulator.hpp"
 #include "analyzer/online/live_estimate.hpp"
 #include "analyzer/online/live_model.hpp"
@@ -54,6 +55,7 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
   const Eigen::VectorXd coefficients = live.solver->signed_theta(s.batch);
   std::vector<procedure::CaseRows> layout;      // the rows by phase: the noise model's pieces are cut from them
   std::vector<procedure::CaseRows> case_runs;   // by case segment: one noise process each
+  std::vector<std::size_t> run_states;           // each case run's case state
   Eigen::VectorXd residuals(buffered_rows);
   Index at = 0;
   std::vector<procedure::HighpassState> hp;
@@ -76,7 +78,10 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
     const bool new_run = current != std::pair{b.state, b.segment};
     current = {b.state, b.segment};
     residuals.segment(at, b.y.size()) = b.y - fit;
-    if (new_run || case_runs.empty()) case_runs.push_back({case_runs.size(), at, 0, 0});
+    if (new_run || case_runs.empty()) {
+      case_runs.push_back({case_runs.size(), at, 0, 0});
+      run_states.push_back(b.state);
+    }
     case_runs.back().rows += b.y.size();
     for (Index i = 0; i < b.y.size(); ++i) {
       const std::int32_t phase = b.plan_phase.empty() ? 0 : b.plan_phase[static_cast<std::size_t>(i)];
@@ -86,17 +91,17 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
     }
     at += b.y.size();
   }
-  // A model kept unfiltered scales its variances by the whole segments' residual, transitions
-  // included, as the batch's inference reads its cases; noise_pieces demeans the pieces it keeps.
-  const bool unfiltered = !procedure::filters_rows(live.rational);
-  const Eigen::VectorXd case_residuals = unfiltered ? residuals : Eigen::VectorXd();
+  // The noise model of the variances (a model kept unfiltered: its factor; a whitened one: each
+  // case's own noise) reads the whole segments' residual, transitions included, as the batch's
+  // inference reads its cases; noise_pieces demeans the pieces it keeps.
+  const Eigen::VectorXd case_residuals = residuals;
   layout = noise_pieces(residuals, std::move(layout));
   Index noise_rows = 0;
   for (const procedure::CaseRows& piece : layout) noise_rows += piece.rows;
   // An AR(m) fit wants ten rows per order (ArWhitener::fit): a low-rate bench's window holds fewer.
   const int max_order = std::min<int>(live.options.whitening_max_order, static_cast<int>(noise_rows / 10));
   const procedure::ArWhitener noise = procedure::ArWhitener::fit(residuals, layout, max_order);
-  if (unfiltered) {
+  if (!procedure::filters_rows(live.rational)) {
     // The noise model scales the variances instead, by what the batch's sandwich makes of a
     // column constant within each run.
     live.solver->set_long_run_variance_factor(
@@ -106,6 +111,34 @@ void LiveNoiseModel::fit(LiveModel& live, CaseAccumulator& statistics, EstimateS
     return;
   }
   ar = noise.coefficients();
+  // Each case's whitened residual's own noise (its whole segments, transitions included, as the
+  // batch's inference reads its cases), for the covariance of its phases' noise sums.
+  case_density.assign(statistics.cases.size(), {});
+  Index longest = 0;
+  for (std::size_t r = 0; r < case_runs.size(); ++r) {
+    const procedure::CaseRows& run = case_runs[r];
+    if (run.rows <= ar.size()) continue;
+    Eigen::VectorXd innovation(run.rows - ar.size());
+    procedure::ar_filter(ar, case_residuals.segment(run.begin, run.rows), innovation);
+    // Below one cycle per segment the segment's own flicker and random walk, held at their level
+    // there: what a case's phases share beyond that is what the batch reads from the plan's
+    // static stretches (procedure::StaticNoiseLaw::below_record), held at one cycle per plan.
+    // Its level is the fit's residual variance at each solve: the density's shape only, per unit
+    // variance (this residual is the white fit's of the rows so far, misfit and all).
+    const double lowest = 1.0 / static_cast<double>(innovation.size());
+    const std::function<double(double)> shape = [full = noise::fitted_density(innovation).density, lowest](double f) {
+      return full(std::max(f, lowest));
+    };
+    const double variance = noise::spectrum_of(innovation.size(), shape).autocovariance(0);
+    if (!(variance > 0.0) || !std::isfinite(variance)) continue;
+    std::function<double(double)> fitted = [shape, variance](double f) { return shape(f) / variance; };
+    if (run.rows > longest) {
+      longest = run.rows;
+      density = fitted;
+    }
+    std::function<double(double)>& own = case_density[run_states[r]];
+    if (!own) own = std::move(fitted);   // a case's first segment stands for its others
+  }
   // Every row so far again, through the noise model.
   for (CaseAccumulator::CaseState& c : statistics.cases) c.stats.clear();
   std::unique_ptr<SegmentPipeline> p;

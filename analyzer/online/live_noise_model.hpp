@@ -4,11 +4,14 @@
 // on them (AIC order up to whitening_max_order, as the batch), and every row so far enters the
 // statistics again through it. A model with output-multiplied terms keeps its rows unfiltered and
 // scales the variances instead, by what the batch's sandwich under that noise makes of a column
-// constant within each run (procedure::unfiltered_long_run_ratio).
+// constant within each run (procedure::unfiltered_long_run_ratio). A whitened model keeps each
+// case's whitened residual's own noise (case_density), whose colour below what the AR model
+// follows moves the case's phases together (LiveSolver::add_case_scatter).
 #include <Eigen/Dense>
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "analyzer/procedure/stacked_regression.hpp"
@@ -49,6 +52,18 @@ struct LiveNoiseModel {
   std::int64_t buffered_rows = 0;
   bool fitted = false;
   Eigen::VectorXd ar;                 // AR coefficients (empty: white)
+  /// The whitened residual's own noise below what the AR model follows (noise/coloured_noise.hpp),
+  /// as the batch's inference fits it per case: per case state the density fitted on its rows in
+  /// the window, per unit variance (the solve scales it by its fit's residual variance; empty
+  /// function: none there), and for the other cases that of the window's longest. None for a
+  /// model kept unfiltered, which scales its variances instead.
+  std::vector<std::function<double(double)>> case_density;
+  std::function<double(double)> density;
+
+  /// The density of case state `state`'s whitened noise (empty function: white).
+  [[nodiscard]] const std::function<double(double)>& density_of(std::size_t state) const {
+    return state < case_density.size() && case_density[state] ? case_density[state] : density;
+  }
 
   /// Fits the model on the window (the white-noise estimate from `estimates`), then sends every
   /// row of the window through it into `statistics` again, or scales the solver's variances.

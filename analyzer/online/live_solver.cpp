@@ -525,9 +525,46 @@ Eigen::VectorXd LiveSolver::prediction_signs(const std::vector<Index>& terms) co
   return ident::linear_form_signs(static_cast<Index>(terms.size()), output_multiplied);
 }
 
+namespace {
+
+/// The batch's ident::ColouredNoise on the clusters' sums: X = Z M' + W, M the clusters' column
+/// means, W what varies within them. The noise's colour lies below the frequencies W holds, so W
+/// meets it as white (sigma2) and is orthogonal to the clusters' indicators:
+///   X'RZ = M C,  X'RX = M C M' + sigma2 W'W,  W'W = X'X - S N^-1 S',  M = S N^-1,
+/// C = Z'RZ block diagonal over the cases (`run_noise`, per case its runs', per unit variance of
+/// the noise: C = sigma2 times the block). White noise (C = sigma2 N) gives back sigma2 X'X and
+/// sigma2 S. None when a case has no blocks.
+std::optional<ident::ColouredNoise> coloured_noise(const ident::ClusterSums& sums,
+                                                   const std::vector<std::pair<std::size_t, std::size_t>>& origin,
+                                                   const std::vector<Eigen::MatrixXd>& run_noise, const Eigen::MatrixXd& xtx,
+                                                   double sigma2) {
+  const auto g_count = static_cast<Index>(origin.size());
+  Eigen::MatrixXd c = Eigen::MatrixXd::Zero(g_count, g_count);
+  for (Index a = 0; a < g_count; ++a) {
+    const auto [case_a, run_a] = origin[static_cast<std::size_t>(a)];
+    if (case_a >= run_noise.size()) return std::nullopt;
+    const Eigen::MatrixXd& block = run_noise[case_a];
+    if (block.rows() <= static_cast<Index>(run_a)) return std::nullopt;
+    for (Index b = 0; b < g_count; ++b) {
+      const auto [case_b, run_b] = origin[static_cast<std::size_t>(b)];
+      if (case_b == case_a) c(a, b) = sigma2 * block(static_cast<Index>(run_a), static_cast<Index>(run_b));
+    }
+  }
+  const Eigen::MatrixXd means = sums.columns * sums.rows.cwiseInverse().asDiagonal();   // M (p x G)
+  ident::ColouredNoise out;
+  out.cluster_ids = sums.ids;
+  out.sums_covariance = c;
+  out.cross = means * c;
+  out.meat = means * c * means.transpose() + sigma2 * (xtx - means * sums.columns.transpose());
+  out.meat = 0.5 * (out.meat + out.meat.transpose()).eval();
+  return out;
+}
+
+}  // namespace
+
 CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
                                          const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain,
-                                         int angles_from_means) const {
+                                         int angles_from_means, const std::vector<Eigen::MatrixXd>* run_noise) const {
   CaseScatter out;
   if (!batch.ok || !(noise_gain > 0.0)) return out;
   const auto p = static_cast<Index>(batch.terms.size());
@@ -536,6 +573,7 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   const Eigen::VectorXd sign = prediction_signs(batch.terms);
   std::vector<Eigen::VectorXd> column_sums;
   std::vector<double> output_sums, residual_sums, rows, loading;
+  std::vector<std::pair<std::size_t, std::size_t>> origin;   // per cluster: its case and run
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p + 1, p + 1);   // [X y]'[X y]
   double weight = 0.0;
   Eigen::MatrixXd tb, tf;
@@ -555,6 +593,7 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
       output_sums.push_back(v(p));
       residual_sums.push_back(v(p) - batch.theta.dot(v.head(p)));
       rows.push_back(n);
+      origin.emplace_back(c, r);
       // The input across the sensitive axis, squared, on the run's mean: |u|^2 - (n_i . u)^2.
       const Eigen::Matrix4d& u = cases[c]->run_input_gram(r);
       loading.push_back(u(3, 3) > 0.0 ? (u.topLeftCorner<3, 3>().trace() - input_axis.dot(u.topLeftCorner<3, 3>() * input_axis)) / u(3, 3)
@@ -583,27 +622,29 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   signs.head(p) = sign;
   gram = signs.asDiagonal() * gram * signs.asDiagonal();
   const double sigma2 = options_.long_run_variance_factor * batch.s2;
-  const ident::ClusterOffsets offsets =
-      ident::cluster_offsets(sums, ident::GramFactor::from_gram(gram.topLeftCorner(p, p), weight), sigma2, angles_from_means);
+  const std::optional<ident::ColouredNoise> coloured =
+      run_noise != nullptr ? coloured_noise(sums, origin, *run_noise, gram.topLeftCorner(p, p), sigma2) : std::nullopt;
+  const ident::ClusterOffsets offsets = ident::cluster_offsets(sums, ident::GramFactor::from_gram(gram.topLeftCorner(p, p), weight),
+                                                               sigma2, angles_from_means, coloured ? &*coloured : nullptr);
   out.offsets = offsets;
   out.dof = offsets.between_dof;
   out.tau2 = offsets.tau2 / (noise_gain * noise_gain);
-  if (out.dof < 1 || !(offsets.tau2 > 0.0)) return out;
+  const bool offsets_found = out.dof >= 1 && offsets.tau2 > 0.0;
   // When every column is constant within the clusters (static poses) and no column is the output's,
   // the clusters' means are weighed by what their offsets leave of them, as the batch weighs them
   // (ident::weighed_by_offsets); otherwise least squares with the offsets' sandwich.
   const bool means_only =
       (sign.array() > 0.0).all() && std::all_of(phase_level.begin(), phase_level.end(), [](bool b) { return b; });
   std::optional<ident::RandomEffectsFit> weighed;
-  if (means_only) {
+  if (offsets_found && means_only) {
     Eigen::VectorXd y_sums(g_count);
     for (Index g = 0; g < g_count; ++g) y_sums(g) = output_sums[static_cast<std::size_t>(g)];
     weighed = ident::weighed_by_offsets(offsets, sums.loading, sigma2 * sums.rows, [&](const Eigen::VectorXd& tau2) {
       return ident::random_effects_fit(gram, sums, y_sums, p, tau2, sigma2);
     });
   }
-  // What the offsets (or the weighing) make of the fit's own covariance, as the batch does; the
-  // fit's own is ULS's corrected one where a column is the output's.
+  // What the offsets (or the weighing) and the noise's colour make of the fit's own covariance,
+  // as the batch does; the fit's own is ULS's corrected one where a column is the output's.
   if (weighed) {
     batch.theta = weighed->theta;
     batch.covariance += weighed->covariance - offsets.classical;
@@ -612,7 +653,7 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
     out.offsets.covariance = weighed->covariance.topLeftCorner(p, p);
     out.offsets.weights = weighed->weights;
   } else {
-    batch.covariance += offsets.covariance - offsets.within;
+    batch.covariance += offsets.covariance - offsets.classical;
   }
   batch.sd = batch.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   return out;

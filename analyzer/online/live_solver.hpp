@@ -181,9 +181,15 @@ class LiveSolver {
   /// Adds the case scatter to batch.covariance and sd (see CaseScatter). `cases`: each case's
   /// statistics and its mounting's M_C^S; `noise_gain`: A(1) = 1 - sum a_j of the noise model.
   /// `angles_from_means`: the mounting angles estimated from the same clusters' means outside the
-  /// model (ident::cluster_offsets' estimated_elsewhere).
+  /// model (ident::cluster_offsets' estimated_elsewhere). `run_noise`: per case, the covariance of
+  /// the whitened noise's sums over its runs per unit variance of the noise (Z'RZ of the batch's
+  /// ident::ColouredNoise over the fit's residual variance; empty or none: white). With it the noise's colour below what the AR model follows (flicker that moves
+  /// a case's phases together) enters as the batch's coloured sandwich does, its X'RX and X'RZ
+  /// taken on the runs' means: each column's variation within a run meets the noise as white.
+  /// A model kept unfiltered has none: the long-run factor scales its variances.
   CaseScatter add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
-                               const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain, int angles_from_means = 0) const;
+                               const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain, int angles_from_means = 0,
+                               const std::vector<Eigen::MatrixXd>* run_noise = nullptr) const;
   /// The same solver for another model (a subset of the basis's terms).
   [[nodiscard]] LiveSolver with_model(std::vector<Eigen::Index> model) const {
     LiveSolver s = *this;

@@ -247,6 +247,59 @@ TEST(LiveSolver, SelectsTheModelTheBatchSelectsOnTheSameRows) {
   EXPECT_GE(left_out, kSeeds - 2);
 }
 
+// The case scatter with the noise's colour (add_case_scatter's run_noise) against the sandwich
+// (X'X)^-1 X'RX (X'X)^-1 computed on the rows. Static poses (every column constant within its
+// run, so X = Z M' and the runs' means are all of X) and a residual of zero mean in every run (no
+// offsets to find), under R = s^2 I + c 1 1' (a noise common to the case's runs): the same
+// covariance to rounding. White runs' covariance (C = s^2 N) changes nothing.
+TEST(LiveSolver, TheCaseScattersColouredNoiseIsTheSandwichOnTheRows) {
+  const Fixture fx({"1", "a_i"});
+  const std::vector<Eigen::Vector3d> poses = {{1.0, 0.0, 0.0}, {0.0, 1.0, 0.0}, {-1.0, 0.0, 0.0},
+                                              {0.6, 0.8, 0.0}, {0.0, 0.0, 1.0}, {-0.6, 0.0, -0.8}};
+  constexpr Index kRows = 200;
+  constexpr double kSigma = 1e-3, kCommon = 4e-8;
+  const Eigen::Matrix3d m_cs = Eigen::Matrix3d::Identity();
+  Information info(fx.basis->base_size(), 0, 0);
+  MatrixXd x(kRows * static_cast<Index>(poses.size()), 2);
+  for (std::size_t g = 0; g < poses.size(); ++g) {
+    Inputs a(kRows, 3);
+    for (Index k = 0; k < kRows; ++k) a.row(k) = 9.80665 * poses[g].transpose();
+    VectorXd y(kRows);
+    for (Index k = 0; k < kRows; ++k) y(k) = 3.44e-3 + 0.0877 * a(k, 0) + (k % 2 == 0 ? kSigma : -kSigma);
+    dataset::CaseData c = case_of(a);
+    c.y = y;
+    MatrixXd b(kRows, fx.basis->base_size());
+    fx.basis->evaluate(ident::signals_from_case(c, Eigen::Matrix3d::Identity(), kTRef), 0, b);
+    info.start_run();
+    info.add(b, {}, y);
+    info.add_inputs(a);
+    x.middleRows(static_cast<Index>(g) * kRows, kRows) << VectorXd::Ones(kRows), a.col(0);
+  }
+  const LiveSolver solver = fx.solver();
+  StatFit white = solver.fit_batch({&info}, {m_cs});
+  ASSERT_TRUE(white.ok) << white.why;
+  StatFit coloured = white;
+  const MatrixXd classical = white.covariance;
+  const double s2 = white.s2;
+  const VectorXd n = VectorXd::Constant(static_cast<Index>(poses.size()), static_cast<double>(kRows));
+
+  const std::vector<MatrixXd> white_runs{MatrixXd(n.asDiagonal())};   // per unit variance
+  solver.add_case_scatter(white, {&info}, {m_cs}, 1.0, 0, &white_runs);
+  EXPECT_LT((white.covariance - classical).norm(), 1e-12 * classical.norm());
+
+  const std::vector<MatrixXd> common_runs{MatrixXd(MatrixXd(n.asDiagonal()) + kCommon / s2 * n * n.transpose())};
+  const CaseScatter scatter = solver.add_case_scatter(coloured, {&info}, {m_cs}, 1.0, 0, &common_runs);
+  EXPECT_EQ(scatter.tau2, 0.0) << "no offsets beyond the noise";
+  const MatrixXd xtx_inverse = (x.transpose() * x).inverse();
+  const VectorXd column_sums = x.colwise().sum().transpose();
+  const MatrixXd meat = s2 * x.transpose() * x + kCommon * column_sums * column_sums.transpose();
+  const MatrixXd sandwich = xtx_inverse * meat * xtx_inverse;
+  for (Index i = 0; i < 2; ++i)
+    for (Index j = 0; j < 2; ++j)
+      EXPECT_NEAR(coloured.covariance(i, j), sandwich(i, j), 1e-9 * std::sqrt(sandwich(i, i) * sandwich(j, j))) << i << "," << j;
+  EXPECT_GT(coloured.sd(0), 3.0 * std::sqrt(classical(0, 0))) << "the common noise dominates the bias's sd";
+}
+
 TEST(LiveSolver, MountingFindsTheInputAxisItWasMadeWith) {
   // y = b + k a_i + k2 a_i^2 with a_i = n_i . a: algorithm 1 on the sensitivities k n_i of a_x a_y
   // a_z, to the fixed point, gives n_i; the F_S fit gives b and k2.
