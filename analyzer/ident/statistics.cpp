@@ -514,8 +514,10 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, 
 
 RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gram, const ClusterSums& sums,
                                     const Eigen::VectorXd& y_sums, Eigen::Index estimated, const Eigen::VectorXd& tau2,
-                                    double sigma2) {
+                                    double sigma2, const Eigen::MatrixXd* sums_covariance) {
   const Eigen::Index p = gram.rows() - 1, g_count = static_cast<Eigen::Index>(sums.ids.size());
+  if (sums_covariance != nullptr && (sums_covariance->rows() != g_count || sums_covariance->cols() != g_count))
+    throw std::invalid_argument("random_effects_fit: the clusters' noise sums' covariance is not one row and column per cluster");
   if (gram.cols() != p + 1 || sums.columns.rows() != p || sums.columns.cols() != g_count || sums.rows.size() != g_count ||
       y_sums.size() != g_count || tau2.size() != g_count || estimated < 1 || estimated > p)
     throw std::invalid_argument("random_effects_fit: the Gram, the clusters' sums and tau2 differ in size, or no column is estimated");
@@ -525,9 +527,11 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gra
   Eigen::MatrixXd once = gram;            // [X~ y~]'[X~ y~]
   Eigen::MatrixXd twice = gram.topLeftCorner(p, p);   // X2'X2
   Eigen::MatrixXd offsets_meat = Eigen::MatrixXd::Zero(p, p);
+  Eigen::MatrixXd weighed_means(p, g_count);   // S2 N^-1: column g is w_g m_g
   for (Eigen::Index g = 0; g < g_count; ++g) {
     const double n = sums.rows(g);
-    const double m = sigma2 / n;          // the noise's variance of the cluster's mean
+    // The noise's variance of the cluster's mean.
+    const double m = sums_covariance != nullptr ? (*sums_covariance)(g, g) / (n * n) : sigma2 / n;
     if (!(m > 0.0) || !(tau2(g) >= 0.0)) throw std::invalid_argument("random_effects_fit: a cluster's noise or offset variance is not positive");
     const double w = m / (m + tau2(g));
     out.weights(g) = w;
@@ -539,6 +543,7 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gra
     twice.noalias() -= (2.0 * (1.0 - w) - (1.0 - w) * (1.0 - w)) * n * mean.head(p) * mean.head(p).transpose();
     const Eigen::VectorXd sum = w * sums.columns.col(g);   // X2' 1_g
     offsets_meat.noalias() += tau2(g) * sum * sum.transpose();
+    weighed_means.col(g) = sum / n;
   }
   // The weighed columns, scaled to unit diagonal: dependent where the smallest eigenvalue is at
   // rounding's level (a column's square-root condition beyond 1e12).
@@ -555,7 +560,12 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gra
   out.theta = (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() * eig.eigenvectors().transpose() * rhs)
                   .cwiseQuotient(scale);
   const Eigen::MatrixXd b = GramFactor::from_gram(a, sums.rows.sum()).inverse_factor;
-  out.within = sandwich(b, sigma2 * twice);
+  Eigen::MatrixXd noise_meat = sigma2 * twice;   // X2'RX2
+  if (sums_covariance != nullptr) {
+    const Eigen::MatrixXd between = weighed_means * sums.rows.asDiagonal() * weighed_means.transpose();   // S2 N^-1 S2'
+    noise_meat += weighed_means * *sums_covariance * weighed_means.transpose() - sigma2 * between;
+  }
+  out.within = sandwich(b, 0.5 * (noise_meat + noise_meat.transpose()));
   out.covariance = out.within + sandwich(b, offsets_meat);
   return out;
 }

@@ -200,9 +200,14 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, 
 /// the clusters' column sums, y_sums their output sums. The quasi-demeaned Gram follows from them:
 ///   X~'X~ = X'X - sum_g (2 l_g - l_g^2) n_g m_g m_g',   X~'y~ likewise with the output's means,
 ///   X2'X2 = X'X - sum_g (2 (1 - w_g) - (1 - w_g)^2) n_g m_g m_g',   m_g the cluster's column means.
+/// With `sums_covariance` (C = Z'RZ, the covariance of the clusters' noise sums: a noise whose
+/// colour moves the clusters together) the clusters' means take C's diagonal, and X2'RX2 is
+/// taken on them, what varies within a cluster meeting the noise as white (sigma2):
+///   X2'RX2 = sigma2 (X2'X2 - S2 N^-1 S2') + S2 N^-1 C N^-1 S2',   S2 = X2'Z (column g: w_g S_g),
+/// exact where every column is constant within the clusters (the weighed case: static poses).
 RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gram, const ClusterSums& sums,
                                     const Eigen::VectorXd& y_sums, Eigen::Index estimated, const Eigen::VectorXd& tau2,
-                                    double sigma2);
+                                    double sigma2, const Eigen::MatrixXd* sums_covariance = nullptr);
 
 /// Offset variances, or weights, that differ between clusters by less than this factor leave
 /// least squares as it is (weighed_by_offsets).

@@ -639,8 +639,9 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
   if (offsets_found && means_only) {
     Eigen::VectorXd y_sums(g_count);
     for (Index g = 0; g < g_count; ++g) y_sums(g) = output_sums[static_cast<std::size_t>(g)];
-    weighed = ident::weighed_by_offsets(offsets, sums.loading, sigma2 * sums.rows, [&](const Eigen::VectorXd& tau2) {
-      return ident::random_effects_fit(gram, sums, y_sums, p, tau2, sigma2);
+    const Eigen::VectorXd noise_sums = coloured ? Eigen::VectorXd(coloured->sums_covariance.diagonal()) : Eigen::VectorXd(sigma2 * sums.rows);
+    weighed = ident::weighed_by_offsets(offsets, sums.loading, noise_sums, [&](const Eigen::VectorXd& tau2) {
+      return ident::random_effects_fit(gram, sums, y_sums, p, tau2, sigma2, coloured ? &coloured->sums_covariance : nullptr);
     });
   }
   // What the offsets (or the weighing) and the noise's colour make of the fit's own covariance,

@@ -294,6 +294,74 @@ TEST(Statistics, RandomEffectsFromStatisticsEqualsTheRowsUnderWhiteNoise) {
   EXPECT_THROW(random_effects_fit(gram, sums, y_sums, 2, Eigen::VectorXd::Ones(g_count), 0.0), std::invalid_argument);
 }
 
+// The same under a noise common to the clusters of a case (poses 0-2 one case, 3-5 another):
+// R = s2 I + c 1_case 1_case'. The columns are constant within the clusters (static poses), so
+// the statistics' X2'RX2 on the clusters' means is the rows' exactly.
+TEST(Statistics, RandomEffectsFromStatisticsEqualsTheRowsUnderANoiseCommonToACasesClusters) {
+  constexpr Eigen::Index kRows = 120;
+  const std::vector<double> input{1.0, -1.0, 0.002, -0.001, 0.0015, -0.002};
+  const std::vector<double> loading{0.0, 0.0, 1.0, 1.0, 1.0, 1.0};
+  const auto g_count = static_cast<Eigen::Index>(input.size());
+  const Eigen::Index n = g_count * kRows;
+  Eigen::MatrixXd x(n, 2);
+  Eigen::VectorXd y(n), row_loading(n);
+  std::vector<int> cluster;
+  std::mt19937_64 rng(31);
+  std::normal_distribution<double> normal;
+  const double s2 = 1e-2, common = 2e-4;
+  for (Eigen::Index g = 0; g < g_count; ++g) {
+    const double offset = 0.2 * loading[std::size_t(g)] * normal(rng);
+    for (Eigen::Index r = 0; r < kRows; ++r) {
+      const Eigen::Index k = g * kRows + r;
+      x.row(k) << 1.0, input[std::size_t(g)];
+      y(k) = 0.3 + 2.0 * input[std::size_t(g)] + offset + std::sqrt(s2) * normal(rng);
+      row_loading(k) = loading[std::size_t(g)];
+      cluster.push_back(int(g));
+    }
+  }
+  const Eigen::Index case_rows = 3 * kRows;
+  const auto noise_times = [&](const Eigen::MatrixXd& m) {
+    Eigen::MatrixXd out = s2 * m;
+    for (Eigen::Index c = 0; c < 2; ++c) {
+      const Eigen::RowVectorXd sum = m.middleRows(c * case_rows, case_rows).colwise().sum();
+      out.middleRows(c * case_rows, case_rows).rowwise() += common * sum;
+    }
+    return out;
+  };
+  Eigen::MatrixXd c = s2 * kRows * Eigen::MatrixXd::Identity(g_count, g_count);
+  for (Eigen::Index a = 0; a < g_count; ++a)
+    for (Eigen::Index b = 0; b < g_count; ++b)
+      if (a / 3 == b / 3) c(a, b) += common * kRows * kRows;
+  const Eigen::VectorXd residual = y - x * x.colPivHouseholderQr().solve(y);
+  const ClusterSums sums = ClusterSums::from_rows(x, residual, cluster, row_loading);
+  Eigen::VectorXd y_sums(g_count);
+  for (Eigen::Index g = 0; g < g_count; ++g) y_sums(g) = y.segment(g * kRows, kRows).sum();
+  Eigen::MatrixXd xy(n, 3);
+  xy << x, y;
+  const Eigen::MatrixXd gram = xy.transpose() * xy;
+  ClusterOffsets offsets;
+  offsets.tau2_per_loading = 0.04;
+  const Eigen::VectorXd noise_sums = c.diagonal();
+  const std::optional<RandomEffectsFit> rows = weighed_by_offsets(offsets, sums.loading, noise_sums, [&](const Eigen::VectorXd& tau2) {
+    return random_effects_fit(x, 2, y, cluster, tau2, noise_sums, noise_times);
+  });
+  const std::optional<RandomEffectsFit> statistics = weighed_by_offsets(offsets, sums.loading, noise_sums, [&](const Eigen::VectorXd& tau2) {
+    return random_effects_fit(gram, sums, y_sums, 2, tau2, s2, &c);
+  });
+  ASSERT_TRUE(rows && statistics);
+  EXPECT_LT((statistics->theta - rows->theta).cwiseAbs().maxCoeff(), 1e-9 * rows->theta.cwiseAbs().maxCoeff());
+  EXPECT_LT((statistics->weights - rows->weights).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((statistics->within - rows->within).norm(), 1e-8 * rows->within.norm());
+  EXPECT_LT((statistics->covariance - rows->covariance).norm(), 1e-8 * rows->covariance.norm());
+  // The common noise is in the bias's sd: white, the statistics would report less.
+  const std::optional<RandomEffectsFit> white_fit = weighed_by_offsets(offsets, sums.loading, noise_sums, [&](const Eigen::VectorXd& tau2) {
+    return random_effects_fit(gram, sums, y_sums, 2, tau2, s2);
+  });
+  ASSERT_TRUE(white_fit);
+  EXPECT_GT(statistics->within(0, 0), 2.0 * white_fit->within(0, 0));
+  EXPECT_THROW(random_effects_fit(gram, sums, y_sums, 2, Eigen::VectorXd::Ones(g_count), s2, &gram), std::invalid_argument);
+}
+
 // A tumble's shape: a bias and a scale factor over six static poses, the input +-1 in two and
 // about 0 in four, whose offsets (a placement tilt's) reach only the four. Over seeds the
 // random-effects estimate spreads as its covariance says (rms z within 3 standard errors of an
