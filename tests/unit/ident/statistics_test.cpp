@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <numbers>
@@ -236,38 +237,58 @@ TEST(Statistics, RandomEffectsBiasIsThePrecisionWeighedMeanOfTheClusterMeans) {
   EXPECT_THROW(random_effects_fit(x, 1, y, cluster, tau, sums, white(s2)), std::invalid_argument);
 }
 
+// Six static poses of kRows rows each, a bias and an input: the input +-1 in two and about 0 in
+// four, whose offsets (a placement tilt's, sd 0.2) reach only the four; white noise of variance s2.
+// The rows, and what the live estimator keeps of them (clusters' sums, output sums, Gram).
+struct SixPoses {
+  static constexpr Eigen::Index kRows = 120;
+  Eigen::MatrixXd x;
+  Eigen::VectorXd y;
+  std::vector<int> cluster;
+  ClusterSums sums;
+  Eigen::VectorXd y_sums;
+  Eigen::MatrixXd gram;
+  Eigen::Index clusters = 0;
+};
+
+SixPoses six_poses(std::uint64_t seed, double s2) {
+  const std::vector<double> input{1.0, -1.0, 0.002, -0.001, 0.0015, -0.002};
+  const std::vector<double> loading{0.0, 0.0, 1.0, 1.0, 1.0, 1.0};
+  SixPoses out;
+  out.clusters = static_cast<Eigen::Index>(input.size());
+  const Eigen::Index n = out.clusters * SixPoses::kRows;
+  out.x.resize(n, 2);
+  out.y.resize(n);
+  Eigen::VectorXd row_loading(n);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  for (Eigen::Index g = 0; g < out.clusters; ++g) {
+    const double offset = 0.2 * loading[std::size_t(g)] * normal(rng);
+    for (Eigen::Index r = 0; r < SixPoses::kRows; ++r) {
+      const Eigen::Index k = g * SixPoses::kRows + r;
+      out.x.row(k) << 1.0, input[std::size_t(g)];
+      out.y(k) = 0.3 + 2.0 * input[std::size_t(g)] + offset + std::sqrt(s2) * normal(rng);
+      row_loading(k) = loading[std::size_t(g)];
+      out.cluster.push_back(int(g));
+    }
+  }
+  const Eigen::VectorXd residual = out.y - out.x * out.x.colPivHouseholderQr().solve(out.y);
+  out.sums = ClusterSums::from_rows(out.x, residual, out.cluster, row_loading);
+  out.y_sums.resize(out.clusters);
+  for (Eigen::Index g = 0; g < out.clusters; ++g) out.y_sums(g) = out.y.segment(g * SixPoses::kRows, SixPoses::kRows).sum();
+  Eigen::MatrixXd xy(n, 3);
+  xy << out.x, out.y;
+  out.gram = xy.transpose() * xy;
+  return out;
+}
+
 // The random-effects estimate from the Gram and the clusters' sums (the live estimator's
 // statistics) is the one from the rows under white noise: the same coefficients, weights and
 // covariance, to rounding. The rule that decides whether to weigh (weighed_by_offsets) takes either.
 TEST(Statistics, RandomEffectsFromStatisticsEqualsTheRowsUnderWhiteNoise) {
-  constexpr Eigen::Index kRows = 120;
-  const std::vector<double> input{1.0, -1.0, 0.002, -0.001, 0.0015, -0.002};
-  const std::vector<double> loading{0.0, 0.0, 1.0, 1.0, 1.0, 1.0};
-  const auto g_count = static_cast<Eigen::Index>(input.size());
-  const Eigen::Index n = g_count * kRows;
-  Eigen::MatrixXd x(n, 2);
-  Eigen::VectorXd y(n), row_loading(n);
-  std::vector<int> cluster;
-  std::mt19937_64 rng(29);
-  std::normal_distribution<double> normal;
   const double s2 = 1e-2;
-  for (Eigen::Index g = 0; g < g_count; ++g) {
-    const double offset = 0.2 * loading[std::size_t(g)] * normal(rng);
-    for (Eigen::Index r = 0; r < kRows; ++r) {
-      const Eigen::Index k = g * kRows + r;
-      x.row(k) << 1.0, input[std::size_t(g)];
-      y(k) = 0.3 + 2.0 * input[std::size_t(g)] + offset + std::sqrt(s2) * normal(rng);
-      row_loading(k) = loading[std::size_t(g)];
-      cluster.push_back(int(g));
-    }
-  }
-  const Eigen::VectorXd residual = y - x * x.colPivHouseholderQr().solve(y);
-  const ClusterSums sums = ClusterSums::from_rows(x, residual, cluster, row_loading);
-  Eigen::VectorXd y_sums(g_count);
-  for (Eigen::Index g = 0; g < g_count; ++g) y_sums(g) = y.segment(g * kRows, kRows).sum();
-  Eigen::MatrixXd xy(n, 3);
-  xy << x, y;
-  const Eigen::MatrixXd gram = xy.transpose() * xy;
+  const SixPoses poses = six_poses(29, s2);
+  const auto& [x, y, cluster, sums, y_sums, gram, g_count] = poses;
   ClusterOffsets offsets;   // the truth's: placements reach the four loaded poses alone
   offsets.tau2_per_loading = 0.04;
   const Eigen::VectorXd noise_sums = s2 * sums.rows;
@@ -298,27 +319,10 @@ TEST(Statistics, RandomEffectsFromStatisticsEqualsTheRowsUnderWhiteNoise) {
 // R = s2 I + c 1_case 1_case'. The columns are constant within the clusters (static poses), so
 // the statistics' X2'RX2 on the clusters' means is the rows' exactly.
 TEST(Statistics, RandomEffectsFromStatisticsEqualsTheRowsUnderANoiseCommonToACasesClusters) {
-  constexpr Eigen::Index kRows = 120;
-  const std::vector<double> input{1.0, -1.0, 0.002, -0.001, 0.0015, -0.002};
-  const std::vector<double> loading{0.0, 0.0, 1.0, 1.0, 1.0, 1.0};
-  const auto g_count = static_cast<Eigen::Index>(input.size());
-  const Eigen::Index n = g_count * kRows;
-  Eigen::MatrixXd x(n, 2);
-  Eigen::VectorXd y(n), row_loading(n);
-  std::vector<int> cluster;
-  std::mt19937_64 rng(31);
-  std::normal_distribution<double> normal;
   const double s2 = 1e-2, common = 2e-4;
-  for (Eigen::Index g = 0; g < g_count; ++g) {
-    const double offset = 0.2 * loading[std::size_t(g)] * normal(rng);
-    for (Eigen::Index r = 0; r < kRows; ++r) {
-      const Eigen::Index k = g * kRows + r;
-      x.row(k) << 1.0, input[std::size_t(g)];
-      y(k) = 0.3 + 2.0 * input[std::size_t(g)] + offset + std::sqrt(s2) * normal(rng);
-      row_loading(k) = loading[std::size_t(g)];
-      cluster.push_back(int(g));
-    }
-  }
+  const SixPoses poses = six_poses(31, s2);
+  const auto& [x, y, cluster, sums, y_sums, gram, g_count] = poses;
+  constexpr Eigen::Index kRows = SixPoses::kRows;
   const Eigen::Index case_rows = 3 * kRows;
   const auto noise_times = [&](const Eigen::MatrixXd& m) {
     Eigen::MatrixXd out = s2 * m;
@@ -332,13 +336,6 @@ TEST(Statistics, RandomEffectsFromStatisticsEqualsTheRowsUnderANoiseCommonToACas
   for (Eigen::Index a = 0; a < g_count; ++a)
     for (Eigen::Index b = 0; b < g_count; ++b)
       if (a / 3 == b / 3) c(a, b) += common * kRows * kRows;
-  const Eigen::VectorXd residual = y - x * x.colPivHouseholderQr().solve(y);
-  const ClusterSums sums = ClusterSums::from_rows(x, residual, cluster, row_loading);
-  Eigen::VectorXd y_sums(g_count);
-  for (Eigen::Index g = 0; g < g_count; ++g) y_sums(g) = y.segment(g * kRows, kRows).sum();
-  Eigen::MatrixXd xy(n, 3);
-  xy << x, y;
-  const Eigen::MatrixXd gram = xy.transpose() * xy;
   ClusterOffsets offsets;
   offsets.tau2_per_loading = 0.04;
   const Eigen::VectorXd noise_sums = c.diagonal();
