@@ -5,12 +5,14 @@
 
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <ostream>
 
 #include "analyzer/commands/noise.hpp"
 #include "analyzer/commands/truth_file.hpp"
 #include "analyzer/fusion/log_dataset.hpp"
+#include "analyzer/ident/regressors.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/noise/noise_analysis.hpp"
 #include "analyzer/procedure/batch_stage.hpp"
@@ -52,6 +54,42 @@ std::string angle_text(double angle_rad, double sd_rad) {
   if (sd_rad == 0.0) return fmt::format("{:+.5f} deg (held)", rad_to_deg(angle_rad));
   return fmt::format("{:+.5f} +- {:.5f} deg", rad_to_deg(angle_rad), rad_to_deg(sd_rad));
 }
+// The span of each input the model reads, over every case's samples in its own M_E^S: what
+// compensation may invert without extrapolating.
+std::map<ident::Variable, model::ModelFile::Span> characterized_range(const dataset::Dataset& data,
+                                                                     const procedure::PipelineResult& result,
+                                                                     const std::vector<model::ModelTerm>& terms) {
+  std::vector<ident::Term> list;
+  for (const model::ModelTerm& t : terms) list.push_back(t.term);
+  ident::VariableSet inputs = ident::variables_of(list);
+  inputs.reset(static_cast<std::size_t>(ident::Variable::Y));
+  inputs.reset(static_cast<std::size_t>(ident::Variable::E));
+  std::map<ident::Variable, model::ModelFile::Span> range;
+  for (std::size_t c = 0; c < data.cases.size(); ++c) {
+    const ident::SignalSet signals = ident::signals_from_case(data.cases[c], result.cases[c].m_es, data.t_ref, "", inputs);
+    for (int v = 0; v < ident::kVariableCount; ++v) {
+      const auto variable = static_cast<ident::Variable>(v);
+      if (!inputs.test(static_cast<std::size_t>(v)) || !signals.has(variable) || signals.size() == 0) continue;
+      const Eigen::VectorXd& x = signals.get(variable);
+      const auto [it, fresh] = range.try_emplace(variable, model::ModelFile::Span{x.minCoeff(), x.maxCoeff()});
+      if (!fresh) {
+        it->second.lowest = std::min(it->second.lowest, x.minCoeff());
+        it->second.highest = std::max(it->second.highest, x.maxCoeff());
+      }
+    }
+  }
+  return range;
+}
+
+// The sample period the lags count in, when every case has the same one.
+std::optional<double> common_sample_period(const dataset::Dataset& data) {
+  if (data.cases.empty()) return std::nullopt;
+  const double period = data.cases.front().sample_period_s;
+  for (const dataset::CaseData& c : data.cases) {
+    if (!(std::abs(c.sample_period_s - period) <= dataset::kTimeJitterTolerance * period)) return std::nullopt;
+  }
+  return period > 0.0 ? std::optional<double>(period) : std::nullopt;
+}
 }  // namespace
 
 model::ModelFile characterized_model(const procedure::PipelineResult& result, const dataset::Dataset& data,
@@ -64,6 +102,12 @@ model::ModelFile characterized_model(const procedure::PipelineResult& result, co
     model.terms.push_back({ident::parse_term(result.fit.labels[static_cast<std::size_t>(j)]), result.fit.theta(j),
                            result.fit.std_dev(j)});
   }
+  model.name = data.sensor_name;
+  model.output_unit = data.output_unit;
+  model.t_ref = data.t_ref;
+  model.sample_period_s = common_sample_period(data);
+  model.covariance = result.fit.covariance;
+  model.range = characterized_range(data, result, model.terms);
   model.white_sd = std::sqrt(procedure::batch_innovation(result).variance);
   model.square_highpass_rad_s = result.square_corner_rad_s;
   // The sensor's noise terms from the plan's static stretches, as `inertia-analyze noise` reads

@@ -117,6 +117,7 @@ struct ColumnFit {
   std::string failure;
   std::vector<Index> columns;        // positions into Workspace::columns, in theta order
   Eigen::VectorXd theta, std_dev;
+  Eigen::MatrixXd covariance;        // of theta; std_dev is the root of its diagonal
   int ar_order = 0;
   Eigen::VectorXd ar;                // a_1..a_m of the prewhitening filter A(q) (empty: white)
   double dof = 0.0;
@@ -208,7 +209,8 @@ ColumnFit fit_on_statistics(const Workspace& w, const std::vector<Index>& fit,
   const double s2 = sol.zeta_energy / static_cast<double>(samples - nfit);
   out.columns = fit;
   out.theta = sol.theta;
-  out.std_dev = (s2 * sol.gram_inverse.diagonal()).cwiseMax(0.0).cwiseSqrt();
+  out.covariance = s2 * sol.gram_inverse;
+  out.std_dev = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   out.dof = static_cast<double>(samples - nfit - 1);
   out.ok = true;
   return out;
@@ -262,19 +264,23 @@ ColumnFit fit_columns(const Workspace& w, const std::vector<Index>& fit,
     out.columns = fit;
     out.theta = r.process_theta();
     out.std_dev = r.std_dev.head(r.process_terms);
+    out.covariance = r.covariance.topLeftCorner(r.process_terms, r.process_terms);
     out.dof = static_cast<double>(y.size() - r.process_terms - 1);
     // Output-multiplied columns keep their rows unfiltered (filters_rows), their sd scaled as the
     // live estimator scales them (procedure::unfiltered_long_run_ratio).
     if (options.max_ar_order > 0) {
       const procedure::ArWhitener whitener = procedure::ArWhitener::fit(r.residuals, s.cases, options.max_ar_order);
       if (!procedure::filters_rows(!rational_cols.empty())) {
-        out.std_dev *= std::sqrt(procedure::unfiltered_long_run_ratio(r.residuals, s.cases, whitener.coefficients()));
+        const double ratio = procedure::unfiltered_long_run_ratio(r.residuals, s.cases, whitener.coefficients());
+        out.std_dev *= std::sqrt(ratio);
+        out.covariance *= ratio;
       } else if (whitener.order() > 0) {
         procedure::StackedRegression ws{std::move(phi), std::move(y), s.cases, labels, {}};
         whitener.apply(ws);
         const ident::UlsResult g = ident::uls_batch(ws.phi, ws.y, labels, {}, ident::UlsOptions{});
         out.theta = g.process_theta();
         out.std_dev = g.std_dev.head(g.process_terms);
+        out.covariance = g.covariance.topLeftCorner(g.process_terms, g.process_terms);
         out.dof = static_cast<double>(ws.y.size() - g.process_terms - 1);
         out.ar_order = whitener.order();
         out.ar = whitener.coefficients();
@@ -724,19 +730,37 @@ DiagnoseResult diagnose(const dataset::Dataset& data, const model::ModelFile& mo
   };
   // The model with `fit`'s coefficients on every fitted term column and the candidate appended
   // (a term; a rotation candidate adds no term). Rotation increments of the fit: per mounting.
+  // The covariance is the fit's among the fitted terms; a term the fit held keeps its variance
+  // (std^2, or 0 without one) and no correlation, since this fit did not estimate it.
   auto augmented = [&w](const model::ModelFile& base, const ColumnFit& fit, Index candidate) {
     model::ModelFile m = base;
     if (candidate >= 0 && w.rotation_of[static_cast<std::size_t>(candidate)].first < 0) {
       m.terms.push_back({w.columns[static_cast<std::size_t>(candidate)], 0.0, std::nullopt});
     }
+    std::vector<Index> fitted(m.terms.size(), -1);   // model term -> position in the fit
     for (std::size_t j = 0; j < fit.columns.size(); ++j) {
       if (w.rotation_of[static_cast<std::size_t>(fit.columns[j])].first >= 0) continue;
       const Term& t = w.columns[static_cast<std::size_t>(fit.columns[j])];
-      for (model::ModelTerm& mt : m.terms) {
+      for (std::size_t i = 0; i < m.terms.size(); ++i) {
+        model::ModelTerm& mt = m.terms[i];
         if (mt.term == t) {
           mt.coefficient = fit.theta(static_cast<Index>(j));
           mt.std = fit.std_dev(static_cast<Index>(j));
+          fitted[i] = static_cast<Index>(j);
         }
+      }
+    }
+    const auto n = static_cast<Index>(m.terms.size());
+    m.covariance = Eigen::MatrixXd::Zero(n, n);
+    for (Index a = 0; a < n; ++a) {
+      const Index fa = fitted[static_cast<std::size_t>(a)];
+      if (fa < 0) {
+        m.covariance(a, a) = std::pow(m.terms[static_cast<std::size_t>(a)].std.value_or(0.0), 2);
+        continue;
+      }
+      for (Index b = 0; b < n; ++b) {
+        const Index fb = fitted[static_cast<std::size_t>(b)];
+        if (fb >= 0) m.covariance(a, b) = fit.covariance(fa, fb);
       }
     }
     return m;

@@ -151,6 +151,7 @@ dataset::Dataset log_dataset(const std::filesystem::path& file, const std::strin
   dataset::Dataset ds;
   ds.sensor = sut.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
                                                             : dataset::SensorKind::Gyroscope;
+  ds.sensor_name = sut.name;
   ds.output_unit = sut.output_unit;
   ds.t_ref = bench.t_ref_c;
   std::stable_sort(segments.begin(), segments.end(),

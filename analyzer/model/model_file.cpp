@@ -68,6 +68,99 @@ const toml::table* optional_table(const toml::table& root, std::string_view key,
 }
 
 
+// An input variable named by a [range] key: a term of one plain, unlagged factor.
+ident::Variable range_variable(const toml::key& key, const std::string& file) {
+  const auto bad = [&] {
+    return InputError(position_of(key.source(), file),
+                      fmt::format("[range]: '{}' is not an input variable (a_i, a_x, w_i, w_x, T, ...)", key.str()));
+  };
+  ident::Term term;
+  try {
+    term = ident::parse_term(key.str());
+  } catch (const InputError&) {
+    throw bad();
+  }
+  if (term.factors().size() != 1) throw bad();
+  const ident::Factor& f = term.factors().front();
+  if (f.lag != 0 || f.power != 1 || f.function != ident::FactorFunction::Plain) throw bad();
+  return f.variable;
+}
+
+std::optional<std::string> optional_string(const toml::table& root, std::string_view key, const std::string& file) {
+  const toml::node* node = root.get(key);
+  if (node == nullptr) return std::nullopt;
+  if (!node->is_string()) throw InputError(position_of(node->source(), file), fmt::format("'{}' must be a string", key));
+  return *node->value<std::string>();
+}
+
+std::optional<double> optional_positive(const toml::table& root, std::string_view key, const std::string& file) {
+  const toml::node* node = root.get(key);
+  if (node == nullptr) return std::nullopt;
+  const double v = finite_number(*node, file, std::string(key));
+  if (!(v > 0.0)) throw InputError(position_of(node->source(), file), fmt::format("'{}' must be positive", key));
+  return v;
+}
+
+// [covariance]: `terms` (each term of [terms] once) and `matrix`, reordered to [terms]' order.
+Eigen::MatrixXd read_covariance(const toml::table& table, const std::vector<ModelTerm>& terms, const std::string& file,
+                                const toml::node& at) {
+  const toml::node* names = table.get("terms");
+  const toml::node* matrix = table.get("matrix");
+  if (names == nullptr || !names->is_array() || matrix == nullptr || !matrix->is_array()) {
+    throw InputError(position_of(at.source(), file), "[covariance] needs 'terms' (an array of terms) and 'matrix'");
+  }
+  const toml::array& name_array = *names->as_array();
+  const std::size_t n = terms.size();
+  std::vector<Eigen::Index> slot;   // file row -> index in `terms`
+  for (const toml::node& name : name_array) {
+    if (!name.is_string()) throw InputError(position_of(name.source(), file), "[covariance] terms must be strings");
+    ident::Term term;
+    try {
+      term = ident::parse_term(*name.value<std::string>());
+    } catch (const InputError& e) {
+      throw InputError(position_of(name.source(), file), fmt::format("[covariance]: {}", e.what()));
+    }
+    const auto it = std::find_if(terms.begin(), terms.end(), [&](const ModelTerm& t) { return t.term == term; });
+    if (it == terms.end())
+      throw InputError(position_of(name.source(), file), fmt::format("[covariance]: term '{}' is not in [terms]", term.to_string()));
+    const Eigen::Index index = it - terms.begin();
+    if (std::find(slot.begin(), slot.end(), index) != slot.end())
+      throw InputError(position_of(name.source(), file), fmt::format("[covariance]: term '{}' given twice", term.to_string()));
+    slot.push_back(index);
+  }
+  if (slot.size() != n) {
+    throw InputError(position_of(names->source(), file),
+                     fmt::format("[covariance] terms: {} given, [terms] has {}", slot.size(), n));
+  }
+  const toml::array& rows = *matrix->as_array();
+  if (rows.size() != n) {
+    throw InputError(position_of(matrix->source(), file), fmt::format("[covariance] matrix: {} rows, {} needed", rows.size(), n));
+  }
+  Eigen::MatrixXd c(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t r = 0; r < n; ++r) {
+    const toml::array* row = rows[r].as_array();
+    if (row == nullptr || row->size() != n) {
+      throw InputError(position_of(rows[r].source(), file), fmt::format("[covariance] matrix row {}: {} numbers needed", r + 1, n));
+    }
+    for (std::size_t k = 0; k < n; ++k) c(slot[r], slot[k]) = finite_number((*row)[k], file, "[covariance] entry");
+  }
+  for (Eigen::Index i = 0; i < c.rows(); ++i) {
+    if (c(i, i) < 0.0)
+      throw InputError(position_of(matrix->source(), file),
+                       fmt::format("[covariance]: the variance of '{}' is negative", terms[std::size_t(i)].term.to_string()));
+  }
+  for (Eigen::Index i = 0; i < c.rows(); ++i) {
+    for (Eigen::Index k = 0; k < i; ++k) {
+      if (std::abs(c(i, k) - c(k, i)) > 1e-9 * std::sqrt(c(i, i) * c(k, k))) {
+        throw InputError(position_of(matrix->source(), file),
+                         fmt::format("[covariance] is not symmetric at '{}', '{}'", terms[std::size_t(i)].term.to_string(),
+                                     terms[std::size_t(k)].term.to_string()));
+      }
+    }
+  }
+  return c;
+}
+
 // Shortest round-trip digits, with ".0" when they would otherwise read as a TOML integer.
 std::string toml_float(double v, std::string_view what) {
   if (!std::isfinite(v)) throw InputError(fmt::format("cannot write model: {} = {} is not finite", what, v));
@@ -155,6 +248,28 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
     }
   }
 
+  if (const toml::node* at = root.get("covariance")) {
+    const toml::table* table = optional_table(root, "covariance", file);
+    model.covariance = read_covariance(*table, model.terms, file, *at);
+  }
+  if (const toml::table* range = optional_table(root, "range", file)) {
+    for (const auto& [key, node] : in_file_order(*range)) {
+      const ident::Variable v = range_variable(*key, file);
+      const toml::array* span = node->as_array();
+      if (span == nullptr || span->size() != 2)
+        throw InputError(position_of(node->source(), file), fmt::format("[range] {} must be [lowest, highest]", key->str()));
+      const double lo = finite_number((*span)[0], file, fmt::format("[range] {}", key->str()));
+      const double hi = finite_number((*span)[1], file, fmt::format("[range] {}", key->str()));
+      if (!(lo <= hi))
+        throw InputError(position_of(node->source(), file), fmt::format("[range] {}: lowest {} above highest {}", key->str(), lo, hi));
+      model.range[v] = ModelFile::Span{lo, hi};
+    }
+  }
+  model.name = optional_string(root, "sensor_name", file).value_or("");
+  model.output_unit = optional_string(root, "output_unit", file).value_or("");
+  if (const toml::node* t = root.get("t_ref")) model.t_ref = finite_number(*t, file, "t_ref");
+  model.sample_period_s = optional_positive(root, "sample_period_s", file);
+
   if (const toml::node* b = root.get("square_highpass_rad_s")) {
     model.square_highpass_rad_s = finite_number(*b, file, "square_highpass_rad_s");
     if (!(*model.square_highpass_rad_s > 0.0)) {
@@ -203,6 +318,10 @@ ModelFile read_model(const std::filesystem::path& file) {
 
 std::string format_model(const ModelFile& model) {
   std::string s = "sensor = " + toml_quote(dataset::to_string(model.sensor)) + "\n";
+  if (!model.name.empty()) s += "sensor_name = " + toml_quote(model.name) + "\n";
+  if (!model.output_unit.empty()) s += "output_unit = " + toml_quote(model.output_unit) + "\n";
+  if (model.t_ref) s += "t_ref = " + toml_float(*model.t_ref, "t_ref") + "\n";
+  if (model.sample_period_s) s += "sample_period_s = " + toml_float(*model.sample_period_s, "sample_period_s") + "\n";
   s += "m_cs = [";
   for (int r = 0; r < 3; ++r) {
     s += r == 0 ? "[" : ", [";
@@ -225,6 +344,28 @@ std::string format_model(const ModelFile& model) {
     s += "\n[std]\n";
     for (const ModelTerm& t : model.terms) {
       if (t.std) s += toml_quote(t.term.to_string()) + " = " + toml_float(*t.std, "std") + "\n";
+    }
+  }
+  if (model.covariance.size() > 0) {
+    const auto n = static_cast<Eigen::Index>(model.terms.size());
+    if (model.covariance.rows() != n || model.covariance.cols() != n)
+      throw InputError(fmt::format("cannot write model: covariance is {}x{} for {} terms", model.covariance.rows(),
+                                   model.covariance.cols(), n));
+    s += "\n[covariance]\nterms = [";
+    for (Eigen::Index i = 0; i < n; ++i) s += (i == 0 ? "" : ", ") + toml_quote(model.terms[std::size_t(i)].term.to_string());
+    s += "]\nmatrix = [\n";
+    for (Eigen::Index i = 0; i < n; ++i) {
+      s += "  [";
+      for (Eigen::Index k = 0; k < n; ++k) s += (k == 0 ? "" : ", ") + toml_float(model.covariance(i, k), "covariance");
+      s += "],\n";
+    }
+    s += "]\n";
+  }
+  if (!model.range.empty()) {
+    s += "\n[range]\n";
+    for (const auto& [v, span] : model.range) {
+      s += fmt::format("{} = [{}, {}]\n", ident::variable_name(v), toml_float(span.lowest, "range"),
+                       toml_float(span.highest, "range"));
     }
   }
   if (model.white_sd || model.noise.any()) {

@@ -18,6 +18,18 @@
 //   [noise.std]                               # optional: each noise term's standard deviation
 //   B = 1.1e-6                                #   (its 95 % interval's half-width / 1.96)
 //
+// Optional keys that let the model be applied to other data (compensate, export), written by
+// characterize:
+//   sensor_name = "acc1"                      # the sensor's name (bench file, dataset.toml)
+//   output_unit = "mA"                        # the output's unit
+//   t_ref = 25.0                              # degC: the model's T is temp - t_ref
+//   sample_period_s = 1.0e-3                  # the period the lags [k-j] count in
+//   [covariance]                              # the coefficients' covariance
+//   terms = ["1", "a_i"]                      #   its rows and columns, each a term of [terms] once
+//   matrix = [[4.0e-12, 1.0e-14], [1.0e-14, 4.4e-12]]
+//   [range]                                   # each input's span over the characterization's
+//   a_i = [-9.81, 9.81]                       #   samples: variable = [lowest, highest]
+//
 // Meaning of the coefficients: y (1 + sum_b c_b p_b) = sum_a c_a term_a, where the output-multiplied
 // terms y*p_b (rational models, paper eq. 5: y*T, y*w_i) carry their denominator coefficient c_b
 // and every other term its ordinary coefficient. Without output-multiplied terms this is simply
@@ -26,7 +38,9 @@
 // grammar accepts. Other top-level keys are ignored, so later versions can add information.
 #include <algorithm>
 #include <array>
+#include <Eigen/Dense>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -64,6 +78,19 @@ struct ModelFile {
   /// first-order high pass s / (s + b) with this corner; absent: they act statically.
   std::optional<double> square_highpass_rad_s;
 
+  std::string name;                        // sensor_name; empty: not stated
+  std::string output_unit;                 // output_unit; empty: not stated
+  std::optional<double> t_ref;             // t_ref, degC
+  std::optional<double> sample_period_s;   // sample_period_s
+  /// [covariance], rows and columns in the order of `terms` (whatever the file's order); 0 x 0
+  /// when the file has none.
+  Eigen::MatrixXd covariance;
+  /// [range]: the characterized span of each input variable the file states.
+  struct Span {
+    double lowest = 0.0, highest = 0.0;
+  };
+  std::map<ident::Variable, Span> range;
+
   /// The coefficient of `term`, or nullopt when the model does not hold it.
   [[nodiscard]] std::optional<double> coefficient(const ident::Term& term) const;
 };
@@ -71,8 +98,10 @@ struct ModelFile {
 /// Reads and validates a model file. Throws InputError naming file, line and column for a TOML
 /// syntax error, a missing or mistyped key, an m_cs that is not a rotation (tolerance
 /// dataset::kRotationTolerance), a term the grammar rejects (the message holds the grammar's
-/// reason), a term given twice in two spellings, a non-finite coefficient, or a [std] entry for a
-/// term that [terms] lacks.
+/// reason), a term given twice in two spellings, a non-finite coefficient, a [std] entry for a
+/// term that [terms] lacks, a [covariance] whose terms are not those of [terms] or whose matrix is
+/// not square, symmetric (to 1e-9 of its diagonal's scale) with a non-negative diagonal, or a
+/// [range] entry that is not a known input variable with lowest <= highest.
 ModelFile read_model(const std::filesystem::path& file);
 
 /// The same from text; `source_name` is used in error messages.

@@ -481,6 +481,7 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
     data.sensor = *kind;
   }
   data.output_unit = require_string(root, "output_unit", file);
+  if (root.get("sensor_name") != nullptr) data.sensor_name = require_string(root, "sensor_name", file);
   data.t_ref = to_finite_double(require(root, "t_ref", file, ""), file, "'t_ref'");
 
   if (root.get("case") == nullptr) {
@@ -573,6 +574,7 @@ std::uintmax_t csv_bytes(const Dataset& data) {
 void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
   std::string toml_text;
   toml_text += "sensor = " + toml_quote(to_string(data.sensor)) + "\n";
+  if (!data.sensor_name.empty()) toml_text += "sensor_name = " + toml_quote(data.sensor_name) + "\n";
   toml_text += "output_unit = " + toml_quote(data.output_unit) + "\n";
   toml_text += "t_ref = " + toml_float(data.t_ref) + "\n";
 

@@ -56,6 +56,7 @@ struct CaseData {
 struct Dataset {
   std::filesystem::path dir;                          // where read_dataset found it; empty if built in memory
   SensorKind sensor = SensorKind::Accelerometer;
+  std::string sensor_name;                            // optional sensor_name (extension): the bench's name for it
   std::string output_unit;
   double t_ref = 25.0;                                // degC; model variable T = temp - t_ref
   std::vector<CaseData> cases;

@@ -35,10 +35,12 @@ void write_truth(const config::BenchConfig& bench, const BenchSimulation& sim, s
   toml::table root;
   root.insert_or_assign("sensor", sensor.type == config::SensorType::Accelerometer ? "accelerometer" : "gyroscope");
   root.insert_or_assign("name", sensor.name);
+  root.insert_or_assign("sensor_name", sensor.name);   // the model file's key for it
   root.insert_or_assign("output_unit", sensor.output_unit);
   root.insert_or_assign("bench", bench.name);
   root.insert_or_assign("seed", static_cast<std::int64_t>(sensor.seed));
   root.insert_or_assign("t_ref", bench.t_ref_c);
+  root.insert_or_assign("sample_period_s", 1.0 / bench.sample_rate_hz);
   const frames::Dcm m_cs = sim.cases.empty() ? frames::Dcm::Identity() : sim.cases.front().sensors[s].m_cs;
   root.insert_or_assign("m_cs", to_toml(m_cs));
   toml::table notes, noise;
@@ -118,6 +120,7 @@ dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSim
   dataset::Dataset ds;
   ds.sensor = sensor.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
                                                                : dataset::SensorKind::Gyroscope;
+  ds.sensor_name = sensor.name;
   ds.output_unit = sensor.output_unit;
   ds.t_ref = bench.t_ref_c;
   for (std::size_t c = 0; c < bench.cases.size(); ++c) {

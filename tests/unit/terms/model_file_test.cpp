@@ -129,6 +129,72 @@ TEST(ModelFile, OtherErrorsNameTheirLine) {
   }
 }
 
+TEST(ModelFile, WhatCompensationNeedsRoundTripsWithTheCovarianceInTheTermsOrder) {
+  ModelFile m = sample_model();
+  m.name = "acc1";
+  m.output_unit = "mA";
+  m.t_ref = 25.0;
+  m.sample_period_s = 1.0 / 3.0 * 1e-3;
+  const auto n = static_cast<Eigen::Index>(m.terms.size());
+  Eigen::MatrixXd a = Eigen::MatrixXd::Random(n, n);
+  m.covariance = a * a.transpose() / 7.0;
+  m.range[ident::Variable::Ai] = {-9.81, 9.81 / 3.0};
+  m.range[ident::Variable::T] = {-15.0, 40.0};
+  const ModelFile r = parse_model(format_model(m), "model.toml");
+  EXPECT_EQ(r.name, "acc1");
+  EXPECT_EQ(r.output_unit, "mA");
+  EXPECT_EQ(r.t_ref, 25.0);
+  EXPECT_EQ(r.sample_period_s, m.sample_period_s);
+  EXPECT_EQ(r.covariance, m.covariance);   // bitwise
+  ASSERT_EQ(r.range.size(), 2u);
+  EXPECT_EQ(r.range.at(ident::Variable::Ai).highest, 9.81 / 3.0);
+  EXPECT_EQ(r.range.at(ident::Variable::T).lowest, -15.0);
+  EXPECT_EQ(format_model(r), format_model(m));
+
+  // A file may list the covariance's terms in its own order and spelling: read into [terms]' order.
+  const ModelFile s = parse_model(R"(sensor = "accelerometer"
+m_cs = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+[terms]
+"1" = 1e-3
+"a_i*a_p" = 2e-4
+"a_i" = 0.09
+[covariance]
+terms = ["a_i", "a_p * a_i", "1"]
+matrix = [[9.0, 2.0, 1.0], [2.0, 4.0, 0.5], [1.0, 0.5, 1.0]]
+)",
+                                  "model.toml");
+  Eigen::Matrix3d expected;
+  expected << 1.0, 0.5, 1.0, 0.5, 4.0, 2.0, 1.0, 2.0, 9.0;
+  EXPECT_EQ(s.covariance, Eigen::MatrixXd(expected));
+}
+
+TEST(ModelFile, BadCovarianceAndRangeNameTheirLine) {
+  const std::string head = "sensor = \"accelerometer\"\nm_cs = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n"
+                           "[terms]\n\"1\" = 1.0\n\"a_i\" = 2.0\n";
+  struct Bad {
+    std::string text;
+    std::size_t line;
+    const char* part;
+  };
+  for (const Bad& b : {Bad{head + "[covariance]\nterms = [\"1\", \"a_p\"]\nmatrix = [[1.0, 0.0], [0.0, 1.0]]\n", 7, "not in [terms]"},
+                       Bad{head + "[covariance]\nterms = [\"1\", \"1\"]\nmatrix = [[1.0, 0.0], [0.0, 1.0]]\n", 7, "twice"},
+                       Bad{head + "[covariance]\nterms = [\"1\"]\nmatrix = [[1.0]]\n", 7, "[terms] has 2"},
+                       Bad{head + "[covariance]\nterms = [\"1\", \"a_i\"]\nmatrix = [[1.0, 0.0]]\n", 8, "2 needed"},
+                       Bad{head + "[covariance]\nterms = [\"1\", \"a_i\"]\nmatrix = [[1.0, 0.1], [0.2, 1.0]]\n", 8, "not symmetric"},
+                       Bad{head + "[covariance]\nterms = [\"1\", \"a_i\"]\nmatrix = [[-1.0, 0.0], [0.0, 1.0]]\n", 8, "negative"},
+                       Bad{head + "[covariance]\nmatrix = [[1.0]]\n", 6, "needs 'terms'"},
+                       Bad{head + "[range]\na_q = [0.0, 1.0]\n", 7, "not an input variable"},
+                       Bad{head + "[range]\n\"a_i^2\" = [0.0, 1.0]\n", 7, "not an input variable"},
+                       Bad{head + "[range]\na_i = [1.0, 0.0]\n", 7, "above highest"},
+                       Bad{head + "[range]\na_i = [1.0]\n", 7, "[lowest, highest]"},
+                       Bad{"sample_period_s = -1.0\n" + head, 1, "positive"},
+                       Bad{"sensor_name = 3\n" + head, 1, "string"}}) {
+    const InputError e = parse_error(b.text);
+    EXPECT_EQ(e.where().line, b.line) << e.what();
+    EXPECT_NE(std::string(e.what()).find(b.part), std::string::npos) << e.what();
+  }
+}
+
 TEST(ModelFile, WriteRefusesNonFiniteNumbers) {
   ModelFile m = sample_model();
   m.terms[0].coefficient = std::numeric_limits<double>::quiet_NaN();
