@@ -20,6 +20,11 @@ bool is_square_term(const ident::Term& term) {
           f[0].variable == ident::Variable::Ao);
 }
 
+HighpassCoefficients highpass_coefficients(double corner_rad_s, double sample_period_s) {
+  const double c = corner_rad_s / std::tan(corner_rad_s * sample_period_s / 2.0);
+  return {(c - corner_rad_s) / (c + corner_rad_s), c / (c + corner_rad_s)};
+}
+
 void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s) {
   HighpassState state;
   highpass_in_place(x, corner_rad_s, sample_period_s, state);
@@ -28,9 +33,7 @@ void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, doubl
 void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s,
                        HighpassState& state) {
   if (x.size() == 0) return;
-  const double c = corner_rad_s / std::tan(corner_rad_s * sample_period_s / 2.0);
-  const double p = (c - corner_rad_s) / (c + corner_rad_s);
-  const double g = c / (c + corner_rad_s);
+  const auto [p, g] = highpass_coefficients(corner_rad_s, sample_period_s);
   if (!state.started) {
     state = {x(0), 0.0, true};
   }
@@ -58,9 +61,7 @@ void highpass_columns_side_by_side(Eigen::MatrixXd& x, std::span<const Eigen::In
   for (const CaseRows& rows : layout) {
     if (rows.rows <= 0) continue;
     const double period = data.cases.at(rows.case_index).sample_period_s;
-    const double c = corner_rad_s / std::tan(corner_rad_s * period / 2.0);
-    const double p = (c - corner_rad_s) / (c + corner_rad_s);
-    const double g = c / (c + corner_rad_s);
+    const auto [p, g] = highpass_coefficients(corner_rad_s, period);
     for (std::size_t i = 0; i < n; ++i) {
       col[i] = x.col(columns[i]).data() + rows.begin;
       h[i] = 0.0;

@@ -19,6 +19,12 @@ namespace inertia::procedure {
 /// True for a_i^2, a_p^2, a_o^2 (at any lag): the terms the high pass applies to.
 bool is_square_term(const ident::Term& term);
 
+/// The recursion's p and g above for a corner at a sample period.
+struct HighpassCoefficients {
+  double p = 0.0, g = 0.0;
+};
+HighpassCoefficients highpass_coefficients(double corner_rad_s, double sample_period_s);
+
 /// Filters x in place with s / (s + corner) at the sample period.
 void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s);
 

@@ -1,0 +1,96 @@
+#pragma once
+// Compensation: an identified model read backwards, from a sensor's raw output to the physical
+// input it sensed. The model says y (1 + sum_b c_b p_b) = sum_a c_a term_a (model_file.hpp); with
+// every other input known (the other axes, temperature, the lagged outputs), each sample's sensed
+// input x (a_i for an accelerometer, w_i for a gyro) is the root of
+//
+//   g(x) = sum_a c_a term_a(x) - y(k) (1 + sum_b c_b p_b(x)) = 0,
+//
+// found by Newton's method from the previous sample's estimate. The model's dynamics are kept:
+// lagged outputs y[k-j] are the measured ones, lagged sensed inputs x[k-j] the estimates already
+// made (before the first estimate, the current x: the sensor starts settled, as eq. 12's high pass
+// does), and the squares of eq. 12 pass the model's high pass with x(k)^2 as the newest input.
+// Noise terms e[k-j] are zero: they describe the output's noise, not the sensor.
+//
+// Each estimate carries two standard uncertainties, by the delta method at the root:
+//   from the coefficients   u_c^2 = J C J',  J_j = -(dg/dc_j) / g'(x),  C the model's covariance;
+//   from the output's noise u_n   = white_sd |1 + sum_b c_b p_b(x)| / |g'(x)|.
+// Errors of the known inputs, and of earlier estimates fed back through lagged terms, are not
+// propagated: the command states so.
+#include <Eigen/Dense>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "analyzer/ident/regressors.hpp"
+#include "analyzer/ident/term.hpp"
+#include "analyzer/model/model_file.hpp"
+
+namespace inertia::compensate {
+
+enum class SampleFlag : std::uint8_t {
+  Ok = 0,
+  OutsideRange = 1,   // an input (known or solved) lies outside the model's [range] plus the margin
+  NotConverged = 2,   // Newton found no root within the iterations: the value is NaN
+};
+const char* to_string(SampleFlag flag);
+
+struct CompensationOptions {
+  int max_iterations = 30;
+  /// A sample is outside the characterized range when an input lies beyond [lowest, highest]
+  /// widened on each side by this fraction of the span.
+  double range_margin = 0.01;
+};
+
+struct CompensatedSignal {
+  Eigen::Index first_row = 0;       // sample index of element 0 (the model's largest lag)
+  Eigen::VectorXd value;            // the sensed input, SI (m/s^2 or rad/s); NaN where not converged
+  Eigen::VectorXd u_coefficients;   // standard uncertainty from the coefficients' covariance
+  Eigen::VectorXd u_noise;          // standard uncertainty from the output's white noise
+  std::vector<SampleFlag> flag;
+  Eigen::Index outside_range = 0, not_converged = 0;
+  int most_iterations = 0;          // the most Newton steps any sample took, over all its starts
+};
+
+class InverseModel {
+ public:
+  /// Throws InputError for a model without a term in the sensed input at the current sample (the
+  /// output does not depend on it), or with the output y unlagged other than as y*p.
+  explicit InverseModel(const model::ModelFile& model);
+
+  /// a_i for an accelerometer, w_i for a gyroscope.
+  [[nodiscard]] ident::Variable sensed() const { return sensed_; }
+  /// The inputs besides y the terms read (never the sensed one, which is solved for).
+  [[nodiscard]] const ident::VariableSet& known_inputs() const { return known_; }
+  [[nodiscard]] Eigen::Index first_row() const { return first_row_; }
+  /// False: the model file has no [covariance], and u_coefficients uses its [std] alone.
+  [[nodiscard]] bool has_covariance() const { return has_covariance_; }
+
+  /// Compensates one record. `signals` holds y and every known input (a sensed-input column in it
+  /// is ignored). Throws InputError for a missing input, or std::invalid_argument for a model
+  /// with a square high pass and no positive sample period.
+  [[nodiscard]] CompensatedSignal compensate(const ident::SignalSet& signals, double sample_period_s,
+                                             const CompensationOptions& options = {}) const;
+
+ private:
+  struct CompiledTerm {
+    std::vector<ident::Factor> factors;
+    double coefficient = 0.0;
+    bool denominator = false;   // y*p: factors hold p
+    bool square_filtered = false;
+  };
+  ident::Variable sensed_ = ident::Variable::Ai;
+  ident::VariableSet known_;
+  std::vector<CompiledTerm> terms_;          // noise terms left out
+  std::vector<Eigen::Index> model_index_;    // terms_[i] is the model's term model_index_[i]
+  Eigen::MatrixXd covariance_;               // over terms_
+  bool has_covariance_ = false;
+  Eigen::Index first_row_ = 0;
+  double white_sd_ = 0.0;
+  std::optional<double> square_corner_;
+  std::map<ident::Variable, model::ModelFile::Span> range_;
+};
+
+}  // namespace inertia::compensate

@@ -1,0 +1,223 @@
+// Compensation against truth: outputs simulated from known inputs by the model's own free run
+// (procedure::simulate_model), then read backwards.
+#include "analyzer/compensate/inverse_model.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "analyzer/procedure/model_simulation.hpp"
+#include "common/input_error.hpp"
+
+namespace inertia::compensate {
+namespace {
+
+using ident::SignalSet;
+using ident::Variable;
+
+model::ModelFile model_of(dataset::SensorKind kind, const std::vector<std::pair<std::string, double>>& terms) {
+  model::ModelFile m;
+  m.sensor = kind;
+  for (const auto& [name, c] : terms) m.terms.push_back({ident::parse_term(name), c, std::nullopt});
+  return m;
+}
+
+Eigen::VectorXd theta_of(const model::ModelFile& m) {
+  Eigen::VectorXd theta(static_cast<Eigen::Index>(m.terms.size()));
+  for (std::size_t j = 0; j < m.terms.size(); ++j) theta(static_cast<Eigen::Index>(j)) = m.terms[j].coefficient;
+  return theta;
+}
+
+std::vector<ident::Term> terms_of(const model::ModelFile& m) {
+  std::vector<ident::Term> t;
+  for (const model::ModelTerm& mt : m.terms) t.push_back(mt.term);
+  return t;
+}
+
+/// Smooth random inputs (a random walk through a one-pole low pass), settled (constant) over the
+/// first `settled` samples as a record that starts at rest.
+SignalSet smooth_inputs(Eigen::Index n, std::uint64_t seed, double amplitude, Eigen::Index settled = 4) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  SignalSet s(n, "test record");
+  for (Variable v : {Variable::Ai, Variable::Ap, Variable::Ao, Variable::Wi, Variable::T}) {
+    Eigen::VectorXd x(n);
+    double state = amplitude * g(rng) * 0.3;
+    for (Eigen::Index k = 0; k < n; ++k) {
+      if (k >= settled) state = 0.98 * state + 0.2 * amplitude * g(rng) * 0.3;
+      x(k) = state;
+    }
+    s.set(v, x);
+  }
+  return s;
+}
+
+/// The model's noise-free output on `s`; the free run's lags start from outputs 0 before its first
+/// row, which the compensation then reads as measured.
+Eigen::VectorXd output_of(const model::ModelFile& m, SignalSet& s, double period = 1e-3) {
+  const auto terms = terms_of(m);
+  const Eigen::Index first = ident::first_usable_row(terms);
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(s.size());
+  s.set(Variable::Y, y);
+  const Eigen::VectorXd tail = procedure::simulate_model(terms, theta_of(m), s, first, m.square_highpass_rad_s, period);
+  y.tail(tail.size()) = tail;
+  s.set(Variable::Y, y);
+  return y;
+}
+
+TEST(InverseModel, RecoversTheInputOfANonlinearDynamicTemperatureModel) {
+  // An accelerometer with bias, scale, second-order and odd-quadratic terms, cross-coupling, a
+  // temperature bias and scale coefficient, one input lag and one output lag.
+  const model::ModelFile m = model_of(dataset::SensorKind::Accelerometer,
+                                      {{"1", 3.4e-3},
+                                       {"a_i", 0.0877},
+                                       {"a_i^2", 4e-5},
+                                       {"a_i*abs(a_i)", -2e-5},
+                                       {"a_i*a_p", 9e-6},
+                                       {"a_p*a_o", 7e-6},
+                                       {"T", 2e-5},
+                                       {"a_i*T", 3e-6},
+                                       {"a_i[k-1]", 0.004},
+                                       {"y[k-1]", 0.3},
+                                       {"e[k-1]", 0.5}});
+  SignalSet s = smooth_inputs(4000, 11, 10.0);
+  output_of(m, s);
+  const InverseModel inverse(m);
+  EXPECT_EQ(inverse.sensed(), Variable::Ai);
+  EXPECT_FALSE(inverse.known_inputs().test(static_cast<std::size_t>(Variable::Ai)));
+  const CompensatedSignal c = inverse.compensate(s, 1e-3);
+  ASSERT_EQ(c.first_row, 1);
+  const Eigen::VectorXd truth = s.get(Variable::Ai).tail(c.value.size());
+  EXPECT_LT((c.value - truth).cwiseAbs().maxCoeff(), 1e-9 * truth.cwiseAbs().maxCoeff());
+  EXPECT_EQ(c.not_converged, 0);
+  EXPECT_LE(c.most_iterations, 6);
+}
+
+TEST(InverseModel, RecoversTheRateOfARationalGyroModel) {
+  // Eq. 5's form: y (1 + c T + d w_i) = bias + S w_i + g-sensitivity.
+  const model::ModelFile m = model_of(dataset::SensorKind::Gyroscope,
+                                      {{"1", 0.02}, {"w_i", 1.5}, {"a_p", 0.004}, {"y*T", 1e-3}, {"y*w_i", 0.05}});
+  SignalSet s = smooth_inputs(3000, 12, 2.0);
+  output_of(m, s);
+  const CompensatedSignal c = InverseModel(m).compensate(s, 1e-3);
+  const Eigen::VectorXd truth = s.get(Variable::Wi).tail(c.value.size());
+  EXPECT_LT((c.value - truth).cwiseAbs().maxCoeff(), 1e-11);
+}
+
+TEST(InverseModel, FollowsTheSquaresThroughTheirHighPass) {
+  model::ModelFile m = model_of(dataset::SensorKind::Accelerometer,
+                                {{"1", 1e-3}, {"a_i", 0.09}, {"a_i^2", 3e-4}, {"a_p^2", -2e-4}, {"a_i^2[k-1]", 1e-4}});
+  m.square_highpass_rad_s = 40.0;
+  SignalSet s = smooth_inputs(5000, 13, 10.0);
+  output_of(m, s, 1e-3);
+  const CompensatedSignal c = InverseModel(m).compensate(s, 1e-3);
+  const Eigen::VectorXd truth = s.get(Variable::Ai).tail(c.value.size());
+  EXPECT_LT((c.value - truth).cwiseAbs().maxCoeff(), 1e-10);
+  EXPECT_THROW((void)InverseModel(m).compensate(s, 0.0), std::invalid_argument);
+}
+
+TEST(InverseModel, CoefficientUncertaintyIsTheSpreadOfEstimatesUnderTheCovariance) {
+  // The model's coefficients drawn from their covariance around the truth: each sample's spread
+  // of estimates against its u_coefficients, at a few samples over 400 draws.
+  model::ModelFile truth = model_of(dataset::SensorKind::Accelerometer,
+                                    {{"1", 3e-3}, {"a_i", 0.088}, {"a_i^2", 5e-5}, {"a_i*a_p", 1e-5}, {"T", 4e-5}});
+  SignalSet s = smooth_inputs(200, 14, 10.0);
+  output_of(truth, s);
+  Eigen::MatrixXd a = Eigen::MatrixXd::Random(5, 5);
+  Eigen::Vector<double, 5> sd;
+  sd << 3e-5, 3e-6, 5e-7, 4e-7, 2e-6;
+  const Eigen::MatrixXd correlation_root = (a * a.transpose() + 2.0 * Eigen::MatrixXd::Identity(5, 5)).llt().matrixL();
+  Eigen::MatrixXd root = sd.asDiagonal() * correlation_root;
+  model::ModelFile stated = truth;
+  stated.covariance = root * root.transpose();
+  const CompensatedSignal nominal = InverseModel(stated).compensate(s, 1e-3);
+  std::mt19937_64 rng(15);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const std::vector<Eigen::Index> samples = {10, 80, 150};
+  std::vector<double> sum(samples.size()), sum2(samples.size());
+  const int draws = 400;
+  for (int d = 0; d < draws; ++d) {
+    Eigen::Vector<double, 5> z;
+    for (int i = 0; i < 5; ++i) z(i) = g(rng);
+    const Eigen::VectorXd delta = root * z;
+    model::ModelFile drawn = truth;
+    for (int i = 0; i < 5; ++i) drawn.terms[std::size_t(i)].coefficient += delta(i);
+    const CompensatedSignal c = InverseModel(drawn).compensate(s, 1e-3);
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      const double e = c.value(samples[i]) - nominal.value(samples[i]);
+      sum[i] += e;
+      sum2[i] += e * e;
+    }
+  }
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const double spread = std::sqrt(sum2[i] / draws - std::pow(sum[i] / draws, 2));
+    // The sample sd of 400 normal draws: relative sd 1/sqrt(800) = 3.5 %; 4 of them.
+    EXPECT_NEAR(spread / nominal.u_coefficients(samples[i]), 1.0, 0.14) << samples[i];
+  }
+  EXPECT_TRUE(InverseModel(stated).has_covariance());
+  EXPECT_FALSE(InverseModel(truth).has_covariance());
+}
+
+TEST(InverseModel, NoiseUncertaintyIsTheSpreadUnderTheStatedWhiteNoise) {
+  model::ModelFile m = model_of(dataset::SensorKind::Accelerometer, {{"1", 3e-3}, {"a_i", 0.088}, {"a_i^2", 5e-4}});
+  m.white_sd = 1e-4;
+  SignalSet s = smooth_inputs(20000, 16, 10.0);
+  Eigen::VectorXd y = output_of(m, s);
+  std::mt19937_64 rng(17);
+  std::normal_distribution<double> g(0.0, *m.white_sd);
+  for (Eigen::Index k = 0; k < y.size(); ++k) y(k) += g(rng);
+  s.set(Variable::Y, y);
+  const CompensatedSignal c = InverseModel(m).compensate(s, 1e-3);
+  const Eigen::VectorXd z = (c.value - s.get(Variable::Ai)).array() / c.u_noise.array();
+  // 20000 standardized errors: their sd within 4 of its own sd (1/sqrt(40000)) of 1.
+  const double sd = std::sqrt(z.squaredNorm() / static_cast<double>(z.size()));
+  EXPECT_NEAR(sd, 1.0, 4.0 / std::sqrt(40000.0));
+}
+
+TEST(InverseModel, FlagsInputsOutsideTheCharacterizedRangeAndSamplesWithoutARoot) {
+  model::ModelFile m = model_of(dataset::SensorKind::Accelerometer, {{"1", 0.0}, {"a_i", 1.0}, {"T", 0.1}});
+  m.range[Variable::Ai] = {-1.0, 1.0};
+  m.range[Variable::T] = {-10.0, 10.0};
+  SignalSet s(5, "flags");
+  Eigen::VectorXd y(5), t(5);
+  y << 0.5, 1.015, 1.025, 0.0, 0.0;   // a_i: 0.5, 1.015 (inside the 1 % margin), 1.025, 0, 0
+  t << 0.0, 0.0, 0.0, 10.1, 10.3;     // T: the last one beyond 10 + 0.2
+  s.set(Variable::Y, y + 0.1 * t);
+  s.set(Variable::T, t);
+  const CompensatedSignal c = InverseModel(m).compensate(s, 1e-3);
+  EXPECT_EQ(c.flag, (std::vector<SampleFlag>{SampleFlag::Ok, SampleFlag::Ok, SampleFlag::OutsideRange, SampleFlag::Ok,
+                                             SampleFlag::OutsideRange}));
+  EXPECT_EQ(c.outside_range, 2);
+  EXPECT_NEAR(c.value(2), 1.025, 1e-12);   // flagged, still the model's answer
+
+  // y = a_i^2 has no root for y < 0: NaN, flagged, counted; the next sample starts afresh.
+  const model::ModelFile square = model_of(dataset::SensorKind::Accelerometer, {{"a_i", 0.0}, {"a_i^2", 1.0}});
+  SignalSet q(3, "square");
+  Eigen::VectorXd yq(3);
+  yq << 4.0, -1.0, 9.0;
+  q.set(Variable::Y, yq);
+  const CompensatedSignal r = InverseModel(square).compensate(q, 1e-3);
+  EXPECT_EQ(r.flag[1], SampleFlag::NotConverged);
+  EXPECT_TRUE(std::isnan(r.value(1)));
+  EXPECT_EQ(r.not_converged, 1);
+  EXPECT_NEAR(std::abs(r.value(2)), 3.0, 1e-12);
+}
+
+TEST(InverseModel, RefusesModelsThatDoNotTellTheInput) {
+  EXPECT_THROW(InverseModel(model_of(dataset::SensorKind::Accelerometer, {{"1", 1.0}, {"a_p", 1.0}})), InputError);
+  EXPECT_THROW(InverseModel(model_of(dataset::SensorKind::Accelerometer, {{"a_i[k-1]", 1.0}})), InputError);
+  EXPECT_THROW(InverseModel(model_of(dataset::SensorKind::Gyroscope, {{"a_i", 1.0}})), InputError);
+  const model::ModelFile m = model_of(dataset::SensorKind::Accelerometer, {{"a_i", 1.0}, {"a_i*T", 0.1}});
+  SignalSet s(3, "case 'x'");
+  s.set(Variable::Y, Eigen::VectorXd::Zero(3));
+  try {
+    (void)InverseModel(m).compensate(s, 1e-3);
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'T' (temp), which case 'x' lacks"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace inertia::compensate
