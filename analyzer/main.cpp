@@ -17,6 +17,8 @@
 #include <string>
 
 #include "analyzer/commands/characterize.hpp"
+#include "analyzer/commands/compensate.hpp"
+#include "analyzer/commands/export.hpp"
 #include "analyzer/commands/plan_check.hpp"
 #include "analyzer/commands/diagnose.hpp"
 #include "analyzer/commands/noise.hpp"
@@ -133,6 +135,44 @@ int run(int argc, char** argv) {
   noise->add_option("--tau-max", noise_options.tau_max_s, "fit averaging times up to this (s; default: as far as the data go)");
   noise->add_option("--out", noise_options.out, "output folder (noise.toml, report.md, plots)")->required();
 
+  inertia::commands::CompensateOptions compensate_options;
+  std::string other_axes = "reference";
+  auto* compensate = app.add_subcommand("compensate", "raw output to physical input by the model read backwards, with uncertainty");
+  compensate->add_option("--model", compensate_options.model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
+  auto* compensate_dataset = compensate->add_option("--dataset", compensate_options.dataset, "dataset folder")->check(CLI::ExistingDirectory);
+  auto* compensate_log = compensate->add_option("--log", compensate_options.event_log, "inertia-daqd event log instead of --dataset");
+  compensate_dataset->excludes(compensate_log);
+  compensate->add_option("--sensor", compensate_options.sensor, "with --log: the sensor under test (default: the model's sensor_name)")
+      ->needs(compensate_log);
+  compensate->add_option("--out", compensate_options.out, "CSV of the compensated samples")->required();
+  compensate->add_option("--other-axes", other_axes, "the other two axes of the sensed quantity: from the references, or zero")
+      ->check(CLI::IsMember({"reference", "zero"}))
+      ->capture_default_str();
+  std::string case_frames = "model";
+  compensate->add_option("--case-frames", case_frames,
+                         "each case's M_E^S: as characterized (the model's [[case_frame]] of that name), or nominal")
+      ->check(CLI::IsMember({"model", "nominal"}))
+      ->capture_default_str();
+  compensate->add_option("--range-margin", compensate_options.range_margin,
+                         "flag a sample whose input lies beyond the characterized range by more than this fraction of it")
+      ->capture_default_str();
+
+  inertia::commands::ExportOptions export_options;
+  std::string precision = "double";
+  auto* export_verb = app.add_subcommand("export", "a model in its users' forms: C for firmware, JSON, Kalibr's imu.yaml");
+  export_verb->add_option("--model", export_options.model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
+  export_verb->add_option("--format", export_options.format, "c, json or kalibr")
+      ->required()
+      ->check(CLI::IsMember({"c", "json", "kalibr"}));
+  export_verb->add_option("--out", export_options.out, "output folder")->required();
+  export_verb->add_option("--prefix", export_options.prefix, "c: prefix of the generated names (default: inertia_<sensor>)");
+  export_verb->add_option("--precision", precision, "c: the generated code's real type")
+      ->check(CLI::IsMember({"double", "float"}))
+      ->capture_default_str();
+  export_verb->add_option("--vectors", export_options.vectors, "c: dataset folder whose first case gives test vectors")
+      ->check(CLI::ExistingDirectory);
+  export_verb->add_option("--vector-samples", export_options.vector_samples, "c: test vectors' samples")->capture_default_str();
+
   inertia::commands::PlanCheckOptions plan_options;
   auto* plan_check = app.add_subcommand("plan-check", "before a test: what the bench's plan will determine, and each parameter's predicted sd");
   plan_check->add_option("--bench", plan_options.bench, "bench file (backend sim, [sensor.truth]: the sensor's expected values and noise)")
@@ -187,6 +227,15 @@ int run(int argc, char** argv) {
     return inertia::commands::run_simulate(simulate_options, std::cout);
   }
   if (diagnose->parsed()) return inertia::commands::run_diagnose(diagnose_options, std::cout);
+  if (export_verb->parsed()) {
+    export_options.single_precision = precision == "float";
+    return inertia::commands::run_export(export_options, std::cout);
+  }
+  if (compensate->parsed()) {
+    compensate_options.other_axes_zero = other_axes == "zero";
+    compensate_options.case_frames_from_model = case_frames == "model";
+    return inertia::commands::run_compensate(compensate_options, std::cout);
+  }
   if (noise->parsed()) return inertia::commands::run_noise(noise_options, std::cout);
   if (online->parsed()) {
     online_options.models = parse_models(online_models);

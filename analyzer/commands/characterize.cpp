@@ -108,7 +108,16 @@ model::ModelFile characterized_model(const procedure::PipelineResult& result, co
   model.sample_period_s = common_sample_period(data);
   model.covariance = result.fit.covariance;
   model.range = characterized_range(data, result, model.terms);
+  for (std::size_t c = 0; c < data.cases.size(); ++c) model.case_frames.push_back({data.cases[c].name, result.cases[c].m_es});
   model.white_sd = std::sqrt(procedure::batch_innovation(result).variance);
+  double squares = 0.0;
+  Eigen::Index samples = 0;
+  for (const procedure::CaseOutcome& outcome : result.cases) {
+    const Eigen::VectorXd e = procedure::free_run_error(data, outcome, result);
+    squares += e.squaredNorm();
+    samples += e.size();
+  }
+  if (samples > 0) model.output_sd = std::sqrt(squares / static_cast<double>(samples));
   model.square_highpass_rad_s = result.square_corner_rad_s;
   // The sensor's noise terms from the plan's static stretches, as `inertia-analyze noise` reads
   // them: [noise] carries the determined ones (diagnose's band test expects them).

@@ -60,7 +60,7 @@ double factor_slope(const ident::Factor& f, double v) {
 
 InverseModel::InverseModel(const model::ModelFile& model) {
   sensed_ = model.sensor == dataset::SensorKind::Accelerometer ? Variable::Ai : Variable::Wi;
-  white_sd_ = model.white_sd.value_or(0.0);
+  noise_sd_ = model.output_sd.value_or(model.white_sd.value_or(0.0));
   square_corner_ = model.square_highpass_rad_s;
   range_ = model.range;
   bool reads_sensed_now = false;
@@ -104,6 +104,17 @@ InverseModel::InverseModel(const model::ModelFile& model) {
   }
 }
 
+std::array<double, 3> InverseModel::fallback_starts() const {
+  const double lo = range_.count(sensed_) ? range_.at(sensed_).lowest : -1.0;
+  const double hi = range_.count(sensed_) ? range_.at(sensed_).highest : 1.0;
+  return {0.5 * (lo + hi), hi, lo};
+}
+
+double InverseModel::tolerance_scale() const {
+  const double span = range_.count(sensed_) ? range_.at(sensed_).highest - range_.at(sensed_).lowest : 0.0;
+  return span > 0.0 ? span : 1.0;
+}
+
 CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, double sample_period_s,
                                            const CompensationOptions& options) const {
   for (std::size_t v = 0; v < static_cast<std::size_t>(ident::kVariableCount); ++v) {
@@ -136,8 +147,7 @@ CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, doub
     const auto variable = static_cast<Variable>(v);
     if (variable != sensed_ && signals.has(variable)) column[static_cast<std::size_t>(v)] = &signals.get(variable);
   }
-  const double scale = range_.count(sensed_) ? std::max(range_.at(sensed_).highest - range_.at(sensed_).lowest, 0.0) : 0.0;
-  const double tolerance_scale = scale > 0.0 ? scale : 1.0;
+  const double step_scale = tolerance_scale();
 
   const auto t_count = terms_.size();
   std::vector<double> known(t_count);         // product of the factors that do not move with x
@@ -211,9 +221,8 @@ CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, doub
 
     // Newton from the previous estimate; where it fails (a zero slope, no root nearby), from the
     // middle and the ends of the characterized range, or from 0 and +-1 without one.
-    const double lo = range_.count(sensed_) ? range_.at(sensed_).lowest : -1.0;
-    const double hi = range_.count(sensed_) ? range_.at(sensed_).highest : 1.0;
-    const std::array<double, 4> starts{last_good, 0.5 * (lo + hi), hi, lo};
+    const std::array<double, 3> fallback = fallback_starts();
+    const std::array<double, 4> starts{last_good, fallback[0], fallback[1], fallback[2]};
     bool converged = false;
     int iterations = 0;
     double g = 0.0, dg = 0.0, denominator = 1.0;
@@ -226,7 +235,7 @@ CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, doub
         if (!(std::isfinite(g) && std::isfinite(dg)) || dg == 0.0) break;
         const double step = g / dg;
         x -= step;
-        if (std::abs(step) <= 1e-13 * (std::abs(x) + tolerance_scale)) {
+        if (std::abs(step) <= kStepTolerance * (std::abs(x) + step_scale)) {
           converged = true;
           break;
         }
@@ -253,7 +262,7 @@ CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, doub
       jacobian(static_cast<Index>(t)) = -dg_dc / dg;
     }
     out.u_coefficients(r) = std::sqrt(std::max(0.0, jacobian.dot(covariance_ * jacobian)));
-    out.u_noise(r) = white_sd_ * std::abs(denominator) / std::abs(dg);
+    out.u_noise(r) = noise_sd_ * std::abs(denominator) / std::abs(dg);
     for (std::size_t t = 0; t < t_count; ++t) {
       if (!terms_[t].square_filtered) continue;
       // The filter's input at x: the square's unfiltered value.

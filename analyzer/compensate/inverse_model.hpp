@@ -14,10 +14,12 @@
 //
 // Each estimate carries two standard uncertainties, by the delta method at the root:
 //   from the coefficients   u_c^2 = J C J',  J_j = -(dg/dc_j) / g'(x),  C the model's covariance;
-//   from the output's noise u_n   = white_sd |1 + sum_b c_b p_b(x)| / |g'(x)|.
+//   from the output's noise u_n   = s |1 + sum_b c_b p_b(x)| / |g'(x)|,
+// s the model's [noise] output_sd (every colour of the noise), else its white_sd.
 // Errors of the known inputs, and of earlier estimates fed back through lagged terms, are not
 // propagated: the command states so.
 #include <Eigen/Dense>
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -74,13 +76,28 @@ class InverseModel {
   [[nodiscard]] CompensatedSignal compensate(const ident::SignalSet& signals, double sample_period_s,
                                              const CompensationOptions& options = {}) const;
 
- private:
+  /// A model term as the inversion reads it (noise terms are left out).
   struct CompiledTerm {
-    std::vector<ident::Factor> factors;
+    std::vector<ident::Factor> factors;   // without the unlagged y of a denominator term
     double coefficient = 0.0;
-    bool denominator = false;   // y*p: factors hold p
-    bool square_filtered = false;
+    bool denominator = false;             // y*p: factors hold p
+    bool square_filtered = false;         // a square through eq. 12's high pass
   };
+  [[nodiscard]] const std::vector<CompiledTerm>& terms() const { return terms_; }
+  /// The coefficients' covariance over terms() (the [std] squared without [covariance]).
+  [[nodiscard]] const Eigen::MatrixXd& covariance() const { return covariance_; }
+  /// The output's noise sd u_noise scales: output_sd, else white_sd, else 0.
+  [[nodiscard]] double noise_sd() const { return noise_sd_; }
+  [[nodiscard]] const std::optional<double>& square_corner() const { return square_corner_; }
+  [[nodiscard]] const std::map<ident::Variable, model::ModelFile::Span>& range() const { return range_; }
+  /// Newton's starting points after the previous estimate: the middle and the ends of the sensed
+  /// input's characterized range (0 and +-1 without one).
+  [[nodiscard]] std::array<double, 3> fallback_starts() const;
+  /// Newton stops when a step is at most this times (|x| + the range's span, or 1).
+  static constexpr double kStepTolerance = 1e-13;
+  [[nodiscard]] double tolerance_scale() const;
+
+ private:
   ident::Variable sensed_ = ident::Variable::Ai;
   ident::VariableSet known_;
   std::vector<CompiledTerm> terms_;          // noise terms left out
@@ -88,7 +105,7 @@ class InverseModel {
   Eigen::MatrixXd covariance_;               // over terms_
   bool has_covariance_ = false;
   Eigen::Index first_row_ = 0;
-  double white_sd_ = 0.0;
+  double noise_sd_ = 0.0;   // the output's noise: output_sd, else white_sd
   std::optional<double> square_corner_;
   std::map<ident::Variable, model::ModelFile::Span> range_;
 };

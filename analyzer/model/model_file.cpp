@@ -1,4 +1,5 @@
 #include "analyzer/model/model_file.hpp"
+#include "common/atomic_file.hpp"
 #include "common/toml_text.hpp"
 
 #include <algorithm>
@@ -67,6 +68,30 @@ const toml::table* optional_table(const toml::table& root, std::string_view key,
   return node->as_table();
 }
 
+
+// A 3x3 rotation matrix [[..], [..], [..]] (tolerance dataset::kRotationTolerance).
+frames::Dcm rotation_at(const toml::node& m, const std::string& file, const std::string& key) {
+  frames::Dcm out;
+  const toml::array* rows = m.as_array();
+  const auto bad = [&](const toml::node& at) {
+    return InputError(position_of(at.source(), file), fmt::format("'{}' must be a 3x3 array of numbers, [[..], [..], [..]]", key));
+  };
+  if (rows == nullptr || rows->size() != 3) throw bad(m);
+  for (std::size_t r = 0; r < 3; ++r) {
+    const toml::array* row = (*rows)[r].as_array();
+    if (row == nullptr || row->size() != 3) throw bad((*rows)[r]);
+    for (std::size_t c = 0; c < 3; ++c) {
+      out(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = finite_number((*row)[c], file, fmt::format("'{}' entry", key));
+    }
+  }
+  if (!frames::is_rotation(out, dataset::kRotationTolerance)) {
+    throw InputError(position_of(m.source(), file),
+                     fmt::format("{} is not a rotation (max |M M^T - I| = {:.3g}, det = {:.9g}, tolerance {})", key,
+                                 (out * out.transpose() - frames::Dcm::Identity()).cwiseAbs().maxCoeff(), out.determinant(),
+                                 dataset::kRotationTolerance));
+  }
+  return out;
+}
 
 // An input variable named by a [range] key: a term of one plain, unlagged factor.
 ident::Variable range_variable(const toml::key& key, const std::string& file) {
@@ -167,6 +192,17 @@ std::string toml_float(double v, std::string_view what) {
   return inertia::toml_float(v);
 }
 
+// [[a, b, c], [d, e, f], [g, h, i]]
+std::string matrix_text(const frames::Dcm& m, std::string_view what) {
+  std::string s = "[";
+  for (int r = 0; r < 3; ++r) {
+    s += r == 0 ? "[" : ", [";
+    for (int c = 0; c < 3; ++c) s += (c == 0 ? "" : ", ") + toml_float(m(r, c), what);
+    s += "]";
+  }
+  return s + "]";
+}
+
 }  // namespace
 
 ModelFile parse_model(std::string_view text, const std::string& source_name) {
@@ -189,25 +225,7 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
   model.sensor = *kind;
 
   if (const toml::node* m = root.get("m_cs")) {
-    const toml::array* rows = m->as_array();
-    const auto bad = [&](const toml::node& at) {
-      return InputError(position_of(at.source(), file), "'m_cs' must be a 3x3 array of numbers, [[..], [..], [..]]");
-    };
-    if (rows == nullptr || rows->size() != 3) throw bad(*m);
-    for (std::size_t r = 0; r < 3; ++r) {
-      const toml::array* row = (*rows)[r].as_array();
-      if (row == nullptr || row->size() != 3) throw bad((*rows)[r]);
-      for (std::size_t c = 0; c < 3; ++c) {
-        model.m_cs(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) =
-            finite_number((*row)[c], file, "'m_cs' entry");
-      }
-    }
-    if (!frames::is_rotation(model.m_cs, dataset::kRotationTolerance)) {
-      throw InputError(position_of(m->source(), file),
-                       fmt::format("m_cs is not a rotation (max |M M^T - I| = {:.3g}, det = {:.9g}, tolerance {})",
-                                   (model.m_cs * model.m_cs.transpose() - frames::Dcm::Identity()).cwiseAbs().maxCoeff(),
-                                   model.m_cs.determinant(), dataset::kRotationTolerance));
-    }
+    model.m_cs = rotation_at(*m, file, "m_cs");
   } else {
     throw InputError(SourcePosition{file, 0, 0}, "missing key 'm_cs' (M_C^S, 3x3)");
   }
@@ -265,6 +283,23 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
       model.range[v] = ModelFile::Span{lo, hi};
     }
   }
+  if (const toml::node* frames_node = root.get("case_frame")) {
+    const toml::array* list = frames_node->as_array();
+    if (list == nullptr || !list->is_array_of_tables())
+      throw InputError(position_of(frames_node->source(), file), "'case_frame' must be [[case_frame]] tables");
+    for (const toml::node& node : *list) {
+      const toml::table& t = *node.as_table();
+      const auto name = t.get("case") != nullptr ? t.get("case")->value<std::string>() : std::nullopt;
+      const toml::node* m = t.get("m_es");
+      if (!name || name->empty() || m == nullptr)
+        throw InputError(position_of(node.source(), file), "[[case_frame]] needs 'case' (a name) and 'm_es'");
+      for (const ModelFile::CaseFrame& other : model.case_frames) {
+        if (other.case_name == *name)
+          throw InputError(position_of(node.source(), file), fmt::format("[[case_frame]] '{}' given twice", *name));
+      }
+      model.case_frames.push_back({*name, rotation_at(*m, file, "m_es")});
+    }
+  }
   model.name = optional_string(root, "sensor_name", file).value_or("");
   model.output_unit = optional_string(root, "output_unit", file).value_or("");
   if (const toml::node* t = root.get("t_ref")) model.t_ref = finite_number(*t, file, "t_ref");
@@ -282,6 +317,10 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
       if (*model.white_sd < 0.0) {
         throw InputError(position_of(sd->source(), file), "noise.white_sd is negative");
       }
+    }
+    if (const toml::node* sd = noise->get("output_sd")) {
+      model.output_sd = finite_number(*sd, file, "noise.output_sd");
+      if (*model.output_sd < 0.0) throw InputError(position_of(sd->source(), file), "noise.output_sd is negative");
     }
     const toml::table* sd = optional_table(*noise, "std", file);
     for (std::size_t i = 0; i < ModelFile::NoiseTerms::kKeys.size(); ++i) {
@@ -322,13 +361,7 @@ std::string format_model(const ModelFile& model) {
   if (!model.output_unit.empty()) s += "output_unit = " + toml_quote(model.output_unit) + "\n";
   if (model.t_ref) s += "t_ref = " + toml_float(*model.t_ref, "t_ref") + "\n";
   if (model.sample_period_s) s += "sample_period_s = " + toml_float(*model.sample_period_s, "sample_period_s") + "\n";
-  s += "m_cs = [";
-  for (int r = 0; r < 3; ++r) {
-    s += r == 0 ? "[" : ", [";
-    for (int c = 0; c < 3; ++c) s += (c == 0 ? "" : ", ") + toml_float(model.m_cs(r, c), "m_cs");
-    s += "]";
-  }
-  s += "]\n";
+  s += "m_cs = " + matrix_text(model.m_cs, "m_cs") + "\n";
   if (model.square_highpass_rad_s) {
     s += "# a_i^2, a_p^2, a_o^2 act through the high pass s / (s + b) of eq. 12\n";
     s += "square_highpass_rad_s = " + toml_float(*model.square_highpass_rad_s, "square_highpass_rad_s") + "\n";
@@ -368,9 +401,13 @@ std::string format_model(const ModelFile& model) {
                        toml_float(span.highest, "range"));
     }
   }
-  if (model.white_sd || model.noise.any()) {
+  for (const ModelFile::CaseFrame& f : model.case_frames) {
+    s += "\n[[case_frame]]\ncase = " + toml_quote(f.case_name) + "\nm_es = " + matrix_text(f.m_es, "m_es") + "\n";
+  }
+  if (model.white_sd || model.output_sd || model.noise.any()) {
     s += "\n[noise]\n";
     if (model.white_sd) s += "white_sd = " + toml_float(*model.white_sd, "white_sd") + "\n";
+    if (model.output_sd) s += "output_sd = " + toml_float(*model.output_sd, "output_sd") + "\n";
     for (std::size_t i = 0; i < ModelFile::NoiseTerms::kKeys.size(); ++i) {
       const char* key = ModelFile::NoiseTerms::kKeys[i];
       if (const std::optional<double>& v = model.noise.values[i]) s += std::string(key) + " = " + toml_float(*v, key) + "\n";
@@ -387,26 +424,7 @@ std::string format_model(const ModelFile& model) {
 }
 
 void write_model(const std::filesystem::path& file, const ModelFile& model) {
-  const std::string text = format_model(model);
-  std::filesystem::path temporary = file;
-  temporary += fmt::format(".partial-{}", ::getpid());
-  {
-    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(temporary.c_str(), "wb"), &std::fclose);
-    if (!f) throw std::system_error(errno, std::generic_category(), "cannot open " + temporary.string() + " for writing");
-    if (std::fwrite(text.data(), 1, text.size(), f.get()) != text.size() || std::fflush(f.get()) != 0 ||
-        ::fsync(::fileno(f.get())) != 0) {
-      const int error = errno;
-      f.reset();
-      std::filesystem::remove(temporary);
-      throw std::system_error(error, std::generic_category(), "cannot write " + temporary.string());
-    }
-  }
-  std::error_code error;
-  std::filesystem::rename(temporary, file, error);
-  if (error) {
-    std::filesystem::remove(temporary);
-    throw std::system_error(error, "cannot rename " + temporary.string() + " to " + file.string());
-  }
+  write_file_atomically(file, format_model(model));
 }
 
 }  // namespace inertia::model

@@ -10,7 +10,10 @@
 //   [std]                                     # optional: term -> standard deviation of the coefficient
 //   "a_i" = 2.1e-6
 //   [noise]                                   # optional
-//   white_sd = 1.0e-4
+//   white_sd = 1.0e-4                         # the innovation's sd (after the AR noise model)
+//   output_sd = 2.0e-4                        # optional: the output's sd about the model's free
+//                                             #   run on the characterization's records, every
+//                                             #   noise colour in (compensation's noise)
 //   N = 1.0e-6                                # optional noise terms of IEEE 952 Annex C (inertia-analyze
 //   B = 2.0e-5                                #   noise): Q quantization (unit s), N white (unit s^1/2),
 //   K = 3.0e-7                                #   B bias instability (unit), K rate random walk
@@ -29,6 +32,9 @@
 //   matrix = [[4.0e-12, 1.0e-14], [1.0e-14, 4.4e-12]]
 //   [range]                                   # each input's span over the characterization's
 //   a_i = [-9.81, 9.81]                       #   samples: variable = [lowest, highest]
+//   [[case_frame]]                            # each characterized case's estimated M_E^S (the
+//   case = "shaker-ia"                        #   sensor in the bench's external frame, fixture
+//   m_es = [[...], [...], [...]]              #   included), for records of the same bench
 //
 // Meaning of the coefficients: y (1 + sum_b c_b p_b) = sum_a c_a term_a, where the output-multiplied
 // terms y*p_b (rational models, paper eq. 5: y*T, y*w_i) carry their denominator coefficient c_b
@@ -63,6 +69,7 @@ struct ModelFile {
   frames::Dcm m_cs = frames::Dcm::Identity();
   std::vector<ModelTerm> terms;     // in file order
   std::optional<double> white_sd;   // [noise] white_sd, output unit
+  std::optional<double> output_sd;  // [noise] output_sd, output unit
   /// [noise] Q, N, B, K, R (IEEE 952 Annex C, the units above), when a noise analysis gave them:
   /// slot i is noise::NoiseTerm(i), written under kKeys[i]. The one list of the slots.
   struct NoiseTerms {
@@ -90,6 +97,12 @@ struct ModelFile {
     double lowest = 0.0, highest = 0.0;
   };
   std::map<ident::Variable, Span> range;
+  /// [[case_frame]], in file order.
+  struct CaseFrame {
+    std::string case_name;
+    frames::Dcm m_es = frames::Dcm::Identity();
+  };
+  std::vector<CaseFrame> case_frames;
 
   /// The coefficient of `term`, or nullopt when the model does not hold it.
   [[nodiscard]] std::optional<double> coefficient(const ident::Term& term) const;
@@ -101,7 +114,8 @@ struct ModelFile {
 /// reason), a term given twice in two spellings, a non-finite coefficient, a [std] entry for a
 /// term that [terms] lacks, a [covariance] whose terms are not those of [terms] or whose matrix is
 /// not square, symmetric (to 1e-9 of its diagonal's scale) with a non-negative diagonal, or a
-/// [range] entry that is not a known input variable with lowest <= highest.
+/// [range] entry that is not a known input variable with lowest <= highest, or a [[case_frame]]
+/// without a case name, with a name given twice, or with an m_es that is not a rotation.
 ModelFile read_model(const std::filesystem::path& file);
 
 /// The same from text; `source_name` is used in error messages.

@@ -1,5 +1,7 @@
 #include "analyzer/procedure/batch_stage.hpp"
 
+#include "analyzer/procedure/model_simulation.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -296,6 +298,16 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   result.residual_mean = ident::residual_mean_test(result.fit.residuals);
   result.aic = ident::aic(result.fit.residuals, result.fit.theta.size());
   return result;
+}
+
+Eigen::VectorXd free_run_error(const dataset::Dataset& data, const CaseOutcome& outcome, const PipelineResult& result,
+                               std::string_view dataset_label) {
+  const dataset::CaseData& c = data.cases[outcome.case_index];
+  const ident::SignalSet signals = ident::signals_from_case(c, outcome.m_es, data.t_ref, dataset_label);
+  const Eigen::Index first = ident::first_usable_row(result.terms);
+  if (first >= c.size()) return {};
+  return simulate_model(result.terms, result.fit.process_theta(), signals, first, result.square_corner_rad_s, c.sample_period_s) -
+         c.y.tail(c.size() - first);
 }
 
 }  // namespace inertia::procedure

@@ -25,6 +25,13 @@ struct BatchInnovation {
 
 BatchInnovation batch_innovation(const PipelineResult& result);
 
+/// The paper's verification error (Fig. 7) of one case: the batch model run free on the case's
+/// references in its M_E^S (noise terms zero, squares through their high pass) minus the
+/// measured output, from the model's first usable row. What the model leaves of the output:
+/// every colour of the noise, and any misfit.
+Eigen::VectorXd free_run_error(const dataset::Dataset& data, const CaseOutcome& outcome, const PipelineResult& result,
+                               std::string_view dataset_label = {});
+
 /// The batch model of `data` on the mountings of `mounted` (blocks 5-6: its mountings, the cases'
 /// M_E^S, M_C^S and the notes so far), which it returns completed.
 PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& data, const PipelineOptions& options,

@@ -36,11 +36,9 @@ CaseTraces traces_of(const dataset::Dataset& data, const procedure::CaseOutcome&
                      const procedure::BatchInnovation& innovation, const std::string& label) {
   const dataset::CaseData& c = data.cases[outcome.case_index];
   const ident::SignalSet signals = ident::signals_from_case(c, outcome.m_es, data.t_ref, label);
-  const Eigen::VectorXd theta = r.fit.process_theta();
   CaseTraces tr;
   const Eigen::Index first = ident::first_usable_row(r.terms), rows = c.size() - first;
-  tr.verification =
-      procedure::simulate_model(r.terms, theta, signals, first, r.square_corner_rad_s, c.sample_period_s) - c.y.tail(rows);
+  tr.verification = procedure::free_run_error(data, outcome, r, label);
   tr.t = c.t.tail(rows);
   if (!c.phase.empty()) tr.phase.assign(c.phase.end() - rows, c.phase.end());
   const auto rows_of_case = std::find_if(innovation.cases.begin(), innovation.cases.end(),

@@ -1,5 +1,7 @@
 #include "hal/sim/simulate.hpp"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 #include <fmt/ostream.h>
 
@@ -47,6 +49,14 @@ void write_truth(const config::BenchConfig& bench, const BenchSimulation& sim, s
   if (const auto* acc = std::get_if<AccelerometerParams>(&sim.params[s])) {
     root.insert_or_assign("terms", model_terms(*acc, &notes));
     root.insert_or_assign("params", to_toml(*acc));
+    // The model file holds one corner for the squares' high pass (eq. 12): written when the
+    // squares the sensor has share it.
+    std::vector<double> corners;
+    for (const auto& [k, b] : {std::pair{acc->k_ii, acc->b_ii_rad_s}, {acc->k_pp, acc->b_pp_rad_s}, {acc->k_oo, acc->b_oo_rad_s}}) {
+      if (k != 0.0) corners.push_back(b);
+    }
+    if (!corners.empty() && std::all_of(corners.begin(), corners.end(), [&](double b) { return b == corners.front(); }))
+      root.insert_or_assign("square_highpass_rad_s", corners.front());
     // Output-unit noise levels: the model multiplies every input-referred term by K_i.
     noise.insert_or_assign("white_sd", std::abs(acc->k_i) * acc->white_sd_g);
     noise.insert_or_assign("pink_sd", std::abs(acc->k_i) * acc->pink_sd_g);

@@ -135,20 +135,27 @@ TEST(ModelFile, WhatCompensationNeedsRoundTripsWithTheCovarianceInTheTermsOrder)
   m.output_unit = "mA";
   m.t_ref = 25.0;
   m.sample_period_s = 1.0 / 3.0 * 1e-3;
+  m.output_sd = 2.5e-4;
   const auto n = static_cast<Eigen::Index>(m.terms.size());
   Eigen::MatrixXd a = Eigen::MatrixXd::Random(n, n);
   m.covariance = a * a.transpose() / 7.0;
   m.range[ident::Variable::Ai] = {-9.81, 9.81 / 3.0};
   m.range[ident::Variable::T] = {-15.0, 40.0};
+  m.case_frames.push_back({"shaker-ia", frames::about_third_axis(0.02)});
+  m.case_frames.push_back({"table", frames::about_second_axis(-1.0 / 3.0)});
   const ModelFile r = parse_model(format_model(m), "model.toml");
   EXPECT_EQ(r.name, "acc1");
   EXPECT_EQ(r.output_unit, "mA");
   EXPECT_EQ(r.t_ref, 25.0);
   EXPECT_EQ(r.sample_period_s, m.sample_period_s);
+  EXPECT_EQ(r.output_sd, 2.5e-4);
   EXPECT_EQ(r.covariance, m.covariance);   // bitwise
   ASSERT_EQ(r.range.size(), 2u);
   EXPECT_EQ(r.range.at(ident::Variable::Ai).highest, 9.81 / 3.0);
   EXPECT_EQ(r.range.at(ident::Variable::T).lowest, -15.0);
+  ASSERT_EQ(r.case_frames.size(), 2u);
+  EXPECT_EQ(r.case_frames[1].case_name, "table");
+  EXPECT_EQ(r.case_frames[1].m_es, m.case_frames[1].m_es);
   EXPECT_EQ(format_model(r), format_model(m));
 
   // A file may list the covariance's terms in its own order and spelling: read into [terms]' order.
@@ -188,6 +195,10 @@ TEST(ModelFile, BadCovarianceAndRangeNameTheirLine) {
                        Bad{head + "[range]\na_i = [1.0, 0.0]\n", 7, "above highest"},
                        Bad{head + "[range]\na_i = [1.0]\n", 7, "[lowest, highest]"},
                        Bad{"sample_period_s = -1.0\n" + head, 1, "positive"},
+                       Bad{head + "[[case_frame]]\ncase = \"a\"\n", 6, "needs 'case'"},
+                       Bad{head + "[[case_frame]]\ncase = \"a\"\nm_es = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n"
+                                  "[[case_frame]]\ncase = \"a\"\nm_es = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n", 9, "twice"},
+                       Bad{head + "[[case_frame]]\ncase = \"a\"\nm_es = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]\n", 8, "not a rotation"},
                        Bad{"sensor_name = 3\n" + head, 1, "string"}}) {
     const InputError e = parse_error(b.text);
     EXPECT_EQ(e.where().line, b.line) << e.what();

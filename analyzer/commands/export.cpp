@@ -1,0 +1,280 @@
+#include "analyzer/commands/export.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+#include <fmt/ranges.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "analyzer/commands/compensate.hpp"
+#include "analyzer/compensate/c_export.hpp"
+#include "analyzer/compensate/inverse_model.hpp"
+#include "analyzer/model/model_file.hpp"
+#include "common/atomic_file.hpp"
+#include "common/dataset/dataset.hpp"
+#include "common/input_error.hpp"
+
+namespace inertia::commands {
+
+using ident::FactorFunction;
+using ident::Variable;
+
+namespace {
+
+using Values = std::array<double, ident::kVariableCount>;
+
+double factor_at(const ident::Factor& f, double v) {
+  switch (f.function) {
+    case FactorFunction::Plain: return std::pow(v, f.power);
+    case FactorFunction::Abs: return std::pow(std::abs(v), f.power);
+    case FactorFunction::Sign: return std::pow(v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0), f.power);
+  }
+  return 0.0;
+}
+
+/// The model's settled output for inputs held at `values` (every lag at its value; noise terms
+/// 0), with only the terms `kept` says: y (1 + sum c_b p_b) = sum c_a term_a, where a lagged y
+/// factor (power 1) stands for the settled y itself. Squares through eq. 12's high pass settle to
+/// 0. NaN where the equation has no finite solution.
+template <class Kept>
+double static_output(const model::ModelFile& model, const Values& values, Kept kept) {
+  double numerator = 0.0, denominator = 1.0;
+  for (const model::ModelTerm& t : model.terms) {
+    if (t.term.is_noise_term() || !kept(t.term)) continue;
+    if (model.square_highpass_rad_s && t.term.factors().size() == 1 && t.term.factors()[0].power == 2 &&
+        t.term.factors()[0].function == FactorFunction::Plain &&
+        (t.term.factors()[0].variable == Variable::Ai || t.term.factors()[0].variable == Variable::Ap ||
+         t.term.factors()[0].variable == Variable::Ao))
+      continue;
+    double product = t.coefficient;
+    int y_power = 0;
+    for (const ident::Factor& f : t.term.factors()) {
+      if (f.variable == Variable::Y) {
+        y_power += f.power;
+        continue;
+      }
+      product *= factor_at(f, values[static_cast<std::size_t>(f.variable)]);
+    }
+    if (y_power == 0) {
+      numerator += product;
+    } else if (y_power == 1) {
+      // Unlagged y*p: a denominator coefficient; a lagged y: the settled output on the right.
+      const bool unlagged = std::any_of(t.term.factors().begin(), t.term.factors().end(),
+                                        [](const ident::Factor& f) { return f.variable == Variable::Y && f.lag == 0; });
+      denominator += unlagged ? product : -product;
+    } else {
+      return std::nan("");
+    }
+  }
+  return denominator != 0.0 ? numerator / denominator : std::nan("");
+}
+
+/// The static sensitivity to the sensed input: its plain terms at every lag over 1 - the output
+/// lags' coefficients.
+double static_sensitivity(const model::ModelFile& model, Variable sensed) {
+  double gain = 0.0, feedback = 0.0;
+  for (const model::ModelTerm& t : model.terms) {
+    const auto& f = t.term.factors();
+    if (f.size() != 1 || f[0].power != 1 || f[0].function != FactorFunction::Plain) continue;
+    if (f[0].variable == sensed) gain += t.coefficient;
+    if (f[0].variable == Variable::Y && f[0].lag > 0) feedback += t.coefficient;
+  }
+  return gain / (1.0 - feedback);
+}
+
+struct Omission {
+  std::vector<std::string> terms;   // left out, with the largest error each costs alone
+  std::vector<double> each;
+  double together = 0.0;            // the largest error of all of them together
+};
+
+/// What a format that keeps only the ideal response S x of the sensed input x (and, where
+/// `keeps_bias`, the bias) leaves out, in the sensed input's unit over the characterized range: a
+/// grid of 5 points per input the [range] states (other inputs at 0).
+Omission omission(const model::ModelFile& model, Variable sensed, bool keeps_bias) {
+  Omission o;
+  const double s = static_sensitivity(model, sensed);
+  std::vector<Variable> axes;
+  for (const auto& [v, span] : model.range) axes.push_back(v);
+  const auto points = static_cast<long>(std::pow(5.0, static_cast<double>(axes.size())));
+  const auto ideal_term = [&](const ident::Term& t) {
+    const auto& f = t.factors();
+    if (t.is_bias()) return keeps_bias;
+    return f.size() == 1 && f[0].power == 1 && f[0].function == FactorFunction::Plain &&
+           (f[0].variable == sensed || (f[0].variable == Variable::Y && f[0].lag > 0));
+  };
+  for (const model::ModelTerm& t : model.terms) {
+    if (!t.term.is_noise_term() && !ideal_term(t.term)) o.terms.push_back(t.term.to_string());
+  }
+  o.each.assign(o.terms.size(), 0.0);
+  for (long p = 0; p < points; ++p) {
+    Values values{};
+    long rest = p;
+    for (Variable v : axes) {
+      const auto& span = model.range.at(v);
+      values[static_cast<std::size_t>(v)] = span.lowest + (span.highest - span.lowest) * static_cast<double>(rest % 5) / 4.0;
+      rest /= 5;
+    }
+    const double full = static_output(model, values, [](const ident::Term&) { return true; });
+    const double kept = static_output(model, values, ideal_term);
+    o.together = std::max(o.together, std::abs(full - kept) / std::abs(s));
+    for (std::size_t i = 0; i < o.terms.size(); ++i) {
+      const ident::Term out = ident::parse_term(o.terms[i]);
+      const double without = static_output(model, values, [&](const ident::Term& t) { return !(t == out); });
+      o.each[i] = std::max(o.each[i], std::abs(full - without) / std::abs(s));
+    }
+  }
+  return o;
+}
+
+std::string omission_text(const Omission& o, const char* unit, const std::string& comment) {
+  if (o.terms.empty()) return comment + " every term of the model is kept\n";
+  std::string s = fmt::format("{} left out (largest error over the box of the characterized ranges, {}): all together {:.3g}\n", comment,
+                              unit, o.together);
+  for (std::size_t i = 0; i < o.terms.size(); ++i) s += fmt::format("{}   {}: {:.3g}\n", comment, o.terms[i], o.each[i]);
+  return s;
+}
+
+nlohmann::json matrix_json(const Eigen::MatrixXd& m) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (Eigen::Index r = 0; r < m.rows(); ++r) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Eigen::Index c = 0; c < m.cols(); ++c) row.push_back(m(r, c));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+nlohmann::json model_json(const model::ModelFile& m) {
+  nlohmann::json j;
+  j["schema"] = "inertia-model-1";
+  j["sensor"] = dataset::to_string(m.sensor);
+  if (!m.name.empty()) j["sensor_name"] = m.name;
+  if (!m.output_unit.empty()) j["output_unit"] = m.output_unit;
+  if (m.t_ref) j["t_ref"] = *m.t_ref;
+  if (m.sample_period_s) j["sample_period_s"] = *m.sample_period_s;
+  j["m_cs"] = matrix_json(m.m_cs);
+  if (m.square_highpass_rad_s) j["square_highpass_rad_s"] = *m.square_highpass_rad_s;
+  j["terms"] = nlohmann::json::array();
+  for (const model::ModelTerm& t : m.terms) {
+    nlohmann::json term{{"term", t.term.to_string()},
+                        {"coefficient", t.coefficient},
+                        {"physical_name", ident::physical_name(t.term, m.sensor)},
+                        {"denominator", t.term.is_output_multiplied()},
+                        {"noise", t.term.is_noise_term()}};
+    if (t.std) term["std"] = *t.std;
+    j["terms"].push_back(term);
+  }
+  if (m.covariance.size() > 0) j["covariance"] = matrix_json(m.covariance);
+  j["range"] = nlohmann::json::object();
+  for (const auto& [v, span] : m.range) j["range"][ident::variable_name(v)] = {span.lowest, span.highest};
+  j["case_frames"] = nlohmann::json::array();
+  for (const auto& f : m.case_frames) j["case_frames"].push_back({{"case", f.case_name}, {"m_es", matrix_json(f.m_es)}});
+  nlohmann::json noise = nlohmann::json::object();
+  if (m.white_sd) noise["white_sd"] = *m.white_sd;
+  if (m.output_sd) noise["output_sd"] = *m.output_sd;
+  for (std::size_t i = 0; i < model::ModelFile::NoiseTerms::kKeys.size(); ++i) {
+    if (!m.noise.values[i]) continue;
+    nlohmann::json term{{"value", *m.noise.values[i]}};
+    if (m.noise.sd[i]) term["std"] = *m.noise.sd[i];
+    noise[model::ModelFile::NoiseTerms::kKeys[i]] = term;
+  }
+  j["noise"] = noise;
+  return j;
+}
+
+}  // namespace
+
+int run_export(const ExportOptions& options, std::ostream& out) {
+  const model::ModelFile model = model::read_model(options.model);
+  const compensate::InverseModel inverse(model);
+  const Variable sensed = inverse.sensed();
+  const char* unit = sensed == Variable::Ai ? "m/s^2" : "rad/s";
+  std::filesystem::create_directories(options.out);
+
+  if (options.format == "c") {
+    std::string prefix = options.prefix;
+    if (prefix.empty()) {
+      prefix = model.name.empty() ? "inertia_model" : "inertia_" + model.name;
+      std::replace_if(prefix.begin(), prefix.end(), [](char c) { return !std::isalnum(static_cast<unsigned char>(c)); }, '_');
+    }
+    const compensate::CSource c = compensate::generate_c(
+        model, prefix, options.single_precision ? compensate::CPrecision::Float : compensate::CPrecision::Double);
+    write_file_atomically(options.out / (prefix + ".h"), c.header);
+    write_file_atomically(options.out / (prefix + ".c"), c.source);
+    std::vector<std::string> names;
+    for (Variable v : c.inputs) names.emplace_back(ident::variable_name(v));
+    fmt::print(out, "wrote {0}/{1}.h and {0}/{1}.c ({2}): {1}_compensate(state, inputs [{3}], y) -> {4} in {5}\n",
+               options.out.string(), prefix, options.single_precision ? "float" : "double", fmt::join(names, ", "),
+               ident::variable_name(sensed), unit);
+    if (!options.vectors.empty()) {
+      const dataset::Dataset data = dataset::read_dataset(options.vectors);
+      const CompensationRecord record = compensation_record(model, inverse, data, 0, true, false);
+      const Eigen::Index n = std::min<Eigen::Index>(record.signals.size(), options.vector_samples);
+      ident::SignalSet head(n, record.signals.origin());
+      for (int v = 0; v < ident::kVariableCount; ++v) {
+        const auto variable = static_cast<Variable>(v);
+        if (record.signals.has(variable)) head.set(variable, record.signals.get(variable).head(n));
+      }
+      std::ostringstream vectors;
+      compensate::write_test_vectors(vectors, model, c.inputs, head, data.cases.front().sample_period_s);
+      write_file_atomically(options.out / (prefix + "_vectors.csv"), vectors.str());
+      fmt::print(out, "wrote {}/{}_vectors.csv: {} samples of case '{}' and what the analyzer makes of them\n",
+                 options.out.string(), prefix, n, data.cases.front().name);
+    }
+    return kExitOk;
+  }
+  if (options.format == "json") {
+    write_file_atomically(options.out / "model.json", model_json(model).dump(2) + "\n");
+    fmt::print(out, "wrote {}/model.json (schema tests/schema/model.schema.json)\n", options.out.string());
+    return kExitOk;
+  }
+  if (options.format == "kalibr") {
+    // Kalibr's noise density is continuous-time: sigma_c = sigma_d sqrt(dt), i.e. N (IEEE 952's
+    // white-noise coefficient, output unit s^1/2); its random walk is K (output unit s^-1/2); both
+    // over the static sensitivity to reach SI.
+    const double s = static_sensitivity(model, sensed);
+    const bool acc = sensed == Variable::Ai;
+    const std::string kind = acc ? "accelerometer" : "gyroscope";
+    std::string yaml = fmt::format("# Kalibr IMU noise parameters of {} '{}' (inertia-analyze export; static sensitivity {:.9g} {} per {})\n",
+                                   kind, model.name, s, model.output_unit.empty() ? "output unit" : model.output_unit, unit);
+    yaml += "# One sensor output: the other sensor kind's keys are for its own model's export.\n";
+    yaml += "rostopic: /imu0\n";
+    if (model.sample_period_s) yaml += fmt::format("update_rate: {} # Hz\n", 1.0 / *model.sample_period_s);
+    const std::optional<double> n = model.noise.values[1];
+    const std::optional<double> k = model.noise.values[3];
+    const double density = n ? *n / std::abs(s)
+                           : (model.white_sd && model.sample_period_s ? *model.white_sd * std::sqrt(*model.sample_period_s) / std::abs(s)
+                                                                      : std::nan(""));
+    if (std::isfinite(density)) {
+      yaml += fmt::format("{}_noise_density: {:.6g} # {}/sqrt(Hz), continuous time{}\n", kind, density, unit,
+                          n ? " (N)" : " (from white_sd: this plan's static stretches gave no N)");
+    } else {
+      yaml += fmt::format("# {}_noise_density: not determined (the model has neither N nor white_sd with sample_period_s)\n", kind);
+    }
+    if (k) {
+      yaml += fmt::format("{}_random_walk: {:.6g} # {}/sqrt(Hz), continuous time (K)\n", kind, *k / std::abs(s),
+                          acc ? "m/s^3" : "rad/s^2");
+    } else {
+      yaml += fmt::format("# {}_random_walk: not determined: the model has no K (the noise analysis of the plan's static "
+                          "stretches did not resolve a rate random walk; a longer rest can)\n",
+                          kind);
+    }
+    const Omission o = omission(model, sensed, false);
+    yaml += "# Kalibr's IMU model holds no deterministic terms of one output (its scale-misalignment intrinsics\n"
+            "# describe a triaxial unit; it estimates the bias online as a random walk).\n";
+    yaml += omission_text(o, unit, "#");
+    write_file_atomically(options.out / "imu.yaml", yaml);
+    fmt::print(out, "wrote {}/imu.yaml\n{}", options.out.string(), omission_text(o, unit, " "));
+    return kExitOk;
+  }
+  throw InputError(fmt::format("--format {}: expected c, json or kalibr", options.format));
+}
+
+}  // namespace inertia::commands

@@ -1,0 +1,47 @@
+#pragma once
+// The compensation of compensate/inverse_model.hpp as dependency-free C99 for a sensor's
+// firmware: one sample at a time, no allocation, its state in a struct the caller owns, and a
+// bounded number of Newton steps (at most kStarts x max_iterations per sample). The generated
+// code follows InverseModel step for step (the same starts, tolerance, settled start, hold across
+// a sample without a root, squares' high pass), so the two agree to rounding.
+//
+// Generated API, for a prefix P (upper case PU):
+//   typedef double|float P_real;
+//   enum { PU_INPUTS = n, PU_TERMS = p, PU_HISTORY = L };
+//   extern const char* const P_input_names[];            (the known inputs, in argument order)
+//   typedef struct { ... } P_state;                      (zero it with P_init)
+//   typedef struct { P_real value, u_coefficients, u_noise; int flag; } P_result;
+//     flag: 0 ok, 1 outside the characterized range, 2 no root (value NaN), 3 filling the
+//     history (the first L samples; value NaN)
+//   void P_init(P_state* s);
+//   P_result P_compensate(P_state* s, const P_real* inputs, P_real y);
+//
+// The test vectors (write_test_vectors) hold per sample y, the inputs in that order, and what
+// InverseModel gives: a CI test compiles the code with -std=c99 -Wall -Werror and checks it.
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "analyzer/compensate/inverse_model.hpp"
+#include "analyzer/ident/regressors.hpp"
+#include "analyzer/model/model_file.hpp"
+
+namespace inertia::compensate {
+
+enum class CPrecision { Float, Double };
+
+struct CSource {
+  std::string header, source;
+  std::vector<ident::Variable> inputs;   // the known inputs, in the order P_compensate takes them
+};
+
+/// Throws InputError for a prefix that is not a C identifier, or a model InverseModel refuses.
+CSource generate_c(const model::ModelFile& model, const std::string& prefix, CPrecision precision,
+                   const CompensationOptions& options = {});
+
+/// CSV "y,<inputs>,value,u_coefficients,u_noise,flag" of `signals` compensated by InverseModel,
+/// one row per sample (the first L rows flag 3, value nan), inputs in `inputs`' order.
+void write_test_vectors(std::ostream& out, const model::ModelFile& model, const std::vector<ident::Variable>& inputs,
+                        const ident::SignalSet& signals, double sample_period_s, const CompensationOptions& options = {});
+
+}  // namespace inertia::compensate

@@ -1,0 +1,193 @@
+// Compensation on held-out data: a sensor characterized on one simulated run of its bench, then
+// its model applied by `compensate` to another run (another seed: other noise, the same sensor
+// and fixtures). Scored against the run's reference input along the sensed axis, beside
+//   the raw output over the nominal scale factor, and
+//   the simulator's true model, each case in its true M_E^S (the best any model can do).
+// The error's rms over its stated standard uncertainty is about 1.
+// The seeds here are what CI time allows (INERTIA_SCENARIO_SEEDS raises them, e.g. to 20).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "analyzer/commands/characterize.hpp"
+#include "analyzer/commands/compensate.hpp"
+#include "analyzer/commands/truth_file.hpp"
+#include "analyzer/compensate/inverse_model.hpp"
+#include "analyzer/ident/regressors.hpp"
+#include "analyzer/model/model_file.hpp"
+#include "common/config/bench_config.hpp"
+#include "common/dataset/dataset.hpp"
+#include "hal/sim/bench_simulation.hpp"
+#include "hal/sim/simulate.hpp"
+#include "tests/support/scratch_dirs.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace inertia;
+
+int seeds_from_environment(int fallback) {
+  const char* text = std::getenv("INERTIA_SCENARIO_SEEDS");
+  return text != nullptr ? std::max(1, std::atoi(text)) : fallback;
+}
+
+fs::path simulated(const fs::path& bench_file, std::uint64_t seed, const fs::path& out) {
+  config::BenchConfig bench = config::load_bench_config(bench_file);
+  config::reseed(bench, seed);
+  sim::write_simulation(bench, sim::simulate_bench(bench), out);
+  return out;
+}
+
+struct Errors {
+  double sum2 = 0.0, raw2 = 0.0, z2 = 0.0;   // z: error over its stated u
+  long n = 0;
+  long flagged = 0;
+  [[nodiscard]] double rms() const { return std::sqrt(sum2 / static_cast<double>(n)); }
+  [[nodiscard]] double raw_rms() const { return std::sqrt(raw2 / static_cast<double>(n)); }
+  [[nodiscard]] double z_rms() const { return std::sqrt(z2 / static_cast<double>(n)); }
+};
+
+/// The CSV compensate wrote: error of each compensated sample against its reference, and of the
+/// raw output over `scale`.
+Errors csv_errors(const fs::path& csv, const std::string& sensed, double scale) {
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "case,t,y," + sensed + ",u,u_coefficients,u_noise,flag," + sensed + "_reference");
+  Errors e;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream row(line);
+    for (std::string field; std::getline(row, field, ',');) f.push_back(field);
+    const double y = std::stod(f[2]), value = std::stod(f[3]), u = std::stod(f[4]), reference = std::stod(f[8]);
+    if (f[7] == "not_converged") {
+      ++e.flagged;
+      continue;
+    }
+    e.sum2 += (value - reference) * (value - reference);
+    e.raw2 += (y / scale - reference) * (y / scale - reference);
+    e.z2 += (value - reference) * (value - reference) / (u * u);
+    ++e.n;
+  }
+  return e;
+}
+
+/// The true model on the same record, each case in its true M_E^S.
+Errors true_model_errors(const fs::path& dataset_dir) {
+  const model::ModelFile truth = model::read_model(dataset_dir / "truth.toml");
+  const std::optional<commands::Truth> t = commands::read_truth(dataset_dir);
+  const dataset::Dataset data = dataset::read_dataset(dataset_dir);
+  const compensate::InverseModel inverse(truth);
+  Errors e;
+  for (const dataset::CaseData& c : data.cases) {
+    const ident::SignalSet s = ident::signals_from_case(c, t->m_es.at(c.name), *truth.t_ref);
+    const compensate::CompensatedSignal r = inverse.compensate(s, c.sample_period_s);
+    const Eigen::VectorXd reference = s.get(inverse.sensed()).tail(r.value.size());
+    for (Eigen::Index k = 0; k < r.value.size(); ++k) {
+      if (!std::isfinite(r.value(k))) {
+        ++e.flagged;
+        continue;
+      }
+      e.sum2 += std::pow(r.value(k) - reference(k), 2);
+      ++e.n;
+    }
+  }
+  return e;
+}
+
+/// `per_run_z`: whether one run's error / u is held to 1 +- 0.15. A long record averages its
+/// noise's variance to a few percent of the law's; a short one dominated by flicker does not (the
+/// paper plan's 10 s record: 0.71 to 1.41 over 20 seeds, pooled 1.00; docs/validation.md), and is
+/// held to the pooled value once ten or more seeds run.
+void check_bench(const std::string& bench_name, const std::string& sensor, int seeds, bool per_run_z) {
+  double pooled_z2 = 0.0;
+  const fs::path bench = fs::path(INERTIA_SOURCE_DIR) / "config" / (bench_name + ".toml");
+  for (int s = 0; s < seeds; ++s) {
+    SCOPED_TRACE(bench_name + " seed " + std::to_string(301 + 2 * s));
+    const inertia::testing::TempDir dir("inertia-compensate");
+    const fs::path characterized = simulated(bench, 301 + 2 * s, dir.path / "characterized");
+    const fs::path held_out = simulated(bench, 302 + 2 * s, dir.path / "held-out");
+    // One sensor's folder: OUT/<sensor>/ on a bench of several, OUT itself on a bench of one.
+    const auto folder = [&](const fs::path& out) { return fs::exists(out / sensor) ? out / sensor : out; };
+    commands::CharacterizeOptions c;
+    c.dataset = folder(characterized);
+    c.out = dir.path / "model";
+    c.plots = false;
+    std::ostringstream sink;
+    ASSERT_EQ(commands::run_characterize(c, sink), 0);
+    const model::ModelFile model = model::read_model(c.out / "model.toml");
+
+    commands::CompensateOptions o;
+    o.model = c.out / "model.toml";
+    o.dataset = folder(held_out);
+    o.out = dir.path / "compensated.csv";
+    std::ostringstream summary;
+    ASSERT_EQ(commands::run_compensate(o, summary), 0);
+    const std::string sensed = model.sensor == dataset::SensorKind::Accelerometer ? "a_i" : "w_i";
+    const Errors compensated = csv_errors(o.out, sensed, *model.coefficient(ident::parse_term(sensed)));
+    const Errors best = true_model_errors(folder(held_out));
+    std::cout << "[ figures ] " << bench_name << " " << sensor << ": rms error " << compensated.rms() << " SI (raw "
+              << compensated.raw_rms() << ", true model " << best.rms() << "), no root " << compensated.flagged << " (true model "
+              << best.flagged << ") of " << compensated.n << ", rms of error / u " << compensated.z_rms() << "\n";
+    EXPECT_EQ(compensated.flagged, 0) << summary.str();
+    EXPECT_LT(compensated.rms(), 1.5 * best.rms()) << summary.str();
+    EXPECT_GT(compensated.raw_rms(), 10.0 * compensated.rms()) << summary.str();
+    // u states the error's size: the noise's variance, estimated on the characterizing run, holds
+    // on the held-out one to the scatter of a coloured record's variance between runs.
+    if (per_run_z) EXPECT_NEAR(compensated.z_rms(), 1.0, 0.15) << summary.str();
+    pooled_z2 += compensated.z_rms() * compensated.z_rms();
+  }
+  if (!per_run_z && seeds >= 10) EXPECT_NEAR(std::sqrt(pooled_z2 / seeds), 1.0, 0.15);
+}
+
+TEST(CompensateScenario, HeldOutRotationTableRunWithinItsTrueModelsError) {
+  check_bench("sim-rotation-table", "acc1", seeds_from_environment(2), true);
+}
+
+TEST(CompensateScenario, HeldOutRateTableGyroRunWithinItsTrueModelsError) {
+  check_bench("sim-rotation-table", "fog1", seeds_from_environment(1), true);
+}
+
+TEST(CompensateScenario, HeldOutPaperRunWithinItsTrueModelsError) {
+  check_bench("sim-paper-daq", "acc1", seeds_from_environment(1), false);
+}
+
+TEST(CompensateScenario, RefusesAnotherSensorsRecord) {
+  const inertia::testing::TempDir dir("inertia-compensate");
+  const fs::path bench = fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-rotation-table.toml";
+  const fs::path data = simulated(bench, 5, dir.path / "data");
+  commands::CompensateOptions o;
+  o.out = dir.path / "x.csv";
+  std::ostringstream sink;
+  // The accelerometer's true model on the gyroscope's record: another kind.
+  o.model = data / "acc1" / "truth.toml";
+  o.dataset = data / "fog1";
+  EXPECT_THROW((void)commands::run_compensate(o, sink), InputError);
+  // Another accelerometer's name.
+  model::ModelFile other = model::read_model(data / "acc1" / "truth.toml");
+  other.name = "acc7";
+  model::write_model(dir.path / "acc7.toml", other);
+  o.model = dir.path / "acc7.toml";
+  o.dataset = data / "acc1";
+  try {
+    (void)commands::run_compensate(o, sink);
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("sensor 'acc7'"), std::string::npos) << e.what();
+  }
+  // Lags counted at another sample period.
+  other.name = "acc1";
+  other.sample_period_s = 1e-4;
+  model::write_model(dir.path / "fast.toml", other);
+  o.model = dir.path / "fast.toml";
+  EXPECT_THROW((void)commands::run_compensate(o, sink), InputError);
+  EXPECT_FALSE(fs::exists(o.out));
+}
+
+}  // namespace

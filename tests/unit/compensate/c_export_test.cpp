@@ -1,0 +1,130 @@
+// The generated C compiles as C99 with warnings as errors and gives InverseModel's answers on its
+// test vectors: a model with every kind of term the inversion handles (nonlinear, absolute value,
+// temperature, input and output lags, the squares' high pass, an output-multiplied term).
+#include "analyzer/compensate/c_export.hpp"
+
+#include <gtest/gtest.h>
+#include <fmt/format.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "analyzer/procedure/model_simulation.hpp"
+#include "common/input_error.hpp"
+#include "tests/support/scratch_dirs.hpp"
+
+namespace inertia::compensate {
+namespace {
+
+namespace fs = std::filesystem;
+using ident::SignalSet;
+using ident::Variable;
+
+model::ModelFile every_kind_of_term() {
+  model::ModelFile m;
+  m.sensor = dataset::SensorKind::Accelerometer;
+  m.name = "acc1";
+  m.t_ref = 25.0;
+  m.sample_period_s = 1e-3;
+  m.square_highpass_rad_s = 60.0;
+  m.white_sd = 1e-4;
+  m.output_sd = 2e-4;
+  const std::vector<std::pair<const char*, double>> terms = {
+      {"1", 3.4e-3},  {"a_i", 0.0877},     {"a_i^2", 4e-5},      {"a_i*abs(a_i)", -2e-5}, {"a_p^2", 3e-5},
+      {"a_i*a_p", 9e-6}, {"a_p*a_o", 7e-6}, {"T", 2e-5},         {"a_i*T", 3e-6},         {"a_i[k-1]", 0.004},
+      {"a_i^2[k-2]", 1e-5}, {"y[k-1]", 0.3}, {"T[k-1]", -1e-5},  {"y*T", 1e-4},           {"e[k-1]", 0.2}};
+  for (const auto& [name, c] : terms) m.terms.push_back({ident::parse_term(name), c, std::nullopt});
+  const auto n = static_cast<Eigen::Index>(m.terms.size());
+  const Eigen::MatrixXd a = Eigen::MatrixXd::Random(n, n) * 1e-7;
+  m.covariance = a * a.transpose();
+  m.range[Variable::Ai] = {-20.0, 20.0};
+  m.range[Variable::T] = {-30.0, 30.0};
+  return m;
+}
+
+/// Inputs of a shaken, tilted, warming sensor, and the model's output on them.
+SignalSet record_of(const model::ModelFile& m, Eigen::Index n) {
+  std::mt19937_64 rng(21);
+  std::normal_distribution<double> g(0.0, 1.0);
+  SignalSet s(n, "vectors");
+  Eigen::VectorXd ai(n), ap(n), ao(n), t(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const double time = 1e-3 * static_cast<double>(k);
+    ai(k) = 12.0 * std::sin(2.0 * M_PI * 7.0 * time) + 0.3 * g(rng) + (k > n / 2 ? 30.0 : 0.0);   // a stretch beyond the range
+    ap(k) = 4.0 * std::cos(2.0 * M_PI * 3.0 * time);
+    ao(k) = 9.8 + 0.5 * g(rng);
+    t(k) = -10.0 + 30.0 * time;
+  }
+  s.set(Variable::Ai, ai);
+  s.set(Variable::Ap, ap);
+  s.set(Variable::Ao, ao);
+  s.set(Variable::T, t);
+  s.set(Variable::Y, Eigen::VectorXd::Zero(n));
+  std::vector<ident::Term> terms;
+  Eigen::VectorXd theta(static_cast<Eigen::Index>(m.terms.size()));
+  for (std::size_t j = 0; j < m.terms.size(); ++j) {
+    terms.push_back(m.terms[j].term);
+    theta(static_cast<Eigen::Index>(j)) = m.terms[j].coefficient;
+  }
+  const Eigen::Index first = ident::first_usable_row(terms);
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(n);
+  y.tail(n - first) = procedure::simulate_model(terms, theta, s, first, m.square_highpass_rad_s, 1e-3);
+  for (Eigen::Index k = 0; k < n; ++k) y(k) += 1e-4 * g(rng);
+  s.set(Variable::Y, y);
+  return s;
+}
+
+/// Generates, compiles (cc -std=c99 -Wall -Wextra -Werror) and runs the driver; its exit status.
+int compile_and_run(const model::ModelFile& m, CPrecision precision, double tolerance, std::string& output) {
+  const inertia::testing::TempDir dir("inertia-c-export");
+  const CSource c = generate_c(m, "model", precision);
+  std::ofstream(dir.path / "model.h") << c.header;
+  std::ofstream(dir.path / "model.c") << c.source;
+  {
+    std::ofstream vectors(dir.path / "vectors.csv");
+    write_test_vectors(vectors, m, c.inputs, record_of(m, 3000), 1e-3);
+  }
+  const fs::path driver = fs::path(INERTIA_SOURCE_DIR) / "tests" / "unit" / "compensate" / "c_export_driver.c";
+  const std::string compile = "cc -std=c99 -pedantic -Wall -Wextra -Werror -O2 -I" + dir.path.string() + " " +
+                              (dir.path / "model.c").string() + " " + driver.string() + " -lm -o " + (dir.path / "driver").string() +
+                              " > " + (dir.path / "cc.txt").string() + " 2>&1";
+  if (std::system(compile.c_str()) != 0) {
+    std::ifstream in(dir.path / "cc.txt");
+    output = std::string(std::istreambuf_iterator<char>(in), {});
+    return -1;
+  }
+  const std::string run = (dir.path / "driver").string() + " " + (dir.path / "vectors.csv").string() + " " +
+                          fmt::format("{}", tolerance) + " 0.4 > " + (dir.path / "run.txt").string() + " 2>&1";
+  const int status = std::system(run.c_str());
+  std::ifstream in(dir.path / "run.txt");
+  output = std::string(std::istreambuf_iterator<char>(in), {});
+  return status;
+}
+
+TEST(CExport, DoubleAgreesWithTheAnalyzerTo1e12) {
+  std::string output;
+  EXPECT_EQ(compile_and_run(every_kind_of_term(), CPrecision::Double, 1e-12, output), 0) << output;
+  std::cout << "[ figures ] double: " << output;
+}
+
+TEST(CExport, FloatAgreesWithTheAnalyzerTo1e6) {
+  std::string output;
+  EXPECT_EQ(compile_and_run(every_kind_of_term(), CPrecision::Float, 1e-6, output), 0) << output;
+  std::cout << "[ figures ] float: " << output;
+}
+
+TEST(CExport, VectorsFlagWhatTheAnalyzerFlags) {
+  const model::ModelFile m = every_kind_of_term();
+  std::ostringstream vectors;
+  write_test_vectors(vectors, m, generate_c(m, "model", CPrecision::Double).inputs, record_of(m, 3000), 1e-3);
+  const std::string text = vectors.str();
+  EXPECT_EQ(text.substr(0, text.find('\n')), "y,a_p,a_o,T,value,u_coefficients,u_noise,flag");
+  EXPECT_NE(text.find(",1\n"), std::string::npos);   // the stretch beyond the range
+  EXPECT_NE(text.find(",3\n"), std::string::npos);   // the history filling
+  EXPECT_THROW((void)generate_c(m, "2bad", CPrecision::Double), InputError);
+}
+
+}  // namespace
+}  // namespace inertia::compensate
