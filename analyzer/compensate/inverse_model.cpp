@@ -153,7 +153,19 @@ CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, doub
   std::vector<double> known(t_count);         // product of the factors that do not move with x
   std::vector<double> h_previous(t_count, 0.0), in_previous(t_count, 0.0);   // squares' high pass
   std::vector<double> value(t_count), slope(t_count);
-  Eigen::VectorXd jacobian(static_cast<Index>(t_count));
+  Eigen::VectorXd jacobian(static_cast<Index>(t_count)), covariance_jacobian(static_cast<Index>(t_count));
+  // The range checks as flat bounds: the solved input (column null) or a known one.
+  struct Bound {
+    const Eigen::VectorXd* column;
+    double lowest, highest;
+  };
+  std::vector<Bound> bounds;
+  for (const auto& [variable, span] : range_) {
+    const double margin = options.range_margin * (span.highest - span.lowest);
+    if (variable != sensed_ && column[static_cast<std::size_t>(variable)] == nullptr) continue;
+    bounds.push_back({variable == sensed_ ? nullptr : column[static_cast<std::size_t>(variable)], span.lowest - margin,
+                      span.highest + margin});
+  }
   // The sensed input as the lagged terms read it: each estimate, or across a sample without one
   // the last estimate held.
   Eigen::VectorXd history(rows);
@@ -261,7 +273,8 @@ CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, doub
       const double dg_dc = terms_[t].denominator ? -yk * value[t] : value[t];
       jacobian(static_cast<Index>(t)) = -dg_dc / dg;
     }
-    out.u_coefficients(r) = std::sqrt(std::max(0.0, jacobian.dot(covariance_ * jacobian)));
+    covariance_jacobian.noalias() = covariance_ * jacobian;
+    out.u_coefficients(r) = std::sqrt(std::max(0.0, jacobian.dot(covariance_jacobian)));
     out.u_noise(r) = noise_sd_ * std::abs(denominator) / std::abs(dg);
     for (std::size_t t = 0; t < t_count; ++t) {
       if (!terms_[t].square_filtered) continue;
@@ -275,17 +288,9 @@ CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, doub
     }
     // Inside the characterized range: the solved input and every known one at this sample.
     bool inside = true;
-    for (const auto& [variable, span] : range_) {
-      const double margin = options.range_margin * (span.highest - span.lowest);
-      double v = 0.0;
-      if (variable == sensed_) {
-        v = x;
-      } else if (const Eigen::VectorXd* c = column[static_cast<std::size_t>(variable)]) {
-        v = (*c)(k);
-      } else {
-        continue;
-      }
-      inside = inside && v >= span.lowest - margin && v <= span.highest + margin;
+    for (const Bound& b : bounds) {
+      const double v = b.column == nullptr ? x : (*b.column)(k);
+      inside = inside && v >= b.lowest && v <= b.highest;
     }
     if (!inside) {
       out.flag[static_cast<std::size_t>(r)] = SampleFlag::OutsideRange;

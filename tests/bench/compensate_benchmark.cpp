@@ -1,0 +1,147 @@
+// Speed of compensation (analyzer/compensate), samples per second on one core:
+//  - BM_Compensate/linear: a unit-like linear model (bias, scale, the two cross axes, T);
+//  - BM_Compensate/nonlinear: the paper's accelerometer model with second-order, cross-coupling,
+//    odd-quadratic and temperature terms, input and output lags, and the squares' high pass;
+//  - BM_GeneratedC/...: the same models' generated C (double), compiled here with cc -O2 and
+//    loaded, one call per sample: its ns per sample, and the ratio against InverseModel on the
+//    same samples in the same run (ratio_to_analyzer < 1: the C is faster).
+// Items = samples. Run: build/bench/bench_compensate
+#include <benchmark/benchmark.h>
+#include <dlfcn.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "analyzer/compensate/c_export.hpp"
+#include "analyzer/compensate/inverse_model.hpp"
+#include "analyzer/procedure/model_simulation.hpp"
+
+namespace {
+
+using namespace inertia;
+using ident::Variable;
+
+constexpr Eigen::Index kSamples = 1 << 18;
+
+model::ModelFile model_of(bool nonlinear) {
+  model::ModelFile m;
+  m.sensor = dataset::SensorKind::Accelerometer;
+  m.sample_period_s = 1e-3;
+  m.output_sd = 2e-4;
+  std::vector<std::pair<const char*, double>> terms = {{"1", 3.4e-3}, {"a_i", 0.0877}, {"a_p", 1e-4}, {"a_o", -2e-4}, {"T", 2e-5}};
+  if (nonlinear) {
+    terms = {{"1", 3.4e-3},     {"a_i", 0.0877},  {"a_i^2", 4e-5},     {"a_p^2", 3e-5},   {"a_i*a_p", 9e-6},
+             {"a_i*a_o", 9e-6}, {"a_p*a_o", 7e-6}, {"a_i*abs(a_i)", -2e-5}, {"T", 2e-5},   {"a_i*T", 3e-6},
+             {"a_i[k-1]", 4e-3}, {"y[k-1]", 0.3}};
+    m.square_highpass_rad_s = 500.0;
+  }
+  for (const auto& [name, c] : terms) m.terms.push_back({ident::parse_term(name), c, std::nullopt});
+  const auto n = static_cast<Eigen::Index>(m.terms.size());
+  m.covariance = Eigen::MatrixXd::Identity(n, n) * 1e-12;
+  m.range[Variable::Ai] = {-30.0, 30.0};
+  return m;
+}
+
+ident::SignalSet record_of(const model::ModelFile& m) {
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> g(0.0, 1.0);
+  ident::SignalSet s(kSamples, "bench");
+  for (Variable v : {Variable::Ai, Variable::Ap, Variable::Ao, Variable::T}) {
+    Eigen::VectorXd x(kSamples);
+    double state = 0.0;
+    for (Eigen::Index k = 0; k < kSamples; ++k) x(k) = state = 0.99 * state + g(rng);
+    s.set(v, x);
+  }
+  std::vector<ident::Term> terms;
+  Eigen::VectorXd theta(static_cast<Eigen::Index>(m.terms.size()));
+  for (std::size_t j = 0; j < m.terms.size(); ++j) terms.push_back(m.terms[j].term), theta(Eigen::Index(j)) = m.terms[j].coefficient;
+  s.set(Variable::Y, Eigen::VectorXd::Zero(kSamples));
+  const Eigen::Index first = ident::first_usable_row(terms);
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(kSamples);
+  y.tail(kSamples - first) = procedure::simulate_model(terms, theta, s, first, m.square_highpass_rad_s, 1e-3);
+  s.set(Variable::Y, y);
+  return s;
+}
+
+double analyzer_seconds_per_sample(const model::ModelFile& m, const ident::SignalSet& s) {
+  const compensate::InverseModel inverse(m);
+  const auto start = std::chrono::steady_clock::now();
+  benchmark::DoNotOptimize(inverse.compensate(s, 1e-3).value.data());
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / static_cast<double>(kSamples);
+}
+
+void BM_Compensate(benchmark::State& state) {
+  const model::ModelFile m = model_of(state.range(0) != 0);
+  const ident::SignalSet s = record_of(m);
+  const compensate::InverseModel inverse(m);
+  for (auto _ : state) benchmark::DoNotOptimize(inverse.compensate(s, 1e-3).value.data());
+  state.SetItemsProcessed(state.iterations() * kSamples);
+  state.SetLabel(state.range(0) ? "nonlinear" : "linear");
+}
+BENCHMARK(BM_Compensate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+struct Loaded {
+  void* library = nullptr;
+  void (*init)(void*) = nullptr;
+  // The generated function returns a struct; called through a wrapper compiled with it.
+  void (*run)(void*, const double*, const double*, long, double*) = nullptr;
+};
+
+/// Generates the model's C with a loop wrapper, compiles it into a shared object and loads it.
+Loaded load_generated(const model::ModelFile& m, const std::filesystem::path& dir, std::vector<ident::Variable>& inputs) {
+  std::filesystem::create_directories(dir);
+  const compensate::CSource c = compensate::generate_c(m, "model", compensate::CPrecision::Double);
+  inputs = c.inputs;
+  std::ofstream(dir / "model.h") << c.header;
+  std::ofstream(dir / "model.c") << c.source
+                                 << "\nvoid model_run(model_state* s, const double* inputs, const double* y, long n, double* out) {\n"
+                                    "  long k;\n  for (k = 0; k < n; ++k) out[k] = model_compensate(s, inputs + k * MODEL_INPUTS, y[k]).value;\n}\n"
+                                    "void model_init_any(void* s) { model_init((model_state*)s); }\n";
+  const std::string command = "cc -std=c99 -O2 -fPIC -shared -I" + dir.string() + " " + (dir / "model.c").string() + " -lm -o " +
+                              (dir / "model.so").string();
+  Loaded l;
+  if (std::system(command.c_str()) != 0) return l;
+  l.library = dlopen((dir / "model.so").c_str(), RTLD_NOW);
+  if (l.library == nullptr) return l;
+  l.init = reinterpret_cast<void (*)(void*)>(dlsym(l.library, "model_init_any"));
+  l.run = reinterpret_cast<void (*)(void*, const double*, const double*, long, double*)>(dlsym(l.library, "model_run"));
+  return l;
+}
+
+void BM_GeneratedC(benchmark::State& state) {
+  const model::ModelFile m = model_of(state.range(0) != 0);
+  const ident::SignalSet s = record_of(m);
+  std::vector<ident::Variable> inputs;
+  const Loaded l = load_generated(m, std::filesystem::temp_directory_path() / ("inertia-bench-c-" + std::to_string(state.range(0))), inputs);
+  if (l.run == nullptr || l.init == nullptr) {
+    state.SkipWithError("cc or dlopen failed");
+    return;
+  }
+  std::vector<double> in(static_cast<std::size_t>(kSamples) * inputs.size()), out(static_cast<std::size_t>(kSamples));
+  for (Eigen::Index k = 0; k < kSamples; ++k) {
+    for (std::size_t i = 0; i < inputs.size(); ++i) in[std::size_t(k) * inputs.size() + i] = s.get(inputs[i])(k);
+  }
+  alignas(64) unsigned char memory[4096];
+  for (auto _ : state) {
+    l.init(memory);
+    l.run(memory, in.data(), s.get(Variable::Y).data(), kSamples, out.data());
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetItemsProcessed(state.iterations() * kSamples);
+  // The peer in the same run: InverseModel on the same samples, and the C once more just after.
+  const double analyzer = analyzer_seconds_per_sample(m, s);
+  const auto start = std::chrono::steady_clock::now();
+  l.init(memory);
+  l.run(memory, in.data(), s.get(Variable::Y).data(), kSamples, out.data());
+  const double generated = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / kSamples;
+  state.counters["ns_per_sample"] = generated * 1e9;
+  state.counters["ratio_to_analyzer"] = generated / analyzer;
+  state.SetLabel(state.range(0) ? "nonlinear" : "linear");
+}
+BENCHMARK(BM_GeneratedC)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+}  // namespace
