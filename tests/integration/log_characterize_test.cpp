@@ -26,7 +26,6 @@
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 #include <regex>
-#include <sstream>
 
 #include "analyzer/commands/truth_file.hpp"
 #include "analyzer/ident/term.hpp"
@@ -150,6 +149,37 @@ TEST(LogCharacterize, DaqdLogToModelMatchesTheSimulatorTruth) {
             << read_text(tmp.path / "diagnose.txt");
   // A finding must be justified: significant at the level the search demanded.
   for (const auto& f : j["findings"]) EXPECT_LT(f["p_value"].get<double>(), f["p_needed"].get<double>()) << f.dump();
+
+  // compensate on the same log with that model: every sample has a root, and the error against
+  // the log's fused reference is what u states (rms of error / u near 1: the record is the one
+  // output_sd was measured on, so no run-to-run scatter of the flicker's variance enters).
+  ASSERT_EQ(run_command(analyze_binary() + " compensate --model " + (tmp.path / "out" / "model.toml").string() + " --log " + log +
+                            " --out " + (tmp.path / "compensated.csv").string(),
+                        tmp.path / "compensate.txt"),
+            0)
+      << read_text(tmp.path / "compensate.txt");
+  const std::string compensated = read_text(tmp.path / "compensate.txt");
+  std::cout << "[ figures ] compensate --log:\n" << compensated;
+  EXPECT_NE(compensated.find(" 0 without a root"), std::string::npos) << compensated;
+  EXPECT_NE(compensated.find("M_E^S as characterized"), std::string::npos) << compensated;
+  {
+    std::ifstream csv(tmp.path / "compensated.csv");
+    std::string line;
+    std::getline(csv, line);
+    ASSERT_EQ(line, "case,t,y,a_i,u,u_coefficients,u_noise,flag,a_i_reference");
+    double z2 = 0.0;
+    long n = 0;
+    while (std::getline(csv, line)) {
+      std::vector<std::string> f;
+      std::stringstream row(line);
+      for (std::string field; std::getline(row, field, ',');) f.push_back(field);
+      const double e = std::stod(f[3]) - std::stod(f[8]), u = std::stod(f[4]);
+      z2 += e * e / (u * u);
+      ++n;
+    }
+    ASSERT_GT(n, 0);
+    EXPECT_NEAR(std::sqrt(z2 / static_cast<double>(n)), 1.0, 0.25);
+  }
 
   // Bad input: exit 2 naming the file.
   const fs::path junk = tmp.path / "junk.lcmlog";
