@@ -19,6 +19,7 @@
 #include "analyzer/commands/characterize.hpp"
 #include "analyzer/commands/compensate.hpp"
 #include "analyzer/commands/export.hpp"
+#include "analyzer/commands/sheet.hpp"
 #include "analyzer/commands/plan_check.hpp"
 #include "analyzer/commands/diagnose.hpp"
 #include "analyzer/commands/noise.hpp"
@@ -173,6 +174,11 @@ int run(int argc, char** argv) {
       ->check(CLI::ExistingDirectory);
   export_verb->add_option("--vector-samples", export_options.vector_samples, "c: test vectors' samples")->capture_default_str();
 
+  std::filesystem::path sheet_model, sheet_out;
+  auto* sheet = app.add_subcommand("sheet", "the model's parameters in IEEE 1293 / 952 names with expanded uncertainty (k = 2)");
+  sheet->add_option("--model", sheet_model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
+  sheet->add_option("--out", sheet_out, "output folder (sheet.md, sheet.html, sheet.json)")->required();
+
   inertia::commands::PlanCheckOptions plan_options;
   auto* plan_check = app.add_subcommand("plan-check", "before a test: what the bench's plan will determine, and each parameter's predicted sd");
   plan_check->add_option("--bench", plan_options.bench, "bench file (backend sim, [sensor.truth]: the sensor's expected values and noise)")
@@ -227,6 +233,7 @@ int run(int argc, char** argv) {
     return inertia::commands::run_simulate(simulate_options, std::cout);
   }
   if (diagnose->parsed()) return inertia::commands::run_diagnose(diagnose_options, std::cout);
+  if (sheet->parsed()) return inertia::commands::run_sheet(sheet_model, sheet_out, std::cout);
   if (export_verb->parsed()) {
     export_options.single_precision = precision == "float";
     return inertia::commands::run_export(export_options, std::cout);

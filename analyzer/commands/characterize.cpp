@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 #include <fmt/ostream.h>
+#include <fmt/chrono.h>
+
+#include <ctime>
 
 #include <fstream>
 #include <iostream>
@@ -10,6 +13,7 @@
 #include <ostream>
 
 #include "analyzer/commands/noise.hpp"
+#include "analyzer/commands/sheet.hpp"
 #include "analyzer/commands/truth_file.hpp"
 #include "analyzer/fusion/log_dataset.hpp"
 #include "analyzer/ident/regressors.hpp"
@@ -21,6 +25,7 @@
 #include "common/dataset/dataset.hpp"
 #include "common/input_error.hpp"
 #include "common/units.hpp"
+#include "inertia_version.hpp"
 
 namespace inertia::commands {
 
@@ -93,7 +98,8 @@ std::optional<double> common_sample_period(const dataset::Dataset& data) {
 }  // namespace
 
 model::ModelFile characterized_model(const procedure::PipelineResult& result, const dataset::Dataset& data,
-                                     std::optional<noise::NoiseAnalysis>& noise_analysis, std::string& why_no_noise) {
+                                     std::optional<noise::NoiseAnalysis>& noise_analysis, std::string& why_no_noise,
+                                     const std::string& source) {
   // Process terms (noise terms describe the residual colour; kept, marked by e).
   model::ModelFile model;
   model.sensor = data.sensor;
@@ -109,6 +115,20 @@ model::ModelFile characterized_model(const procedure::PipelineResult& result, co
   model.covariance = result.fit.covariance;
   model.range = characterized_range(data, result, model.terms);
   for (std::size_t c = 0; c < data.cases.size(); ++c) model.case_frames.push_back({data.cases[c].name, result.cases[c].m_es});
+  if (!result.mountings.empty() && result.mountings.front().aligned) {
+    const procedure::MountingResult& m = result.mountings.front();
+    model.misalignment = model::ModelFile::Misalignment{m.angles(1), m.angles(2), m.angles_sd(1), m.angles_sd(2)};
+  }
+  for (const procedure::UndeterminedTerm& u : result.undetermined) model.undetermined.emplace_back(u.term, u.reason);
+  double duration = 0.0;
+  for (const dataset::CaseData& c : data.cases) {
+    duration += static_cast<double>(c.size()) * c.sample_period_s;
+    model.conditions.cases.push_back(c.name);
+  }
+  model.conditions.duration_s = duration;
+  model.conditions.source = source;
+  model.conditions.software = INERTIA_VERSION_TEXT;
+  model.conditions.date = fmt::format("{:%Y-%m-%dT%H:%M:%SZ}", fmt::gmtime(std::time(nullptr)));
   model.white_sd = std::sqrt(procedure::batch_innovation(result).variance);
   double squares = 0.0;
   Eigen::Index samples = 0;
@@ -206,7 +226,7 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
 
   std::optional<noise::NoiseAnalysis> noise_analysis;
   std::string no_noise;
-  const model::ModelFile model = characterized_model(result, data, noise_analysis, no_noise);
+  const model::ModelFile model = characterized_model(result, data, noise_analysis, no_noise, source.string());
   if (!no_noise.empty()) fmt::print(out, "noise terms not estimated: {}\n", no_noise);
   // model.toml is written last, and an earlier run's is removed first: a folder holding one is
   // a complete characterization, whenever this run is stopped.
@@ -227,6 +247,12 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
                         options.plots ? options.out / "plots" : std::filesystem::path());
   }
   fmt::print(out, "wrote {}\n", report_file.string());
+  try {
+    write_sheet(model, options.out);
+    fmt::print(out, "wrote {0}/sheet.md, sheet.html, sheet.json\n", options.out.string());
+  } catch (const InputError& e) {
+    fmt::print(out, "no parameter sheet: {}\n", e.what());
+  }
   model::write_model(model_file, model);
   fmt::print(out, "wrote {}\n", model_file.string());
   return kExitOk;

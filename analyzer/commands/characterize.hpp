@@ -38,7 +38,8 @@ procedure::PipelineOptions pipeline_options(const CharacterizeOptions& options);
 /// innovation's sd, the squares' corner, and the sensor's noise terms from the plan's static
 /// stretches (their analysis in `noise_analysis`; when there is none, `why_no_noise` says why).
 model::ModelFile characterized_model(const procedure::PipelineResult& result, const dataset::Dataset& data,
-                                     std::optional<noise::NoiseAnalysis>& noise_analysis, std::string& why_no_noise);
+                                     std::optional<noise::NoiseAnalysis>& noise_analysis, std::string& why_no_noise,
+                                     const std::string& source = {});
 
 int run_characterize(const CharacterizeOptions& options, std::ostream& out);
 

@@ -15,6 +15,7 @@
 #include "analyzer/commands/compensate.hpp"
 #include "analyzer/compensate/c_export.hpp"
 #include "analyzer/compensate/inverse_model.hpp"
+#include "analyzer/compensate/static_response.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "common/atomic_file.hpp"
 #include "common/dataset/dataset.hpp"
@@ -27,66 +28,9 @@ using ident::Variable;
 
 namespace {
 
-using Values = std::array<double, ident::kVariableCount>;
-
-double factor_at(const ident::Factor& f, double v) {
-  switch (f.function) {
-    case FactorFunction::Plain: return std::pow(v, f.power);
-    case FactorFunction::Abs: return std::pow(std::abs(v), f.power);
-    case FactorFunction::Sign: return std::pow(v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0), f.power);
-  }
-  return 0.0;
-}
-
-/// The model's settled output for inputs held at `values` (every lag at its value; noise terms
-/// 0), with only the terms `kept` says: y (1 + sum c_b p_b) = sum c_a term_a, where a lagged y
-/// factor (power 1) stands for the settled y itself. Squares through eq. 12's high pass settle to
-/// 0. NaN where the equation has no finite solution.
-template <class Kept>
-double static_output(const model::ModelFile& model, const Values& values, Kept kept) {
-  double numerator = 0.0, denominator = 1.0;
-  for (const model::ModelTerm& t : model.terms) {
-    if (t.term.is_noise_term() || !kept(t.term)) continue;
-    if (model.square_highpass_rad_s && t.term.factors().size() == 1 && t.term.factors()[0].power == 2 &&
-        t.term.factors()[0].function == FactorFunction::Plain &&
-        (t.term.factors()[0].variable == Variable::Ai || t.term.factors()[0].variable == Variable::Ap ||
-         t.term.factors()[0].variable == Variable::Ao))
-      continue;
-    double product = t.coefficient;
-    int y_power = 0;
-    for (const ident::Factor& f : t.term.factors()) {
-      if (f.variable == Variable::Y) {
-        y_power += f.power;
-        continue;
-      }
-      product *= factor_at(f, values[static_cast<std::size_t>(f.variable)]);
-    }
-    if (y_power == 0) {
-      numerator += product;
-    } else if (y_power == 1) {
-      // Unlagged y*p: a denominator coefficient; a lagged y: the settled output on the right.
-      const bool unlagged = std::any_of(t.term.factors().begin(), t.term.factors().end(),
-                                        [](const ident::Factor& f) { return f.variable == Variable::Y && f.lag == 0; });
-      denominator += unlagged ? product : -product;
-    } else {
-      return std::nan("");
-    }
-  }
-  return denominator != 0.0 ? numerator / denominator : std::nan("");
-}
-
-/// The static sensitivity to the sensed input: its plain terms at every lag over 1 - the output
-/// lags' coefficients.
-double static_sensitivity(const model::ModelFile& model, Variable sensed) {
-  double gain = 0.0, feedback = 0.0;
-  for (const model::ModelTerm& t : model.terms) {
-    const auto& f = t.term.factors();
-    if (f.size() != 1 || f[0].power != 1 || f[0].function != FactorFunction::Plain) continue;
-    if (f[0].variable == sensed) gain += t.coefficient;
-    if (f[0].variable == Variable::Y && f[0].lag > 0) feedback += t.coefficient;
-  }
-  return gain / (1.0 - feedback);
-}
+using compensate::static_output;
+using compensate::static_sensitivity;
+using Values = compensate::InputValues;
 
 struct Omission {
   std::vector<std::string> terms;   // left out, with the largest error each costs alone

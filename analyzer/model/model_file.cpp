@@ -300,6 +300,40 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
       model.case_frames.push_back({*name, rotation_at(*m, file, "m_es")});
     }
   }
+  if (const toml::table* m = optional_table(root, "misalignment", file)) {
+    ModelFile::Misalignment a;
+    const auto number = [&](const char* key) {
+      const toml::node* n = m->get(key);
+      if (n == nullptr) throw InputError(position_of(m->source(), file), fmt::format("[misalignment] needs '{}'", key));
+      return finite_number(*n, file, fmt::format("[misalignment] {}", key));
+    };
+    a.about_p = number("about_p");
+    a.about_o = number("about_o");
+    a.sd_p = number("sd_p");
+    a.sd_o = number("sd_o");
+    if (a.sd_p < 0.0 || a.sd_o < 0.0) throw InputError(position_of(m->source(), file), "[misalignment]: a negative sd");
+    model.misalignment = a;
+  }
+  if (const toml::table* u = optional_table(root, "undetermined", file)) {
+    for (const auto& [key, node] : in_file_order(*u)) {
+      if (!node->is_string()) throw InputError(position_of(node->source(), file), "[undetermined]: the reason must be a string");
+      model.undetermined.emplace_back(std::string(key->str()), *node->value<std::string>());
+    }
+  }
+  if (const toml::table* c = optional_table(root, "conditions", file)) {
+    if (const toml::node* d = c->get("duration_s")) model.conditions.duration_s = finite_number(*d, file, "[conditions] duration_s");
+    model.conditions.source = optional_string(*c, "source", file).value_or("");
+    model.conditions.software = optional_string(*c, "software", file).value_or("");
+    model.conditions.date = optional_string(*c, "date", file).value_or("");
+    if (const toml::node* list = c->get("cases")) {
+      const toml::array* a = list->as_array();
+      if (a == nullptr) throw InputError(position_of(list->source(), file), "[conditions] cases must be an array of names");
+      for (const toml::node& n : *a) {
+        if (!n.is_string()) throw InputError(position_of(n.source(), file), "[conditions] cases must be names");
+        model.conditions.cases.push_back(*n.value<std::string>());
+      }
+    }
+  }
   model.name = optional_string(root, "sensor_name", file).value_or("");
   model.output_unit = optional_string(root, "output_unit", file).value_or("");
   if (const toml::node* t = root.get("t_ref")) model.t_ref = finite_number(*t, file, "t_ref");
@@ -400,6 +434,28 @@ std::string format_model(const ModelFile& model) {
       s += fmt::format("{} = [{}, {}]\n", ident::variable_name(v), toml_float(span.lowest, "range"),
                        toml_float(span.highest, "range"));
     }
+  }
+  if (model.misalignment) {
+    const ModelFile::Misalignment& a = *model.misalignment;
+    s += "\n[misalignment]\nabout_p = " + toml_float(a.about_p, "about_p") + "\nabout_o = " + toml_float(a.about_o, "about_o") +
+         "\nsd_p = " + toml_float(a.sd_p, "sd_p") + "\nsd_o = " + toml_float(a.sd_o, "sd_o") + "\n";
+  }
+  if (!model.undetermined.empty()) {
+    s += "\n[undetermined]\n";
+    for (const auto& [term, reason] : model.undetermined) s += toml_quote(term) + " = " + toml_quote(reason) + "\n";
+  }
+  const ModelFile::Conditions& c = model.conditions;
+  if (c.duration_s || !c.source.empty() || !c.software.empty() || !c.date.empty() || !c.cases.empty()) {
+    s += "\n[conditions]\n";
+    if (c.duration_s) s += "duration_s = " + toml_float(*c.duration_s, "duration_s") + "\n";
+    if (!c.source.empty()) s += "source = " + toml_quote(c.source) + "\n";
+    if (!c.cases.empty()) {
+      s += "cases = [";
+      for (std::size_t i = 0; i < c.cases.size(); ++i) s += (i ? ", " : "") + toml_quote(c.cases[i]);
+      s += "]\n";
+    }
+    if (!c.software.empty()) s += "software = " + toml_quote(c.software) + "\n";
+    if (!c.date.empty()) s += "date = " + toml_quote(c.date) + "\n";
   }
   for (const ModelFile::CaseFrame& f : model.case_frames) {
     s += "\n[[case_frame]]\ncase = " + toml_quote(f.case_name) + "\nm_es = " + matrix_text(f.m_es, "m_es") + "\n";

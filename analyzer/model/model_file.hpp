@@ -32,6 +32,19 @@
 //   matrix = [[4.0e-12, 1.0e-14], [1.0e-14, 4.4e-12]]
 //   [range]                                   # each input's span over the characterization's
 //   a_i = [-9.81, 9.81]                       #   samples: variable = [lowest, highest]
+//   [misalignment]                            # the input axis from the nominal case frame (the
+//   about_p = 1.4e-3                          #   first mounting), rad, each with its sd:
+//   about_o = -1.4e-3                         #   the axis turns about p towards -o and about o
+//   sd_p = 2.0e-5                             #   towards +p (frames::frame_rotation's sense)
+//   sd_o = 2.0e-5
+//   [undetermined]                            # terms the plan did not determine, and why
+//   "a_i^2" = "no case excites a_i beyond 1 g"
+//   [conditions]                              # what the characterization saw
+//   duration_s = 109.0
+//   source = "acc1"                           #   dataset folder or log
+//   cases = ["multipoint", "rate-series"]
+//   software = "inertia 0.1.0 (37c9ae5)"
+//   date = "2026-11-29T13:40:00Z"
 //   [[case_frame]]                            # each characterized case's estimated M_E^S (the
 //   case = "shaker-ia"                        #   sensor in the bench's external frame, fixture
 //   m_es = [[...], [...], [...]]              #   included), for records of the same bench
@@ -103,6 +116,20 @@ struct ModelFile {
     frames::Dcm m_es = frames::Dcm::Identity();
   };
   std::vector<CaseFrame> case_frames;
+  /// [misalignment]: angles about p and o of the first mounting, and their sd (rad).
+  struct Misalignment {
+    double about_p = 0.0, about_o = 0.0, sd_p = 0.0, sd_o = 0.0;
+  };
+  std::optional<Misalignment> misalignment;
+  /// [undetermined], term text -> reason, in file order.
+  std::vector<std::pair<std::string, std::string>> undetermined;
+  /// [conditions]
+  struct Conditions {
+    std::optional<double> duration_s;
+    std::string source, software, date;
+    std::vector<std::string> cases;
+  };
+  Conditions conditions;
 
   /// The coefficient of `term`, or nullopt when the model does not hold it.
   [[nodiscard]] std::optional<double> coefficient(const ident::Term& term) const;

@@ -3,7 +3,8 @@
 #   simulate (config/sim-rotation-table.toml) -> characterize acc1 -> compensate a held-out run
 #   -> export json (against tests/schema/model.schema.json), c in double and float with test
 #   vectors (compiled as C99 with warnings as errors and checked against the vectors by
-#   tests/unit/compensate/c_export_driver.c), kalibr (its keys present).
+#   tests/unit/compensate/c_export_driver.c), kalibr (its keys present); the parameter sheet
+#   characterize wrote against tests/schema/sheet.schema.json, and the sheet verb's the same.
 #   export_round_trip.sh BINARY_DIR SOURCE_DIR PYTHON3
 set -euo pipefail
 bin="$1/bin/inertia-analyze"
@@ -32,6 +33,12 @@ for precision in double float; do
   # floor: 1 % of the characterized span of a_i (2 g)
   "$out/c-$precision/driver" "$out/c-$precision/model_vectors.csv" "$tolerance" 0.2
 done
+
+# characterize wrote the parameter sheet beside the model; the sheet verb writes it from the model alone.
+"$python" "$src/tests/schema/validate_json.py" "$src/tests/schema/sheet.schema.json" "$out/char/sheet.json"
+"$bin" sheet --model "$out/char/model.toml" --out "$out/sheet"
+cmp "$out/char/sheet.json" "$out/sheet/sheet.json"
+grep -q '<table>' "$out/sheet/sheet.html"
 
 "$bin" export --model "$out/char/model.toml" --format kalibr --out "$out/kalibr"
 grep -q '^accelerometer_noise_density: ' "$out/kalibr/imu.yaml"

@@ -141,6 +141,13 @@ TEST(ModelFile, WhatCompensationNeedsRoundTripsWithTheCovarianceInTheTermsOrder)
   m.covariance = a * a.transpose() / 7.0;
   m.range[ident::Variable::Ai] = {-9.81, 9.81 / 3.0};
   m.range[ident::Variable::T] = {-15.0, 40.0};
+  m.misalignment = ModelFile::Misalignment{1.4e-3, -1.0 / 3.0 * 1e-3, 2e-5, 3e-5};
+  m.undetermined = {{"a_i^2", "no case excites a_i beyond 1 g"}, {"T", "no \"temperature\" step"}};
+  m.conditions.duration_s = 109.0;
+  m.conditions.source = "acc1";
+  m.conditions.cases = {"multipoint", "rate-series"};
+  m.conditions.software = "inertia 0.1.0";
+  m.conditions.date = "2026-11-29T13:40:00Z";
   m.case_frames.push_back({"shaker-ia", frames::about_third_axis(0.02)});
   m.case_frames.push_back({"table", frames::about_second_axis(-1.0 / 3.0)});
   const ModelFile r = parse_model(format_model(m), "model.toml");
@@ -153,6 +160,12 @@ TEST(ModelFile, WhatCompensationNeedsRoundTripsWithTheCovarianceInTheTermsOrder)
   ASSERT_EQ(r.range.size(), 2u);
   EXPECT_EQ(r.range.at(ident::Variable::Ai).highest, 9.81 / 3.0);
   EXPECT_EQ(r.range.at(ident::Variable::T).lowest, -15.0);
+  ASSERT_TRUE(r.misalignment.has_value());
+  EXPECT_EQ(r.misalignment->about_o, -1.0 / 3.0 * 1e-3);
+  EXPECT_EQ(r.undetermined, m.undetermined);
+  EXPECT_EQ(r.conditions.cases, m.conditions.cases);
+  EXPECT_EQ(r.conditions.duration_s, 109.0);
+  EXPECT_EQ(r.conditions.date, m.conditions.date);
   ASSERT_EQ(r.case_frames.size(), 2u);
   EXPECT_EQ(r.case_frames[1].case_name, "table");
   EXPECT_EQ(r.case_frames[1].m_es, m.case_frames[1].m_es);
