@@ -48,6 +48,7 @@ struct Definition {
   Predicate traces;        // the model terms the parameter is made of
   Function value;          // in `unit`, from the coefficients
   std::string derivation;
+  std::string absent;      // why no term traces it, where the model's structure says (else: not selected)
 };
 
 class SheetBuilder {
@@ -93,6 +94,10 @@ class SheetBuilder {
         return e;
       }
       e.status = SheetEntry::Status::NotSelected;
+      if (!d.absent.empty()) {
+        e.reason = d.absent;
+        return e;
+      }
       e.reason = "no term of it was selected: not significant at the selection's level in this plan (a plan that "
                  "excites it more, or a longer one, can resolve it)";
       return e;
@@ -230,7 +235,11 @@ std::vector<Definition> accelerometer_definitions(const SheetBuilder& b) {
   }
   d.push_back({"vibration rectification coefficient", "VRC", "ug/g^2",
                [high_passed](const Term& t) { return !high_passed && single_factor(t, Variable::Ai, 2); }, coefficient("a_i^2", 2),
-               "the static K2: the bias a vibration along i rectifies per g^2 (rms)"});
+               "the static K2: the bias a vibration along i rectifies per g^2 (rms)",
+               high_passed ? fmt::format("the model's squares pass eq. 12's high pass (b = {} rad/s), which passes no constant: "
+                                         "they rectify no bias by the model's structure",
+                                         *m.square_highpass_rad_s)
+                           : std::string()});
   d.push_back({"bias temperature coefficient", "", "ug/degC",
                [](const Term& t) { return t.uses(Variable::T) && !t.uses(Variable::Ai) && !t.uses(Variable::Y); },
                [&b, k1](const Eigen::VectorXd& t) {
