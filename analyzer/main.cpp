@@ -20,6 +20,7 @@
 #include "analyzer/commands/compensate.hpp"
 #include "analyzer/commands/export.hpp"
 #include "analyzer/commands/sheet.hpp"
+#include "analyzer/commands/record.hpp"
 #include "analyzer/commands/plan_check.hpp"
 #include "analyzer/commands/diagnose.hpp"
 #include "analyzer/commands/noise.hpp"
@@ -100,6 +101,10 @@ int run(int argc, char** argv) {
   characterize->add_option("--mounting-tolerance-deg", characterize_options.mounting_tolerance_deg,
                            "a mounting angle the plan cannot determine is held at nominal and taken within this (1 sd)")
       ->capture_default_str();
+  characterize->add_option("--record", characterize_options.record_db,
+                           "append this characterization to the lab's record, an SQLite file (default: $INERTIA_RECORD; none: not recorded)");
+  characterize->add_option("--serial", characterize_options.serial, "with --record: the sensor's serial number (default: its name)");
+  characterize->add_option("--operator", characterize_options.operator_name, "with --record: who ran the test (default: the login name)");
 
   inertia::commands::ReproducePaperOptions paper_options;
   paper_options.bench = std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-paper.toml";
@@ -179,6 +184,21 @@ int run(int argc, char** argv) {
   sheet->add_option("--model", sheet_model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
   sheet->add_option("--out", sheet_out, "output folder (sheet.md, sheet.html, sheet.json)")->required();
 
+  std::filesystem::path record_db;
+  std::string record_serial, record_parameter;
+  long long record_id = 0;
+  auto* record = app.add_subcommand("record", "the lab's record of characterizations: list, show, history");
+  record->require_subcommand(1);
+  auto* record_list = record->add_subcommand("list", "every characterization recorded (of one serial)");
+  auto* record_show = record->add_subcommand("show", "one characterization: its data, model and sheet");
+  auto* record_history = record->add_subcommand("history", "one parameter across a sensor's characterizations, changes flagged (En > 1)");
+  for (CLI::App* verb : {record_list, record_show, record_history})
+    verb->add_option("--db", record_db, "the record's SQLite file")->required()->check(CLI::ExistingFile);
+  record_list->add_option("--serial", record_serial, "only this serial number");
+  record_show->add_option("--id", record_id, "the characterization's id (record list)")->required();
+  record_history->add_option("--serial", record_serial, "the sensor's serial number")->required();
+  record_history->add_option("--parameter", record_parameter, "the sheet's parameter name, e.g. \"bias\"")->required();
+
   inertia::commands::PlanCheckOptions plan_options;
   auto* plan_check = app.add_subcommand("plan-check", "before a test: what the bench's plan will determine, and each parameter's predicted sd");
   plan_check->add_option("--bench", plan_options.bench, "bench file (backend sim, [sensor.truth]: the sensor's expected values and noise)")
@@ -233,6 +253,9 @@ int run(int argc, char** argv) {
     return inertia::commands::run_simulate(simulate_options, std::cout);
   }
   if (diagnose->parsed()) return inertia::commands::run_diagnose(diagnose_options, std::cout);
+  if (record_list->parsed()) return inertia::commands::run_record_list(record_db, record_serial, std::cout);
+  if (record_show->parsed()) return inertia::commands::run_record_show(record_db, record_id, std::cout);
+  if (record_history->parsed()) return inertia::commands::run_record_history(record_db, record_serial, record_parameter, std::cout);
   if (sheet->parsed()) return inertia::commands::run_sheet(sheet_model, sheet_out, std::cout);
   if (export_verb->parsed()) {
     export_options.single_precision = precision == "float";
@@ -253,6 +276,9 @@ int run(int argc, char** argv) {
   if (plan_check->parsed()) return inertia::commands::run_plan_check(plan_options, std::cout);
   if (characterize->parsed()) {
     characterize_options.weights = parse_weights(weights);
+    if (characterize_options.record_db.empty()) {
+      if (const char* db = std::getenv("INERTIA_RECORD"); db != nullptr && *db != '\0') characterize_options.record_db = db;
+    }
     return inertia::commands::run_characterize(characterize_options, std::cout);
   }
   return inertia::kExitBadInput;

@@ -14,7 +14,8 @@ find_package(Threads REQUIRED)
 # thread count, and Eigen inlines differently in files with and without OpenMP.
 find_package(OpenMP COMPONENTS CXX)
 add_compile_definitions(EIGEN_DONT_PARALLELIZE)
-find_package(OpenSSL 3 REQUIRED COMPONENTS Crypto)   # libcrypto: HMAC-SHA256 of signed operator requests
+find_package(OpenSSL 3 REQUIRED COMPONENTS Crypto)   # libcrypto: HMAC-SHA256 of signed operator requests, the record's SHA-256
+find_package(SQLite3 REQUIRED)                       # libsqlite3: the lab's record of characterizations
 find_package(GTest REQUIRED)
 find_package(benchmark REQUIRED)
 find_package(Java 17 COMPONENTS Development REQUIRED)

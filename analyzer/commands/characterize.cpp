@@ -4,6 +4,7 @@
 #include <fmt/ostream.h>
 #include <fmt/chrono.h>
 
+#include <chrono>
 #include <ctime>
 
 #include <fstream>
@@ -13,6 +14,7 @@
 #include <ostream>
 
 #include "analyzer/commands/noise.hpp"
+#include "analyzer/commands/record.hpp"
 #include "analyzer/commands/sheet.hpp"
 #include "analyzer/commands/truth_file.hpp"
 #include "analyzer/fusion/log_dataset.hpp"
@@ -255,6 +257,18 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   }
   model::write_model(model_file, model);
   fmt::print(out, "wrote {}\n", model_file.string());
+  if (!options.record_db.empty()) {
+    RecordRequest request;
+    request.db = options.record_db;
+    request.serial = options.serial;
+    request.operator_name = options.operator_name;
+    request.input = source;
+    request.report_path = report_file;
+    const auto start = std::chrono::steady_clock::now();
+    const long long id = record_characterization(request, model);
+    fmt::print(out, "recorded as characterization {} in {} ({:.0f} ms)\n", id, options.record_db.string(),
+               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  }
   return kExitOk;
 }
 

@@ -29,6 +29,8 @@ struct CharacterizeOptions {
   double alpha = ident::SelectionOptions{}.alpha;
   double mounting_tolerance_deg = 1.0;  // a held mounting angle is within this (1 sd)
   bool plots = true;
+  std::filesystem::path record_db;      // non-empty: append the characterization to this record (SQLite)
+  std::string serial, operator_name;    // with record_db
 };
 
 /// Pipeline options from the command-line choices (shared with reproduce-paper).

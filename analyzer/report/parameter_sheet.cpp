@@ -48,7 +48,7 @@ struct Definition {
   Predicate traces;        // the model terms the parameter is made of
   Function value;          // in `unit`, from the coefficients
   std::string derivation;
-  std::string absent;      // why no term traces it, where the model's structure says (else: not selected)
+  std::string absent{};    // why no term traces it, where the model's structure says (else: not selected)
 };
 
 class SheetBuilder {
