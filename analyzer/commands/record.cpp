@@ -99,6 +99,15 @@ int run_record_history(const std::filesystem::path& db, const std::string& seria
     previous = &p;
   }
   fmt::print(out, "{} comparison(s) with a change larger than the combined uncertainty (En > 1)\n", flagged);
+  const record::Drift drift = record::find_drift(points);
+  if (drift.first_flagged) {
+    fmt::print(out, "drift: characterization {} differs from the first beyond chance at the family-wise 5 % level over the "
+                    "history's comparisons (En > {:.2f})\n",
+               points[*drift.first_flagged].id, drift.en_threshold);
+  } else {
+    fmt::print(out, "no drift at the family-wise 5 % level over the history's comparisons with the first (En > {:.2f} needed)\n",
+               drift.en_threshold);
+  }
   return kExitOk;
 }
 

@@ -5,6 +5,8 @@
 #include <openssl/evp.h>
 #include <sqlite3.h>
 
+#include <boost/math/distributions/normal.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <ctime>
@@ -281,6 +283,26 @@ std::string input_sha256(const std::filesystem::path& input) {
   std::string hex;
   for (unsigned int i = 0; i < length; ++i) hex += fmt::format("{:02x}", digest[i]);
   return hex;
+}
+
+Drift find_drift(const std::vector<ParameterPoint>& points, double family_alpha) {
+  std::vector<std::size_t> valued;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (points[i].value && points[i].expanded_uncertainty && *points[i].expanded_uncertainty > 0.0) valued.push_back(i);
+  }
+  Drift d;
+  if (valued.size() < 2) return d;
+  const double m = static_cast<double>(valued.size() - 1);
+  d.en_threshold = boost::math::quantile(boost::math::normal(), 1.0 - family_alpha / (2.0 * m)) / 2.0;
+  const ParameterPoint& first = points[valued.front()];
+  for (std::size_t k = 1; k < valued.size(); ++k) {
+    const ParameterPoint& p = points[valued[k]];
+    if (normalized_error(*p.value, *p.expanded_uncertainty, *first.value, *first.expanded_uncertainty) > d.en_threshold) {
+      d.first_flagged = valued[k];
+      break;
+    }
+  }
+  return d;
 }
 
 double normalized_error(double a, double ua, double b, double ub) { return std::abs(a - b) / std::sqrt(ua * ua + ub * ub); }

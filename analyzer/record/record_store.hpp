@@ -66,6 +66,18 @@ class RecordStore {
 /// files (each name and content, in name order).
 std::string input_sha256(const std::filesystem::path& input);
 
+/// A drift across a history: the first characterization whose value differs from the first one's
+/// by more than chance explains at the family-wise level `family_alpha` over the history's m
+/// comparisons with the first (Bonferroni): En > z(1 - alpha / 2m) / 2, z the normal quantile,
+/// since En = |z-score| / 2 for expanded uncertainties U = 2u. Per-comparison En > 1 is the 95 %
+/// interval exceeded once; over a history of several calibrations it would flag a stable sensor
+/// far more often than 5 %. Returns the index into `points` (nullopt: none), and the threshold.
+struct Drift {
+  std::optional<std::size_t> first_flagged;
+  double en_threshold = 0.0;
+};
+Drift find_drift(const std::vector<ParameterPoint>& points, double family_alpha = 0.05);
+
 /// En, the normalized error of two results with expanded uncertainties (ISO 13528):
 /// |a - b| / sqrt(Ua^2 + Ub^2); a change with En > 1 is larger than the two can explain.
 double normalized_error(double a, double ua, double b, double ub);

@@ -67,7 +67,8 @@ struct SensorUnderTest {
   std::uint64_t seed = 0;                            // 0: derived from [bench] seed and the sensor index
   std::string channel;                               // "<device>.<signal>" on a real bench
   AxisAngle case_misalignment;                       // slot fit, in case coordinates, composed with the case's
-  std::vector<TruthValue> truth;                     // [sensor.truth]
+  std::vector<TruthValue> truth;                     // [sensor.truth], aged to `calibration`
+  int calibration = 0;                               // calibration index n: [sensor.aging] drifts applied n times
   SourcePosition where;
 };
 

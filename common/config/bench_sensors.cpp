@@ -2,6 +2,7 @@
 // reference instruments ([[monitor]], [control_accelerometer], the linear and table encoders) and
 // the fixture's thermal controller, and the sensors' seeds. The loader (bench_config.cpp) calls
 // these readers (bench_config_readers.hpp) for its top-level tables.
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -98,6 +99,19 @@ SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64
   s.channel = t.string_or("channel", "");
   s.case_misalignment = read_axis_angle(t, "case_misalignment");
   if (const auto truth = t.optional_table("truth")) s.truth = read_truth(*truth);
+  // An aging sensor: at calibration n each [sensor.aging] drift is added n times to the truth
+  // value of the same name (the simulator's sensor as it would be at its n-th calibration).
+  s.calibration = static_cast<int>(t.integer_in("calibration", 0, 0, 1000000));
+  if (const auto aging = t.optional_table("aging")) {
+    for (const TruthValue& drift : read_truth(*aging)) {
+      const auto it = std::find_if(s.truth.begin(), s.truth.end(), [&](const TruthValue& v) { return v.name == drift.name; });
+      if (it == s.truth.end() || it->is_array || drift.is_array) {
+        aging->fail(*aging->node(drift.name),
+                    aging->key_name(drift.name) + " ages a scalar of [sensor.truth]: give it there (its value at calibration 0)");
+      }
+      it->values.front() += static_cast<double>(s.calibration) * drift.values.front();
+    }
+  }
   t.finish();
   return s;
 }

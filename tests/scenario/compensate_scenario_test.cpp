@@ -7,11 +7,15 @@
 // The seeds here are what CI time allows (INERTIA_SCENARIO_SEEDS raises them, e.g. to 20).
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -19,6 +23,7 @@
 #include "analyzer/commands/characterize.hpp"
 #include "analyzer/commands/compensate.hpp"
 #include "analyzer/commands/truth_file.hpp"
+#include "analyzer/record/record_store.hpp"
 #include "analyzer/report/parameter_sheet.hpp"
 #include "analyzer/compensate/inverse_model.hpp"
 #include "analyzer/ident/regressors.hpp"
@@ -223,6 +228,64 @@ TEST(ParameterSheetScenario, IntervalsCoverTheSimulatorsTruth) {
   ASSERT_GT(coverage.total, 0);
   // k = 2 intervals cover 95 % of the time; at least 90 % here (the target).
   EXPECT_GE(static_cast<double>(coverage.covered) / coverage.total, 0.9) << coverage.covered << " of " << coverage.total;
+}
+
+// The lab's record over a sensor's calibrations (docs/record.md): sim-rotation-table's acc1 at
+// calibrations 0..4, each characterized with --record into one database, then record's history
+// of its bias. An aging sensor drifts 3 sd of its bias per calibration ([sensor.aging] k_b);
+// `find_drift` (family-wise 5 % over the comparisons with the first) must flag it by the second
+// step, and flag nothing on a stable sensor.
+std::string aged_bench(const fs::path& source, int calibration, double k_b_drift_g) {
+  std::ifstream in(source);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string name = "name = \"acc1\"\n";
+  text.replace(text.find(name), name.size(), name + "calibration = " + std::to_string(calibration) + "\n");
+  // [sensor.aging] closes acc1's tables: before the next [[sensor]].
+  const std::size_t next = text.find("[[sensor]]", text.find(name));
+  text.insert(next, fmt::format("[sensor.aging]\nk_b = {}\n\n", k_b_drift_g));
+  return text;
+}
+
+std::optional<std::size_t> drift_over_calibrations(double drift_g, std::uint64_t seed, double* bias_sd_ug = nullptr) {
+  const fs::path source = fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-rotation-table.toml";
+  const inertia::testing::TempDir dir("inertia-aging");
+  const fs::path db = dir.path / "record.sqlite";
+  for (int n = 0; n < 5; ++n) {
+    const fs::path bench_file = dir.path / fmt::format("bench-{}.toml", n);
+    std::ofstream(bench_file) << aged_bench(source, n, drift_g);
+    const fs::path data = simulated(bench_file, seed * 10 + static_cast<std::uint64_t>(n), dir.path / fmt::format("data-{}", n));
+    commands::CharacterizeOptions c;
+    c.dataset = data / "acc1";
+    c.out = dir.path / fmt::format("char-{}", n);
+    c.plots = false;
+    c.record_db = db;
+    c.serial = "SN-AGING";
+    std::ostringstream sink;
+    if (commands::run_characterize(c, sink) != 0) ADD_FAILURE() << sink.str();
+  }
+  const std::vector<record::ParameterPoint> history = record::RecordStore(db).history("SN-AGING", "bias");
+  EXPECT_EQ(history.size(), 5u);
+  if (bias_sd_ug != nullptr && !history.empty()) *bias_sd_ug = *history.front().expanded_uncertainty / 2.0;
+  return record::find_drift(history).first_flagged;
+}
+
+TEST(RecordScenario, HistoryFindsAnAgingSensorByTheSecondStepAndNotAStableOne) {
+  const int stable_runs = seeds_from_environment(2);
+  int stable_flagged = 0;
+  double sd_ug = 0.0;
+  for (int s = 0; s < stable_runs; ++s) {
+    const std::optional<std::size_t> flagged = drift_over_calibrations(0.0, 500 + static_cast<std::uint64_t>(s), &sd_ug);
+    stable_flagged += flagged.has_value();
+  }
+  std::cout << "[ figures ] stable sensor: drift flagged in " << stable_flagged << " of " << stable_runs
+            << " histories; bias sd " << sd_ug << " ug\n";
+  // At most 1 in 20 (the family-wise 5 %); none in CI's two.
+  EXPECT_LE(stable_flagged, stable_runs / 20);
+  // 3 sd of the bias per calibration, the sd read from the stable runs' first characterization.
+  const std::optional<std::size_t> aging = drift_over_calibrations(3.0 * sd_ug * 1e-6, 600);
+  std::cout << "[ figures ] aging sensor: drift flagged at calibration " << (aging ? std::to_string(*aging) : "none") << "\n";
+  ASSERT_TRUE(aging.has_value());
+  EXPECT_LE(*aging, 2u);
 }
 
 TEST(CompensateScenario, RefusesAnotherSensorsRecord) {

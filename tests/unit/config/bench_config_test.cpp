@@ -196,6 +196,19 @@ TEST_F(TempFiles, MinimalLoadsWithDefaults) {
   EXPECT_NE(b.sensors[0].seed, 0u);
 }
 
+TEST_F(TempFiles, AnAgingSensorsTruthDriftsByCalibration) {
+  const std::string aged = replace(kMinimal, "type = \"accelerometer\"\n",
+                                   "type = \"accelerometer\"\ncalibration = 3\n[sensor.truth]\nk_b = 4e-3\n[sensor.aging]\nk_b = 1e-4\n");
+  const BenchConfig b = load_bench_config(write("aged.toml", aged));
+  ASSERT_EQ(b.sensors[0].truth.size(), 1u);
+  EXPECT_EQ(b.sensors[0].calibration, 3);
+  EXPECT_DOUBLE_EQ(b.sensors[0].truth[0].values[0], 4e-3 + 3 * 1e-4);
+  // A drift of a value the truth does not give has nothing to age.
+  const InputError e = error_of(replace(kMinimal, "type = \"accelerometer\"\n",
+                                        "type = \"accelerometer\"\ncalibration = 1\n[sensor.aging]\nk_i = 1e-4\n"));
+  EXPECT_NE(std::string(e.what()).find("ages a scalar of [sensor.truth]"), std::string::npos) << e.what();
+}
+
 TEST_F(TempFiles, SyntaxErrorNamesFileLineColumn) {
   fs::path file;
   const InputError e = error_of(replace(kMinimal, "sample_rate_hz = 1000.0", "sample_rate_hz = = 1000.0"), &file);
