@@ -270,22 +270,36 @@ std::optional<std::size_t> drift_over_calibrations(double drift_g, std::uint64_t
 }
 
 TEST(RecordScenario, HistoryFindsAnAgingSensorByTheSecondStepAndNotAStableOne) {
-  const int stable_runs = seeds_from_environment(2);
+  const int runs = seeds_from_environment(2);
   int stable_flagged = 0;
-  double sd_ug = 0.0;
-  for (int s = 0; s < stable_runs; ++s) {
-    const std::optional<std::size_t> flagged = drift_over_calibrations(0.0, 500 + static_cast<std::uint64_t>(s), &sd_ug);
-    stable_flagged += flagged.has_value();
+  double sd_sum = 0.0;
+  for (int s = 0; s < runs; ++s) {
+    double sd_ug = 0.0;
+    stable_flagged += drift_over_calibrations(0.0, 500 + static_cast<std::uint64_t>(s), &sd_ug).has_value();
+    sd_sum += sd_ug;
   }
-  std::cout << "[ figures ] stable sensor: drift flagged in " << stable_flagged << " of " << stable_runs
-            << " histories; bias sd " << sd_ug << " ug\n";
+  const double sd_ug = sd_sum / runs;
+  std::cout << "[ figures ] stable sensor: drift flagged in " << stable_flagged << " of " << runs << " histories; bias sd "
+            << sd_ug << " ug (mean of their first calibrations)\n";
   // At most 1 in 20 (the family-wise 5 %); none in CI's two.
-  EXPECT_LE(stable_flagged, stable_runs / 20);
-  // 3 sd of the bias per calibration, the sd read from the stable runs' first characterization.
-  const std::optional<std::size_t> aging = drift_over_calibrations(3.0 * sd_ug * 1e-6, 600);
-  std::cout << "[ figures ] aging sensor: drift flagged at calibration " << (aging ? std::to_string(*aging) : "none") << "\n";
-  ASSERT_TRUE(aging.has_value());
-  EXPECT_LE(*aging, 2u);
+  EXPECT_LE(stable_flagged, runs / 20);
+  // 3 sd of the bias per calibration. At the second step the change is 6 sd, its scatter 1.41 sd,
+  // and En > 1.25 asks for 3.54 sd: missed with p = Phi(-1.74) = 0.04 per history. The misses
+  // allowed are the 95 % quantile of Binomial(runs, 0.04): none for CI's one history.
+  const int aging_runs = std::max(1, runs / 2);
+  int by_second_step = 0;
+  for (int s = 0; s < aging_runs; ++s) {
+    const std::optional<std::size_t> aging = drift_over_calibrations(3.0 * sd_ug * 1e-6, 600 + static_cast<std::uint64_t>(s));
+    std::cout << "[ figures ] aging sensor: drift flagged at calibration " << (aging ? std::to_string(*aging) : "none") << "\n";
+    by_second_step += aging.has_value() && *aging <= 2;
+  }
+  int allowed = 0;
+  for (double cdf = 0.0;; ++allowed) {
+    cdf += std::exp(std::lgamma(aging_runs + 1.0) - std::lgamma(allowed + 1.0) - std::lgamma(aging_runs - allowed + 1.0) +
+                    allowed * std::log(0.04) + (aging_runs - allowed) * std::log(0.96));
+    if (cdf >= 0.95) break;
+  }
+  EXPECT_GE(by_second_step, aging_runs - allowed) << by_second_step << " of " << aging_runs;
 }
 
 TEST(CompensateScenario, RefusesAnotherSensorsRecord) {
