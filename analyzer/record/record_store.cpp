@@ -8,6 +8,9 @@
 #include <boost/math/distributions/normal.hpp>
 
 #include <algorithm>
+#include <chrono>
+#include <functional>
+#include <thread>
 #include <cmath>
 #include <ctime>
 #include <fstream>
@@ -134,11 +137,23 @@ RecordStore::RecordStore(const std::filesystem::path& file) : file_(file) {
       throw InputError(fmt::format("record database {} is damaged ({}); nothing was written to it", file.string(), why));
     }
   }
-  execute("PRAGMA journal_mode=WAL");
+  // Switching to the write-ahead log takes the file for a moment, and SQLite does not wait for
+  // it through the busy handler: two first writers at once retry until the other has done.
+  const auto when_free = [this](const std::function<int()>& step) {
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    for (;;) {
+      const int rc = step();
+      if ((rc != SQLITE_BUSY && rc != SQLITE_LOCKED) || std::chrono::steady_clock::now() > give_up) return rc;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  };
+  const auto exec = [this](const std::string& sql) { return sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, nullptr); };
+  if (when_free([&] { return exec("PRAGMA journal_mode=WAL"); }) != SQLITE_OK) execute("PRAGMA journal_mode=WAL");
   execute("PRAGMA foreign_keys=ON");
   if (version < kSchemaVersion) {
-    // Migration: version 0 (a new file) to 1 creates the tables; later versions add their steps here.
-    execute("BEGIN IMMEDIATE");
+    // Migration: version 0 (a new file) to 1 creates the tables (idempotent, so a writer that
+    // raced another to it does no harm); later versions add their steps here.
+    if (when_free([&] { return exec("BEGIN IMMEDIATE"); }) != SQLITE_OK) execute("BEGIN IMMEDIATE");
     try {
       execute(kSchema);
       execute(fmt::format("PRAGMA user_version = {}", kSchemaVersion).c_str());

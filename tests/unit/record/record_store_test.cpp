@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <thread>
@@ -131,7 +132,8 @@ pid_t writer(const fs::path& db, const std::string& serial, int count) {
     try {
       RecordStore store(db);
       for (int i = 0; count < 0 || i < count; ++i) store.add(sample(serial, 4000.0 + i, 80.0));
-    } catch (...) {
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "writer %s: %s\n", serial.c_str(), e.what());
       ::_exit(1);
     }
     ::_exit(0);
