@@ -36,7 +36,8 @@ double integer_power(double v, int power) {
 
 double sign_of(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
 
-/// f(v)^power of one factor.
+}  // namespace
+
 double factor_value(const ident::Factor& f, double v) {
   switch (f.function) {
     case FactorFunction::Plain: return integer_power(v, f.power);
@@ -46,7 +47,6 @@ double factor_value(const ident::Factor& f, double v) {
   return 0.0;
 }
 
-/// d/dv of factor_value (sign: 0, its jump is not a slope).
 double factor_slope(const ident::Factor& f, double v) {
   switch (f.function) {
     case FactorFunction::Plain: return f.power * integer_power(v, f.power - 1);
@@ -55,8 +55,6 @@ double factor_slope(const ident::Factor& f, double v) {
   }
   return 0.0;
 }
-
-}  // namespace
 
 InverseModel::InverseModel(const model::ModelFile& model) {
   sensed_ = model.sensor == dataset::SensorKind::Accelerometer ? Variable::Ai : Variable::Wi;

@@ -32,6 +32,11 @@
 
 namespace inertia::compensate {
 
+/// f(v)^power of one factor at the value v of its variable (lag aside).
+double factor_value(const ident::Factor& f, double v);
+/// d/dv of factor_value (a sign's jump is not a slope: 0).
+double factor_slope(const ident::Factor& f, double v);
+
 enum class SampleFlag : std::uint8_t {
   Ok = 0,
   OutsideRange = 1,   // an input (known or solved) lies outside the model's [range] plus the margin

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "analyzer/compensate/inverse_model.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 
 namespace inertia::compensate {
@@ -11,15 +12,6 @@ using ident::FactorFunction;
 using ident::Variable;
 
 namespace {
-
-double factor_at(const ident::Factor& f, double v) {
-  switch (f.function) {
-    case FactorFunction::Plain: return std::pow(v, f.power);
-    case FactorFunction::Abs: return std::pow(std::abs(v), f.power);
-    case FactorFunction::Sign: return std::pow(v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0), f.power);
-  }
-  return 0.0;
-}
 
 double coefficient_of(const model::ModelFile& model, std::size_t j, const Eigen::VectorXd& theta) {
   return theta.size() > 0 ? theta(static_cast<Eigen::Index>(j)) : model.terms[j].coefficient;
@@ -43,7 +35,7 @@ double static_output(const model::ModelFile& model, const InputValues& values, c
         unlagged_y = unlagged_y || f.lag == 0;
         continue;
       }
-      product *= factor_at(f, values[static_cast<std::size_t>(f.variable)]);
+      product *= factor_value(f, values[static_cast<std::size_t>(f.variable)]);
     }
     if (y_power == 0) {
       numerator += product;
