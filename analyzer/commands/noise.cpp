@@ -4,12 +4,12 @@
 #include <fmt/ostream.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <fstream>
 #include <iostream>
 
 #include "analyzer/fusion/log_dataset.hpp"
 #include "analyzer/noise/noise_analysis.hpp"
+#include "analyzer/report/gnuplot.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/input_error.hpp"
 #include "common/toml_text.hpp"
@@ -106,8 +106,7 @@ bool plot(const std::filesystem::path& dir, const noise::NoiseAnalysis& a, const
     g << "set xlabel 'frequency [Hz]'\nset ylabel 'PSD [" << unit << "^2/Hz]'\n";
     g << "plot '" << (dir / "psd.dat").string() << "' u 1:2 w l t 'Welch (Hann, 50 % overlap)', '' u 1:3 w l lw 2 t 'fitted model'\n";
   }
-  const std::string command = "gnuplot '" + (dir / "noise.gp").string() + "' >/dev/null 2>&1";
-  return std::system(command.c_str()) == 0;   // NOLINT(cert-env33-c): gnuplot is the plotting tool we chose
+  return report::run_gnuplot(dir / "noise.gp");
 }
 
 }  // namespace

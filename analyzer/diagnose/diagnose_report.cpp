@@ -4,9 +4,10 @@
 #include <fmt/ranges.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <fstream>
 #include <sstream>
+
+#include "analyzer/report/gnuplot.hpp"
 
 namespace inertia::diagnose {
 namespace {
@@ -15,11 +16,6 @@ std::string slug(const std::string& s) {
   std::string out;
   for (char ch : s) out += std::isalnum(static_cast<unsigned char>(ch)) ? ch : '_';
   return out;
-}
-
-bool run_gnuplot(const std::filesystem::path& script) {
-  const std::string command = "gnuplot '" + script.string() + "' >/dev/null 2>&1";
-  return std::system(command.c_str()) == 0;   // NOLINT(cert-env33-c): gnuplot is the plotting tool we chose
 }
 
 /// t, before, after; at most ~4000 points (every k-th sample) so the plot stays small.
@@ -223,7 +219,7 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
     }
     gp.close();
     md << "## Plots\n\n";
-    if (run_gnuplot(dir / "residuals.gp")) {
+    if (report::run_gnuplot(dir / "residuals.gp")) {
       md << "![RMS per segment](plots/segments.png)\n\n";
       for (const std::string& c : spectra) md << fmt::format("![PSD {0}](plots/psd_{1}.png)\n\n", c, slug(c));
       if (!lb.conditions.empty()) md << "![RMS per condition](plots/conditions.png)\n\n";

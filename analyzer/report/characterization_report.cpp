@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -15,6 +14,7 @@
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
+#include "analyzer/report/gnuplot.hpp"
 #include "common/units.hpp"
 
 namespace inertia::report {
@@ -79,11 +79,6 @@ void write_trace(const std::filesystem::path& file, const Eigen::VectorXd& t, co
   std::ofstream f(file);
   const Eigen::Index step = std::max<Eigen::Index>(1, t.size() / 4000);
   for (Eigen::Index k = 0; k < t.size(); k += step) f << fmt::format("{:.6f} {:.9g}\n", t(k), v(k));
-}
-
-bool run_gnuplot(const std::filesystem::path& script) {
-  const std::string command = "gnuplot '" + script.string() + "' >/dev/null 2>&1";
-  return std::system(command.c_str()) == 0;   // NOLINT(cert-env33-c): gnuplot is the plotting tool we chose
 }
 
 }  // namespace

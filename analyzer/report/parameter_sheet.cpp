@@ -3,14 +3,22 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
+#include <cctype>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <functional>
+#include <limits>
 #include <numbers>
+#include <optional>
 #include <tuple>
 
 #include <fmt/ranges.h>
 
 #include "analyzer/compensate/static_response.hpp"
+#include "analyzer/noise/noise_fit.hpp"
+#include "analyzer/report/gnuplot.hpp"
 #include "common/input_error.hpp"
 #include "common/units.hpp"
 
@@ -40,6 +48,7 @@ bool product_of(const Term& t, Variable a, Variable b) {
 
 using Predicate = std::function<bool(const Term&)>;
 using Function = std::function<double(const Eigen::VectorXd&)>;
+using VectorFunction = std::function<Eigen::VectorXd(const Eigen::VectorXd&)>;
 
 struct Definition {
   const char* name;
@@ -102,19 +111,9 @@ class SheetBuilder {
                  "excites it more, or a longer one, can resolve it)";
       return e;
     }
-    // The delta method: J by central differences, steps a small fraction of each coefficient's sd.
     e.value = d.value(theta_);
-    Eigen::VectorXd gradient = Eigen::VectorXd::Zero(theta_.size());
-    for (Index j = 0; j < theta_.size(); ++j) {
-      const double sd = std::sqrt(std::max(covariance_(j, j), 0.0));
-      if (sd == 0.0) continue;
-      const double h = 1e-3 * sd;
-      Eigen::VectorXd up = theta_, down = theta_;
-      up(j) += h;
-      down(j) -= h;
-      gradient(j) = (d.value(up) - d.value(down)) / (2.0 * h);
-    }
-    e.expanded_uncertainty = 2.0 * std::sqrt(std::max(0.0, gradient.dot(covariance_ * gradient)));
+    const VectorFunction value = [&d](const Eigen::VectorXd& t) { return Eigen::VectorXd::Constant(1, d.value(t)); };
+    e.expanded_uncertainty = expanded_uncertainty(value)(0);
     if (!std::isfinite(e.value)) {
       e.status = SheetEntry::Status::Undetermined;
       e.reason = "not computable from the model file: it states no characterized range of the input (characterize writes [range])";
@@ -122,7 +121,26 @@ class SheetBuilder {
     return e;
   }
 
+  /// The delta method's expanded uncertainty (k = 2) of each component of f(theta): u_i^2 = J_i C J_i', J by central
+  /// differences, steps a small fraction of each coefficient's sd.
+  [[nodiscard]] Eigen::VectorXd expanded_uncertainty(const VectorFunction& f) const {
+    const Eigen::VectorXd at = f(theta_);
+    Eigen::MatrixXd jacobian = Eigen::MatrixXd::Zero(at.size(), theta_.size());
+    for (Index j = 0; j < theta_.size(); ++j) {
+      const double sd = std::sqrt(std::max(covariance_(j, j), 0.0));
+      if (sd == 0.0) continue;
+      const double h = 1e-3 * sd;
+      Eigen::VectorXd up = theta_, down = theta_;
+      up(j) += h;
+      down(j) -= h;
+      jacobian.col(j) = (f(up) - f(down)) / (2.0 * h);
+    }
+    const Eigen::VectorXd variance = (jacobian * covariance_).cwiseProduct(jacobian).rowwise().sum();
+    return variance.unaryExpr([](double v) { return 2.0 * std::sqrt(std::max(0.0, v)); });
+  }
+
   [[nodiscard]] const model::ModelFile& model() const { return m_; }
+  [[nodiscard]] const Eigen::VectorXd& theta() const { return theta_; }
 
  private:
   const model::ModelFile& m_;
@@ -368,6 +386,292 @@ std::string html_escape(const std::string& s) {
   return out;
 }
 
+// The plots.
+
+/// The points a characterized range is drawn at, evenly spaced: both ends and the middle among them.
+constexpr int kRangePoints = 41;
+
+std::vector<double> range_grid(const model::ModelFile::Span& span) {
+  std::vector<double> x(kRangePoints);
+  for (int i = 0; i < kRangePoints; ++i)
+    x[static_cast<std::size_t>(i)] = span.lowest + (span.highest - span.lowest) * i / (kRangePoints - 1.0);
+  return x;
+}
+
+std::vector<double> to_std_vector(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
+
+/// The settled response to `sensed` at each of `x` (the other inputs 0) less its least-squares straight line over `x`.
+Eigen::VectorXd deviation_from_least_squares_line(const SheetBuilder& b, const Eigen::VectorXd& theta, Variable sensed,
+                                                  const std::vector<double>& x) {
+  const auto n = static_cast<Index>(x.size());
+  Eigen::VectorXd y(n);
+  Eigen::MatrixXd line(n, 2);
+  for (Index i = 0; i < n; ++i) {
+    const double at = x[static_cast<std::size_t>(i)];
+    y(i) = b.output(theta, {{sensed, at}});
+    line(i, 0) = 1.0;
+    line(i, 1) = at;
+  }
+  return y - line * line.colPivHouseholderQr().solve(y);
+}
+
+SheetSeries curve(std::string title, std::vector<double> y, bool dashed = false) {
+  SheetSeries s;
+  s.title = std::move(title);
+  s.y = std::move(y);
+  s.dashed = dashed;
+  return s;
+}
+
+/// Gives `series` the band +-U (k = 2) at each point, and says in `trace` whether it has one.
+void attach_band(SheetSeries& series, const Eigen::VectorXd& u, std::string& trace) {
+  if (u.allFinite() && u.maxCoeff() > 0.0) {
+    series.expanded_uncertainty = to_std_vector(u);
+    trace += " Band: +-U (k = 2) by the delta method with the model's coefficient covariance, as the table's.";
+  } else {
+    trace += " No band: no coefficient the curve depends on has an uncertainty in the model.";
+  }
+}
+
+/// The settled response to the sensed input less its least-squares line over the characterized range, with its band.
+SheetPlot nonlinearity_plot(const SheetBuilder& b, Variable sensed, bool gyro) {
+  SheetPlot p;
+  p.name = "scale-factor nonlinearity";
+  const model::ModelFile& m = b.model();
+  const std::string variable = ident::variable_name(sensed);
+  const auto it = m.range.find(sensed);
+  if (it == m.range.end()) {
+    p.not_drawable = fmt::format("the model states no characterized range of {} (characterize writes [range])", variable);
+    return p;
+  }
+  const model::ModelFile::Span span = it->second;
+  const double per_si = gyro ? 180.0 / std::numbers::pi : 1.0 / kG;   // the plot's input unit per SI unit
+  const char* input_unit = gyro ? "deg/s" : "g";
+  if (!(span.highest > span.lowest)) {
+    p.not_drawable =
+        fmt::format("the characterized range of {} is the single value {:.4g} {}", variable, span.lowest * per_si, input_unit);
+    return p;
+  }
+  const std::vector<double> x = range_grid(span);
+  const VectorFunction deviation = [&b, sensed, &x](const Eigen::VectorXd& t) {
+    return deviation_from_least_squares_line(b, t, sensed, x);
+  };
+  const Eigen::VectorXd y = deviation(b.theta());
+  if (!y.allFinite()) {
+    p.not_drawable = fmt::format("the model's settled response to {} is not finite over its characterized range", variable);
+    return p;
+  }
+  const double full_scale = std::max(std::abs(span.lowest), std::abs(span.highest));
+  const double k1 = compensate::static_sensitivity(m, sensed, b.theta());
+  // Rounding alone leaves a straight response some 1e-16 of full scale off its line.
+  if (y.cwiseAbs().maxCoeff() <= 1e-12 * std::abs(k1 * full_scale)) {
+    p.not_drawable = fmt::format("the model's settled response to {0} is a straight line over its characterized range: no term is "
+                                 "nonlinear in {0}",
+                                 variable);
+    return p;
+  }
+  const std::string output_unit = m.output_unit.empty() ? std::string("output unit") : m.output_unit;
+  p.x_label = fmt::format("{} [{}]", variable, input_unit);
+  p.y_label = fmt::format("deviation [{}]", output_unit);
+  for (double v : x) p.x.push_back(v * per_si);
+  p.y2_label = "ppm of full scale";
+  p.y2_per_y = 1e6 / std::abs(k1 * full_scale);
+  p.trace = fmt::format("The model's settled response to {0} (every lag at its value, the other inputs 0) at {1} points over the "
+                        "characterized range {2:.4g} to {3:.4g} {4}, less its least-squares straight line over those points, in {5}; "
+                        "right axis: over the static scale factor times full scale ({6:.4g} {4}). The table's nonlinearity measures "
+                        "from the zero-input output plus the static scale factor's line instead.",
+                        variable, kRangePoints, span.lowest * per_si, span.highest * per_si, input_unit, output_unit, full_scale * per_si);
+  SheetSeries series = curve("settled response less its least-squares line", to_std_vector(y));
+  attach_band(series, b.expanded_uncertainty(deviation), p.trace);
+  p.series.push_back(std::move(series));
+  return p;
+}
+
+/// The Allan deviation the model's [noise] terms imply in input units, each term's and their sum.
+SheetPlot allan_deviation_plot(const model::ModelFile& m, double sensitivity, bool gyro) {
+  SheetPlot p;
+  p.name = "Allan deviation of the noise terms";
+  p.log_log = true;
+  const double scale = (gyro ? kDegPerHourPerRadPerSecond : 1e6 / kG) / std::abs(sensitivity);   // output unit -> plotted unit
+  std::array<double, noise::kNoiseTerms> all{};
+  std::vector<std::size_t> present;
+  for (std::size_t slot = 0; slot < m.noise.values.size(); ++slot) {
+    if (!m.noise.values[slot] || !(*m.noise.values[slot] > 0.0)) continue;   // log axes: a term of 0 has no line
+    all[slot] = *m.noise.values[slot] * scale;
+    present.push_back(slot);
+  }
+  if (present.empty()) {
+    p.not_drawable = "the model has no [noise] terms (Q, N, B, K, R) above 0: no noise analysis of its static stretches resolved one";
+    return p;
+  }
+  p.x_label = "tau [s]";
+  p.y_label = fmt::format("Allan deviation [{}]", gyro ? "deg/h" : "ug");
+  for (int i = 0; i <= 70; ++i) p.x.push_back(std::pow(10.0, -3.0 + i / 10.0));   // 1e-3 .. 1e4 s, ten per decade
+  const auto deviation = [&p](const std::array<double, noise::kNoiseTerms>& c) {
+    std::vector<double> sigma;
+    for (double tau : p.x) sigma.push_back(std::sqrt(noise::model_avar(c, tau)));
+    return sigma;
+  };
+  p.series.push_back(curve("sum of the terms", deviation(all)));
+  std::vector<std::string> keys;
+  for (std::size_t slot : present) {
+    std::array<double, noise::kNoiseTerms> alone{};
+    alone[slot] = all[slot];
+    const auto term = static_cast<noise::NoiseTerm>(slot);
+    const std::string title = fmt::format("{}: {}", noise::noise_term_name(term), noise::noise_term_meaning(term));
+    p.series.push_back(curve(title, deviation(alone), true));
+    keys.emplace_back(model::ModelFile::NoiseTerms::kKeys[slot]);
+  }
+  p.trace = fmt::format("sigma^2(tau) = 3Q^2/tau^2 + N^2/tau + (2 ln2/pi) B^2 + K^2 tau/3 + R^2 tau^2/2 (IEEE Std 952 Annex C) of the "
+                        "model's [noise] terms {} over the static scale factor, for tau from 1e-3 to 1e4 s: each term alone dashed, "
+                        "their sum solid.",
+                        fmt::join(keys, ", "));
+  return p;
+}
+
+/// The bias over the characterized temperatures, with its band, where the model's bias depends on T.
+SheetPlot bias_temperature_plot(const SheetBuilder& b, Variable sensed, bool gyro, const SheetEntry& temperature_coefficient) {
+  SheetPlot p;
+  p.name = "bias over temperature";
+  const model::ModelFile& m = b.model();
+  const auto it = m.range.find(Variable::T);
+  if (it == m.range.end() || !m.t_ref || !(it->second.highest > it->second.lowest)) {
+    p.not_drawable = "the model states no characterized temperature range (a [range] of T and its t_ref)";
+    return p;
+  }
+  if (temperature_coefficient.status != SheetEntry::Status::Determined) {
+    p.not_drawable = fmt::format("the model's bias temperature coefficient is {}: {}", status_text(temperature_coefficient),
+                                 temperature_coefficient.reason);
+    return p;
+  }
+  const double scale = gyro ? kDegPerHourPerRadPerSecond : 1e6 / kG;   // input SI unit -> the bias entry's unit
+  const std::vector<double> temperatures = range_grid(it->second);    // T = temperature - t_ref
+  const VectorFunction bias = [&b, &m, sensed, &temperatures, scale](const Eigen::VectorXd& t) {
+    const double k1 = compensate::static_sensitivity(m, sensed, t);
+    Eigen::VectorXd out(static_cast<Index>(temperatures.size()));
+    for (std::size_t i = 0; i < temperatures.size(); ++i)
+      out(static_cast<Index>(i)) = b.output(t, {{Variable::T, temperatures[i]}}) / k1 * scale;
+    return out;
+  };
+  const Eigen::VectorXd y = bias(b.theta());
+  if (!y.allFinite()) {
+    p.not_drawable = "the model's settled output at zero input is not finite over its characterized temperature range";
+    return p;
+  }
+  const char* unit = gyro ? "deg/h" : "ug";
+  p.x_label = "temperature [degC]";
+  p.y_label = fmt::format("bias [{}]", unit);
+  for (double t : temperatures) p.x.push_back(*m.t_ref + t);
+  p.trace = fmt::format("The table's bias (the settled output at zero input over the static scale factor) at {} temperatures over the "
+                        "characterized range {:.1f} to {:.1f} degC (t_ref {:.1f} degC plus the model's T), in {}.",
+                        kRangePoints, *m.t_ref + it->second.lowest, *m.t_ref + it->second.highest, *m.t_ref, unit);
+  SheetSeries series = curve("bias", to_std_vector(y));
+  attach_band(series, b.expanded_uncertainty(bias), p.trace);
+  p.series.push_back(std::move(series));
+  return p;
+}
+
+/// The page's plot colours, one per series in order.
+constexpr std::array<const char*, 6> kPlotColours{"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+
+/// `plot`'s columns for gnuplot: x, then each series' y and, where it has a band, its U.
+void write_plot_columns(const std::filesystem::path& file, const SheetPlot& plot) {
+  std::ofstream f(file);
+  for (std::size_t i = 0; i < plot.x.size(); ++i) {
+    f << fmt::format("{:.10g}", plot.x[i]);
+    for (const SheetSeries& s : plot.series) {
+      f << fmt::format(" {:.10g}", s.y[i]);
+      if (!s.expanded_uncertainty.empty()) f << fmt::format(" {:.10g}", s.expanded_uncertainty[i]);
+    }
+    f << '\n';
+  }
+}
+
+/// The tic step of 1, 2 or 5 times a power of ten nearest `step` in ratio.
+double round_step(double step) {
+  const double decade = std::pow(10.0, std::floor(std::log10(step)));
+  double best = decade;
+  for (double m : {2.0, 5.0, 10.0}) {
+    if (std::abs(std::log(m * decade / step)) < std::abs(std::log(best / step))) best = m * decade;
+  }
+  return best;
+}
+
+/// The gnuplot commands that draw `plot` from the columns write_plot_columns wrote to `data`.
+std::string plot_script(const SheetPlot& plot, const std::filesystem::path& data) {
+  std::string g = "set grid\nset key below\n";
+  g += fmt::format("set xlabel {}\nset ylabel {}\n", gnuplot_quoted(plot.x_label), gnuplot_quoted(plot.y_label));
+  if (plot.log_log) g += "set logscale xy\nset format x '10^{%L}'\nset format y '10^{%L}'\n";
+  if (plot.y2_per_y != 0.0) {
+    // gnuplot's own tics on a linked axis come too sparse (often 0 alone): the step is given, about six over the data.
+    double lowest = std::numeric_limits<double>::infinity(), highest = -lowest;
+    for (const SheetSeries& s : plot.series) {
+      for (std::size_t i = 0; i < s.y.size(); ++i) {
+        const double u = s.expanded_uncertainty.empty() ? 0.0 : s.expanded_uncertainty[i];
+        lowest = std::min(lowest, s.y[i] - u);
+        highest = std::max(highest, s.y[i] + u);
+      }
+    }
+    const double span = (highest - lowest) * std::abs(plot.y2_per_y);
+    g += fmt::format("set ytics nomirror\nset y2tics {}\nset link y2 via y*{:.10g} inverse y/{:.10g}\nset y2label {}\n",
+                     span > 0.0 ? fmt::format("{:.3g}", round_step(span / 6.0)) : std::string(), plot.y2_per_y, plot.y2_per_y,
+                     gnuplot_quoted(plot.y2_label));
+  }
+  const std::string file = gnuplot_quoted(data.string());
+  std::vector<std::string> parts;
+  int column = 2;
+  for (std::size_t k = 0; k < plot.series.size(); ++k) {
+    const SheetSeries& s = plot.series[k];
+    const char* colour = kPlotColours[k % kPlotColours.size()];
+    const int y = column++;
+    if (!s.expanded_uncertainty.empty()) {
+      const int u = column++;
+      parts.push_back(fmt::format("{0} u 1:(${1}-${2}):(${1}+${2}) w filledcurves fs transparent solid 0.2 noborder lc rgb '{3}' "
+                                  "t '+-U (k = 2)'",
+                                  file, y, u, colour));
+    }
+    parts.push_back(fmt::format("{} u 1:{} w l lw {} dt {} lc rgb '{}' t {}", file, y, s.dashed ? 1.5 : 2.0, s.dashed ? 2 : 1, colour,
+                                gnuplot_quoted(s.title)));
+  }
+  return g + fmt::format("plot {}\n", fmt::join(parts, ", \\\n  "));
+}
+
+/// The page's plots: each an inline SVG with its caption, or the sentence saying why it is not drawn.
+std::string plots_html(const std::vector<SheetPlot>& plots) {
+  std::string s = "<h2>Plots</h2>\n";
+  std::optional<ScratchDirectory> scratch;
+  std::string no_scratch;
+  try {
+    scratch.emplace("inertia-sheet");
+  } catch (const std::filesystem::filesystem_error& e) {
+    no_scratch = e.what();
+  }
+  for (std::size_t k = 0; k < plots.size(); ++k) {
+    const SheetPlot& p = plots[k];
+    std::string capitalized = p.name;
+    if (!capitalized.empty()) capitalized[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(capitalized[0])));
+    if (!p.not_drawable.empty()) {
+      s += fmt::format("<p>{} is not plotted: {}.</p>\n", html_escape(capitalized), html_escape(p.not_drawable));
+      continue;
+    }
+    std::optional<std::string> svg;
+    if (scratch) {
+      const std::filesystem::path data = scratch->path() / fmt::format("plot{}.dat", k);
+      write_plot_columns(data, p);
+      svg = gnuplot_svg(plot_script(p, data), scratch->path());
+    }
+    if (!svg) {
+      s += fmt::format("<p>{} is not plotted: {}.</p>\n", html_escape(capitalized),
+                       html_escape(scratch ? std::string("gnuplot, which draws it, is not installed or failed on its script")
+                                           : "no scratch directory for gnuplot's files (" + no_scratch + ")"));
+      continue;
+    }
+    s += fmt::format("<figure>\n{}<figcaption><b>{}.</b> {}</figcaption>\n</figure>\n",
+                     svg_with_prefixed_ids(*svg, fmt::format("plot{}-", k)), html_escape(capitalized), html_escape(p.trace));
+  }
+  return s;
+}
+
 }  // namespace
 
 ParameterSheet parameter_sheet(const model::ModelFile& model) {
@@ -399,6 +703,11 @@ ParameterSheet parameter_sheet(const model::ModelFile& model) {
     sheet.entries.push_back(noise_entry(model, 3, k1, "acceleration random walk", "K", "ug/sqrt(s)", 1e6 / kG, "random walk"));
     sheet.entries.push_back(noise_entry(model, 0, k1, "quantization", "Q", "m/s", 1.0, "quantization"));
   }
+  const auto bias_temperature_coefficient =
+      std::find_if(sheet.entries.begin(), sheet.entries.end(), [](const SheetEntry& e) { return e.name == "bias temperature coefficient"; });
+  sheet.plots.push_back(nonlinearity_plot(builder, sensed, gyro));
+  sheet.plots.push_back(allan_deviation_plot(model, k1, gyro));
+  sheet.plots.push_back(bias_temperature_plot(builder, sensed, gyro, *bias_temperature_coefficient));
 
   // The conditions the model saw.
   const auto span = [&](Variable v) -> const model::ModelFile::Span* {
@@ -450,7 +759,8 @@ std::string sheet_markdown(const ParameterSheet& sheet) {
 std::string sheet_html(const ParameterSheet& sheet) {
   std::string s = "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>Parameter sheet</title>\n"
                   "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}td,th{border:1px solid #999;"
-                  "padding:3px 8px;text-align:left}td.n{text-align:right;font-variant-numeric:tabular-nums}tr.u td{color:#777}</style>"
+                  "padding:3px 8px;text-align:left}td.n{text-align:right;font-variant-numeric:tabular-nums}tr.u td{color:#777}"
+                  "figure{margin:1.5em 0;max-width:52em}figure svg{display:block;width:100%;height:auto}figcaption{color:#333}</style>"
                   "</head><body>\n";
   s += fmt::format("<h1>Parameter sheet: {} {}</h1>\n", html_escape(sheet.sensor_kind), html_escape(sheet.sensor_name));
   s += "<p>Expanded uncertainty U with coverage factor k = 2 (about 95 %). The last column traces each value to the model.</p>\n";
@@ -467,7 +777,9 @@ std::string sheet_html(const ParameterSheet& sheet) {
   }
   s += "</table>\n<h2>Conditions</h2>\n<ul>\n";
   for (const std::string& c : sheet.conditions) s += "<li>" + html_escape(c) + "</li>\n";
-  return s + "</ul>\n</body></html>\n";
+  s += "</ul>\n";
+  if (!sheet.plots.empty()) s += plots_html(sheet.plots);
+  return s + "</body></html>\n";
 }
 
 nlohmann::json sheet_json(const ParameterSheet& sheet) {

@@ -12,6 +12,11 @@
 // noise parameters from its [noise] terms (N, B, K, Q) over the static sensitivity.
 // A parameter whose terms the plan did not determine says why ([undetermined]); one the selection
 // left out says so. Neither is ever written as 0.
+//
+// The sheet's plots come from the same model: the scale-factor nonlinearity over the characterized
+// range (the static response less its least-squares line, with its delta-method band), the Allan
+// deviation the [noise] terms imply (IEEE Std 952 Annex C), and the bias over the tested
+// temperatures. The HTML page draws them with gnuplot as inline SVG.
 #include <optional>
 #include <string>
 #include <vector>
@@ -34,10 +39,33 @@ struct SheetEntry {
   std::string reason;         // Undetermined / NotSelected: why, and what would determine it
 };
 
+/// One curve of a plot: its values at the plot's x.
+struct SheetSeries {
+  std::string title;
+  std::vector<double> y;
+  std::vector<double> expanded_uncertainty;   // k = 2 at each x, drawn as a band; empty: no band
+  bool dashed = false;                        // a component of the solid total beside it
+};
+
+/// A plot of the sheet, computed from the model.
+struct SheetPlot {
+  std::string name;   // "scale-factor nonlinearity", ...
+  std::string x_label, y_label;
+  bool log_log = false;
+  std::vector<double> x;
+  std::vector<SheetSeries> series;
+  /// A second y axis at y2_per_y times y (0: none), e.g. ppm of full scale beside the output unit.
+  std::string y2_label;
+  double y2_per_y = 0.0;
+  std::string trace;         // what the plot is computed from: the page's caption
+  std::string not_drawable;  // non-empty: why the model cannot give the plot (x and series are empty)
+};
+
 struct ParameterSheet {
   std::string sensor_kind, sensor_name, output_unit;
   std::vector<SheetEntry> entries;
   std::vector<std::string> conditions;   // "temperature 15.0 to 35.0 degC", ...
+  std::vector<SheetPlot> plots;          // nonlinearity, Allan deviation, bias over temperature
 };
 
 /// The sheet of `model`. Throws InputError for a model without a term in the sensed input (no
@@ -45,7 +73,9 @@ struct ParameterSheet {
 ParameterSheet parameter_sheet(const model::ModelFile& model);
 
 std::string sheet_markdown(const ParameterSheet& sheet);
-/// A self-contained HTML page (no external resource): the table and the conditions.
+/// A self-contained HTML page (no external resource, no script): the table, the conditions and the
+/// plots, each an inline SVG gnuplot draws in a scratch directory under the system's temporary one,
+/// or a sentence saying why it is not drawn (gnuplot absent or failing, the model lacking what it needs).
 std::string sheet_html(const ParameterSheet& sheet);
 /// The sheet as JSON against tests/schema/sheet.schema.json.
 nlohmann::json sheet_json(const ParameterSheet& sheet);
