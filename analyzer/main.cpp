@@ -102,8 +102,12 @@ int run(int argc, char** argv) {
                            "a mounting angle the plan cannot determine is held at nominal and taken within this (1 sd)")
       ->capture_default_str();
   characterize->add_option("--record", characterize_options.record_db,
-                           "append this characterization to the lab's record, an SQLite file (default: $INERTIA_RECORD; none: not recorded)");
-  characterize->add_option("--serial", characterize_options.serial, "with --record: the sensor's serial number (default: its name)");
+                           "append this characterization to the lab's record: an SQLite file or a postgresql:// URL (default: "
+                           "$INERTIA_RECORD; none: not recorded)");
+  characterize->add_option("--serial", characterize_options.serial,
+                           "the sensor's serial number (default: the bench file's, else its name); refused if the bench states another");
+  characterize->add_option("--part", characterize_options.part,
+                           "the sensor's type, its population in record compare (default: the bench file's); refused if the bench states another");
   characterize->add_option("--operator", characterize_options.operator_name, "with --record: who ran the test (default: the login name)");
 
   inertia::commands::ReproducePaperOptions paper_options;
@@ -184,20 +188,27 @@ int run(int argc, char** argv) {
   sheet->add_option("--model", sheet_model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
   sheet->add_option("--out", sheet_out, "output folder (sheet.md, sheet.html, sheet.json)")->required();
 
-  std::filesystem::path record_db;
+  std::string record_db;
   std::string record_serial, record_parameter;
   long long record_id = 0;
-  auto* record = app.add_subcommand("record", "the lab's record of characterizations: list, show, history");
+  auto* record = app.add_subcommand("record", "the lab's record of characterizations: list, show, history, compare");
   record->require_subcommand(1);
   auto* record_list = record->add_subcommand("list", "every characterization recorded (of one serial)");
   auto* record_show = record->add_subcommand("show", "one characterization: its data, model and sheet");
   auto* record_history = record->add_subcommand("history", "one parameter across a sensor's characterizations, changes flagged (En > 1)");
-  for (CLI::App* verb : {record_list, record_show, record_history})
-    verb->add_option("--db", record_db, "the record's SQLite file")->required()->check(CLI::ExistingFile);
+  auto* record_compare = record->add_subcommand("compare", "a sensor against the population of its kind and part: percentile per parameter");
+  const CLI::Validator record_location(
+      [](const std::string& db) { return inertia::record::is_postgresql_url(db) ? std::string() : CLI::ExistingFile(db); },
+      "FILE|postgresql://...");
+  for (CLI::App* verb : {record_list, record_show, record_history, record_compare})
+    verb->add_option("--db", record_db, "the record: its SQLite file, or a postgresql:// URL")->required()->check(record_location);
   record_list->add_option("--serial", record_serial, "only this serial number");
   record_show->add_option("--id", record_id, "the characterization's id (record list)")->required();
   record_history->add_option("--serial", record_serial, "the sensor's serial number")->required();
+  record_compare->add_option("--serial", record_serial, "the sensor's serial number (its latest characterization)")->required();
   record_history->add_option("--parameter", record_parameter, "the sheet's parameter name, e.g. \"bias\"")->required();
+  std::filesystem::path record_plot;
+  record_history->add_option("--plot", record_plot, "also draw the history to this SVG file");
 
   inertia::commands::PlanCheckOptions plan_options;
   auto* plan_check = app.add_subcommand("plan-check", "before a test: what the bench's plan will determine, and each parameter's predicted sd");
@@ -255,7 +266,8 @@ int run(int argc, char** argv) {
   if (diagnose->parsed()) return inertia::commands::run_diagnose(diagnose_options, std::cout);
   if (record_list->parsed()) return inertia::commands::run_record_list(record_db, record_serial, std::cout);
   if (record_show->parsed()) return inertia::commands::run_record_show(record_db, record_id, std::cout);
-  if (record_history->parsed()) return inertia::commands::run_record_history(record_db, record_serial, record_parameter, std::cout);
+  if (record_history->parsed()) return inertia::commands::run_record_history(record_db, record_serial, record_parameter, std::cout, record_plot);
+  if (record_compare->parsed()) return inertia::commands::run_record_compare(record_db, record_serial, std::cout);
   if (sheet->parsed()) return inertia::commands::run_sheet(sheet_model, sheet_out, std::cout);
   if (export_verb->parsed()) {
     export_options.single_precision = precision == "float";

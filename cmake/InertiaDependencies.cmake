@@ -23,6 +23,7 @@ include(UseJava)
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(GPIODCXX REQUIRED IMPORTED_TARGET libgpiodcxx)
 pkg_check_modules(MODBUS REQUIRED IMPORTED_TARGET libmodbus)
+pkg_check_modules(PQ REQUIRED IMPORTED_TARGET libpq)          # libpq: the lab's record on a shared PostgreSQL server
 pkg_check_modules(SYSTEMD REQUIRED IMPORTED_TARGET libsystemd)
 
 # lcm.pc requires glib although the headers do not; locate the library directly.

@@ -111,6 +111,8 @@ model::ModelFile characterized_model(const procedure::PipelineResult& result, co
                            result.fit.std_dev(j)});
   }
   model.name = data.sensor_name;
+  model.serial = data.serial;
+  model.part = data.part;
   model.output_unit = data.output_unit;
   model.t_ref = data.t_ref;
   model.sample_period_s = common_sample_period(data);
@@ -161,8 +163,23 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   if (!options.dataset_out.empty() && options.event_log.empty())
     throw InputError("characterize: --dataset-out needs --log FILE (it writes the dataset converted from the log)");
   const bool from_log = !options.event_log.empty();
-  const dataset::Dataset data = from_log ? fusion::log_dataset(options.event_log, options.sensor, std::cerr)
-                                         : dataset::read_dataset(options.dataset);
+  // The record is opened, and the serial and part checked, before any work: a record refused
+  // (damaged, newer schema, unreachable) or a serial that is not the bench's would otherwise be
+  // found only after the whole characterization.
+  std::optional<record::RecordStore> record;
+  if (!options.record_db.empty()) record.emplace(options.record_db);
+  dataset::Dataset data = from_log ? fusion::log_dataset(options.event_log, options.sensor, std::cerr)
+                                   : dataset::read_dataset(options.dataset);
+  const auto take_stated = [&](const char* what, const std::string& given, std::string& stated) {
+    if (given.empty()) return;
+    if (!stated.empty() && stated != given)
+      throw InputError(fmt::format("characterize: --{} {} is not the bench's: {} names sensor '{}' {} {}; refused", what, given,
+                                   from_log ? options.event_log.string() : options.dataset.string(), data.sensor_name, what,
+                                   stated));
+    stated = given;
+  };
+  take_stated("serial", options.serial, data.serial);
+  take_stated("part", options.part, data.part);
   if (!options.dataset_out.empty()) {
     dataset::write_dataset(options.dataset_out, data);
     fmt::print(out, "wrote dataset {}\n", options.dataset_out.string());
@@ -257,16 +274,14 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   }
   model::write_model(model_file, model);
   fmt::print(out, "wrote {}\n", model_file.string());
-  if (!options.record_db.empty()) {
+  if (record) {
     RecordRequest request;
-    request.db = options.record_db;
-    request.serial = options.serial;
     request.operator_name = options.operator_name;
     request.input = source;
     request.report_path = report_file;
     const auto start = std::chrono::steady_clock::now();
-    const long long id = record_characterization(request, model);
-    fmt::print(out, "recorded as characterization {} in {} ({:.0f} ms)\n", id, options.record_db.string(),
+    const long long id = record_characterization(*record, request, model);
+    fmt::print(out, "recorded as characterization {} in {} ({:.0f} ms)\n", id, record->describe(),
                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
   }
   return kExitOk;

@@ -29,8 +29,9 @@ struct CharacterizeOptions {
   double alpha = ident::SelectionOptions{}.alpha;
   double mounting_tolerance_deg = 1.0;  // a held mounting angle is within this (1 sd)
   bool plots = true;
-  std::filesystem::path record_db;      // non-empty: append the characterization to this record (SQLite)
-  std::string serial, operator_name;    // with record_db
+  std::string record_db;                // non-empty: append the characterization to this record (file or URL)
+  std::string serial, part;             // the sensor's serial and part; checked against the bench's where it states them
+  std::string operator_name;            // with record_db
 };
 
 /// Pipeline options from the command-line choices (shared with reproduce-paper).

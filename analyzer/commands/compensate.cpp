@@ -37,6 +37,10 @@ void check_record(const model::ModelFile& model, const dataset::Dataset& data, c
     throw InputError(fmt::format("{} is the model of sensor '{}', {} records sensor '{}'", model_label, model.name, data_label,
                                  data.sensor_name));
   }
+  if (!model.serial.empty() && !data.serial.empty() && model.serial != data.serial) {
+    throw InputError(fmt::format("{} is the model of serial number '{}', {} records serial number '{}'", model_label, model.serial,
+                                 data_label, data.serial));
+  }
   if (!model.sample_period_s) return;
   for (const dataset::CaseData& c : data.cases) {
     if (std::abs(c.sample_period_s - *model.sample_period_s) > dataset::kTimeJitterTolerance * *model.sample_period_s) {

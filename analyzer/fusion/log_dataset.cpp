@@ -152,6 +152,8 @@ dataset::Dataset log_dataset(const std::filesystem::path& file, const std::strin
   ds.sensor = sut.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
                                                             : dataset::SensorKind::Gyroscope;
   ds.sensor_name = sut.name;
+  ds.serial = sut.serial;
+  ds.part = sut.part;
   ds.output_unit = sut.output_unit;
   ds.t_ref = bench.t_ref_c;
   std::stable_sort(segments.begin(), segments.end(),

@@ -335,6 +335,8 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
     }
   }
   model.name = optional_string(root, "sensor_name", file).value_or("");
+  model.serial = optional_string(root, "serial", file).value_or("");
+  model.part = optional_string(root, "part", file).value_or("");
   model.output_unit = optional_string(root, "output_unit", file).value_or("");
   if (const toml::node* t = root.get("t_ref")) model.t_ref = finite_number(*t, file, "t_ref");
   model.sample_period_s = optional_positive(root, "sample_period_s", file);
@@ -392,6 +394,8 @@ ModelFile read_model(const std::filesystem::path& file) {
 std::string format_model(const ModelFile& model) {
   std::string s = "sensor = " + toml_quote(dataset::to_string(model.sensor)) + "\n";
   if (!model.name.empty()) s += "sensor_name = " + toml_quote(model.name) + "\n";
+  if (!model.serial.empty()) s += "serial = " + toml_quote(model.serial) + "\n";
+  if (!model.part.empty()) s += "part = " + toml_quote(model.part) + "\n";
   if (!model.output_unit.empty()) s += "output_unit = " + toml_quote(model.output_unit) + "\n";
   if (model.t_ref) s += "t_ref = " + toml_float(*model.t_ref, "t_ref") + "\n";
   if (model.sample_period_s) s += "sample_period_s = " + toml_float(*model.sample_period_s, "sample_period_s") + "\n";

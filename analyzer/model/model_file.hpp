@@ -24,6 +24,8 @@
 // Optional keys that let the model be applied to other data (compensate, export), written by
 // characterize:
 //   sensor_name = "acc1"                      # the sensor's name (bench file, dataset.toml)
+//   serial = "SN-0042"                        # the unit's serial number, and its part (type)
+//   part = "QA-2000"
 //   output_unit = "mA"                        # the output's unit
 //   t_ref = 25.0                              # degC: the model's T is temp - t_ref
 //   sample_period_s = 1.0e-3                  # the period the lags [k-j] count in
@@ -99,6 +101,7 @@ struct ModelFile {
   std::optional<double> square_highpass_rad_s;
 
   std::string name;                        // sensor_name; empty: not stated
+  std::string serial, part;                // serial, part; empty: not stated
   std::string output_unit;                 // output_unit; empty: not stated
   std::optional<double> t_ref;             // t_ref, degC
   std::optional<double> sample_period_s;   // sample_period_s

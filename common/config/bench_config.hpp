@@ -63,6 +63,8 @@ struct SensorUnderTest {
   SensorType type = SensorType::Accelerometer;
   std::string output_unit = "mA";
   std::string slot;                                  // fixture slot name (informational)
+  std::string serial;                                // the unit's serial number; empty: not stated
+  std::string part;                                  // its type (part number); empty: not stated
   Eigen::Vector3d position_m = Eigen::Vector3d::Zero();   // in F_E, from the rotation axis/table centre
   std::uint64_t seed = 0;                            // 0: derived from [bench] seed and the sensor index
   std::string channel;                               // "<device>.<signal>" on a real bench

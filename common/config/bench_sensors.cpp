@@ -94,6 +94,8 @@ SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64
                                                                    : SensorType::Gyroscope;
   s.output_unit = t.string_or("output_unit", s.output_unit);
   s.slot = t.string_or("slot", "");
+  s.serial = t.string_or("serial", "");
+  s.part = t.string_or("part", "");
   s.position_m = t.vec3_or("position_m", Eigen::Vector3d::Zero());
   s.seed = read_seed(t, "seed", derived_sensor_seed(bench_seed, index));
   s.channel = t.string_or("channel", "");

@@ -482,6 +482,8 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
   }
   data.output_unit = require_string(root, "output_unit", file);
   if (root.get("sensor_name") != nullptr) data.sensor_name = require_string(root, "sensor_name", file);
+  if (root.get("serial") != nullptr) data.serial = require_string(root, "serial", file);
+  if (root.get("part") != nullptr) data.part = require_string(root, "part", file);
   data.t_ref = to_finite_double(require(root, "t_ref", file, ""), file, "'t_ref'");
 
   if (root.get("case") == nullptr) {
@@ -575,6 +577,8 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
   std::string toml_text;
   toml_text += "sensor = " + toml_quote(to_string(data.sensor)) + "\n";
   if (!data.sensor_name.empty()) toml_text += "sensor_name = " + toml_quote(data.sensor_name) + "\n";
+  if (!data.serial.empty()) toml_text += "serial = " + toml_quote(data.serial) + "\n";
+  if (!data.part.empty()) toml_text += "part = " + toml_quote(data.part) + "\n";
   toml_text += "output_unit = " + toml_quote(data.output_unit) + "\n";
   toml_text += "t_ref = " + toml_float(data.t_ref) + "\n";
 

@@ -57,6 +57,8 @@ struct Dataset {
   std::filesystem::path dir;                          // where read_dataset found it; empty if built in memory
   SensorKind sensor = SensorKind::Accelerometer;
   std::string sensor_name;                            // optional sensor_name (extension): the bench's name for it
+  std::string serial;                                 // optional serial (extension): the unit's serial number
+  std::string part;                                   // optional part (extension): its type (part number)
   std::string output_unit;
   double t_ref = 25.0;                                // degC; model variable T = temp - t_ref
   std::vector<CaseData> cases;

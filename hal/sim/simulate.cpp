@@ -131,6 +131,8 @@ dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSim
   ds.sensor = sensor.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
                                                                : dataset::SensorKind::Gyroscope;
   ds.sensor_name = sensor.name;
+  ds.serial = sensor.serial;
+  ds.part = sensor.part;
   ds.output_unit = sensor.output_unit;
   ds.t_ref = bench.t_ref_c;
   for (std::size_t c = 0; c < bench.cases.size(); ++c) {

@@ -30,6 +30,7 @@
 #include "analyzer/commands/truth_file.hpp"
 #include "analyzer/ident/term.hpp"
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/record/record_store.hpp"
 #include "common/dataset/dataset.hpp"
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
@@ -103,13 +104,20 @@ TEST(LogCharacterize, DaqdLogToModelMatchesTheSimulatorTruth) {
             0)
       << read_text(tmp.path / "exact.txt");
 
+  const std::string record_db = (tmp.path / "record.sqlite").string();
   ASSERT_EQ(run_command(analyze_binary() + " characterize --log " + log + " --out " + (tmp.path / "out").string() +
-                            " --dataset-out " + (tmp.path / "ds").string(),
+                            " --dataset-out " + (tmp.path / "ds").string() + " --record " + record_db,
                         tmp.path / "characterize.txt"),
             0)
       << read_text(tmp.path / "characterize.txt");
   const std::string out = read_text(tmp.path / "characterize.txt");
   const model::ModelFile fused = model::read_model(tmp.path / "out" / "model.toml");
+  // The daemon's run is in the lab's record by its log: path and SHA-256 of the log's bytes.
+  const std::vector<record::Characterization> recorded = record::RecordStore(record_db).list();
+  ASSERT_EQ(recorded.size(), 1u);
+  EXPECT_EQ(recorded[0].input_path, std::filesystem::absolute(log).string());
+  EXPECT_EQ(recorded[0].input_sha256, record::input_sha256(log));
+  EXPECT_EQ(recorded[0].sensor_name, fused.name);
   const model::ModelFile exact = model::read_model(tmp.path / "exact" / "model.toml");
   EXPECT_TRUE(fs::exists(tmp.path / "ds" / "dataset.toml"));
 

@@ -258,7 +258,7 @@ std::optional<std::size_t> drift_over_calibrations(double drift_g, std::uint64_t
     c.dataset = data / "acc1";
     c.out = dir.path / fmt::format("char-{}", n);
     c.plots = false;
-    c.record_db = db;
+    c.record_db = db.string();
     c.serial = "SN-AGING";
     std::ostringstream sink;
     if (commands::run_characterize(c, sink) != 0) ADD_FAILURE() << sink.str();
@@ -267,6 +267,65 @@ std::optional<std::size_t> drift_over_calibrations(double drift_g, std::uint64_t
   EXPECT_EQ(history.size(), 5u);
   if (bias_sd_ug != nullptr && !history.empty()) *bias_sd_ug = *history.front().expanded_uncertainty / 2.0;
   return record::find_drift(history).first_flagged;
+}
+
+// The bench file states the sensor's serial and part: characterize records them (and writes them
+// in the model), refuses another --serial before any work, and compensate refuses the model on
+// data of another serial.
+TEST(RecordScenario, TheBenchsSerialIsRecordedAndAnotherIsRefused) {
+  const fs::path source = fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-rotation-table.toml";
+  const inertia::testing::TempDir dir("inertia-serial");
+  const auto bench_with_serial = [&](const std::string& serial) {
+    std::ifstream in(source);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string name = "name = \"acc1\"\n";
+    text.replace(text.find(name), name.size(), name + "serial = \"" + serial + "\"\npart = \"QA-SIM\"\n");
+    const fs::path file = dir.path / ("bench-" + serial + ".toml");
+    std::ofstream(file) << text;
+    return file;
+  };
+  const fs::path data = simulated(bench_with_serial("SN-7"), 71, dir.path / "data-7");
+  const std::string db = (dir.path / "record.sqlite").string();
+  commands::CharacterizeOptions c;
+  c.dataset = data / "acc1";
+  c.out = dir.path / "char-wrong";
+  c.plots = false;
+  c.record_db = db;
+  c.serial = "SN-8";
+  std::ostringstream sink;
+  try {
+    commands::run_characterize(c, sink);
+    ADD_FAILURE() << "characterize took --serial SN-8 for the bench's SN-7";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("SN-7"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(c.out)) << "refused before any work";
+  EXPECT_TRUE(record::RecordStore(db).list().empty());
+
+  c.serial.clear();
+  c.out = dir.path / "char";
+  ASSERT_EQ(commands::run_characterize(c, sink), 0) << sink.str();
+  const std::vector<record::Characterization> recorded = record::RecordStore(db).list();
+  ASSERT_EQ(recorded.size(), 1u);
+  EXPECT_EQ(recorded[0].serial, "SN-7");
+  EXPECT_EQ(recorded[0].part, "QA-SIM");
+  const model::ModelFile model = model::read_model(c.out / "model.toml");
+  EXPECT_EQ(model.serial, "SN-7");
+  EXPECT_EQ(model.part, "QA-SIM");
+
+  const fs::path other = simulated(bench_with_serial("SN-9"), 72, dir.path / "data-9");
+  commands::CompensateOptions k;
+  k.model = c.out / "model.toml";
+  k.dataset = other / "acc1";
+  k.out = dir.path / "compensated.csv";
+  std::ostringstream summary;
+  try {
+    commands::run_compensate(k, summary);
+    ADD_FAILURE() << "compensate applied SN-7's model to SN-9's data";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("serial number 'SN-7'"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(k.out));
 }
 
 TEST(RecordScenario, HistoryFindsAnAgingSensorByTheSecondStepAndNotAStableOne) {
