@@ -26,6 +26,7 @@
 #include "analyzer/report/characterization_report.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/input_error.hpp"
+#include "common/output_folder.hpp"
 #include "common/units.hpp"
 #include "inertia_version.hpp"
 
@@ -168,6 +169,9 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   // found only after the whole characterization.
   std::optional<record::RecordStore> record;
   if (!options.record_db.empty()) record.emplace(options.record_db);
+  // Everything goes to a staging folder that takes --out's place once whole (a stopped run
+  // leaves --out as it was).
+  OutputFolder folder(options.out, "characterize");
   dataset::Dataset data = from_log ? fusion::log_dataset(options.event_log, options.sensor, std::cerr)
                                    : dataset::read_dataset(options.dataset);
   const auto take_stated = [&](const char* what, const std::string& given, std::string& stated) {
@@ -247,38 +251,36 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   std::string no_noise;
   const model::ModelFile model = characterized_model(result, data, noise_analysis, no_noise, source.string());
   if (!no_noise.empty()) fmt::print(out, "noise terms not estimated: {}\n", no_noise);
-  // model.toml is written last, and an earlier run's is removed first: a folder holding one is
-  // a complete characterization, whenever this run is stopped.
-  std::filesystem::create_directories(options.out);
-  const std::filesystem::path model_file = options.out / "model.toml";
-  std::filesystem::remove(model_file);
+  const std::filesystem::path model_file = folder.path() / "model.toml";
   report::ReportInputs in;
   in.data = &data;
   in.result = &result;
   in.dataset_label = label;
   in.plots = options.plots;
   if (truth) in.truth = report::TruthForReport{truth->terms, truth->m_es};
-  const std::filesystem::path report_file = report::write_characterization_report(in, options.out);
+  const std::filesystem::path report_file = report::write_characterization_report(in, folder.path());
   if (noise_analysis) {
     std::ofstream md(report_file, std::ios::app);
     md << "\n## Noise of the static stretches\n\n";
     write_noise_section(md, out, *noise_analysis, data.output_unit, label,
-                        options.plots ? options.out / "plots" : std::filesystem::path());
+                        options.plots ? folder.path() / "plots" : std::filesystem::path());
   }
-  fmt::print(out, "wrote {}\n", report_file.string());
+  bool sheet_written = true;
   try {
-    write_sheet(model, options.out);
-    fmt::print(out, "wrote {0}/sheet.md, sheet.html, sheet.json\n", options.out.string());
+    write_sheet(model, folder.path());
   } catch (const InputError& e) {
     fmt::print(out, "no parameter sheet: {}\n", e.what());
+    sheet_written = false;
   }
   model::write_model(model_file, model);
-  fmt::print(out, "wrote {}\n", model_file.string());
+  folder.commit();
+  fmt::print(out, "wrote {}: model.toml, {}{}{}\n", folder.target().string(), report_file.filename().string(),
+             sheet_written ? ", sheet.md, sheet.html, sheet.json" : "", options.plots ? ", plots/" : "");
   if (record) {
     RecordRequest request;
     request.operator_name = options.operator_name;
     request.input = source;
-    request.report_path = report_file;
+    request.report_path = folder.final_path(report_file);
     const auto start = std::chrono::steady_clock::now();
     const long long id = record_characterization(*record, request, model);
     fmt::print(out, "recorded as characterization {} in {} ({:.0f} ms)\n", id, record->describe(),

@@ -12,6 +12,7 @@
 #include "analyzer/report/gnuplot.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/input_error.hpp"
+#include "common/output_folder.hpp"
 #include "common/toml_text.hpp"
 
 namespace inertia::commands {
@@ -180,6 +181,7 @@ int run_noise(const NoiseCommandOptions& options, std::ostream& out) {
   if (!options.sensor.empty() && options.event_log.empty()) throw InputError("noise: --sensor goes with --log");
   if (options.tau_max_s < 0.0) throw InputError("noise: --tau-max must be >= 0");
   const bool from_log = !options.event_log.empty();
+  OutputFolder folder(options.out, "noise");   // takes --out's place once whole
   const dataset::Dataset data = from_log ? fusion::log_dataset(options.event_log, options.sensor, std::cerr)
                                          : dataset::read_dataset(options.dataset);
   noise::NoiseAnalysisOptions ao;
@@ -187,12 +189,13 @@ int run_noise(const NoiseCommandOptions& options, std::ostream& out) {
   ao.tau_max_s = options.tau_max_s;
   const noise::NoiseAnalysis a = noise::analyse_noise(data, ao);
   const std::string source = (from_log ? options.event_log : options.dataset).string();
-  std::filesystem::create_directories(options.out);
-  write_toml(options.out / "noise.toml", a, data.output_unit, source);
-
-  std::ofstream md(options.out / "report.md");
-  write_noise_section(md, out, a, data.output_unit, source, options.plots ? options.out / "plots" : std::filesystem::path());
-  fmt::print(out, "wrote {} and {}\n", (options.out / "noise.toml").string(), (options.out / "report.md").string());
+  write_toml(folder.path() / "noise.toml", a, data.output_unit, source);
+  {
+    std::ofstream md(folder.path() / "report.md");
+    write_noise_section(md, out, a, data.output_unit, source, options.plots ? folder.path() / "plots" : std::filesystem::path());
+  }
+  folder.commit();
+  fmt::print(out, "wrote {} and {}\n", (folder.target() / "noise.toml").string(), (folder.target() / "report.md").string());
   return 0;
 }
 
