@@ -16,7 +16,9 @@
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/model/model_file.hpp"
 #include "common/atomic_file.hpp"
+#include "analyzer/compensate/static_response.hpp"
 #include "common/dataset/dataset.hpp"
+#include "common/disk_space.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::commands {
@@ -102,7 +104,20 @@ int run_compensate(const CompensateOptions& options, std::ostream& out) {
   const char* sensed_name = ident::variable_name(sensed);
   const std::array<Variable, 2> other_axes = sensed == Variable::Ai ? std::array{Variable::Ap, Variable::Ao}
                                                                     : std::array{Variable::Wp, Variable::Wo};
-  const std::optional<double> scale = model.coefficient(ident::Term::from_factors({ident::Factor{sensed}}));
+  // The raw output over the settled sensitivity (every lag of the sensed input, the output's lags):
+  // what a user without the model would read the output as.
+  const double sensitivity = compensate::static_sensitivity(model, sensed);
+  const bool has_scale = std::isfinite(sensitivity) && sensitivity != 0.0;
+  // The CSV grows with the record: refused before any work when the disk cannot hold it at its
+  // longest (each number at 24 characters, the longest a double's shortest round trip takes).
+  {
+    constexpr std::uintmax_t kLongestNumber = 24, kNumbers = 7, kLongestFlag = 16;
+    std::uintmax_t bytes = 0;
+    for (const dataset::CaseData& c : data.cases)
+      bytes += static_cast<std::uintmax_t>(c.size()) * (c.name.size() + kNumbers * kLongestNumber + kLongestFlag + 9);
+    require_free_space(options.out.parent_path().empty() ? std::filesystem::path(".") : options.out.parent_path(), bytes,
+                       fmt::format("compensated samples {}", options.out.string()));
+  }
 
   fmt::print(out, "compensate {} with {}: {} {}{}\n", data_label, options.model.string(), dataset::to_string(model.sensor),
              model.name.empty() ? "" : "'" + model.name + "'", model.output_unit.empty() ? "" : " (" + model.output_unit + ")");
@@ -120,11 +135,15 @@ int run_compensate(const CompensateOptions& options, std::ostream& out) {
   fmt::print(out, "errors of the known inputs and of the estimates fed back through lagged terms are not in u\n");
 
   fmt::print(out, "per case: rms error against the record's reference along the sensed axis; beside it the raw output over the "
-                  "scale factor ({}), {}\n",
-             scale ? fmt::format("{} = {:.6g}", sensed_name, *scale) : std::string("none in the model"),
+                  "settled sensitivity ({}), {}\n",
+             has_scale ? fmt::format("d y / d {} = {:.6g}", sensed_name, sensitivity) : std::string("none in the model"),
              inverse.first_row() > 0 ? fmt::format("from each case's sample {} (the model's lags)", inverse.first_row())
                                      : std::string("every sample"));
+  // Written in ~1 MB pieces: the compensated record never sits in memory whole.
+  constexpr std::size_t kWriteChunk = std::size_t{1} << 20;
+  AtomicFileWriter csv_file(options.out);
   std::string csv = fmt::format("case,t,y,{0},u,u_coefficients,u_noise,flag,{0}_reference\n", sensed_name);
+  csv.reserve(kWriteChunk + 1024);
   auto it = std::back_inserter(csv);
   fmt::print(out, "  {:<20} {:>9} {:>14} {:>14} {:>9} {:>9} {:>9} {:>11} {:>13}\n", "case", "samples",
              fmt::format("rms err {}", sensed == Variable::Ai ? "m/s2" : "rad/s"), "raw y/scale err", "ratio", "median u",
@@ -149,6 +168,10 @@ int run_compensate(const CompensateOptions& options, std::ostream& out) {
       const double u = std::hypot(r.u_coefficients(k), r.u_noise(k));
       fmt::format_to(it, "{},{},{},{},{},{},{},{},{}\n", c.name, c.t(r.first_row + k), y(k), r.value(k), u, r.u_coefficients(k),
                      r.u_noise(k), compensate::to_string(r.flag[static_cast<std::size_t>(k)]), reference(k));
+      if (csv.size() >= kWriteChunk) {
+        csv_file.append(csv);
+        csv.clear();
+      }
     }
     Eigen::VectorXd u(rows);
     for (Eigen::Index k = 0; k < rows; ++k) u(k) = std::hypot(r.u_coefficients(k), r.u_noise(k));
@@ -159,7 +182,7 @@ int run_compensate(const CompensateOptions& options, std::ostream& out) {
     std::nth_element(finite.begin(), finite.begin() + static_cast<std::ptrdiff_t>(finite.size() / 2), finite.end());
     const double median_u = finite.empty() ? std::nan("") : finite[finite.size() / 2];
     const double error = has_reference ? rms(r.value - reference) : std::nan("");
-    const double raw = has_reference && scale ? rms(y / *scale - reference) : std::nan("");
+    const double raw = has_reference && has_scale ? rms(y / sensitivity - reference) : std::nan("");
     fmt::print(out, "  {:<20} {:>9} {:>14.4g} {:>14.4g} {:>9.1f} {:>9.3g} {:>9} {:>11} {:>13}\n", c.name, rows, error, raw,
                raw / error, median_u, r.outside_range, r.not_converged, r.most_iterations);
     flagged += r.outside_range;
@@ -171,7 +194,8 @@ int run_compensate(const CompensateOptions& options, std::ostream& out) {
   if (!nominal.empty()) fmt::print(out, "M_E^S = M_C^S M_E^C with the record's nominal M_E^C: {}\n", fmt::join(nominal, ", "));
   fmt::print(out, "{} samples: {} outside the characterized range (flagged, still compensated), {} without a root (NaN)\n",
              total, flagged, failed);
-  write_file_atomically(options.out, csv);
+  csv_file.append(csv);
+  csv_file.commit();
   fmt::print(out, "wrote {}\n", options.out.string());
   return kExitOk;
 }

@@ -33,6 +33,7 @@
 #include "hal/sim/bench_simulation.hpp"
 #include "hal/sim/simulate.hpp"
 #include "tests/support/scratch_dirs.hpp"
+#include "tests/support/skip_or_fail.hpp"
 
 namespace {
 
@@ -359,6 +360,29 @@ TEST(RecordScenario, HistoryFindsAnAgingSensorByTheSecondStepAndNotAStableOne) {
     if (cdf >= 0.95) break;
   }
   EXPECT_GE(by_second_step, aging_runs - allowed) << by_second_step << " of " << aging_runs;
+}
+
+// The compensated CSV grows with the record: on a disk that cannot hold it, compensate is refused
+// before any work, with the figures, and writes nothing.
+TEST(CompensateScenario, ADiskTooSmallForTheCsvIsRefusedBeforeWork) {
+  const inertia::testing::TempDir dir("inertia-compensate");
+  const inertia::testing::SmallDisk disk(dir.path / "small", "1m");
+  if (!disk.why_not.empty()) INERTIA_SKIP_OR_FAIL_IN_CI(disk.why_not);
+  const fs::path data = simulated(fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-rotation-table.toml", 5, dir.path / "data");
+  commands::CompensateOptions o;
+  o.model = data / "acc1" / "truth.toml";
+  o.dataset = data / "acc1";
+  o.out = disk.path / "compensated.csv";
+  std::ostringstream sink;
+  try {
+    (void)commands::run_compensate(o, sink);
+    ADD_FAILURE() << "compensate wrote 109000 samples onto a 1 MB disk";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("compensated samples"), std::string::npos) << e.what();
+    std::cout << "[ figures ] " << e.what() << "\n";
+  }
+  EXPECT_TRUE(fs::is_empty(disk.path));
+  EXPECT_EQ(sink.str().find("per case"), std::string::npos) << "refused before any sample was compensated";
 }
 
 TEST(CompensateScenario, RefusesAnotherSensorsRecord) {
