@@ -1,6 +1,6 @@
-// OutputFolder on real folders: a run's output appears whole at commit or not at all, replaces an
-// earlier output whole, refuses a folder of someone else's files, and the next run removes the
-// staging folder a stopped run left.
+// OutputFolder and AtomicFileWriter on real folders and files: a run's output appears whole at
+// commit or not at all, replaces an earlier output whole, refuses a folder of someone else's
+// files, and the next run removes the staging folder a stopped run left.
 #include "common/output_folder.hpp"
 
 #include <gtest/gtest.h>
@@ -11,6 +11,7 @@
 #include <iterator>
 #include <string>
 
+#include "common/atomic_file.hpp"
 #include "common/input_error.hpp"
 #include "tests/support/scratch_dirs.hpp"
 
@@ -108,6 +109,28 @@ TEST(OutputFolder, TheStagingOfAStoppedRunIsRemovedByTheNextOne) {
   EXPECT_FALSE(fs::exists(left));
   EXPECT_TRUE(fs::exists(running));
   fs::remove_all(running);
+}
+
+TEST(AtomicFileWriter, TheFileAppearsWholeAtCommitAndAnUncommittedOneLeavesNothing) {
+  const testing::TempDir dir("inertia-out");
+  const fs::path file = dir.path / "samples.csv";
+  write_file_atomically(file, "old\n");
+  {
+    AtomicFileWriter writer(file);
+    writer.append("a,");
+    writer.append("b\n");
+    EXPECT_EQ(text_of(file), "old\n");   // the earlier file stands until commit
+  }
+  EXPECT_EQ(text_of(file), "old\n");
+  {
+    AtomicFileWriter writer(file);
+    writer.append("new\n");
+    writer.commit();
+  }
+  EXPECT_EQ(text_of(file), "new\n");
+  int others = 0;
+  for (const auto& e : fs::directory_iterator(dir.path)) others += e.path() != file;
+  EXPECT_EQ(others, 0) << "no temporary file left";
 }
 
 }  // namespace
