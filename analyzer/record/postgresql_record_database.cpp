@@ -19,8 +19,8 @@ namespace inertia::record {
 
 namespace {
 
-/// Migration steps: kMigrations[k] takes the record from schema version k to k + 1.
-constexpr const char* kMigrations[] = {
+/// Migration steps: kPostgresqlMigrations[k] takes the record from schema version k to k + 1.
+constexpr const char* kPostgresqlMigrations[] = {
     R"sql(
 CREATE TABLE IF NOT EXISTS characterization (
   id BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY,
@@ -60,7 +60,7 @@ ALTER TABLE characterization ADD COLUMN IF NOT EXISTS part TEXT NOT NULL DEFAULT
 CREATE INDEX IF NOT EXISTS characterization_part ON characterization(sensor_kind, part);
 )sql",
 };
-static_assert(std::size(kMigrations) == kSchemaVersion);
+static_assert(std::size(kPostgresqlMigrations) == kSchemaVersion);
 
 /// The advisory lock that serializes migrations (any constant, the same in every inertia).
 constexpr long long kMigrationLock = 0x696e657274696131;   // "inertia1"
@@ -93,7 +93,7 @@ class PostgresqlRecordDatabase final : public RecordDatabase {
         execute("CREATE TABLE IF NOT EXISTS inertia_record_schema (version INTEGER NOT NULL)");
         version = read_version();   // another writer may have migrated meanwhile
         refuse_newer(version);
-        for (int step = version; step < kSchemaVersion; ++step) execute(kMigrations[step]);
+        for (int step = version; step < kSchemaVersion; ++step) execute(kPostgresqlMigrations[step]);
         execute("DELETE FROM inertia_record_schema");
         query("INSERT INTO inertia_record_schema (version) VALUES ($1)", {static_cast<long long>(kSchemaVersion)});
         commit();

@@ -17,9 +17,9 @@ namespace inertia::record {
 
 namespace {
 
-/// Migration steps: kMigrations[k] takes a database from schema version k to k + 1. Each is
+/// Migration steps: kSqliteMigrations[k] takes a database from schema version k to k + 1. Each is
 /// idempotent where it can be, so a writer that raced another to it does no harm.
-constexpr const char* kMigrations[] = {
+constexpr const char* kSqliteMigrations[] = {
     R"sql(
 CREATE TABLE IF NOT EXISTS characterization (
   id INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -61,7 +61,7 @@ ALTER TABLE characterization ADD COLUMN part TEXT NOT NULL DEFAULT '';
 CREATE INDEX IF NOT EXISTS characterization_part ON characterization(sensor_kind, part);
 )sql",
 };
-static_assert(std::size(kMigrations) == kSchemaVersion);
+static_assert(std::size(kSqliteMigrations) == kSchemaVersion);
 
 class SqliteRecordDatabase final : public RecordDatabase {
  public:
@@ -108,7 +108,7 @@ class SqliteRecordDatabase final : public RecordDatabase {
       try {
         version = std::get<long long>(query("PRAGMA user_version", {}).front().front());   // another writer may have migrated
         refuse_newer(static_cast<int>(version));
-        for (int step = version; step < kSchemaVersion; ++step) execute(kMigrations[step]);
+        for (int step = version; step < kSchemaVersion; ++step) execute(kSqliteMigrations[step]);
         execute(fmt::format("PRAGMA user_version = {}", kSchemaVersion).c_str());
         execute("COMMIT");
       } catch (...) {

@@ -1,5 +1,7 @@
 #include "analyzer/report/parameter_sheet.hpp"
 
+#include "analyzer/model/coefficient_uncertainty.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -62,17 +64,7 @@ struct Definition {
 
 class SheetBuilder {
  public:
-  explicit SheetBuilder(const model::ModelFile& m) : m_(m) {
-    const auto n = static_cast<Index>(m.terms.size());
-    theta_.resize(n);
-    for (Index j = 0; j < n; ++j) theta_(j) = m.terms[static_cast<std::size_t>(j)].coefficient;
-    if (m.covariance.rows() == n && n > 0) {
-      covariance_ = m.covariance;
-    } else {
-      covariance_ = Eigen::MatrixXd::Zero(n, n);
-      for (Index j = 0; j < n; ++j) covariance_(j, j) = std::pow(m.terms[static_cast<std::size_t>(j)].std.value_or(0.0), 2);
-    }
-  }
+  explicit SheetBuilder(const model::ModelFile& m) : m_(m), theta_(model::coefficient_vector(m)) {}
 
   /// The settled output at inputs `at` (the others 0), with coefficients theta.
   [[nodiscard]] double output(const Eigen::VectorXd& theta, std::initializer_list<std::pair<Variable, double>> at) const {
@@ -121,22 +113,10 @@ class SheetBuilder {
     return e;
   }
 
-  /// The delta method's expanded uncertainty (k = 2) of each component of f(theta): u_i^2 = J_i C J_i', J by central
-  /// differences, steps a small fraction of each coefficient's sd.
+  /// The delta method's expanded uncertainty (k = 2) of each component of f(theta)
+  /// (model::propagated_covariance).
   [[nodiscard]] Eigen::VectorXd expanded_uncertainty(const VectorFunction& f) const {
-    const Eigen::VectorXd at = f(theta_);
-    Eigen::MatrixXd jacobian = Eigen::MatrixXd::Zero(at.size(), theta_.size());
-    for (Index j = 0; j < theta_.size(); ++j) {
-      const double sd = std::sqrt(std::max(covariance_(j, j), 0.0));
-      if (sd == 0.0) continue;
-      const double h = 1e-3 * sd;
-      Eigen::VectorXd up = theta_, down = theta_;
-      up(j) += h;
-      down(j) -= h;
-      jacobian.col(j) = (f(up) - f(down)) / (2.0 * h);
-    }
-    const Eigen::VectorXd variance = (jacobian * covariance_).cwiseProduct(jacobian).rowwise().sum();
-    return variance.unaryExpr([](double v) { return 2.0 * std::sqrt(std::max(0.0, v)); });
+    return model::propagated_covariance(m_, f).diagonal().unaryExpr([](double v) { return 2.0 * std::sqrt(std::max(0.0, v)); });
   }
 
   [[nodiscard]] const model::ModelFile& model() const { return m_; }
@@ -145,7 +125,6 @@ class SheetBuilder {
  private:
   const model::ModelFile& m_;
   Eigen::VectorXd theta_;
-  Eigen::MatrixXd covariance_;
 };
 
 /// A noise parameter: a [noise] term over the static sensitivity, in `scale` x its SI unit.
