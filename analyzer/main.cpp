@@ -20,6 +20,7 @@
 #include "analyzer/commands/compensate.hpp"
 #include "analyzer/commands/export.hpp"
 #include "analyzer/commands/sheet.hpp"
+#include "analyzer/commands/unit.hpp"
 #include "analyzer/commands/record.hpp"
 #include "analyzer/commands/plan_check.hpp"
 #include "analyzer/commands/diagnose.hpp"
@@ -183,6 +184,15 @@ int run(int argc, char** argv) {
       ->check(CLI::ExistingDirectory);
   export_verb->add_option("--vector-samples", export_options.vector_samples, "c: test vectors' samples")->capture_default_str();
 
+  std::vector<std::filesystem::path> unit_models;
+  std::filesystem::path unit_out;
+  auto* unit = app.add_subcommand("unit", "a unit's triad from its members' models: axes, non-orthogonality, imucal's K, R, b");
+  unit->add_option("--model", unit_models, "the three members' model files (x, y, z in any order)")
+      ->required()
+      ->expected(3)
+      ->check(CLI::ExistingFile);
+  unit->add_option("--out", unit_out, "output folder (unit.toml)")->required();
+
   std::filesystem::path sheet_model, sheet_out;
   auto* sheet = app.add_subcommand("sheet", "the model's parameters in IEEE 1293 / 952 names with expanded uncertainty (k = 2)");
   sheet->add_option("--model", sheet_model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
@@ -269,6 +279,7 @@ int run(int argc, char** argv) {
   if (record_history->parsed()) return inertia::commands::run_record_history(record_db, record_serial, record_parameter, std::cout, record_plot);
   if (record_compare->parsed()) return inertia::commands::run_record_compare(record_db, record_serial, std::cout);
   if (sheet->parsed()) return inertia::commands::run_sheet(sheet_model, sheet_out, std::cout);
+  if (unit->parsed()) return inertia::commands::run_unit(unit_models, unit_out, std::cout);
   if (export_verb->parsed()) {
     export_options.single_precision = precision == "float";
     return inertia::commands::run_export(export_options, std::cout);

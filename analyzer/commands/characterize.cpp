@@ -114,6 +114,8 @@ model::ModelFile characterized_model(const procedure::PipelineResult& result, co
   model.name = data.sensor_name;
   model.serial = data.serial;
   model.part = data.part;
+  model.unit = data.unit;
+  model.unit_axis = data.unit_axis;
   model.output_unit = data.output_unit;
   model.t_ref = data.t_ref;
   model.sample_period_s = common_sample_period(data);

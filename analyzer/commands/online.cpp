@@ -162,6 +162,7 @@ class SensorPipeline final : public fusion::FusionSink {
       : name(s.name), output_unit(s.output_unit), estimate_channel(channels::estimate_channel(s.name)),
         structure_channel(channels::structure_channel(s.name)), model_(model), kind_(sensor_kind(s.type)),
         t_ref_(bench.t_ref_c), estimator_options_(estimator_options), max_wait_s_(max_wait_s) {
+    estimator_options_.unit_axis = s.unit_axis;
     restart();
   }
 

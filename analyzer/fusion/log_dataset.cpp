@@ -121,11 +121,11 @@ void feed_log(const std::filesystem::path& file, StreamAssembler& assembler, std
   }
 }
 
-dataset::CaseData to_case_data(FusedSegment&& segment, const config::TestCase& tc) {
+dataset::CaseData to_case_data(FusedSegment&& segment, const config::TestCase& tc, const config::SensorUnderTest& sensor) {
   dataset::CaseData cd;
   cd.name = tc.name;
   cd.kind = tc.kind;
-  cd.m_ec = tc.m_ec;   // nominal, as simulate writes it: the analysis estimates the misalignment
+  cd.m_ec = config::nominal_m_ec(tc, sensor);   // nominal, as simulate writes it: the analysis estimates the misalignment
   cd.mounting = tc.mounting;
   cd.sample_period_s = segment.sample_period_s;
   cd.t = std::move(segment.t);
@@ -154,6 +154,8 @@ dataset::Dataset log_dataset(const std::filesystem::path& file, const std::strin
   ds.sensor_name = sut.name;
   ds.serial = sut.serial;
   ds.part = sut.part;
+  ds.unit = sut.unit;
+  ds.unit_axis = sut.unit_axis;
   ds.output_unit = sut.output_unit;
   ds.t_ref = bench.t_ref_c;
   std::stable_sort(segments.begin(), segments.end(),
@@ -165,7 +167,7 @@ dataset::Dataset log_dataset(const std::filesystem::path& file, const std::strin
     const config::TestCase& tc = bench.cases[s.case_index];
     const int k = seen[s.case_index]++;
     const std::size_t case_index = s.case_index;
-    dataset::CaseData cd = to_case_data(std::move(s), tc);
+    dataset::CaseData cd = to_case_data(std::move(s), tc, sut);
     cd.name = k == 0 ? tc.name : fmt::format("{}-seg{}", tc.name, k + 1);
     cd.file = cd.name + ".csv";
     if (pieces[case_index] > 1) cd.piece_of = tc.name;

@@ -337,6 +337,13 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
   model.name = optional_string(root, "sensor_name", file).value_or("");
   model.serial = optional_string(root, "serial", file).value_or("");
   model.part = optional_string(root, "part", file).value_or("");
+  model.unit = optional_string(root, "unit", file).value_or("");
+  if (!model.unit.empty()) {
+    const std::string axis = optional_string(root, "unit_axis", file).value_or("");
+    if (axis != "x" && axis != "y" && axis != "z")
+      throw InputError(SourcePosition{file, 0, 0}, "unit_axis must be \"x\", \"y\" or \"z\" where unit is given");
+    model.unit_axis = axis[0] - 'x';
+  }
   model.output_unit = optional_string(root, "output_unit", file).value_or("");
   if (const toml::node* t = root.get("t_ref")) model.t_ref = finite_number(*t, file, "t_ref");
   model.sample_period_s = optional_positive(root, "sample_period_s", file);
@@ -396,6 +403,8 @@ std::string format_model(const ModelFile& model) {
   if (!model.name.empty()) s += "sensor_name = " + toml_quote(model.name) + "\n";
   if (!model.serial.empty()) s += "serial = " + toml_quote(model.serial) + "\n";
   if (!model.part.empty()) s += "part = " + toml_quote(model.part) + "\n";
+  if (!model.unit.empty() && model.unit_axis >= 0)
+    s += "unit = " + toml_quote(model.unit) + "\nunit_axis = \"" + std::string(1, static_cast<char>('x' + model.unit_axis)) + "\"\n";
   if (!model.output_unit.empty()) s += "output_unit = " + toml_quote(model.output_unit) + "\n";
   if (model.t_ref) s += "t_ref = " + toml_float(*model.t_ref, "t_ref") + "\n";
   if (model.sample_period_s) s += "sample_period_s = " + toml_float(*model.sample_period_s, "sample_period_s") + "\n";

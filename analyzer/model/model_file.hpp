@@ -26,6 +26,8 @@
 //   sensor_name = "acc1"                      # the sensor's name (bench file, dataset.toml)
 //   serial = "SN-0042"                        # the unit's serial number, and its part (type)
 //   part = "QA-2000"
+//   unit = "imu1"                             # the [[unit]] it belongs to, and its axis there
+//   unit_axis = "y"
 //   output_unit = "mA"                        # the output's unit
 //   t_ref = 25.0                              # degC: the model's T is temp - t_ref
 //   sample_period_s = 1.0e-3                  # the period the lags [k-j] count in
@@ -102,6 +104,8 @@ struct ModelFile {
 
   std::string name;                        // sensor_name; empty: not stated
   std::string serial, part;                // serial, part; empty: not stated
+  std::string unit;                        // unit; empty: not a unit's member
+  int unit_axis = -1;                      // unit_axis: 0, 1, 2 for "x", "y", "z"; -1 without unit
   std::string output_unit;                 // output_unit; empty: not stated
   std::optional<double> t_ref;             // t_ref, degC
   std::optional<double> sample_period_s;   // sample_period_s

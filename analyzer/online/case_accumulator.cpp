@@ -156,8 +156,9 @@ bool CaseAccumulator::push(const fusion::FusedChunk& chunk, const config::TestCa
     if (work.temp && seg.history.temp) work.temp->head(kept) = *seg.history.temp;
   }
   work.t.tail(n) = chunk.t;
-  work.a_e.bottomRows(n) = chunk.a_e * tc.m_ec.transpose();
-  work.w_e->bottomRows(n) = chunk.w_e * tc.m_ec.transpose();
+  const frames::Dcm m_ec = config::nominal_m_ec(tc, live.options.unit_axis);
+  work.a_e.bottomRows(n) = chunk.a_e * m_ec.transpose();
+  work.w_e->bottomRows(n) = chunk.w_e * m_ec.transpose();
   work.y.tail(n) = chunk.y;
   if (work.temp) work.temp->tail(n) = *chunk.temp;
   const Index max_lag = live.basis->max_lag();

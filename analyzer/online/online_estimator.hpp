@@ -50,6 +50,7 @@
 namespace inertia::online {
 
 struct OnlineOptions {
+  int unit_axis = -1;                 ///< the sensor's axis in its [[unit]] (config::nominal_m_ec); -1: none
   double forgetting = 1.0;            ///< lambda in (0, 1]: every row's weight decays by lambda per row
   double noise_window_s = 2.0;        ///< rows that fit the noise model (s of sensor samples)
   int whitening_max_order = 120;      ///< largest AR order of the noise model (0: white)

@@ -86,6 +86,11 @@ BenchConfig load_bench(const std::filesystem::path& path, std::string text, cons
     }
   }
   if (cfg.simulated && cfg.sensors.empty()) root.fail_here("a simulated bench needs at least one [[sensor]]");
+  std::set<std::string> unit_names;
+  for (const TableReader& u : root.tables("unit")) {
+    cfg.units.push_back(detail::read_unit(u, cfg.sensors));
+    if (!unit_names.insert(cfg.units.back().name).second) u.fail_key("name", "duplicate unit name '" + cfg.units.back().name + "'");
+  }
 
   std::set<std::string> monitor_names;
   for (const TableReader& m : root.tables("monitor")) {

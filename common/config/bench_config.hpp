@@ -24,6 +24,7 @@
 // Units: as the paper's tables, accelerations in config are in g and angles in degrees (suffix
 // _g, _deg); everything is converted to SI here, at the edge (docs/design.md, "Units and frames").
 // Unknown keys are errors: a typo must not silently fall back to a default.
+#include <array>
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cstdint>
@@ -65,6 +66,8 @@ struct SensorUnderTest {
   std::string slot;                                  // fixture slot name (informational)
   std::string serial;                                // the unit's serial number; empty: not stated
   std::string part;                                  // its type (part number); empty: not stated
+  std::string unit;                                  // the [[unit]] it belongs to; empty: none
+  int unit_axis = -1;                                // its axis in that unit (0, 1, 2: x, y, z); -1: none
   Eigen::Vector3d position_m = Eigen::Vector3d::Zero();   // in F_E, from the rotation axis/table centre
   std::uint64_t seed = 0;                            // 0: derived from [bench] seed and the sensor index
   std::string channel;                               // "<device>.<signal>" on a real bench
@@ -411,6 +414,16 @@ struct SourceFile {
 /// daemon's test executive commands the controllers phase by phase and marks each phase itself.
 enum class Executive { Operator, Plan };
 
+/// A triaxial unit ([[unit]]): sensor outputs in one housing, each along one axis of the unit.
+/// The test plan's m_ec is then the unit's frame, and each member's case frame is the unit's turned
+/// to put IRA on the member's axis (unit_axis_frame). Its serial and part are its members'.
+struct Unit {
+  std::string name, serial, part;
+  std::array<std::string, 3> accelerometers;   // along unit x, y, z ([[unit]] accelerometers); empty: none
+  std::array<std::string, 3> gyroscopes;       // along unit x, y, z ([[unit]] gyroscopes); empty: none
+  SourcePosition where;
+};
+
 struct BenchConfig {
   std::filesystem::path file;
   /// The bench file and every file it included, in load order: what the daemon publishes on
@@ -431,6 +444,7 @@ struct BenchConfig {
   SimTiming sim_timing;
   double alpha_rad = 0.0;           // Fig. 2 slot angle (default 25 deg)
   std::vector<SensorUnderTest> sensors;
+  std::vector<Unit> units;
   std::vector<MonitorAccelerometer> monitors;
   std::optional<MonitorAccelerometer> control_accelerometer;
   Encoder linear_encoder;
@@ -452,6 +466,17 @@ struct BenchConfig {
 /// Over the three orientations every pair of case axes shares the vibration once, so a_i a_p,
 /// a_p a_o and a_o a_i are all excited.
 frames::Dcm slot_orientation(Orientation orientation, double alpha_rad);
+
+/// The nominal case axes (rows IRA, XRA, YRA) of a unit's member along unit axis `unit_axis`
+/// (0, 1, 2: x, y, z), in unit coordinates: the cyclic turn that puts IRA on that axis (x: IRA,
+/// XRA, YRA = x, y, z; y: y, z, x; z: z, x, y). The identity for -1 (not in a unit).
+frames::Dcm unit_axis_frame(int unit_axis);
+
+/// A sensor's nominal M_E^C in `test_case`: the case's m_ec, turned to the sensor's axis when it
+/// is a unit's member (m_ec is then the unit's frame). Every reader of a sensor's nominal frame
+/// (the simulator, the dataset it writes, the log's fusion, the live analyzer) takes it here.
+frames::Dcm nominal_m_ec(const TestCase& test_case, int unit_axis);
+frames::Dcm nominal_m_ec(const TestCase& test_case, const SensorUnderTest& sensor);
 
 /// Parses and validates a bench file. Throws InputError with file:line:column and what was
 /// expected for TOML syntax errors, wrong types, missing or unknown keys, values out of range and

@@ -44,6 +44,9 @@ void read_thermal(const TableReader& t, ThermalController& th);
 MonitorAccelerometer read_monitor(const TableReader& t, bool named);
 Encoder read_encoder(const TableReader& t, std::string_view resolution_key, bool simulated);
 SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64_t bench_seed);
+/// A [[unit]]: its members must be `sensors` of the right type, in no other unit; each gets its
+/// unit, axis, and the unit's serial and part.
+Unit read_unit(const TableReader& t, std::vector<SensorUnderTest>& sensors);
 
 // ---- bench_devices.cpp: a real bench's devices and the daemon ----
 

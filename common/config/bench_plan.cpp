@@ -184,6 +184,19 @@ frames::Dcm slot_orientation(Orientation orientation, double alpha_rad) {
   return m;
 }
 
+frames::Dcm unit_axis_frame(int unit_axis) {
+  frames::Dcm m = frames::Dcm::Zero();
+  if (unit_axis < 0) return frames::Dcm::Identity();
+  for (int row = 0; row < 3; ++row) m(row, (unit_axis + row) % 3) = 1.0;   // a cyclic turn: det +1
+  return m;
+}
+
+frames::Dcm nominal_m_ec(const TestCase& test_case, int unit_axis) { return unit_axis_frame(unit_axis) * test_case.m_ec; }
+
+frames::Dcm nominal_m_ec(const TestCase& test_case, const SensorUnderTest& sensor) {
+  return nominal_m_ec(test_case, sensor.unit_axis);
+}
+
 const char* to_string(PhaseKind kind) {
   switch (kind) {
     case PhaseKind::Dwell: return "dwell";

@@ -2,7 +2,10 @@
 // reference instruments ([[monitor]], [control_accelerometer], the linear and table encoders) and
 // the fixture's thermal controller, and the sensors' seeds. The loader (bench_config.cpp) calls
 // these readers (bench_config_readers.hpp) for its top-level tables.
+#include <fmt/format.h>
+
 #include <algorithm>
+#include <tuple>
 #include <string>
 #include <vector>
 
@@ -116,6 +119,46 @@ SensorUnderTest read_sensor(const TableReader& t, std::size_t index, std::uint64
   }
   t.finish();
   return s;
+}
+
+Unit read_unit(const TableReader& t, std::vector<SensorUnderTest>& sensors) {
+  Unit u;
+  u.where = t.where();
+  u.name = t.string("name");
+  if (u.name.empty() || u.name.find_first_of("/\\ ") != std::string::npos)
+    t.fail_key("name", "must be a non-empty name without '/', '\\' or spaces");
+  u.serial = t.string_or("serial", "");
+  u.part = t.string_or("part", "");
+  bool any = false;
+  for (const auto& [key, type, members] : {std::tuple{"accelerometers", SensorType::Accelerometer, &u.accelerometers},
+                                           std::tuple{"gyroscopes", SensorType::Gyroscope, &u.gyroscopes}}) {
+    const toml::node* n = t.node(key);
+    if (n == nullptr) continue;
+    const toml::array* a = n->as_array();
+    if (a == nullptr || a->size() != 3)
+      t.fail_key(key, "must be three sensor names, along the unit's x, y and z (\"\" where the unit has none)");
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+      const auto* name = (*a)[axis].as_string();
+      if (name == nullptr) t.fail_key(key, "must be three sensor names (strings)");
+      (*members)[axis] = name->get();
+      if (name->get().empty()) continue;
+      const auto sensor = std::find_if(sensors.begin(), sensors.end(), [&](const SensorUnderTest& s) { return s.name == name->get(); });
+      if (sensor == sensors.end()) t.fail_key(key, fmt::format("no [[sensor]] named '{}'", name->get()));
+      if (sensor->type != type) t.fail_key(key, fmt::format("sensor '{}' is a {}", name->get(), to_string(sensor->type)));
+      if (!sensor->unit.empty()) t.fail_key(key, fmt::format("sensor '{}' is already in unit '{}'", name->get(), sensor->unit));
+      for (const auto& [field, value] : {std::pair{&sensor->serial, &u.serial}, std::pair{&sensor->part, &u.part}}) {
+        if (!field->empty() && !value->empty() && *field != *value)
+          t.fail_key(key, fmt::format("sensor '{}' states '{}', the unit '{}'", name->get(), *field, *value));
+        if (field->empty()) *field = *value;
+      }
+      sensor->unit = u.name;
+      sensor->unit_axis = static_cast<int>(axis);
+      any = true;
+    }
+  }
+  if (!any) t.fail_here("a [[unit]] needs accelerometers or gyroscopes (three names along x, y, z)");
+  t.finish();
+  return u;
 }
 
 }  // namespace detail

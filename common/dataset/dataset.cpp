@@ -484,6 +484,13 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
   if (root.get("sensor_name") != nullptr) data.sensor_name = require_string(root, "sensor_name", file);
   if (root.get("serial") != nullptr) data.serial = require_string(root, "serial", file);
   if (root.get("part") != nullptr) data.part = require_string(root, "part", file);
+  if (root.get("unit") != nullptr) {
+    data.unit = require_string(root, "unit", file);
+    const std::string axis = root.get("unit_axis") != nullptr ? require_string(root, "unit_axis", file) : std::string();
+    if (axis != "x" && axis != "y" && axis != "z")
+      throw InputError(SourcePosition{file, 0, 0}, "unit_axis must be \"x\", \"y\" or \"z\" where unit is given");
+    data.unit_axis = axis[0] - 'x';
+  }
   data.t_ref = to_finite_double(require(root, "t_ref", file, ""), file, "'t_ref'");
 
   if (root.get("case") == nullptr) {
@@ -579,6 +586,8 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
   if (!data.sensor_name.empty()) toml_text += "sensor_name = " + toml_quote(data.sensor_name) + "\n";
   if (!data.serial.empty()) toml_text += "serial = " + toml_quote(data.serial) + "\n";
   if (!data.part.empty()) toml_text += "part = " + toml_quote(data.part) + "\n";
+  if (!data.unit.empty() && data.unit_axis >= 0)
+    toml_text += "unit = " + toml_quote(data.unit) + "\nunit_axis = \"" + std::string(1, static_cast<char>('x' + data.unit_axis)) + "\"\n";
   toml_text += "output_unit = " + toml_quote(data.output_unit) + "\n";
   toml_text += "t_ref = " + toml_float(data.t_ref) + "\n";
 

@@ -59,6 +59,8 @@ struct Dataset {
   std::string sensor_name;                            // optional sensor_name (extension): the bench's name for it
   std::string serial;                                 // optional serial (extension): the unit's serial number
   std::string part;                                   // optional part (extension): its type (part number)
+  std::string unit;                                   // optional unit (extension): the [[unit]] it belongs to
+  int unit_axis = -1;                                 // optional unit_axis (extension): "x", "y", "z" in that unit; -1: none
   std::string output_unit;
   double t_ref = 25.0;                                // degC; model variable T = temp - t_ref
   std::vector<CaseData> cases;

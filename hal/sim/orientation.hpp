@@ -8,12 +8,15 @@
 // - R_F, fixture misalignment ([[case]] fixture_misalignment): the fixture as mounted on the
 //   table/shaker is F_E rotated (right-hand rule) by angle about `axis`, the axis written in F_E.
 //   The fixture is remounted for each shaker orientation, so R_F belongs to the case.
-// - M_nom, nominal M_E^C: the Fig. 2 slot orientation (config::slot_orientation) or m_ec; this is
-//   what the dataset's m_ec column records (the analyzer knows only the nominal).
+// - M_nom, nominal M_E^C: the Fig. 2 slot orientation (config::slot_orientation) or m_ec, turned
+//   to the sensor's axis for a unit's member (config::nominal_m_ec); this is what the dataset's
+//   m_ec column records (the analyzer knows only the nominal).
 // - R_C, case misalignment: the true case frame is the nominal case frame rotated by angle about
 //   `axis`, the axis written in nominal case coordinates (the paper's "2 deg about case Y").
 //   R_C = R_slot * R_case: [[case]] case_misalignment (this mounting) first, then the sensor's
-//   own [[sensor]] case_misalignment (its fit in the slot), both frame rotations.
+//   own [[sensor]] case_misalignment (its fit in the slot, or in a unit's housing: the unit's
+//   non-orthogonality), both frame rotations. For a unit's member R_case is the housing's,
+//   written in unit coordinates, so it enters as T R_case T' with T = unit_axis_frame.
 // - R_P, placement error ([[case]] placement_error_deg): a random rotation of this case's
 //   placement (rotation vector with independent N(0, sd^2) components in F_E, drawn from the
 //   placement seed), composed with R_F: a tumble's pose is never exactly its nominal one.

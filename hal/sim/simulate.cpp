@@ -1,6 +1,9 @@
 #include "hal/sim/simulate.hpp"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <optional>
 
 #include <fmt/format.h>
 #include <fmt/ostream.h>
@@ -98,6 +101,47 @@ void write_truth(const config::BenchConfig& bench, const BenchSimulation& sim, s
   if (!os) throw std::runtime_error("cannot write " + file.string());
 }
 
+/// A unit's truth: each member's true input axis in the unit's housing frame, n = T' R_slot' m_cs'
+/// e_i (T the member's unit_axis_frame, R_slot its [[sensor]] case_misalignment, m_cs its true
+/// M_C^S), and the non-orthogonality of each pair, asin(n_j . n_k).
+void write_unit_truth(const config::BenchConfig& bench, const BenchSimulation& sim, const config::Unit& unit,
+                      const std::filesystem::path& file) {
+  toml::table root{{"unit", unit.name}, {"serial", unit.serial}, {"part", unit.part}};
+  for (const auto& [key, members] : {std::pair{"accelerometers", &unit.accelerometers}, std::pair{"gyroscopes", &unit.gyroscopes}}) {
+    std::array<std::optional<Eigen::Vector3d>, 3> axes;
+    toml::table triad;
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+      const std::string& name = (*members)[axis];
+      if (name.empty()) continue;
+      const auto s = static_cast<std::size_t>(
+          std::find_if(bench.sensors.begin(), bench.sensors.end(), [&](const config::SensorUnderTest& x) { return x.name == name; }) -
+          bench.sensors.begin());
+      const config::SensorUnderTest& sensor = bench.sensors[s];
+      const frames::Dcm m_cs = sim.cases.empty() ? frames::Dcm::Identity() : sim.cases.front().sensors[s].m_cs;
+      const Eigen::Vector3d n = config::unit_axis_frame(sensor.unit_axis).transpose() *
+                                sensor.case_misalignment.dcm().transpose() * m_cs.row(0).transpose();
+      axes[axis] = n.normalized();
+      triad.insert_or_assign(std::string(1, static_cast<char>('x' + axis)),
+                             toml::table{{"sensor", name}, {"axis", toml::array{(*axes[axis])(0), (*axes[axis])(1), (*axes[axis])(2)}}});
+    }
+    toml::table angles;
+    for (std::size_t pair = 0; pair < 3; ++pair) {
+      const auto& a = axes[pair];
+      const auto& b = axes[(pair + 1) % 3];
+      if (a && b) angles.insert_or_assign(std::string(1, static_cast<char>('x' + pair)) + static_cast<char>('x' + (pair + 1) % 3),
+                                          std::asin(a->dot(*b)));
+    }
+    if (triad.empty()) continue;
+    triad.insert_or_assign("non_orthogonality_rad", std::move(angles));
+    root.insert_or_assign(key, std::move(triad));
+  }
+  std::ofstream os(file);
+  os << "# Truth of a simulated unit (inertia-analyze simulate): each member's input axis in the unit's housing frame,\n"
+        "# and asin(n_j . n_k) of each pair, the angle by which two axes are closer than 90 deg.\n"
+     << toml::toml_formatter(root, toml::toml_formatter::default_flags & ~toml::format_flags::allow_literal_strings) << '\n';
+  if (!os) throw std::runtime_error("cannot write " + file.string());
+}
+
 void write_references(const config::BenchConfig& bench, const SimulatedCase& sc, const std::filesystem::path& file) {
   const CaseReferences& r = sc.references;
   std::string out;
@@ -133,6 +177,8 @@ dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSim
   ds.sensor_name = sensor.name;
   ds.serial = sensor.serial;
   ds.part = sensor.part;
+  ds.unit = sensor.unit;
+  ds.unit_axis = sensor.unit_axis;
   ds.output_unit = sensor.output_unit;
   ds.t_ref = bench.t_ref_c;
   for (std::size_t c = 0; c < bench.cases.size(); ++c) {
@@ -142,7 +188,7 @@ dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSim
     cd.name = tc.name;
     cd.kind = tc.kind;
     cd.file = tc.name + ".csv";
-    cd.m_ec = tc.m_ec;   // nominal: the analyzer must not see the misalignments
+    cd.m_ec = config::nominal_m_ec(tc, sensor);   // nominal: the analyzer must not see the misalignments
     cd.mounting = tc.mounting;
     cd.sample_period_s = 1.0 / bench.sample_rate_hz;
     cd.t = sc.motion.t;
@@ -172,6 +218,7 @@ void write_simulation(const config::BenchConfig& bench, const BenchSimulation& s
     write_truth(bench, sim, s, dir / "truth.toml");
   }
   std::filesystem::create_directories(out);
+  for (const config::Unit& unit : bench.units) write_unit_truth(bench, sim, unit, out / ("unit-" + unit.name + "-truth.toml"));
   std::filesystem::create_directories(out / "references");
   for (std::size_t c = 0; c < bench.cases.size(); ++c) {
     write_references(bench, sim.cases[c], out / "references" / (bench.cases[c].name + ".csv"));

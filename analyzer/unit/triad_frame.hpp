@@ -1,0 +1,57 @@
+#pragma once
+// A triad of a unit: three characterized outputs of one kind (accelerometers or gyroscopes), each
+// along one axis of the unit's housing ([[unit]] in the bench file; the model file's unit and
+// unit_axis), seen as one object in the unit's frame.
+//
+// Each output's sensitivity vector s_k = dy_k / d(input in unit coordinates) is its model's settled
+// response to the three inputs (compensate::static_sensitivity of i, p, o), turned from its sensor
+// frame to its case frame (M_C^S') and from there to the unit's (unit_axis_frame'). Its covariance
+// has two parts: the coefficients' (the delta method with the model's covariance) and the input
+// axis angles' ([misalignment] sd about p and o, which algorithm 2 estimated beside the fit).
+// From the three:
+//   S = [s_x; s_y; s_z] = K R   (imucal's K, R: K the diagonal scale |s_k|, R's rows the unit
+//                                sensitive axes n_k = s_k / |s_k|), b the biases (settled output
+//                                at zero input), so that input = R^-1 K^-1 (y - b);
+//   non-orthogonality of axes j, k: asin(n_j . n_k), the angle by which they are closer than 90 deg.
+// The outputs were characterized apart, so their estimates are taken as independent. The frame is
+// the unit's housing as the test plan's m_ec states it: a rotation common to the three (the
+// housing's own misalignment on the fixture) turns every n_k alike and leaves the angles between
+// them, which the plan determines.
+#include <Eigen/Dense>
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "analyzer/model/model_file.hpp"
+
+namespace inertia::unit {
+
+struct TriadAxis {
+  std::string sensor;                 // the member's name
+  Eigen::Vector3d sensitivity;        // s_k, output unit per input unit (m/s^2 or rad/s), unit coordinates
+  Eigen::Matrix3d covariance;         // of s_k
+  double bias = 0.0, bias_sd = 0.0;   // settled output at zero input, output unit
+  bool angles_estimated = false;      // the model's [misalignment] has both angles with their sd
+};
+
+struct TriadFrame {
+  std::string unit, serial, output_unit;
+  dataset::SensorKind kind = dataset::SensorKind::Accelerometer;
+  std::array<TriadAxis, 3> axes;                 // along x, y, z
+  Eigen::Matrix3d sensitivity;                   // S, rows s_x, s_y, s_z
+  Eigen::Vector3d scale, scale_sd;               // K's diagonal
+  Eigen::Matrix3d misalignment;                  // R, rows the unit sensitive axes
+  Eigen::Vector3d bias, bias_sd;                 // b
+  std::array<double, 3> non_orthogonality{}, non_orthogonality_sd{};   // xy, yz, zx (rad)
+};
+
+/// The triad of `members`: three models of one unit and kind, one along each axis. Throws
+/// InputError for models of different units or kinds, an axis given twice or missing, a model
+/// without unit_axis.
+TriadFrame triad_frame(const std::vector<model::ModelFile>& members);
+
+/// Pairs of the non-orthogonality arrays: "xy", "yz", "zx".
+inline constexpr std::array<const char*, 3> kAxisPairs = {"xy", "yz", "zx"};
+
+}  // namespace inertia::unit

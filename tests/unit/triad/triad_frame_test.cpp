@@ -1,0 +1,144 @@
+// A unit's triad against known truth: the members' case frames turned to their unit axes, a
+// [[unit]]'s reading and its refusals, and the triad's sensitivity matrix, imucal's K, R, b and
+// the non-orthogonality with their uncertainties, on models whose axes are known exactly.
+#include "analyzer/unit/triad_frame.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <string>
+
+#include "common/config/bench_config.hpp"
+#include "common/frames.hpp"
+#include "common/input_error.hpp"
+#include "tests/support/scratch_dirs.hpp"
+
+namespace inertia::unit {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(UnitAxisFrame, PutsIraOnTheAxisByACyclicTurn) {
+  EXPECT_TRUE(config::unit_axis_frame(-1).isIdentity());
+  EXPECT_TRUE(config::unit_axis_frame(0).isIdentity());
+  for (int axis = 0; axis < 3; ++axis) {
+    const frames::Dcm t = config::unit_axis_frame(axis);
+    EXPECT_NEAR(t.determinant(), 1.0, 1e-15);
+    EXPECT_TRUE(t.row(0).isApprox(Eigen::RowVector3d::Unit(axis))) << "IRA along the unit axis";
+    EXPECT_TRUE(t.row(1).isApprox(Eigen::RowVector3d::Unit((axis + 1) % 3))) << "XRA along the next";
+  }
+  config::TestCase tc;
+  tc.m_ec << 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0;   // unit x up
+  config::SensorUnderTest y_member;
+  y_member.unit_axis = 1;
+  // The y member's IRA is the unit's y: the second row of the unit's frame.
+  EXPECT_TRUE(config::nominal_m_ec(tc, y_member).row(0).isApprox(tc.m_ec.row(1)));
+}
+
+fs::path write(const fs::path& file, const std::string& text) {
+  std::ofstream(file) << text;
+  return file;
+}
+
+std::string imu_bench(const std::string& unit_table) {
+  std::ifstream in(fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-imu-tumble.toml");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t from = text.find("\n[[unit]]") + 1, to = text.find("\n[[sensor]]") + 1;
+  return text.replace(from, to - from, unit_table);
+}
+
+TEST(UnitConfig, MembersGetTheirAxisSerialAndPartAndBadUnitsAreRefused) {
+  const config::BenchConfig bench = config::load_bench_config(fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-imu-tumble.toml");
+  ASSERT_EQ(bench.units.size(), 1u);
+  for (int axis = 0; axis < 3; ++axis) {
+    const config::SensorUnderTest& s = bench.sensors[static_cast<std::size_t>(axis)];
+    EXPECT_EQ(s.unit, "imu1");
+    EXPECT_EQ(s.unit_axis, axis);
+    EXPECT_EQ(s.serial, "IMU-0001");
+    EXPECT_EQ(s.part, "MEMS-IMU-SIM");
+  }
+  const testing::TempDir dir("inertia-unit");
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"[[unit]]\nname = \"u\"\naccelerometers = [\"ax\", \"ay\"]\n\n", "three sensor names"},
+      {"[[unit]]\nname = \"u\"\naccelerometers = [\"ax\", \"ay\", \"nosuch\"]\n\n", "no [[sensor]] named 'nosuch'"},
+      {"[[unit]]\nname = \"u\"\ngyroscopes = [\"ax\", \"\", \"\"]\n\n", "sensor 'ax' is a accelerometer"},
+      {"[[unit]]\nname = \"u\"\naccelerometers = [\"ax\", \"ay\", \"az\"]\n\n[[unit]]\nname = \"v\"\naccelerometers = [\"ax\", \"\", \"\"]\n\n",
+       "already in unit 'u'"},
+      {"[[unit]]\nname = \"u\"\n\n", "needs accelerometers or gyroscopes"},
+  };
+  for (const auto& [table, message] : bad) {
+    try {
+      config::load_bench_config(write(dir.path / "bench.toml", imu_bench(table)));
+      ADD_FAILURE() << table;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  }
+}
+
+/// An accelerometer of the unit along `axis`: y = b + k a_i in a sensor frame tilted from its case
+/// by `about_p`, `about_o` (with sd `angle_sd`), coefficients with sd `coefficient_sd`.
+model::ModelFile member(int axis, double b, double k, double about_p, double about_o, double angle_sd, double coefficient_sd) {
+  model::ModelFile m;
+  m.name = std::string("a") + static_cast<char>('x' + axis);
+  m.unit = "imu";
+  m.unit_axis = axis;
+  m.output_unit = "g";
+  m.terms = {{ident::parse_term("1"), b, coefficient_sd}, {ident::parse_term("a_i"), k, coefficient_sd}};
+  const Eigen::Vector3d v(0.0, about_p, about_o);
+  m.m_cs = frames::frame_rotation(v.normalized(), v.norm());
+  m.misalignment = model::ModelFile::Misalignment{about_p, about_o, angle_sd, angle_sd};
+  return m;
+}
+
+TEST(TriadFrame, AxesScaleBiasAndNonOrthogonalityOfKnownMembers) {
+  const double k = 1.0 / 9.80665;
+  const std::vector<model::ModelFile> members = {member(0, 1e-3, k, 2e-3, -1e-3, 1e-4, 1e-7), member(1, -2e-3, 1.01 * k, -1e-3, 3e-3, 1e-4, 1e-7),
+                                                 member(2, 3e-3, 0.99 * k, 0.5e-3, 1e-3, 1e-4, 1e-7)};
+  const TriadFrame f = triad_frame(members);
+  for (int a = 0; a < 3; ++a) {
+    const model::ModelFile& m = members[static_cast<std::size_t>(a)];
+    // The input axis in the unit frame: the sensor's i in case coordinates, turned back to the unit.
+    const Eigen::Vector3d n = config::unit_axis_frame(a).transpose() * m.m_cs.row(0).transpose();
+    EXPECT_TRUE(f.misalignment.row(a).transpose().isApprox(n, 1e-12)) << a;
+    EXPECT_NEAR(f.scale(a), m.terms[1].coefficient, 1e-15);
+    EXPECT_NEAR(f.bias(a), m.terms[0].coefficient, 1e-15);
+    EXPECT_NEAR(f.bias_sd(a), 1e-7, 1e-12);
+    EXPECT_NEAR(f.scale_sd(a), 1e-7, 1e-12);   // a turn changes the direction, not |s|
+  }
+  EXPECT_TRUE(f.sensitivity.isApprox(f.scale.asDiagonal() * f.misalignment, 1e-14)) << "S = K R";
+  // Non-orthogonality: asin of the axes' dot product; to first order the sum of the two tilts
+  // towards each other. Its sd: each axis moves by angle_sd in the two directions across it, and
+  // the pair's dot product sees one of them from each: sqrt(2) angle_sd.
+  for (std::size_t p = 0; p < 3; ++p) {
+    const Eigen::Vector3d a = f.misalignment.row(static_cast<Eigen::Index>(p)).transpose();
+    const Eigen::Vector3d b = f.misalignment.row(static_cast<Eigen::Index>((p + 1) % 3)).transpose();
+    EXPECT_NEAR(f.non_orthogonality[p], std::asin(a.dot(b)), 1e-15);
+    EXPECT_NEAR(f.non_orthogonality_sd[p], std::sqrt(2.0) * 1e-4, 2e-6) << kAxisPairs[p];
+  }
+}
+
+TEST(TriadFrame, RefusesMembersThatAreNotOneTriad) {
+  const double k = 0.1;
+  const auto refused = [](std::vector<model::ModelFile> m, const char* message) {
+    try {
+      (void)triad_frame(m);
+      ADD_FAILURE() << message;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  };
+  refused({member(0, 0, k, 0, 0, 0, 0), member(1, 0, k, 0, 0, 0, 0)}, "three models");
+  refused({member(0, 0, k, 0, 0, 0, 0), member(0, 0, k, 0, 0, 0, 0), member(2, 0, k, 0, 0, 0, 0)}, "two models along unit axis x");
+  model::ModelFile other = member(2, 0, k, 0, 0, 0, 0);
+  other.unit = "imu2";
+  refused({member(0, 0, k, 0, 0, 0, 0), member(1, 0, k, 0, 0, 0, 0), other}, "of unit 'imu2'");
+  model::ModelFile lone = member(2, 0, k, 0, 0, 0, 0);
+  lone.unit.clear();
+  lone.unit_axis = -1;
+  refused({member(0, 0, k, 0, 0, 0, 0), member(1, 0, k, 0, 0, 0, 0), lone}, "states no unit");
+}
+
+}  // namespace
+}  // namespace inertia::unit
