@@ -186,12 +186,11 @@ int run(int argc, char** argv) {
 
   std::vector<std::filesystem::path> unit_models;
   std::filesystem::path unit_out;
-  auto* unit = app.add_subcommand("unit", "a unit's triad from its members' models: axes, non-orthogonality, imucal's K, R, b");
-  unit->add_option("--model", unit_models, "the three members' model files (x, y, z in any order)")
+  auto* unit = app.add_subcommand("unit", "a unit's triads from its members' models: axes, non-orthogonality, imucal's K, R, b, K_ga");
+  unit->add_option("--model", unit_models, "the members' model files: three of one triad, or six (x, y, z in any order)")
       ->required()
-      ->expected(3)
       ->check(CLI::ExistingFile);
-  unit->add_option("--out", unit_out, "output folder (unit.toml)")->required();
+  unit->add_option("--out", unit_out, "output folder (unit.toml, imucal.json)")->required();
 
   std::filesystem::path sheet_model, sheet_out;
   auto* sheet = app.add_subcommand("sheet", "the model's parameters in IEEE 1293 / 952 names with expanded uncertainty (k = 2)");

@@ -32,6 +32,7 @@ long long record_characterization(record::RecordStore& store, const RecordReques
   c.serial = model.serial.empty() ? model.name : model.serial;
   if (c.serial.empty()) throw InputError("--record: the model names no sensor; give --serial");
   c.part = model.part;
+  c.unit = model.unit;
   c.sensor_name = model.name;
   c.sensor_kind = dataset::to_string(model.sensor);
   c.bench = request.bench;
@@ -64,9 +65,10 @@ int run_record_show(const std::string& db, long long id, std::ostream& out) {
   const std::optional<record::Characterization> c = store.show(id);
   if (!c) throw InputError(fmt::format("{} has no characterization {}", store.describe(), id));
   fmt::print(out,
-             "characterization {} recorded {}\nserial {}, part {}, sensor {} ({}), bench {}, operator {}\nplan: {}\nsoftware: {}\n"
+             "characterization {} recorded {}\nserial {}, part {}, sensor {} ({}{}), bench {}, operator {}\nplan: {}\nsoftware: {}\n"
              "input: {} (sha256 {})\nreport: {}\n\nmodel:\n{}\nsheet: {}\n",
-             c->id, c->recorded_utc, c->serial, c->part.empty() ? "(not stated)" : c->part, c->sensor_name, c->sensor_kind, c->bench.empty() ? "(not stated)" : c->bench,
+             c->id, c->recorded_utc, c->serial, c->part.empty() ? "(not stated)" : c->part, c->sensor_name,
+             c->sensor_kind, c->unit.empty() ? std::string() : ", in unit " + c->unit, c->bench.empty() ? "(not stated)" : c->bench,
              c->operator_name, c->plan, c->software, c->input_path, c->input_sha256, c->report_path.empty() ? "-" : c->report_path,
              c->model_toml, c->sheet_json);
   return kExitOk;

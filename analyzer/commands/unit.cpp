@@ -2,8 +2,10 @@
 
 #include <fmt/format.h>
 #include <fmt/ostream.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <optional>
 #include <ostream>
 
 #include "analyzer/model/model_file.hpp"
@@ -19,40 +21,67 @@ namespace {
 
 std::string row_text(const Eigen::Vector3d& v) { return fmt::format("[{}, {}, {}]", toml_float(v(0)), toml_float(v(1)), toml_float(v(2))); }
 
-std::string unit_toml(const unit::TriadFrame& f) {
+std::string matrix_text(const Eigen::Matrix3d& m) {
+  return fmt::format("[{}, {}, {}]", row_text(m.row(0)), row_text(m.row(1)), row_text(m.row(2)));
+}
+
+/// One triad's table in unit.toml, [accelerometer] or [gyroscope].
+std::string triad_toml(const unit::TriadFrame& f) {
   const bool gyro = f.kind == dataset::SensorKind::Gyroscope;
-  std::string s = "# The triad of a unit in its housing's frame (inertia-analyze unit). Sensitivities in the members' output unit\n"
-                  "# per input unit (m/s^2 or rad/s); input = R^-1 K^-1 (y - b) (imucal's convention); sd: standard uncertainties.\n";
-  s += "unit = " + toml_quote(f.unit) + "\n";
-  if (!f.serial.empty()) s += "serial = " + toml_quote(f.serial) + "\n";
-  s += fmt::format("kind = \"{}\"\n", dataset::to_string(f.kind));
+  const std::string table = dataset::to_string(f.kind);
+  std::string s = fmt::format("\n[{}]\n", table);
   if (!f.output_unit.empty()) s += "output_unit = " + toml_quote(f.output_unit) + "\n";
   s += fmt::format("input_unit = \"{}\"\n", gyro ? "rad/s" : "m/s^2");
   s += fmt::format("members = [{}, {}, {}]\n", toml_quote(f.axes[0].sensor), toml_quote(f.axes[1].sensor), toml_quote(f.axes[2].sensor));
-  s += "\n[imucal]\n";
   s += fmt::format("K = {}            # the diagonal of K: |s_k|\nK_sd = {}\n", row_text(f.scale), row_text(f.scale_sd));
-  s += fmt::format("R = [{}, {}, {}]   # rows: the sensitive axes\n", row_text(f.misalignment.row(0)), row_text(f.misalignment.row(1)),
-                   row_text(f.misalignment.row(2)));
+  s += fmt::format("R = {}   # rows: the sensitive axes\n", matrix_text(f.misalignment));
   s += fmt::format("b = {}\nb_sd = {}\n", row_text(f.bias), row_text(f.bias_sd));
-  s += "\n[non_orthogonality]   # asin(n_j . n_k), rad: how much closer than 90 deg\n";
+  if (gyro) s += fmt::format("K_ga = {}   # output unit per m/s^2: the offset is K_ga a + b\n", matrix_text(f.g_sensitivity));
+  s += fmt::format("\n[{}.non_orthogonality]   # asin(n_j . n_k), rad: how much closer than 90 deg\n", table);
   for (std::size_t p = 0; p < 3; ++p)
     s += fmt::format("{0} = {1}\n{0}_sd = {2}\n", unit::kAxisPairs[p], toml_float(f.non_orthogonality[p]), toml_float(f.non_orthogonality_sd[p]));
   for (std::size_t k = 0; k < 3; ++k) {
     const unit::TriadAxis& a = f.axes[k];
-    s += fmt::format("\n[axis.{}]\nsensor = {}\nsensitivity = {}\ncovariance = [{}, {}, {}]\nangles_estimated = {}\n",
-                     static_cast<char>('x' + k), toml_quote(a.sensor), row_text(a.sensitivity), row_text(a.covariance.row(0)),
-                     row_text(a.covariance.row(1)), row_text(a.covariance.row(2)), a.angles_estimated ? "true" : "false");
+    s += fmt::format("\n[{}.axis.{}]\nsensor = {}\nsensitivity = {}\ncovariance = {}\nangles_estimated = {}\n", table,
+                     static_cast<char>('x' + k), toml_quote(a.sensor), row_text(a.sensitivity), matrix_text(a.covariance),
+                     a.angles_estimated ? "true" : "false");
   }
   return s;
 }
 
-}  // namespace
+nlohmann::json matrix_json(const Eigen::Matrix3d& m) {
+  nlohmann::json j = nlohmann::json::array();
+  for (int r = 0; r < 3; ++r) j.push_back({m(r, 0), m(r, 1), m(r, 2)});
+  return j;
+}
 
-int run_unit(const std::vector<std::filesystem::path>& models, const std::filesystem::path& out, std::ostream& summary) {
-  OutputFolder folder(out, "unit");
-  std::vector<model::ModelFile> members;
-  for (const std::filesystem::path& m : models) members.push_back(model::read_model(m));
-  const unit::TriadFrame f = unit::triad_frame(members);
+/// imucal's calibration file (FerrarisCalibrationInfo, format 2.0.0): calibrated = R^-1 K^-1 (raw - b),
+/// the gyroscope's offset K_ga acc + b_g. A triad not given is null, and the comment says so.
+nlohmann::json imucal_json(const std::optional<unit::TriadFrame>& acc, const std::optional<unit::TriadFrame>& gyro) {
+  nlohmann::json j;
+  j["acc_unit"] = acc ? nlohmann::json("m/s^2") : nlohmann::json();
+  j["gyr_unit"] = gyro ? nlohmann::json("rad/s") : nlohmann::json();
+  j["from_acc_unit"] = acc ? nlohmann::json(acc->output_unit) : nlohmann::json();
+  j["from_gyr_unit"] = gyro ? nlohmann::json(gyro->output_unit) : nlohmann::json();
+  const unit::TriadFrame& any = acc ? *acc : *gyro;
+  std::string comment = fmt::format("inertia-analyze unit: unit {}{}; the settled linear part of each member's model", any.unit,
+                                    any.serial.empty() ? "" : " serial " + any.serial);
+  if (!acc) comment += "; the accelerometer triad was not characterized: K_a, R_a, b_a are null";
+  if (!gyro) comment += "; the gyroscope triad was not characterized: K_g, R_g, K_ga, b_g are null";
+  j["comment"] = comment;
+  j["K_a"] = acc ? matrix_json(acc->scale.asDiagonal().toDenseMatrix()) : nlohmann::json();
+  j["R_a"] = acc ? matrix_json(acc->misalignment) : nlohmann::json();
+  j["b_a"] = acc ? nlohmann::json({acc->bias(0), acc->bias(1), acc->bias(2)}) : nlohmann::json();
+  j["K_g"] = gyro ? matrix_json(gyro->scale.asDiagonal().toDenseMatrix()) : nlohmann::json();
+  j["R_g"] = gyro ? matrix_json(gyro->misalignment) : nlohmann::json();
+  j["K_ga"] = gyro ? matrix_json(gyro->g_sensitivity) : nlohmann::json();
+  j["b_g"] = gyro ? nlohmann::json({gyro->bias(0), gyro->bias(1), gyro->bias(2)}) : nlohmann::json();
+  j["cal_type"] = "Ferraris";
+  j["_format_version"] = "2.0.0";
+  return j;
+}
+
+void print_triad(const unit::TriadFrame& f, std::ostream& summary) {
   const bool gyro = f.kind == dataset::SensorKind::Gyroscope;
   fmt::print(summary, "unit {}{}: {} triad {}, {}, {} (along x, y, z)\n", f.unit, f.serial.empty() ? "" : " (serial " + f.serial + ")",
              dataset::to_string(f.kind), f.axes[0].sensor, f.axes[1].sensor, f.axes[2].sensor);
@@ -63,19 +92,49 @@ int run_unit(const std::vector<std::filesystem::path>& models, const std::filesy
     fmt::print(summary, "  {:<4} {:>14.8g} {:>10.2g}  [{:+.7f} {:+.7f} {:+.7f}]   {:>14.6g} {:>10.2g}\n", static_cast<char>('x' + k),
                f.scale(k), f.scale_sd(k), n(0), n(1), n(2), f.bias(k), f.bias_sd(k));
   }
-  fmt::print(summary, "non-orthogonality (asin of n_j . n_k: how much closer than 90 deg), mrad:");
+  fmt::print(summary, "  non-orthogonality (asin of n_j . n_k: how much closer than 90 deg), mrad:");
   for (std::size_t p = 0; p < 3; ++p)
     fmt::print(summary, " {} {:+.4f} +- {:.4f}", unit::kAxisPairs[p], 1e3 * f.non_orthogonality[p], 1e3 * f.non_orthogonality_sd[p]);
   fmt::print(summary, " (sd)\n");
   for (const unit::TriadAxis& a : f.axes) {
     if (!a.angles_estimated)
-      fmt::print(summary, "note: {}'s input-axis angles were held, not estimated (its model has no [misalignment] sd): its axis "
+      fmt::print(summary, "  note: {}'s input-axis angles were held, not estimated (its model has no [misalignment] sd): its axis "
                           "carries only the coefficients' uncertainty\n",
                  a.sensor);
   }
-  write_file_atomically(folder.path() / "unit.toml", unit_toml(f));
+}
+
+}  // namespace
+
+int run_unit(const std::vector<std::filesystem::path>& models, const std::filesystem::path& out, std::ostream& summary) {
+  if (models.size() != 3 && models.size() != 6)
+    throw InputError(fmt::format("unit: three models of one triad, or six (accelerometers and gyroscopes): {} given", models.size()));
+  OutputFolder folder(out, "unit");
+  std::vector<model::ModelFile> accelerometers, gyroscopes;
+  for (const std::filesystem::path& m : models) {
+    model::ModelFile file = model::read_model(m);
+    (file.sensor == dataset::SensorKind::Gyroscope ? gyroscopes : accelerometers).push_back(std::move(file));
+  }
+  std::optional<unit::TriadFrame> acc, gyro;
+  if (!accelerometers.empty()) acc = unit::triad_frame(accelerometers);
+  if (!gyroscopes.empty()) gyro = unit::triad_frame(gyroscopes);
+  if (acc && gyro && (acc->unit != gyro->unit || acc->serial != gyro->serial))
+    throw InputError(fmt::format("unit: the accelerometers are of unit '{}', the gyroscopes of '{}'", acc->unit, gyro->unit));
+  const unit::TriadFrame& any = acc ? *acc : *gyro;
+  std::string toml = "# The triads of a unit in its housing's frame (inertia-analyze unit). Sensitivities in the members' output\n"
+                     "# unit per input unit (m/s^2 or rad/s); input = R^-1 K^-1 (y - b) (imucal's convention); sd: standard\n"
+                     "# uncertainties.\n";
+  toml += "unit = " + toml_quote(any.unit) + "\n";
+  if (!any.serial.empty()) toml += "serial = " + toml_quote(any.serial) + "\n";
+  for (const auto& triad : {acc, gyro}) {
+    if (!triad) continue;
+    print_triad(*triad, summary);
+    toml += triad_toml(*triad);
+  }
+  write_file_atomically(folder.path() / "unit.toml", toml);
+  write_file_atomically(folder.path() / "imucal.json", imucal_json(acc, gyro).dump(4) + "\n");
   folder.commit();
-  fmt::print(summary, "wrote {}\n", (folder.target() / "unit.toml").string());
+  fmt::print(summary, "wrote {} and {}\n", (folder.target() / "unit.toml").string(), (folder.target() / "imucal.json").string());
   return kExitOk;
 }
 

@@ -57,6 +57,7 @@ CREATE OR REPLACE TRIGGER parameter_append_only BEFORE UPDATE OR DELETE OR TRUNC
 )sql",
     R"sql(
 ALTER TABLE characterization ADD COLUMN IF NOT EXISTS part TEXT NOT NULL DEFAULT '';
+ALTER TABLE characterization ADD COLUMN IF NOT EXISTS unit TEXT NOT NULL DEFAULT '';
 CREATE INDEX IF NOT EXISTS characterization_part ON characterization(sensor_kind, part);
 )sql",
 };

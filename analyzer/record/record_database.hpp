@@ -20,7 +20,7 @@
 
 namespace inertia::record {
 
-/// The record's schema version. 1: characterization and parameter; 2: characterization.part.
+/// The record's schema version. 1: characterization and parameter; 2: characterization.part and .unit.
 inline constexpr int kSchemaVersion = 2;
 
 using Value = std::variant<std::monostate, long long, double, std::string>;   // monostate: NULL

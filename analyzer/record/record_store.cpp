@@ -58,10 +58,10 @@ long long RecordStore::add(Characterization c) {
   try {
     const std::vector<Row> inserted = database_->query(
         "INSERT INTO characterization (recorded_utc, serial, sensor_name, sensor_kind, bench, operator, plan, software, input_path, "
-        "input_sha256, model_toml, sheet_json, report_path, part) VALUES ($1,$2,$3,$4,$5,$6,$7,$8,$9,$10,$11,$12,$13,$14) "
+        "input_sha256, model_toml, sheet_json, report_path, part, unit) VALUES ($1,$2,$3,$4,$5,$6,$7,$8,$9,$10,$11,$12,$13,$14,$15) "
         "RETURNING id",
         {c.recorded_utc, c.serial, c.sensor_name, c.sensor_kind, c.bench, c.operator_name, c.plan, c.software, c.input_path,
-         c.input_sha256, c.model_toml, c.sheet_json, c.report_path, c.part});
+         c.input_sha256, c.model_toml, c.sheet_json, c.report_path, c.part, c.unit});
     c.id = integer(inserted.at(0).at(0));
     for (const report::SheetEntry& e : c.parameters) {
       const bool determined = e.status == report::SheetEntry::Status::Determined;
@@ -81,13 +81,13 @@ long long RecordStore::add(Characterization c) {
 std::vector<Characterization> RecordStore::list(const std::string& serial) const {
   std::vector<Characterization> out;
   for (const Row& r : database_->query("SELECT id, recorded_utc, serial, sensor_name, sensor_kind, bench, operator, plan, software, "
-                                       "input_path, input_sha256, report_path, part FROM characterization "
+                                       "input_path, input_sha256, report_path, part, unit FROM characterization "
                                        "WHERE $1 = '' OR serial = $1 ORDER BY id",
                                        {serial})) {
     Characterization c;
     c.id = integer(r[0]);
     std::string* fields[] = {&c.recorded_utc, &c.serial,     &c.sensor_name,  &c.sensor_kind, &c.bench, &c.operator_name,
-                             &c.plan,         &c.software,   &c.input_path,   &c.input_sha256, &c.report_path, &c.part};
+                             &c.plan,         &c.software,   &c.input_path,   &c.input_sha256, &c.report_path, &c.part, &c.unit};
     for (std::size_t i = 0; i < std::size(fields); ++i) *fields[i] = text(r[i + 1]);
     out.push_back(std::move(c));
   }
@@ -97,14 +97,14 @@ std::vector<Characterization> RecordStore::list(const std::string& serial) const
 std::optional<Characterization> RecordStore::show(long long id) const {
   const std::vector<Row> rows =
       database_->query("SELECT serial, sensor_name, sensor_kind, bench, operator, plan, software, input_path, input_sha256, model_toml, "
-                       "sheet_json, report_path, recorded_utc, part FROM characterization WHERE id = $1",
+                       "sheet_json, report_path, recorded_utc, part, unit FROM characterization WHERE id = $1",
                        {id});
   if (rows.empty()) return std::nullopt;
   Characterization c;
   c.id = id;
   std::string* fields[] = {&c.serial,       &c.sensor_name, &c.sensor_kind, &c.bench,       &c.operator_name,
                            &c.plan,         &c.software,    &c.input_path,  &c.input_sha256, &c.model_toml,
-                           &c.sheet_json,   &c.report_path, &c.recorded_utc, &c.part};
+                           &c.sheet_json,   &c.report_path, &c.recorded_utc, &c.part, &c.unit};
   for (std::size_t i = 0; i < std::size(fields); ++i) *fields[i] = text(rows.front()[i]);
   return c;
 }

@@ -7,7 +7,7 @@
 //
 // Schema (version kSchemaVersion; a newer one is refused, an older one migrated):
 //   characterization(id, recorded_utc, serial, sensor_name, sensor_kind, bench, operator, plan,
-//                    software, input_path, input_sha256, model_toml, sheet_json, report_path, part)
+//                    software, input_path, input_sha256, model_toml, sheet_json, report_path, part, unit)
 //   parameter(characterization_id, name, unit, status, value, expanded_uncertainty)
 #include <filesystem>
 #include <optional>
@@ -24,6 +24,7 @@ struct Characterization {
   std::string recorded_utc;     // set by the store
   std::string serial, sensor_name, sensor_kind, bench, operator_name, plan, software;
   std::string part;             // the sensor's type (part number): its population for compare
+  std::string unit;             // the triaxial unit it belongs to ([[unit]]); empty: none
   std::string input_path, input_sha256;
   std::string model_toml, sheet_json, report_path;
   std::vector<report::SheetEntry> parameters;   // the sheet's entries (determined ones carry values)

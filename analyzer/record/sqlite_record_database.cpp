@@ -58,6 +58,7 @@ CREATE TRIGGER IF NOT EXISTS parameter_append_only_delete BEFORE DELETE ON param
 )sql",
     R"sql(
 ALTER TABLE characterization ADD COLUMN part TEXT NOT NULL DEFAULT '';
+ALTER TABLE characterization ADD COLUMN unit TEXT NOT NULL DEFAULT '';
 CREATE INDEX IF NOT EXISTS characterization_part ON characterization(sensor_kind, part);
 )sql",
 };

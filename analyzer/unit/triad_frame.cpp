@@ -28,11 +28,12 @@ TriadAxis triad_axis(const model::ModelFile& m) {
   // Case coordinates to unit coordinates: a_C = T a_U, so a vector of dy/da_C turns by T'.
   const Eigen::Matrix3d to_unit = config::unit_axis_frame(m.unit_axis).transpose();
   const Eigen::Matrix3d m_cs = m.m_cs;
-  const auto sensor_gradient = [&](const Eigen::VectorXd& theta) {
+  const auto gradient = [&](const std::array<Variable, 3>& of, const Eigen::VectorXd& theta) {
     Eigen::Vector3d g;
-    for (int k = 0; k < 3; ++k) g(k) = compensate::static_sensitivity(m, inputs[static_cast<std::size_t>(k)], theta);
+    for (int k = 0; k < 3; ++k) g(k) = compensate::static_sensitivity(m, of[static_cast<std::size_t>(k)], theta);
     return g;
   };
+  const auto sensor_gradient = [&](const Eigen::VectorXd& theta) { return gradient(inputs, theta); };
   const auto unit_sensitivity = [&](const Eigen::VectorXd& theta) -> Eigen::VectorXd {
     return to_unit * (m_cs.transpose() * sensor_gradient(theta));
   };
@@ -52,6 +53,7 @@ TriadAxis triad_axis(const model::ModelFile& m) {
   const auto bias = [&](const Eigen::VectorXd& t) -> Eigen::VectorXd {
     return Eigen::VectorXd::Constant(1, compensate::static_output(m, compensate::InputValues{}, {}, t));
   };
+  if (gyro) a.g_sensitivity = to_unit * (m_cs.transpose() * gradient({Variable::Ai, Variable::Ap, Variable::Ao}, theta));
   a.bias = bias(theta)(0);
   a.bias_sd = std::sqrt(std::max(0.0, model::propagated_covariance(m, bias)(0, 0)));
   return a;
@@ -91,6 +93,7 @@ TriadFrame triad_frame(const std::vector<model::ModelFile>& members) {
     f.scale_sd(k) = std::sqrt(std::max(0.0, n.dot(a.covariance * n)));   // d|s| = n . ds
     f.misalignment.row(k) = n.transpose();
     f.bias(k) = a.bias;
+    f.g_sensitivity.row(k) = a.g_sensitivity.transpose();
     f.bias_sd(k) = a.bias_sd;
   }
   for (int pair = 0; pair < 3; ++pair) {

@@ -13,6 +13,9 @@
 //                                sensitive axes n_k = s_k / |s_k|), b the biases (settled output
 //                                at zero input), so that input = R^-1 K^-1 (y - b);
 //   non-orthogonality of axes j, k: asin(n_j . n_k), the angle by which they are closer than 90 deg.
+// For gyroscopes, the g-sensitivity: each member's settled response to the specific force in unit
+// coordinates (its a_i, a_p, a_o terms turned alike), imucal's K_ga, so that the gyroscope's offset
+// is K_ga a + b_g with a the calibrated specific force.
 // The outputs were characterized apart, so their estimates are taken as independent. The frame is
 // the unit's housing as the test plan's m_ec states it: a rotation common to the three (the
 // housing's own misalignment on the fixture) turns every n_k alike and leaves the angles between
@@ -32,6 +35,7 @@ struct TriadAxis {
   Eigen::Vector3d sensitivity;        // s_k, output unit per input unit (m/s^2 or rad/s), unit coordinates
   Eigen::Matrix3d covariance;         // of s_k
   double bias = 0.0, bias_sd = 0.0;   // settled output at zero input, output unit
+  Eigen::Vector3d g_sensitivity = Eigen::Vector3d::Zero();   // gyroscopes: dy / d(specific force), unit coordinates
   bool angles_estimated = false;      // the model's [misalignment] has both angles with their sd
 };
 
@@ -43,6 +47,7 @@ struct TriadFrame {
   Eigen::Vector3d scale, scale_sd;               // K's diagonal
   Eigen::Matrix3d misalignment;                  // R, rows the unit sensitive axes
   Eigen::Vector3d bias, bias_sd;                 // b
+  Eigen::Matrix3d g_sensitivity = Eigen::Matrix3d::Zero();   // gyroscopes: K_ga, rows x, y, z (output unit per m/s^2)
   std::array<double, 3> non_orthogonality{}, non_orthogonality_sd{};   // xy, yz, zx (rad)
 };
 

@@ -35,6 +35,7 @@ Characterization sample(const std::string& serial, double bias, double u, const 
   Characterization c;
   c.serial = serial;
   c.part = part;
+  c.unit = "imu7";
   c.sensor_name = "acc1";
   c.sensor_kind = "accelerometer";
   c.bench = "sim-rotation-table";
@@ -186,6 +187,7 @@ TEST_P(RecordBackend, RoundTripHistoryAndTheNormalizedError) {
   EXPECT_EQ(store.list().size(), 3u);
   ASSERT_EQ(store.list("SN1").size(), 2u);
   EXPECT_EQ(store.list("SN1")[1].part, "QA-2000");
+  EXPECT_EQ(store.list("SN1")[1].unit, "imu7");
   const std::optional<Characterization> shown = store.show(3);
   ASSERT_TRUE(shown.has_value());
   EXPECT_EQ(shown->model_toml, "sensor = \"accelerometer\"\n");
@@ -342,6 +344,7 @@ TEST(RecordStore, ASchemaOneFileIsMigratedWithItsRecordsKept) {
   EXPECT_EQ(sqlite_value(db, "PRAGMA user_version"), std::to_string(kSchemaVersion));
   ASSERT_EQ(store.list("OLD").size(), 1u);
   EXPECT_EQ(store.list("OLD")[0].part, "");
+  EXPECT_EQ(store.list("OLD")[0].unit, "");
   EXPECT_EQ(store.history("OLD", "bias").at(0).value, 12.5);
   EXPECT_EQ(store.add(sample("NEW", 1.0, 1.0)), 2);
   EXPECT_EQ(store.list("NEW")[0].part, "QA-2000");

@@ -7,8 +7,13 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
+#include <sstream>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
+#include "analyzer/commands/unit.hpp"
 #include "common/config/bench_config.hpp"
 #include "common/frames.hpp"
 #include "common/input_error.hpp"
@@ -117,6 +122,72 @@ TEST(TriadFrame, AxesScaleBiasAndNonOrthogonalityOfKnownMembers) {
     EXPECT_NEAR(f.non_orthogonality[p], std::asin(a.dot(b)), 1e-15);
     EXPECT_NEAR(f.non_orthogonality_sd[p], std::sqrt(2.0) * 1e-4, 2e-6) << kAxisPairs[p];
   }
+}
+
+/// A gyroscope of the unit along `axis`: y = b + k w_i + g_i a_i + g_p a_p (a g-sensitivity).
+model::ModelFile gyro_member(int axis, double k, double g_i, double g_p, double about_p) {
+  model::ModelFile m;
+  m.sensor = dataset::SensorKind::Gyroscope;
+  m.name = std::string("g") + static_cast<char>('x' + axis);
+  m.unit = "imu";
+  m.unit_axis = axis;
+  m.output_unit = "rad/s";
+  m.terms = {{ident::parse_term("1"), 1e-5, 1e-7}, {ident::parse_term("w_i"), k, 1e-6}, {ident::parse_term("a_i"), g_i, 1e-7},
+             {ident::parse_term("a_p"), g_p, 1e-7}};
+  m.m_cs = frames::frame_rotation(Eigen::Vector3d::UnitY(), about_p);
+  return m;
+}
+
+TEST(TriadFrame, TheGyroscopesGSensitivityIsTheirResponseToSpecificForceInTheUnitFrame) {
+  const std::vector<model::ModelFile> members = {gyro_member(0, 1.0, 2e-4, -1e-4, 1e-3), gyro_member(1, 1.01, 3e-4, 0.0, -2e-3),
+                                                 gyro_member(2, 0.99, -1e-4, 5e-5, 0.0)};
+  const TriadFrame f = triad_frame(members);
+  EXPECT_EQ(f.kind, dataset::SensorKind::Gyroscope);
+  for (int a = 0; a < 3; ++a) {
+    const model::ModelFile& m = members[static_cast<std::size_t>(a)];
+    // dy / da_S = (g_i, g_p, 0), turned to the case by M_C^S' and to the unit by T'.
+    const Eigen::Vector3d expected =
+        config::unit_axis_frame(a).transpose() * m.m_cs.transpose() * Eigen::Vector3d(m.terms[2].coefficient, m.terms[3].coefficient, 0.0);
+    EXPECT_TRUE(f.g_sensitivity.row(a).transpose().isApprox(expected, 1e-12)) << a << ": " << f.g_sensitivity.row(a);
+    EXPECT_NEAR(f.scale(a), m.terms[1].coefficient, 1e-15);
+  }
+}
+
+fs::path write_model_file(const fs::path& dir, const model::ModelFile& m) {
+  const fs::path file = dir / (m.name + ".toml");
+  model::write_model(file, m);
+  return file;
+}
+
+TEST(UnitCommand, WritesTheTriadAndImucalsCalibrationFile) {
+  const testing::TempDir dir("inertia-unit");
+  const double k = 1.0 / 9.80665;
+  std::vector<fs::path> files;
+  for (int a = 0; a < 3; ++a) files.push_back(write_model_file(dir.path, member(a, 1e-3 * (a + 1), k, 1e-3, -1e-3, 1e-4, 1e-7)));
+  std::ostringstream out;
+  ASSERT_EQ(commands::run_unit(files, dir.path / "unit", out), 0) << out.str();
+  std::ifstream in(dir.path / "unit" / "imucal.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  // imucal's FerrarisCalibrationInfo, format 2.0.0: every field it reads, 3x3 matrices and 3-vectors.
+  EXPECT_EQ(j["cal_type"], "Ferraris");
+  EXPECT_EQ(j["_format_version"], "2.0.0");
+  EXPECT_EQ(j["acc_unit"], "m/s^2");
+  EXPECT_EQ(j["from_acc_unit"], "g");
+  ASSERT_EQ(j["K_a"].size(), 3u);
+  EXPECT_DOUBLE_EQ(j["K_a"][1][1].get<double>(), k);
+  EXPECT_EQ(j["K_a"][0][1].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(j["b_a"][2].get<double>(), 3e-3);
+  EXPECT_NEAR(j["R_a"][0][0].get<double>(), 1.0, 1e-5);
+  for (const char* key : {"K_g", "R_g", "K_ga", "b_g", "gyr_unit"}) EXPECT_TRUE(j[key].is_null()) << key;
+  EXPECT_NE(j["comment"].get<std::string>().find("gyroscope triad was not characterized"), std::string::npos);
+  std::ifstream toml(dir.path / "unit" / "unit.toml");
+  const std::string text((std::istreambuf_iterator<char>(toml)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("[accelerometer]"), std::string::npos);
+  EXPECT_NE(text.find("[accelerometer.non_orthogonality]"), std::string::npos);
+  files.pop_back();
+  std::ostringstream refused;
+  EXPECT_THROW((void)commands::run_unit(files, dir.path / "two", refused), InputError);
+  EXPECT_FALSE(fs::exists(dir.path / "two"));
 }
 
 TEST(TriadFrame, RefusesMembersThatAreNotOneTriad) {
