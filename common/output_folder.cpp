@@ -37,15 +37,16 @@ bool process_alive(pid_t pid) { return ::kill(pid, 0) == 0 || errno == EPERM; }
 /// the leftovers of runs into `target` that were stopped.
 void remove_stale_staging(const fs::path& target) {
   std::error_code ec;
-  for (const std::string_view kind : {kIncomplete, kReplaced}) {
-    const std::string prefix = target.filename().string() + std::string(kind);
-    for (const fs::directory_entry& e : fs::directory_iterator(target.parent_path(), ec)) {
-      const std::string name = e.path().filename().string();
+  const std::string name_of_target = target.filename().string();
+  for (const fs::directory_entry& e : fs::directory_iterator(target.parent_path(), ec)) {
+    const std::string name = e.path().filename().string();
+    for (const std::string_view kind : {kIncomplete, kReplaced}) {
+      const std::string prefix = name_of_target + std::string(kind);
       if (!name.starts_with(prefix)) continue;
       char* end = nullptr;
       const long pid = std::strtol(name.c_str() + prefix.size(), &end, 10);
-      if (end == name.c_str() + prefix.size() || *end != '\0' || pid <= 0) continue;
-      if (!process_alive(static_cast<pid_t>(pid))) fs::remove_all(e.path(), ec);
+      if (end != name.c_str() + prefix.size() && *end == '\0' && pid > 0 && !process_alive(static_cast<pid_t>(pid)))
+        fs::remove_all(e.path(), ec);
     }
   }
 }

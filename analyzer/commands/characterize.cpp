@@ -267,22 +267,22 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
     write_noise_section(md, out, *noise_analysis, data.output_unit, label,
                         options.plots ? folder.path() / "plots" : std::filesystem::path());
   }
-  bool sheet_written = true;
+  std::optional<report::ParameterSheet> sheet;
   try {
-    write_sheet(model, folder.path());
+    sheet = write_sheet(model, folder.path());
   } catch (const InputError& e) {
     fmt::print(out, "no parameter sheet: {}\n", e.what());
-    sheet_written = false;
   }
   model::write_model(model_file, model);
   folder.commit();
   fmt::print(out, "wrote {}: model.toml, {}{}{}\n", folder.target().string(), report_file.filename().string(),
-             sheet_written ? ", sheet.md, sheet.html, sheet.json" : "", options.plots ? ", plots/" : "");
+             sheet ? ", sheet.md, sheet.html, sheet.json" : "", options.plots ? ", plots/" : "");
   if (record) {
     RecordRequest request;
     request.operator_name = options.operator_name;
     request.input = source;
     request.report_path = folder.final_path(report_file);
+    request.sheet = sheet ? &*sheet : nullptr;
     const auto start = std::chrono::steady_clock::now();
     const long long id = record_characterization(*record, request, model);
     fmt::print(out, "recorded as characterization {} in {} ({:.0f} ms)\n", id, record->describe(),

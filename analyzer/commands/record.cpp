@@ -42,7 +42,7 @@ long long record_characterization(record::RecordStore& store, const RecordReques
   c.input_path = std::filesystem::absolute(request.input).string();
   c.input_sha256 = record::input_sha256(request.input);
   c.model_toml = model::format_model(model);
-  const report::ParameterSheet sheet = report::parameter_sheet(model);
+  const report::ParameterSheet sheet = request.sheet != nullptr ? *request.sheet : report::parameter_sheet(model);
   c.sheet_json = report::sheet_json(sheet).dump();
   c.report_path = request.report_path.empty() ? std::string() : std::filesystem::absolute(request.report_path).string();
   c.parameters = sheet.entries;

@@ -25,6 +25,7 @@ struct RecordRequest {
   std::string bench;
   std::filesystem::path input;        // the dataset folder or log characterized
   std::filesystem::path report_path;
+  const report::ParameterSheet* sheet = nullptr;   // the sheet already made of the model; null: made here
 };
 
 /// Appends `model` (with its sheet) to `store`; returns its id. The serial is the model's (else

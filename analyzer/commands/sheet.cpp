@@ -9,18 +9,18 @@
 
 namespace inertia::commands {
 
-void write_sheet(const model::ModelFile& model, const std::filesystem::path& dir) {
+report::ParameterSheet write_sheet(const model::ModelFile& model, const std::filesystem::path& dir) {
   const report::ParameterSheet sheet = report::parameter_sheet(model);
   std::filesystem::create_directories(dir);
   write_file_atomically(dir / "sheet.md", report::sheet_markdown(sheet));
   write_file_atomically(dir / "sheet.html", report::sheet_html(sheet));
   write_file_atomically(dir / "sheet.json", report::sheet_json(sheet).dump(2) + "\n");
+  return sheet;
 }
 
 int run_sheet(const std::filesystem::path& model_file, const std::filesystem::path& out, std::ostream& summary) {
   const model::ModelFile model = model::read_model(model_file);
-  write_sheet(model, out);
-  const report::ParameterSheet sheet = report::parameter_sheet(model);
+  const report::ParameterSheet sheet = write_sheet(model, out);
   for (const report::SheetEntry& e : sheet.entries) {
     if (e.status == report::SheetEntry::Status::Determined)
       fmt::print(summary, "  {:<48} {:>12.4g} +- {:<10.3g} {}\n", e.name, e.value, e.expanded_uncertainty, e.unit);

@@ -78,35 +78,42 @@ long long RecordStore::add(Characterization c) {
   return c.id;
 }
 
+namespace {
+
+/// The columns list() reads, then the long texts show() adds.
+constexpr const char* kSummaryColumns =
+    "id, recorded_utc, serial, sensor_name, sensor_kind, bench, operator, plan, software, input_path, input_sha256, report_path, "
+    "part, unit";
+
+Characterization characterization_from(const Row& r, bool with_texts) {
+  Characterization c;
+  c.id = integer(r[0]);
+  std::string* fields[] = {&c.recorded_utc, &c.serial,     &c.sensor_name,  &c.sensor_kind, &c.bench, &c.operator_name,
+                           &c.plan,         &c.software,   &c.input_path,   &c.input_sha256, &c.report_path, &c.part, &c.unit};
+  std::size_t i = 1;
+  for (std::string* f : fields) *f = text(r[i++]);
+  if (with_texts) {
+    c.model_toml = text(r[i++]);
+    c.sheet_json = text(r[i++]);
+  }
+  return c;
+}
+
+}  // namespace
+
 std::vector<Characterization> RecordStore::list(const std::string& serial) const {
   std::vector<Characterization> out;
-  for (const Row& r : database_->query("SELECT id, recorded_utc, serial, sensor_name, sensor_kind, bench, operator, plan, software, "
-                                       "input_path, input_sha256, report_path, part, unit FROM characterization "
-                                       "WHERE $1 = '' OR serial = $1 ORDER BY id",
-                                       {serial})) {
-    Characterization c;
-    c.id = integer(r[0]);
-    std::string* fields[] = {&c.recorded_utc, &c.serial,     &c.sensor_name,  &c.sensor_kind, &c.bench, &c.operator_name,
-                             &c.plan,         &c.software,   &c.input_path,   &c.input_sha256, &c.report_path, &c.part, &c.unit};
-    for (std::size_t i = 0; i < std::size(fields); ++i) *fields[i] = text(r[i + 1]);
-    out.push_back(std::move(c));
-  }
+  for (const Row& r : database_->query(fmt::format("SELECT {} FROM characterization WHERE $1 = '' OR serial = $1 ORDER BY id", kSummaryColumns),
+                                       {serial}))
+    out.push_back(characterization_from(r, false));
   return out;
 }
 
 std::optional<Characterization> RecordStore::show(long long id) const {
   const std::vector<Row> rows =
-      database_->query("SELECT serial, sensor_name, sensor_kind, bench, operator, plan, software, input_path, input_sha256, model_toml, "
-                       "sheet_json, report_path, recorded_utc, part, unit FROM characterization WHERE id = $1",
-                       {id});
+      database_->query(fmt::format("SELECT {}, model_toml, sheet_json FROM characterization WHERE id = $1", kSummaryColumns), {id});
   if (rows.empty()) return std::nullopt;
-  Characterization c;
-  c.id = id;
-  std::string* fields[] = {&c.serial,       &c.sensor_name, &c.sensor_kind, &c.bench,       &c.operator_name,
-                           &c.plan,         &c.software,    &c.input_path,  &c.input_sha256, &c.model_toml,
-                           &c.sheet_json,   &c.report_path, &c.recorded_utc, &c.part, &c.unit};
-  for (std::size_t i = 0; i < std::size(fields); ++i) *fields[i] = text(rows.front()[i]);
-  return c;
+  return characterization_from(rows.front(), true);
 }
 
 std::vector<ParameterPoint> RecordStore::history(const std::string& serial, const std::string& parameter) const {
