@@ -74,6 +74,8 @@ int run(int argc, char** argv) {
   auto* simulate = app.add_subcommand("simulate", "simulate a bench's test plan into a dataset folder");
   simulate->add_option("--bench", simulate_options.bench, "bench configuration (TOML)")->required();
   simulate->add_option("--out", simulate_options.out, "dataset folder to write")->required();
+  simulate->add_option("--seed", simulate_options.seed,
+                       "another run of the same bench, every random stream drawn from this seed (held-out data)");
   simulate->add_option("--model", simulate_models,
                        "[SENSOR=]MODEL.toml: that sensor's output from this model file instead of the bench's truth parameters");
 
@@ -149,8 +151,8 @@ int run(int argc, char** argv) {
   inertia::commands::CompensateOptions compensate_options;
   std::string other_axes = "reference";
   auto* compensate = app.add_subcommand("compensate", "raw output to physical input by the model read backwards, with uncertainty");
-  compensate->add_option("--model", compensate_options.model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
-  auto* compensate_dataset = compensate->add_option("--dataset", compensate_options.dataset, "dataset folder")->check(CLI::ExistingDirectory);
+  compensate->add_option("--model", compensate_options.model, "model file (characterize's model.toml), or a unit's unit.toml (its outputs solved together)")->required()->check(CLI::ExistingFile);
+  auto* compensate_dataset = compensate->add_option("--dataset", compensate_options.dataset, "dataset folder (for a unit: the folder of its members' datasets, one per member by name)")->check(CLI::ExistingDirectory);
   auto* compensate_log = compensate->add_option("--log", compensate_options.event_log, "inertia-daqd event log instead of --dataset");
   compensate_dataset->excludes(compensate_log);
   compensate->add_option("--sensor", compensate_options.sensor, "with --log: the sensor under test (default: the model's sensor_name)")
@@ -171,7 +173,7 @@ int run(int argc, char** argv) {
   inertia::commands::ExportOptions export_options;
   std::string precision = "double";
   auto* export_verb = app.add_subcommand("export", "a model in its users' forms: C for firmware, JSON, Kalibr's imu.yaml");
-  export_verb->add_option("--model", export_options.model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
+  export_verb->add_option("--model", export_options.model, "model file (characterize's model.toml), or a unit's unit.toml (its outputs solved together)")->required()->check(CLI::ExistingFile);
   export_verb->add_option("--format", export_options.format, "c, json or kalibr")
       ->required()
       ->check(CLI::IsMember({"c", "json", "kalibr"}));
@@ -190,11 +192,11 @@ int run(int argc, char** argv) {
   unit->add_option("--model", unit_models, "the members' model files: three of one triad, or six (x, y, z in any order)")
       ->required()
       ->check(CLI::ExistingFile);
-  unit->add_option("--out", unit_out, "output folder (unit.toml, imucal.json)")->required();
+  unit->add_option("--out", unit_out, "output folder (unit.toml, the members' model files, imucal.json)")->required();
 
   std::filesystem::path sheet_model, sheet_out;
   auto* sheet = app.add_subcommand("sheet", "the model's parameters in IEEE 1293 / 952 names with expanded uncertainty (k = 2)");
-  sheet->add_option("--model", sheet_model, "model file (characterize's model.toml)")->required()->check(CLI::ExistingFile);
+  sheet->add_option("--model", sheet_model, "model file (characterize's model.toml), or a unit's unit.toml (its outputs solved together)")->required()->check(CLI::ExistingFile);
   sheet->add_option("--out", sheet_out, "output folder (sheet.md, sheet.html, sheet.json)")->required();
 
   std::string record_db;

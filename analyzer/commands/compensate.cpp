@@ -17,6 +17,9 @@
 #include "analyzer/model/model_file.hpp"
 #include "common/atomic_file.hpp"
 #include "analyzer/compensate/static_response.hpp"
+#include "analyzer/unit/triad_frame.hpp"
+#include "analyzer/unit/unit_inverse.hpp"
+#include "analyzer/unit/unit_model.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/disk_space.hpp"
 #include "common/input_error.hpp"
@@ -88,10 +91,204 @@ CompensationRecord compensation_record(const model::ModelFile& model, const comp
   return record;
 }
 
+namespace {
+
+/// Each compensated CSV row at its longest: each number at 24 characters (the longest a double's
+/// shortest round trip takes), the flag at 16, and the separators.
+std::uintmax_t csv_bytes(const std::vector<const dataset::Dataset*>& records, std::uintmax_t numbers) {
+  constexpr std::uintmax_t kLongestNumber = 24, kLongestFlag = 16;
+  std::uintmax_t bytes = 0;
+  for (const dataset::CaseData& c : records.front()->cases)
+    bytes += static_cast<std::uintmax_t>(c.size()) * (c.name.size() + numbers * (kLongestNumber + 1) + kLongestFlag + 2);
+  return bytes;
+}
+
+void require_room_for(const CompensateOptions& options, std::uintmax_t bytes) {
+  require_free_space(options.out.parent_path().empty() ? std::filesystem::path(".") : options.out.parent_path(), bytes,
+                     fmt::format("compensated samples {}", options.out.string()));
+}
+
+/// The median of the finite values (NaN when none).
+double finite_median(std::vector<double> values) {
+  values.erase(std::remove_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); }), values.end());
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+  return values[values.size() / 2];
+}
+
+/// A unit's outputs compensated together (unit/unit_inverse.hpp), from one record per member: the
+/// members' dataset folders under --dataset (one per member, by its name, as simulate writes them),
+/// or the members' sensors in --log.
+int run_unit_compensate(const CompensateOptions& options, std::ostream& out) {
+  if (options.other_axes_zero)
+    throw InputError("compensate: --other-axes zero compensates one output; a unit solves all its axes together");
+  const unit::UnitModel unit = unit::read_unit_model(options.model);
+  const unit::UnitInverse inverse(unit);
+  const bool from_log = !options.event_log.empty();
+  if (!options.sensor.empty()) throw InputError("compensate: --sensor picks one output; a unit model names its members");
+  std::vector<dataset::Dataset> data;
+  for (const model::ModelFile& m : unit.members) {
+    if (from_log) {
+      data.push_back(fusion::log_dataset(options.event_log, m.name, std::cerr));
+    } else {
+      const std::filesystem::path dir = options.dataset / m.name;
+      if (!std::filesystem::is_directory(dir))
+        throw InputError(fmt::format("{} has no dataset of unit {}'s member '{}' (expected the folder {})", options.dataset.string(),
+                                     unit.unit, m.name, dir.string()));
+      data.push_back(dataset::read_dataset(dir));
+    }
+    check_record(m, data.back(), (options.model.parent_path() / unit::member_file_name(m.name)).string(),
+                 from_log ? options.event_log.string() : data.back().dir.string());
+  }
+  const std::string data_label = (from_log ? options.event_log : options.dataset).string();
+  for (const dataset::Dataset& d : data) {
+    bool same = d.cases.size() == data.front().cases.size();
+    for (std::size_t c = 0; same && c < d.cases.size(); ++c) same = d.cases[c].name == data.front().cases[c].name;
+    if (!same)
+      throw InputError(fmt::format("the members' records in {} hold different cases ('{}' and '{}'): a unit is compensated on "
+                                   "one record of all its outputs",
+                                   data_label, data.front().sensor_name, d.sensor_name));
+  }
+  const std::vector<ident::Variable>& unknowns = inverse.unknowns();
+  const auto count = static_cast<Eigen::Index>(unknowns.size());
+  {
+    std::vector<const dataset::Dataset*> records;
+    for (const dataset::Dataset& d : data) records.push_back(&d);
+    require_room_for(options, csv_bytes(records, 1 + unit.members.size() + 3 * unknowns.size()));
+  }
+  // The raw reading a user without the model would take: each output over its sensitivity along
+  // its own axis (K R's diagonal), bias and cross-axis left in.
+  Eigen::VectorXd raw_scale(count);
+  for (const dataset::SensorKind kind : {dataset::SensorKind::Accelerometer, dataset::SensorKind::Gyroscope}) {
+    std::vector<model::ModelFile> triad;
+    for (const model::ModelFile& m : unit.members) {
+      if (m.sensor == kind) triad.push_back(m);
+    }
+    if (triad.empty()) continue;
+    const unit::TriadFrame f = unit::triad_frame(triad);
+    const Eigen::Index first = kind == dataset::SensorKind::Gyroscope && unit.has(dataset::SensorKind::Accelerometer) ? 3 : 0;
+    for (int j = 0; j < 3; ++j) raw_scale(first + j) = f.sensitivity(j, j);
+  }
+  // The member along each unknown's axis, for the raw reading.
+  std::vector<std::size_t> member_of(static_cast<std::size_t>(count));
+  for (std::size_t m = 0; m < unit.members.size(); ++m) {
+    const bool gyro = unit.members[m].sensor == dataset::SensorKind::Gyroscope;
+    member_of[static_cast<std::size_t>((gyro && unit.has(dataset::SensorKind::Accelerometer) ? 3 : 0) + unit.members[m].unit_axis)] = m;
+  }
+
+  fmt::print(out, "compensate {} with {}: unit {}{}, {} outputs solved together for {}\n", data_label, options.model.string(), unit.unit,
+             unit.serial.empty() ? "" : " (serial " + unit.serial + ")", unit.members.size(),
+             unit.members.size() == 6 ? "the specific force (m/s^2) and the angular rate (rad/s) in the unit's frame"
+                                      : (unit.has(dataset::SensorKind::Accelerometer) ? "the specific force (m/s^2) in the unit's frame"
+                                                                                      : "the angular rate (rad/s) in the unit's frame"));
+  if (unit.members.size() == 3)
+    fmt::print(out, "{} and temperature come from the record's references\n",
+               unit.has(dataset::SensorKind::Accelerometer) ? "the angular rate" : "the specific force");
+  for (std::size_t m = 0; m < unit.members.size(); ++m) {
+    const model::ModelFile& file = unit.members[m];
+    if (!inverse.members()[m].has_covariance())
+      fmt::print(out, "note: {}'s model has no [covariance]: its coefficients' sd alone, without correlations\n", file.name);
+    if (!file.output_sd && !file.white_sd) fmt::print(out, "note: {}'s model states no output_sd or white_sd: its noise adds 0 to u\n", file.name);
+  }
+  fmt::print(out, "errors of the known inputs and of the estimates fed back through lagged terms are not in u\n");
+  fmt::print(out, "per case: rms of the error vector against the record's reference in the unit frame (the plan's nominal housing "
+                  "frame); beside it each raw output over its own axis's sensitivity (K R's diagonal){}\n",
+             inverse.joint().first_row() > 0 ? fmt::format(", from each case's sample {} (the models' lags)", inverse.joint().first_row())
+                                             : std::string());
+
+  constexpr std::size_t kWriteChunk = std::size_t{1} << 20;
+  AtomicFileWriter csv_file(options.out);
+  std::string csv = "case,t";
+  for (const model::ModelFile& m : unit.members) csv += ",y_" + m.name;
+  for (const ident::Variable v : unknowns) csv += fmt::format(",{}", ident::variable_name(v));
+  for (const ident::Variable v : unknowns) csv += fmt::format(",u_{}", ident::variable_name(v));
+  csv += ",flag";
+  for (const ident::Variable v : unknowns) csv += fmt::format(",{}_reference", ident::variable_name(v));
+  csv += "\n";
+  csv.reserve(kWriteChunk + 4096);
+  auto it = std::back_inserter(csv);
+  const bool both = count == 6;
+  fmt::print(out, "  {:<20} {:>9} {:>10} {:>14} {:>14} {:>7} {:>10} {:>9} {:>9} {:>8}\n", "case", "samples", "quantity", "rms err",
+             "raw err", "ratio", "median u", "outside", "no root", "Newton");
+  compensate::CompensationOptions compensation;
+  compensation.range_margin = options.range_margin;
+  Eigen::Index flagged = 0, failed = 0, total = 0;
+  for (std::size_t c = 0; c < data.front().cases.size(); ++c) {
+    std::vector<CompensationRecord> records;
+    std::vector<const ident::SignalSet*> signals;
+    records.reserve(unit.members.size());
+    for (std::size_t m = 0; m < unit.members.size(); ++m)
+      records.push_back(compensation_record(unit.members[m], inverse.members()[m], data[m], c, options.case_frames_from_model, false));
+    for (const CompensationRecord& r : records) signals.push_back(&r.signals);
+    const compensate::JointCompensation r = inverse.joint().compensate(signals, data.front().cases[c].sample_period_s, compensation);
+    const dataset::CaseData& reference_case = data.front().cases[c];
+    // The unit's frame as the plan states it: the first member's nominal case frame turned back.
+    const frames::Dcm m_eu = config::unit_axis_frame(unit.members.front().unit_axis).transpose() * reference_case.m_ec;
+    const ident::SignalSet in_unit = ident::signals_from_case(reference_case, m_eu, data.front().t_ref, data_label);
+    const Eigen::Index rows = r.value.rows();
+    Eigen::MatrixXd reference = Eigen::MatrixXd::Constant(rows, count, std::numeric_limits<double>::quiet_NaN());
+    for (Eigen::Index j = 0; j < count; ++j) {
+      // The unit frame's x, y, z read as a sensor frame's i, p, o.
+      const bool rate = unknowns[static_cast<std::size_t>(j)] >= ident::Variable::Wx;
+      const ident::Variable along = static_cast<ident::Variable>(static_cast<int>(rate ? ident::Variable::Wi : ident::Variable::Ai) + j % 3);
+      if (in_unit.has(along)) reference.col(j) = in_unit.get(along).tail(rows);
+    }
+    Eigen::MatrixXd raw(rows, count);
+    for (Eigen::Index j = 0; j < count; ++j)
+      raw.col(j) = signals[member_of[static_cast<std::size_t>(j)]]->get(ident::Variable::Y).tail(rows) / raw_scale(j);
+    const Eigen::MatrixXd u = (r.u_coefficients.array().square() + r.u_noise.array().square()).sqrt().matrix();
+    for (Eigen::Index k = 0; k < rows; ++k) {
+      fmt::format_to(it, "{},{}", reference_case.name, reference_case.t(r.first_row + k));
+      for (const ident::SignalSet* s : signals) fmt::format_to(it, ",{}", s->get(ident::Variable::Y)(r.first_row + k));
+      for (Eigen::Index j = 0; j < count; ++j) fmt::format_to(it, ",{}", r.value(k, j));
+      for (Eigen::Index j = 0; j < count; ++j) fmt::format_to(it, ",{}", u(k, j));
+      fmt::format_to(it, ",{}", compensate::to_string(r.flag[static_cast<std::size_t>(k)]));
+      for (Eigen::Index j = 0; j < count; ++j) fmt::format_to(it, ",{}", reference(k, j));
+      csv += '\n';
+      if (csv.size() >= kWriteChunk) {
+        csv_file.append(csv);
+        csv.clear();
+      }
+    }
+    for (int q = 0; q < (both ? 2 : 1); ++q) {
+      const Eigen::Index first = 3 * q;
+      const auto vector_rms = [&](const Eigen::MatrixXd& v) {
+        double sum = 0.0;
+        Eigen::Index n = 0;
+        for (Eigen::Index k = 0; k < rows; ++k) {
+          const double e = (v.row(k).segment<3>(first) - reference.row(k).segment<3>(first)).squaredNorm();
+          if (std::isfinite(e)) sum += e, ++n;
+        }
+        return n > 0 ? std::sqrt(sum / static_cast<double>(n)) : std::numeric_limits<double>::quiet_NaN();
+      };
+      std::vector<double> u_norm(static_cast<std::size_t>(rows));
+      for (Eigen::Index k = 0; k < rows; ++k) u_norm[static_cast<std::size_t>(k)] = u.row(k).segment<3>(first).norm();
+      const double error = vector_rms(r.value), raw_error = vector_rms(raw);
+      const bool rate = unknowns[static_cast<std::size_t>(first)] >= ident::Variable::Wx;
+      fmt::print(out, "  {:<20} {:>9} {:>10} {:>14.4g} {:>14.4g} {:>7.1f} {:>10.3g} {:>9} {:>9} {:>8}\n", q == 0 ? reference_case.name : "",
+                 q == 0 ? fmt::format("{}", rows) : "", rate ? "rad/s" : "m/s2", error, raw_error, raw_error / error,
+                 finite_median(u_norm), q == 0 ? fmt::format("{}", r.outside_range) : "", q == 0 ? fmt::format("{}", r.not_converged) : "",
+                 q == 0 ? fmt::format("{}", r.most_iterations) : "");
+    }
+    flagged += r.outside_range;
+    failed += r.not_converged;
+    total += rows;
+  }
+  fmt::print(out, "{} samples: {} outside the characterized range (flagged, still compensated), {} without a root (NaN)\n", total,
+             flagged, failed);
+  csv_file.append(csv);
+  csv_file.commit();
+  fmt::print(out, "wrote {}\n", options.out.string());
+  return kExitOk;
+}
+
+}  // namespace
+
 int run_compensate(const CompensateOptions& options, std::ostream& out) {
   if (options.dataset.empty() == options.event_log.empty())
     throw InputError("compensate: give exactly one of --dataset DIR and --log FILE");
   if (!(options.range_margin >= 0.0)) throw InputError("--range-margin must be >= 0");
+  if (unit::is_unit_model(options.model)) return run_unit_compensate(options, out);
   const model::ModelFile model = model::read_model(options.model);
   const compensate::InverseModel inverse(model);
   const bool from_log = !options.event_log.empty();
@@ -109,15 +306,8 @@ int run_compensate(const CompensateOptions& options, std::ostream& out) {
   const double sensitivity = compensate::static_sensitivity(model, sensed);
   const bool has_scale = std::isfinite(sensitivity) && sensitivity != 0.0;
   // The CSV grows with the record: refused before any work when the disk cannot hold it at its
-  // longest (each number at 24 characters, the longest a double's shortest round trip takes).
-  {
-    constexpr std::uintmax_t kLongestNumber = 24, kNumbers = 7, kLongestFlag = 16;
-    std::uintmax_t bytes = 0;
-    for (const dataset::CaseData& c : data.cases)
-      bytes += static_cast<std::uintmax_t>(c.size()) * (c.name.size() + kNumbers * kLongestNumber + kLongestFlag + 9);
-    require_free_space(options.out.parent_path().empty() ? std::filesystem::path(".") : options.out.parent_path(), bytes,
-                       fmt::format("compensated samples {}", options.out.string()));
-  }
+  // longest (the case, then t, y, the input, u, its two parts and the reference).
+  require_room_for(options, csv_bytes({&data}, 7));
 
   fmt::print(out, "compensate {} with {}: {} {}{}\n", data_label, options.model.string(), dataset::to_string(model.sensor),
              model.name.empty() ? "" : "'" + model.name + "'", model.output_unit.empty() ? "" : " (" + model.output_unit + ")");

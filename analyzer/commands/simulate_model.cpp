@@ -82,7 +82,8 @@ void apply_model(const std::filesystem::path& dir, const std::filesystem::path& 
 }  // namespace
 
 int run_simulate(const SimulateOptions& options, std::ostream& summary) {
-  const config::BenchConfig bench = config::load_bench_config(options.bench);
+  config::BenchConfig bench = config::load_bench_config(options.bench);
+  if (options.seed) config::reseed(bench, *options.seed);
   std::map<std::string, std::filesystem::path> by_sensor;
   for (const auto& [sensor, file] : options.models) {
     if (sensor.empty() && bench.sensors.size() != 1)
@@ -93,7 +94,7 @@ int run_simulate(const SimulateOptions& options, std::ostream& summary) {
     (void)model::read_model(file);   // bad input before the simulation runs
     by_sensor[name] = file;
   }
-  const int rc = sim::run_simulate(options.bench, options.out, summary);
+  const int rc = sim::run_simulate(options.bench, options.out, summary, options.seed);
   for (const auto& [name, file] : by_sensor) apply_model(bench.sensors.size() == 1 ? options.out : options.out / name, file, summary);
   return rc;
 }

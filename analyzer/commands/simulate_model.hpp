@@ -8,6 +8,8 @@
 // that characterize on the result is scored against the model: the round trip of a model file.
 #include <filesystem>
 #include <map>
+#include <optional>
+#include <cstdint>
 #include <ostream>
 #include <string>
 
@@ -18,6 +20,7 @@ struct SimulateOptions {
   std::filesystem::path out;
   /// Sensor name -> model file; the key "" names the bench's only sensor.
   std::map<std::string, std::filesystem::path> models;
+  std::optional<std::uint64_t> seed;   // another run of the bench: every random stream from it
 };
 
 /// InputError for a model of another sensor kind than the bench's sensor, a sensor the bench

@@ -10,6 +10,7 @@
 
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/unit/triad_frame.hpp"
+#include "analyzer/unit/unit_model.hpp"
 #include "common/atomic_file.hpp"
 #include "common/input_error.hpp"
 #include "common/output_folder.hpp"
@@ -42,8 +43,8 @@ std::string triad_toml(const unit::TriadFrame& f) {
     s += fmt::format("{0} = {1}\n{0}_sd = {2}\n", unit::kAxisPairs[p], toml_float(f.non_orthogonality[p]), toml_float(f.non_orthogonality_sd[p]));
   for (std::size_t k = 0; k < 3; ++k) {
     const unit::TriadAxis& a = f.axes[k];
-    s += fmt::format("\n[{}.axis.{}]\nsensor = {}\nsensitivity = {}\ncovariance = {}\nangles_estimated = {}\n", table,
-                     static_cast<char>('x' + k), toml_quote(a.sensor), row_text(a.sensitivity), matrix_text(a.covariance),
+    s += fmt::format("\n[{}.axis.{}]\nsensor = {}\nmodel = {}\nsensitivity = {}\ncovariance = {}\nangles_estimated = {}\n", table,
+                     static_cast<char>('x' + k), toml_quote(a.sensor), toml_quote(unit::member_file_name(a.sensor)), row_text(a.sensitivity), matrix_text(a.covariance),
                      a.angles_estimated ? "true" : "false");
   }
   return s;
@@ -113,6 +114,8 @@ int run_unit(const std::vector<std::filesystem::path>& models, const std::filesy
   std::vector<model::ModelFile> accelerometers, gyroscopes;
   for (const std::filesystem::path& m : models) {
     model::ModelFile file = model::read_model(m);
+    // The member's model as characterized, beside unit.toml: the folder is the whole unit.
+    write_file_atomically(folder.path() / unit::member_file_name(file.name), model::format_model(file));
     (file.sensor == dataset::SensorKind::Gyroscope ? gyroscopes : accelerometers).push_back(std::move(file));
   }
   std::optional<unit::TriadFrame> acc, gyro;

@@ -5,9 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
-#include <stdexcept>
 
+#include "analyzer/compensate/joint_inverse.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "common/input_error.hpp"
 
@@ -115,186 +114,20 @@ double InverseModel::tolerance_scale() const {
 
 CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, double sample_period_s,
                                            const CompensationOptions& options) const {
-  for (std::size_t v = 0; v < static_cast<std::size_t>(ident::kVariableCount); ++v) {
-    if ((known_.test(v) || v == static_cast<std::size_t>(Variable::Y)) && !signals.has(static_cast<Variable>(v))) {
-      throw InputError(fmt::format("compensation needs '{}' ({}), which {} lacks", ident::variable_name(static_cast<Variable>(v)),
-                                   ident::source_of(static_cast<Variable>(v)),
-                                   signals.origin().empty() ? "the record" : signals.origin()));
-    }
-  }
-  const bool filtered = std::any_of(terms_.begin(), terms_.end(), [](const CompiledTerm& t) { return t.square_filtered; });
-  if (filtered && !(sample_period_s > 0.0)) {
-    throw std::invalid_argument("compensate: the model's square high pass needs the sample period");
-  }
-  const procedure::HighpassCoefficients highpass =
-      filtered ? procedure::highpass_coefficients(*square_corner_, sample_period_s) : procedure::HighpassCoefficients{};
-
-  const Index n = signals.size();
+  // One equation, its sensed input the one unknown.
+  std::vector<Eigen::VectorXd> starts;
+  for (const double s : fallback_starts()) starts.push_back(Eigen::VectorXd::Constant(1, s));
+  const JointInverse joint({JointEquation{this, {{sensed_, Eigen::RowVectorXd::Ones(1)}}}}, std::move(starts));
+  JointCompensation solved = joint.compensate({&signals}, sample_period_s, options);
   CompensatedSignal out;
-  out.first_row = first_row_;
-  const Index rows = std::max<Index>(0, n - first_row_);
-  out.value.resize(rows);
-  out.u_coefficients.resize(rows);
-  out.u_noise.resize(rows);
-  out.flag.assign(static_cast<std::size_t>(rows), SampleFlag::Ok);
-  if (rows == 0) return out;
-
-  const Eigen::VectorXd& y = signals.get(Variable::Y);
-  std::array<const Eigen::VectorXd*, ident::kVariableCount> column{};
-  for (int v = 0; v < ident::kVariableCount; ++v) {
-    const auto variable = static_cast<Variable>(v);
-    if (variable != sensed_ && signals.has(variable)) column[static_cast<std::size_t>(v)] = &signals.get(variable);
-  }
-  const double step_scale = tolerance_scale();
-
-  const auto t_count = terms_.size();
-  std::vector<double> known(t_count);         // product of the factors that do not move with x
-  std::vector<double> h_previous(t_count, 0.0), in_previous(t_count, 0.0);   // squares' high pass
-  std::vector<double> value(t_count), slope(t_count);
-  Eigen::VectorXd jacobian(static_cast<Index>(t_count)), covariance_jacobian(static_cast<Index>(t_count));
-  // The range checks as flat bounds: the solved input (column null) or a known one.
-  struct Bound {
-    const Eigen::VectorXd* column;
-    double lowest, highest;
-  };
-  std::vector<Bound> bounds;
-  for (const auto& [variable, span] : range_) {
-    const double margin = options.range_margin * (span.highest - span.lowest);
-    if (variable != sensed_ && column[static_cast<std::size_t>(variable)] == nullptr) continue;
-    bounds.push_back({variable == sensed_ ? nullptr : column[static_cast<std::size_t>(variable)], span.lowest - margin,
-                      span.highest + margin});
-  }
-  // The sensed input as the lagged terms read it: each estimate, or across a sample without one
-  // the last estimate held.
-  Eigen::VectorXd history(rows);
-  double x = 0.0, last_good = 0.0;
-
-  for (Index k = first_row_; k < n; ++k) {
-    const Index r = k - first_row_;
-    // Whether a factor moves with this sample's x: the sensed input now, or before the first
-    // estimate (the settled start).
-    const auto moves = [&](const ident::Factor& f) { return f.variable == sensed_ && (f.lag == 0 || k - f.lag < first_row_); };
-    const auto known_value = [&](const ident::Factor& f) {
-      const Index at = k - f.lag;
-      const double v = f.variable == sensed_ ? history(at - first_row_) : (*column[static_cast<std::size_t>(f.variable)])(at);
-      return factor_value(f, v);
-    };
-    for (std::size_t t = 0; t < t_count; ++t) {
-      double product = 1.0;
-      for (const ident::Factor& f : terms_[t].factors) {
-        if (!moves(f)) product *= known_value(f);
-      }
-      known[t] = product;
-    }
-    // Each term's value and slope at x. A filtered square's value is its high pass's output,
-    // h(k) = p h(k-1) + g (s(k) - s(k-1)), settled (0) at the first row.
-    const auto evaluate = [&](double at_x) {
-      for (std::size_t t = 0; t < t_count; ++t) {
-        const CompiledTerm& term = terms_[t];
-        double v = known[t], d = 0.0;
-        for (const ident::Factor& f : term.factors) {
-          if (!moves(f)) continue;
-          const double fv = factor_value(f, at_x), fd = factor_slope(f, at_x);
-          d = d * fv + v * fd;
-          v *= fv;
-        }
-        if (term.square_filtered) {
-          if (k == first_row_) {
-            v = 0.0;
-            d = 0.0;
-          } else {
-            v = highpass.p * h_previous[t] + highpass.g * (v - in_previous[t]);
-            d = highpass.g * d;
-          }
-        }
-        value[t] = v;
-        slope[t] = d;
-      }
-    };
-    const double yk = y(k);
-    const auto residual = [&](double& g, double& dg, double& denominator) {
-      g = -yk;
-      dg = 0.0;
-      denominator = 1.0;
-      for (std::size_t t = 0; t < t_count; ++t) {
-        const double c = terms_[t].coefficient;
-        if (terms_[t].denominator) {
-          denominator += c * value[t];
-          g -= yk * c * value[t];
-          dg -= yk * c * slope[t];
-        } else {
-          g += c * value[t];
-          dg += c * slope[t];
-        }
-      }
-    };
-
-    // Newton from the previous estimate; where it fails (a zero slope, no root nearby), from the
-    // middle and the ends of the characterized range, or from 0 and +-1 without one.
-    const std::array<double, 3> fallback = fallback_starts();
-    const std::array<double, 4> starts{last_good, fallback[0], fallback[1], fallback[2]};
-    bool converged = false;
-    int iterations = 0;
-    double g = 0.0, dg = 0.0, denominator = 1.0;
-    for (const double start : starts) {
-      x = start;
-      for (int i = 0; i < options.max_iterations; ++i) {
-        ++iterations;
-        evaluate(x);
-        residual(g, dg, denominator);
-        if (!(std::isfinite(g) && std::isfinite(dg)) || dg == 0.0) break;
-        const double step = g / dg;
-        x -= step;
-        if (std::abs(step) <= kStepTolerance * (std::abs(x) + step_scale)) {
-          converged = true;
-          break;
-        }
-      }
-      if (converged) break;
-    }
-    out.most_iterations = std::max(out.most_iterations, iterations);
-    // The terms' values as the root (the squares' filter state and the uncertainty read them).
-    evaluate(x);
-    residual(g, dg, denominator);
-    if (!converged || !std::isfinite(x) || dg == 0.0) {
-      out.value(r) = std::numeric_limits<double>::quiet_NaN();
-      out.u_coefficients(r) = out.u_noise(r) = std::numeric_limits<double>::quiet_NaN();
-      out.flag[static_cast<std::size_t>(r)] = SampleFlag::NotConverged;
-      ++out.not_converged;
-      history(r) = last_good;   // the squares' high pass keeps its state across the sample
-      continue;
-    }
-    out.value(r) = x;
-    history(r) = x;
-    last_good = x;
-    for (std::size_t t = 0; t < t_count; ++t) {
-      const double dg_dc = terms_[t].denominator ? -yk * value[t] : value[t];
-      jacobian(static_cast<Index>(t)) = -dg_dc / dg;
-    }
-    covariance_jacobian.noalias() = covariance_ * jacobian;
-    out.u_coefficients(r) = std::sqrt(std::max(0.0, jacobian.dot(covariance_jacobian)));
-    out.u_noise(r) = noise_sd_ * std::abs(denominator) / std::abs(dg);
-    for (std::size_t t = 0; t < t_count; ++t) {
-      if (!terms_[t].square_filtered) continue;
-      // The filter's input at x: the square's unfiltered value.
-      double s = known[t];
-      for (const ident::Factor& f : terms_[t].factors) {
-        if (moves(f)) s *= factor_value(f, x);
-      }
-      h_previous[t] = value[t];
-      in_previous[t] = s;
-    }
-    // Inside the characterized range: the solved input and every known one at this sample.
-    bool inside = true;
-    for (const Bound& b : bounds) {
-      const double v = b.column == nullptr ? x : (*b.column)(k);
-      inside = inside && v >= b.lowest && v <= b.highest;
-    }
-    if (!inside) {
-      out.flag[static_cast<std::size_t>(r)] = SampleFlag::OutsideRange;
-      ++out.outside_range;
-    }
-  }
+  out.first_row = solved.first_row;
+  out.value = solved.value.col(0);
+  out.u_coefficients = solved.u_coefficients.col(0);
+  out.u_noise = solved.u_noise.col(0);
+  out.flag = std::move(solved.flag);
+  out.outside_range = solved.outside_range;
+  out.not_converged = solved.not_converged;
+  out.most_iterations = solved.most_iterations;
   return out;
 }
 

@@ -103,7 +103,8 @@ void write_truth(const config::BenchConfig& bench, const BenchSimulation& sim, s
 
 /// A unit's truth: each member's true input axis in the unit's housing frame, n = T' R_slot' m_cs'
 /// e_i (T the member's unit_axis_frame, R_slot its [[sensor]] case_misalignment, m_cs its true
-/// M_C^S), and the non-orthogonality of each pair, asin(n_j . n_k).
+/// M_C^S), the non-orthogonality of each pair, asin(n_j . n_k), and per case the housing's true
+/// orientation.
 void write_unit_truth(const config::BenchConfig& bench, const BenchSimulation& sim, const config::Unit& unit,
                       const std::filesystem::path& file) {
   toml::table root{{"unit", unit.name}, {"serial", unit.serial}, {"part", unit.part}};
@@ -135,9 +136,26 @@ void write_unit_truth(const config::BenchConfig& bench, const BenchSimulation& s
     triad.insert_or_assign("non_orthogonality_rad", std::move(angles));
     root.insert_or_assign(key, std::move(triad));
   }
+  // The housing's true orientation per case, M_E^U = T' R_slot' (true M_E^C of any member): the
+  // plan's m_ec with the case's placement error and the housing's misalignment. The input a unit
+  // senses is M_E^U a_E.
+  const auto first = std::find_if(bench.sensors.begin(), bench.sensors.end(), [&](const config::SensorUnderTest& x) {
+    return x.unit == unit.name;
+  });
+  if (first != bench.sensors.end()) {
+    const auto s = static_cast<std::size_t>(first - bench.sensors.begin());
+    toml::array cases;
+    for (std::size_t c = 0; c < bench.cases.size(); ++c) {
+      const frames::Dcm m_eu = config::unit_axis_frame(first->unit_axis).transpose() * first->case_misalignment.dcm().transpose() *
+                               sim.cases[c].sensors[s].mounting.true_m_ec;
+      cases.push_back(toml::table{{"name", bench.cases[c].name}, {"m_eu_true", to_toml(m_eu)}});
+    }
+    root.insert_or_assign("case", std::move(cases));
+  }
   std::ofstream os(file);
   os << "# Truth of a simulated unit (inertia-analyze simulate): each member's input axis in the unit's housing frame,\n"
-        "# and asin(n_j . n_k) of each pair, the angle by which two axes are closer than 90 deg.\n"
+        "# asin(n_j . n_k) of each pair, the angle by which two axes are closer than 90 deg, and per case the housing's\n"
+        "# true orientation m_eu_true (the input the unit senses is m_eu_true a_E).\n"
      << toml::toml_formatter(root, toml::toml_formatter::default_flags & ~toml::format_flags::allow_literal_strings) << '\n';
   if (!os) throw std::runtime_error("cannot write " + file.string());
 }
@@ -254,8 +272,10 @@ void print_summary(const config::BenchConfig& bench, const BenchSimulation& sim,
   }
 }
 
-int run_simulate(const std::filesystem::path& bench_path, const std::filesystem::path& out, std::ostream& summary) {
-  const config::BenchConfig bench = config::load_bench_config(bench_path);
+int run_simulate(const std::filesystem::path& bench_path, const std::filesystem::path& out, std::ostream& summary,
+                 std::optional<std::uint64_t> seed) {
+  config::BenchConfig bench = config::load_bench_config(bench_path);
+  if (seed) config::reseed(bench, *seed);
   if (!bench.simulated) {
     throw InputError(SourcePosition{bench_path.string(), 0, 0},
                      "bench.backend is \"real\": simulate needs a simulated bench (backend = \"sim\")");

@@ -6,7 +6,9 @@
 // (sensor, m_cs, [terms], [noise]) and per case the true orientation chain ([[case]]).
 // The reference instruments of every case go to OUT/references/<case>.csv.
 #include <filesystem>
+#include <cstdint>
 #include <iosfwd>
+#include <optional>
 
 #include "common/config/bench_config.hpp"
 #include "common/dataset/dataset.hpp"
@@ -14,9 +16,11 @@
 
 namespace inertia::sim {
 
-/// Loads, simulates, writes and prints a summary. Returns kExitOk; bad input throws InputError
-/// (the caller maps it to exit status 2).
-int run_simulate(const std::filesystem::path& bench, const std::filesystem::path& out, std::ostream& summary);
+/// Loads, simulates, writes and prints a summary. With `seed`, another run of the same bench
+/// (config::reseed: every random stream from it), as held-out data is. Returns kExitOk; bad input
+/// throws InputError (the caller maps it to exit status 2).
+int run_simulate(const std::filesystem::path& bench, const std::filesystem::path& out, std::ostream& summary,
+                 std::optional<std::uint64_t> seed = std::nullopt);
 
 /// The dataset (docs/design.md contract, in memory) of sensor under test `sensor_index`: nominal m_ec,
 /// the references it saw, its output. write_simulation writes exactly this.

@@ -1,0 +1,327 @@
+#include "analyzer/compensate/joint_inverse.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "analyzer/procedure/square_highpass.hpp"
+#include "common/input_error.hpp"
+
+namespace inertia::compensate {
+
+using Eigen::Index;
+using ident::Variable;
+
+namespace {
+
+/// The row of `variable` among an equation's solved inputs, or -1 where it is known.
+int solved_index(const JointEquation& e, Variable variable) {
+  for (std::size_t s = 0; s < e.solved.size(); ++s) {
+    if (e.solved[s].first == variable) return static_cast<int>(s);
+  }
+  return -1;
+}
+
+}  // namespace
+
+JointInverse::JointInverse(std::vector<JointEquation> equations, std::vector<Eigen::VectorXd> fallback_starts)
+    : equations_(std::move(equations)), fallback_starts_(std::move(fallback_starts)) {
+  unknowns_ = static_cast<Index>(equations_.size());
+  if (unknowns_ != 1 && unknowns_ != 3 && unknowns_ != 6)
+    throw std::invalid_argument(fmt::format("a joint inverse solves 1, 3 or 6 equations, not {}", unknowns_));
+  tolerance_scale_ = 0.0;
+  for (const JointEquation& e : equations_) {
+    if (e.model == nullptr) throw std::invalid_argument("a joint equation without its model");
+    for (const auto& [variable, row] : e.solved) {
+      if (row.size() != unknowns_)
+        throw std::invalid_argument(fmt::format("the row of {} has {} entries for {} unknowns", ident::variable_name(variable), row.size(), unknowns_));
+    }
+    bool reads_solved_now = false;
+    for (const InverseModel::CompiledTerm& t : e.model->terms()) {
+      for (const ident::Factor& f : t.factors) reads_solved_now = reads_solved_now || (f.lag == 0 && solved_index(e, f.variable) >= 0);
+    }
+    if (!reads_solved_now) throw std::invalid_argument("a joint equation reads none of the unknowns at the current sample");
+    first_row_ = std::max(first_row_, e.model->first_row());
+    tolerance_scale_ = std::max(tolerance_scale_, e.model->tolerance_scale());
+  }
+  for (const Eigen::VectorXd& start : fallback_starts_) {
+    if (start.size() != unknowns_) throw std::invalid_argument("a fallback start of another length than the unknowns");
+  }
+}
+
+JointCompensation JointInverse::compensate(const std::vector<const ident::SignalSet*>& records, double sample_period_s,
+                                           const CompensationOptions& options) const {
+  if (records.size() != equations_.size())
+    throw std::invalid_argument(fmt::format("{} records for {} equations", records.size(), equations_.size()));
+  switch (unknowns_) {
+    case 1: return solve<1>(records, sample_period_s, options);
+    case 3: return solve<3>(records, sample_period_s, options);
+    default: return solve<6>(records, sample_period_s, options);
+  }
+}
+
+template <int D>
+JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>& records, double sample_period_s,
+                                      const CompensationOptions& options) const {
+  using Vector = Eigen::Matrix<double, D, 1>;
+  using Matrix = Eigen::Matrix<double, D, D>;
+  struct Factor {
+    ident::Factor factor;
+    int solved = -1;   // the row it is read through, -1 where known
+  };
+  struct Term {
+    std::vector<Factor> factors;
+    double coefficient = 0.0;
+    bool denominator = false, square_filtered = false;
+    bool reads_solved = false;   // a factor is a solved input, lagged or not
+  };
+  // The range checks as flat bounds: a solved input (through its row) or a known one.
+  struct Bound {
+    int solved = -1;
+    const Eigen::VectorXd* column = nullptr;
+    double lowest = 0.0, highest = 0.0;
+  };
+  struct Equation {
+    std::vector<Term> terms;
+    std::vector<Vector> rows;
+    std::array<const Eigen::VectorXd*, ident::kVariableCount> column{};
+    const Eigen::VectorXd* y = nullptr;
+    const Eigen::MatrixXd* covariance = nullptr;
+    double noise_sd = 0.0;
+    procedure::HighpassCoefficients highpass{};
+    std::vector<Bound> bounds;
+    std::vector<double> known, h_previous, in_previous, value;   // per term
+    std::vector<Vector> slope;                                   // per term, d value / d x
+    Eigen::VectorXd dg_dc, covariance_dg_dc;
+    double g = 0.0, denominator = 1.0;
+    Vector gradient = Vector::Zero();
+  };
+
+  const Index n = records.front()->size();
+  std::vector<Equation> eqs(equations_.size());
+  for (std::size_t m = 0; m < equations_.size(); ++m) {
+    const JointEquation& source = equations_[m];
+    const InverseModel& model = *source.model;
+    const ident::SignalSet& record = *records[m];
+    if (record.size() != n)
+      throw InputError(fmt::format("the records to compensate together differ in length: {} has {} samples, {} has {}",
+                                   records.front()->origin(), n, record.origin(), record.size()));
+    Equation& e = eqs[m];
+    for (std::size_t v = 0; v < static_cast<std::size_t>(ident::kVariableCount); ++v) {
+      const auto variable = static_cast<Variable>(v);
+      const bool needed = variable == Variable::Y || (model.known_inputs().test(v) && solved_index(source, variable) < 0);
+      if (needed && !record.has(variable)) {
+        throw InputError(fmt::format("compensation needs '{}' ({}), which {} lacks", ident::variable_name(variable),
+                                     ident::source_of(variable), record.origin().empty() ? "the record" : record.origin()));
+      }
+      if (solved_index(source, variable) < 0 && record.has(variable)) e.column[v] = &record.get(variable);
+    }
+    e.y = &record.get(Variable::Y);
+    for (const auto& [variable, row] : source.solved) e.rows.push_back(row.transpose());
+    for (const InverseModel::CompiledTerm& t : model.terms()) {
+      Term term{{}, t.coefficient, t.denominator, t.square_filtered, false};
+      for (const ident::Factor& f : t.factors) {
+        term.factors.push_back({f, solved_index(source, f.variable)});
+        term.reads_solved = term.reads_solved || term.factors.back().solved >= 0;
+      }
+      e.terms.push_back(std::move(term));
+    }
+    e.covariance = &model.covariance();
+    e.noise_sd = model.noise_sd();
+    if (std::any_of(e.terms.begin(), e.terms.end(), [](const Term& t) { return t.square_filtered; })) {
+      if (!(sample_period_s > 0.0)) throw std::invalid_argument("compensate: the model's square high pass needs the sample period");
+      e.highpass = procedure::highpass_coefficients(*model.square_corner(), sample_period_s);
+    }
+    for (const auto& [variable, span] : model.range()) {
+      const double margin = options.range_margin * (span.highest - span.lowest);
+      const int s = solved_index(source, variable);
+      if (s < 0 && e.column[static_cast<std::size_t>(variable)] == nullptr) continue;
+      e.bounds.push_back({s, s < 0 ? e.column[static_cast<std::size_t>(variable)] : nullptr, span.lowest - margin, span.highest + margin});
+    }
+    const std::size_t t_count = e.terms.size();
+    e.known.assign(t_count, 0.0);
+    e.h_previous.assign(t_count, 0.0);
+    e.in_previous.assign(t_count, 0.0);
+    e.value.assign(t_count, 0.0);
+    e.slope.assign(t_count, Vector::Zero());
+    e.dg_dc.resize(static_cast<Index>(t_count));
+    e.covariance_dg_dc.resize(static_cast<Index>(t_count));
+  }
+
+  JointCompensation out;
+  out.first_row = first_row_;
+  const Index rows = std::max<Index>(0, n - first_row_);
+  out.value.resize(rows, D);
+  out.u_coefficients.resize(rows, D);
+  out.u_noise.resize(rows, D);
+  out.flag.assign(static_cast<std::size_t>(rows), SampleFlag::Ok);
+  if (rows == 0) return out;
+
+  // The solved inputs as the lagged terms read them: each estimate, or across a sample without one
+  // the last estimate held.
+  Eigen::Matrix<double, Eigen::Dynamic, D> history(rows, D);
+  Vector x = Vector::Zero(), last_good = Vector::Zero();
+  std::vector<Vector> starts(1 + fallback_starts_.size());
+  for (std::size_t s = 0; s < fallback_starts_.size(); ++s) starts[s + 1] = fallback_starts_[s];
+  Vector residuals;
+  Matrix jacobian;
+
+  for (Index k = first_row_; k < n; ++k) {
+    const Index r = k - first_row_;
+    // Whether a factor moves with this sample's x: a solved input now, or before the first
+    // estimate (the settled start).
+    const auto moves = [&](const Factor& f) { return f.solved >= 0 && (f.factor.lag == 0 || k - f.factor.lag < first_row_); };
+    for (Equation& e : eqs) {
+      for (std::size_t t = 0; t < e.terms.size(); ++t) {
+        double product = 1.0;
+        for (const Factor& f : e.terms[t].factors) {
+          if (moves(f)) continue;
+          const Index at = k - f.factor.lag;
+          const double v = f.solved >= 0 ? e.rows[static_cast<std::size_t>(f.solved)].dot(history.row(at - first_row_).transpose())
+                                         : (*e.column[static_cast<std::size_t>(f.factor.variable)])(at);
+          product *= factor_value(f.factor, v);
+        }
+        e.known[t] = product;
+      }
+    }
+    // Each term's value and gradient at x. A filtered square's value is its high pass's output,
+    // h(k) = p h(k-1) + g (s(k) - s(k-1)), settled (0) at the first row; then each equation's
+    // residual and gradient.
+    const auto evaluate = [&](const Vector& at_x) {
+      for (std::size_t m = 0; m < eqs.size(); ++m) {
+        Equation& e = eqs[m];
+        const double yk = (*e.y)(k);
+        e.g = -yk;
+        e.denominator = 1.0;
+        e.gradient.setZero();
+        for (std::size_t t = 0; t < e.terms.size(); ++t) {
+          const Term& term = e.terms[t];
+          double v = e.known[t];
+          Vector d = Vector::Zero();
+          for (const Factor& f : term.factors) {
+            if (!term.reads_solved) break;
+            if (!moves(f)) continue;
+            const Vector& row = e.rows[static_cast<std::size_t>(f.solved)];
+            const double u = row.dot(at_x);
+            const double fv = factor_value(f.factor, u);
+            d = d * fv + (v * factor_slope(f.factor, u)) * row;
+            v *= fv;
+          }
+          if (term.square_filtered) {
+            if (k == first_row_) {
+              v = 0.0;
+              d.setZero();
+            } else {
+              v = e.highpass.p * e.h_previous[t] + e.highpass.g * (v - e.in_previous[t]);
+              d *= e.highpass.g;
+            }
+          }
+          e.value[t] = v;
+          e.slope[t] = d;
+          if (term.denominator) {
+            e.denominator += term.coefficient * v;
+            e.g -= yk * term.coefficient * v;
+            e.gradient -= (yk * term.coefficient) * d;
+          } else {
+            e.g += term.coefficient * v;
+            e.gradient += term.coefficient * d;
+          }
+        }
+        residuals(static_cast<Index>(m)) = e.g;
+        jacobian.row(static_cast<Index>(m)) = e.gradient.transpose();
+      }
+    };
+    // Newton's step, or false where the Jacobian is singular or a value not finite.
+    const auto newton_step = [&](Vector& step) {
+      if (!(residuals.allFinite() && jacobian.allFinite())) return false;
+      if constexpr (D == 1) {
+        if (jacobian(0, 0) == 0.0) return false;
+        step(0) = residuals(0) / jacobian(0, 0);
+      } else {
+        const Eigen::PartialPivLU<Matrix> lu(jacobian);
+        const double determinant = lu.determinant();
+        if (determinant == 0.0 || !std::isfinite(determinant)) return false;
+        step = lu.solve(residuals);
+      }
+      return step.allFinite();
+    };
+
+    // Newton from the previous estimate; where it fails (a singular Jacobian, no root nearby), from
+    // the fallback starts.
+    starts[0] = last_good;
+    bool converged = false;
+    int iterations = 0;
+    Vector step;
+    for (const Vector& start : starts) {
+      x = start;
+      for (int i = 0; i < options.max_iterations; ++i) {
+        ++iterations;
+        evaluate(x);
+        if (!newton_step(step)) break;
+        x -= step;
+        if (step.cwiseAbs().maxCoeff() <= InverseModel::kStepTolerance * (x.cwiseAbs().maxCoeff() + tolerance_scale_)) {
+          converged = true;
+          break;
+        }
+      }
+      if (converged) break;
+    }
+    out.most_iterations = std::max(out.most_iterations, iterations);
+    // The terms' values at the root (the squares' filter state and the uncertainty read them).
+    evaluate(x);
+    const bool regular = newton_step(step);
+    if (!converged || !x.allFinite() || !regular) {
+      out.value.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
+      out.u_coefficients.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
+      out.u_noise.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
+      out.flag[static_cast<std::size_t>(r)] = SampleFlag::NotConverged;
+      ++out.not_converged;
+      history.row(r) = last_good.transpose();   // the squares' high pass keeps its state across the sample
+      continue;
+    }
+    out.value.row(r) = x.transpose();
+    history.row(r) = x.transpose();
+    last_good = x;
+    const Matrix inverse = jacobian.inverse();
+    Vector variance_c = Vector::Zero(), variance_n = Vector::Zero();
+    bool inside = true;
+    for (std::size_t m = 0; m < eqs.size(); ++m) {
+      Equation& e = eqs[m];
+      const double yk = (*e.y)(k);
+      for (std::size_t t = 0; t < e.terms.size(); ++t)
+        e.dg_dc(static_cast<Index>(t)) = e.terms[t].denominator ? -yk * e.value[t] : e.value[t];
+      e.covariance_dg_dc.noalias() = *e.covariance * e.dg_dc;
+      const Vector column_squared = inverse.col(static_cast<Index>(m)).array().square().matrix();
+      variance_c += std::max(0.0, e.dg_dc.dot(e.covariance_dg_dc)) * column_squared;
+      variance_n += std::pow(e.noise_sd * e.denominator, 2) * column_squared;
+      for (std::size_t t = 0; t < e.terms.size(); ++t) {
+        if (!e.terms[t].square_filtered) continue;
+        // The filter's input at x: the square's unfiltered value.
+        double s = e.known[t];
+        for (const Factor& f : e.terms[t].factors) {
+          if (moves(f)) s *= factor_value(f.factor, e.rows[static_cast<std::size_t>(f.solved)].dot(x));
+        }
+        e.h_previous[t] = e.value[t];
+        e.in_previous[t] = s;
+      }
+      // Inside the characterized range: every solved input and every known one at this sample.
+      for (const Bound& b : e.bounds) {
+        const double v = b.solved >= 0 ? e.rows[static_cast<std::size_t>(b.solved)].dot(x) : (*b.column)(k);
+        inside = inside && v >= b.lowest && v <= b.highest;
+      }
+    }
+    out.u_coefficients.row(r) = variance_c.cwiseSqrt().transpose();
+    out.u_noise.row(r) = variance_n.cwiseSqrt().transpose();
+    if (!inside) {
+      out.flag[static_cast<std::size_t>(r)] = SampleFlag::OutsideRange;
+      ++out.outside_range;
+    }
+  }
+  return out;
+}
+
+}  // namespace inertia::compensate
