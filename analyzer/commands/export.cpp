@@ -14,6 +14,7 @@
 
 #include "analyzer/commands/compensate.hpp"
 #include "analyzer/compensate/c_export.hpp"
+#include "analyzer/unit/kalibr_intrinsics.hpp"
 #include "analyzer/compensate/inverse_model.hpp"
 #include "analyzer/compensate/static_response.hpp"
 #include "analyzer/model/model_file.hpp"
@@ -180,9 +181,6 @@ int run_export(const ExportOptions& options, std::ostream& out) {
     return kExitOk;
   }
   if (options.format == "kalibr") {
-    // Kalibr's noise density is continuous-time: sigma_c = sigma_d sqrt(dt), i.e. N (IEEE 952's
-    // white-noise coefficient, output unit s^1/2); its random walk is K (output unit s^-1/2); both
-    // over the static sensitivity to reach SI.
     const double s = static_sensitivity(model, sensed);
     const bool acc = sensed == Variable::Ai;
     const std::string kind = acc ? "accelerometer" : "gyroscope";
@@ -191,25 +189,7 @@ int run_export(const ExportOptions& options, std::ostream& out) {
     yaml += "# One sensor output: the other sensor kind's keys are for its own model's export.\n";
     yaml += "rostopic: /imu0\n";
     if (model.sample_period_s) yaml += fmt::format("update_rate: {} # Hz\n", 1.0 / *model.sample_period_s);
-    const std::optional<double> n = model.noise.values[1];
-    const std::optional<double> k = model.noise.values[3];
-    const double density = n ? *n / std::abs(s)
-                           : (model.white_sd && model.sample_period_s ? *model.white_sd * std::sqrt(*model.sample_period_s) / std::abs(s)
-                                                                      : std::nan(""));
-    if (std::isfinite(density)) {
-      yaml += fmt::format("{}_noise_density: {:.6g} # {}/sqrt(Hz), continuous time{}\n", kind, density, unit,
-                          n ? " (N)" : " (from white_sd: this plan's static stretches gave no N)");
-    } else {
-      yaml += fmt::format("# {}_noise_density: not determined (the model has neither N nor white_sd with sample_period_s)\n", kind);
-    }
-    if (k) {
-      yaml += fmt::format("{}_random_walk: {:.6g} # {}/sqrt(Hz), continuous time (K)\n", kind, *k / std::abs(s),
-                          acc ? "m/s^3" : "rad/s^2");
-    } else {
-      yaml += fmt::format("# {}_random_walk: not determined: the model has no K (the noise analysis of the plan's static "
-                          "stretches did not resolve a rate random walk; a longer rest can)\n",
-                          kind);
-    }
+    yaml += unit::kalibr_noise_yaml(kind, unit::kalibr_noise(model));
     const Omission o = omission(model, sensed, false);
     yaml += "# Kalibr's IMU model holds no deterministic terms of one output (its scale-misalignment intrinsics\n"
             "# describe a triaxial unit; it estimates the bias online as a random walk).\n";

@@ -9,6 +9,7 @@
 #include <ostream>
 
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/unit/kalibr_intrinsics.hpp"
 #include "analyzer/unit/triad_frame.hpp"
 #include "analyzer/unit/unit_model.hpp"
 #include "common/atomic_file.hpp"
@@ -82,6 +83,54 @@ nlohmann::json imucal_json(const std::optional<unit::TriadFrame>& acc, const std
   return j;
 }
 
+std::string yaml_matrix(const Eigen::Matrix3d& matrix) {
+  const Eigen::Matrix3d m = matrix.array() + 0.0;   // no negative zeros
+  return fmt::format("[[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]]", m(0, 0), m(0, 1), m(0, 2), m(1, 0), m(1, 1), m(1, 2), m(2, 0), m(2, 1),
+                     m(2, 2));
+}
+
+/// Kalibr's results for an IMU of its scale-misalignment model (kalibr_intrinsics.hpp), with each
+/// kind's noise parameters: the largest of the triad's members, so that none is claimed quieter
+/// than it is.
+std::string kalibr_yaml(const std::vector<model::ModelFile>& accelerometers, const std::vector<model::ModelFile>& gyroscopes,
+                        const unit::KalibrIntrinsics& k, const unit::TriadFrame& any) {
+  std::string yaml = fmt::format("# Kalibr's scale-misalignment IMU model of unit {} (inertia-analyze unit): the settled linear part of\n"
+                                 "# each member's model. a_m = M_a C a + b_a, w_m = M_g C_gyro_i C w + A C_gyro_i C a + b_g, with a_m, w_m\n"
+                                 "# the outputs in SI (their value times their unit's) and C the rotation from the unit's frame to Kalibr's IMU frame.\n",
+                                 any.unit);
+  yaml += fmt::format("# C = {}\n", yaml_matrix(k.c_imu_unit));
+  if (!k.note.empty()) yaml += "# Left out: " + k.note + "\n";
+  yaml += "imu0:\n  model: scale-misalignment\n  rostopic: /imu0\n";
+  const model::ModelFile& first = accelerometers.empty() ? gyroscopes.front() : accelerometers.front();
+  if (first.sample_period_s) yaml += fmt::format("  update_rate: {}\n", 1.0 / *first.sample_period_s);
+  for (const auto* members : {&accelerometers, &gyroscopes}) {
+    if (members->empty()) continue;
+    unit::KalibrNoise largest;
+    bool all_density = true, all_walk = true;
+    for (const model::ModelFile& m : *members) {
+      const unit::KalibrNoise n = unit::kalibr_noise(m);
+      all_density = all_density && n.density.has_value();
+      all_walk = all_walk && n.random_walk.has_value();
+      if (n.density && (!largest.density || *n.density > *largest.density)) largest.density = n.density;
+      if (n.random_walk && (!largest.random_walk || *n.random_walk > *largest.random_walk)) largest.random_walk = n.random_walk;
+      largest.density_from_white = largest.density_from_white || n.density_from_white;
+    }
+    if (!all_density) largest.density.reset();
+    if (!all_walk) largest.random_walk.reset();
+    std::string lines = unit::kalibr_noise_yaml(dataset::to_string(members->front().sensor), largest);
+    for (std::size_t at = 0; at < lines.size();) {
+      const std::size_t end = lines.find('\n', at);
+      yaml += "  " + lines.substr(at, end - at + 1);
+      at = end + 1;
+    }
+  }
+  if (k.m_accel) yaml += fmt::format("  accelerometers:\n    M: {}\n", yaml_matrix(*k.m_accel));
+  if (k.m_gyro)
+    yaml += fmt::format("  gyroscopes:\n    M: {}\n    A: {}   # (rad/s) per (m/s^2)\n    C_gyro_i: {}\n", yaml_matrix(*k.m_gyro),
+                        yaml_matrix(*k.a_gyro), yaml_matrix(k.c_gyro_i));
+  return yaml;
+}
+
 void print_triad(const unit::TriadFrame& f, std::ostream& summary) {
   const bool gyro = f.kind == dataset::SensorKind::Gyroscope;
   fmt::print(summary, "unit {}{}: {} triad {}, {}, {} (along x, y, z)\n", f.unit, f.serial.empty() ? "" : " (serial " + f.serial + ")",
@@ -136,8 +185,11 @@ int run_unit(const std::vector<std::filesystem::path>& models, const std::filesy
   }
   write_file_atomically(folder.path() / "unit.toml", toml);
   write_file_atomically(folder.path() / "imucal.json", imucal_json(acc, gyro).dump(4) + "\n");
+  const unit::KalibrIntrinsics kalibr = unit::kalibr_intrinsics(acc, gyro);
+  if (!kalibr.note.empty()) fmt::print(summary, "note: Kalibr's intrinsics left out: {}\n", kalibr.note);
+  write_file_atomically(folder.path() / "kalibr.yaml", kalibr_yaml(accelerometers, gyroscopes, kalibr, any));
   folder.commit();
-  fmt::print(summary, "wrote {} and {}\n", (folder.target() / "unit.toml").string(), (folder.target() / "imucal.json").string());
+  fmt::print(summary, "wrote {}: unit.toml, the members' model files, imucal.json and kalibr.yaml\n", folder.target().string());
   return kExitOk;
 }
 

@@ -27,6 +27,7 @@
 #include "analyzer/unit/unit_inverse.hpp"
 #include "analyzer/unit/unit_model.hpp"
 #include "common/config/bench_config.hpp"
+#include "common/input_error.hpp"
 #include "common/units.hpp"
 #include "hal/sim/bench_simulation.hpp"
 #include "hal/sim/simulate.hpp"
@@ -215,6 +216,61 @@ TEST(UnitScenario, HeldOutTumbleCompensatedWithinTheTrueModelsError) {
   // an error the compensation then carries (docs/unit.md). Figures only.
   const CompensationFigures f = held_out_compensation(bench, 800, 900);
   std::cout << fmt::format("[ figures ] sim-imu-tumble as shipped, seeds 800/900: {}\n", f.text());
+}
+
+
+TEST(UnitScenario, CompensateReadsTheUnitsFolderAndRefusesRecordsOfOthers) {
+  const testing::TempDir dir("inertia-unit-command");
+  config::BenchConfig bench = config::load_bench_config(fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-imu-tumble.toml");
+  const fs::path unit_file = characterized_unit(bench, 810, dir.path);
+  for (const char* name : {"ax", "ay", "az"})
+    EXPECT_TRUE(fs::exists(unit_file.parent_path() / unit::member_file_name(name))) << "the folder holds the members' models";
+  commands::CompensateOptions options;
+  options.model = unit_file;
+  options.dataset = dir.path / "data";
+  options.out = dir.path / "unit.csv";
+  std::ostringstream out;
+  ASSERT_EQ(commands::run_compensate(options, out), 0) << out.str();
+  std::ifstream csv(options.out);
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_EQ(header, "case,t,y_ax,y_ay,y_az,a_x,a_y,a_z,u_a_x,u_a_y,u_a_z,flag,a_x_reference,a_y_reference,a_z_reference");
+  std::size_t rows = 0;
+  for (std::string line; std::getline(csv, line);) ++rows;
+  EXPECT_EQ(rows, 6U * 3000U);
+  EXPECT_NE(out.str().find("0 without a root"), std::string::npos) << out.str();
+
+  const auto refused = [&](commands::CompensateOptions o, const std::string& message) {
+    o.out = dir.path / "refused.csv";
+    std::ostringstream sink;
+    try {
+      (void)commands::run_compensate(o, sink);
+      ADD_FAILURE() << "accepted: " << message;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(fs::exists(o.out));
+  };
+  commands::CompensateOptions member_folder = options;
+  member_folder.dataset = dir.path / "data" / "ax";
+  refused(member_folder, "has no dataset of unit imu1's member 'ax'");
+  commands::CompensateOptions one_axis = options;
+  one_axis.other_axes_zero = true;
+  refused(one_axis, "a unit solves all its axes together");
+  // A member's record of another serial number.
+  fs::copy(dir.path / "data", dir.path / "other", fs::copy_options::recursive);
+  {
+    std::ifstream in(dir.path / "other" / "ay" / "dataset.toml");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    text.replace(text.find("IMU-0001"), 8, "IMU-0002");
+    std::ofstream(dir.path / "other" / "ay" / "dataset.toml") << text;
+  }
+  commands::CompensateOptions other = options;
+  other.dataset = dir.path / "other";
+  refused(other, "serial number 'IMU-0002'");
+  // A unit folder without one of its members' models.
+  fs::remove(unit_file.parent_path() / unit::member_file_name("az"));
+  refused(options, "member-az.toml");
 }
 
 }  // namespace

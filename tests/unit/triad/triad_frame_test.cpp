@@ -2,6 +2,7 @@
 // [[unit]]'s reading and its refusals, and the triad's sensitivity matrix, imucal's K, R, b and
 // the non-orthogonality with their uncertainties, on models whose axes are known exactly.
 #include "analyzer/unit/triad_frame.hpp"
+#include "analyzer/unit/kalibr_intrinsics.hpp"
 
 #include <gtest/gtest.h>
 
@@ -17,6 +18,7 @@
 #include "common/config/bench_config.hpp"
 #include "common/frames.hpp"
 #include "common/input_error.hpp"
+#include "common/units.hpp"
 #include "tests/support/scratch_dirs.hpp"
 
 namespace inertia::unit {
@@ -184,6 +186,11 @@ TEST(UnitCommand, WritesTheTriadAndImucalsCalibrationFile) {
   const std::string text((std::istreambuf_iterator<char>(toml)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("[accelerometer]"), std::string::npos);
   EXPECT_NE(text.find("[accelerometer.non_orthogonality]"), std::string::npos);
+  EXPECT_NE(text.find("model = \"member-"), std::string::npos);
+  std::ifstream kalibr(dir.path / "unit" / "kalibr.yaml");
+  const std::string yaml((std::istreambuf_iterator<char>(kalibr)), std::istreambuf_iterator<char>());
+  EXPECT_NE(yaml.find("model: scale-misalignment"), std::string::npos);
+  EXPECT_NE(yaml.find("  accelerometers:\n    M: [["), std::string::npos) << yaml;
   files.pop_back();
   std::ostringstream refused;
   EXPECT_THROW((void)commands::run_unit(files, dir.path / "two", refused), InputError);
@@ -209,6 +216,45 @@ TEST(TriadFrame, RefusesMembersThatAreNotOneTriad) {
   lone.unit.clear();
   lone.unit_axis = -1;
   refused({member(0, 0, k, 0, 0, 0, 0), member(1, 0, k, 0, 0, 0, 0), lone}, "states no unit");
+}
+
+
+TEST(KalibrIntrinsics, LowerTriangularScaleTimesARotationGivesTheTriadsSensitivity) {
+  TriadFrame acc, gyro;
+  acc.kind = dataset::SensorKind::Accelerometer;
+  acc.output_unit = "g";
+  acc.sensitivity = (Eigen::Matrix3d() << 0.1021, 0.0003, -0.0004, -0.0002, 0.0998, 0.0005, 0.0006, 0.0001, 0.1017).finished();
+  gyro.kind = dataset::SensorKind::Gyroscope;
+  gyro.output_unit = "deg/s";
+  gyro.sensitivity = frames::frame_rotation(Eigen::Vector3d(1.0, 2.0, 3.0), 0.01) * 57.3 * Eigen::Matrix3d::Identity() +
+                     (Eigen::Matrix3d() << 0.2, 0.01, 0.0, 0.03, -0.1, 0.02, 0.0, 0.01, 0.05).finished();
+  gyro.g_sensitivity = (Eigen::Matrix3d() << 0.01, -0.002, 0.003, 0.001, 0.02, 0.0, -0.004, 0.0, 0.015).finished();
+  const KalibrIntrinsics k = kalibr_intrinsics(acc, gyro);
+  ASSERT_TRUE(k.m_accel && k.m_gyro && k.a_gyro) << k.note;
+  EXPECT_TRUE(k.note.empty());
+  for (const Eigen::Matrix3d& m : {*k.m_accel, *k.m_gyro}) {
+    EXPECT_EQ(m(0, 1), 0.0);
+    EXPECT_EQ(m(0, 2), 0.0);
+    EXPECT_EQ(m(1, 2), 0.0);
+    for (int d = 0; d < 3; ++d) EXPECT_GT(m(d, d), 0.0);
+  }
+  for (const Eigen::Matrix3d& c : {k.c_imu_unit, k.c_gyro_i}) {
+    EXPECT_TRUE((c * c.transpose()).isIdentity(1e-12));
+    EXPECT_NEAR(c.determinant(), 1.0, 1e-12);
+  }
+  // Outputs in SI: g times 9.80665, deg/s times pi/180.
+  EXPECT_TRUE((*k.m_accel * k.c_imu_unit).isApprox(acc.sensitivity * 9.80665, 1e-12));
+  EXPECT_TRUE((*k.m_gyro * k.c_gyro_i * k.c_imu_unit).isApprox(gyro.sensitivity * kPi / 180.0, 1e-12));
+  EXPECT_TRUE((*k.a_gyro * k.c_gyro_i * k.c_imu_unit).isApprox(gyro.g_sensitivity * kPi / 180.0, 1e-12));
+
+  TriadFrame volts = acc;
+  volts.output_unit = "V";
+  const KalibrIntrinsics v = kalibr_intrinsics(volts, std::nullopt);
+  EXPECT_FALSE(v.m_accel);
+  EXPECT_NE(v.note.find("'V', which is no unit of the sensed quantity"), std::string::npos) << v.note;
+  TriadFrame mirrored = acc;
+  mirrored.sensitivity.row(2) *= -1.0;   // a left-handed triad: no rotation reaches it
+  EXPECT_FALSE(kalibr_intrinsics(mirrored, std::nullopt).m_accel);
 }
 
 }  // namespace
