@@ -2,6 +2,8 @@
 //  - BM_Compensate/linear: a unit-like linear model (bias, scale, the two cross axes, T);
 //  - BM_Compensate/nonlinear: the paper's accelerometer model with second-order, cross-coupling,
 //    odd-quadratic and temperature terms, input and output lags, and the squares' high pass;
+//  - BM_CompensateTriad/linear|nonlinear: three such models along a unit's axes, solved together
+//    (unit/unit_inverse.hpp); items are unit samples of three outputs;
 //  - BM_GeneratedC/...: the same models' generated C (double), compiled here with cc -O2 and
 //    loaded, one call per sample: its ns per sample, and the ratio against InverseModel on the
 //    same samples in the same run (ratio_to_analyzer < 1: the C is faster).
@@ -19,6 +21,7 @@
 #include "analyzer/compensate/c_export.hpp"
 #include "analyzer/compensate/inverse_model.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
+#include "analyzer/unit/unit_inverse.hpp"
 
 namespace {
 
@@ -83,6 +86,27 @@ void BM_Compensate(benchmark::State& state) {
   state.SetLabel(state.range(0) ? "nonlinear" : "linear");
 }
 BENCHMARK(BM_Compensate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+/// A triad's three outputs solved together (unit/unit_inverse.hpp): items are samples of the
+/// unit, three outputs each. Each member's record is its own, so the cost is the joint Newton's.
+void BM_CompensateTriad(benchmark::State& state) {
+  unit::UnitModel u;
+  u.unit = "imu";
+  std::vector<ident::SignalSet> records;
+  for (int axis = 0; axis < 3; ++axis) {
+    model::ModelFile m = model_of(state.range(0) != 0);
+    m.unit = "imu";
+    m.unit_axis = axis;
+    records.push_back(record_of(m));
+    u.members.push_back(std::move(m));
+  }
+  const unit::UnitInverse inverse(u);
+  const std::vector<const ident::SignalSet*> pointers{&records[0], &records[1], &records[2]};
+  for (auto _ : state) benchmark::DoNotOptimize(inverse.joint().compensate(pointers, 1e-3).value.data());
+  state.SetItemsProcessed(state.iterations() * kSamples);
+  state.SetLabel(state.range(0) ? "nonlinear" : "linear");
+}
+BENCHMARK(BM_CompensateTriad)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 struct Loaded {
   void* library = nullptr;
