@@ -25,36 +25,6 @@ const char* to_string(SampleFlag flag) {
   return "?";
 }
 
-namespace {
-
-double integer_power(double v, int power) {
-  double r = 1.0;
-  for (int i = 0; i < power; ++i) r *= v;
-  return r;
-}
-
-double sign_of(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
-
-}  // namespace
-
-double factor_value(const ident::Factor& f, double v) {
-  switch (f.function) {
-    case FactorFunction::Plain: return integer_power(v, f.power);
-    case FactorFunction::Abs: return integer_power(std::abs(v), f.power);
-    case FactorFunction::Sign: return integer_power(sign_of(v), f.power);
-  }
-  return 0.0;
-}
-
-double factor_slope(const ident::Factor& f, double v) {
-  switch (f.function) {
-    case FactorFunction::Plain: return f.power * integer_power(v, f.power - 1);
-    case FactorFunction::Abs: return f.power * integer_power(std::abs(v), f.power - 1) * sign_of(v);
-    case FactorFunction::Sign: return 0.0;
-  }
-  return 0.0;
-}
-
 InverseModel::InverseModel(const model::ModelFile& model) {
   sensed_ = model.sensor == dataset::SensorKind::Accelerometer ? Variable::Ai : Variable::Wi;
   noise_sd_ = model.output_sd.value_or(model.white_sd.value_or(0.0));

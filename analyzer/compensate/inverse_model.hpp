@@ -20,6 +20,7 @@
 // propagated: the command states so.
 #include <Eigen/Dense>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -32,10 +33,34 @@
 
 namespace inertia::compensate {
 
-/// f(v)^power of one factor at the value v of its variable (lag aside).
-double factor_value(const ident::Factor& f, double v);
+namespace detail {
+inline double integer_power(double v, int power) {
+  double r = 1.0;
+  for (int i = 0; i < power; ++i) r *= v;
+  return r;
+}
+inline double sign_of(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
+}  // namespace detail
+
+/// f(v)^power of one factor at the value v of its variable (lag aside). Inline: the compensation
+/// calls it per factor and sample.
+inline double factor_value(const ident::Factor& f, double v) {
+  switch (f.function) {
+    case ident::FactorFunction::Plain: return detail::integer_power(v, f.power);
+    case ident::FactorFunction::Abs: return detail::integer_power(std::abs(v), f.power);
+    case ident::FactorFunction::Sign: return detail::integer_power(detail::sign_of(v), f.power);
+  }
+  return 0.0;
+}
 /// d/dv of factor_value (a sign's jump is not a slope: 0).
-double factor_slope(const ident::Factor& f, double v);
+inline double factor_slope(const ident::Factor& f, double v) {
+  switch (f.function) {
+    case ident::FactorFunction::Plain: return f.power * detail::integer_power(v, f.power - 1);
+    case ident::FactorFunction::Abs: return f.power * detail::integer_power(std::abs(v), f.power - 1) * detail::sign_of(v);
+    case ident::FactorFunction::Sign: return 0.0;
+  }
+  return 0.0;
+}
 
 enum class SampleFlag : std::uint8_t {
   Ok = 0,

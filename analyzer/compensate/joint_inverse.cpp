@@ -18,6 +18,8 @@ using ident::Variable;
 
 namespace {
 
+constexpr int kStill = -1, kNonlinear = -2;
+
 /// The row of `variable` among an equation's solved inputs, or -1 where it is known.
 int solved_index(const JointEquation& e, Variable variable) {
   for (std::size_t s = 0; s < e.solved.size(); ++s) {
@@ -42,7 +44,14 @@ JointInverse::JointInverse(std::vector<JointEquation> equations, std::vector<Eig
     }
     bool reads_solved_now = false;
     for (const InverseModel::CompiledTerm& t : e.model->terms()) {
-      for (const ident::Factor& f : t.factors) reads_solved_now = reads_solved_now || (f.lag == 0 && solved_index(e, f.variable) >= 0);
+      int solved_factors = 0;
+      for (const ident::Factor& f : t.factors) {
+        if (solved_index(e, f.variable) < 0) continue;
+        reads_solved_now = reads_solved_now || f.lag == 0;
+        ++solved_factors;
+        linear_ = linear_ && f.function == ident::FactorFunction::Plain && f.power == 1;
+      }
+      linear_ = linear_ && solved_factors <= 1 && !(t.square_filtered && solved_factors > 0);
     }
     if (!reads_solved_now) throw std::invalid_argument("a joint equation reads none of the unknowns at the current sample");
     first_row_ = std::max(first_row_, e.model->first_row());
@@ -77,7 +86,6 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     std::vector<Factor> factors;
     double coefficient = 0.0;
     bool denominator = false, square_filtered = false;
-    bool reads_solved = false;   // a factor is a solved input, lagged or not
   };
   // The range checks as flat bounds: a solved input (through its row) or a known one.
   struct Bound {
@@ -95,8 +103,12 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     procedure::HighpassCoefficients highpass{};
     std::vector<Bound> bounds;
     std::vector<double> known, h_previous, in_previous, value;   // per term
+    // Per term, how it moves with x at this sample: kStill (no factor does), the row of its one
+    // moving factor when that is plain and of power 1 (the term is known times row . x), or
+    // kNonlinear.
+    std::vector<int> mover;
     std::vector<Vector> slope;                                   // per term, d value / d x
-    Eigen::VectorXd dg_dc, covariance_dg_dc;
+    Eigen::VectorXd dg_dc;
     double g = 0.0, denominator = 1.0;
     Vector gradient = Vector::Zero();
   };
@@ -123,11 +135,8 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     e.y = &record.get(Variable::Y);
     for (const auto& [variable, row] : source.solved) e.rows.push_back(row.transpose());
     for (const InverseModel::CompiledTerm& t : model.terms()) {
-      Term term{{}, t.coefficient, t.denominator, t.square_filtered, false};
-      for (const ident::Factor& f : t.factors) {
-        term.factors.push_back({f, solved_index(source, f.variable)});
-        term.reads_solved = term.reads_solved || term.factors.back().solved >= 0;
-      }
+      Term term{{}, t.coefficient, t.denominator, t.square_filtered};
+      for (const ident::Factor& f : t.factors) term.factors.push_back({f, solved_index(source, f.variable)});
       e.terms.push_back(std::move(term));
     }
     e.covariance = &model.covariance();
@@ -147,9 +156,9 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     e.h_previous.assign(t_count, 0.0);
     e.in_previous.assign(t_count, 0.0);
     e.value.assign(t_count, 0.0);
+    e.mover.assign(t_count, kStill);
     e.slope.assign(t_count, Vector::Zero());
     e.dg_dc.resize(static_cast<Index>(t_count));
-    e.covariance_dg_dc.resize(static_cast<Index>(t_count));
   }
 
   JointCompensation out;
@@ -168,7 +177,7 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
   std::vector<Vector> starts(1 + fallback_starts_.size());
   for (std::size_t s = 0; s < fallback_starts_.size(); ++s) starts[s + 1] = fallback_starts_[s];
   Vector residuals;
-  Matrix jacobian;
+  Matrix jacobian, inverse;
 
   for (Index k = first_row_; k < n; ++k) {
     const Index r = k - first_row_;
@@ -178,14 +187,20 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     for (Equation& e : eqs) {
       for (std::size_t t = 0; t < e.terms.size(); ++t) {
         double product = 1.0;
+        int moving = 0, mover = kStill;
         for (const Factor& f : e.terms[t].factors) {
-          if (moves(f)) continue;
+          if (moves(f)) {
+            ++moving;
+            mover = f.factor.function == ident::FactorFunction::Plain && f.factor.power == 1 ? f.solved : kNonlinear;
+            continue;
+          }
           const Index at = k - f.factor.lag;
           const double v = f.solved >= 0 ? e.rows[static_cast<std::size_t>(f.solved)].dot(history.row(at - first_row_).transpose())
                                          : (*e.column[static_cast<std::size_t>(f.factor.variable)])(at);
           product *= factor_value(f.factor, v);
         }
         e.known[t] = product;
+        e.mover[t] = moving > 1 ? kNonlinear : mover;
       }
     }
     // Each term's value and gradient at x. A filtered square's value is its high pass's output,
@@ -202,14 +217,19 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
           const Term& term = e.terms[t];
           double v = e.known[t];
           Vector d = Vector::Zero();
-          for (const Factor& f : term.factors) {
-            if (!term.reads_solved) break;
-            if (!moves(f)) continue;
-            const Vector& row = e.rows[static_cast<std::size_t>(f.solved)];
-            const double u = row.dot(at_x);
-            const double fv = factor_value(f.factor, u);
-            d = d * fv + (v * factor_slope(f.factor, u)) * row;
-            v *= fv;
+          if (e.mover[t] >= 0) {
+            const Vector& row = e.rows[static_cast<std::size_t>(e.mover[t])];
+            d = v * row;
+            v *= row.dot(at_x);
+          } else if (e.mover[t] == kNonlinear) {
+            for (const Factor& f : term.factors) {
+              if (!moves(f)) continue;
+              const Vector& row = e.rows[static_cast<std::size_t>(f.solved)];
+              const double u = row.dot(at_x);
+              const double fv = factor_value(f.factor, u);
+              d = d * fv + (v * factor_slope(f.factor, u)) * row;
+              v *= fv;
+            }
           }
           if (term.square_filtered) {
             if (k == first_row_) {
@@ -235,17 +255,26 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
         jacobian.row(static_cast<Index>(m)) = e.gradient.transpose();
       }
     };
-    // Newton's step, or false where the Jacobian is singular or a value not finite.
+    // Newton's step and the Jacobian's inverse, or false where the Jacobian is singular or a
+    // value not finite. Up to 3 unknowns the inverse is the cofactors'; 6 take an LU.
     const auto newton_step = [&](Vector& step) {
       if (!(residuals.allFinite() && jacobian.allFinite())) return false;
       if constexpr (D == 1) {
         if (jacobian(0, 0) == 0.0) return false;
+        inverse(0, 0) = 1.0 / jacobian(0, 0);
         step(0) = residuals(0) / jacobian(0, 0);
+      } else if constexpr (D <= 4) {
+        double determinant = 0.0;
+        bool invertible = false;
+        jacobian.computeInverseAndDetWithCheck(inverse, determinant, invertible, 0.0);
+        if (!invertible || !std::isfinite(determinant)) return false;
+        step.noalias() = inverse * residuals;
       } else {
         const Eigen::PartialPivLU<Matrix> lu(jacobian);
         const double determinant = lu.determinant();
         if (determinant == 0.0 || !std::isfinite(determinant)) return false;
-        step = lu.solve(residuals);
+        inverse = lu.inverse();
+        step.noalias() = inverse * residuals;
       }
       return step.allFinite();
     };
@@ -263,7 +292,8 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
         evaluate(x);
         if (!newton_step(step)) break;
         x -= step;
-        if (step.cwiseAbs().maxCoeff() <= InverseModel::kStepTolerance * (x.cwiseAbs().maxCoeff() + tolerance_scale_)) {
+        // Linear in the unknowns, the first step lands on the root.
+        if (linear_ || step.cwiseAbs().maxCoeff() <= InverseModel::kStepTolerance * (x.cwiseAbs().maxCoeff() + tolerance_scale_)) {
           converged = true;
           break;
         }
@@ -273,7 +303,7 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     out.most_iterations = std::max(out.most_iterations, iterations);
     // The terms' values at the root (the squares' filter state and the uncertainty read them).
     evaluate(x);
-    const bool regular = newton_step(step);
+    const bool regular = linear_ || newton_step(step);   // a linear system's Jacobian and inverse do not move
     if (!converged || !x.allFinite() || !regular) {
       out.value.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
       out.u_coefficients.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
@@ -286,7 +316,6 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     out.value.row(r) = x.transpose();
     history.row(r) = x.transpose();
     last_good = x;
-    const Matrix inverse = jacobian.inverse();
     Vector variance_c = Vector::Zero(), variance_n = Vector::Zero();
     bool inside = true;
     for (std::size_t m = 0; m < eqs.size(); ++m) {
@@ -294,9 +323,18 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
       const double yk = (*e.y)(k);
       for (std::size_t t = 0; t < e.terms.size(); ++t)
         e.dg_dc(static_cast<Index>(t)) = e.terms[t].denominator ? -yk * e.value[t] : e.value[t];
-      e.covariance_dg_dc.noalias() = *e.covariance * e.dg_dc;
+      // a' C a, C symmetric: the diagonal, then twice the lower triangle.
+      const Index terms = e.dg_dc.size();
+      const double* a = e.dg_dc.data();
+      double quadratic = 0.0;
+      for (Index i = 0; i < terms; ++i) {
+        const double* column = e.covariance->data() + i * terms;
+        double below = 0.0;
+        for (Index j = i + 1; j < terms; ++j) below += column[j] * a[j];
+        quadratic += a[i] * (column[i] * a[i] + 2.0 * below);
+      }
       const Vector column_squared = inverse.col(static_cast<Index>(m)).array().square().matrix();
-      variance_c += std::max(0.0, e.dg_dc.dot(e.covariance_dg_dc)) * column_squared;
+      variance_c += std::max(0.0, quadratic) * column_squared;
       variance_n += std::pow(e.noise_sd * e.denominator, 2) * column_squared;
       for (std::size_t t = 0; t < e.terms.size(); ++t) {
         if (!e.terms[t].square_filtered) continue;

@@ -13,7 +13,9 @@
 //
 // The dynamics, the squares' high pass and the range checks are InverseModel's (inverse_model.hpp),
 // with each solved input read through its row: lagged solved inputs are the estimates already
-// made, and before the first estimate the current x.
+// made, and before the first estimate the current x. Where every term is linear in the unknowns
+// (each has at most one solved factor, plain and of power 1), g(x) = A x + c and Newton's first
+// step is the root: the solve stops there.
 //
 // Uncertainty at the root, J the D x D Jacobian dg/dx, equations independent:
 //   from the coefficients   cov_c = sum_m (a_m' C_m a_m) J^-1 e_m e_m' J^-T,  a_m = dg_m/dc_m;
@@ -71,6 +73,7 @@ class JointInverse {
   std::vector<Eigen::VectorXd> fallback_starts_;
   Eigen::Index unknowns_ = 0;
   Eigen::Index first_row_ = 0;
+  bool linear_ = true;   // every term is linear in the unknowns: Newton's first step is the root
   double tolerance_scale_ = 1.0;   // Newton stops when every step is at most kStepTolerance (|x| + this)
 };
 
