@@ -267,7 +267,8 @@ INSTANTIATE_TEST_SUITE_P(Bench, OnlineReplay,
                                            EveryBenchCase{"sim-thermal.toml", {"acc1"}},
                                            EveryBenchCase{"sim-tumble.toml", {"mems1"}},
                                            EveryBenchCase{"sim-gyro-thermal.toml", {"fog1"}},
-                                           EveryBenchCase{"sim-imu-tumble.toml", {"ax", "ay", "az"}}),
+                                           EveryBenchCase{"sim-imu-tumble.toml", {"ax", "ay", "az"}},
+                                           EveryBenchCase{"sim-imu.toml", {"ax", "gx", "gz"}}),
                          [](const ::testing::TestParamInfo<EveryBenchCase>& info) { return bench_test_name(info.param.bench); });
 
 TEST(OnlineLive, ShakerOnlyBenchMatchesTheSimulatorsTruth) {

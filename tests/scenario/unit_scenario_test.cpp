@@ -23,6 +23,7 @@
 #include "analyzer/commands/unit.hpp"
 #include "analyzer/compensate/static_response.hpp"
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/unit/kalibr_intrinsics.hpp"
 #include "analyzer/unit/triad_frame.hpp"
 #include "analyzer/unit/unit_inverse.hpp"
 #include "analyzer/unit/unit_model.hpp"
@@ -91,13 +92,24 @@ TEST(UnitScenario, TumbledTriadMatchesTheSimulatorsTruth) {
 }
 
 
-/// Simulates `bench` with `seed` into DIR/data, characterizes the three members and runs `unit`:
-/// the unit model DIR/unit/unit.toml.
+/// The members of the bench's first [[unit]]: its accelerometers, then its gyroscopes.
+std::vector<std::string> unit_members(const config::BenchConfig& bench) {
+  std::vector<std::string> names;
+  for (const auto* triad : {&bench.units.front().accelerometers, &bench.units.front().gyroscopes}) {
+    for (const std::string& name : *triad) {
+      if (!name.empty()) names.push_back(name);
+    }
+  }
+  return names;
+}
+
+/// Simulates `bench` with `seed` into DIR/data, characterizes the members of its unit and runs
+/// `unit`: the unit model DIR/unit/unit.toml.
 fs::path characterized_unit(config::BenchConfig bench, std::uint64_t seed, const fs::path& dir) {
   config::reseed(bench, seed);
   sim::write_simulation(bench, sim::simulate_bench(bench), dir / "data");
   std::vector<fs::path> models;
-  for (const char* name : {"ax", "ay", "az"}) {
+  for (const std::string& name : unit_members(bench)) {
     commands::CharacterizeOptions c;
     c.dataset = dir / "data" / name;
     c.out = dir / "char" / name;
@@ -113,89 +125,102 @@ fs::path characterized_unit(config::BenchConfig bench, std::uint64_t seed, const
 
 /// Errors of a unit's compensation on held-out data against the input the housing truly sensed.
 struct CompensationFigures {
-  double rms = 0.0, true_rms = 0.0, raw_rms = 0.0;   // per sample, of the error vector, m/s^2
+  std::string unit;                                   // m/s^2 or rad/s
+  double rms = 0.0, true_rms = 0.0, raw_rms = 0.0;   // per sample, of the error vector
   double mean_rms = 0.0, raw_mean_rms = 0.0;          // of each case's mean error vector
   double within = 0.0;                                // fraction of components within 1.96 u
   [[nodiscard]] std::string text() const {
-    return fmt::format("rms error {:.4g} m/s^2 (true model {:.4g}, ratio {:.3f}), raw {:.4g} ({:.1f}x); per-case means {:.3g} "
+    return fmt::format("rms error {:.4g} {} (true model {:.4g}, ratio {:.3f}), raw {:.4g} ({:.1f}x); per-case means {:.3g} "
                        "against raw {:.3g} ({:.0f}x); within 1.96 u: {:.1f} %",
-                       rms, true_rms, rms / true_rms, raw_rms, raw_rms / rms, mean_rms, raw_mean_rms, raw_mean_rms / mean_rms,
+                       rms, unit, true_rms, rms / true_rms, raw_rms, raw_rms / rms, mean_rms, raw_mean_rms, raw_mean_rms / mean_rms,
                        100.0 * within);
   }
 };
 
 /// Characterized on one run of `bench` (seed `train`), compensated on another (seed `held_out`:
 /// other noise, other placement errors), against the input the housing truly sensed (the unit
-/// truth's m_eu_true a_E). The true models, compensated the same way, give the floor. The raw
-/// reading is each output at its nominal 1 g per g.
-CompensationFigures held_out_compensation(const config::BenchConfig& bench, std::uint64_t train, std::uint64_t held_out) {
+/// truth's m_eu_true a_E, and m_eu_true w_E). The true models, compensated the same way, give the
+/// floor. The raw reading is each output at its nominal sensitivity, 1 output unit per unit of
+/// input (g per g, rad/s per rad/s). One figure per quantity: specific force, then rate.
+std::vector<CompensationFigures> held_out_compensation(const config::BenchConfig& bench, std::uint64_t train, std::uint64_t held_out) {
   const testing::TempDir dir("inertia-unit-compensate");
   const unit::UnitModel estimated = unit::read_unit_model(characterized_unit(bench, train, dir.path / "train"));
-  {
-    config::BenchConfig held_bench = bench;
-    config::reseed(held_bench, held_out);
-    const fs::path held = dir.path / "held";
-    sim::write_simulation(held_bench, sim::simulate_bench(held_bench), held);
-    // The true unit: each member's true model, its M_C^S with its fit in the housing.
-    unit::UnitModel truth;
-    truth.unit = "imu1";
-    for (const model::ModelFile& m : estimated.members) {
-      model::ModelFile t = model::read_model(held / m.name / "truth.toml");
-      const auto sensor = std::find_if(bench.sensors.begin(), bench.sensors.end(), [&](const config::SensorUnderTest& s) { return s.name == m.name; });
-      t.m_cs = t.m_cs * sensor->case_misalignment.dcm();
-      t.unit = "imu1";
-      t.unit_axis = sensor->unit_axis;
-      truth.members.push_back(std::move(t));
-    }
-    const unit::UnitInverse estimated_inverse(estimated), true_inverse(truth);
-    std::vector<dataset::Dataset> data;
-    for (const model::ModelFile& m : estimated.members) data.push_back(dataset::read_dataset(held / m.name));
-    const toml::table unit_truth = toml::parse_file((held / "unit-imu1-truth.toml").string());
-    double error = 0.0, true_error = 0.0, raw_error = 0.0, mean_error = 0.0, raw_mean_error = 0.0;
-    Eigen::Index samples = 0, within = 0, components = 0;
-    for (std::size_t c = 0; c < data.front().cases.size(); ++c) {
-      const dataset::CaseData& held_case = data.front().cases[c];
-      Eigen::Matrix3d m_eu = Eigen::Matrix3d::Zero();
-      for (const toml::node& node : *unit_truth["case"].as_array()) {
-        const toml::table& t = *node.as_table();
-        if (t["name"].value_or(std::string()) != held_case.name) continue;
-        for (int r = 0; r < 3; ++r)
-          for (int k = 0; k < 3; ++k) m_eu(r, k) = *t["m_eu_true"][static_cast<std::size_t>(r)][static_cast<std::size_t>(k)].value<double>();
-      }
-      EXPECT_NEAR(m_eu.determinant(), 1.0, 1e-9) << held_case.name;
-      const auto solve = [&](const unit::UnitModel& unit, const unit::UnitInverse& inverse) {
-        std::vector<commands::CompensationRecord> records;
-        std::vector<const ident::SignalSet*> signals;
-        for (std::size_t m = 0; m < unit.members.size(); ++m)
-          records.push_back(commands::compensation_record(unit.members[m], inverse.members()[m], data[m], c, false, false));
-        for (const commands::CompensationRecord& r : records) signals.push_back(&r.signals);
-        return inverse.joint().compensate(signals, held_case.sample_period_s);
-      };
-      const compensate::JointCompensation x = solve(estimated, estimated_inverse), x_true = solve(truth, true_inverse);
-      EXPECT_EQ(x.not_converged, 0);
-      const Eigen::Index rows = x.value.rows();
-      const Eigen::MatrixXd sensed = held_case.a_e.bottomRows(rows) * m_eu.transpose();
-      Eigen::MatrixXd raw(rows, 3);
-      for (int j = 0; j < 3; ++j) raw.col(j) = kStandardGravity * data[static_cast<std::size_t>(j)].cases[c].y.tail(rows);
-      error += (x.value - sensed).squaredNorm();
-      true_error += (x_true.value - sensed).squaredNorm();
-      raw_error += (raw - sensed).squaredNorm();
-      mean_error += (x.value - sensed).colwise().mean().squaredNorm();
-      raw_mean_error += (raw - sensed).colwise().mean().squaredNorm();
-      const Eigen::MatrixXd u = (x.u_coefficients.array().square() + x.u_noise.array().square()).sqrt().matrix();
-      within += ((x.value - sensed).array().abs() <= 1.96 * u.array()).count();
-      components += 3 * rows;
-      samples += rows;
-    }
-    const auto rms = [&](double sum) { return std::sqrt(sum / static_cast<double>(samples)); };
-    const double cases = static_cast<double>(data.front().cases.size());
-    return {rms(error),
-            rms(true_error),
-            rms(raw_error),
-            std::sqrt(mean_error / cases),
-            std::sqrt(raw_mean_error / cases),
-            static_cast<double>(within) / static_cast<double>(components)};
+  config::BenchConfig held_bench = bench;
+  config::reseed(held_bench, held_out);
+  const fs::path held = dir.path / "held";
+  sim::write_simulation(held_bench, sim::simulate_bench(held_bench), held);
+  const std::string unit_name = bench.units.front().name;
+  // The true unit: each member's true model, its M_C^S with its fit in the housing.
+  unit::UnitModel truth;
+  truth.unit = unit_name;
+  for (const model::ModelFile& m : estimated.members) {
+    model::ModelFile t = model::read_model(held / m.name / "truth.toml");
+    const auto sensor = std::find_if(bench.sensors.begin(), bench.sensors.end(), [&](const config::SensorUnderTest& s) { return s.name == m.name; });
+    t.m_cs = t.m_cs * sensor->case_misalignment.dcm();
+    t.unit = unit_name;
+    t.unit_axis = sensor->unit_axis;
+    truth.members.push_back(std::move(t));
   }
+  const unit::UnitInverse estimated_inverse(estimated), true_inverse(truth);
+  const std::size_t quantities = estimated.members.size() / 3;
+  std::vector<dataset::Dataset> data;
+  for (const model::ModelFile& m : estimated.members) data.push_back(dataset::read_dataset(held / m.name));
+  const toml::table unit_truth = toml::parse_file((held / ("unit-" + unit_name + "-truth.toml")).string());
+  struct Sums {
+    double error = 0.0, true_error = 0.0, raw_error = 0.0, mean_error = 0.0, raw_mean_error = 0.0;
+    Eigen::Index samples = 0, within = 0;
+  };
+  std::vector<Sums> sums(quantities);
+  for (std::size_t c = 0; c < data.front().cases.size(); ++c) {
+    const dataset::CaseData& held_case = data.front().cases[c];
+    Eigen::Matrix3d m_eu = Eigen::Matrix3d::Zero();
+    for (const toml::node& node : *unit_truth["case"].as_array()) {
+      const toml::table& t = *node.as_table();
+      if (t["name"].value_or(std::string()) != held_case.name) continue;
+      for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 3; ++k) m_eu(r, k) = *t["m_eu_true"][static_cast<std::size_t>(r)][static_cast<std::size_t>(k)].value<double>();
+    }
+    EXPECT_NEAR(m_eu.determinant(), 1.0, 1e-9) << held_case.name;
+    const auto solve = [&](const unit::UnitModel& unit, const unit::UnitInverse& inverse) {
+      std::vector<commands::CompensationRecord> records;
+      std::vector<const ident::SignalSet*> signals;
+      for (std::size_t m = 0; m < unit.members.size(); ++m)
+        records.push_back(commands::compensation_record(unit.members[m], inverse.members()[m], data[m], c, false, false));
+      for (const commands::CompensationRecord& r : records) signals.push_back(&r.signals);
+      return inverse.joint().compensate(signals, held_case.sample_period_s);
+    };
+    const compensate::JointCompensation x = solve(estimated, estimated_inverse), x_true = solve(truth, true_inverse);
+    EXPECT_EQ(x.not_converged, 0);
+    const Eigen::Index rows = x.value.rows();
+    for (std::size_t q = 0; q < quantities; ++q) {
+      const Eigen::Index first = static_cast<Eigen::Index>(3 * q);
+      const Eigen::MatrixXd sensed = (q == 0 ? held_case.a_e : held_case.w_e.value()).bottomRows(rows) * m_eu.transpose();
+      Eigen::MatrixXd raw(rows, 3);
+      for (std::size_t j = 0; j < 3; ++j) {
+        const dataset::Dataset& member = data[3 * q + j];
+        raw.col(static_cast<Eigen::Index>(j)) = *unit::si_factor(member.sensor, member.output_unit) * member.cases[c].y.tail(rows);
+      }
+      const Eigen::MatrixXd value = x.value.middleCols(first, 3), true_value = x_true.value.middleCols(first, 3);
+      const Eigen::MatrixXd u = (x.u_coefficients.middleCols(first, 3).array().square() + x.u_noise.middleCols(first, 3).array().square()).sqrt().matrix();
+      Sums& s = sums[q];
+      s.error += (value - sensed).squaredNorm();
+      s.true_error += (true_value - sensed).squaredNorm();
+      s.raw_error += (raw - sensed).squaredNorm();
+      s.mean_error += (value - sensed).colwise().mean().squaredNorm();
+      s.raw_mean_error += (raw - sensed).colwise().mean().squaredNorm();
+      s.within += ((value - sensed).array().abs() <= 1.96 * u.array()).count();
+      s.samples += rows;
+    }
+  }
+  std::vector<CompensationFigures> figures;
+  const double cases = static_cast<double>(data.front().cases.size());
+  for (std::size_t q = 0; q < quantities; ++q) {
+    const Sums& s = sums[q];
+    const auto rms = [&](double sum) { return std::sqrt(sum / static_cast<double>(s.samples)); };
+    figures.push_back({q == 0 ? "m/s^2" : "rad/s", rms(s.error), rms(s.true_error), rms(s.raw_error), std::sqrt(s.mean_error / cases),
+                       std::sqrt(s.raw_mean_error / cases), static_cast<double>(s.within) / static_cast<double>(3 * s.samples)});
+  }
+  return figures;
 }
 
 TEST(UnitScenario, HeldOutTumbleCompensatedWithinTheTrueModelsError) {
@@ -207,17 +232,36 @@ TEST(UnitScenario, HeldOutTumbleCompensatedWithinTheTrueModelsError) {
   for (int run = 0; run < runs; ++run) {
     config::BenchConfig precise = bench;
     for (config::TestCase& c : precise.cases) c.placement_error_rad = deg_to_rad(0.01);
-    const CompensationFigures f = held_out_compensation(precise, 800 + static_cast<std::uint64_t>(run), 900 + static_cast<std::uint64_t>(run));
+    const CompensationFigures f = held_out_compensation(precise, 800 + static_cast<std::uint64_t>(run), 900 + static_cast<std::uint64_t>(run)).front();
     std::cout << fmt::format("[ figures ] precise tumble, seeds {}/{}: {}\n", 800 + run, 900 + run, f.text());
     EXPECT_LT(f.rms, 1.5 * f.true_rms);
     EXPECT_GT(f.raw_mean_rms, 20.0 * f.mean_rms);
   }
   // The shipped bench's poses scatter by 0.17 deg: six poses determine each axis to about 2 mrad,
   // an error the compensation then carries (docs/unit.md). Figures only.
-  const CompensationFigures f = held_out_compensation(bench, 800, 900);
+  const CompensationFigures f = held_out_compensation(bench, 800, 900).front();
   std::cout << fmt::format("[ figures ] sim-imu-tumble as shipped, seeds 800/900: {}\n", f.text());
 }
 
+
+TEST(UnitScenario, HeldOutImuSpecificForceAndRateSolvedTogetherWithinTheTrueModelsError) {
+  // config/sim-imu.toml: three accelerometers and three gyroscopes of MEMS grade (biases of 20 to
+  // 35 mg and 3 to 6 mrad/s, scale errors near 1 %, gyroscopes sensitive to specific force), on a
+  // tumble and a rate table. The six outputs are solved together (D = 6): the gyroscopes'
+  // g-sensitivity reads the solved specific force.
+  const int runs = seeds_from_environment(2);
+  const config::BenchConfig bench = config::load_bench_config(fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-imu.toml");
+  for (int run = 0; run < runs; ++run) {
+    const std::vector<CompensationFigures> f =
+        held_out_compensation(bench, 820 + static_cast<std::uint64_t>(run), 920 + static_cast<std::uint64_t>(run));
+    ASSERT_EQ(f.size(), 2U);
+    for (const CompensationFigures& q : f) {
+      std::cout << fmt::format("[ figures ] sim-imu, seeds {}/{}: {}\n", 820 + run, 920 + run, q.text());
+      EXPECT_LT(q.rms, 1.5 * q.true_rms) << q.unit;
+      EXPECT_GT(q.raw_rms, 20.0 * q.rms) << q.unit;
+    }
+  }
+}
 
 TEST(UnitScenario, CompensateReadsTheUnitsFolderAndRefusesRecordsOfOthers) {
   const testing::TempDir dir("inertia-unit-command");
