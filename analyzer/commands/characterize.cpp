@@ -124,7 +124,7 @@ model::ModelFile characterized_model(const procedure::PipelineResult& result, co
   for (std::size_t c = 0; c < data.cases.size(); ++c) model.case_frames.push_back({data.cases[c].name, result.cases[c].m_es});
   if (!result.mountings.empty() && result.mountings.front().aligned) {
     const procedure::MountingResult& m = result.mountings.front();
-    model.misalignment = model::ModelFile::Misalignment{m.angles(1), m.angles(2), m.angles_sd(1), m.angles_sd(2)};
+    model.misalignment = model::ModelFile::Misalignment{m.angles(1), m.angles(2), m.angles_sd(1), m.angles_sd(2), m.angles_dof};
   }
   for (const procedure::UndeterminedTerm& u : result.undetermined) model.undetermined.emplace_back(u.term, u.reason);
   double duration = 0.0;

@@ -40,8 +40,12 @@ std::string triad_toml(const unit::TriadFrame& f) {
   s += fmt::format("b = {}\nb_sd = {}\n", row_text(f.bias), row_text(f.bias_sd));
   if (gyro) s += fmt::format("K_ga = {}   # output unit per m/s^2: the offset is K_ga a + b\n", matrix_text(f.g_sensitivity));
   s += fmt::format("\n[{}.non_orthogonality]   # asin(n_j . n_k), rad: how much closer than 90 deg\n", table);
-  for (std::size_t p = 0; p < 3; ++p)
+  for (std::size_t p = 0; p < 3; ++p) {
     s += fmt::format("{0} = {1}\n{0}_sd = {2}\n", unit::kAxisPairs[p], toml_float(f.non_orthogonality[p]), toml_float(f.non_orthogonality_sd[p]));
+    if (std::isfinite(f.non_orthogonality_dof[p])) s += fmt::format("{}_dof = {}\n", unit::kAxisPairs[p], toml_float(f.non_orthogonality_dof[p]));
+    s += fmt::format("{}_interval95 = [{}, {}]\n", unit::kAxisPairs[p], toml_float(f.non_orthogonality[p] - f.non_orthogonality_half_width[p]),
+                     toml_float(f.non_orthogonality[p] + f.non_orthogonality_half_width[p]));
+  }
   for (std::size_t k = 0; k < 3; ++k) {
     const unit::TriadAxis& a = f.axes[k];
     s += fmt::format("\n[{}.axis.{}]\nsensor = {}\nmodel = {}\nsensitivity = {}\ncovariance = {}\nangles_estimated = {}\n", table,
@@ -142,10 +146,14 @@ void print_triad(const unit::TriadFrame& f, std::ostream& summary) {
     fmt::print(summary, "  {:<4} {:>14.8g} {:>10.2g}  [{:+.7f} {:+.7f} {:+.7f}]   {:>14.6g} {:>10.2g}\n", static_cast<char>('x' + k),
                f.scale(k), f.scale_sd(k), n(0), n(1), n(2), f.bias(k), f.bias_sd(k));
   }
-  fmt::print(summary, "  non-orthogonality (asin of n_j . n_k: how much closer than 90 deg), mrad:");
-  for (std::size_t p = 0; p < 3; ++p)
-    fmt::print(summary, " {} {:+.4f} +- {:.4f}", unit::kAxisPairs[p], 1e3 * f.non_orthogonality[p], 1e3 * f.non_orthogonality_sd[p]);
-  fmt::print(summary, " (sd)\n");
+  fmt::print(summary, "  non-orthogonality (asin of n_j . n_k: how much closer than 90 deg), mrad, with its sd and 95 % interval:\n");
+  for (std::size_t p = 0; p < 3; ++p) {
+    const double dof = f.non_orthogonality_dof[p];
+    fmt::print(summary, "    {} {:+.4f} +- {:.4f} ({}): [{:+.4f}, {:+.4f}]\n", unit::kAxisPairs[p], 1e3 * f.non_orthogonality[p],
+               1e3 * f.non_orthogonality_sd[p], std::isfinite(dof) ? fmt::format("Student's t on {:.1f} dof", dof) : std::string("normal"),
+               1e3 * (f.non_orthogonality[p] - f.non_orthogonality_half_width[p]),
+               1e3 * (f.non_orthogonality[p] + f.non_orthogonality_half_width[p]));
+  }
   for (const unit::TriadAxis& a : f.axes) {
     if (!a.angles_estimated)
       fmt::print(summary, "  note: {}'s input-axis angles were held, not estimated (its model has no [misalignment] sd): its axis "

@@ -48,6 +48,12 @@ double student_t_two_sided_p(double t, double dof) {
   return 2.0 * boost::math::cdf(boost::math::complement(dist, std::abs(t)));
 }
 
+double student_t_interval_factor(double level, double dof) {
+  const double upper = 0.5 * (1.0 + level);
+  if (!std::isfinite(dof)) return boost::math::quantile(boost::math::normal_distribution<double>(), upper);
+  return boost::math::quantile(boost::math::students_t(dof), upper);
+}
+
 ParameterTTest parameter_t_test(const Eigen::Ref<const Eigen::VectorXd>& theta,
                                 const Eigen::Ref<const Eigen::VectorXd>& std_dev,
                                 Eigen::Index samples) {

@@ -17,6 +17,10 @@ namespace inertia::ident {
 /// (boost::math::students_t; dof may be fractional, e.g. an effective sample size).
 double student_t_two_sided_p(double t, double dof);
 
+/// The multiplier of an sd for a two-sided interval of `level` (0.95: t_{0.975}) with Student's t
+/// on `dof` degrees of freedom; the normal's for infinite dof.
+double student_t_interval_factor(double level, double dof);
+
 struct ParameterTTest {
   Eigen::VectorXd t;        ///< theta_j / sd_j (equation 11)
   Eigen::VectorXd p_value;  ///< two-sided, Student's t with dof degrees of freedom

@@ -312,6 +312,10 @@ ModelFile parse_model(std::string_view text, const std::string& source_name) {
     a.sd_p = number("sd_p");
     a.sd_o = number("sd_o");
     if (a.sd_p < 0.0 || a.sd_o < 0.0) throw InputError(position_of(m->source(), file), "[misalignment]: a negative sd");
+    if (m->get("dof") != nullptr) {
+      a.dof = number("dof");
+      if (!(a.dof > 0.0)) throw InputError(position_of(m->source(), file), "[misalignment]: dof must be > 0");
+    }
     model.misalignment = a;
   }
   if (const toml::table* u = optional_table(root, "undetermined", file)) {
@@ -452,6 +456,7 @@ std::string format_model(const ModelFile& model) {
     const ModelFile::Misalignment& a = *model.misalignment;
     s += "\n[misalignment]\nabout_p = " + toml_float(a.about_p, "about_p") + "\nabout_o = " + toml_float(a.about_o, "about_o") +
          "\nsd_p = " + toml_float(a.sd_p, "sd_p") + "\nsd_o = " + toml_float(a.sd_o, "sd_o") + "\n";
+    if (std::isfinite(a.dof)) s += "dof = " + toml_float(a.dof, "dof") + "\n";
   }
   if (!model.undetermined.empty()) {
     s += "\n[undetermined]\n";

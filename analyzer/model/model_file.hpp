@@ -64,6 +64,7 @@
 #include <Eigen/Dense>
 #include <filesystem>
 #include <map>
+#include <limits>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -126,6 +127,9 @@ struct ModelFile {
   /// [misalignment]: angles about p and o of the first mounting, and their sd (rad).
   struct Misalignment {
     double about_p = 0.0, about_o = 0.0, sd_p = 0.0, sd_o = 0.0;
+    /// dof: the degrees of freedom of sd_p and sd_o (the tilts' between the mounting's phases on a
+    /// tumble); infinite (absent in the file) when many.
+    double dof = std::numeric_limits<double>::infinity();
   };
   std::optional<Misalignment> misalignment;
   /// [undetermined], term text -> reason, in file order.

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "analyzer/compensate/static_response.hpp"
+#include "analyzer/ident/statistics.hpp"
 #include "analyzer/model/coefficient_uncertainty.hpp"
 #include "common/config/bench_config.hpp"
 #include "common/input_error.hpp"
@@ -47,7 +48,9 @@ TriadAxis triad_axis(const model::ModelFile& m) {
     // -M' [g]x d. Only p and o: a turn about i does not move the input axis.
     const Eigen::Matrix3d jacobian = -to_unit * m_cs.transpose() * cross_matrix(sensor_gradient(theta));
     const Eigen::Vector3d variance(0.0, std::pow(m.misalignment->sd_p, 2), std::pow(m.misalignment->sd_o, 2));
-    a.covariance += jacobian * variance.asDiagonal() * jacobian.transpose();
+    a.angles_covariance = jacobian * variance.asDiagonal() * jacobian.transpose();
+    a.covariance += a.angles_covariance;
+    a.angles_dof = m.misalignment->dof;
     a.angles_estimated = m.misalignment->sd_p > 0.0 && m.misalignment->sd_o > 0.0;
   }
   const auto bias = [&](const Eigen::VectorXd& t) -> Eigen::VectorXd {
@@ -105,8 +108,16 @@ TriadFrame triad_frame(const std::vector<model::ModelFile>& members) {
     const Eigen::Vector3d ga = b.sensitivity / (na * nb) - c * a.sensitivity / (na * na);
     const Eigen::Vector3d gb = a.sensitivity / (na * nb) - c * b.sensitivity / (nb * nb);
     const double variance = ga.dot(a.covariance * ga) + gb.dot(b.covariance * gb);
-    f.non_orthogonality[static_cast<std::size_t>(pair)] = std::asin(c);
-    f.non_orthogonality_sd[static_cast<std::size_t>(pair)] = std::sqrt(std::max(0.0, variance) / (1.0 - c * c));
+    const auto p = static_cast<std::size_t>(pair);
+    f.non_orthogonality[p] = std::asin(c);
+    f.non_orthogonality_sd[p] = std::sqrt(std::max(0.0, variance) / (1.0 - c * c));
+    // Welch-Satterthwaite: V^2 / sum v_i^2 / dof_i over the parts with finite dof.
+    const double va = ga.dot(a.angles_covariance * ga), vb = gb.dot(b.angles_covariance * gb);
+    double denominator = 0.0;
+    if (std::isfinite(a.angles_dof)) denominator += va * va / a.angles_dof;
+    if (std::isfinite(b.angles_dof)) denominator += vb * vb / b.angles_dof;
+    f.non_orthogonality_dof[p] = denominator > 0.0 ? variance * variance / denominator : std::numeric_limits<double>::infinity();
+    f.non_orthogonality_half_width[p] = ident::student_t_interval_factor(0.95, f.non_orthogonality_dof[p]) * f.non_orthogonality_sd[p];
   }
   return f;
 }

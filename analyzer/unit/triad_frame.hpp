@@ -12,7 +12,10 @@
 //   S = [s_x; s_y; s_z] = K R   (imucal's K, R: K the diagonal scale |s_k|, R's rows the unit
 //                                sensitive axes n_k = s_k / |s_k|), b the biases (settled output
 //                                at zero input), so that input = R^-1 K^-1 (y - b);
-//   non-orthogonality of axes j, k: asin(n_j . n_k), the angle by which they are closer than 90 deg.
+//   non-orthogonality of axes j, k: asin(n_j . n_k), the angle by which they are closer than 90 deg,
+//   with its 95 % interval on Student's t: each member's angle sd rests on the scatter of its
+//   mounting's phases (six poses of a tumble give a few degrees of freedom), so the normal's 1.96
+//   would claim more than the data hold.
 // For gyroscopes, the g-sensitivity: each member's settled response to the specific force in unit
 // coordinates (its a_i, a_p, a_o terms turned alike), imucal's K_ga, so that the gyroscope's offset
 // is K_ga a + b_g with a the calibrated specific force.
@@ -23,6 +26,7 @@
 #include <Eigen/Dense>
 
 #include <array>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -34,6 +38,8 @@ struct TriadAxis {
   std::string sensor;                 // the member's name
   Eigen::Vector3d sensitivity;        // s_k, output unit per input unit (m/s^2 or rad/s), unit coordinates
   Eigen::Matrix3d covariance;         // of s_k
+  Eigen::Matrix3d angles_covariance = Eigen::Matrix3d::Zero();   // its part from the input-axis angles
+  double angles_dof = std::numeric_limits<double>::infinity();   // their sd's degrees of freedom
   double bias = 0.0, bias_sd = 0.0;   // settled output at zero input, output unit
   Eigen::Vector3d g_sensitivity = Eigen::Vector3d::Zero();   // gyroscopes: dy / d(specific force), unit coordinates
   bool angles_estimated = false;      // the model's [misalignment] has both angles with their sd
@@ -49,6 +55,10 @@ struct TriadFrame {
   Eigen::Vector3d bias, bias_sd;                 // b
   Eigen::Matrix3d g_sensitivity = Eigen::Matrix3d::Zero();   // gyroscopes: K_ga, rows x, y, z (output unit per m/s^2)
   std::array<double, 3> non_orthogonality{}, non_orthogonality_sd{};   // xy, yz, zx (rad)
+  /// The degrees of freedom of each non_orthogonality_sd (Welch-Satterthwaite over the members'
+  /// angle parts; the coefficients' part counts as many), and its 95 % interval's half width
+  /// (Student's t on them).
+  std::array<double, 3> non_orthogonality_dof{}, non_orthogonality_half_width{};
 };
 
 /// The triad of `members`: three models of one unit and kind, one along each axis. Throws

@@ -123,7 +123,28 @@ TEST(TriadFrame, AxesScaleBiasAndNonOrthogonalityOfKnownMembers) {
     const Eigen::Vector3d b = f.misalignment.row(static_cast<Eigen::Index>((p + 1) % 3)).transpose();
     EXPECT_NEAR(f.non_orthogonality[p], std::asin(a.dot(b)), 1e-15);
     EXPECT_NEAR(f.non_orthogonality_sd[p], std::sqrt(2.0) * 1e-4, 2e-6) << kAxisPairs[p];
+    // No dof stated: many, and the normal's 1.96.
+    EXPECT_TRUE(std::isinf(f.non_orthogonality_dof[p]));
+    EXPECT_NEAR(f.non_orthogonality_half_width[p], 1.959964 * f.non_orthogonality_sd[p], 1e-9);
   }
+}
+
+TEST(TriadFrame, TheNonOrthogonalitysIntervalIsStudentsTOnTheMembersAngleDof) {
+  // Two members' angle parts alike (sd 1e-4, 3 dof each), the coefficients' part nil:
+  // Welch-Satterthwaite gives (2 v)^2 / (2 v^2 / 3) = 6 dof, and t_0.975(6) = 2.446912.
+  const double k = 1.0 / 9.80665;
+  std::vector<model::ModelFile> members = {member(0, 1e-3, k, 0.0, 0.0, 1e-4, 0.0), member(1, -2e-3, k, 0.0, 0.0, 1e-4, 0.0),
+                                           member(2, 3e-3, k, 0.0, 0.0, 1e-4, 0.0)};
+  for (model::ModelFile& m : members) m.misalignment->dof = 3.0;
+  const TriadFrame f = triad_frame(members);
+  for (std::size_t p = 0; p < 3; ++p) {
+    EXPECT_NEAR(f.non_orthogonality_dof[p], 6.0, 1e-9) << kAxisPairs[p];
+    EXPECT_NEAR(f.non_orthogonality_half_width[p] / f.non_orthogonality_sd[p], 2.446912, 1e-6) << kAxisPairs[p];
+  }
+  // The dof round-trips through the model file.
+  const model::ModelFile back = model::parse_model(model::format_model(members[0]), "member.toml");
+  ASSERT_TRUE(back.misalignment.has_value());
+  EXPECT_EQ(back.misalignment->dof, 3.0);
 }
 
 /// A gyroscope of the unit along `axis`: y = b + k w_i + g_i a_i + g_p a_p (a g-sensitivity).
