@@ -173,10 +173,10 @@ int run(int argc, char** argv) {
   inertia::commands::ExportOptions export_options;
   std::string precision = "double";
   auto* export_verb = app.add_subcommand("export", "a model in its users' forms: C for firmware, JSON, Kalibr's imu.yaml");
-  export_verb->add_option("--model", export_options.model, "model file (characterize's model.toml), or a unit's unit.toml (its outputs solved together)")->required()->check(CLI::ExistingFile);
-  export_verb->add_option("--format", export_options.format, "c, json or kalibr")
+  export_verb->add_option("--model", export_options.model, "model file (characterize's model.toml), or a unit's unit.toml (imucal, kalibr, json)")->required()->check(CLI::ExistingFile);
+  export_verb->add_option("--format", export_options.format, "c, json or kalibr; imucal for a unit")
       ->required()
-      ->check(CLI::IsMember({"c", "json", "kalibr"}));
+      ->check(CLI::IsMember({"c", "json", "kalibr", "imucal"}));
   export_verb->add_option("--out", export_options.out, "output folder")->required();
   export_verb->add_option("--prefix", export_options.prefix, "c: prefix of the generated names (default: inertia_<sensor>)");
   export_verb->add_option("--precision", precision, "c: the generated code's real type")

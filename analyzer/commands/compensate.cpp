@@ -17,7 +17,7 @@
 #include "analyzer/model/model_file.hpp"
 #include "common/atomic_file.hpp"
 #include "analyzer/compensate/static_response.hpp"
-#include "analyzer/unit/triad_frame.hpp"
+#include "analyzer/unit/unit_files.hpp"
 #include "analyzer/unit/unit_inverse.hpp"
 #include "analyzer/unit/unit_model.hpp"
 #include "common/dataset/dataset.hpp"
@@ -159,15 +159,11 @@ int run_unit_compensate(const CompensateOptions& options, std::ostream& out) {
   // The raw reading a user without the model would take: each output over its sensitivity along
   // its own axis (K R's diagonal), bias and cross-axis left in.
   Eigen::VectorXd raw_scale(count);
-  for (const dataset::SensorKind kind : {dataset::SensorKind::Accelerometer, dataset::SensorKind::Gyroscope}) {
-    std::vector<model::ModelFile> triad;
-    for (const model::ModelFile& m : unit.members) {
-      if (m.sensor == kind) triad.push_back(m);
-    }
-    if (triad.empty()) continue;
-    const unit::TriadFrame f = unit::triad_frame(triad);
-    const Eigen::Index first = kind == dataset::SensorKind::Gyroscope && unit.has(dataset::SensorKind::Accelerometer) ? 3 : 0;
-    for (int j = 0; j < 3; ++j) raw_scale(first + j) = f.sensitivity(j, j);
+  const unit::Triads triads = unit::triads_of(unit.members);
+  for (const auto& triad : {triads.accelerometer, triads.gyroscope}) {
+    if (!triad) continue;
+    const Eigen::Index first = triad->kind == dataset::SensorKind::Gyroscope && triads.accelerometer ? 3 : 0;
+    for (int j = 0; j < 3; ++j) raw_scale(first + j) = triad->sensitivity(j, j);
   }
   // The member along each unknown's axis, for the raw reading.
   std::vector<std::size_t> member_of(static_cast<std::size_t>(count));

@@ -15,6 +15,8 @@
 #include "analyzer/commands/compensate.hpp"
 #include "analyzer/compensate/c_export.hpp"
 #include "analyzer/unit/kalibr_intrinsics.hpp"
+#include "analyzer/unit/unit_files.hpp"
+#include "analyzer/unit/unit_model.hpp"
 #include "analyzer/compensate/inverse_model.hpp"
 #include "analyzer/compensate/static_response.hpp"
 #include "analyzer/model/model_file.hpp"
@@ -136,7 +138,54 @@ nlohmann::json model_json(const model::ModelFile& m) {
 
 }  // namespace
 
+namespace {
+
+/// A unit's exports: imucal's file, Kalibr's results, or the unit as JSON (its triads and each
+/// member's model). Its joint compensation has no C form yet: refused, saying what to do instead.
+int run_unit_export(const ExportOptions& options, std::ostream& out) {
+  const unit::UnitModel unit = unit::read_unit_model(options.model);
+  const unit::Triads triads = unit::triads_of(unit.members);
+  if (options.format == "c") {
+    throw InputError(fmt::format("--format c takes one output's model: a unit's joint compensation is not generated as C. Export each "
+                                 "member ({}), whose C reads the other axes as inputs",
+                                 (options.model.parent_path() / unit::member_file_name(unit.members.front().name)).string()));
+  }
+  std::filesystem::create_directories(options.out);
+  if (options.format == "imucal") {
+    write_file_atomically(options.out / "imucal.json", unit::imucal_json(triads).dump(4) + "\n");
+    fmt::print(out, "wrote {}/imucal.json (imucal's FerrarisCalibrationInfo, format 2.0.0)\n", options.out.string());
+    return kExitOk;
+  }
+  if (options.format == "kalibr") {
+    write_file_atomically(options.out / "imu.yaml", unit::kalibr_yaml(triads));
+    fmt::print(out, "wrote {}/imu.yaml (Kalibr's scale-misalignment model and noise)\n", options.out.string());
+    return kExitOk;
+  }
+  if (options.format == "json") {
+    nlohmann::json j;
+    j["schema"] = "inertia-unit-1";
+    j["unit"] = unit.unit;
+    if (!unit.serial.empty()) j["serial"] = unit.serial;
+    j["members"] = nlohmann::json::array();
+    for (const model::ModelFile& m : unit.members) {
+      nlohmann::json member = model_json(m);
+      member["unit_axis"] = std::string(1, static_cast<char>('x' + m.unit_axis));
+      j["members"].push_back(std::move(member));
+    }
+    j["imucal"] = unit::imucal_json(triads);
+    write_file_atomically(options.out / "unit.json", j.dump(2) + "\n");
+    fmt::print(out, "wrote {}/unit.json (each member's model as in model.json, and the triads in imucal's terms)\n", options.out.string());
+    return kExitOk;
+  }
+  throw InputError(fmt::format("--format {}: expected imucal, json or kalibr for a unit", options.format));
+}
+
+}  // namespace
+
 int run_export(const ExportOptions& options, std::ostream& out) {
+  if (unit::is_unit_model(options.model)) return run_unit_export(options, out);
+  if (options.format == "imucal")
+    throw InputError("--format imucal describes a triad: give the unit.toml that `inertia-analyze unit` writes from its members");
   const model::ModelFile model = model::read_model(options.model);
   const compensate::InverseModel inverse(model);
   const Variable sensed = inverse.sensed();

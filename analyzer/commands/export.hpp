@@ -1,5 +1,5 @@
 #pragma once
-// `inertia-analyze export --model M.toml --format c|json|kalibr --out DIR`: a characterized model
+// `inertia-analyze export --model M.toml --format c|json|kalibr|imucal --out DIR`: a characterized model
 // in the forms the sensor's users read.
 //   c       P.h and P.c: the compensation as C99 for firmware (compensate/c_export.hpp), float or
 //           double; with --vectors DATASET also P_vectors.csv, the analyzer's answers on that
@@ -10,6 +10,9 @@
 //           walk, in Kalibr's units, from the model's N and K over its static sensitivity).
 // A format that cannot hold a term says so: the summary and the file name every term left out
 // and the largest error that costs over the characterized range (static_response.hpp).
+// With a unit's unit.toml (inertia-analyze unit): imucal (imucal.json), kalibr (imu.yaml with the
+// scale-misalignment intrinsics and noise) or json (unit.json: each member's model and the
+// triads); c is refused, naming the members' files to export one by one.
 #include <filesystem>
 #include <iosfwd>
 #include <string>
@@ -18,7 +21,7 @@ namespace inertia::commands {
 
 struct ExportOptions {
   std::filesystem::path model;
-  std::string format;              // c | json | kalibr
+  std::string format;              // c | json | kalibr | imucal (a unit)
   std::filesystem::path out;       // a folder
   std::string prefix;              // c: the generated names' prefix (default: the sensor's name, else "inertia_model")
   bool single_precision = false;   // c: float instead of double

@@ -11,6 +11,7 @@
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/unit/kalibr_intrinsics.hpp"
 #include "analyzer/unit/triad_frame.hpp"
+#include "analyzer/unit/unit_files.hpp"
 #include "analyzer/unit/unit_model.hpp"
 #include "common/atomic_file.hpp"
 #include "common/input_error.hpp"
@@ -20,120 +21,6 @@
 namespace inertia::commands {
 
 namespace {
-
-std::string row_text(const Eigen::Vector3d& v) { return fmt::format("[{}, {}, {}]", toml_float(v(0)), toml_float(v(1)), toml_float(v(2))); }
-
-std::string matrix_text(const Eigen::Matrix3d& m) {
-  return fmt::format("[{}, {}, {}]", row_text(m.row(0)), row_text(m.row(1)), row_text(m.row(2)));
-}
-
-/// One triad's table in unit.toml, [accelerometer] or [gyroscope].
-std::string triad_toml(const unit::TriadFrame& f) {
-  const bool gyro = f.kind == dataset::SensorKind::Gyroscope;
-  const std::string table = dataset::to_string(f.kind);
-  std::string s = fmt::format("\n[{}]\n", table);
-  if (!f.output_unit.empty()) s += "output_unit = " + toml_quote(f.output_unit) + "\n";
-  s += fmt::format("input_unit = \"{}\"\n", gyro ? "rad/s" : "m/s^2");
-  s += fmt::format("members = [{}, {}, {}]\n", toml_quote(f.axes[0].sensor), toml_quote(f.axes[1].sensor), toml_quote(f.axes[2].sensor));
-  s += fmt::format("K = {}            # the diagonal of K: |s_k|\nK_sd = {}\n", row_text(f.scale), row_text(f.scale_sd));
-  s += fmt::format("R = {}   # rows: the sensitive axes\n", matrix_text(f.misalignment));
-  s += fmt::format("b = {}\nb_sd = {}\n", row_text(f.bias), row_text(f.bias_sd));
-  if (gyro) s += fmt::format("K_ga = {}   # output unit per m/s^2: the offset is K_ga a + b\n", matrix_text(f.g_sensitivity));
-  s += fmt::format("\n[{}.non_orthogonality]   # asin(n_j . n_k), rad: how much closer than 90 deg\n", table);
-  for (std::size_t p = 0; p < 3; ++p) {
-    s += fmt::format("{0} = {1}\n{0}_sd = {2}\n", unit::kAxisPairs[p], toml_float(f.non_orthogonality[p]), toml_float(f.non_orthogonality_sd[p]));
-    if (std::isfinite(f.non_orthogonality_dof[p])) s += fmt::format("{}_dof = {}\n", unit::kAxisPairs[p], toml_float(f.non_orthogonality_dof[p]));
-    s += fmt::format("{}_interval95 = [{}, {}]\n", unit::kAxisPairs[p], toml_float(f.non_orthogonality[p] - f.non_orthogonality_half_width[p]),
-                     toml_float(f.non_orthogonality[p] + f.non_orthogonality_half_width[p]));
-  }
-  for (std::size_t k = 0; k < 3; ++k) {
-    const unit::TriadAxis& a = f.axes[k];
-    s += fmt::format("\n[{}.axis.{}]\nsensor = {}\nmodel = {}\nsensitivity = {}\ncovariance = {}\nangles_estimated = {}\n", table,
-                     static_cast<char>('x' + k), toml_quote(a.sensor), toml_quote(unit::member_file_name(a.sensor)), row_text(a.sensitivity), matrix_text(a.covariance),
-                     a.angles_estimated ? "true" : "false");
-  }
-  return s;
-}
-
-nlohmann::json matrix_json(const Eigen::Matrix3d& m) {
-  nlohmann::json j = nlohmann::json::array();
-  for (int r = 0; r < 3; ++r) j.push_back({m(r, 0), m(r, 1), m(r, 2)});
-  return j;
-}
-
-/// imucal's calibration file (FerrarisCalibrationInfo, format 2.0.0): calibrated = R^-1 K^-1 (raw - b),
-/// the gyroscope's offset K_ga acc + b_g. A triad not given is null, and the comment says so.
-nlohmann::json imucal_json(const std::optional<unit::TriadFrame>& acc, const std::optional<unit::TriadFrame>& gyro) {
-  nlohmann::json j;
-  j["acc_unit"] = acc ? nlohmann::json("m/s^2") : nlohmann::json();
-  j["gyr_unit"] = gyro ? nlohmann::json("rad/s") : nlohmann::json();
-  j["from_acc_unit"] = acc ? nlohmann::json(acc->output_unit) : nlohmann::json();
-  j["from_gyr_unit"] = gyro ? nlohmann::json(gyro->output_unit) : nlohmann::json();
-  const unit::TriadFrame& any = acc ? *acc : *gyro;
-  std::string comment = fmt::format("inertia-analyze unit: unit {}{}; the settled linear part of each member's model", any.unit,
-                                    any.serial.empty() ? "" : " serial " + any.serial);
-  if (!acc) comment += "; the accelerometer triad was not characterized: K_a, R_a, b_a are null";
-  if (!gyro) comment += "; the gyroscope triad was not characterized: K_g, R_g, K_ga, b_g are null";
-  j["comment"] = comment;
-  j["K_a"] = acc ? matrix_json(acc->scale.asDiagonal().toDenseMatrix()) : nlohmann::json();
-  j["R_a"] = acc ? matrix_json(acc->misalignment) : nlohmann::json();
-  j["b_a"] = acc ? nlohmann::json({acc->bias(0), acc->bias(1), acc->bias(2)}) : nlohmann::json();
-  j["K_g"] = gyro ? matrix_json(gyro->scale.asDiagonal().toDenseMatrix()) : nlohmann::json();
-  j["R_g"] = gyro ? matrix_json(gyro->misalignment) : nlohmann::json();
-  j["K_ga"] = gyro ? matrix_json(gyro->g_sensitivity) : nlohmann::json();
-  j["b_g"] = gyro ? nlohmann::json({gyro->bias(0), gyro->bias(1), gyro->bias(2)}) : nlohmann::json();
-  j["cal_type"] = "Ferraris";
-  j["_format_version"] = "2.0.0";
-  return j;
-}
-
-std::string yaml_matrix(const Eigen::Matrix3d& matrix) {
-  const Eigen::Matrix3d m = matrix.array() + 0.0;   // no negative zeros
-  return fmt::format("[[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]]", m(0, 0), m(0, 1), m(0, 2), m(1, 0), m(1, 1), m(1, 2), m(2, 0), m(2, 1),
-                     m(2, 2));
-}
-
-/// Kalibr's results for an IMU of its scale-misalignment model (kalibr_intrinsics.hpp), with each
-/// kind's noise parameters: the largest of the triad's members, so that none is claimed quieter
-/// than it is.
-std::string kalibr_yaml(const std::vector<model::ModelFile>& accelerometers, const std::vector<model::ModelFile>& gyroscopes,
-                        const unit::KalibrIntrinsics& k, const unit::TriadFrame& any) {
-  std::string yaml = fmt::format("# Kalibr's scale-misalignment IMU model of unit {} (inertia-analyze unit): the settled linear part of\n"
-                                 "# each member's model. a_m = M_a C a + b_a, w_m = M_g C_gyro_i C w + A C_gyro_i C a + b_g, with a_m, w_m\n"
-                                 "# the outputs in SI (their value times their unit's) and C the rotation from the unit's frame to Kalibr's IMU frame.\n",
-                                 any.unit);
-  yaml += fmt::format("# C = {}\n", yaml_matrix(k.c_imu_unit));
-  if (!k.note.empty()) yaml += "# Left out: " + k.note + "\n";
-  yaml += "imu0:\n  model: scale-misalignment\n  rostopic: /imu0\n";
-  const model::ModelFile& first = accelerometers.empty() ? gyroscopes.front() : accelerometers.front();
-  if (first.sample_period_s) yaml += fmt::format("  update_rate: {}\n", 1.0 / *first.sample_period_s);
-  for (const auto* members : {&accelerometers, &gyroscopes}) {
-    if (members->empty()) continue;
-    unit::KalibrNoise largest;
-    bool all_density = true, all_walk = true;
-    for (const model::ModelFile& m : *members) {
-      const unit::KalibrNoise n = unit::kalibr_noise(m);
-      all_density = all_density && n.density.has_value();
-      all_walk = all_walk && n.random_walk.has_value();
-      if (n.density && (!largest.density || *n.density > *largest.density)) largest.density = n.density;
-      if (n.random_walk && (!largest.random_walk || *n.random_walk > *largest.random_walk)) largest.random_walk = n.random_walk;
-      largest.density_from_white = largest.density_from_white || n.density_from_white;
-    }
-    if (!all_density) largest.density.reset();
-    if (!all_walk) largest.random_walk.reset();
-    std::string lines = unit::kalibr_noise_yaml(dataset::to_string(members->front().sensor), largest);
-    for (std::size_t at = 0; at < lines.size();) {
-      const std::size_t end = lines.find('\n', at);
-      yaml += "  " + lines.substr(at, end - at + 1);
-      at = end + 1;
-    }
-  }
-  if (k.m_accel) yaml += fmt::format("  accelerometers:\n    M: {}\n", yaml_matrix(*k.m_accel));
-  if (k.m_gyro)
-    yaml += fmt::format("  gyroscopes:\n    M: {}\n    A: {}   # (rad/s) per (m/s^2)\n    C_gyro_i: {}\n", yaml_matrix(*k.m_gyro),
-                        yaml_matrix(*k.a_gyro), yaml_matrix(k.c_gyro_i));
-  return yaml;
-}
 
 void print_triad(const unit::TriadFrame& f, std::ostream& summary) {
   const bool gyro = f.kind == dataset::SensorKind::Gyroscope;
@@ -172,34 +59,21 @@ int run_unit(const std::vector<std::filesystem::path>& models, const std::filesy
   if (models.size() != 3 && models.size() != 6)
     throw InputError(fmt::format("unit: three models of one triad, or six (accelerometers and gyroscopes): {} given", models.size()));
   OutputFolder folder(out, "unit");
-  std::vector<model::ModelFile> accelerometers, gyroscopes;
+  std::vector<model::ModelFile> members;
   for (const std::filesystem::path& m : models) {
-    model::ModelFile file = model::read_model(m);
+    members.push_back(model::read_model(m));
     // The member's model as characterized, beside unit.toml: the folder is the whole unit.
-    write_file_atomically(folder.path() / unit::member_file_name(file.name), model::format_model(file));
-    (file.sensor == dataset::SensorKind::Gyroscope ? gyroscopes : accelerometers).push_back(std::move(file));
+    write_file_atomically(folder.path() / unit::member_file_name(members.back().name), model::format_model(members.back()));
   }
-  std::optional<unit::TriadFrame> acc, gyro;
-  if (!accelerometers.empty()) acc = unit::triad_frame(accelerometers);
-  if (!gyroscopes.empty()) gyro = unit::triad_frame(gyroscopes);
-  if (acc && gyro && (acc->unit != gyro->unit || acc->serial != gyro->serial))
-    throw InputError(fmt::format("unit: the accelerometers are of unit '{}', the gyroscopes of '{}'", acc->unit, gyro->unit));
-  const unit::TriadFrame& any = acc ? *acc : *gyro;
-  std::string toml = "# The triads of a unit in its housing's frame (inertia-analyze unit). Sensitivities in the members' output\n"
-                     "# unit per input unit (m/s^2 or rad/s); input = R^-1 K^-1 (y - b) (imucal's convention); sd: standard\n"
-                     "# uncertainties.\n";
-  toml += "unit = " + toml_quote(any.unit) + "\n";
-  if (!any.serial.empty()) toml += "serial = " + toml_quote(any.serial) + "\n";
-  for (const auto& triad : {acc, gyro}) {
-    if (!triad) continue;
-    print_triad(*triad, summary);
-    toml += triad_toml(*triad);
+  const unit::Triads triads = unit::triads_of(members);
+  for (const auto& triad : {triads.accelerometer, triads.gyroscope}) {
+    if (triad) print_triad(*triad, summary);
   }
-  write_file_atomically(folder.path() / "unit.toml", toml);
-  write_file_atomically(folder.path() / "imucal.json", imucal_json(acc, gyro).dump(4) + "\n");
-  const unit::KalibrIntrinsics kalibr = unit::kalibr_intrinsics(acc, gyro);
+  write_file_atomically(folder.path() / "unit.toml", unit::unit_toml(triads));
+  write_file_atomically(folder.path() / "imucal.json", unit::imucal_json(triads).dump(4) + "\n");
+  const unit::KalibrIntrinsics kalibr = unit::kalibr_intrinsics(triads.accelerometer, triads.gyroscope);
   if (!kalibr.note.empty()) fmt::print(summary, "note: Kalibr's intrinsics left out: {}\n", kalibr.note);
-  write_file_atomically(folder.path() / "kalibr.yaml", kalibr_yaml(accelerometers, gyroscopes, kalibr, any));
+  write_file_atomically(folder.path() / "kalibr.yaml", unit::kalibr_yaml(triads));
   folder.commit();
   fmt::print(summary, "wrote {}: unit.toml, the members' model files, imucal.json and kalibr.yaml\n", folder.target().string());
   return kExitOk;
