@@ -91,6 +91,35 @@ CompensationRecord compensation_record(const model::ModelFile& model, const comp
   return record;
 }
 
+std::vector<dataset::Dataset> unit_records(const unit::UnitModel& unit, const std::filesystem::path& dataset_dir,
+                                           const std::filesystem::path& event_log) {
+  const bool from_log = !event_log.empty();
+  std::vector<dataset::Dataset> data;
+  for (const model::ModelFile& m : unit.members) {
+    if (from_log) {
+      data.push_back(fusion::log_dataset(event_log, m.name, std::cerr));
+    } else {
+      const std::filesystem::path dir = dataset_dir / m.name;
+      if (!std::filesystem::is_directory(dir))
+        throw InputError(fmt::format("{} has no dataset of unit {}'s member '{}' (expected the folder {})", dataset_dir.string(),
+                                     unit.unit, m.name, dir.string()));
+      data.push_back(dataset::read_dataset(dir));
+    }
+    check_record(m, data.back(), (unit.file.parent_path() / unit::member_file_name(m.name)).string(),
+                 from_log ? event_log.string() : data.back().dir.string());
+  }
+  const std::string data_label = (from_log ? event_log : dataset_dir).string();
+  for (const dataset::Dataset& d : data) {
+    bool same = d.cases.size() == data.front().cases.size();
+    for (std::size_t c = 0; same && c < d.cases.size(); ++c) same = d.cases[c].name == data.front().cases[c].name;
+    if (!same)
+      throw InputError(fmt::format("the members' records in {} hold different cases ('{}' and '{}'): a unit is compensated on "
+                                   "one record of all its outputs",
+                                   data_label, data.front().sensor_name, d.sensor_name));
+  }
+  return data;
+}
+
 namespace {
 
 /// Each compensated CSV row at its longest: each number at 24 characters (the longest a double's
@@ -126,29 +155,8 @@ int run_unit_compensate(const CompensateOptions& options, std::ostream& out) {
   const unit::UnitInverse inverse(unit);
   const bool from_log = !options.event_log.empty();
   if (!options.sensor.empty()) throw InputError("compensate: --sensor picks one output; a unit model names its members");
-  std::vector<dataset::Dataset> data;
-  for (const model::ModelFile& m : unit.members) {
-    if (from_log) {
-      data.push_back(fusion::log_dataset(options.event_log, m.name, std::cerr));
-    } else {
-      const std::filesystem::path dir = options.dataset / m.name;
-      if (!std::filesystem::is_directory(dir))
-        throw InputError(fmt::format("{} has no dataset of unit {}'s member '{}' (expected the folder {})", options.dataset.string(),
-                                     unit.unit, m.name, dir.string()));
-      data.push_back(dataset::read_dataset(dir));
-    }
-    check_record(m, data.back(), (options.model.parent_path() / unit::member_file_name(m.name)).string(),
-                 from_log ? options.event_log.string() : data.back().dir.string());
-  }
+  std::vector<dataset::Dataset> data = unit_records(unit, options.dataset, options.event_log);
   const std::string data_label = (from_log ? options.event_log : options.dataset).string();
-  for (const dataset::Dataset& d : data) {
-    bool same = d.cases.size() == data.front().cases.size();
-    for (std::size_t c = 0; same && c < d.cases.size(); ++c) same = d.cases[c].name == data.front().cases[c].name;
-    if (!same)
-      throw InputError(fmt::format("the members' records in {} hold different cases ('{}' and '{}'): a unit is compensated on "
-                                   "one record of all its outputs",
-                                   data_label, data.front().sensor_name, d.sensor_name));
-  }
   const std::vector<ident::Variable>& unknowns = inverse.unknowns();
   const auto count = static_cast<Eigen::Index>(unknowns.size());
   {

@@ -15,10 +15,12 @@
 #include <filesystem>
 #include <iosfwd>
 #include <string>
+#include <vector>
 
 #include "analyzer/compensate/inverse_model.hpp"
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/unit/unit_model.hpp"
 #include "common/dataset/dataset.hpp"
 
 namespace inertia::commands {
@@ -45,6 +47,13 @@ struct CompensationRecord {
 CompensationRecord compensation_record(const model::ModelFile& model, const compensate::InverseModel& inverse,
                                        const dataset::Dataset& data, std::size_t case_index, bool frames_from_model,
                                        bool other_axes_zero);
+
+/// One record per member of `unit`, in its order: the members' dataset folders under
+/// `dataset_dir` (one per member, by name), or each member's sensor in `event_log` when that is
+/// given. InputError for a member without its record, a record of another sensor, serial or sample
+/// period than its model's, or members' records of different cases.
+std::vector<dataset::Dataset> unit_records(const unit::UnitModel& unit, const std::filesystem::path& dataset_dir,
+                                           const std::filesystem::path& event_log);
 
 /// InputError for a model of another sensor kind or name than the record's, a record at another
 /// sample period than the model's lags count in, a model that cannot be inverted, or a record

@@ -16,6 +16,7 @@
 #include "analyzer/compensate/c_export.hpp"
 #include "analyzer/unit/kalibr_intrinsics.hpp"
 #include "analyzer/unit/unit_files.hpp"
+#include "analyzer/unit/unit_inverse.hpp"
 #include "analyzer/unit/unit_model.hpp"
 #include "analyzer/compensate/inverse_model.hpp"
 #include "analyzer/compensate/static_response.hpp"
@@ -140,17 +141,59 @@ nlohmann::json model_json(const model::ModelFile& m) {
 
 namespace {
 
-/// A unit's exports: imucal's file, Kalibr's results, or the unit as JSON (its triads and each
-/// member's model). Its joint compensation has no C form yet: refused, saying what to do instead.
+/// A unit's exports: its joint compensation as C (with test vectors from the members' datasets),
+/// imucal's file, Kalibr's results, or the unit as JSON (its triads and each member's model).
 int run_unit_export(const ExportOptions& options, std::ostream& out) {
   const unit::UnitModel unit = unit::read_unit_model(options.model);
   const unit::Triads triads = unit::triads_of(unit.members);
-  if (options.format == "c") {
-    throw InputError(fmt::format("--format c takes one output's model: a unit's joint compensation is not generated as C. Export each "
-                                 "member ({}), whose C reads the other axes as inputs",
-                                 (options.model.parent_path() / unit::member_file_name(unit.members.front().name)).string()));
-  }
   std::filesystem::create_directories(options.out);
+  if (options.format == "c") {
+    const unit::UnitInverse inverse(unit);
+    std::string prefix = options.prefix;
+    if (prefix.empty()) {
+      prefix = "inertia_" + unit.unit;
+      std::replace_if(prefix.begin(), prefix.end(), [](char c) { return !std::isalnum(static_cast<unsigned char>(c)); }, '_');
+    }
+    std::vector<std::string> outputs, unknowns;
+    std::optional<double> period;
+    for (const model::ModelFile& m : unit.members) {
+      outputs.push_back(m.name);
+      if (!period) period = m.sample_period_s;
+    }
+    for (const Variable v : inverse.unknowns()) unknowns.emplace_back(ident::variable_name(v));
+    const compensate::JointCSource c = compensate::generate_joint_c(
+        inverse.joint(), outputs, unknowns, prefix, options.single_precision ? compensate::CPrecision::Float : compensate::CPrecision::Double,
+        period);
+    write_file_atomically(options.out / (prefix + ".h"), c.header);
+    write_file_atomically(options.out / (prefix + ".c"), c.source);
+    fmt::print(out, "wrote {0}/{1}.h and {0}/{1}.c ({2}): {1}_compensate(state, inputs [{3} known], y [{4}]) -> {5}\n", options.out.string(),
+               prefix, options.single_precision ? "float" : "double", c.inputs.size(), fmt::join(outputs, ", "), fmt::join(unknowns, ", "));
+    if (!options.vectors.empty()) {
+      const std::vector<dataset::Dataset> data = unit_records(unit, options.vectors, {});
+      std::vector<CompensationRecord> records;
+      for (std::size_t m = 0; m < unit.members.size(); ++m)
+        records.push_back(compensation_record(unit.members[m], inverse.members()[m], data[m], 0, true, false));
+      const Eigen::Index n = std::min<Eigen::Index>(records.front().signals.size(), options.vector_samples);
+      std::vector<ident::SignalSet> heads;
+      for (const CompensationRecord& r : records) {
+        ident::SignalSet head(n, r.signals.origin());
+        for (int v = 0; v < ident::kVariableCount; ++v) {
+          const auto variable = static_cast<Variable>(v);
+          if (r.signals.has(variable)) head.set(variable, r.signals.get(variable).head(n));
+        }
+        heads.push_back(std::move(head));
+      }
+      std::vector<const ident::SignalSet*> pointers;
+      for (const ident::SignalSet& h : heads) pointers.push_back(&h);
+      std::ostringstream vectors;
+      compensate::write_joint_test_vectors(vectors, inverse.joint(), outputs, unknowns, c.inputs, pointers,
+                                           data.front().cases.front().sample_period_s);
+      write_file_atomically(options.out / (prefix + "_vectors.csv"), vectors.str());
+      fmt::print(out, "wrote {}/{}_vectors.csv: {} samples of case '{}' and what the analyzer makes of them\n", options.out.string(), prefix,
+                 n, data.front().cases.front().name);
+    }
+    return kExitOk;
+  }
   if (options.format == "imucal") {
     write_file_atomically(options.out / "imucal.json", unit::imucal_json(triads).dump(4) + "\n");
     fmt::print(out, "wrote {}/imucal.json (imucal's FerrarisCalibrationInfo, format 2.0.0)\n", options.out.string());
@@ -177,7 +220,7 @@ int run_unit_export(const ExportOptions& options, std::ostream& out) {
     fmt::print(out, "wrote {}/unit.json (each member's model as in model.json, and the triads in imucal's terms)\n", options.out.string());
     return kExitOk;
   }
-  throw InputError(fmt::format("--format {}: expected imucal, json or kalibr for a unit", options.format));
+  throw InputError(fmt::format("--format {}: expected c, imucal, json or kalibr for a unit", options.format));
 }
 
 }  // namespace

@@ -9,55 +9,16 @@
 #include <map>
 #include <ostream>
 
+#include "analyzer/compensate/c_text.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::compensate {
 
+using namespace c_text;
+
 using ident::FactorFunction;
 using ident::Variable;
-
-namespace {
-
-bool is_identifier(const std::string& s) {
-  if (s.empty() || !(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
-  return std::all_of(s.begin(), s.end(), [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
-}
-
-std::string upper(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return s;
-}
-
-/// A constant in the generated code: shortest round-trip digits, cast to the real type.
-std::string literal(double v) {
-  if (std::isnan(v)) return "(R)NAN";
-  return fmt::format("(R){}", v);
-}
-
-/// The name of a variable's slot in the state's histories and the inputs.
-std::string slot(Variable v) {
-  std::string s = ident::variable_name(v);
-  return s == "T" ? "temp" : s;
-}
-
-/// f(v)^power as C, with its slope when `slope` is set.
-std::string factor_code(const ident::Factor& f, const std::string& v, bool slope) {
-  const int p = f.power;
-  switch (f.function) {
-    case FactorFunction::Plain:
-      if (!slope) return fmt::format("ipow({}, {})", v, p);
-      return fmt::format("(R){} * ipow({}, {})", p, v, p - 1);
-    case FactorFunction::Abs:
-      if (!slope) return fmt::format("ipow(fabs({}), {})", v, p);
-      return fmt::format("(R){} * ipow(fabs({}), {}) * sgn({})", p, v, p - 1, v);
-    case FactorFunction::Sign:
-      return slope ? std::string("(R)0") : fmt::format("ipow(sgn({}), {})", v, p);
-  }
-  return "(R)0";
-}
-
-}  // namespace
 
 CSource generate_c(const model::ModelFile& model, const std::string& prefix, CPrecision precision,
                    const CompensationOptions& options) {

@@ -57,6 +57,10 @@ class JointInverse {
   [[nodiscard]] Eigen::Index unknowns() const { return unknowns_; }
   [[nodiscard]] Eigen::Index first_row() const { return first_row_; }
   [[nodiscard]] const std::vector<JointEquation>& equations() const { return equations_; }
+  [[nodiscard]] const std::vector<Eigen::VectorXd>& fallback_starts() const { return fallback_starts_; }
+  [[nodiscard]] double tolerance_scale() const { return tolerance_scale_; }
+  /// Every term linear in the unknowns: Newton's first step is the root.
+  [[nodiscard]] bool linear() const { return linear_; }
 
   /// `records[m]` holds equation m's output y and its known inputs; all of one length. Throws
   /// InputError for a missing input or records of different lengths, std::invalid_argument for a

@@ -6,7 +6,8 @@
 //    (unit/unit_inverse.hpp); items are unit samples of three outputs;
 //  - BM_GeneratedC/...: the same models' generated C (double), compiled here with cc -O2 and
 //    loaded, one call per sample: its ns per sample, and the ratio against InverseModel on the
-//    same samples in the same run (ratio_to_analyzer < 1: the C is faster).
+//    same samples in the same run (ratio_to_analyzer < 1: the C is faster);
+//  - BM_GeneratedTriadC/...: the triad as generated joint C, likewise against JointInverse.
 // Items = samples. Run: build/bench/bench_compensate
 #include <benchmark/benchmark.h>
 #include <dlfcn.h>
@@ -167,5 +168,66 @@ void BM_GeneratedC(benchmark::State& state) {
   state.SetLabel(state.range(0) ? "nonlinear" : "linear");
 }
 BENCHMARK(BM_GeneratedC)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+/// The triad of BM_CompensateTriad as generated joint C (double), one call per unit sample: its
+/// ns per sample and the ratio against JointInverse on the same samples in the same run.
+void BM_GeneratedTriadC(benchmark::State& state) {
+  unit::UnitModel u;
+  u.unit = "imu";
+  std::vector<ident::SignalSet> records;
+  for (int axis = 0; axis < 3; ++axis) {
+    model::ModelFile m = model_of(state.range(0) != 0);
+    m.unit = "imu";
+    m.unit_axis = axis;
+    m.name = std::string("a") + static_cast<char>('x' + axis);
+    records.push_back(record_of(m));
+    u.members.push_back(std::move(m));
+  }
+  const unit::UnitInverse inverse(u);
+  const std::vector<const ident::SignalSet*> pointers{&records[0], &records[1], &records[2]};
+  const compensate::JointCSource c = compensate::generate_joint_c(inverse.joint(), {"ax", "ay", "az"}, {"a_x", "a_y", "a_z"}, "model",
+                                                                  compensate::CPrecision::Double, 1e-3);
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("inertia-bench-joint-" + std::to_string(state.range(0)));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "model.h") << c.header;
+  std::ofstream(dir / "model.c") << c.source
+                                 << "\nvoid model_run(model_state* s, const double* inputs, const double* y, long n, double* out) {\n"
+                                    "  long k;\n  for (k = 0; k < n; ++k) out[k] = model_compensate(s, inputs + k * MODEL_INPUTS, y + 3 * k).value[0];\n}\n"
+                                    "void model_init_any(void* s) { model_init((model_state*)s); }\n";
+  const std::string command = "cc -std=c99 -O2 -fPIC -shared -I" + dir.string() + " " + (dir / "model.c").string() + " -lm -o " +
+                              (dir / "model.so").string();
+  void* library = std::system(command.c_str()) == 0 ? dlopen((dir / "model.so").c_str(), RTLD_NOW) : nullptr;
+  if (library == nullptr) {
+    state.SkipWithError("cc or dlopen failed");
+    return;
+  }
+  const auto init = reinterpret_cast<void (*)(void*)>(dlsym(library, "model_init_any"));
+  const auto run = reinterpret_cast<void (*)(void*, const double*, const double*, long, double*)>(dlsym(library, "model_run"));
+  std::vector<double> in(static_cast<std::size_t>(kSamples) * c.inputs.size()), y(static_cast<std::size_t>(kSamples) * 3),
+      out(static_cast<std::size_t>(kSamples));
+  for (Eigen::Index k = 0; k < kSamples; ++k) {
+    for (std::size_t i = 0; i < c.inputs.size(); ++i)
+      in[std::size_t(k) * c.inputs.size() + i] = records[c.inputs[i].first].get(c.inputs[i].second)(k);
+    for (std::size_t m = 0; m < 3; ++m) y[std::size_t(k) * 3 + m] = records[m].get(Variable::Y)(k);
+  }
+  alignas(64) unsigned char memory[16384];
+  for (auto _ : state) {
+    init(memory);
+    run(memory, in.data(), y.data(), kSamples, out.data());
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetItemsProcessed(state.iterations() * kSamples);
+  auto start = std::chrono::steady_clock::now();
+  benchmark::DoNotOptimize(inverse.joint().compensate(pointers, 1e-3).value.data());
+  const double analyzer = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / kSamples;
+  start = std::chrono::steady_clock::now();
+  init(memory);
+  run(memory, in.data(), y.data(), kSamples, out.data());
+  const double generated = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / kSamples;
+  state.counters["ns_per_sample"] = generated * 1e9;
+  state.counters["ratio_to_analyzer"] = generated / analyzer;
+  state.SetLabel(state.range(0) ? "nonlinear" : "linear");
+}
+BENCHMARK(BM_GeneratedTriadC)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace

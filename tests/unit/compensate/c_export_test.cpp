@@ -1,6 +1,7 @@
 // The generated C compiles as C99 with warnings as errors and gives InverseModel's answers on its
 // test vectors: a model with every kind of term the inversion handles (nonlinear, absolute value,
-// temperature, input and output lags, the squares' high pass, an output-multiplied term).
+// temperature, input and output lags, the squares' high pass, an output-multiplied term); and a
+// unit's six outputs solved together (generate_joint_c) gives JointInverse's.
 #include "analyzer/compensate/c_export.hpp"
 
 #include <gtest/gtest.h>
@@ -12,6 +13,9 @@
 #include <sstream>
 
 #include "analyzer/procedure/model_simulation.hpp"
+#include "analyzer/unit/unit_inverse.hpp"
+#include "common/config/bench_config.hpp"
+#include "common/frames.hpp"
 #include "common/input_error.hpp"
 #include "tests/support/scratch_dirs.hpp"
 
@@ -124,6 +128,123 @@ TEST(CExport, VectorsFlagWhatTheAnalyzerFlags) {
   EXPECT_NE(text.find(",1\n"), std::string::npos);   // the stretch beyond the range
   EXPECT_NE(text.find(",3\n"), std::string::npos);   // the history filling
   EXPECT_THROW((void)generate_c(m, "2bad", CPrecision::Double), InputError);
+}
+
+
+/// A unit of six members, each through its own turned frame: accelerometers with second-order,
+/// cross-coupling, temperature, lagged and filtered-square terms, gyroscopes with eq. 5's rational
+/// form and g-sensitivity; their outputs on a shaken, turning, warming unit.
+struct UnitVectors {
+  unit::UnitModel unit;
+  std::vector<SignalSet> records;
+};
+
+UnitVectors unit_vectors(Eigen::Index n) {
+  UnitVectors u;
+  u.unit.unit = "imu";
+  std::mt19937_64 rng(31);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::MatrixXd a(n, 3), w(n, 3);
+  Eigen::VectorXd t(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const double time = 1e-3 * static_cast<double>(k);
+    a.row(k) << 8.0 * std::sin(2.0 * M_PI * 5.0 * time) + (k > n / 2 ? 40.0 : 0.0), 3.0 * std::cos(2.0 * M_PI * 2.0 * time),
+        9.8 + 0.3 * g(rng);
+    w.row(k) << 1.5 * std::sin(2.0 * M_PI * 1.0 * time), 0.4 * std::cos(2.0 * M_PI * 3.0 * time), 0.2 + 0.05 * g(rng);
+    t(k) = -5.0 + 20.0 * time;
+  }
+  for (int member = 0; member < 6; ++member) {
+    const bool gyro = member >= 3;
+    model::ModelFile m;
+    m.sensor = gyro ? dataset::SensorKind::Gyroscope : dataset::SensorKind::Accelerometer;
+    m.name = fmt::format("{}{}", gyro ? 'g' : 'a', static_cast<char>('x' + member % 3));
+    m.unit = "imu";
+    m.unit_axis = member % 3;
+    m.t_ref = 25.0;
+    m.sample_period_s = 1e-3;
+    m.output_sd = 2e-4;
+    const std::vector<std::pair<const char*, double>> terms =
+        gyro ? std::vector<std::pair<const char*, double>>{{"1", 0.01}, {"w_i", 1.2}, {"w_p", 0.003}, {"a_i", 2e-4}, {"a_p", -1e-4},
+                                                           {"y*T", 1e-4}, {"T", 3e-5}}
+             : std::vector<std::pair<const char*, double>>{{"1", 3.4e-3}, {"a_i", 0.0877}, {"a_i^2", 4e-5}, {"a_i*a_p", 9e-6},
+                                                           {"a_p^2", 3e-5}, {"T", 2e-5}, {"a_i[k-1]", 0.004}, {"y[k-1]", 0.3}};
+    if (!gyro) m.square_highpass_rad_s = 60.0;
+    for (const auto& [name, c] : terms) m.terms.push_back({ident::parse_term(name), c, std::nullopt});
+    const auto p = static_cast<Eigen::Index>(m.terms.size());
+    const Eigen::MatrixXd root = Eigen::MatrixXd::Random(p, p) * 1e-7;
+    m.covariance = root * root.transpose();
+    m.range[gyro ? Variable::Wi : Variable::Ai] = gyro ? model::ModelFile::Span{-3.0, 3.0} : model::ModelFile::Span{-20.0, 20.0};
+    m.m_cs = frames::frame_rotation(Eigen::Vector3d(1.0, -2.0 + member, 0.5 * member), 3e-3 * (member + 1));
+    const Eigen::Matrix3d to_sensor = m.m_cs * config::unit_axis_frame(m.unit_axis);
+    SignalSet s(n, m.name);
+    const Eigen::MatrixXd as = a * to_sensor.transpose(), ws = w * to_sensor.transpose();
+    s.set(Variable::Ai, as.col(0));
+    s.set(Variable::Ap, as.col(1));
+    s.set(Variable::Ao, as.col(2));
+    s.set(Variable::Wi, ws.col(0));
+    s.set(Variable::Wp, ws.col(1));
+    s.set(Variable::Wo, ws.col(2));
+    s.set(Variable::T, t);
+    s.set(Variable::Y, Eigen::VectorXd::Zero(n));
+    std::vector<ident::Term> model_terms;
+    Eigen::VectorXd theta(p);
+    for (std::size_t j = 0; j < m.terms.size(); ++j) {
+      model_terms.push_back(m.terms[j].term);
+      theta(static_cast<Eigen::Index>(j)) = m.terms[j].coefficient;
+    }
+    const Eigen::Index first = ident::first_usable_row(model_terms);
+    Eigen::VectorXd y = Eigen::VectorXd::Zero(n);
+    y.tail(n - first) = procedure::simulate_model(model_terms, theta, s, first, m.square_highpass_rad_s, 1e-3);
+    for (Eigen::Index k = 0; k < n; ++k) y(k) += 2e-4 * g(rng);
+    s.set(Variable::Y, y);
+    u.unit.members.push_back(std::move(m));
+    u.records.push_back(std::move(s));
+  }
+  return u;
+}
+
+/// The joint code for `u`, compiled with the joint driver and run on its vectors: its exit status.
+int compile_and_run_joint(const UnitVectors& u, CPrecision precision, double tolerance, std::string& output) {
+  const inertia::testing::TempDir dir("inertia-c-joint");
+  const unit::UnitInverse inverse(u.unit);
+  const std::vector<std::string> outputs = {"ax", "ay", "az", "gx", "gy", "gz"};
+  const std::vector<std::string> unknowns = {"a_x", "a_y", "a_z", "w_x", "w_y", "w_z"};
+  const JointCSource c = generate_joint_c(inverse.joint(), outputs, unknowns, "model", precision, 1e-3);
+  std::ofstream(dir.path / "model.h") << c.header;
+  std::ofstream(dir.path / "model.c") << c.source;
+  {
+    std::vector<const SignalSet*> records;
+    for (const SignalSet& s : u.records) records.push_back(&s);
+    std::ofstream vectors(dir.path / "vectors.csv");
+    write_joint_test_vectors(vectors, inverse.joint(), outputs, unknowns, c.inputs, records, 1e-3);
+  }
+  const fs::path driver = fs::path(INERTIA_SOURCE_DIR) / "tests" / "unit" / "compensate" / "c_joint_driver.c";
+  const std::string compile = "cc -std=c99 -pedantic -Wall -Wextra -Werror -O2 -I" + dir.path.string() + " " +
+                              (dir.path / "model.c").string() + " " + driver.string() + " -lm -o " + (dir.path / "driver").string() +
+                              " > " + (dir.path / "cc.txt").string() + " 2>&1";
+  if (std::system(compile.c_str()) != 0) {
+    std::ifstream in(dir.path / "cc.txt");
+    output = std::string(std::istreambuf_iterator<char>(in), {});
+    return -1;
+  }
+  const std::string run = (dir.path / "driver").string() + " " + (dir.path / "vectors.csv").string() + " " +
+                          fmt::format("{}", tolerance) + " 0.4 > " + (dir.path / "run.txt").string() + " 2>&1";
+  const int status = std::system(run.c_str());
+  std::ifstream in(dir.path / "run.txt");
+  output = std::string(std::istreambuf_iterator<char>(in), {});
+  return status;
+}
+
+TEST(CExport, AUnitsJointCodeInDoubleAgreesWithTheAnalyzerTo1e12) {
+  std::string output;
+  EXPECT_EQ(compile_and_run_joint(unit_vectors(3000), CPrecision::Double, 1e-12, output), 0) << output;
+  std::cout << "[ figures ] joint, double: " << output;
+}
+
+TEST(CExport, AUnitsJointCodeInFloatAgreesWithTheAnalyzerTo1e6) {
+  std::string output;
+  EXPECT_EQ(compile_and_run_joint(unit_vectors(3000), CPrecision::Float, 1e-6, output), 0) << output;
+  std::cout << "[ figures ] joint, float: " << output;
 }
 
 }  // namespace
