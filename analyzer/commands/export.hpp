@@ -10,9 +10,10 @@
 //           walk, in Kalibr's units, from the model's N and K over its static sensitivity).
 // A format that cannot hold a term says so: the summary and the file name every term left out
 // and the largest error that costs over the characterized range (static_response.hpp).
-// With a unit's unit.toml (inertia-analyze unit): imucal (imucal.json), kalibr (imu.yaml with the
-// scale-misalignment intrinsics and noise) or json (unit.json: each member's model and the
-// triads); c is refused, naming the members' files to export one by one.
+// With a unit's unit.toml (inertia-analyze unit): c (the outputs solved together, generate_joint_c;
+// --vectors takes the folder of the members' datasets), imucal (imucal.json), kalibr (imu.yaml
+// with the scale-misalignment intrinsics and noise) or json (unit.json: each member's model and
+// the triads).
 #include <filesystem>
 #include <iosfwd>
 #include <string>
