@@ -101,6 +101,7 @@ std::optional<double> common_sample_period(const dataset::Dataset& data) {
 }  // namespace
 
 model::ModelFile characterized_model(const procedure::PipelineResult& result, const dataset::Dataset& data,
+                                     const procedure::BatchVerification& verification,
                                      std::optional<noise::NoiseAnalysis>& noise_analysis, std::string& why_no_noise,
                                      const std::string& source) {
   // Process terms (noise terms describe the residual colour; kept, marked by e).
@@ -136,11 +137,10 @@ model::ModelFile characterized_model(const procedure::PipelineResult& result, co
   model.conditions.source = source;
   model.conditions.software = INERTIA_VERSION_TEXT;
   model.conditions.date = fmt::format("{:%Y-%m-%dT%H:%M:%SZ}", fmt::gmtime(std::time(nullptr)));
-  model.white_sd = std::sqrt(procedure::batch_innovation(result).variance);
+  model.white_sd = std::sqrt(verification.innovation.variance);
   double squares = 0.0;
   Eigen::Index samples = 0;
-  for (const procedure::CaseOutcome& outcome : result.cases) {
-    const Eigen::VectorXd e = procedure::free_run_error(data, outcome, result);
+  for (const Eigen::VectorXd& e : verification.free_run) {
     squares += e.squaredNorm();
     samples += e.size();
   }
@@ -251,12 +251,14 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
 
   std::optional<noise::NoiseAnalysis> noise_analysis;
   std::string no_noise;
-  const model::ModelFile model = characterized_model(result, data, noise_analysis, no_noise, source.string());
+  const procedure::BatchVerification verification = procedure::batch_verification(data, result, label);
+  const model::ModelFile model = characterized_model(result, data, verification, noise_analysis, no_noise, source.string());
   if (!no_noise.empty()) fmt::print(out, "noise terms not estimated: {}\n", no_noise);
   const std::filesystem::path model_file = folder.path() / "model.toml";
   report::ReportInputs in;
   in.data = &data;
   in.result = &result;
+  in.verification = &verification;
   in.dataset_label = label;
   in.plots = options.plots;
   if (truth) in.truth = report::TruthForReport{truth->terms, truth->m_es};

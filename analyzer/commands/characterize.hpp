@@ -10,6 +10,7 @@
 
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/noise/noise_analysis.hpp"
+#include "analyzer/procedure/batch_stage.hpp"
 #include "analyzer/procedure/pipeline.hpp"
 
 namespace inertia::commands {
@@ -38,9 +39,11 @@ struct CharacterizeOptions {
 procedure::PipelineOptions pipeline_options(const CharacterizeOptions& options);
 
 /// The model file characterize writes for `result`: the batch's terms with their sd, M_C^S, the
-/// innovation's sd, the squares' corner, and the sensor's noise terms from the plan's static
-/// stretches (their analysis in `noise_analysis`; when there is none, `why_no_noise` says why).
+/// innovation's sd and the free run's (from `verification`, procedure::batch_verification), the
+/// squares' corner, and the sensor's noise terms from the plan's static stretches (their analysis
+/// in `noise_analysis`; when there is none, `why_no_noise` says why).
 model::ModelFile characterized_model(const procedure::PipelineResult& result, const dataset::Dataset& data,
+                                     const procedure::BatchVerification& verification,
                                      std::optional<noise::NoiseAnalysis>& noise_analysis, std::string& why_no_noise,
                                      const std::string& source = {});
 

@@ -66,6 +66,13 @@ BatchInnovation batch_innovation(const PipelineResult& result) {
   return {std::move(stack.y), std::move(stack.cases), result.rows_filtered ? result.fit.residual_variance : variance};
 }
 
+BatchVerification batch_verification(const dataset::Dataset& data, const PipelineResult& result, std::string_view dataset_label) {
+  BatchVerification v;
+  v.innovation = batch_innovation(result);
+  for (const CaseOutcome& outcome : result.cases) v.free_run.push_back(free_run_error(data, outcome, result, dataset_label));
+  return v;
+}
+
 PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& data, const PipelineOptions& options,
                               std::string_view dataset_label) {
   PipelineResult result = std::move(mounted);

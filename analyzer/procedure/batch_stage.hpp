@@ -32,6 +32,15 @@ BatchInnovation batch_innovation(const PipelineResult& result);
 Eigen::VectorXd free_run_error(const dataset::Dataset& data, const CaseOutcome& outcome, const PipelineResult& result,
                                std::string_view dataset_label = {});
 
+/// What the batch model leaves of each case, computed once for the model file and the report:
+/// the innovation (batch_innovation) and each case's free-run error (free_run_error), in the
+/// order of result.cases.
+struct BatchVerification {
+  BatchInnovation innovation;
+  std::vector<Eigen::VectorXd> free_run;
+};
+BatchVerification batch_verification(const dataset::Dataset& data, const PipelineResult& result, std::string_view dataset_label = {});
+
 /// The batch model of `data` on the mountings of `mounted` (blocks 5-6: its mountings, the cases'
 /// M_E^S, M_C^S and the notes so far), which it returns completed.
 PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& data, const PipelineOptions& options,

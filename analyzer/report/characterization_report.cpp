@@ -33,12 +33,13 @@ struct CaseTraces {
 };
 
 CaseTraces traces_of(const dataset::Dataset& data, const procedure::CaseOutcome& outcome, const procedure::PipelineResult& r,
-                     const procedure::BatchInnovation& innovation, const std::string& label) {
+                     const procedure::BatchVerification& verification, std::size_t case_position, const std::string& label) {
+  const procedure::BatchInnovation& innovation = verification.innovation;
   const dataset::CaseData& c = data.cases[outcome.case_index];
   const ident::SignalSet signals = ident::signals_from_case(c, outcome.m_es, data.t_ref, label);
   CaseTraces tr;
   const Eigen::Index first = ident::first_usable_row(r.terms), rows = c.size() - first;
-  tr.verification = procedure::free_run_error(data, outcome, r, label);
+  tr.verification = verification.free_run[case_position];
   tr.t = c.t.tail(rows);
   if (!c.phase.empty()) tr.phase.assign(c.phase.end() - rows, c.phase.end());
   const auto rows_of_case = std::find_if(innovation.cases.begin(), innovation.cases.end(),
@@ -95,7 +96,10 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   if (in.data == nullptr || in.result == nullptr) throw std::invalid_argument("report: no dataset or result");
   const dataset::Dataset& data = *in.data;
   const procedure::PipelineResult& r = *in.result;
-  const procedure::BatchInnovation innovation = procedure::batch_innovation(r);
+  // What the model leaves of each case, computed here unless the caller has it.
+  std::optional<procedure::BatchVerification> computed;
+  if (in.verification == nullptr) computed = procedure::batch_verification(data, r, in.dataset_label);
+  const procedure::BatchVerification& verification = in.verification != nullptr ? *in.verification : *computed;
   std::filesystem::create_directories(out);
   const std::filesystem::path plots = out / "plots";
   if (in.plots) std::filesystem::create_directories(plots);
@@ -164,7 +168,7 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
 
   md << fmt::format("\n## Model (blocks 9-11)\n\n{} rows; innovation standard deviation {:.4g} {} (the residual after "
                     "the AR({}) noise model); AIC {:.6g}.{}\n\n",
-                    r.fit.residuals.size(), std::sqrt(innovation.variance), data.output_unit,
+                    r.fit.residuals.size(), std::sqrt(verification.innovation.variance), data.output_unit,
                     r.whitening.size(), r.aic,
                     r.rows_filtered ? ""
                                     : " The rows were not filtered by the noise model: ULS's correction for the "
@@ -248,9 +252,10 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     gp_res << "set multiplot layout " << data.cases.size() << ",1 title 'Innovation per case (one-step residual after the noise model, "
            << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";
   }
-  for (const procedure::CaseOutcome& c : r.cases) {
+  for (std::size_t position = 0; position < r.cases.size(); ++position) {
+    const procedure::CaseOutcome& c = r.cases[position];
     const dataset::CaseData& cd = data.cases[c.case_index];
-    const CaseTraces tr = traces_of(data, c, r, innovation, in.dataset_label);
+    const CaseTraces tr = traces_of(data, c, r, verification, position, in.dataset_label);
     const auto white = ident::residual_autocorrelation(tr.innovation, 20);
     const auto indep = ident::residual_input_correlation(tr.innovation, tr.a_i, 20);
     const ident::ResidualMeanTest mean = ident::residual_mean_test(tr.verification);

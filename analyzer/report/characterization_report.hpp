@@ -11,6 +11,7 @@
 #include <string>
 
 #include "analyzer/ident/static_gain.hpp"
+#include "analyzer/procedure/batch_stage.hpp"
 #include "analyzer/procedure/pipeline.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/frames.hpp"
@@ -25,6 +26,7 @@ struct TruthForReport {
 struct ReportInputs {
   const dataset::Dataset* data = nullptr;
   const procedure::PipelineResult* result = nullptr;
+  const procedure::BatchVerification* verification = nullptr;   // procedure::batch_verification of result
   std::optional<TruthForReport> truth;
   std::string dataset_label;
   bool plots = true;

@@ -509,7 +509,8 @@ TEST(DiagnoseScenario, ACharacterizedThermalModelOnItsOwnDataNamesNothing) {
       procedure::run_pipeline(data, commands::pipeline_options(commands::CharacterizeOptions{}), "sim-thermal");
   std::optional<noise::NoiseAnalysis> noise;
   std::string no_noise;
-  const model::ModelFile model = commands::characterized_model(characterized, data, noise, no_noise);
+  const model::ModelFile model =
+      commands::characterized_model(characterized, data, procedure::batch_verification(data, characterized), noise, no_noise);
   ASSERT_TRUE(noise.has_value()) << no_noise;
   const DiagnoseResult r = diagnose(data, model, DiagnoseOptions{}, "sim-thermal");
   for (const Finding& f : r.findings) ADD_FAILURE() << "named " << f.term << " at t " << f.t;
