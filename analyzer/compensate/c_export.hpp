@@ -3,7 +3,9 @@
 // firmware: one sample at a time, no allocation, its state in a struct the caller owns, and a
 // bounded number of Newton steps (at most kStarts x max_iterations per sample). The generated
 // code follows InverseModel step for step (the same starts, tolerance, settled start, hold across
-// a sample without a root, squares' high pass), so the two agree to rounding.
+// a sample without a root, squares' high pass), so the two agree to rounding. One generator
+// (generate_joint_c, joint_c_export.cpp) writes both: one output is the joint solve of one
+// equation and one unknown, behind the scalar API below.
 //
 // Generated API, for a prefix P (upper case PU):
 //   typedef double|float P_real;
@@ -60,12 +62,21 @@ struct JointCSource {
   std::vector<std::pair<std::size_t, ident::Variable>> inputs;   // (output, known input), in P_compensate's order
 };
 
+/// One output's published API (above) over the joint solve of one equation: what generate_c asks
+/// for. `description` names the sensor in the header's comment, `unit` its sensed input's unit,
+/// `inputs_note` completes the inputs' comment (how T is taken).
+struct COneOutput {
+  std::string description, unit, inputs_note;
+};
+
 /// `output_names` names each equation's output (the member's sensor), `unknown_names` each
-/// unknown. Throws InputError for a prefix that is not a C identifier, or a square high pass
-/// without `sample_period_s`.
+/// unknown. With `one_output`, the one-equation, one-unknown solve behind one output's API.
+/// Throws InputError for a prefix that is not a C identifier, or a square high pass without
+/// `sample_period_s`.
 JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::string>& output_names,
                               const std::vector<std::string>& unknown_names, const std::string& prefix, CPrecision precision,
-                              std::optional<double> sample_period_s, const CompensationOptions& options = {});
+                              std::optional<double> sample_period_s, const CompensationOptions& options = {},
+                              const COneOutput* one_output = nullptr);
 
 /// CSV "y_<output>...,<inputs>...,<unknown>...,u_coefficients_<unknown>...,u_noise_<unknown>...,flag" of
 /// `records` compensated by `joint`, one row per sample (the first L rows flag 3, values nan).

@@ -82,13 +82,15 @@ double InverseModel::tolerance_scale() const {
   return span > 0.0 ? span : 1.0;
 }
 
-CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, double sample_period_s,
-                                           const CompensationOptions& options) const {
-  // One equation, its sensed input the one unknown.
+JointInverse InverseModel::as_joint() const {
   std::vector<Eigen::VectorXd> starts;
   for (const double s : fallback_starts()) starts.push_back(Eigen::VectorXd::Constant(1, s));
-  const JointInverse joint({JointEquation{this, {{sensed_, Eigen::RowVectorXd::Ones(1)}}}}, std::move(starts));
-  JointCompensation solved = joint.compensate({&signals}, sample_period_s, options);
+  return JointInverse({JointEquation{this, {{sensed_, Eigen::RowVectorXd::Ones(1)}}}}, std::move(starts));
+}
+
+CompensatedSignal InverseModel::compensate(const ident::SignalSet& signals, double sample_period_s,
+                                           const CompensationOptions& options) const {
+  JointCompensation solved = as_joint().compensate({&signals}, sample_period_s, options);
   CompensatedSignal out;
   out.first_row = solved.first_row;
   out.value = solved.value.col(0);

@@ -32,6 +32,10 @@
 #include "analyzer/model/model_file.hpp"
 
 namespace inertia::compensate {
+class JointInverse;
+}
+
+namespace inertia::compensate {
 
 namespace detail {
 inline double integer_power(double v, int power) {
@@ -105,6 +109,10 @@ class InverseModel {
   /// with a square high pass and no positive sample period.
   [[nodiscard]] CompensatedSignal compensate(const ident::SignalSet& signals, double sample_period_s,
                                              const CompensationOptions& options = {}) const;
+
+  /// This model as a joint inverse of one equation, the sensed input its one unknown: what
+  /// compensate solves, and what the C export writes.
+  [[nodiscard]] JointInverse as_joint() const;
 
   /// A model term as the inversion reads it (noise terms are left out).
   struct CompiledTerm {
