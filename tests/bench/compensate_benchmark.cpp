@@ -88,20 +88,31 @@ void BM_Compensate(benchmark::State& state) {
 }
 BENCHMARK(BM_Compensate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
+/// Three models of model_of along a unit's axes, each with its own record.
+struct Triad {
+  unit::UnitModel unit;
+  std::vector<ident::SignalSet> records;
+};
+Triad triad_of(bool nonlinear) {
+  Triad t;
+  t.unit.unit = "imu";
+  for (int axis = 0; axis < 3; ++axis) {
+    model::ModelFile m = model_of(nonlinear);
+    m.unit = "imu";
+    m.unit_axis = axis;
+    m.name = std::string("a") + static_cast<char>('x' + axis);
+    t.records.push_back(record_of(m));
+    t.unit.members.push_back(std::move(m));
+  }
+  return t;
+}
+
 /// A triad's three outputs solved together (unit/unit_inverse.hpp): items are samples of the
 /// unit, three outputs each. Each member's record is its own, so the cost is the joint Newton's.
 void BM_CompensateTriad(benchmark::State& state) {
-  unit::UnitModel u;
-  u.unit = "imu";
-  std::vector<ident::SignalSet> records;
-  for (int axis = 0; axis < 3; ++axis) {
-    model::ModelFile m = model_of(state.range(0) != 0);
-    m.unit = "imu";
-    m.unit_axis = axis;
-    records.push_back(record_of(m));
-    u.members.push_back(std::move(m));
-  }
-  const unit::UnitInverse inverse(u);
+  const Triad triad = triad_of(state.range(0) != 0);
+  const unit::UnitInverse inverse(triad.unit);
+  const std::vector<ident::SignalSet>& records = triad.records;
   const std::vector<const ident::SignalSet*> pointers{&records[0], &records[1], &records[2]};
   for (auto _ : state) benchmark::DoNotOptimize(inverse.joint().compensate(pointers, 1e-3).value.data());
   state.SetItemsProcessed(state.iterations() * kSamples);
@@ -116,15 +127,15 @@ struct Loaded {
   void (*run)(void*, const double*, const double*, long, double*) = nullptr;
 };
 
-/// Generates the model's C with a loop wrapper, compiles it into a shared object and loads it.
-Loaded load_generated(const model::ModelFile& m, const std::filesystem::path& dir, std::vector<ident::Variable>& inputs) {
+/// Generated code (prefix "model") with a loop wrapper whose body `call` computes out[k] from
+/// model_compensate, compiled with cc -O2 into a shared object in `dir` and loaded.
+Loaded compile_and_load(const std::string& header, const std::string& source, const std::string& call,
+                        const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir);
-  const compensate::CSource c = compensate::generate_c(m, "model", compensate::CPrecision::Double);
-  inputs = c.inputs;
-  std::ofstream(dir / "model.h") << c.header;
-  std::ofstream(dir / "model.c") << c.source
+  std::ofstream(dir / "model.h") << header;
+  std::ofstream(dir / "model.c") << source
                                  << "\nvoid model_run(model_state* s, const double* inputs, const double* y, long n, double* out) {\n"
-                                    "  long k;\n  for (k = 0; k < n; ++k) out[k] = model_compensate(s, inputs + k * MODEL_INPUTS, y[k]).value;\n}\n"
+                                    "  long k;\n  for (k = 0; k < n; ++k) out[k] = " << call << ";\n}\n"
                                     "void model_init_any(void* s) { model_init((model_state*)s); }\n";
   const std::string command = "cc -std=c99 -O2 -fPIC -shared -I" + dir.string() + " " + (dir / "model.c").string() + " -lm -o " +
                               (dir / "model.so").string();
@@ -135,6 +146,13 @@ Loaded load_generated(const model::ModelFile& m, const std::filesystem::path& di
   l.init = reinterpret_cast<void (*)(void*)>(dlsym(l.library, "model_init_any"));
   l.run = reinterpret_cast<void (*)(void*, const double*, const double*, long, double*)>(dlsym(l.library, "model_run"));
   return l;
+}
+
+/// Generates the model's C, compiles it into a shared object and loads it.
+Loaded load_generated(const model::ModelFile& m, const std::filesystem::path& dir, std::vector<ident::Variable>& inputs) {
+  const compensate::CSource c = compensate::generate_c(m, "model", compensate::CPrecision::Double);
+  inputs = c.inputs;
+  return compile_and_load(c.header, c.source, "model_compensate(s, inputs + k * MODEL_INPUTS, y[k]).value", dir);
 }
 
 void BM_GeneratedC(benchmark::State& state) {
@@ -172,37 +190,20 @@ BENCHMARK(BM_GeneratedC)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 /// The triad of BM_CompensateTriad as generated joint C (double), one call per unit sample: its
 /// ns per sample and the ratio against JointInverse on the same samples in the same run.
 void BM_GeneratedTriadC(benchmark::State& state) {
-  unit::UnitModel u;
-  u.unit = "imu";
-  std::vector<ident::SignalSet> records;
-  for (int axis = 0; axis < 3; ++axis) {
-    model::ModelFile m = model_of(state.range(0) != 0);
-    m.unit = "imu";
-    m.unit_axis = axis;
-    m.name = std::string("a") + static_cast<char>('x' + axis);
-    records.push_back(record_of(m));
-    u.members.push_back(std::move(m));
-  }
-  const unit::UnitInverse inverse(u);
+  const Triad triad = triad_of(state.range(0) != 0);
+  const unit::UnitInverse inverse(triad.unit);
+  const std::vector<ident::SignalSet>& records = triad.records;
   const std::vector<const ident::SignalSet*> pointers{&records[0], &records[1], &records[2]};
   const compensate::JointCSource c = compensate::generate_joint_c(inverse.joint(), {"ax", "ay", "az"}, {"a_x", "a_y", "a_z"}, "model",
                                                                   compensate::CPrecision::Double, 1e-3);
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("inertia-bench-joint-" + std::to_string(state.range(0)));
-  std::filesystem::create_directories(dir);
-  std::ofstream(dir / "model.h") << c.header;
-  std::ofstream(dir / "model.c") << c.source
-                                 << "\nvoid model_run(model_state* s, const double* inputs, const double* y, long n, double* out) {\n"
-                                    "  long k;\n  for (k = 0; k < n; ++k) out[k] = model_compensate(s, inputs + k * MODEL_INPUTS, y + 3 * k).value[0];\n}\n"
-                                    "void model_init_any(void* s) { model_init((model_state*)s); }\n";
-  const std::string command = "cc -std=c99 -O2 -fPIC -shared -I" + dir.string() + " " + (dir / "model.c").string() + " -lm -o " +
-                              (dir / "model.so").string();
-  void* library = std::system(command.c_str()) == 0 ? dlopen((dir / "model.so").c_str(), RTLD_NOW) : nullptr;
-  if (library == nullptr) {
+  const Loaded l = compile_and_load(c.header, c.source, "model_compensate(s, inputs + k * MODEL_INPUTS, y + 3 * k).value[0]",
+                                    std::filesystem::temp_directory_path() / ("inertia-bench-joint-" + std::to_string(state.range(0))));
+  if (l.run == nullptr || l.init == nullptr) {
     state.SkipWithError("cc or dlopen failed");
     return;
   }
-  const auto init = reinterpret_cast<void (*)(void*)>(dlsym(library, "model_init_any"));
-  const auto run = reinterpret_cast<void (*)(void*, const double*, const double*, long, double*)>(dlsym(library, "model_run"));
+  const auto init = l.init;
+  const auto run = l.run;
   std::vector<double> in(static_cast<std::size_t>(kSamples) * c.inputs.size()), y(static_cast<std::size_t>(kSamples) * 3),
       out(static_cast<std::size_t>(kSamples));
   for (Eigen::Index k = 0; k < kSamples; ++k) {

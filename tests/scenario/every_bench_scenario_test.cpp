@@ -13,8 +13,8 @@
 //   thermal fixture: eq. 5's temperature terms c_T and epsilon_T), sim-imu ax (a unit's
 //   accelerometer on a tumble and a rate table in one dividing head). sim-imu's gyroscopes are not
 //   here: their M_C^S sd counts the rate noise only, with each case's M_E^C taken as exact (the
-//   paper's section 2.2), and the dividing head's 0.01 deg per pose puts their angles 5 to 25 sd
-//   off (docs/unit.md).
+//   paper's section 2.2), and the dividing head's placement error per pose puts their angles far
+//   outside that sd (docs/unit.md has the figures).
 // A term the truth does not have counts against 0. Misalignment: each aligned mounting's angles
 // about p and o against the true M_C^S relative to its nominal case frame.
 // The seeds here are what CI time allows (INERTIA_SCENARIO_SEEDS raises them, e.g. to 20).

@@ -80,6 +80,26 @@ SignalSet record_of(const model::ModelFile& m, Eigen::Index n) {
   return s;
 }
 
+/// Compiles DIR/model.c (written beside model.h and vectors.csv) with `driver` (cc -std=c99
+/// -pedantic -Wall -Wextra -Werror) and runs it on the vectors; its exit status, -1 when the
+/// compiler refused (its messages in `output`, else the driver's).
+int compile_and_run_driver(const fs::path& dir, const char* driver_file, double tolerance, std::string& output) {
+  const fs::path driver = fs::path(INERTIA_SOURCE_DIR) / "tests" / "unit" / "compensate" / driver_file;
+  const std::string compile = "cc -std=c99 -pedantic -Wall -Wextra -Werror -O2 -I" + dir.string() + " " + (dir / "model.c").string() +
+                              " " + driver.string() + " -lm -o " + (dir / "driver").string() + " > " + (dir / "cc.txt").string() + " 2>&1";
+  if (std::system(compile.c_str()) != 0) {
+    std::ifstream in(dir / "cc.txt");
+    output = std::string(std::istreambuf_iterator<char>(in), {});
+    return -1;
+  }
+  const std::string run = (dir / "driver").string() + " " + (dir / "vectors.csv").string() + " " + fmt::format("{}", tolerance) +
+                          " 0.4 > " + (dir / "run.txt").string() + " 2>&1";
+  const int status = std::system(run.c_str());
+  std::ifstream in(dir / "run.txt");
+  output = std::string(std::istreambuf_iterator<char>(in), {});
+  return status;
+}
+
 /// Generates, compiles (cc -std=c99 -Wall -Wextra -Werror) and runs the driver; its exit status.
 int compile_and_run(const model::ModelFile& m, CPrecision precision, double tolerance, std::string& output) {
   const inertia::testing::TempDir dir("inertia-c-export");
@@ -90,21 +110,7 @@ int compile_and_run(const model::ModelFile& m, CPrecision precision, double tole
     std::ofstream vectors(dir.path / "vectors.csv");
     write_test_vectors(vectors, m, c.inputs, record_of(m, 3000), 1e-3);
   }
-  const fs::path driver = fs::path(INERTIA_SOURCE_DIR) / "tests" / "unit" / "compensate" / "c_export_driver.c";
-  const std::string compile = "cc -std=c99 -pedantic -Wall -Wextra -Werror -O2 -I" + dir.path.string() + " " +
-                              (dir.path / "model.c").string() + " " + driver.string() + " -lm -o " + (dir.path / "driver").string() +
-                              " > " + (dir.path / "cc.txt").string() + " 2>&1";
-  if (std::system(compile.c_str()) != 0) {
-    std::ifstream in(dir.path / "cc.txt");
-    output = std::string(std::istreambuf_iterator<char>(in), {});
-    return -1;
-  }
-  const std::string run = (dir.path / "driver").string() + " " + (dir.path / "vectors.csv").string() + " " +
-                          fmt::format("{}", tolerance) + " 0.4 > " + (dir.path / "run.txt").string() + " 2>&1";
-  const int status = std::system(run.c_str());
-  std::ifstream in(dir.path / "run.txt");
-  output = std::string(std::istreambuf_iterator<char>(in), {});
-  return status;
+  return compile_and_run_driver(dir.path, "c_export_driver.c", tolerance, output);
 }
 
 TEST(CExport, DoubleAgreesWithTheAnalyzerTo1e12) {
@@ -218,21 +224,7 @@ int compile_and_run_joint(const UnitVectors& u, CPrecision precision, double tol
     std::ofstream vectors(dir.path / "vectors.csv");
     write_joint_test_vectors(vectors, inverse.joint(), outputs, unknowns, c.inputs, records, 1e-3);
   }
-  const fs::path driver = fs::path(INERTIA_SOURCE_DIR) / "tests" / "unit" / "compensate" / "c_joint_driver.c";
-  const std::string compile = "cc -std=c99 -pedantic -Wall -Wextra -Werror -O2 -I" + dir.path.string() + " " +
-                              (dir.path / "model.c").string() + " " + driver.string() + " -lm -o " + (dir.path / "driver").string() +
-                              " > " + (dir.path / "cc.txt").string() + " 2>&1";
-  if (std::system(compile.c_str()) != 0) {
-    std::ifstream in(dir.path / "cc.txt");
-    output = std::string(std::istreambuf_iterator<char>(in), {});
-    return -1;
-  }
-  const std::string run = (dir.path / "driver").string() + " " + (dir.path / "vectors.csv").string() + " " +
-                          fmt::format("{}", tolerance) + " 0.4 > " + (dir.path / "run.txt").string() + " 2>&1";
-  const int status = std::system(run.c_str());
-  std::ifstream in(dir.path / "run.txt");
-  output = std::string(std::istreambuf_iterator<char>(in), {});
-  return status;
+  return compile_and_run_driver(dir.path, "c_joint_driver.c", tolerance, output);
 }
 
 TEST(CExport, AUnitsJointCodeInDoubleAgreesWithTheAnalyzerTo1e12) {
