@@ -349,7 +349,10 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
                  "      }}\n"
                  "    }}\n",
                  1 + n_starts, D, options.max_iterations, joint.linear() ? "1 || " : "");
-  fmt::format_to(ci, "    evaluate(s, known, x, value, slope);\n    residual(value, slope, y, g, jacobian, denominator);\n");
+  // The values at the root: the last evaluation's moved the last step along their slopes; the
+  // Jacobian stays the last one's (joint_inverse.cpp).
+  fmt::format_to(ci, "    if (converged)\n      for (j = 0; j < {}; ++j)\n        for (k = 0; k < {}; ++k) value[j] -= slope[j][k] * step[k];\n", G, D);
+  fmt::format_to(ci, "    residual(value, slope, y, g, jacobian, denominator);\n");
   fmt::format_to(ci, "    {{\n      R inverse[{0}][{0}];\n      int regular = invert(jacobian, inverse), finite = 1;\n", D);
   fmt::format_to(ci, "      for (j = 0; j < {}; ++j) finite = finite && isfinite(x[j]);\n", D);
   fmt::format_to(ci, "      if (!converged || !finite || !regular) {{\n        r.flag = 2;\n        for (j = 0; j < {}; ++j) x[j] = s->last[j];\n      }} else {{\n", D);

@@ -80,7 +80,11 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
   using Matrix = Eigen::Matrix<double, D, D>;
   struct Factor {
     ident::Factor factor;
-    int solved = -1;   // the row it is read through, -1 where known
+    int solved = -1;                 // the row it is read through, -1 where known
+    const double* known = nullptr;   // a known input's samples
+    // It moves with the sample's x on rows r < moving_until: a solved input now, or a lagged one
+    // before its first estimate (the settled start).
+    Index moving_until = 0;
   };
   struct Term {
     std::vector<Factor> factors;
@@ -110,7 +114,6 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     std::vector<Vector> slope;                                   // per term, d value / d x
     Eigen::VectorXd dg_dc;
     double g = 0.0, denominator = 1.0;
-    Vector gradient = Vector::Zero();
   };
 
   const Index n = records.front()->size();
@@ -136,7 +139,12 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     for (const auto& [variable, row] : source.solved) e.rows.push_back(row.transpose());
     for (const InverseModel::CompiledTerm& t : model.terms()) {
       Term term{{}, t.coefficient, t.denominator, t.square_filtered};
-      for (const ident::Factor& f : t.factors) term.factors.push_back({f, solved_index(source, f.variable)});
+      for (const ident::Factor& f : t.factors) {
+        const int solved = solved_index(source, f.variable);
+        const Eigen::VectorXd* column = e.column[static_cast<std::size_t>(f.variable)];
+        const Index moving_until = solved < 0 ? 0 : (f.lag == 0 ? std::numeric_limits<Index>::max() : f.lag);
+        term.factors.push_back({f, solved, solved < 0 && column != nullptr ? column->data() : nullptr, moving_until});
+      }
       e.terms.push_back(std::move(term));
     }
     e.covariance = &model.covariance();
@@ -161,6 +169,16 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     e.dg_dc.resize(static_cast<Index>(t_count));
   }
 
+  // From this row on no lagged solved input moves with the sample's x.
+  Index settling_rows = 0;
+  for (const Equation& e : eqs) {
+    for (const Term& term : e.terms) {
+      for (const Factor& f : term.factors) {
+        if (f.solved >= 0 && f.factor.lag > 0) settling_rows = std::max<Index>(settling_rows, f.factor.lag);
+      }
+    }
+  }
+
   JointCompensation out;
   out.first_row = first_row_;
   const Index rows = std::max<Index>(0, n - first_row_);
@@ -178,14 +196,16 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
   for (std::size_t s = 0; s < fallback_starts_.size(); ++s) starts[s + 1] = fallback_starts_[s];
   Vector residuals;
   Matrix jacobian, inverse;
+  Matrix inverted = Matrix::Constant(std::numeric_limits<double>::quiet_NaN());   // the Jacobian `inverse` inverts
 
   for (Index k = first_row_; k < n; ++k) {
     const Index r = k - first_row_;
-    // Whether a factor moves with this sample's x: a solved input now, or before the first
-    // estimate (the settled start).
-    const auto moves = [&](const Factor& f) { return f.solved >= 0 && (f.factor.lag == 0 || k - f.factor.lag < first_row_); };
+    const auto moves = [&](const Factor& f) { return r < f.moving_until; };
+    // Each term's known part; while lagged solved inputs still move (the first rows), how it moves.
+    const bool settled = r > settling_rows;
     for (Equation& e : eqs) {
-      for (std::size_t t = 0; t < e.terms.size(); ++t) {
+      const std::size_t term_count = e.terms.size();
+      for (std::size_t t = 0; t < term_count; ++t) {
         double product = 1.0;
         int moving = 0, mover = kStill;
         for (const Factor& f : e.terms[t].factors) {
@@ -196,32 +216,34 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
           }
           const Index at = k - f.factor.lag;
           const double v = f.solved >= 0 ? e.rows[static_cast<std::size_t>(f.solved)].dot(history.row(at - first_row_).transpose())
-                                         : (*e.column[static_cast<std::size_t>(f.factor.variable)])(at);
+                                         : f.known[at];
           product *= factor_value(f.factor, v);
         }
         e.known[t] = product;
-        e.mover[t] = moving > 1 ? kNonlinear : mover;
+        if (!settled) e.mover[t] = moving > 1 ? kNonlinear : mover;
       }
     }
     // Each term's value and gradient at x. A filtered square's value is its high pass's output,
     // h(k) = p h(k-1) + g (s(k) - s(k-1)), settled (0) at the first row; then each equation's
-    // residual and gradient.
+    // residual and gradient: a denominator term's weight is -y c.
     const auto evaluate = [&](const Vector& at_x) {
       for (std::size_t m = 0; m < eqs.size(); ++m) {
         Equation& e = eqs[m];
         const double yk = (*e.y)(k);
-        e.g = -yk;
-        e.denominator = 1.0;
-        e.gradient.setZero();
-        for (std::size_t t = 0; t < e.terms.size(); ++t) {
+        double g = -yk, denominator = 1.0;
+        Vector gradient = Vector::Zero();
+        const std::size_t term_count = e.terms.size();
+        for (std::size_t t = 0; t < term_count; ++t) {
           const Term& term = e.terms[t];
+          const int mover = e.mover[t];
           double v = e.known[t];
-          Vector d = Vector::Zero();
-          if (e.mover[t] >= 0) {
-            const Vector& row = e.rows[static_cast<std::size_t>(e.mover[t])];
+          Vector& d = e.slope[t];
+          if (mover >= 0) {
+            const Vector& row = e.rows[static_cast<std::size_t>(mover)];
             d = v * row;
             v *= row.dot(at_x);
-          } else if (e.mover[t] == kNonlinear) {
+          } else if (mover == kNonlinear) {
+            d.setZero();
             for (const Factor& f : term.factors) {
               if (!moves(f)) continue;
               const Vector& row = e.rows[static_cast<std::size_t>(f.solved)];
@@ -230,6 +252,8 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
               d = d * fv + (v * factor_slope(f.factor, u)) * row;
               v *= fv;
             }
+          } else {
+            d.setZero();
           }
           if (term.square_filtered) {
             if (k == first_row_) {
@@ -241,24 +265,26 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
             }
           }
           e.value[t] = v;
-          e.slope[t] = d;
-          if (term.denominator) {
-            e.denominator += term.coefficient * v;
-            e.g -= yk * term.coefficient * v;
-            e.gradient -= (yk * term.coefficient) * d;
-          } else {
-            e.g += term.coefficient * v;
-            e.gradient += term.coefficient * d;
-          }
+          const double weight = term.denominator ? -yk * term.coefficient : term.coefficient;
+          if (term.denominator) denominator += term.coefficient * v;
+          g += weight * v;
+          if (mover != kStill) gradient += weight * d;
         }
-        residuals(static_cast<Index>(m)) = e.g;
-        jacobian.row(static_cast<Index>(m)) = e.gradient.transpose();
+        e.g = g;
+        e.denominator = denominator;
+        residuals(static_cast<Index>(m)) = g;
+        jacobian.row(static_cast<Index>(m)) = gradient.transpose();
       }
     };
     // Newton's step and the Jacobian's inverse, or false where the Jacobian is singular or a
     // value not finite. Up to 3 unknowns the inverse is the cofactors'; 6 take an LU.
     const auto newton_step = [&](Vector& step) {
-      if (!(residuals.allFinite() && jacobian.allFinite())) return false;
+      if (!residuals.allFinite()) return false;
+      if (jacobian == inverted) {   // the Jacobian of the last inverse: often every sample's (a linear unit)
+        step.noalias() = inverse * residuals;
+        return step.allFinite();
+      }
+      if (!jacobian.allFinite()) return false;
       if constexpr (D == 1) {
         if (jacobian(0, 0) == 0.0) return false;
         inverse(0, 0) = 1.0 / jacobian(0, 0);
@@ -276,6 +302,7 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
         inverse = lu.inverse();
         step.noalias() = inverse * residuals;
       }
+      inverted = jacobian;
       return step.allFinite();
     };
 
@@ -301,10 +328,21 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
       if (converged) break;
     }
     out.most_iterations = std::max(out.most_iterations, iterations);
-    // The terms' values at the root (the squares' filter state and the uncertainty read them).
-    evaluate(x);
-    const bool regular = linear_ || newton_step(step);   // a linear system's Jacobian and inverse do not move
-    if (!converged || !x.allFinite() || !regular) {
+    // The terms' values at the root (the squares' filter state and the uncertainty read them): the
+    // last evaluation's, moved the last step along their slopes. That is exact for terms linear in
+    // x, and within the square of the step tolerance otherwise; the Jacobian and its inverse stay
+    // the last evaluation's, to the same order.
+    if (converged) {
+      for (Equation& e : eqs) {
+        double denominator = 1.0;
+        for (std::size_t t = 0; t < e.terms.size(); ++t) {
+          e.value[t] -= e.slope[t].dot(step);
+          if (e.terms[t].denominator) denominator += e.terms[t].coefficient * e.value[t];
+        }
+        e.denominator = denominator;
+      }
+    }
+    if (!converged || !x.allFinite()) {
       out.value.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
       out.u_coefficients.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
       out.u_noise.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
@@ -334,8 +372,9 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
         quadratic += a[i] * (column[i] * a[i] + 2.0 * below);
       }
       const Vector column_squared = inverse.col(static_cast<Index>(m)).array().square().matrix();
+      const double noise = e.noise_sd * e.denominator;
       variance_c += std::max(0.0, quadratic) * column_squared;
-      variance_n += std::pow(e.noise_sd * e.denominator, 2) * column_squared;
+      variance_n += (noise * noise) * column_squared;
       for (std::size_t t = 0; t < e.terms.size(); ++t) {
         if (!e.terms[t].square_filtered) continue;
         // The filter's input at x: the square's unfiltered value.
