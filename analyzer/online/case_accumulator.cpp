@@ -79,6 +79,7 @@ void CaseAccumulator::forget(Index rows) {
   const double f = std::pow(live.options.forgetting, static_cast<double>(rows));
   for (CaseState& c : cases) c.stats.scale(f);
   if (open) open->stats.scale(f);
+  for (procedure::TermExcitation& e : excitation) e.scale(f);
 }
 
 void CaseAccumulator::close_open(bool kept) {
@@ -173,6 +174,12 @@ bool CaseAccumulator::push(const fusion::FusedChunk& chunk, const config::TestCa
   if (work.temp) seg.history.temp = Eigen::VectorXd(work.temp->tail(tail));
   const Index rows = total - first_row;
   if (rows <= 0) return false;
+  if (excitation.empty()) excitation.resize(live.basis->terms().size());
+  for (const Index t : live.model) {
+    const ident::Term& term = live.basis->terms()[static_cast<std::size_t>(t)];
+    if (procedure::judged_by_excitation(term))
+      procedure::add_excitation(term, work, Eigen::Matrix3d::Identity(), live.t_ref, first_row, excitation[static_cast<std::size_t>(t)]);
+  }
   const MountingState& ms = mountings[cases[state].mounting];
   const ident::SignalSet signals = ident::signals_from_case(work, ms.m_cs, live.t_ref, "live stream");
   Eigen::MatrixXd x(rows, live.basis->base_size());
@@ -242,6 +249,10 @@ bool CaseAccumulator::every_plan_case_in() const {
       if (cases[c].name == k.name && has_data(c)) return true;
     return false;
   });
+}
+
+bool CaseAccumulator::excited(Index term) const {
+  return static_cast<std::size_t>(term) >= excitation.size() || excitation[static_cast<std::size_t>(term)].excited();
 }
 
 bool CaseAccumulator::temperature_moved() const { return temp_hi - temp_lo >= procedure::kMinTemperatureSpanC; }

@@ -22,6 +22,7 @@
 #include "analyzer/online/live_noise_model.hpp"
 #include "analyzer/online/live_solver.hpp"
 #include "analyzer/procedure/mounting_rules.hpp"
+#include "analyzer/procedure/plan_validation.hpp"
 #include "common/config/bench_config.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/frames.hpp"
@@ -76,6 +77,9 @@ class CaseAccumulator {
   double temp_lo = std::numeric_limits<double>::infinity(), temp_hi = -std::numeric_limits<double>::infinity();
   std::int64_t rows_total = 0;
   double nominal_period = 0.0;
+  /// Per basis term the model fits, whether the plan's own inputs excite it so far: the batch's
+  /// rule (procedure::TermExcitation), tallied over every row pushed.
+  std::vector<procedure::TermExcitation> excitation;
   /// A segment ended since the convergence test last ran: the data changed by a whole segment.
   bool segment_closed = false;
 
@@ -115,6 +119,9 @@ class CaseAccumulator {
   [[nodiscard]] bool whole_plan_in() const { return every_plan_case_in() && !open; }
   /// Whether the fixture temperature has moved enough for its terms (the batch's rule).
   [[nodiscard]] bool temperature_moved() const;
+  /// Whether the rows so far excite basis term `term` in the plan's own frames (the batch's rule,
+  /// procedure::judged_by_excitation; a term it does not judge is excited).
+  [[nodiscard]] bool excited(Eigen::Index term) const;
   [[nodiscard]] std::size_t cases_with_data() const;
 
  private:

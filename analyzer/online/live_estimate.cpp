@@ -157,10 +157,14 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
 }
 
 LiveSolver EstimateSolver::active_solver(const std::vector<Index>& terms) const {
-  if (statistics.temperature_moved()) return live.solver->with_model(terms);
+  // The batch's rules on its candidates: temperature terms once the temperature moved, and a
+  // searched model's products of inputs once the plan's own inputs excite them (plan_validation.hpp).
   std::vector<Index> kept;
-  for (Index t : terms)
-    if (!live.basis->terms()[static_cast<std::size_t>(t)].uses(Variable::T)) kept.push_back(t);
+  for (Index t : terms) {
+    if (!statistics.temperature_moved() && live.basis->terms()[static_cast<std::size_t>(t)].uses(Variable::T)) continue;
+    if (live.searched && !statistics.excited(t)) continue;
+    kept.push_back(t);
+  }
   return live.solver->with_model(std::move(kept));
 }
 

@@ -77,7 +77,10 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
                               std::string_view dataset_label) {
   PipelineResult result = std::move(mounted);
   if (std::optional<std::string> note = temperature_note(data, options)) result.notes.push_back(std::move(*note));
-  const std::vector<Term> candidates = offered_terms(options.batch, ident::ModelFrame::Sensor, data, options, "batch");
+  std::vector<Term> candidates = offered_terms(options.batch, ident::ModelFrame::Sensor, data, options, "batch");
+  if (options.batch.select) {
+    for (UndeterminedTerm& u : remove_unexcited_terms(candidates, data.cases, data.t_ref)) result.undetermined.push_back(std::move(u));
+  }
   // Held angles (excitation.hpp) stay at the nominal frame; after the selection their tolerance
   // is propagated into the coefficients' covariance (below).
   const std::vector<HeldColumn> held = held_columns(result.mountings);

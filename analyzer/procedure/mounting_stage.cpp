@@ -322,6 +322,9 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     }
     es_terms = std::move(kept);
   }
+  if (options.misalignment.select) {
+    for (const UndeterminedTerm& u : remove_unexcited_terms(es_terms, m.cases, data.t_ref)) result.excluded.push_back(u.term);
+  }
   {
     const std::array<const char*, 3> names = sensitivity_names(data.sensor);
     for (int axis = 1; axis < 3; ++axis) {

@@ -4,10 +4,12 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <utility>
 
+#include "analyzer/ident/regressors.hpp"
 #include "analyzer/procedure/excitation.hpp"
 #include "common/input_error.hpp"
 
@@ -62,6 +64,12 @@ void check_scale_excitation(const dataset::Dataset& data, std::string_view label
            : "An accelerometer needs at least two poses with different gravity along IRA (a six-position tumble, a "
              "multipoint rotation-table test) or vibration along IRA."));
 }
+
+bool is_rate(ident::Variable v) {
+  using ident::Variable;
+  return v == Variable::Wi || v == Variable::Wp || v == Variable::Wo || v == Variable::Wx || v == Variable::Wy || v == Variable::Wz;
+}
+bool is_inertial(ident::Variable v) { return v != ident::Variable::T && v != ident::Variable::Y && v != ident::Variable::E; }
 
 /// What a variable's excitation is called, for the user.
 std::string excitation_of(ident::Variable v) {
@@ -153,6 +161,70 @@ std::optional<std::string> temperature_note(const dataset::Dataset& data, const 
   return fmt::format("temperature terms not determined by this plan: the fixture temperature spans {:.3f} degC (at least "
                      "{:.0f} degC needed; a thermal_step phase gives it)",
                      span, kMinTemperatureSpanC);
+}
+
+bool judged_by_excitation(const ident::Term& term) {
+  int inertial_degree = 0;
+  for (const ident::Factor& f : term.factors()) {
+    if (f.variable == ident::Variable::Y || f.variable == ident::Variable::E) return false;
+    inertial_degree += is_inertial(f.variable) ? f.power : 0;
+  }
+  return inertial_degree >= 2;
+}
+
+void add_excitation(const ident::Term& term, const dataset::CaseData& c, const Eigen::Matrix3d& m_nominal, double t_ref,
+                    Eigen::Index first_row, TermExcitation& tally) {
+  using ident::Variable;
+  const std::array<ident::Term, 1> one{term};
+  const Eigen::Index first = std::max(first_row, ident::first_usable_row(one));
+  const std::vector<Variable> variables = term.variables();
+  if (c.size() <= first || (term.uses(Variable::T) && !c.temp) || (!c.w_e && std::any_of(variables.begin(), variables.end(), is_rate)))
+    return;
+  ident::VariableSet wanted;
+  for (Variable v : variables) wanted.set(static_cast<std::size_t>(v));
+  const ident::SignalSet nominal = ident::signals_from_case(c, m_nominal, t_ref, {}, wanted);
+  // The same signals with every inertial variable at its input vector's magnitude.
+  ident::SignalSet full = nominal;
+  const Eigen::VectorXd a_magnitude = c.a_e.rowwise().norm();
+  const Eigen::VectorXd w_magnitude = c.w_e ? Eigen::VectorXd(c.w_e->rowwise().norm()) : Eigen::VectorXd();
+  for (Variable v : variables) {
+    if (is_inertial(v)) full.set(v, is_rate(v) ? w_magnitude : a_magnitude);
+  }
+  Eigen::MatrixXd column(c.size() - first, 1);
+  ident::fill_regressors(one, nominal, first, column);
+  tally.nominal += column.squaredNorm();
+  ident::fill_regressors(one, full, first, column);
+  tally.full += column.squaredNorm();
+}
+
+std::string unexcited_reason(const ident::Term& term, const TermExcitation& tally) {
+  std::vector<std::string> needs;
+  for (ident::Variable v : term.variables()) {
+    if (is_inertial(v)) needs.push_back(excitation_of(v));
+  }
+  return fmt::format("not determined by this plan: the plan's own inputs move it to {:.1e} of the energy its inputs "
+                     "allow (at least {:.0e} needed); what moves it beyond that is the sensor's misalignment and the poses' "
+                     "scatter, and a fit on it would be extrapolated over the characterized range (needs {} at once)",
+                     tally.full > 0.0 ? tally.nominal / tally.full : 0.0, kMinExcitationShare, fmt::join(needs, " and "));
+}
+
+std::vector<UndeterminedTerm> remove_unexcited_terms(std::vector<ident::Term>& candidates, std::span<const dataset::CaseData> cases,
+                                                     double t_ref) {
+  std::vector<UndeterminedTerm> out;
+  std::vector<ident::Term> kept;
+  for (const ident::Term& term : candidates) {
+    TermExcitation tally;
+    if (judged_by_excitation(term)) {
+      for (const dataset::CaseData& c : cases) add_excitation(term, c, c.m_ec, t_ref, 0, tally);
+    }
+    if (tally.excited()) {
+      kept.push_back(term);
+    } else {
+      out.push_back({term.to_string(), unexcited_reason(term, tally)});
+    }
+  }
+  candidates = std::move(kept);
+  return out;
 }
 
 std::vector<UndeterminedTerm> undetermined_columns(const StackedRegression& s, const std::vector<Eigen::Index>& ranking) {

@@ -1,11 +1,18 @@
 // What a mounting's excitation determines (procedure/excitation.hpp): the shares against a
 // hand-worked four-sample example and against a least-squares projection on the samples, the
 // verdicts on plans that do and do not excite an axis, the threshold, and the held angles' notes.
+// What a plan's own inputs excite of a product term (procedure/plan_validation.hpp,
+// TermExcitation): the shares by hand on a six-pose tumble and a rotation in the i-p plane, the
+// sensor's misalignment not counted as excitation, the threshold, and which terms the rule judges.
 #include "analyzer/procedure/excitation.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <numbers>
 #include <random>
+
+#include "analyzer/procedure/plan_validation.hpp"
 
 namespace inertia::procedure {
 namespace {
@@ -181,5 +188,134 @@ TEST(FrameFree, TermsThatHoldInAnyFrameNearTheSensors) {
     EXPECT_FALSE(frame_free(ident::parse_term(t))) << t;
 }
 
+
+/// A static case of `n` samples: gravity along F_E's z, the case turned by `m_ec` (rows: IRA, XRA,
+/// YRA in F_E).
+dataset::CaseData pose(const Eigen::Matrix3d& m_ec, Index n = 10) {
+  dataset::CaseData c;
+  c.name = "pose";
+  c.m_ec = m_ec;
+  c.sample_period_s = 0.01;
+  c.t = Eigen::VectorXd::LinSpaced(n, 0.0, 0.01 * static_cast<double>(n - 1));
+  c.a_e = dataset::Matrix3Columns(n, 3);
+  c.a_e.rowwise() = Eigen::RowVector3d(0.0, 0.0, 9.80665);
+  c.y = Eigen::VectorXd::Zero(n);
+  return c;
+}
+
+/// The nominal M_E^C of a pose whose case axis `up` (0 IRA, 1 XRA, 2 YRA) points along +z or -z.
+Eigen::Matrix3d facing(int up, double sign) {
+  Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+  m(up, 2) = sign;
+  m((up + 1) % 3, 0) = 1.0;
+  m((up + 2) % 3, 1) = sign;
+  return m;
+}
+
+std::vector<dataset::CaseData> six_poses() {
+  std::vector<dataset::CaseData> cases;
+  for (int up = 0; up < 3; ++up)
+    for (double sign : {1.0, -1.0}) cases.push_back(pose(facing(up, sign)));
+  return cases;
+}
+
+TermExcitation tally_of(const char* term, const std::vector<dataset::CaseData>& cases) {
+  TermExcitation tally;
+  for (const dataset::CaseData& c : cases) add_excitation(ident::parse_term(term), c, c.m_ec, 25.0, 0, tally);
+  return tally;
+}
+
+TEST(TermExcitation, SixPoseTumbleExcitesTheSquaresNotTheProducts) {
+  const std::vector<dataset::CaseData> cases = six_poses();
+  const double g4 = std::pow(9.80665, 4);
+  // a_i^2: g^4 in the two poses with IRA vertical, 0 in the four others; the full energy is g^4
+  // in all six: a share of 1/3.
+  const TermExcitation square = tally_of("a_i^2", cases);
+  EXPECT_NEAR(square.nominal, 2 * 10 * g4, 1e-9 * g4);
+  EXPECT_NEAR(square.full, 6 * 10 * g4, 1e-9 * g4);
+  EXPECT_TRUE(square.excited());
+  EXPECT_TRUE(tally_of("a_i*abs(a_i)", cases).excited());
+  // A product of two axes is zero in every pose of the plan.
+  for (const char* product : {"a_i*a_p", "a_i*a_o", "a_p*a_o"}) {
+    const TermExcitation t = tally_of(product, cases);
+    EXPECT_EQ(t.nominal, 0.0) << product;
+    EXPECT_NEAR(t.full, 6 * 10 * g4, 1e-9 * g4) << product;
+    EXPECT_FALSE(t.excited()) << product;
+  }
+}
+
+TEST(TermExcitation, TheSensorsMisalignmentIsNotExcitation) {
+  // The rule reads the references in the plan's frames, so a sensor 3 mrad off its case changes
+  // nothing, and poses placed 3 mrad off (their references in F_E tilted) move a_p*a_o by a few
+  // mrad of g^2: far below the share. Only a plan whose own frames put gravity between p and o
+  // excites it.
+  std::vector<dataset::CaseData> cases = six_poses();
+  const TermExcitation before = tally_of("a_p*a_o", cases);
+  const Eigen::Matrix3d tilt = frames::frame_rotation(Eigen::Vector3d(1.0, 1.0, 0.0).normalized(), 3e-3);
+  for (dataset::CaseData& c : cases) c.a_e = (c.a_e * tilt.transpose()).eval();
+  const TermExcitation tilted = tally_of("a_p*a_o", cases);
+  EXPECT_FALSE(tilted.excited());
+  EXPECT_LT(tilted.nominal, 6 * 10 * std::pow(9.80665 * 9.80665 * 3e-3, 2));   // a few mrad of g^2 at most
+  EXPECT_EQ(before.nominal, 0.0);
+  // A pose with gravity at 45 deg between XRA and YRA: a_p a_o = g^2 / 2 there.
+  const double s = std::sqrt(0.5);
+  Eigen::Matrix3d between;
+  between << 1, 0, 0,
+             0, s, s,
+             0, -s, s;
+  cases.push_back(pose(between));
+  const TermExcitation with = tally_of("a_p*a_o", cases);
+  const double g4 = std::pow(9.80665, 4);
+  EXPECT_NEAR(with.nominal, tilted.nominal + 10 * g4 / 4.0, 1e-12 * g4);
+  EXPECT_NEAR(with.full, 7 * 10 * g4, 1e-9 * g4);
+  EXPECT_TRUE(with.excited());
+}
+
+TEST(TermExcitation, ARotationInTheIpPlaneExcitesItsProductAtOneEighth) {
+  // Gravity turned through a whole turn in the i-p plane at 36 equal steps: a_i a_p = g^2 cos sin,
+  // whose square averages 1/8 of g^4; a_o^2 is zero throughout.
+  std::vector<dataset::CaseData> cases;
+  for (int k = 0; k < 36; ++k) {
+    const double angle = 2.0 * std::numbers::pi * k / 36.0;
+    Eigen::Matrix3d m;
+    m << 0, std::sin(angle), std::cos(angle),
+         0, std::cos(angle), -std::sin(angle),
+         1, 0, 0;
+    cases.push_back(pose(m, 4));
+  }
+  const TermExcitation ip = tally_of("a_i*a_p", cases);
+  EXPECT_NEAR(ip.nominal / ip.full, 0.125, 1e-12);
+  EXPECT_TRUE(ip.excited());
+  EXPECT_LT(tally_of("a_o^2", cases).nominal, 1e-20 * ip.full);
+  EXPECT_FALSE(tally_of("a_o^2", cases).excited());
+}
+
+TEST(TermExcitation, TheThresholdIsTheAxesShare) {
+  TermExcitation t;
+  t.full = 1.0;
+  t.nominal = kMinExcitationShare;
+  EXPECT_TRUE(t.excited());
+  t.nominal = 0.99 * kMinExcitationShare;
+  EXPECT_FALSE(t.excited());
+  t.scale(0.5);
+  EXPECT_FALSE(t.excited());
+  EXPECT_TRUE(TermExcitation{}.excited());   // nothing seen: nothing to judge
+}
+
+TEST(TermExcitation, JudgesProductsOfInertialInputsOnly) {
+  for (const char* judged : {"a_i^2", "a_i*a_p", "a_p*a_o", "w_i*a_p", "a_i*a_i[k-1]", "a_i*abs(a_i)", "a_i^2*T"})
+    EXPECT_TRUE(judged_by_excitation(ident::parse_term(judged))) << judged;
+  for (const char* not_judged : {"1", "a_i", "a_p", "a_i[k-1]", "T", "a_i*T", "y*w_i", "y[k-1]", "e[k-1]", "w_i"})
+    EXPECT_FALSE(judged_by_excitation(ident::parse_term(not_judged))) << not_judged;
+}
+
+TEST(TermExcitation, RemovesTheUnexcitedCandidatesAndSaysWhatTheyNeed) {
+  std::vector<ident::Term> candidates = ident::parse_terms({"1", "a_i", "a_i^2", "a_p*a_o", "a_p"});
+  const std::vector<UndeterminedTerm> out = remove_unexcited_terms(candidates, six_poses(), 25.0);
+  EXPECT_EQ(candidates, ident::parse_terms({"1", "a_i", "a_i^2", "a_p"}));
+  ASSERT_EQ(out.size(), 1U);
+  EXPECT_EQ(out[0].term, "a_p*a_o");
+  EXPECT_NE(out[0].reason.find("specific force along p and specific force along o"), std::string::npos) << out[0].reason;
+}
 }  // namespace
 }  // namespace inertia::procedure
