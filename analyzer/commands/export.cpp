@@ -216,8 +216,12 @@ int run_unit_export(const ExportOptions& options, std::ostream& out) {
       j["members"].push_back(std::move(member));
     }
     j["imucal"] = unit::imucal_json(triads);
+    j["covariance"] = unit::covariance_json(triads);
     write_file_atomically(options.out / "unit.json", j.dump(2) + "\n");
-    fmt::print(out, "wrote {}/unit.json (each member's model as in model.json, and the triads in imucal's terms)\n", options.out.string());
+    fmt::print(out,
+               "wrote {}/unit.json (each member's model as in model.json, the triads in imucal's terms, and the covariance of "
+               "imucal's and Kalibr's parameters)\n",
+               options.out.string());
     return kExitOk;
   }
   throw InputError(fmt::format("--format {}: expected c, imucal, json or kalibr for a unit", options.format));

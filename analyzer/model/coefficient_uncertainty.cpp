@@ -19,21 +19,23 @@ Eigen::MatrixXd coefficient_covariance(const ModelFile& model) {
   return c;
 }
 
-Eigen::MatrixXd propagated_covariance(const ModelFile& model, const CoefficientFunction& f) {
-  const Eigen::VectorXd theta = coefficient_vector(model);
-  const Eigen::MatrixXd covariance = coefficient_covariance(model);
-  const Eigen::VectorXd at = f(theta);
-  Eigen::MatrixXd jacobian = Eigen::MatrixXd::Zero(at.size(), theta.size());
-  for (Eigen::Index j = 0; j < theta.size(); ++j) {
+Eigen::MatrixXd delta_method_covariance(const CoefficientFunction& f, const Eigen::VectorXd& x, const Eigen::MatrixXd& covariance) {
+  const Eigen::VectorXd at = f(x);
+  Eigen::MatrixXd jacobian = Eigen::MatrixXd::Zero(at.size(), x.size());
+  for (Eigen::Index j = 0; j < x.size(); ++j) {
     const double sd = std::sqrt(std::max(covariance(j, j), 0.0));
     if (sd == 0.0) continue;
     const double h = 1e-3 * sd;
-    Eigen::VectorXd up = theta, down = theta;
+    Eigen::VectorXd up = x, down = x;
     up(j) += h;
     down(j) -= h;
     jacobian.col(j) = (f(up) - f(down)) / (2.0 * h);
   }
   return jacobian * covariance * jacobian.transpose();
+}
+
+Eigen::MatrixXd propagated_covariance(const ModelFile& model, const CoefficientFunction& f) {
+  return delta_method_covariance(f, coefficient_vector(model), coefficient_covariance(model));
 }
 
 }  // namespace inertia::model

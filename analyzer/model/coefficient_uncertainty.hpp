@@ -18,8 +18,11 @@ Eigen::MatrixXd coefficient_covariance(const ModelFile& model);
 
 using CoefficientFunction = std::function<Eigen::VectorXd(const Eigen::VectorXd& theta)>;
 
-/// The covariance of f(theta) by the delta method: J C J', J by central differences with steps of
-/// 1e-3 of each coefficient's sd (a coefficient without sd does not vary).
+/// The covariance of f(x) for an x of covariance C by the delta method: J C J', J by central
+/// differences with steps of 1e-3 of each element's sd (an element without sd does not vary).
+Eigen::MatrixXd delta_method_covariance(const CoefficientFunction& f, const Eigen::VectorXd& x, const Eigen::MatrixXd& covariance);
+
+/// The covariance of f(theta) over the model's coefficients (delta_method_covariance).
 Eigen::MatrixXd propagated_covariance(const ModelFile& model, const CoefficientFunction& f);
 
 }  // namespace inertia::model

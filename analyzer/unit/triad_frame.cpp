@@ -34,29 +34,41 @@ TriadAxis triad_axis(const model::ModelFile& m) {
     for (int k = 0; k < 3; ++k) g(k) = compensate::static_sensitivity(m, of[static_cast<std::size_t>(k)], theta);
     return g;
   };
-  const auto sensor_gradient = [&](const Eigen::VectorXd& theta) { return gradient(inputs, theta); };
-  const auto unit_sensitivity = [&](const Eigen::VectorXd& theta) -> Eigen::VectorXd {
-    return to_unit * (m_cs.transpose() * sensor_gradient(theta));
+  const std::array<Variable, 3> specific_force{Variable::Ai, Variable::Ap, Variable::Ao};
+  // s_k and the g-sensitivity (gyroscopes; zero for an accelerometer) in unit coordinates.
+  const auto unit_vectors = [&](const Eigen::VectorXd& theta) -> Eigen::VectorXd {
+    const Eigen::Matrix3d turn = to_unit * m_cs.transpose();
+    const Eigen::Vector3d s = turn * gradient(inputs, theta);
+    const Eigen::Vector3d g = gyro ? Eigen::Vector3d(turn * gradient(specific_force, theta)) : Eigen::Vector3d::Zero();
+    Eigen::VectorXd v(6);
+    v << s, g;
+    return v;
   };
   TriadAxis a;
   a.sensor = m.name;
   const Eigen::VectorXd theta = model::coefficient_vector(m);
-  a.sensitivity = unit_sensitivity(theta);
-  a.covariance = model::propagated_covariance(m, unit_sensitivity);
+  const Eigen::VectorXd vectors = unit_vectors(theta);
+  a.sensitivity = vectors.head(3);
+  a.g_sensitivity = vectors.tail(3);
+  a.joint_covariance = model::propagated_covariance(m, unit_vectors);
   if (m.misalignment) {
-    // M_C^S turned by small angles d about the case axes: M' = (I - [d]x) M, so s_C = M' g moves by
-    // -M' [g]x d. Only p and o: a turn about i does not move the input axis.
-    const Eigen::Matrix3d jacobian = -to_unit * m_cs.transpose() * cross_matrix(sensor_gradient(theta));
+    // M_C^S turned by small angles d about the case axes: M' = (I - [d]x) M, so a vector v_C = M' v_S
+    // moves by -M' [v_S]x d, s and g alike. Only p and o: a turn about i does not move the input axis.
     const Eigen::Vector3d variance(0.0, std::pow(m.misalignment->sd_p, 2), std::pow(m.misalignment->sd_o, 2));
-    a.angles_covariance = jacobian * variance.asDiagonal() * jacobian.transpose();
-    a.covariance += a.angles_covariance;
+    Eigen::Matrix<double, 6, 3> jacobian;
+    jacobian.topRows(3) = -to_unit * m_cs.transpose() * cross_matrix(gradient(inputs, theta));
+    jacobian.bottomRows(3) = gyro ? Eigen::Matrix3d(-to_unit * m_cs.transpose() * cross_matrix(gradient(specific_force, theta)))
+                                  : Eigen::Matrix3d::Zero();
+    const Eigen::Matrix<double, 6, 6> angles = jacobian * variance.asDiagonal() * jacobian.transpose();
+    a.angles_covariance = angles.topLeftCorner(3, 3);
+    a.joint_covariance += angles;
     a.angles_dof = m.misalignment->dof;
     a.angles_estimated = m.misalignment->sd_p > 0.0 && m.misalignment->sd_o > 0.0;
   }
+  a.covariance = a.joint_covariance.topLeftCorner(3, 3);
   const auto bias = [&](const Eigen::VectorXd& t) -> Eigen::VectorXd {
     return Eigen::VectorXd::Constant(1, compensate::static_output(m, compensate::InputValues{}, {}, t));
   };
-  if (gyro) a.g_sensitivity = to_unit * (m_cs.transpose() * gradient({Variable::Ai, Variable::Ap, Variable::Ao}, theta));
   a.bias = bias(theta)(0);
   a.bias_sd = std::sqrt(std::max(0.0, model::propagated_covariance(m, bias)(0, 0)));
   return a;

@@ -42,6 +42,9 @@ struct TriadAxis {
   double angles_dof = std::numeric_limits<double>::infinity();   // their sd's degrees of freedom
   double bias = 0.0, bias_sd = 0.0;   // settled output at zero input, output unit
   Eigen::Vector3d g_sensitivity = Eigen::Vector3d::Zero();   // gyroscopes: dy / d(specific force), unit coordinates
+  /// Of (s_k, g_sensitivity) together: `covariance` is its top left block (for an accelerometer,
+  /// whose g_sensitivity is zero, the only one that is not zero).
+  Eigen::Matrix<double, 6, 6> joint_covariance = Eigen::Matrix<double, 6, 6>::Zero();
   bool angles_estimated = false;      // the model's [misalignment] has both angles with their sd
 };
 

@@ -3,8 +3,10 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <map>
 
 #include "analyzer/unit/kalibr_intrinsics.hpp"
+#include "analyzer/unit/unit_covariance.hpp"
 #include "analyzer/unit/unit_model.hpp"
 #include "common/input_error.hpp"
 #include "common/toml_text.hpp"
@@ -60,10 +62,25 @@ std::string triad_toml(const TriadFrame& f) {
   return s;
 }
 
-nlohmann::json matrix_json(const Eigen::Matrix3d& m) {
+nlohmann::json matrix_json(const Eigen::MatrixXd& m) {
   nlohmann::json j = nlohmann::json::array();
-  for (int r = 0; r < 3; ++r) j.push_back({m(r, 0), m(r, 1), m(r, 2)});
+  for (Eigen::Index r = 0; r < m.rows(); ++r) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Eigen::Index c = 0; c < m.cols(); ++c) row.push_back(m(r, c));
+    j.push_back(std::move(row));
+  }
   return j;
+}
+
+/// A matrix of any shape as a TOML array of rows.
+std::string toml_matrix(const Eigen::MatrixXd& m) {
+  std::string s = "[";
+  for (Eigen::Index r = 0; r < m.rows(); ++r) {
+    s += r == 0 ? "[" : ", [";
+    for (Eigen::Index c = 0; c < m.cols(); ++c) s += (c == 0 ? "" : ", ") + toml_float(m(r, c));
+    s += "]";
+  }
+  return s + "]";
 }
 
 std::string yaml_matrix(const Eigen::Matrix3d& matrix) {
@@ -100,6 +117,18 @@ nlohmann::json imucal_json(const Triads& triads) {
   return j;
 }
 
+nlohmann::json covariance_json(const Triads& triads) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const UnitParameter& p : unit_parameters(triads)) {
+    nlohmann::json entry = {{"value", p.value.cols() == 1 ? nlohmann::json(std::vector<double>(p.value.data(), p.value.data() + 3))
+                                                          : matrix_json(p.value)},
+                            {"covariance", matrix_json(p.covariance)}};
+    if (p.rotation) entry["rotation"] = true;
+    j[p.name] = std::move(entry);
+  }
+  return j;
+}
+
 std::string kalibr_yaml(const Triads& triads) {
   const std::vector<model::ModelFile>& accelerometers = triads.accelerometers;
   const std::vector<model::ModelFile>& gyroscopes = triads.gyroscopes;
@@ -109,7 +138,12 @@ std::string kalibr_yaml(const Triads& triads) {
                                  "# each member's model. a_m = M_a C a + b_a, w_m = M_g C_gyro_i C w + A C_gyro_i C a + b_g, with a_m, w_m\n"
                                  "# the outputs in SI (their value times their unit's) and C the rotation from the unit's frame to Kalibr's IMU frame.\n",
                                  any.unit);
+  // Each matrix's standard uncertainties as a comment (unit_covariance.hpp; the covariances are in
+  // unit.toml and unit.json): Kalibr's format has no place for them.
+  std::map<std::string, Eigen::MatrixXd> sd;
+  for (const UnitParameter& p : unit_parameters(triads)) sd[p.name] = p.sd();
   yaml += fmt::format("# C = {}\n", yaml_matrix(k.c_imu_unit));
+  if (sd.count("C") != 0) yaml += fmt::format("# C's rotation vector sd: [{}, {}, {}] rad\n", sd["C"](0), sd["C"](1), sd["C"](2));
   if (!k.note.empty()) yaml += "# Left out: " + k.note + "\n";
   yaml += "imu0:\n  model: scale-misalignment\n  rostopic: /imu0\n";
   const model::ModelFile& first = accelerometers.empty() ? gyroscopes.front() : accelerometers.front();
@@ -135,10 +169,16 @@ std::string kalibr_yaml(const Triads& triads) {
       at = end + 1;
     }
   }
-  if (k.m_accel) yaml += fmt::format("  accelerometers:\n    M: {}\n", yaml_matrix(*k.m_accel));
+  const auto sd_comment = [&](const std::string& name, const char* what) {
+    const Eigen::MatrixXd& m = sd.at(name);
+    return m.cols() == 1 ? fmt::format("    # {} sd: [{}, {}, {}] rad\n", what, m(0), m(1), m(2))
+                         : fmt::format("    # {} sd: {}\n", what, yaml_matrix(m));
+  };
+  if (k.m_accel) yaml += fmt::format("  accelerometers:\n    M: {}\n{}", yaml_matrix(*k.m_accel), sd_comment("M_a", "M"));
   if (k.m_gyro)
-    yaml += fmt::format("  gyroscopes:\n    M: {}\n    A: {}   # (rad/s) per (m/s^2)\n    C_gyro_i: {}\n", yaml_matrix(*k.m_gyro),
-                        yaml_matrix(*k.a_gyro), yaml_matrix(k.c_gyro_i));
+    yaml += fmt::format("  gyroscopes:\n    M: {}\n{}    A: {}   # (rad/s) per (m/s^2)\n{}    C_gyro_i: {}\n{}", yaml_matrix(*k.m_gyro),
+                        sd_comment("M_g", "M"), yaml_matrix(*k.a_gyro), sd_comment("A", "A"), yaml_matrix(k.c_gyro_i),
+                        sd_comment("C_gyro_i", "C_gyro_i's rotation vector"));
   return yaml;
 }
 
@@ -152,6 +192,11 @@ std::string unit_toml(const Triads& triads) {
   if (!any.serial.empty()) toml += "serial = " + toml_quote(any.serial) + "\n";
   for (const auto& triad : {triads.accelerometer, triads.gyroscope}) {
     if (triad) toml += triad_toml(*triad);
+  }
+  toml += "\n[covariance]   # of each parameter: a matrix's elements row by row (9 x 9), a vector's (3 x 3), a rotation's\n"
+          "               # rotation vector d, C' = exp([d]x) C (rad^2); Kalibr's M_a C M_g A C_gyro_i as in kalibr.yaml\n";
+  for (const UnitParameter& p : unit_parameters(triads)) {
+    toml += fmt::format("{} = {}\n", p.name, toml_matrix(p.covariance));
   }
   return toml;
 }

@@ -25,12 +25,17 @@ struct Triads {
 Triads triads_of(const std::vector<model::ModelFile>& members);
 
 /// unit.toml's text: the unit, and per triad K, R, b with their sd, the non-orthogonality with its
-/// sd, dof and 95 % interval, each axis's sensitivity, covariance and member model file.
+/// sd, dof and 95 % interval, each axis's sensitivity, covariance and member model file; then the
+/// covariance of every parameter of imucal's and Kalibr's (unit_covariance.hpp).
 std::string unit_toml(const Triads& triads);
 
 /// imucal's calibration file (FerrarisCalibrationInfo, format 2.0.0): calibrated = R^-1 K^-1 (raw - b),
 /// the gyroscope's offset K_ga acc + b_g. A triad not given is null, and the comment says so.
 nlohmann::json imucal_json(const Triads& triads);
+
+/// The covariance of each of imucal's and Kalibr's parameters (unit_covariance.hpp): an object of
+/// name to value and covariance (arrays of rows) and, for Kalibr's rotations, "rotation": true.
+nlohmann::json covariance_json(const Triads& triads);
 
 /// Kalibr's results for an IMU of its scale-misalignment model (kalibr_intrinsics.hpp), with each
 /// kind's noise parameters: the largest of the triad's members, so that none is claimed quieter
