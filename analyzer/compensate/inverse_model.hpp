@@ -66,6 +66,25 @@ inline double factor_slope(const ident::Factor& f, double v) {
   return 0.0;
 }
 
+/// factor_value, with factor_slope in `slope`: one power for both.
+inline double factor_value_and_slope(const ident::Factor& f, double v, double& slope) {
+  switch (f.function) {
+    case ident::FactorFunction::Plain: {
+      const double below = detail::integer_power(v, f.power - 1);
+      slope = f.power * below;
+      return below * v;
+    }
+    case ident::FactorFunction::Abs: {
+      const double a = std::abs(v), below = detail::integer_power(a, f.power - 1);
+      slope = f.power * below * detail::sign_of(v);
+      return below * a;
+    }
+    case ident::FactorFunction::Sign: slope = 0.0; return detail::integer_power(detail::sign_of(v), f.power);
+  }
+  slope = 0.0;
+  return 0.0;
+}
+
 enum class SampleFlag : std::uint8_t {
   Ok = 0,
   OutsideRange = 1,   // an input (known or solved) lies outside the model's [range] plus the margin

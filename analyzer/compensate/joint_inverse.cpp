@@ -100,6 +100,7 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
   struct Equation {
     std::vector<Term> terms;
     std::vector<Vector> rows;
+    std::vector<double> solved_value;   // each row . x at the point evaluated
     std::array<const Eigen::VectorXd*, ident::kVariableCount> column{};
     const Eigen::VectorXd* y = nullptr;
     const Eigen::MatrixXd* covariance = nullptr;
@@ -111,7 +112,8 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     // moving factor when that is plain and of power 1 (the term is known times row . x), or
     // kNonlinear.
     std::vector<int> mover;
-    std::vector<Vector> slope;                                   // per term, d value / d x
+    std::vector<Vector> slope;                                   // per term, d value / d x (not kept for kStill)
+    std::vector<std::size_t> filtered;                           // the terms through the squares' high pass
     Eigen::VectorXd dg_dc;
     double g = 0.0, denominator = 1.0;
   };
@@ -137,6 +139,7 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     }
     e.y = &record.get(Variable::Y);
     for (const auto& [variable, row] : source.solved) e.rows.push_back(row.transpose());
+    e.solved_value.assign(e.rows.size(), 0.0);
     for (const InverseModel::CompiledTerm& t : model.terms()) {
       Term term{{}, t.coefficient, t.denominator, t.square_filtered};
       for (const ident::Factor& f : t.factors) {
@@ -167,6 +170,8 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     e.mover.assign(t_count, kStill);
     e.slope.assign(t_count, Vector::Zero());
     e.dg_dc.resize(static_cast<Index>(t_count));
+    for (std::size_t t = 0; t < t_count; ++t)
+      if (e.terms[t].square_filtered) e.filtered.push_back(t);
   }
 
   // From this row on no lagged solved input moves with the sample's x.
@@ -233,27 +238,24 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
         double g = -yk, denominator = 1.0;
         Vector gradient = Vector::Zero();
         const std::size_t term_count = e.terms.size();
+        for (std::size_t s = 0; s < e.rows.size(); ++s) e.solved_value[s] = e.rows[s].dot(at_x);
         for (std::size_t t = 0; t < term_count; ++t) {
           const Term& term = e.terms[t];
           const int mover = e.mover[t];
           double v = e.known[t];
           Vector& d = e.slope[t];
           if (mover >= 0) {
-            const Vector& row = e.rows[static_cast<std::size_t>(mover)];
-            d = v * row;
-            v *= row.dot(at_x);
+            d = v * e.rows[static_cast<std::size_t>(mover)];
+            v *= e.solved_value[static_cast<std::size_t>(mover)];
           } else if (mover == kNonlinear) {
             d.setZero();
             for (const Factor& f : term.factors) {
               if (!moves(f)) continue;
-              const Vector& row = e.rows[static_cast<std::size_t>(f.solved)];
-              const double u = row.dot(at_x);
-              const double fv = factor_value(f.factor, u);
-              d = d * fv + (v * factor_slope(f.factor, u)) * row;
+              double slope = 0.0;
+              const double fv = factor_value_and_slope(f.factor, e.solved_value[static_cast<std::size_t>(f.solved)], slope);
+              d = d * fv + (v * slope) * e.rows[static_cast<std::size_t>(f.solved)];
               v *= fv;
             }
-          } else {
-            d.setZero();
           }
           if (term.square_filtered) {
             if (k == first_row_) {
@@ -332,12 +334,23 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     // last evaluation's, moved the last step along their slopes. That is exact for terms linear in
     // x, and within the square of the step tolerance otherwise; the Jacobian and its inverse stay
     // the last evaluation's, to the same order.
+    // With them, each value's derivative of g by its coefficient: the value, times -y for a
+    // denominator term.
     if (converged) {
       for (Equation& e : eqs) {
+        const double yk = (*e.y)(k);
         double denominator = 1.0;
-        for (std::size_t t = 0; t < e.terms.size(); ++t) {
-          e.value[t] -= e.slope[t].dot(step);
-          if (e.terms[t].denominator) denominator += e.terms[t].coefficient * e.value[t];
+        const std::size_t term_count = e.terms.size();
+        double* dg_dc = e.dg_dc.data();
+        for (std::size_t t = 0; t < term_count; ++t) {
+          double v = e.value[t];
+          if (e.mover[t] != kStill) v -= e.slope[t].dot(step);
+          e.value[t] = v;
+          if (e.terms[t].denominator) {
+            denominator += e.terms[t].coefficient * v;
+            v *= -yk;
+          }
+          dg_dc[t] = v;
         }
         e.denominator = denominator;
       }
@@ -358,9 +371,6 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     bool inside = true;
     for (std::size_t m = 0; m < eqs.size(); ++m) {
       Equation& e = eqs[m];
-      const double yk = (*e.y)(k);
-      for (std::size_t t = 0; t < e.terms.size(); ++t)
-        e.dg_dc(static_cast<Index>(t)) = e.terms[t].denominator ? -yk * e.value[t] : e.value[t];
       // a' C a, C symmetric: the diagonal, then twice the lower triangle.
       const Index terms = e.dg_dc.size();
       const double* a = e.dg_dc.data();
@@ -375,8 +385,7 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
       const double noise = e.noise_sd * e.denominator;
       variance_c += std::max(0.0, quadratic) * column_squared;
       variance_n += (noise * noise) * column_squared;
-      for (std::size_t t = 0; t < e.terms.size(); ++t) {
-        if (!e.terms[t].square_filtered) continue;
+      for (const std::size_t t : e.filtered) {
         // The filter's input at x: the square's unfiltered value.
         double s = e.known[t];
         for (const Factor& f : e.terms[t].factors) {
