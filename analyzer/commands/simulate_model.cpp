@@ -4,12 +4,14 @@
 #include <fmt/ostream.h>
 #include <toml++/toml.h>
 
+#include <cmath>
 #include <fstream>
 #include <random>
 
 #include "analyzer/commands/truth_file.hpp"
 #include "analyzer/ident/regressors.hpp"
 #include "analyzer/model/model_file.hpp"
+#include "analyzer/noise/noise_fit.hpp"
 #include "analyzer/procedure/model_simulation.hpp"
 #include "common/config/bench_config.hpp"
 #include "common/dataset/dataset.hpp"
@@ -49,7 +51,15 @@ void apply_model(const std::filesystem::path& dir, const std::filesystem::path& 
     terms.push_back(t.term);
   }
   const Eigen::Index first = ident::first_usable_row(terms);
-  const double white_sd = model.white_sd.value_or(0.0);
+  // The output's white noise per sample: the model's N (its noise analysis on the plan's static
+  // stretches) over the root of the sample period, else white_sd. white_sd is the batch
+  // innovation's sd, which also carries whatever the model leaves between phases and cases (on a
+  // tumble the poses' placement, twice the noise at rest), so it serves only where N is missing.
+  const std::optional<double> n_term = model.noise.values[static_cast<std::size_t>(noise::NoiseTerm::N)];
+  const auto white_sd_of = [&](const dataset::CaseData& c) {
+    return n_term && c.sample_period_s > 0.0 ? *n_term / std::sqrt(c.sample_period_s) : model.white_sd.value_or(0.0);
+  };
+  double white_sd = 0.0;
   std::mt19937_64 rng(static_cast<std::uint64_t>(truth["seed"].value_or(std::int64_t{1})) ^ 0x6d6f64656c66696cULL);
   std::normal_distribution<double> noise(0.0, 1.0);
   for (dataset::CaseData& c : data.cases) {
@@ -61,6 +71,7 @@ void apply_model(const std::filesystem::path& dir, const std::filesystem::path& 
     if (first >= c.y.size()) throw InputError(fmt::format("case {}: {} rows, fewer than the model's lags need", c.name, c.y.size()));
     // The first rows seed the output lags: they keep the bench's own output.
     const Eigen::VectorXd y = procedure::simulate_model(terms, theta, signals, first, model.square_highpass_rad_s, c.sample_period_s);
+    white_sd = white_sd_of(c);
     for (Eigen::Index k = 0; k < y.size(); ++k) c.y(first + k) = y(k) + white_sd * noise(rng);
     it->second->insert_or_assign("m_es_true", dcm_array(m_es));
   }
@@ -75,8 +86,9 @@ void apply_model(const std::filesystem::path& dir, const std::filesystem::path& 
   truth.erase("params");
   if (toml::table* n = truth["noise"].as_table()) n->insert_or_assign("white_sd", white_sd);
   std::ofstream(truth_file) << "# truth of `simulate --model`: the output below comes from the model file named here\n" << truth << "\n";
-  fmt::print(summary, "{}: output from model {} ({} terms, white sd {:.4g}; first {} row(s) per case from the bench)\n", dir.string(),
-             model_file.string(), terms.size(), white_sd, first);
+  fmt::print(summary, "{}: output from model {} ({} terms, white sd {:.4g} from {}; first {} row(s) per case from the bench)\n",
+             dir.string(), model_file.string(), terms.size(), white_sd,
+             n_term ? "its [noise] N; its other noise terms are not simulated" : "its white_sd (it has no [noise] N)", first);
 }
 
 }  // namespace

@@ -1,10 +1,14 @@
 // truth.toml is a model file (docs/design.md "Model file"): the analyzer's reader accepts it, every
-// term name is canonical in the analyzer's grammar, and the coefficients are equation 12's.
+// term name is canonical in the analyzer's grammar, and the coefficients are equation 12's. And
+// `simulate --model` puts a model file's own noise on the output it simulates.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <sstream>
 
+#include "analyzer/commands/simulate_model.hpp"
 #include "analyzer/model/model_file.hpp"
+#include "common/dataset/dataset.hpp"
 #include "common/units.hpp"
 #include "hal/sim/simulate.hpp"
 #include "sim_test_util.hpp"
@@ -77,4 +81,69 @@ duration_s = 0.1
   EXPECT_NEAR(*fog.coefficient(ident::parse_term("1")), 1e-6 / 2.0, 1e-20);
 }
 
+
+TEST(SimulateModel, TheOutputsWhiteNoiseIsTheModelsNNotItsInnovationSd) {
+  // A model characterized on a tumble states white_sd, the batch innovation's sd, which also holds
+  // what differs between the poses; its [noise] N is the noise at rest. The output simulated from
+  // it scatters about the model by N / sqrt(dt) per sample: here 5e-5 g s^1/2 at 1 kHz is 1.58e-3 g,
+  // and the white_sd of 4e-3 g is not used. Over 3 x 2000 samples the sd estimate scatters by
+  // 1 / sqrt(2 n) = 0.9 %: 4 % is more than 4 of those.
+  const auto cfg = sim::test::temp_dir("cfg");
+  const auto out = sim::test::temp_dir("out");
+  const auto bench = sim::test::write_file(cfg / "b.toml", R"([bench]
+name = "t"
+sample_rate_hz = 1000.0
+[[sensor]]
+name = "acc"
+type = "accelerometer"
+[[case]]
+name = "up"
+kind = "static"
+m_ec = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+[[case.phase]]
+kind = "dwell"
+duration_s = 2.0
+[[case]]
+name = "down"
+kind = "static"
+m_ec = [[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]
+[[case.phase]]
+kind = "dwell"
+duration_s = 2.0
+[[case]]
+name = "side"
+kind = "static"
+m_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+[[case.phase]]
+kind = "dwell"
+duration_s = 2.0
+)");
+  const auto model_file = sim::test::write_file(cfg / "model.toml", R"(sensor = "accelerometer"
+m_cs = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+[terms]
+"1" = 0.01
+"a_i" = 0.1
+[noise]
+white_sd = 4.0e-3
+N = 5.0e-5
+)");
+  commands::SimulateOptions options;
+  options.bench = bench;
+  options.out = out;
+  options.models[""] = model_file;
+  std::ostringstream summary;
+  ASSERT_EQ(commands::run_simulate(options, summary), 0);
+  EXPECT_NE(summary.str().find("from its [noise] N"), std::string::npos) << summary.str();
+  const dataset::Dataset data = dataset::read_dataset(out);
+  double squares = 0.0;
+  Eigen::Index samples = 0;
+  for (const dataset::CaseData& c : data.cases) {
+    // The output's mean per case is the model at the case's pose; the scatter about it is the noise.
+    const Eigen::VectorXd centered = c.y.array() - c.y.mean();
+    squares += centered.squaredNorm();
+    samples += c.y.size() - 1;
+  }
+  const double sd = std::sqrt(squares / static_cast<double>(samples));
+  EXPECT_NEAR(sd / (5.0e-5 / std::sqrt(1e-3)), 1.0, 0.04) << sd;
+}
 }  // namespace
