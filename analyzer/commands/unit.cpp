@@ -42,9 +42,9 @@ void print_triad(const unit::TriadFrame& f, std::ostream& summary) {
                1e3 * (f.non_orthogonality[p] + f.non_orthogonality_half_width[p]));
   }
   if (gyro)
-    fmt::print(summary, "  note: a gyroscope's axis comes from the rate sensitivities of all its cases, each case's M_E^C taken as "
-                        "exact (paper section 2.2): its sd, and the non-orthogonality's, leave out how well the fixture placed each "
-                        "case (docs/unit.md)\n");
+    fmt::print(summary, "  note: a gyroscope's axis comes from the rate sensitivities of its cases: its sd, and the "
+                        "non-orthogonality's, carry how well the fixture placed each case only as the dataset states it "
+                        "(placement_sd_deg; a case without it counts as placed exactly; docs/unit.md)\n");
   for (const unit::TriadAxis& a : f.axes) {
     if (!a.angles_estimated)
       fmt::print(summary, "  note: {}'s input-axis angles were held, not estimated (its model has no [misalignment] sd): its axis "

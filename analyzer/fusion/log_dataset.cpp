@@ -127,6 +127,7 @@ dataset::CaseData to_case_data(FusedSegment&& segment, const config::TestCase& t
   cd.kind = tc.kind;
   cd.m_ec = config::nominal_m_ec(tc, sensor);   // nominal, as simulate writes it: the analysis estimates the misalignment
   cd.mounting = tc.mounting;
+  cd.placement_sd_rad = tc.placement_error_rad;   // the fixture's stated accuracy
   cd.sample_period_s = segment.sample_period_s;
   cd.t = std::move(segment.t);
   cd.a_e = std::move(segment.a_e);

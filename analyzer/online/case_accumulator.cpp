@@ -69,6 +69,7 @@ std::size_t CaseAccumulator::state_of(std::size_t plan_case, const config::TestC
   cs.plan_case = plan_case;
   cs.name = tc.name;
   cs.mounting = m;
+  cs.placement_sd_rad = tc.placement_error_rad;
   cases.push_back(std::move(cs));
   ms.cases.push_back(cases.size() - 1);
   return cases.size() - 1;

@@ -47,6 +47,7 @@ class CaseAccumulator {
     RunStatistics stats;
     std::vector<std::string> phase_names;   // the stream's, for the run labels
     std::int64_t rows = 0;
+    double placement_sd_rad = 0.0;           // the plan's stated placement accuracy of the case
   };
   struct MountingState {
     std::string name;

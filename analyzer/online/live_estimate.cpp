@@ -25,8 +25,15 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
                                    const LiveEstimate* fixed_from) {
   LiveEstimate s;
   s.infos.assign(statistics.mountings.size(), live.empty_information());
-  for (std::size_t c = 0; c < statistics.cases.size(); ++c)
-    if (const std::optional<Information> info = statistics.case_information(c, left_out)) s.infos[statistics.cases[c].mounting].add(*info);
+  // Each mounting's cases' placements (procedure/placement.hpp) beside their statistics.
+  std::vector<std::vector<procedure::CasePlacement>> placements(statistics.mountings.size());
+  for (std::size_t c = 0; c < statistics.cases.size(); ++c) {
+    const std::optional<Information> info = statistics.case_information(c, left_out);
+    if (!info) continue;
+    const std::size_t m = statistics.cases[c].mounting;
+    s.infos[m].add(*info);
+    placements[m].push_back({info->input_gram(), statistics.cases[c].placement_sd_rad, info->runs()});
+  }
   // The mounting rules' order (procedure/mounting_rules.hpp), as the batch takes them.
   {
     std::vector<procedure::MountingKind> kinds;
@@ -63,6 +70,7 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     // determined estimate (one orientation so far) can lead the fixed point elsewhere.
     d.m_cs = live.model_m_cs;
     d.hold_unexcited = hold_unexcited;
+    d.placements = placements[m];
     fits[m] = active.fit_mounting(d, procedure::takes_bias(d.kind, live.options.solver.ieee_1293) ? bias : std::nullopt);
     if (!bias && procedure::hands_on_bias(d.kind) && fits[m].bias) bias = fits[m].bias;
   }

@@ -289,7 +289,7 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
     const StatFit sf = fit(gram(s_terms, infos, {out.m_cs}, corner), weight, s_terms, infos, {out.m_cs});
     out.bias = sf.value(bias_);
   }
-  // Angles and their sd by the delta method through algorithm 1.
+  // Angles and their sd by the delta method through algorithm 1, with the cases' placements.
   Eigen::Vector3d theta = Eigen::Vector3d::Zero();
   Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
   std::array<Index, 3> pos{-1, -1, -1};
@@ -302,6 +302,7 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
     for (std::size_t b = 0; b < 3; ++b)
       if (pos[b] >= 0) c(static_cast<Index>(a), static_cast<Index>(b)) = f.covariance(pos[a], pos[b]);
   }
+  c += procedure::placement_covariance(theta, m.placements, !known_bias.has_value());
   const procedure::MisalignmentAngles angles = procedure::misalignment_angles(theta, c);
   out.angles = rotation_vector(out.m_cs);
   out.angles(0) = kNaN;

@@ -29,6 +29,7 @@
 #include "analyzer/online/information.hpp"
 #include "analyzer/online/live_basis.hpp"
 #include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/placement.hpp"
 #include "analyzer/procedure/turn_search.hpp"
 #include "analyzer/procedure/mounting_rules.hpp"
 #include "common/dataset/dataset.hpp"
@@ -61,6 +62,8 @@ struct MountingStatistics {
   /// Hold the angles the inputs do not excite (procedure::axis_excitation). Off: every axis is
   /// fitted, as free regressors, for the least residual (what the noise model is fitted on).
   bool hold_unexcited = true;
+  /// Each of its cases' placement (procedure/placement.hpp): their inputs' Gram, stated sd and runs.
+  std::vector<procedure::CasePlacement> placements;
 };
 
 struct MountingFit {

@@ -17,6 +17,7 @@
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/mounting_rules.hpp"
 #include "analyzer/procedure/mountings.hpp"
+#include "analyzer/procedure/placement.hpp"
 #include "analyzer/procedure/plan_validation.hpp"
 #include "analyzer/procedure/post_selection_inference.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
@@ -65,18 +66,33 @@ std::optional<Eigen::Vector3d> external_sensitivities(const std::vector<std::str
 
 /// Gram matrix of [IRA XRA YRA 1] over a mounting's rows (specific force, or rate for a
 /// gyroscope; a case without rates has none): what excitation.hpp judges.
+/// [input 1]'[input 1] over one case's samples (specific force, or rates for a gyroscope).
+Eigen::Matrix4d case_input_gram(const dataset::CaseData& c, dataset::SensorKind sensor) {
+  const bool gyro = sensor == dataset::SensorKind::Gyroscope;
+  if (gyro && !c.w_e) return Eigen::Matrix4d::Zero();
+  const auto& x = gyro ? *c.w_e : c.a_e;
+  Eigen::MatrixXd rows(x.rows(), 4);
+  rows.leftCols(3) = x;
+  rows.col(3).setOnes();
+  return rows.transpose() * rows;
+}
+
 Eigen::Matrix4d input_gram(const std::vector<dataset::CaseData>& cases, dataset::SensorKind sensor) {
   Eigen::Matrix4d g = Eigen::Matrix4d::Zero();
-  for (const dataset::CaseData& c : cases) {
-    const bool gyro = sensor == dataset::SensorKind::Gyroscope;
-    if (gyro && !c.w_e) continue;
-    const auto& x = gyro ? *c.w_e : c.a_e;
-    Eigen::MatrixXd rows(x.rows(), 4);
-    rows.leftCols(3) = x;
-    rows.col(3).setOnes();
-    g.noalias() += rows.transpose() * rows;
-  }
+  for (const dataset::CaseData& c : cases) g += case_input_gram(c, sensor);
   return g;
+}
+
+/// Each case's placement as placement.hpp reads it: its inputs' Gram, its stated sd, and its
+/// clusters in the inference (its contiguous phases).
+std::vector<CasePlacement> placements_of(const MountingCases& m, dataset::SensorKind sensor) {
+  std::vector<CasePlacement> out;
+  for (const dataset::CaseData& c : m.cases) {
+    std::size_t clusters = 1;
+    for (std::size_t k = 1; k < c.phase.size(); ++k) clusters += c.phase[k] != c.phase[k - 1] ? 1 : 0;
+    out.push_back({case_input_gram(c, sensor), c.placement_sd_rad, clusters});
+  }
+  return out;
 }
 
 int max_lag_of(const std::vector<Term>& terms) {
@@ -362,7 +378,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     result.s_fit = fit_identifiable(s, data.sensor, columns, options.selection.uls, result.excluded);
     result.s_terms = s.labels;
     result.candidates_tried = 1;
-    set_angles(result, misalignment_angles(f.sensitivities, f.sensitivity_covariance).sd);
+    const Eigen::Matrix3d placed = placement_covariance(f.sensitivities, placements_of(m, data.sensor), !known_bias.has_value());
+    set_angles(result, misalignment_angles(f.sensitivities, f.sensitivity_covariance + placed).sd);
     return result;
   }
 
@@ -433,9 +450,11 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   const ident::UlsResult selected_fit = result.s_fit;
   {
     // The angles' sd: the kept tilts' in the selected model (the tilt of n_i toward p and o, over
-    // theta_i), by the delta method through algorithm 1.
+    // theta_i), by the delta method through algorithm 1, and the cases' placements (placement.hpp;
+    // its case-frame figure serves the sensor frame, mrad away, to first order).
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
     const Eigen::Vector3d theta = sensor_frame_sensitivities(selected_fit, data.sensor, &covariance);
+    covariance += placement_covariance(theta, placements_of(m, data.sensor), !known_bias.has_value());
     if (theta(0) != 0.0) set_angles(result, misalignment_angles(theta, covariance).sd);
   }
   if (!tilts.empty()) {

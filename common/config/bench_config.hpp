@@ -389,8 +389,10 @@ struct TestCase {
   AxisAngle fixture_misalignment;                   // F_E -> true fixture frame, axis in F_E
   AxisAngle case_misalignment;                      // nominal -> true case frame, axis in F_C
   AxisAngle start_attitude;                         // rotation_table: table top relative to the lab (z up)
-  /// Simulator: sd (per axis) of a random rotation of this case's placement, drawn from the bench
-  /// seed ([[case]] placement_error_deg): a real tumble's pose is never exactly its nominal one.
+  /// How well the fixture places this case ([[case]] placement_error_deg): the sd per axis of the
+  /// rotation between its nominal and its true placement. The simulator draws that rotation from
+  /// the bench seed (a real tumble's pose is never exactly its nominal one); the dataset carries
+  /// the sd (placement_sd_deg) for the analysis to propagate.
   double placement_error_rad = 0.0;
   std::vector<Phase> phases;
   SourcePosition where;

@@ -25,6 +25,7 @@
 #include "common/dataset/huge_pages.hpp"
 #include "common/disk_space.hpp"
 #include "common/input_error.hpp"
+#include "common/units.hpp"
 
 namespace inertia::dataset {
 
@@ -535,6 +536,14 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
                                    "(tolerance {}); its rows must be the case axes IRA, XRA, YRA written in F_E",
                                    c.name, orth, c.m_ec.determinant(), kRotationTolerance));
     }
+    if (const toml::node* placement = table.get("placement_sd_deg")) {
+      const std::optional<double> deg = placement->value<double>();
+      if (!deg || !std::isfinite(*deg) || *deg < 0.0 || *deg > 10.0) {
+        throw InputError(position_of(*placement, file),
+                         fmt::format("placement_sd_deg of case '{}' must be a number of degrees from 0 to 10", c.name));
+      }
+      c.placement_sd_rad = *deg * kPi / 180.0;
+    }
     if (const toml::node* piece = table.get("piece_of")) {
       const auto label = piece->value<std::string>();
       if (!label || label->empty()) {
@@ -617,6 +626,7 @@ void write_dataset(const std::filesystem::path& dir, const Dataset& data) {
     toml_text += "file = " + toml_quote(files.back()) + "\n";
     if (!c.mounting.empty()) toml_text += "mounting = " + toml_quote(c.mounting) + "\n";
     if (!c.piece_of.empty()) toml_text += "piece_of = " + toml_quote(c.piece_of) + "\n";
+    if (c.placement_sd_rad > 0.0) toml_text += "placement_sd_deg = " + toml_float(c.placement_sd_rad * 180.0 / kPi) + "\n";
     toml_text += "m_ec = [";
     for (int r = 0; r < 3; ++r) {
       toml_text += r == 0 ? "[" : ", [";

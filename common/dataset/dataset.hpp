@@ -37,6 +37,10 @@ struct CaseData {
   // of one case are one case of the plan: one mounting unless labelled otherwise, one weight, and
   // a phase cut by a hole is still one phase (one offset between phases, not one per piece).
   std::string piece_of;
+  // Optional (extension, placement_sd_deg): how well the fixture placed this case, the sd per axis
+  // of the rotation between its nominal and its true case frame (rad). The analysis propagates it
+  // where the data cannot show it (procedure/placement.hpp); 0: placed exactly.
+  double placement_sd_rad = 0.0;
   double sample_period_s = 0.0;                       // from the uniform `t` column
   Eigen::VectorXd t;                                  // s
   Matrix3Columns a_e;                                 // reference specific force in F_E, m/s^2

@@ -208,6 +208,7 @@ dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSim
     cd.file = tc.name + ".csv";
     cd.m_ec = config::nominal_m_ec(tc, sensor);   // nominal: the analyzer must not see the misalignments
     cd.mounting = tc.mounting;
+    cd.placement_sd_rad = tc.placement_error_rad;   // the fixture's stated accuracy
     cd.sample_period_s = 1.0 / bench.sample_rate_hz;
     cd.t = sc.motion.t;
     cd.a_e = sc.sensors[s].reference(sc.motion);
