@@ -326,6 +326,37 @@ TEST(LiveSolver, MountingFindsTheInputAxisItWasMadeWith) {
   EXPECT_NEAR(*fit.bias, k(0), 1e-10);
 }
 
+TEST(LiveSolver, AMountingsAnglesCarryItsCasesPlacementsAsTheBatchDoes) {
+  // The mounting of MountingFindsTheInputAxisItWasMadeWith as two cases of several runs each,
+  // placed within 0.2 mrad: the angles' covariance gains the placements' (procedure/placement.hpp),
+  // carried through algorithm 1 as the fit's own is (misalignment_angles is linear in it).
+  const Fixture fx({"1", "a_i", "a_i^2"});
+  const Inputs a = random_inputs(3000, 9);
+  const Eigen::Matrix3d m_true = frames::frame_rotation(Eigen::Vector3d(0.0, 0.3, 1.0).normalized(), 0.035);
+  const VectorXd k = (VectorXd(3) << 3.44e-3, 0.0877, 5.3e-4).finished();
+  const VectorXd y = sensor_frame_columns(fx.model_terms, a, m_true) * k;
+  MountingStatistics m;
+  m.name = "table";
+  m.info = fx.statistics(a, y);
+  m.kind.shaker_only = false;
+  const MountingFit without = fx.solver().fit_mounting(m, std::nullopt);
+  for (const Index half : {Index{0}, Index{1500}}) {
+    Eigen::MatrixXd r(1500, 4);
+    r.leftCols(3) = a.middleRows(half, 1500);
+    r.col(3).setOnes();
+    m.placements.push_back({r.transpose() * r, 2e-4, 3});
+  }
+  const MountingFit with = fx.solver().fit_mounting(m, std::nullopt);
+  ASSERT_TRUE(with.determined) << with.note;
+  Eigen::Vector3d theta;
+  for (std::size_t c = 0; c < 3; ++c) theta(static_cast<Index>(c)) = *with.fit.value(fx.sensitivities[c]);
+  const Eigen::Matrix3d added =
+      procedure::misalignment_angles(theta, procedure::placement_covariance(theta, m.placements, true)).covariance;
+  EXPECT_GT(added(1, 1), without.angles_covariance(1, 1)) << "the placements dominate a noiseless fit";
+  EXPECT_TRUE(with.angles_covariance.isApprox(without.angles_covariance + added, 1e-9))
+      << with.angles_covariance << "\n" << without.angles_covariance + added;
+}
+
 TEST(LiveSolver, AMountingWithoutExcitationIsHeldAtTheNominalFrame) {
   // One static pose: gravity along IRA and the references' noise (1e-4 g). With the bias estimated
   // nothing varies on its own (procedure::axis_excitation): M_C^S stays the warm start and both
