@@ -85,6 +85,16 @@ inline double factor_value_and_slope(const ident::Factor& f, double v, double& s
   return 0.0;
 }
 
+/// Newton's stopping rule on its largest steps (in x's units): the last `step`, the one before
+/// (`previous`, 0 before the second step) and `bound`, the tolerance times (|x| + the scale).
+/// Converged when the last step is within the bound, or when the next one, predicted by Newton's
+/// quadratic convergence from the last two (step^3 / previous^2), is: once the last step is within
+/// `regime` (the bound's square root times the scale's, so that its square is the bound's order)
+/// and smaller than the one before. The second saves the evaluation that would only confirm it.
+inline bool newton_converged(double step, double previous, double bound, double regime) {
+  return step <= bound || (step <= regime && step < previous && step * step * step <= bound * previous * previous);
+}
+
 enum class SampleFlag : std::uint8_t {
   Ok = 0,
   OutsideRange = 1,   // an input (known or solved) lies outside the model's [range] plus the margin
@@ -150,7 +160,8 @@ class InverseModel {
   /// Newton's starting points after the previous estimate: the middle and the ends of the sensed
   /// input's characterized range (0 and +-1 without one).
   [[nodiscard]] std::array<double, 3> fallback_starts() const;
-  /// Newton stops when a step is at most this times (|x| + the range's span, or 1).
+  /// Newton stops when a step is at most this times (|x| + the range's span, or 1), or when the
+  /// next step its quadratic convergence predicts is (newton_converged).
   static constexpr double kStepTolerance = 1e-13;
   [[nodiscard]] double tolerance_scale() const;
 

@@ -1,11 +1,13 @@
 // generate_joint_c and write_joint_test_vectors (c_export.hpp): JointInverse's per-sample Newton
-// as C99, step for step (the same starts, tolerance, first-step stop of a linear system, settled
-// start, hold across a sample without a root, squares' high pass, uncertainty and range checks).
+// as C99, step for step (the same starts, stopping rule, one step from 0 of a linear system,
+// settled start, hold across a sample without a root, squares' high pass, uncertainty and range
+// checks).
 #include <fmt/format.h>
 #include <fmt/ostream.h>
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <map>
 #include <ostream>
 
@@ -211,8 +213,9 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
   }
   if (n_starts == 0) fmt::format_to(ci, "  {{0}},\n");
   fmt::format_to(ci, "}};\n");
-  fmt::format_to(ci, "static const R step_tolerance = {};\nstatic const R step_scale = {};\n\n",
-                 literal(is_float ? 1e-6 : InverseModel::kStepTolerance), literal(joint.tolerance_scale()));
+  const double step_tolerance = is_float ? 1e-6 : InverseModel::kStepTolerance;
+  fmt::format_to(ci, "static const R step_tolerance = {};\nstatic const R step_regime = {};\nstatic const R step_scale = {};\n\n",
+                 literal(step_tolerance), literal(std::sqrt(step_tolerance)), literal(joint.tolerance_scale()));
 
   fmt::format_to(ci, "void {0}_init({0}_state* s) {{\n  *s = ({0}_state){{0}};\n}}\n\n", P);
 
@@ -334,9 +337,10 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
   }
   fmt::format_to(ci,
                  "    for (start = 0; start < {0} && !converged; ++start) {{\n"
-                 "      for (j = 0; j < {1}; ++j) x[j] = start == 0 ? s->last[j] : starts[start - 1][j];\n"
+                 "      for (j = 0; j < {1}; ++j) x[j] = start == 0 ? {4} : starts[start - 1][j];\n"
+                 "      R previous_step = (R)0;\n"
                  "      for (i = 0; i < {2}; ++i) {{\n"
-                 "        R largest_step = (R)0, largest_x = (R)0;\n"
+                 "        R largest_step = (R)0, largest_x = (R)0, bound;\n"
                  "        evaluate(s, known, x, value, slope);\n"
                  "        residual(value, slope, y, g, jacobian, denominator);\n"
                  "        for (j = 0; j < {1}; ++j) {{\n          step[j] = g[j];\n          for (k = 0; k < {1}; ++k) a[j][k] = jacobian[j][k];\n        }}\n"
@@ -344,11 +348,16 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
                  "        for (j = 0; j < {1}; ++j) {{\n          x[j] -= step[j];\n"
                  "          if (fabs(step[j]) > largest_step) largest_step = fabs(step[j]);\n"
                  "          if (fabs(x[j]) > largest_x) largest_x = fabs(x[j]);\n        }}\n"
-                 "        if ({3}largest_step <= step_tolerance * (largest_x + step_scale)) {{\n"
+                 "        bound = step_tolerance * (largest_x + step_scale);\n"
+                 "        if ({3}largest_step <= bound || (largest_step <= step_regime * (largest_x + step_scale) &&\n"
+                 "            largest_step < previous_step && largest_step * largest_step * largest_step <= bound * previous_step * previous_step)) {{\n"
                  "          converged = 1;\n          break;\n        }}\n"
+                 "        previous_step = largest_step;\n"
                  "      }}\n"
                  "    }}\n",
-                 1 + n_starts, D, options.max_iterations, joint.linear() ? "1 || " : "");
+                 1 + n_starts, D, options.max_iterations, joint.linear() ? "1 || " : "",
+                 // A linear system's step from 0 is its root, -A^-1 b, as the analyzer solves it.
+                 joint.linear() ? "(R)0" : "s->last[j]");
   // The values at the root: the last evaluation's moved the last step along their slopes; the
   // Jacobian stays the last one's (joint_inverse.cpp).
   fmt::format_to(ci, "    if (converged)\n      for (j = 0; j < {}; ++j)\n        for (k = 0; k < {}; ++k) value[j] -= slope[j][k] * step[k];\n", G, D);

@@ -18,7 +18,10 @@ using ident::Variable;
 
 namespace {
 
+// How a term moves with the sample's x: kStill, kNonlinear, or the row of its one plain factor.
 constexpr int kStill = -1, kNonlinear = -2;
+// newton_converged's regime per unit of the scale.
+const double kRegime = std::sqrt(InverseModel::kStepTolerance);
 
 /// The row of `variable` among an equation's solved inputs, or -1 where it is known.
 int solved_index(const JointEquation& e, Variable variable) {
@@ -66,16 +69,18 @@ JointCompensation JointInverse::compensate(const std::vector<const ident::Signal
                                            const CompensationOptions& options) const {
   if (records.size() != equations_.size())
     throw std::invalid_argument(fmt::format("{} records for {} equations", records.size(), equations_.size()));
+  JointCompensation out;
   switch (unknowns_) {
-    case 1: return solve<1>(records, sample_period_s, options);
-    case 3: return solve<3>(records, sample_period_s, options);
-    default: return solve<6>(records, sample_period_s, options);
+    case 1: solve<1>(records, sample_period_s, options, out); break;
+    case 3: solve<3>(records, sample_period_s, options, out); break;
+    default: solve<6>(records, sample_period_s, options, out); break;
   }
+  return out;
 }
 
 template <int D>
-JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>& records, double sample_period_s,
-                                      const CompensationOptions& options) const {
+void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, double sample_period_s,
+                         const CompensationOptions& options, JointCompensation& out) const {
   using Vector = Eigen::Matrix<double, D, 1>;
   using Matrix = Eigen::Matrix<double, D, D>;
   struct Factor {
@@ -103,7 +108,10 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     std::vector<double> solved_value;   // each row . x at the point evaluated
     std::array<const Eigen::VectorXd*, ident::kVariableCount> column{};
     const Eigen::VectorXd* y = nullptr;
-    const Eigen::MatrixXd* covariance = nullptr;
+    // The coefficients' covariance C as a' C a reads it, in blocks of 4 rows: each column padded
+    // with zeros to a multiple of 4 rows.
+    std::vector<double> covariance_padded;
+    Index padded_rows = 0;
     double noise_sd = 0.0;
     procedure::HighpassCoefficients highpass{};
     std::vector<Bound> bounds;
@@ -114,6 +122,11 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     std::vector<int> mover;
     std::vector<Vector> slope;                                   // per term, d value / d x (not kept for kStill)
     std::vector<std::size_t> filtered;                           // the terms through the squares' high pass
+    // Once settled, the factors of each term's known part: its known inputs and lagged solved
+    // ones, flat in term order.
+    std::vector<std::pair<std::size_t, Factor>> settled_factors;
+    std::vector<std::size_t> settled_terms;   // the terms with settled factors; the others' known part is 1
+    std::vector<std::size_t> still_terms, moving_terms;   // by mover: kStill, or not
     Eigen::VectorXd dg_dc;
     double g = 0.0, denominator = 1.0;
   };
@@ -150,7 +163,11 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
       }
       e.terms.push_back(std::move(term));
     }
-    e.covariance = &model.covariance();
+    const Eigen::MatrixXd& covariance = model.covariance();
+    e.padded_rows = (covariance.rows() + 3) / 4 * 4;
+    e.covariance_padded.assign(static_cast<std::size_t>(e.padded_rows * covariance.cols()), 0.0);
+    for (Index j = 0; j < covariance.cols(); ++j)
+      for (Index i = 0; i < covariance.rows(); ++i) e.covariance_padded[static_cast<std::size_t>(j * e.padded_rows + i)] = covariance(i, j);
     e.noise_sd = model.noise_sd();
     if (std::any_of(e.terms.begin(), e.terms.end(), [](const Term& t) { return t.square_filtered; })) {
       if (!(sample_period_s > 0.0)) throw std::invalid_argument("compensate: the model's square high pass needs the sample period");
@@ -169,9 +186,13 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     e.value.assign(t_count, 0.0);
     e.mover.assign(t_count, kStill);
     e.slope.assign(t_count, Vector::Zero());
-    e.dg_dc.resize(static_cast<Index>(t_count));
-    for (std::size_t t = 0; t < t_count; ++t)
+    e.dg_dc = Eigen::VectorXd::Zero(e.padded_rows);   // zero past the terms: C's padding
+    for (std::size_t t = 0; t < t_count; ++t) {
       if (e.terms[t].square_filtered) e.filtered.push_back(t);
+      for (const Factor& f : e.terms[t].factors)
+        if (f.solved < 0 || f.factor.lag > 0) e.settled_factors.emplace_back(t, f);
+      if (!e.settled_factors.empty() && e.settled_factors.back().first == t) e.settled_terms.push_back(t);
+    }
   }
 
   // From this row on no lagged solved input moves with the sample's x.
@@ -184,23 +205,26 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     }
   }
 
-  JointCompensation out;
   out.first_row = first_row_;
   const Index rows = std::max<Index>(0, n - first_row_);
   out.value.resize(rows, D);
   out.u_coefficients.resize(rows, D);
   out.u_noise.resize(rows, D);
   out.flag.assign(static_cast<std::size_t>(rows), SampleFlag::Ok);
-  if (rows == 0) return out;
+  if (rows == 0) return;
 
-  // The solved inputs as the lagged terms read them: each estimate, or across a sample without one
-  // the last estimate held.
-  Eigen::Matrix<double, Eigen::Dynamic, D> history(rows, D);
+  // The solved inputs as the lagged terms read them, the last settling_rows + 1 in a ring: each
+  // estimate, or across a sample without one the last estimate held. A lagged solved factor reads
+  // it only from row settling_rows on (before, it moves with x).
+  Index ring = 1;   // a power of 2, so that a row's place is a mask
+  while (ring <= settling_rows) ring *= 2;
+  Eigen::Matrix<double, Eigen::Dynamic, D> history(ring, D);
+  const auto history_row = [&](Index row) { return history.row(row & (ring - 1)); };
   Vector x = Vector::Zero(), last_good = Vector::Zero();
   std::vector<Vector> starts(1 + fallback_starts_.size());
   for (std::size_t s = 0; s < fallback_starts_.size(); ++s) starts[s + 1] = fallback_starts_[s];
   Vector residuals;
-  Matrix jacobian, inverse;
+  Matrix jacobian, inverse, inverse_squared;
   Matrix inverted = Matrix::Constant(std::numeric_limits<double>::quiet_NaN());   // the Jacobian `inverse` inverts
 
   for (Index k = first_row_; k < n; ++k) {
@@ -208,7 +232,17 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     const auto moves = [&](const Factor& f) { return r < f.moving_until; };
     // Each term's known part; while lagged solved inputs still move (the first rows), how it moves.
     const bool settled = r > settling_rows;
+    const auto factor_at = [&](const Equation& e, const Factor& f) {
+      const Index at = k - f.factor.lag;
+      const double v = f.solved >= 0 ? e.rows[static_cast<std::size_t>(f.solved)].dot(history_row(at - first_row_).transpose()) : f.known[at];
+      return factor_value(f.factor, v);
+    };
     for (Equation& e : eqs) {
+      if (settled) {
+        for (const std::size_t t : e.settled_terms) e.known[t] = 1.0;
+        for (const auto& [t, f] : e.settled_factors) e.known[t] *= factor_at(e, f);
+        continue;
+      }
       const std::size_t term_count = e.terms.size();
       for (std::size_t t = 0; t < term_count; ++t) {
         double product = 1.0;
@@ -219,14 +253,14 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
             mover = f.factor.function == ident::FactorFunction::Plain && f.factor.power == 1 ? f.solved : kNonlinear;
             continue;
           }
-          const Index at = k - f.factor.lag;
-          const double v = f.solved >= 0 ? e.rows[static_cast<std::size_t>(f.solved)].dot(history.row(at - first_row_).transpose())
-                                         : f.known[at];
-          product *= factor_value(f.factor, v);
+          product *= factor_at(e, f);
         }
         e.known[t] = product;
-        if (!settled) e.mover[t] = moving > 1 ? kNonlinear : mover;
+        e.mover[t] = moving > 1 ? kNonlinear : mover;
       }
+      e.still_terms.clear();
+      e.moving_terms.clear();
+      for (std::size_t t = 0; t < term_count; ++t) (e.mover[t] == kStill ? e.still_terms : e.moving_terms).push_back(t);
     }
     // Each term's value and gradient at x. A filtered square's value is its high pass's output,
     // h(k) = p h(k-1) + g (s(k) - s(k-1)), settled (0) at the first row; then each equation's
@@ -278,6 +312,32 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
         jacobian.row(static_cast<Index>(m)) = gradient.transpose();
       }
     };
+    // A system linear in the unknowns is g(x) = A x + b: each term is its known part, or that
+    // times one row . x. Its value array holds the known parts (a still filtered square: its high
+    // pass's output), its Jacobian A and its residuals b, so the root is x = -A^-1 b.
+    const auto evaluate_affine = [&]() {
+      for (std::size_t m = 0; m < eqs.size(); ++m) {
+        Equation& e = eqs[m];
+        const double yk = (*e.y)(k);
+        const auto weight = [&](const Term& term) { return term.denominator ? -yk * term.coefficient : term.coefficient; };
+        double b = -yk;
+        for (const std::size_t t : e.still_terms) {
+          const Term& term = e.terms[t];
+          double v = e.known[t];
+          if (term.square_filtered) v = k == first_row_ ? 0.0 : e.highpass.p * e.h_previous[t] + e.highpass.g * (v - e.in_previous[t]);
+          e.value[t] = v;
+          b += weight(term) * v;
+        }
+        Vector a = Vector::Zero();
+        for (const std::size_t t : e.moving_terms) {
+          const double v = e.known[t];
+          e.value[t] = v;
+          a += (weight(e.terms[t]) * v) * e.rows[static_cast<std::size_t>(e.mover[t])];
+        }
+        residuals(static_cast<Index>(m)) = b;
+        jacobian.row(static_cast<Index>(m)) = a.transpose();
+      }
+    };
     // Newton's step and the Jacobian's inverse, or false where the Jacobian is singular or a
     // value not finite. Up to 3 unknowns the inverse is the cofactors'; 6 take an LU.
     const auto newton_step = [&](Vector& step) {
@@ -305,6 +365,7 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
         step.noalias() = inverse * residuals;
       }
       inverted = jacobian;
+      inverse_squared = inverse.array().square().matrix();
       return step.allFinite();
     };
 
@@ -314,38 +375,56 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
     bool converged = false;
     int iterations = 0;
     Vector step;
-    for (const Vector& start : starts) {
-      x = start;
-      for (int i = 0; i < options.max_iterations; ++i) {
-        ++iterations;
-        evaluate(x);
-        if (!newton_step(step)) break;
-        x -= step;
-        // Linear in the unknowns, the first step lands on the root.
-        if (linear_ || step.cwiseAbs().maxCoeff() <= InverseModel::kStepTolerance * (x.cwiseAbs().maxCoeff() + tolerance_scale_)) {
-          converged = true;
-          break;
+    if (linear_) {
+      // Its root in one solve; a singular A has none from any start.
+      iterations = 1;
+      evaluate_affine();
+      converged = newton_step(step);
+      if (converged) x = -step;
+    } else {
+      for (const Vector& start : starts) {
+        x = start;
+        double previous_step = 0.0;
+        for (int i = 0; i < options.max_iterations; ++i) {
+          ++iterations;
+          evaluate(x);
+          if (!newton_step(step)) break;
+          x -= step;
+          const double largest_step = step.cwiseAbs().maxCoeff(), scale = x.cwiseAbs().maxCoeff() + tolerance_scale_;
+          if (newton_converged(largest_step, previous_step, InverseModel::kStepTolerance * scale, kRegime * scale)) {
+            converged = true;
+            break;
+          }
+          previous_step = largest_step;
         }
+        if (converged) break;
       }
-      if (converged) break;
     }
     out.most_iterations = std::max(out.most_iterations, iterations);
-    // The terms' values at the root (the squares' filter state and the uncertainty read them): the
-    // last evaluation's, moved the last step along their slopes. That is exact for terms linear in
-    // x, and within the square of the step tolerance otherwise; the Jacobian and its inverse stay
-    // the last evaluation's, to the same order.
-    // With them, each value's derivative of g by its coefficient: the value, times -y for a
-    // denominator term.
+    // The terms' values at the root (the squares' filter state and the uncertainty read them). A
+    // linear system's: each moving term's known part times its row . x. Otherwise the last
+    // evaluation's, moved the last step along their slopes: within that step's square, which the
+    // stopping rule holds to the tolerance's order. The Jacobian and its inverse (the uncertainty's)
+    // stay the last evaluation's, one step from the root: u's relative error is of the order of
+    // that step (at most kRegime of the scale) times the model's curvature.
+    // With them, each value's derivative of g by its coefficient (the value, times -y for a
+    // denominator term), and each solved row's value at the root, which the squares' filter and
+    // the range checks read.
     if (converged) {
       for (Equation& e : eqs) {
         const double yk = (*e.y)(k);
         double denominator = 1.0;
         const std::size_t term_count = e.terms.size();
         double* dg_dc = e.dg_dc.data();
+        for (std::size_t s = 0; s < e.rows.size(); ++s) e.solved_value[s] = e.rows[s].dot(x);
+        if (linear_) {
+          for (const std::size_t t : e.moving_terms) e.value[t] *= e.solved_value[static_cast<std::size_t>(e.mover[t])];
+        } else {
+          for (std::size_t t = 0; t < term_count; ++t)
+            if (e.mover[t] != kStill) e.value[t] -= e.slope[t].dot(step);
+        }
         for (std::size_t t = 0; t < term_count; ++t) {
           double v = e.value[t];
-          if (e.mover[t] != kStill) v -= e.slope[t].dot(step);
-          e.value[t] = v;
           if (e.terms[t].denominator) {
             denominator += e.terms[t].coefficient * v;
             v *= -yk;
@@ -361,42 +440,41 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
       out.u_noise.row(r).setConstant(std::numeric_limits<double>::quiet_NaN());
       out.flag[static_cast<std::size_t>(r)] = SampleFlag::NotConverged;
       ++out.not_converged;
-      history.row(r) = last_good.transpose();   // the squares' high pass keeps its state across the sample
+      history_row(r) = last_good.transpose();   // the squares' high pass keeps its state across the sample
       continue;
     }
     out.value.row(r) = x.transpose();
-    history.row(r) = x.transpose();
+    history_row(r) = x.transpose();
     last_good = x;
     Vector variance_c = Vector::Zero(), variance_n = Vector::Zero();
     bool inside = true;
     for (std::size_t m = 0; m < eqs.size(); ++m) {
       Equation& e = eqs[m];
-      // a' C a, C symmetric: the diagonal, then twice the lower triangle.
-      const Index terms = e.dg_dc.size();
+      // a' C a, C a in blocks of 4 rows.
+      const auto terms = static_cast<Index>(e.terms.size());
       const double* a = e.dg_dc.data();
       double quadratic = 0.0;
-      for (Index i = 0; i < terms; ++i) {
-        const double* column = e.covariance->data() + i * terms;
-        double below = 0.0;
-        for (Index j = i + 1; j < terms; ++j) below += column[j] * a[j];
-        quadratic += a[i] * (column[i] * a[i] + 2.0 * below);
+      for (Index block = 0; block < e.padded_rows; block += 4) {
+        const double* column = e.covariance_padded.data() + block;
+        Eigen::Vector4d c_a = Eigen::Vector4d::Zero();
+        for (Index j = 0; j < terms; ++j, column += e.padded_rows) c_a += a[j] * Eigen::Map<const Eigen::Vector4d>(column);
+        quadratic += c_a.dot(Eigen::Map<const Eigen::Vector4d>(a + block));
       }
-      const Vector column_squared = inverse.col(static_cast<Index>(m)).array().square().matrix();
       const double noise = e.noise_sd * e.denominator;
-      variance_c += std::max(0.0, quadratic) * column_squared;
-      variance_n += (noise * noise) * column_squared;
+      variance_c += std::max(0.0, quadratic) * inverse_squared.col(static_cast<Index>(m));
+      variance_n += (noise * noise) * inverse_squared.col(static_cast<Index>(m));
       for (const std::size_t t : e.filtered) {
         // The filter's input at x: the square's unfiltered value.
         double s = e.known[t];
         for (const Factor& f : e.terms[t].factors) {
-          if (moves(f)) s *= factor_value(f.factor, e.rows[static_cast<std::size_t>(f.solved)].dot(x));
+          if (moves(f)) s *= factor_value(f.factor, e.solved_value[static_cast<std::size_t>(f.solved)]);
         }
         e.h_previous[t] = e.value[t];
         e.in_previous[t] = s;
       }
       // Inside the characterized range: every solved input and every known one at this sample.
       for (const Bound& b : e.bounds) {
-        const double v = b.solved >= 0 ? e.rows[static_cast<std::size_t>(b.solved)].dot(x) : (*b.column)(k);
+        const double v = b.solved >= 0 ? e.solved_value[static_cast<std::size_t>(b.solved)] : (*b.column)(k);
         inside = inside && v >= b.lowest && v <= b.highest;
       }
     }
@@ -407,7 +485,6 @@ JointCompensation JointInverse::solve(const std::vector<const ident::SignalSet*>
       ++out.outside_range;
     }
   }
-  return out;
 }
 
 }  // namespace inertia::compensate

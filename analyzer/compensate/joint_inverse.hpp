@@ -14,10 +14,11 @@
 // The dynamics, the squares' high pass and the range checks are InverseModel's (inverse_model.hpp),
 // with each solved input read through its row: lagged solved inputs are the estimates already
 // made, and before the first estimate the current x. Where every term is linear in the unknowns
-// (each has at most one solved factor, plain and of power 1), g(x) = A x + c and Newton's first
-// step is the root: the solve stops there. At the root the terms' values are the last
-// evaluation's moved along their slopes by the last step, and the Jacobian is the last one's: no
-// evaluation after the step that converged.
+// (each has at most one solved factor, plain and of power 1), g(x) = A x + b: one evaluation of
+// A and b, and the root is x = -A^-1 b. Otherwise Newton stops by newton_converged
+// (inverse_model.hpp): a step within the tolerance, or a next step predicted within it. At the
+// root the terms' values are the last evaluation's moved along their slopes by the last step, and
+// the Jacobian is the last one's: no evaluation after the step that converged.
 //
 // Uncertainty at the root, J the D x D Jacobian dg/dx, equations independent:
 //   from the coefficients   cov_c = sum_m (a_m' C_m a_m) J^-1 e_m e_m' J^-T,  a_m = dg_m/dc_m;
@@ -72,8 +73,8 @@ class JointInverse {
 
  private:
   template <int D>
-  JointCompensation solve(const std::vector<const ident::SignalSet*>& records, double sample_period_s,
-                          const CompensationOptions& options) const;
+  void solve(const std::vector<const ident::SignalSet*>& records, double sample_period_s, const CompensationOptions& options,
+             JointCompensation& out) const;
 
   std::vector<JointEquation> equations_;
   std::vector<Eigen::VectorXd> fallback_starts_;

@@ -72,6 +72,41 @@ Eigen::VectorXd output_of(const model::ModelFile& m, SignalSet& s, double period
   return y;
 }
 
+TEST(NewtonConverged, StopsWhereTheRootIsWithinTheToleranceAndNotBefore) {
+  // Newton on g(x) = x^3 + x - 10 (root 2) from several starts, stopped by the rule: where it
+  // stops, |x - root| is within the bound, and it took one evaluation fewer than a stop on a
+  // step within the bound alone.
+  const double root = 2.0, tolerance = InverseModel::kStepTolerance;
+  for (const double start : {1.0, 3.0, 10.0, 0.5, 2.5}) {
+    double x = start, previous = 0.0;
+    bool stopped = false;
+    int steps = 0, plain_steps = 0;
+    for (; steps < 60 && !stopped; ++steps) {
+      const double step = (x * x * x + x - 10.0) / (3.0 * x * x + 1.0);
+      x -= step;
+      const double scale = std::abs(x) + 1.0;
+      stopped = newton_converged(std::abs(step), previous, tolerance * scale, std::sqrt(tolerance) * scale);
+      previous = std::abs(step);
+    }
+    ASSERT_TRUE(stopped) << start;
+    EXPECT_LE(std::abs(x - root), tolerance * (root + 1.0)) << start;
+    double y = start;
+    for (bool within = false; plain_steps < 60 && !within; ++plain_steps) {
+      const double step = (y * y * y + y - 10.0) / (3.0 * y * y + 1.0);
+      y -= step;
+      within = std::abs(step) <= tolerance * (std::abs(y) + 1.0);
+    }
+    EXPECT_EQ(steps + 1, plain_steps) << start;
+  }
+  // The prediction is trusted only for a small, shrinking step, and needs a step before it.
+  EXPECT_TRUE(newton_converged(1e-14, 0.0, 1e-13, 3e-7));     // within the bound
+  EXPECT_FALSE(newton_converged(1e-9, 0.0, 1e-13, 3e-7));     // no step before: no prediction
+  EXPECT_TRUE(newton_converged(1e-9, 1e-3, 1e-13, 3e-7));     // next about 1e-21
+  EXPECT_FALSE(newton_converged(1e-6, 10.0, 1e-13, 3e-7));    // above the regime
+  EXPECT_FALSE(newton_converged(1e-9, 1e-9, 1e-13, 3e-7));    // not shrinking
+  EXPECT_FALSE(newton_converged(1e-7, 3e-5, 1e-13, 3e-7));    // next about 1.1e-12: above
+}
+
 TEST(InverseModel, RecoversTheInputOfANonlinearDynamicTemperatureModel) {
   // An accelerometer with bias, scale, second-order and odd-quadratic terms, cross-coupling, a
   // temperature bias and scale coefficient, one input lag and one output lag.
