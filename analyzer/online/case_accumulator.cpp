@@ -176,10 +176,16 @@ bool CaseAccumulator::push(const fusion::FusedChunk& chunk, const config::TestCa
   const Index rows = total - first_row;
   if (rows <= 0) return false;
   if (excitation.empty()) excitation.resize(live.basis->terms().size());
-  for (const Index t : live.model) {
-    const ident::Term& term = live.basis->terms()[static_cast<std::size_t>(t)];
-    if (procedure::judged_by_excitation(term))
-      procedure::add_excitation(term, work, Eigen::Matrix3d::Identity(), live.t_ref, first_row, excitation[static_cast<std::size_t>(t)]);
+  {
+    std::vector<ident::Term> model_terms;
+    for (const Index t : live.model) model_terms.push_back(live.basis->terms()[static_cast<std::size_t>(t)]);
+    std::vector<procedure::TermExcitation> added(model_terms.size());
+    procedure::add_excitation(model_terms, work, Eigen::Matrix3d::Identity(), live.t_ref, first_row, added);
+    for (std::size_t i = 0; i < model_terms.size(); ++i) {
+      procedure::TermExcitation& tally = excitation[static_cast<std::size_t>(live.model[i])];
+      tally.nominal += added[i].nominal;
+      tally.full += added[i].full;
+    }
   }
   const MountingState& ms = mountings[cases[state].mounting];
   const ident::SignalSet signals = ident::signals_from_case(work, ms.m_cs, live.t_ref, "live stream");

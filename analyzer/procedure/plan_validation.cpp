@@ -172,29 +172,42 @@ bool judged_by_excitation(const ident::Term& term) {
   return inertial_degree >= 2;
 }
 
-void add_excitation(const ident::Term& term, const dataset::CaseData& c, const Eigen::Matrix3d& m_nominal, double t_ref,
-                    Eigen::Index first_row, TermExcitation& tally) {
+void add_excitation(std::span<const ident::Term> terms, const dataset::CaseData& c, const Eigen::Matrix3d& m_nominal, double t_ref,
+                    Eigen::Index first_row, std::span<TermExcitation> tallies) {
   using ident::Variable;
-  const std::array<ident::Term, 1> one{term};
-  const Eigen::Index first = std::max(first_row, ident::first_usable_row(one));
-  const std::vector<Variable> variables = term.variables();
-  if (c.size() <= first || (term.uses(Variable::T) && !c.temp) || (!c.w_e && std::any_of(variables.begin(), variables.end(), is_rate)))
-    return;
+  // The case's signals once for every term the rule judges and the case can evaluate.
+  std::vector<std::size_t> judged;
   ident::VariableSet wanted;
-  for (Variable v : variables) wanted.set(static_cast<std::size_t>(v));
+  for (std::size_t i = 0; i < terms.size(); ++i) {
+    const ident::Term& term = terms[i];
+    const std::vector<Variable> variables = term.variables();
+    const std::array<ident::Term, 1> one{term};
+    if (!judged_by_excitation(term) || c.size() <= std::max(first_row, ident::first_usable_row(one)) ||
+        (term.uses(Variable::T) && !c.temp) || (!c.w_e && std::any_of(variables.begin(), variables.end(), is_rate)))
+      continue;
+    judged.push_back(i);
+    for (Variable v : variables) wanted.set(static_cast<std::size_t>(v));
+  }
+  if (judged.empty()) return;
   const ident::SignalSet nominal = ident::signals_from_case(c, m_nominal, t_ref, {}, wanted);
   // The same signals with every inertial variable at its input vector's magnitude.
   ident::SignalSet full = nominal;
   const Eigen::VectorXd a_magnitude = c.a_e.rowwise().norm();
   const Eigen::VectorXd w_magnitude = c.w_e ? Eigen::VectorXd(c.w_e->rowwise().norm()) : Eigen::VectorXd();
-  for (Variable v : variables) {
-    if (is_inertial(v)) full.set(v, is_rate(v) ? w_magnitude : a_magnitude);
+  for (std::size_t v = 0; v < static_cast<std::size_t>(ident::kVariableCount); ++v) {
+    const auto variable = static_cast<Variable>(v);
+    if (wanted.test(v) && is_inertial(variable)) full.set(variable, is_rate(variable) ? w_magnitude : a_magnitude);
   }
-  Eigen::MatrixXd column(c.size() - first, 1);
-  ident::fill_regressors(one, nominal, first, column);
-  tally.nominal += column.squaredNorm();
-  ident::fill_regressors(one, full, first, column);
-  tally.full += column.squaredNorm();
+  Eigen::MatrixXd column;
+  for (const std::size_t i : judged) {
+    const std::array<ident::Term, 1> one{terms[i]};
+    const Eigen::Index first = std::max(first_row, ident::first_usable_row(one));
+    column.resize(c.size() - first, 1);
+    ident::fill_regressors(one, nominal, first, column);
+    tallies[i].nominal += column.squaredNorm();
+    ident::fill_regressors(one, full, first, column);
+    tallies[i].full += column.squaredNorm();
+  }
 }
 
 std::string unexcited_reason(const ident::Term& term, const TermExcitation& tally) {
@@ -212,15 +225,13 @@ std::vector<UndeterminedTerm> remove_unexcited_terms(std::vector<ident::Term>& c
                                                      double t_ref) {
   std::vector<UndeterminedTerm> out;
   std::vector<ident::Term> kept;
-  for (const ident::Term& term : candidates) {
-    TermExcitation tally;
-    if (judged_by_excitation(term)) {
-      for (const dataset::CaseData& c : cases) add_excitation(term, c, c.m_ec, t_ref, 0, tally);
-    }
-    if (tally.excited()) {
-      kept.push_back(term);
+  std::vector<TermExcitation> tallies(candidates.size());
+  for (const dataset::CaseData& c : cases) add_excitation(candidates, c, c.m_ec, t_ref, 0, tallies);
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    if (tallies[i].excited()) {
+      kept.push_back(candidates[i]);
     } else {
-      out.push_back({term.to_string(), unexcited_reason(term, tally)});
+      out.push_back({candidates[i].to_string(), unexcited_reason(candidates[i], tallies[i])});
     }
   }
   candidates = std::move(kept);

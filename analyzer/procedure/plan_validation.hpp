@@ -58,12 +58,12 @@ struct TermExcitation {
 /// excitation.hpp judges; the bias and the temperature alone are not inertial.
 [[nodiscard]] bool judged_by_excitation(const ident::Term& term);
 
-/// Adds to `tally` the rows from `first_row` on of `c`, its references turned into the nominal
-/// frame by `m_nominal` (the case's m_ec; the identity for references already in that frame).
-/// Rows before the term's largest lag are skipped; a case without the term's rates or temperature
-/// adds nothing.
-void add_excitation(const ident::Term& term, const dataset::CaseData& c, const Eigen::Matrix3d& m_nominal, double t_ref,
-                    Eigen::Index first_row, TermExcitation& tally);
+/// Adds to `tallies[i]`, for each of `terms[i]` the rule judges, the rows from `first_row` on of
+/// `c`, its references turned into the nominal frame by `m_nominal` (the case's m_ec; the identity
+/// for references already in that frame). Rows before a term's largest lag are skipped; a case
+/// without a term's rates or temperature adds nothing to it. The case's signals are built once.
+void add_excitation(std::span<const ident::Term> terms, const dataset::CaseData& c, const Eigen::Matrix3d& m_nominal, double t_ref,
+                    Eigen::Index first_row, std::span<TermExcitation> tallies);
 
 /// Why a term with `tally` is not determined, for the user.
 std::string unexcited_reason(const ident::Term& term, const TermExcitation& tally);

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -220,9 +221,29 @@ std::vector<dataset::CaseData> six_poses() {
 }
 
 TermExcitation tally_of(const char* term, const std::vector<dataset::CaseData>& cases) {
-  TermExcitation tally;
-  for (const dataset::CaseData& c : cases) add_excitation(ident::parse_term(term), c, c.m_ec, 25.0, 0, tally);
-  return tally;
+  const std::array<ident::Term, 1> one{ident::parse_term(term)};
+  std::array<TermExcitation, 1> tally{};
+  for (const dataset::CaseData& c : cases) add_excitation(one, c, c.m_ec, 25.0, 0, tally);
+  return tally[0];
+}
+
+TEST(TermExcitation, SeveralTermsAtOnceTallyAsEachAlone) {
+  // The case's signals are built once for the union of the terms' variables: each term's tally
+  // is still its own, and a term the rule does not judge gets nothing.
+  const std::vector<dataset::CaseData> cases = six_poses();
+  const std::vector<const char*> names = {"a_p*a_o", "a_i^2", "a_i", "a_p^2", "1"};
+  std::vector<ident::Term> terms;
+  for (const char* name : names) terms.push_back(ident::parse_term(name));
+  std::vector<TermExcitation> together(terms.size());
+  for (const dataset::CaseData& c : cases) add_excitation(terms, c, c.m_ec, 25.0, 0, together);
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const TermExcitation alone = tally_of(names[i], cases);
+    EXPECT_EQ(together[i].nominal, alone.nominal) << names[i];
+    EXPECT_EQ(together[i].full, alone.full) << names[i];
+  }
+  EXPECT_EQ(together[2].full, 0.0);   // a_i: a sensitivity, not judged
+  EXPECT_EQ(together[4].full, 0.0);
+  EXPECT_GT(together[0].full, 0.0);
 }
 
 TEST(TermExcitation, SixPoseTumbleExcitesTheSquaresNotTheProducts) {
