@@ -15,6 +15,7 @@
 #include "analyzer/commands/compensate.hpp"
 #include "analyzer/compensate/c_export.hpp"
 #include "analyzer/unit/kalibr_intrinsics.hpp"
+#include "analyzer/unit/unit_covariance.hpp"
 #include "analyzer/unit/unit_files.hpp"
 #include "analyzer/unit/unit_inverse.hpp"
 #include "analyzer/unit/unit_model.hpp"
@@ -200,7 +201,7 @@ int run_unit_export(const ExportOptions& options, std::ostream& out) {
     return kExitOk;
   }
   if (options.format == "kalibr") {
-    write_file_atomically(options.out / "imu.yaml", unit::kalibr_yaml(triads));
+    write_file_atomically(options.out / "imu.yaml", unit::kalibr_yaml(triads, unit::unit_parameters(triads)));
     fmt::print(out, "wrote {}/imu.yaml (Kalibr's scale-misalignment model and noise)\n", options.out.string());
     return kExitOk;
   }
@@ -216,7 +217,7 @@ int run_unit_export(const ExportOptions& options, std::ostream& out) {
       j["members"].push_back(std::move(member));
     }
     j["imucal"] = unit::imucal_json(triads);
-    j["covariance"] = unit::covariance_json(triads);
+    j["covariance"] = unit::covariance_json(unit::unit_parameters(triads));
     write_file_atomically(options.out / "unit.json", j.dump(2) + "\n");
     fmt::print(out,
                "wrote {}/unit.json (each member's model as in model.json, the triads in imucal's terms, and the covariance of "

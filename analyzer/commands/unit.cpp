@@ -11,6 +11,7 @@
 #include "analyzer/model/model_file.hpp"
 #include "analyzer/unit/kalibr_intrinsics.hpp"
 #include "analyzer/unit/triad_frame.hpp"
+#include "analyzer/unit/unit_covariance.hpp"
 #include "analyzer/unit/unit_files.hpp"
 #include "analyzer/unit/unit_model.hpp"
 #include "common/atomic_file.hpp"
@@ -69,11 +70,12 @@ int run_unit(const std::vector<std::filesystem::path>& models, const std::filesy
   for (const auto& triad : {triads.accelerometer, triads.gyroscope}) {
     if (triad) print_triad(*triad, summary);
   }
-  write_file_atomically(folder.path() / "unit.toml", unit::unit_toml(triads));
+  const std::vector<unit::UnitParameter> parameters = unit::unit_parameters(triads);
+  write_file_atomically(folder.path() / "unit.toml", unit::unit_toml(triads, parameters));
   write_file_atomically(folder.path() / "imucal.json", unit::imucal_json(triads).dump(4) + "\n");
   const unit::KalibrIntrinsics kalibr = unit::kalibr_intrinsics(triads.accelerometer, triads.gyroscope);
   if (!kalibr.note.empty()) fmt::print(summary, "note: Kalibr's intrinsics left out: {}\n", kalibr.note);
-  write_file_atomically(folder.path() / "kalibr.yaml", unit::kalibr_yaml(triads));
+  write_file_atomically(folder.path() / "kalibr.yaml", unit::kalibr_yaml(triads, parameters));
   folder.commit();
   fmt::print(summary, "wrote {}: unit.toml, the members' model files, imucal.json and kalibr.yaml\n", folder.target().string());
   return kExitOk;

@@ -117,9 +117,9 @@ nlohmann::json imucal_json(const Triads& triads) {
   return j;
 }
 
-nlohmann::json covariance_json(const Triads& triads) {
+nlohmann::json covariance_json(const std::vector<UnitParameter>& parameters) {
   nlohmann::json j = nlohmann::json::object();
-  for (const UnitParameter& p : unit_parameters(triads)) {
+  for (const UnitParameter& p : parameters) {
     nlohmann::json entry = {{"value", p.value.cols() == 1 ? nlohmann::json(std::vector<double>(p.value.data(), p.value.data() + 3))
                                                           : matrix_json(p.value)},
                             {"covariance", matrix_json(p.covariance)}};
@@ -129,7 +129,7 @@ nlohmann::json covariance_json(const Triads& triads) {
   return j;
 }
 
-std::string kalibr_yaml(const Triads& triads) {
+std::string kalibr_yaml(const Triads& triads, const std::vector<UnitParameter>& parameters) {
   const std::vector<model::ModelFile>& accelerometers = triads.accelerometers;
   const std::vector<model::ModelFile>& gyroscopes = triads.gyroscopes;
   const KalibrIntrinsics k = kalibr_intrinsics(triads.accelerometer, triads.gyroscope);
@@ -141,7 +141,7 @@ std::string kalibr_yaml(const Triads& triads) {
   // Each matrix's standard uncertainties as a comment (unit_covariance.hpp; the covariances are in
   // unit.toml and unit.json): Kalibr's format has no place for them.
   std::map<std::string, Eigen::MatrixXd> sd;
-  for (const UnitParameter& p : unit_parameters(triads)) sd[p.name] = p.sd();
+  for (const UnitParameter& p : parameters) sd[p.name] = p.sd();
   yaml += fmt::format("# C = {}\n", yaml_matrix(k.c_imu_unit));
   if (sd.count("C") != 0) yaml += fmt::format("# C's rotation vector sd: [{}, {}, {}] rad\n", sd["C"](0), sd["C"](1), sd["C"](2));
   if (!k.note.empty()) yaml += "# Left out: " + k.note + "\n";
@@ -183,7 +183,7 @@ std::string kalibr_yaml(const Triads& triads) {
 }
 
 
-std::string unit_toml(const Triads& triads) {
+std::string unit_toml(const Triads& triads, const std::vector<UnitParameter>& parameters) {
   const TriadFrame& any = triads.any();
   std::string toml = "# The triads of a unit in its housing's frame (inertia-analyze unit). Sensitivities in the members' output\n"
                      "# unit per input unit (m/s^2 or rad/s); input = R^-1 K^-1 (y - b) (imucal's convention); sd: standard\n"
@@ -195,7 +195,7 @@ std::string unit_toml(const Triads& triads) {
   }
   toml += "\n[covariance]   # of each parameter: a matrix's elements row by row (9 x 9), a vector's (3 x 3), a rotation's\n"
           "               # rotation vector d, C' = exp([d]x) C (rad^2); Kalibr's M_a C M_g A C_gyro_i as in kalibr.yaml\n";
-  for (const UnitParameter& p : unit_parameters(triads)) {
+  for (const UnitParameter& p : parameters) {
     toml += fmt::format("{} = {}\n", p.name, toml_matrix(p.covariance));
   }
   return toml;
