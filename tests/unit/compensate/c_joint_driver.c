@@ -8,33 +8,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "c_driver_common.h"
 #include "model.h"
 
 enum { COLUMNS = MODEL_OUTPUTS + MODEL_INPUTS + 3 * MODEL_UNKNOWNS + 1 };
-
-static int read_row(FILE* f, double* values, int count) {
-  int i;
-  for (i = 0; i < count; ++i) {
-    char field[64];
-    int n = 0, c;
-    while ((c = fgetc(f)) != EOF && c != ',' && c != '\n') {
-      if (n < 63) field[n++] = (char)c;
-    }
-    if (c == EOF && n == 0) return 0;
-    field[n] = '\0';
-    values[i] = strtod(field, NULL);
-  }
-  return 1;
-}
-
-static int close_enough(double got, double want, double tolerance, double floor, double* worst) {
-  double scale, error;
-  if (isnan(want) || isnan(got)) return isnan(want) && isnan(got);
-  scale = fabs(want) > floor ? fabs(want) : floor;
-  error = fabs(got - want) / scale;
-  if (error > *worst) *worst = error;
-  return error <= tolerance;
-}
 
 int main(int argc, char** argv) {
   FILE* f;

@@ -300,18 +300,30 @@ TEST(LiveSolver, TheCaseScattersColouredNoiseIsTheSandwichOnTheRows) {
   EXPECT_GT(coloured.sd(0), 3.0 * std::sqrt(classical(0, 0))) << "the common noise dominates the bias's sd";
 }
 
+/// A table mounting of y = b + k a_i + k2 a_i^2, a_i = n_i . a, with n_i tilted 0.035 rad from
+/// (0, 0.3, 1): its model, inputs, true frame and coefficients, and its statistics.
+struct TableMounting {
+  Fixture fx{{"1", "a_i", "a_i^2"}};
+  Inputs a = random_inputs(3000, 9);
+  Eigen::Matrix3d m_true = frames::frame_rotation(Eigen::Vector3d(0.0, 0.3, 1.0).normalized(), 0.035);
+  VectorXd k = (VectorXd(3) << 3.44e-3, 0.0877, 5.3e-4).finished();
+  VectorXd y = sensor_frame_columns(fx.model_terms, a, m_true) * k;
+  MountingStatistics m;
+  TableMounting() {
+    m.name = "table";
+    m.info = fx.statistics(a, y);
+    m.kind.shaker_only = false;
+  }
+};
+
 TEST(LiveSolver, MountingFindsTheInputAxisItWasMadeWith) {
   // y = b + k a_i + k2 a_i^2 with a_i = n_i . a: algorithm 1 on the sensitivities k n_i of a_x a_y
   // a_z, to the fixed point, gives n_i; the F_S fit gives b and k2.
-  const Fixture fx({"1", "a_i", "a_i^2"});
-  const Inputs a = random_inputs(3000, 9);
-  const Eigen::Matrix3d m_true = frames::frame_rotation(Eigen::Vector3d(0.0, 0.3, 1.0).normalized(), 0.035);
-  const VectorXd k = (VectorXd(3) << 3.44e-3, 0.0877, 5.3e-4).finished();
-  const VectorXd y = sensor_frame_columns(fx.model_terms, a, m_true) * k;
-  MountingStatistics m;
-  m.name = "table";
-  m.info = fx.statistics(a, y);
-  m.kind.shaker_only = false;
+  const TableMounting table;
+  const Fixture& fx = table.fx;
+  const Eigen::Matrix3d& m_true = table.m_true;
+  const VectorXd& k = table.k;
+  MountingStatistics m = table.m;
   const MountingFit fit = fx.solver().fit_mounting(m, std::nullopt);
   ASSERT_TRUE(fit.determined) << fit.note;
   const Eigen::Vector3d n_i = m_true.row(0).transpose();
@@ -330,15 +342,10 @@ TEST(LiveSolver, AMountingsAnglesCarryItsCasesPlacementsAsTheBatchDoes) {
   // The mounting of MountingFindsTheInputAxisItWasMadeWith as two cases of several runs each,
   // placed within 0.2 mrad: the angles' covariance gains the placements' (procedure/placement.hpp),
   // carried through algorithm 1 as the fit's own is (misalignment_angles is linear in it).
-  const Fixture fx({"1", "a_i", "a_i^2"});
-  const Inputs a = random_inputs(3000, 9);
-  const Eigen::Matrix3d m_true = frames::frame_rotation(Eigen::Vector3d(0.0, 0.3, 1.0).normalized(), 0.035);
-  const VectorXd k = (VectorXd(3) << 3.44e-3, 0.0877, 5.3e-4).finished();
-  const VectorXd y = sensor_frame_columns(fx.model_terms, a, m_true) * k;
-  MountingStatistics m;
-  m.name = "table";
-  m.info = fx.statistics(a, y);
-  m.kind.shaker_only = false;
+  const TableMounting table;
+  const Fixture& fx = table.fx;
+  const Inputs& a = table.a;
+  MountingStatistics m = table.m;
   const MountingFit without = fx.solver().fit_mounting(m, std::nullopt);
   for (const Index half : {Index{0}, Index{1500}}) {
     Eigen::MatrixXd r(1500, 4);
