@@ -126,7 +126,11 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
     // ones, flat in term order.
     std::vector<std::pair<std::size_t, Factor>> settled_factors;
     std::vector<std::size_t> settled_terms;   // the terms with settled factors; the others' known part is 1
-    std::vector<std::size_t> still_terms, moving_terms;   // by mover: kStill, or not
+    // A linear system's A row and b from the terms whose known part is 1 at every sample, and
+    // the other terms.
+    Vector constant_a = Vector::Zero();
+    double constant_b = 0.0;
+    std::vector<std::size_t> varying_terms;
     Eigen::VectorXd dg_dc;
     double g = 0.0, denominator = 1.0;
   };
@@ -191,7 +195,18 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
       if (e.terms[t].square_filtered) e.filtered.push_back(t);
       for (const Factor& f : e.terms[t].factors)
         if (f.solved < 0 || f.factor.lag > 0) e.settled_factors.emplace_back(t, f);
-      if (!e.settled_factors.empty() && e.settled_factors.back().first == t) e.settled_terms.push_back(t);
+      const bool settled_factors = !e.settled_factors.empty() && e.settled_factors.back().first == t;
+      if (settled_factors) e.settled_terms.push_back(t);
+      // A linear system's term of no settled factor, unfiltered and not over y, is c or c row . x
+      // at every sample: summed into A and b once.
+      const Term& term = e.terms[t];
+      if (!linear_ || settled_factors || term.square_filtered || term.denominator) {
+        e.varying_terms.push_back(t);
+      } else if (term.factors.empty()) {
+        e.constant_b += term.coefficient;
+      } else {
+        e.constant_a += term.coefficient * e.rows[static_cast<std::size_t>(term.factors.front().solved)];
+      }
     }
   }
 
@@ -258,9 +273,6 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
         e.known[t] = product;
         e.mover[t] = moving > 1 ? kNonlinear : mover;
       }
-      e.still_terms.clear();
-      e.moving_terms.clear();
-      for (std::size_t t = 0; t < term_count; ++t) (e.mover[t] == kStill ? e.still_terms : e.moving_terms).push_back(t);
     }
     // Each term's value and gradient at x. A filtered square's value is its high pass's output,
     // h(k) = p h(k-1) + g (s(k) - s(k-1)), settled (0) at the first row; then each equation's
@@ -313,26 +325,28 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
       }
     };
     // A system linear in the unknowns is g(x) = A x + b: each term is its known part, or that
-    // times one row . x. Its value array holds the known parts (a still filtered square: its high
-    // pass's output), its Jacobian A and its residuals b, so the root is x = -A^-1 b.
+    // times one row . x. The constant terms' share of A and b, and the other terms' now; a still
+    // filtered square's value is its high pass's output, kept for the values at the root. The
+    // root is x = -A^-1 b.
     const auto evaluate_affine = [&]() {
       for (std::size_t m = 0; m < eqs.size(); ++m) {
         Equation& e = eqs[m];
         const double yk = (*e.y)(k);
-        const auto weight = [&](const Term& term) { return term.denominator ? -yk * term.coefficient : term.coefficient; };
-        double b = -yk;
-        for (const std::size_t t : e.still_terms) {
+        double b = e.constant_b - yk;
+        Vector a = e.constant_a;
+        for (const std::size_t t : e.varying_terms) {
           const Term& term = e.terms[t];
           double v = e.known[t];
-          if (term.square_filtered) v = k == first_row_ ? 0.0 : e.highpass.p * e.h_previous[t] + e.highpass.g * (v - e.in_previous[t]);
-          e.value[t] = v;
-          b += weight(term) * v;
-        }
-        Vector a = Vector::Zero();
-        for (const std::size_t t : e.moving_terms) {
-          const double v = e.known[t];
-          e.value[t] = v;
-          a += (weight(e.terms[t]) * v) * e.rows[static_cast<std::size_t>(e.mover[t])];
+          if (term.square_filtered) {
+            v = k == first_row_ ? 0.0 : e.highpass.p * e.h_previous[t] + e.highpass.g * (v - e.in_previous[t]);
+            e.value[t] = v;
+          }
+          const double weighted = (term.denominator ? -yk * term.coefficient : term.coefficient) * v;
+          const int mover = e.mover[t];
+          if (mover >= 0)
+            a += weighted * e.rows[static_cast<std::size_t>(mover)];
+          else
+            b += weighted;
         }
         residuals(static_cast<Index>(m)) = b;
         jacobian.row(static_cast<Index>(m)) = a.transpose();
@@ -417,19 +431,22 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
         const std::size_t term_count = e.terms.size();
         double* dg_dc = e.dg_dc.data();
         for (std::size_t s = 0; s < e.rows.size(); ++s) e.solved_value[s] = e.rows[s].dot(x);
-        if (linear_) {
-          for (const std::size_t t : e.moving_terms) e.value[t] *= e.solved_value[static_cast<std::size_t>(e.mover[t])];
-        } else {
-          for (std::size_t t = 0; t < term_count; ++t)
-            if (e.mover[t] != kStill) e.value[t] -= e.slope[t].dot(step);
-        }
-        for (std::size_t t = 0; t < term_count; ++t) {
-          double v = e.value[t];
+        const auto at_root = [&](std::size_t t, double v) {
+          e.value[t] = v;
           if (e.terms[t].denominator) {
             denominator += e.terms[t].coefficient * v;
             v *= -yk;
           }
           dg_dc[t] = v;
+        };
+        if (linear_) {
+          for (std::size_t t = 0; t < term_count; ++t) {
+            const int mover = e.mover[t];
+            const double v = e.terms[t].square_filtered ? e.value[t] : e.known[t];
+            at_root(t, mover >= 0 ? v * e.solved_value[static_cast<std::size_t>(mover)] : v);
+          }
+        } else {
+          for (std::size_t t = 0; t < term_count; ++t) at_root(t, e.mover[t] != kStill ? e.value[t] - e.slope[t].dot(step) : e.value[t]);
         }
         e.denominator = denominator;
       }
