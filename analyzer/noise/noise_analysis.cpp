@@ -32,8 +32,9 @@ std::vector<Stretch> static_stretches(const dataset::Dataset& data, const std::s
     if (!only_case.empty() || (cd.kind == CaseKind::Static && cd.phase.empty())) {
       std::fill(rest.begin(), rest.end(), true);   // the case named, or a static case: all of it
     } else if (!cd.phase.empty()) {
-      for (Eigen::Index k = 0; k < n; ++k)
-        rest[static_cast<std::size_t>(k)] = is_rest_label(cd.phase_names[cd.phase[static_cast<std::size_t>(k)]]);
+      std::vector<bool> rest_phase(cd.phase_names.size());   // each phase's label judged once
+      for (std::size_t p = 0; p < cd.phase_names.size(); ++p) rest_phase[p] = is_rest_label(cd.phase_names[p]);
+      for (Eigen::Index k = 0; k < n; ++k) rest[static_cast<std::size_t>(k)] = rest_phase[cd.phase[static_cast<std::size_t>(k)]];
     }
     for (Eigen::Index k = 0; k < n;) {
       if (!rest[static_cast<std::size_t>(k)]) {
