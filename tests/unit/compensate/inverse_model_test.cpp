@@ -146,6 +146,30 @@ TEST(InverseModel, RecoversTheRateOfARationalGyroModel) {
   EXPECT_LT((c.value - truth).cwiseAbs().maxCoeff(), 1e-11);
 }
 
+TEST(InverseModel, SolvesAModelLinearInItsInputAtOnceWithItsDynamicsAndKnownSquares) {
+  // Linear in a_i (JointInverse's one solve, -b / a): a known square through the high pass, a
+  // lagged output, temperature in a product and over y, and the bias and a_i, whose share of a
+  // and b is summed once.
+  model::ModelFile m = model_of(dataset::SensorKind::Accelerometer, {{"1", 2e-3},
+                                                                     {"a_i", 0.09},
+                                                                     {"a_p^2", -2e-4},
+                                                                     {"a_i*T", 3e-5},
+                                                                     {"a_o", 1e-4},
+                                                                     {"y[k-1]", 0.25},
+                                                                     {"a_i[k-1]", 0.01},
+                                                                     {"y*T", 1e-3}});
+  m.square_highpass_rad_s = 40.0;
+  SignalSet s = smooth_inputs(4000, 17, 10.0);
+  output_of(m, s, 1e-3);
+  const InverseModel inverse(m);
+  EXPECT_TRUE(inverse.as_joint().linear());
+  const CompensatedSignal c = inverse.compensate(s, 1e-3);
+  const Eigen::VectorXd truth = s.get(Variable::Ai).tail(c.value.size());
+  EXPECT_LT((c.value - truth).cwiseAbs().maxCoeff(), 1e-11);
+  EXPECT_EQ(c.most_iterations, 1);
+  EXPECT_EQ(c.not_converged, 0);
+}
+
 TEST(InverseModel, FollowsTheSquaresThroughTheirHighPass) {
   model::ModelFile m = model_of(dataset::SensorKind::Accelerometer,
                                 {{"1", 1e-3}, {"a_i", 0.09}, {"a_i^2", 3e-4}, {"a_p^2", -2e-4}, {"a_i^2[k-1]", 1e-4}});
