@@ -62,6 +62,23 @@ Eigen::VectorXd ar_from_autocovariance(const Eigen::VectorXd& acov, double n, do
   return best_order > 0 ? best : Eigen::VectorXd();
 }
 
+void ar_filter_column(const Eigen::VectorXd& a, const double* x, double* out, Eigen::Index n) {
+  constexpr Eigen::Index kRows = 16;
+  using Rows = Eigen::Array<double, kRows, 1>;
+  const Eigen::Index m = a.size();
+  Eigen::Index r = 0;
+  for (; r + kRows <= n; r += kRows) {
+    Rows sum = Eigen::Map<const Rows>(x + r + m);
+    for (Eigen::Index j = 1; j <= m; ++j) sum -= a(j - 1) * Eigen::Map<const Rows>(x + r + m - j);
+    Eigen::Map<Rows>(out + r) = sum;
+  }
+  for (; r < n; ++r) {
+    double sum = x[r + m];
+    for (Eigen::Index j = 1; j <= m; ++j) sum -= a(j - 1) * x[r + m - j];
+    out[r] = sum;
+  }
+}
+
 namespace {
 
 /// The rows an AR filter of order m keeps of the stacked `cases`: each case loses its first m,
@@ -80,23 +97,17 @@ std::vector<CaseRows> filtered_layout(const std::vector<CaseRows>& cases, Eigen:
 
 /// x (one stacked vector, rows laid out as `from`) filtered by A(q) case by case into the rows
 /// of `to` (filtered_layout). Row r of a case's result is sample r + m of the case:
-/// x[k] - sum a_j x[k - j]. Per lag a whole block of rows at once (vectorized; the same per-sample
-/// order of operations as a scalar loop) into `scratch`, then copied to rows already consumed
-/// (to.begin <= from.begin), so in place is safe. Blocks of kBlock rows keep the m passes over a
-/// block in L1/L2 instead of a trip to memory per lag.
+/// x[k] - sum a_j x[k - j], into `scratch`, then copied to rows already consumed
+/// (to.begin <= from.begin), so in place is safe.
 template <class X>
 void filter_stacked(const Eigen::VectorXd& a, X&& x, const std::vector<CaseRows>& from, const std::vector<CaseRows>& to,
                     Eigen::VectorXd& scratch) {
-  constexpr Eigen::Index kBlock = 2048;
   const Eigen::Index m = a.size();
   std::size_t k = 0;
   for (const CaseRows& c : from) {
     if (c.rows - m <= 0) continue;
     const CaseRows& out = to[k++];
-    for (Eigen::Index b = 0; b < out.rows; b += kBlock) {
-      const Eigen::Index n = std::min(kBlock, out.rows - b);
-      ar_filter(a, x.segment(c.begin + b, n + m), scratch.segment(b, n));
-    }
+    ar_filter(a, x.segment(c.begin, out.rows + m), scratch.head(out.rows));
     x.segment(out.begin, out.rows) = scratch.head(out.rows);
   }
 }

@@ -125,5 +125,28 @@ TEST(ArFilter, UndoesTheArProcessAndChunksAgreeWithOnePass) {
   EXPECT_EQ(none, x);
 }
 
+TEST(ArFilter, AHighOrderOnRowsNotAMultipleOfTheBlockIsTheScalarRecursion) {
+  // The orders the procedure picks reach 120; rows are filtered 16 at a time and the rest one by
+  // one. Both must be the plain sum x[k] - sum a_j x[k - j].
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (const Eigen::Index m : {1, 15, 16, 17, 120}) {
+    Eigen::VectorXd a(m), x(m + 16 * 9 + 7);
+    for (Eigen::Index j = 0; j < m; ++j) a(j) = g(rng) / static_cast<double>(m);
+    for (Eigen::Index k = 0; k < x.size(); ++k) x(k) = g(rng);
+    Eigen::VectorXd filtered;
+    ar_filter(a, x, filtered);
+    ASSERT_EQ(filtered.size(), x.size() - m);
+    for (Eigen::Index r = 0; r < filtered.size(); ++r) {
+      double expected = x(r + m), scale = std::abs(x(r + m));
+      for (Eigen::Index j = 1; j <= m; ++j) {
+        expected -= a(j - 1) * x(r + m - j);
+        scale += std::abs(a(j - 1) * x(r + m - j));
+      }
+      EXPECT_NEAR(filtered(r), expected, 1e-15 * scale) << "order " << m << ", row " << r;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace inertia::procedure
