@@ -85,7 +85,8 @@ class ClockFit {
 /// starts on the fit again. Thread: the publisher's; O(1), no allocation.
 class SlewedTimeBase {
  public:
-  explicit SlewedTimeBase(double max_slew = 0.02) : max_slew_(max_slew) {}
+  static constexpr double kDefaultMaxSlew = 0.02;
+  explicit SlewedTimeBase(double max_slew = kDefaultMaxSlew) : max_slew_(max_slew) {}
 
   struct BlockTime {
     std::int64_t t0_ns = 0;

@@ -198,9 +198,10 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
       const bool settled_factors = !e.settled_factors.empty() && e.settled_factors.back().first == t;
       if (settled_factors) e.settled_terms.push_back(t);
       // A linear system's term of no settled factor, unfiltered and not over y, is c or c row . x
-      // at every sample: summed into A and b once.
+      // at every sample: summed into A and b once (a nonlinear system evaluates every term).
+      if (!linear_) continue;
       const Term& term = e.terms[t];
-      if (!linear_ || settled_factors || term.square_filtered || term.denominator) {
+      if (settled_factors || term.square_filtered || term.denominator) {
         e.varying_terms.push_back(t);
       } else if (term.factors.empty()) {
         e.constant_b += term.coefficient;

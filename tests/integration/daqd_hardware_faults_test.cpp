@@ -16,6 +16,7 @@
 
 #include "common/config/bench_config.hpp"
 #include "common/lcm/sample_block_layout.hpp"
+#include "daq/clock_fit.hpp"
 #include "daq/sim_bench.hpp"
 #include "hal/sim/bench_simulation.hpp"
 #include "tests/integration/executive_bench.hpp"
@@ -409,9 +410,9 @@ TEST(DaqdHardwareFaults, AControllersRowsAfterItWentSilentKeepTheirOwnTimes) {
   // that passed between its ticks), through the rows before the silence. Each row against it, in
   // seconds of the table's turning. The rows' own slope is only a check that they are the table's:
   // while the time base slews a start-up correction in, their period may differ from the true one
-  // by up to its slew limit (SlewedTimeBase, 2 %).
+  // by up to its slew limit.
   constexpr double kRateRadS = 1.0;
-  constexpr double kMaxSlew = 0.02;
+  constexpr double kMaxSlew = SlewedTimeBase::kDefaultMaxSlew;
   double st = 0, sp = 0, stt = 0, stp = 0;
   const auto n = static_cast<double>(gap);
   for (std::size_t i = 0; i < gap; ++i) {
