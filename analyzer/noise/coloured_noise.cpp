@@ -152,18 +152,27 @@ Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::R
   // The circulant of length L >= 2n restricted to the first n rows and columns is the Toeplitz R,
   // so the first n samples of the circular convolution of the zero-padded column are R x.
   const Eigen::Index half = spectrum.length / 2;
-  Eigen::FFT<double> fft;
-  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
-  std::vector<double> column(static_cast<std::size_t>(spectrum.length), 0.0);
-  std::vector<std::complex<double>> bins;
   Eigen::MatrixXd out(x.rows(), x.cols());
-  for (Eigen::Index j = 0; j < x.cols(); ++j) {
-    std::fill(column.begin(), column.end(), 0.0);
-    Eigen::Map<Eigen::VectorXd>(column.data(), x.rows()) = x.col(j);
-    fft.fwd(bins, column);
-    for (Eigen::Index k = 0; k <= half; ++k) bins[static_cast<std::size_t>(k)] *= spectrum.density(k);
-    fft.inv(column, bins, static_cast<std::size_t>(spectrum.length));
-    out.col(j) = Eigen::Map<const Eigen::VectorXd>(column.data(), x.rows());
+  // The columns split over threads as in quadratic_form.
+#ifdef _OPENMP
+#pragma omp parallel num_threads(parallel::threads_for(x.cols()))
+#endif
+  {
+    Eigen::FFT<double> fft;
+    fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+    std::vector<double> column(static_cast<std::size_t>(spectrum.length), 0.0);
+    std::vector<std::complex<double>> bins;
+#ifdef _OPENMP
+#pragma omp for schedule(static)
+#endif
+    for (Eigen::Index j = 0; j < x.cols(); ++j) {
+      std::fill(column.begin(), column.end(), 0.0);
+      Eigen::Map<Eigen::VectorXd>(column.data(), x.rows()) = x.col(j);
+      fft.fwd(bins, column);
+      for (Eigen::Index k = 0; k <= half; ++k) bins[static_cast<std::size_t>(k)] *= spectrum.density(k);
+      fft.inv(column, bins, static_cast<std::size_t>(spectrum.length));
+      out.col(j) = Eigen::Map<const Eigen::VectorXd>(column.data(), x.rows());
+    }
   }
   return out;
 }

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <optional>
 #include <stdexcept>
 
@@ -147,6 +148,12 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
   std::vector<noise::RowGroups> run_phases;                 // per noise run: each row's phase within it
   std::vector<std::vector<Eigen::Index>> run_phase_columns;  // per noise run: its phases' columns of Z
   ident::ColouredNoise coloured;
+  // X'RX of the terms' columns. The stack and the spectra stay over the loop, so a term that leaves
+  // only takes its row and column away: the block is transformed once, for the stack's columns
+  // `meat_columns`, and each round takes its terms' part of it. Only the searched columns, which
+  // follow the fit, are new each round.
+  std::vector<Eigen::Index> meat_columns;
+  Eigen::MatrixXd terms_meat;
   for (;;) {
     InferenceOutcome out;
     const auto finish = [&]() {
@@ -168,11 +175,13 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     if (searched.rows() != s.phi.rows()) throw std::logic_error("infer_after_selection: searched columns of another stack");
     Eigen::MatrixXd x(s.phi.rows(), p + searched.cols());
     std::vector<Eigen::Index> output_multiplied;
+    std::vector<Eigen::Index> stack_columns(static_cast<std::size_t>(p));   // each term's column of the stack
     for (Eigen::Index j = 0; j < p; ++j) {
       const auto column = static_cast<Eigen::Index>(std::find(s.labels.begin(), s.labels.end(), fit.labels[std::size_t(j)]) -
                                                     s.labels.begin());
       if (std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end()) output_multiplied.push_back(j);
       x.col(j) = s.phi.col(column);
+      stack_columns[std::size_t(j)] = column;
     }
     x.leftCols(p) *= ident::linear_form_signs(p, output_multiplied).asDiagonal();   // the linear form
     x.rightCols(searched.cols()) = searched;
@@ -213,12 +222,36 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       return out;
     };
     // X'RX and X'RZ, case by case (R is block diagonal over the noise runs).
+    std::vector<Eigen::Index> in_meat;   // each term's row of terms_meat
+    for (const Eigen::Index column : stack_columns) {
+      const auto at = std::find(meat_columns.begin(), meat_columns.end(), column);
+      if (at == meat_columns.end()) break;
+      in_meat.push_back(at - meat_columns.begin());
+    }
+    if (static_cast<Eigen::Index>(in_meat.size()) != p) {
+      meat_columns = stack_columns;
+      terms_meat = Eigen::MatrixXd::Zero(p, p);
+      for (std::size_t r = 0; r < spectra.size(); ++r) {
+        const CaseRows& run = h.layout->noise_runs[r];
+        terms_meat += noise::quadratic_form(spectra[r], x.leftCols(p).middleRows(run.begin, run.rows));
+      }
+      in_meat.resize(static_cast<std::size_t>(p));
+      std::iota(in_meat.begin(), in_meat.end(), Eigen::Index{0});
+    }
+    const Eigen::Index q = searched.cols();
     coloured.meat = Eigen::MatrixXd::Zero(x.cols(), x.cols());
+    coloured.meat.topLeftCorner(p, p) = terms_meat(in_meat, in_meat);
+    if (q > 0) {
+      const Eigen::MatrixXd r_searched = noise_times(x.rightCols(q));
+      coloured.meat.topRightCorner(p, q) = x.leftCols(p).transpose() * r_searched;
+      coloured.meat.bottomLeftCorner(q, p) = coloured.meat.topRightCorner(p, q).transpose();
+      const Eigen::MatrixXd searched_meat = x.rightCols(q).transpose() * r_searched;
+      coloured.meat.bottomRightCorner(q, q) = 0.5 * (searched_meat + searched_meat.transpose());
+    }
     coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
     for (std::size_t r = 0; r < spectra.size(); ++r) {
       const CaseRows& run = h.layout->noise_runs[r];
       const auto xr = x.middleRows(run.begin, run.rows);
-      coloured.meat += noise::quadratic_form(spectra[r], xr);
       const Eigen::MatrixXd cross = noise::group_cross_covariance(spectra[r], run_phases[r], xr);
       for (std::size_t a = 0; a < run_phase_columns[r].size(); ++a) coloured.cross.col(run_phase_columns[r][a]) += cross.col(Eigen::Index(a));
     }
