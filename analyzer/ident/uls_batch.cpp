@@ -478,7 +478,22 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   UlsResult res = finish_uls(x.leftCols(p), y, xlabels, xcols, xr, xf, sol, options);
   if (n_e == 0) return res;
 
-  // ELS: rebuild e[k-i] from the current residuals and refit until stable.
+  // ELS: rebuild e[k-i] from the current residuals and refit until stable. Only the noise columns
+  // E change from pass to pass: the augmented Gram [Phi E y]'[Phi E y] keeps its Phi and y part,
+  // formed once, and each pass forms E's rows and columns (O(N p n_e), not O(N p^2)).
+  const Index a = p + n_e + 1;   // augmented size; y is the last column
+  Eigen::MatrixXd augmented = Eigen::MatrixXd::Zero(a, a);
+  {
+    Eigen::MatrixXd process = Eigen::MatrixXd::Zero(p, p);
+    process.selfadjointView<Eigen::Lower>().rankUpdate(x.leftCols(p).transpose());
+    mirror_lower(process);
+    augmented.topLeftCorner(p, p) = process;
+    augmented.col(a - 1).head(p) = x.leftCols(p).transpose() * y;
+    augmented.row(a - 1).head(p) = augmented.col(a - 1).head(p).transpose();
+    augmented(a - 1, a - 1) = y.squaredNorm();
+  }
+  const Eigen::MatrixXd factor_gram = xf.transpose() * xf;
+  const Eigen::VectorXd factor_sum = xf.colwise().sum().transpose();
   xcols.resize(static_cast<std::size_t>(p + n_e));
   std::iota(xcols.begin(), xcols.end(), Index{0});
   Eigen::VectorXd previous = Eigen::VectorXd::Zero(p + n_e);
@@ -491,7 +506,13 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
       x.col(p + i - 1).head(std::min(i, n)).setZero();  // residuals before the record: 0
       if (n > i) x.col(p + i - 1).tail(n - i) = res.residuals.head(n - i);
     }
-    stats = UlsStatistics::from_data(x, y, xr.columns, xf);
+    const auto e = x.middleCols(p, n_e);
+    augmented.block(0, p, p, n_e).noalias() = x.leftCols(p).transpose() * e;
+    augmented.block(p, 0, n_e, p) = augmented.block(0, p, p, n_e).transpose();
+    augmented.block(p, p, n_e, n_e).noalias() = e.transpose() * e;
+    augmented.col(a - 1).segment(p, n_e).noalias() = e.transpose() * y;
+    augmented.row(a - 1).segment(p, n_e) = augmented.col(a - 1).segment(p, n_e).transpose();
+    stats = UlsStatistics::from_gram(augmented, n, xr.columns, factor_gram, factor_sum);
     sol = solve_uls(stats, xlabels, options);
     res = finish_uls(x, y, xlabels, xcols, xr, xf, sol, options);
     total_iterations += sol.iterations;

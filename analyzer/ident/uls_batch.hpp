@@ -176,7 +176,7 @@ Eigen::MatrixXd denominator_factors(const Eigen::Ref<const Eigen::MatrixXd>& phi
 
 /// Full batch ULS on the columns `columns` of phi (all columns when empty): ULS with ELS
 /// noise lags, residuals and covariance. labels has one entry per column of phi.
-/// Not real-time: allocates O(N) for residuals; O(N p^2) per ELS pass.
+/// Not real-time: allocates O(N) for residuals; one O(N p^2) Gram, then O(N p n_e) per ELS pass.
 UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                     const Eigen::Ref<const Eigen::VectorXd>& y,
                     const std::vector<std::string>& labels, const OutputMultiplied& rational,

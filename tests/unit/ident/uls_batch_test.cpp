@@ -83,6 +83,27 @@ TEST(UlsBatch, BillingsZhuRationalExampleIsUnbiased) {
   EXPECT_NEAR(sigma2.mean(), sigma * sigma, 4.0 * sigma * sigma * std::sqrt(2.0 / double(n * runs)));
 }
 
+// ELS beside output-multiplied columns: on the Billings-Zhu model with white noise the passes
+// keep the rational part unbiased and find no noise lag (its coefficient zero within the spread).
+TEST(UlsBatch, ExtendedLeastSquaresOnARationalModelFindsNoLagInWhiteNoise) {
+  const int runs = 20;
+  const Eigen::Index n = 3000;
+  UlsOptions options;
+  options.noise_lags = 1;
+  Eigen::MatrixXd theta(runs, 6);
+  for (int r = 0; r < runs; ++r) {
+    const auto ex = testing::rational_example(300 + r, n, 0.1);
+    const UlsResult fit = uls_batch(ex.phi, ex.y, ex.labels, OutputMultiplied{ex.output_multiplied, ex.factors}, options);
+    ASSERT_EQ(fit.process_terms, 5);
+    EXPECT_TRUE(fit.converged) << fit.noise_iterations;
+    theta.row(r) = fit.theta.transpose();
+  }
+  const auto [mean, mc_sd] = column_mean_sd(theta);
+  Eigen::VectorXd truth = Eigen::VectorXd::Zero(6);
+  truth.head(5) = testing::RationalExample{}.truth;
+  for (int j = 0; j < 6; ++j) EXPECT_NEAR(mean[j], truth[j], 4.0 * mc_sd[j] / std::sqrt(double(runs))) << j;
+}
+
 // ELS on an ARMAX-like model with MA(1) noise (LS 0.288, ELS 0.2003 in the SysIdentPy book).
 TEST(UlsBatch, ExtendedLeastSquaresRemovesMaBias) {
   const int runs = 20;
