@@ -500,6 +500,7 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   previous.head(p) = res.theta;
   int total_iterations = res.iterations;
   bool converged = false;
+  double last_change = 0.0;
   int pass = 0;
   for (pass = 1; pass <= options.max_noise_iterations; ++pass) {
     for (Index i = 1; i <= n_e; ++i) {
@@ -516,7 +517,9 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
     sol = solve_uls(stats, xlabels, options);
     res = finish_uls(x, y, xlabels, xcols, xr, xf, sol, options);
     total_iterations += sol.iterations;
-    const bool small = (res.theta - previous).norm() <= options.tolerance * res.theta.norm();
+    const double change = (res.theta - previous).norm() / std::max(res.theta.norm(), std::numeric_limits<double>::min());
+    const bool small = change <= options.tolerance;
+    last_change = change;
     previous = res.theta;
     if (small && sol.converged) {
       converged = true;
@@ -526,6 +529,7 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   res.process_terms = p;
   res.iterations = total_iterations;
   res.noise_iterations = std::min(pass, options.max_noise_iterations);
+  res.noise_last_change = last_change;
   res.converged = converged;
   return res;
 }

@@ -99,6 +99,9 @@ struct UlsResult {
   double residual_variance = 0.0;  ///< sum eps^2 / (N - p), p counting noise terms too
   int iterations = 0;              ///< sigma^2 iterations, summed over ELS passes
   int noise_iterations = 0;        ///< ELS passes (0 without noise lags)
+  /// |theta - theta of the pass before| / |theta| after the last ELS pass: what the coefficients
+  /// still moved by when the passes stopped (converged: below UlsOptions::tolerance).
+  double noise_last_change = 0.0;
   bool converged = false;
   double condition_number = 0.0;   ///< lambda_max / lambda_min of the RMS-scaled Phi'Phi
   CovarianceKind covariance_kind = CovarianceKind::Classical;

@@ -175,6 +175,12 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
                                       "output-multiplied terms holds for a white equation error, so the noise model "
                                       "enters the coefficients' covariance instead (the sandwich under its spectrum), "
                                       "and AIC is the unfiltered residual's.");
+  if (r.fit.noise_iterations > 0 && !r.fit.converged)
+    md << fmt::format("The noise lags' extended least squares did not settle: after {} passes the coefficients still moved "
+                      "by {:.2g} of their norm from one pass to the next. ELS converges only when the noise's moving "
+                      "average C(q) makes 1/C(q) - 1/2 strictly positive real; these coefficients carry that wander "
+                      "beside their standard deviations. A fit without noise lags (`--noise-lags 0`) has no such pass.\n\n",
+                      r.fit.noise_iterations, r.fit.noise_last_change);
   md << fmt::format("Inference: the cases' contiguous phases are {} clusters; the offsets between them that the noise model "
                     "does not explain (placement of a pose, drift, 1/f noise below the AR model's reach) have sd {:.3g} {} "
                     "(between-phase dof {}), and every standard deviation includes what they do to the estimate; a term "

@@ -128,6 +128,23 @@ TEST(UlsBatch, ExtendedLeastSquaresRemovesMaBias) {
   EXPECT_GT(std::abs(ls_mean[0] - 0.2), 10.0 * mc_sd[0] / std::sqrt(double(runs)));
 }
 
+// The passes say what the coefficients still moved by: below the tolerance when they settled, and
+// above it when the passes ran out first (what the report states of an unsettled noise model).
+TEST(UlsBatch, ExtendedLeastSquaresReportsTheLastPassesChange) {
+  const auto ex = testing::armax_example(7, 3000, 0.2);
+  UlsOptions options;
+  options.noise_lags = 1;
+  const UlsResult settled = uls_batch(ex.phi, ex.y, ex.labels, {}, options);
+  ASSERT_TRUE(settled.converged);
+  EXPECT_LE(settled.noise_last_change, options.tolerance);
+  EXPECT_GT(settled.noise_last_change, 0.0);
+  options.max_noise_iterations = 2;
+  const UlsResult cut = uls_batch(ex.phi, ex.y, ex.labels, {}, options);
+  EXPECT_FALSE(cut.converged);
+  EXPECT_EQ(cut.noise_iterations, 2);
+  EXPECT_GT(cut.noise_last_change, 1e3 * options.tolerance);
+}
+
 // a_i^2 + a_p^2 + a_o^2 = g^2 on rotation-table data: with the bias these four are collinear.
 TEST(UlsBatch, CollinearTermsAreReportedByName) {
   const Eigen::Index n = 400;
