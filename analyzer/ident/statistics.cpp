@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include <boost/math/distributions/binomial.hpp>
+#include <boost/math/distributions/chi_squared.hpp>
 #include <boost/math/distributions/normal.hpp>
 #include <boost/math/distributions/students_t.hpp>
 
@@ -393,6 +394,27 @@ ClusterOffsets cluster_offsets(const ClusterSums& cs, const GramFactor& gram, do
       noise_part = sigma2 * (rows - (sums.transpose() * inverse_sums).diagonal());   // sigma^2 (D - P)
     }
     const Eigen::VectorXd excess = mean_square - noise_part.cwiseQuotient(rows.cwiseAbs2());
+    bool explained = false;
+    if (noise != nullptr && noise->stated_offsets) {
+      const Eigen::MatrixXd absorbed = inverse_sums.transpose() * noise->cross;
+      const Eigen::MatrixXd kept = noise->sums_covariance - absorbed - absorbed.transpose() +
+                                   inverse_sums.transpose() * noise->meat * inverse_sums;   // of Z'(I - H)e under R
+      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (kept + kept.transpose()));
+      const double floor = 1e-9 * std::max(0.0, eig.eigenvalues().maxCoeff());
+      double statistic = 0.0;
+      int dof = 0;
+      const Eigen::VectorXd along = eig.eigenvectors().transpose() * cs.residuals;
+      for (Eigen::Index k = 0; k < g_count; ++k) {
+        if (!(eig.eigenvalues()(k) > floor)) continue;
+        statistic += along(k) * along(k) / eig.eigenvalues()(k);
+        ++dof;
+      }
+      dof = std::min(dof, out.between_dof);
+      if (dof > 0) {
+        out.stated_offsets_p = boost::math::cdf(boost::math::complement(boost::math::chi_squared(dof), statistic));
+        explained = out.stated_offsets_p >= kStatedOffsetsLevel;
+      }
+    }
     // The offsets' share the fit absorbed: G / dof on the whole. The exact share, (D - P)^2, takes
     // each phase's offset as independent of its neighbours'. Flicker below one cycle per case
     // makes a case's offsets move together, and the exact share then understates the bias's sd
@@ -441,8 +463,8 @@ ClusterOffsets cluster_offsets(const ClusterSums& cs, const GramFactor& gram, do
         exact_share = true;
       }
     }
-    out.tau2_common = inflate * t0;
-    out.tau2_per_loading = exact_share ? t1 : inflate * t1;
+    out.tau2_common = explained ? 0.0 : inflate * t0;
+    out.tau2_per_loading = explained ? 0.0 : exact_share ? t1 : inflate * t1;
     Eigen::MatrixXd between = Eigen::MatrixXd::Zero(p, p);
     double total = 0.0;
     for (Eigen::Index g = 0; g < g_count; ++g) {
@@ -460,7 +482,8 @@ ClusterOffsets cluster_offsets(const ClusterSums& cs, const GramFactor& gram, do
 RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Index estimated,
                                     const Eigen::Ref<const Eigen::VectorXd>& y, const std::vector<int>& cluster,
                                     const Eigen::VectorXd& tau2, const Eigen::VectorXd& noise_sum_variance,
-                                    const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& noise_times) {
+                                    const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& noise_times,
+                                    const Eigen::VectorXd& known_offset_variance) {
   const Eigen::Index n = x.rows(), p = x.cols();
   if (y.size() != n || static_cast<Eigen::Index>(cluster.size()) != n || estimated < 1 || estimated > p)
     throw std::invalid_argument("random_effects_fit: x, y and cluster ids differ in length, or no column is estimated");
@@ -468,7 +491,8 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, 
   for (const int id : cluster) order.emplace(id, 0);
   Eigen::Index next = 0;
   for (auto& [id, g] : order) g = next++;
-  if (tau2.size() != next || noise_sum_variance.size() != next)
+  if (tau2.size() != next || noise_sum_variance.size() != next ||
+      (known_offset_variance.size() != 0 && known_offset_variance.size() != next))
     throw std::invalid_argument("random_effects_fit: tau2 and the noise's sum variances are not one per cluster");
   std::vector<Eigen::Index> group(static_cast<std::size_t>(n));
   Eigen::MatrixXd mean_x = Eigen::MatrixXd::Zero(next, p);
@@ -487,7 +511,7 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, 
   for (Eigen::Index g = 0; g < next; ++g) {
     const double m = noise_sum_variance(g) / (rows(g) * rows(g));
     if (!(m > 0.0) || !(tau2(g) >= 0.0)) throw std::invalid_argument("random_effects_fit: a cluster's noise or offset variance is not positive");
-    out.weights(g) = m / (m + tau2(g));
+    out.weights(g) = m / (m + tau2(g) + (known_offset_variance.size() != 0 ? known_offset_variance(g) : 0.0));
   }
   Eigen::MatrixXd once(n, p), twice(n, p);   // X~ and X2
   Eigen::VectorXd y_once(n);
@@ -578,15 +602,19 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gra
 
 std::optional<RandomEffectsFit> weighed_by_offsets(const ClusterOffsets& offsets, const Eigen::VectorXd& loading,
                                                    const Eigen::VectorXd& noise_sum_variance,
-                                                   const std::function<RandomEffectsFit(const Eigen::VectorXd& tau2)>& fit) {
+                                                   const std::function<RandomEffectsFit(const Eigen::VectorXd& tau2)>& fit,
+                                                   const Eigen::VectorXd& known_offset_variance) {
   const Eigen::Index g_count = noise_sum_variance.size();
-  if (g_count < 2 || (loading.size() != 0 && loading.size() != g_count)) return std::nullopt;
+  if (g_count < 2 || (loading.size() != 0 && loading.size() != g_count) ||
+      (known_offset_variance.size() != 0 && known_offset_variance.size() != g_count))
+    return std::nullopt;
   Eigen::VectorXd tau2(g_count);
   for (Eigen::Index g = 0; g < g_count; ++g) {
     tau2(g) = offsets.tau2_common + offsets.tau2_per_loading * (loading.size() != 0 ? loading(g) : 0.0);
     if (!(noise_sum_variance(g) > 0.0)) return std::nullopt;
   }
-  if (!(tau2.maxCoeff() > kDistinctOffsets * tau2.minCoeff())) return std::nullopt;
+  const Eigen::VectorXd offset_variance = known_offset_variance.size() != 0 ? Eigen::VectorXd(tau2 + known_offset_variance) : tau2;
+  if (!(offset_variance.maxCoeff() > kDistinctOffsets * offset_variance.minCoeff())) return std::nullopt;
   std::optional<RandomEffectsFit> out;
   try {
     out = fit(tau2);

@@ -2,6 +2,7 @@
 // Significance tests and information criteria of the paper's section 2.7 (equations 9-11) and
 // residual diagnostics. All functions are pure and thread-safe; none is real-time (they allocate).
 #include <Eigen/Dense>
+#include <limits>
 
 #include <algorithm>
 #include <functional>
@@ -108,12 +109,23 @@ struct ColouredNoise {
   std::vector<int> cluster_ids;         ///< ascending: the order of the columns below
   Eigen::MatrixXd cross;                ///< X'RZ (p x G)
   Eigen::MatrixXd sums_covariance;      ///< Z'RZ (G x G): the covariance of the clusters' noise sums
+  /// R holds offsets of a stated size besides the noise (the cases' placements): a complete model
+  /// of the clusters' scatter, so offsets are estimated beyond it only where the residual's
+  /// cluster sums reject it (chi-square on their covariance under R, kStatedOffsetsLevel). With
+  /// few clusters the moments' estimate of an excess that is not there is as large as the stated
+  /// offsets themselves, and it would weigh every cluster alike.
+  bool stated_offsets = false;
 };
+/// The level at which the residual's cluster sums reject R's stated offsets (ColouredNoise).
+inline constexpr double kStatedOffsetsLevel = 0.05;
 struct ClusterOffsets {
   int clusters = 0;                 ///< G
   int between_dof = 0;              ///< G - r; <= 0: the offsets cannot be told from the model
   double tau2 = 0.0;                ///< mean variance of the cluster offsets (0 when dof <= 0)
   double tau2_common = 0.0, tau2_per_loading = 0.0;   ///< tau_0^2, tau_1^2
+  /// With stated offsets in R (ColouredNoise::stated_offsets): the p-value of the residual's
+  /// cluster sums under R; NaN otherwise.
+  double stated_offsets_p = std::numeric_limits<double>::quiet_NaN();
   Eigen::MatrixXd within;           ///< the noise's part: sigma^2 (X'X)^-1, or (X'X)^-1 X'RX (X'X)^-1
   Eigen::MatrixXd classical;        ///< sigma^2 (X'X)^-1: what a fit that takes the residual as white reports
   Eigen::MatrixXd covariance;       ///< V above (p x p); with dof <= 0 `within` only
@@ -195,10 +207,14 @@ struct RandomEffectsFit {
   Eigen::MatrixXd covariance;   ///< V (all columns of x)
   Eigen::MatrixXd within;       ///< the noise's part, A^-1 X2'RX2 A^-1
 };
+/// `known_offset_variance` (per cluster; empty: none): the variance of each cluster's mean from a
+/// known part of R (a case's stated placement: noise_times holds it, noise_sum_variance does not),
+/// which weighs with tau2.
 RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Index estimated,
                                     const Eigen::Ref<const Eigen::VectorXd>& y, const std::vector<int>& cluster,
                                     const Eigen::VectorXd& tau2, const Eigen::VectorXd& noise_sum_variance,
-                                    const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& noise_times);
+                                    const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& noise_times,
+                                    const Eigen::VectorXd& known_offset_variance = Eigen::VectorXd());
 /// The same estimate from statistics alone, under white noise of variance sigma2 (R = sigma2 I, so
 /// a cluster's noise sum has variance sigma2 n_g): gram = [X y]'[X y] over every row, sums.columns
 /// the clusters' column sums, y_sums their output sums. The quasi-demeaned Gram follows from them:
@@ -228,9 +244,13 @@ inline constexpr double kDistinctOffsets = 10.0;
 ///    indefinite (docs/validation.md, 'Evidence behind choices in the code');
 ///  - dependent weighed columns, weights alike (the offsets small against the noise in every
 ///    cluster), or a covariance that is not one.
+/// `known_offset_variance` (per cluster; empty: none): offsets of a stated variance besides the
+/// estimated ones, the variance of each cluster's mean (a case's stated placement, which the
+/// estimated offsets then do not hold); they weigh with them (`fit` is given the estimated ones).
 std::optional<RandomEffectsFit> weighed_by_offsets(const ClusterOffsets& offsets, const Eigen::VectorXd& loading,
                                                    const Eigen::VectorXd& noise_sum_variance,
-                                                   const std::function<RandomEffectsFit(const Eigen::VectorXd& tau2)>& fit);
+                                                   const std::function<RandomEffectsFit(const Eigen::VectorXd& tau2)>& fit,
+                                                   const Eigen::VectorXd& known_offset_variance = Eigen::VectorXd());
 
 /// A test level over a family of `candidates` (Bonferroni): alpha / candidates. A term picked as
 /// the best of the candidates left has an optimistic p-value of its own; the family's level

@@ -25,6 +25,16 @@ std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const Pipelin
   return inputs;
 }
 
+Eigen::MatrixXd BatchRegression::placement_columns(std::span<const ident::Term> terms, const Eigen::VectorXd& theta,
+                                                   const std::vector<MountingResult>& mountings,
+                                                   const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner,
+                                                   std::span<const StatedPlacement> placements) const {
+  std::vector<CaseOutcome> cases(data_.cases.size());
+  set_case_frames(data_, mountings, turns, cases);
+  return procedure::placement_columns(terms, theta, batch_inputs(data_, options_, cases), placements, data_, label_, first_row_,
+                                      corner, whitener_);
+}
+
 StackedRegression BatchRegression::unwhitened(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
                                               const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const {
   std::vector<CaseOutcome> cases(data_.cases.size());

@@ -12,6 +12,7 @@
 #include "analyzer/ident/term.hpp"
 #include "analyzer/procedure/pipeline_options.hpp"
 #include "analyzer/procedure/pipeline_result.hpp"
+#include "analyzer/procedure/placement.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
 #include "analyzer/procedure/stacked_regression.hpp"
 #include "common/dataset/dataset.hpp"
@@ -41,6 +42,11 @@ class BatchRegression {
   /// The same regression before its whitener (prediction_derivative whitens what it needs of it).
   [[nodiscard]] StackedRegression unwhitened(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
                                              const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const;
+  /// procedure::placement_columns over this regression's rows.
+  [[nodiscard]] Eigen::MatrixXd placement_columns(std::span<const ident::Term> terms, const Eigen::VectorXd& theta,
+                                                  const std::vector<MountingResult>& mountings,
+                                                  const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner,
+                                                  std::span<const StatedPlacement> placements) const;
   [[nodiscard]] const ArWhitener& whitener() const { return whitener_; }
 
  private:

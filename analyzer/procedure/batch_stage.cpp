@@ -195,6 +195,16 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
     }
     return out;
   };
+  // The cases' stated placements: part of the residual's covariance.
+  const std::vector<StatedPlacement> placements = stated_placements(data);
+  if (!placements.empty()) {
+    honest.placements = [&](const ident::UlsResult& fit) {
+      std::vector<Term> terms;
+      for (Eigen::Index j = 0; j < fit.process_terms; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
+      return rows_at.placement_columns(terms, fit.theta.head(fit.process_terms), result.mountings, nominal,
+                                       result.square_corner_rad_s, placements);
+    };
+  }
   // Held angles and held twists: each turned by the tolerance moves the coefficients by d.
   std::vector<HeldColumn> held_turns = held;
   for (std::size_t k : twists.held) held_turns.push_back({k, 0});

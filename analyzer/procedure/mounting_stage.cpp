@@ -435,6 +435,18 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
                                {0}};
       };
     }
+    // The cases' stated placements, part of the residual's covariance: the tilts' sd, and so the
+    // angles', then carry them.
+    const std::vector<StatedPlacement> placements = stated_placements(data);
+    if (!placements.empty()) {
+      const Eigen::Index stage_first_row = std::max(ident::first_usable_row(selected_terms), first_row);   // as stage's
+      honest.placements = [&, stage_first_row](const ident::UlsResult& fit) {
+        std::vector<Term> terms;
+        for (Eigen::Index j = 0; j < fit.process_terms; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
+        return placement_columns(terms, fit.theta.head(fit.process_terms), stack_inputs(m, *best_misalignment), placements, data,
+                                 dataset_label, stage_first_row, square_corner, whitener);
+      };
+    }
     std::vector<Eigen::Index> columns(selected_terms.size());
     for (std::size_t i = 0; i < columns.size(); ++i) columns[i] = static_cast<Eigen::Index>(i);
     ident::UlsResult fit = fit_identifiable(stage, data.sensor, columns, options.selection.uls, result.excluded);
@@ -450,11 +462,10 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   const ident::UlsResult selected_fit = result.s_fit;
   {
     // The angles' sd: the kept tilts' in the selected model (the tilt of n_i toward p and o, over
-    // theta_i), by the delta method through algorithm 1, and the cases' placements (placement.hpp;
-    // its case-frame figure serves the sensor frame, mrad away, to first order).
+    // theta_i), whose covariance holds the cases' placements, by the delta method through
+    // algorithm 1.
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
     const Eigen::Vector3d theta = sensor_frame_sensitivities(selected_fit, data.sensor, &covariance);
-    covariance += placement_covariance(theta, placements_of(m, data.sensor), !known_bias.has_value());
     if (theta(0) != 0.0) set_angles(result, misalignment_angles(theta, covariance).sd);
   }
   if (!tilts.empty()) {

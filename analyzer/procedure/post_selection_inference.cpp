@@ -152,6 +152,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
   // only takes its row and column away: the block is transformed once, for the stack's columns
   // `meat_columns`, and each round takes its terms' part of it. Only the searched columns, which
   // follow the fit, are new each round.
+  Eigen::MatrixXd noise_sums_covariance;   // Z'RZ of the noise alone
   std::vector<Eigen::Index> meat_columns;
   Eigen::MatrixXd terms_meat;
   for (;;) {
@@ -211,7 +212,12 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
         for (std::size_t a = 0; a < columns.size(); ++a)
           for (std::size_t b = 0; b < columns.size(); ++b) coloured.sums_covariance(columns[a], columns[b]) = zrz(Eigen::Index(a), Eigen::Index(b));
       }
+      noise_sums_covariance = coloured.sums_covariance;
     }
+    // The stated placements' part of R, P P' (InferenceProblem::placements), as the fit now predicts.
+    Eigen::MatrixXd placed;
+    if (h.placements) placed = h.placements(fit);
+    if (placed.cols() > 0 && placed.rows() != s.phi.rows()) throw std::logic_error("infer_after_selection: placements of another stack");
     // R m for columns m over the stack's rows: each case of the plan under its own spectrum.
     const auto noise_times = [&](const Eigen::MatrixXd& m) {
       Eigen::MatrixXd out = Eigen::MatrixXd::Zero(m.rows(), m.cols());
@@ -255,8 +261,26 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       const Eigen::MatrixXd cross = noise::group_cross_covariance(spectra[r], run_phases[r], xr);
       for (std::size_t a = 0; a < run_phase_columns[r].size(); ++a) coloured.cross.col(run_phase_columns[r][a]) += cross.col(Eigen::Index(a));
     }
-    // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
+    // The placements' part P P' of R (X'PP'X, X'PP'Z, Z'PP'Z), and what each placement leaves on
+    // the clusters' means, the offsets' known part where they are weighed.
+    coloured.sums_covariance = noise_sums_covariance;
     const ident::ClusterSums cluster_sums = ident::ClusterSums::from_rows(x, fit.residuals, h.layout->clusters, h.layout->loading);
+    Eigen::VectorXd placed_offset_variance;
+    if (placed.cols() > 0) {
+      Eigen::MatrixXd z_placed = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(coloured.cluster_ids.size()), placed.cols());
+      for (Eigen::Index r = 0; r < placed.rows(); ++r) {
+        const int id = h.layout->clusters[static_cast<std::size_t>(r)];
+        z_placed.row(std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), id) - coloured.cluster_ids.begin()) +=
+            placed.row(r);
+      }
+      const Eigen::MatrixXd x_placed = x.transpose() * placed;
+      coloured.meat.noalias() += x_placed * x_placed.transpose();
+      coloured.cross.noalias() += x_placed * z_placed.transpose();
+      coloured.sums_covariance.noalias() += z_placed * z_placed.transpose();
+      coloured.stated_offsets = true;
+      placed_offset_variance = z_placed.rowwise().squaredNorm().cwiseQuotient(cluster_sums.rows.cwiseAbs2());
+    }
+    // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
     out.offsets = ident::cluster_offsets(cluster_sums, ident::GramFactor::from_rows(x), fit.residual_variance, 0, &coloured);
     const Eigen::MatrixXd x_process = x.leftCols(p);
     // Which terms live between the phases: little of their column varies within one.
@@ -271,12 +295,21 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     // columns and noise terms, which carry their own noise model.
     std::optional<ident::RandomEffectsFit> weighed;
     const bool means_only = std::all_of(phase_level.begin(), phase_level.end(), [](bool b) { return b; });
-    if (means_only && out.offsets.tau2 > 0.0 && output_multiplied.empty() && fit.theta.size() == p)
-      weighed = ident::weighed_by_offsets(out.offsets, cluster_sums.loading, coloured.sums_covariance.diagonal(),
-                                          [&](const Eigen::VectorXd& tau2) {
-                                            return ident::random_effects_fit(x, p, s.y, h.layout->clusters, tau2,
-                                                                             coloured.sums_covariance.diagonal(), noise_times);
-                                          });
+    // A static case's placement is an offset of its cluster: the stated placements weigh the
+    // clusters' means with the estimated offsets, and are R's in the weighed fit's covariance.
+    const auto covariance_times = [&](const Eigen::MatrixXd& m) {
+      Eigen::MatrixXd out = noise_times(m);
+      if (placed.cols() > 0) out.noalias() += placed * (placed.transpose() * m);
+      return out;
+    };
+    if (means_only && (out.offsets.tau2 > 0.0 || placed.cols() > 0) && output_multiplied.empty() && fit.theta.size() == p)
+      weighed = ident::weighed_by_offsets(
+          out.offsets, cluster_sums.loading, noise_sums_covariance.diagonal(),
+          [&](const Eigen::VectorXd& tau2) {
+            return ident::random_effects_fit(x, p, s.y, h.layout->clusters, tau2, noise_sums_covariance.diagonal(),
+                                             covariance_times, placed_offset_variance);
+          },
+          placed_offset_variance);
     if (weighed) {
       out.offsets.within = weighed->within;
       out.offsets.covariance = weighed->covariance;

@@ -99,6 +99,12 @@ struct InferenceProblem {
   /// What angles held at the nominal frame add to the coefficients' covariance (the fit's
   /// response to each turned by the mounting tolerance); empty: none held.
   std::function<Eigen::MatrixXd(const ident::UlsResult&)> held_covariance;
+  /// The cases' stated placements (dataset::CaseData::placement_sd_rad) as a known part of the
+  /// residual's covariance R: what a turn of each case by its sd about each axis moves the fit's
+  /// prediction, one whitened column of s's rows each (BatchRegression::placement_columns). A
+  /// placement shared by several phases of a case is what their scatter cannot show; the offsets
+  /// between phases are then what the noise and the placements do not explain. Empty: none.
+  std::function<Eigen::MatrixXd(const ident::UlsResult&)> placements;
   /// The whitened residual's density below one cycle per case (StaticNoiseLaw::below_record);
   /// empty: its white part alone.
   std::function<double(double)> below_record;

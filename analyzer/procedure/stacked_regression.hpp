@@ -47,4 +47,9 @@ struct StackInput {
 StackedRegression stack_regressions(std::span<const ident::Term> terms, std::span<const StackInput> inputs,
                                     double t_ref, std::string_view dataset_label, Eigen::Index min_first_row = 0);
 
+/// The rows stack_regressions gives each of `inputs` (a case too short for the terms' lags has
+/// none and no entry), without building them.
+std::vector<CaseRows> stack_layout(std::span<const ident::Term> terms, std::span<const StackInput> inputs,
+                                   Eigen::Index min_first_row = 0);
+
 }  // namespace inertia::procedure

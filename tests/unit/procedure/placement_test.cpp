@@ -1,12 +1,16 @@
 // What the fixture's placement adds to a mounting's sensitivities (procedure/placement.hpp): the
 // first-order covariance against the spread of least-squares fits over drawn placements, and the
-// rule that a case of one cluster adds nothing.
+// rule that a case of one cluster adds nothing. The placements' columns of R (placement_columns)
+// against their closed form: the odd part of a turn by +-s about e_k is sin(s) e_k x.
 #include "analyzer/procedure/placement.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <vector>
+
+#include "analyzer/ident/term.hpp"
 
 #include "common/frames.hpp"
 
@@ -81,6 +85,60 @@ TEST(Placement, ACaseOfOneClusterOrWithoutAStatedSdAddsNothing) {
   EXPECT_TRUE(placement_covariance(theta, exact, true).isZero());
   const std::vector<CasePlacement> placed = {{g, 1e-3, 2}};
   EXPECT_FALSE(placement_covariance(theta, placed, true).isZero());
+}
+
+/// A case of `rows` samples of the specific force `a` (case frame = F_E), placed within `sd`.
+dataset::CaseData placed_case(const std::string& name, const Eigen::Vector3d& a, Eigen::Index rows, double sd,
+                              const std::string& piece_of = "") {
+  dataset::CaseData c;
+  c.name = name;
+  c.piece_of = piece_of;
+  c.placement_sd_rad = sd;
+  c.sample_period_s = 0.01;
+  c.t = Eigen::VectorXd::LinSpaced(rows, 0.0, 0.01 * static_cast<double>(rows - 1));
+  c.a_e = a.transpose().replicate(rows, 1);
+  c.y = Eigen::VectorXd::Zero(rows);
+  return c;
+}
+
+TEST(Placement, ColumnsAreWhatEachCasesTurnMovesThePredictionAndPiecesTurnTogether) {
+  dataset::Dataset data;
+  data.t_ref = 20.0;
+  const double g = 9.80665, sd = 3e-4;
+  const Eigen::Vector3d level(0.0, g, 0.0), up(g, 0.0, 0.0), tilted(0.0, 0.6 * g, 0.8 * g);
+  data.cases = {placed_case("level", level, 5, sd), placed_case("fixed", up, 4, 0.0),
+                placed_case("spin-1", tilted, 3, 2.0 * sd, "spin"), placed_case("spin-2", tilted, 6, 2.0 * sd, "spin")};
+  const std::vector<StatedPlacement> placements = stated_placements(data);
+  ASSERT_EQ(placements.size(), 2u);   // "fixed" states none; the spin's two pieces are one placement
+  EXPECT_EQ(placements[1].pieces, (std::vector<std::size_t>{2, 3}));
+  const std::vector<ident::Term> terms = ident::parse_terms({"a_i", "a_p", "1"});
+  const Eigen::Vector3d theta(1.01, 2e-3, 0.05);
+  std::vector<StackInput> inputs;
+  for (std::size_t i = 0; i < data.cases.size(); ++i) inputs.push_back({i, &data.cases[i], Eigen::Matrix3d::Identity(), 1.0});
+  const Eigen::MatrixXd p = placement_columns(terms, theta, inputs, placements, data, "test", 0, std::nullopt, ArWhitener());
+  ASSERT_EQ(p.rows(), 18);
+  ASSERT_EQ(p.cols(), 6);
+  const Eigen::Vector3d linear(theta(0), theta(1), 0.0);   // a_i, a_p; the bias does not turn
+  for (int axis = 0; axis < 3; ++axis) {
+    const Eigen::Vector3d e = Eigen::Vector3d::Unit(axis);
+    const double level_move = std::sin(sd) * linear.dot(e.cross(level));
+    const double spin_move = std::sin(2.0 * sd) * linear.dot(e.cross(tilted));
+    EXPECT_TRUE(p.col(axis).head(5).isApproxToConstant(level_move, 1e-9)) << axis;
+    EXPECT_TRUE(p.col(axis).tail(13).isZero()) << axis;
+    EXPECT_TRUE(p.col(3 + axis).head(9).isZero()) << axis;
+    for (Eigen::Index r = 9; r < 18; ++r) EXPECT_NEAR(p(r, 3 + axis), spin_move, 1e-12) << axis << " row " << r;
+  }
+  // A turn about the input axis itself moves nothing; about o it moves a_i by the level case's g.
+  EXPECT_NEAR(p(0, 0), 0.0, 1e-15);
+  EXPECT_NEAR(std::abs(p(0, 2)), std::sin(sd) * theta(0) * g, 1e-12);
+  // Whitened: the columns through the whitener, row for row as its stack's.
+  const ArWhitener whitener = ArWhitener::of(Eigen::VectorXd::Constant(1, 0.5));
+  Eigen::MatrixXd expected = p;
+  whitener.apply_to_columns(expected, stack_layout(terms, inputs));
+  EXPECT_TRUE(placement_columns(terms, theta, inputs, placements, data, "test", 0, std::nullopt, whitener).isApprox(expected));
+  // A placement none of whose pieces the stack holds has no columns.
+  const std::vector<StackInput> fixed_only = {inputs[1]};
+  EXPECT_EQ(placement_columns(terms, theta, fixed_only, placements, data, "test", 0, std::nullopt, ArWhitener()).cols(), 0);
 }
 
 }  // namespace
