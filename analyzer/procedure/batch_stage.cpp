@@ -281,6 +281,22 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
     }
   }
   result.inference = inference.offsets;
+  if (!placements.empty()) {
+    const auto [least, most] = std::minmax_element(placements.begin(), placements.end(), [](const StatedPlacement& a, const StatedPlacement& b) {
+      return a.sd_rad < b.sd_rad;
+    });
+    const double p_value = inference.offsets.stated_offsets_p;
+    result.notes.push_back(fmt::format(
+        "{} case(s) state their placement ({:.3f} to {:.3f} deg per axis, placement_sd_deg): a known part of the residual's "
+        "covariance, in every sd; {}",
+        placements.size(), rad_to_deg(least->sd_rad), rad_to_deg(most->sd_rad),
+        !std::isfinite(p_value) ? std::string("too few phases to test for offsets between them beyond that")
+        : p_value >= ident::kStatedOffsetsLevel
+            ? fmt::format("the offsets between phases are what the noise and the placements explain (p = {:.2f})", p_value)
+            : fmt::format("the offsets between phases exceed what the noise and the placements explain (p = {:.2g}), and the "
+                          "excess is in the sd",
+                          p_value)));
+  }
   result.test_dof = inference.dof;
   const Eigen::MatrixXd& held_part = inference.held_covariance;
   result.held_sd = held_part.rows() == result.fit.process_terms ? Eigen::VectorXd(held_part.diagonal().cwiseMax(0.0).cwiseSqrt())
