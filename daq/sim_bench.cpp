@@ -14,8 +14,11 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <iostream>
 #include <limits>
+#include <random>
+#include <string>
 
 #include "hal/sim/bench_motion.hpp"
 #include "hal/sim/random_streams.hpp"
@@ -24,6 +27,26 @@ namespace inertia::daq {
 namespace {
 
 namespace gp = hal::gpiod;
+
+/// The simulated controllers' Modbus TCP server on a port below the kernel's ephemeral range.
+/// While the server is gone (--fault modbus-gone) its port is free, and a port of that range can
+/// meanwhile become some connection's source port on a busy host (other test processes), which
+/// the server could then never bind again; below it only a listener asks for a port by number.
+std::unique_ptr<hal::wire_sim::BenchControllerServer> start_controllers(const hal::wire_sim::BenchControllerState& initial,
+                                                                        std::string* why) {
+  int ephemeral_low = 32768;
+  std::ifstream range("/proc/sys/net/ipv4/ip_local_port_range");
+  range >> ephemeral_low;
+  if (ephemeral_low > 2048) {
+    std::mt19937 draw(std::random_device{}());
+    std::uniform_int_distribution<int> port(std::max(1024, ephemeral_low - 8192), ephemeral_low - 1);
+    for (int attempt = 0; attempt < 32; ++attempt) {
+      std::string taken;
+      if (auto server = hal::wire_sim::BenchControllerServer::start(port(draw), &taken, initial)) return server;
+    }
+  }
+  return hal::wire_sim::BenchControllerServer::start(0, why, initial);   // a range too low to stay below
+}
 
 constexpr std::size_t kSignalsPerFrame = 16;  // int32 signals in a 64-byte CAN FD payload
 
@@ -216,7 +239,7 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
   initial.frozen = true;  // the bench simulation drives the registers, not the server's own physics
   initial.temperature_degC = bench.thermal.initial_c;
   initial.temperature_setpoint_degC = bench.thermal.initial_c;
-  s->controllers_ = hal::wire_sim::BenchControllerServer::start(0, why, initial);
+  s->controllers_ = start_controllers(initial, why);
   if (!s->controllers_) return nullptr;
   hal::modbus::ModbusConfig mc;
   mc.name = "controller";
@@ -412,7 +435,7 @@ void SimBench::run() noexcept {
   const std::size_t frames = nch / kSignalsPerFrame + 1;  // + sample_index
   std::vector<std::uint8_t> payload(frames * 64);
   const std::size_t plan = plan_samples();
-  bool bus_off = false, modbus_gone = false;
+  bool bus_off = false, modbus_gone = false, restart_refused = false;
   std::int64_t stuck_raw = 0;
   bool stuck = false;
   // Real timing: the bench's sample clock runs clock_ppm fast against CLOCK_MONOTONIC.
@@ -479,14 +502,20 @@ void SimBench::run() noexcept {
     }
     if (f.modbus_gone_at_s >= 0 && controllers_) {
       const bool want = t_s >= f.modbus_gone_at_s && t_s < f.modbus_gone_at_s + f.modbus_gone_s;
-      if (want != modbus_gone) {
-        if (want) {
-          controllers_->stop();
-        } else {
-          std::string why;
-          (void)controllers_->restart(&why);
+      if (want && !modbus_gone) {
+        controllers_->stop();
+        modbus_gone = true;
+      } else if (!want && modbus_gone && n % ctrl_every == 0) {
+        // Back on the same port, as a real controller comes back; until it binds, tried again
+        // every 10 ms, and said once.
+        std::string why;
+        if (controllers_->restart(&why)) {
+          modbus_gone = false;
+        } else if (!restart_refused) {
+          std::cerr << "inertia-daqd: warning: simulated bench: the controller server cannot come back yet (" << why
+                    << "); trying again\n";
+          restart_refused = true;
         }
-        modbus_gone = want;
       }
     }
 

@@ -82,7 +82,7 @@ TEST(DaqdFaults, ModbusServerGoneFiveSecondsOtherDevicesKeepSamplingAndItRecover
   }
   EXPECT_TRUE(gone_seen) << "the outage is reported on INERTIA_STATUS";
   EXPECT_TRUE(accel_ran_while_gone) << "the CAN device kept sampling during the outage";
-  EXPECT_FALSE(has_fault(*device(st.back(), "controller"), "modbus-gone")) << "recovered by itself";
+  EXPECT_FALSE(has_fault(*device(st.back(), "controller"), "modbus-gone")) << "recovered by itself\n" << r.out;
   EXPECT_GE(device(st.back(), "controller")->resyncs, 1) << "reconnects are counted";
   EXPECT_GT(device(st.back(), "controller")->decode_errors, 0) << "failed requests are counted";
 
