@@ -25,6 +25,7 @@ pkg_check_modules(GPIODCXX REQUIRED IMPORTED_TARGET libgpiodcxx)
 pkg_check_modules(MODBUS REQUIRED IMPORTED_TARGET libmodbus)
 pkg_check_modules(PQ REQUIRED IMPORTED_TARGET libpq)          # libpq: the lab's record on a shared PostgreSQL server
 pkg_check_modules(SYSTEMD REQUIRED IMPORTED_TARGET libsystemd)
+pkg_check_modules(FFTW3 REQUIRED IMPORTED_TARGET fftw3)       # libfftw3: the analyzer's Fourier transforms (analyzer/noise/fourier.hpp)
 
 # lcm.pc requires glib although the headers do not; locate the library directly.
 find_path(LCM_INCLUDE_DIR lcm/lcm-cpp.hpp REQUIRED)

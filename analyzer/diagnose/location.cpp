@@ -4,7 +4,6 @@
 #include <boost/math/distributions/fisher_f.hpp>
 #include <fmt/format.h>
 #include <Spectra/SymEigsSolver.h>
-#include <unsupported/Eigen/FFT>
 
 #include <algorithm>
 #include <array>
@@ -15,6 +14,7 @@
 #include <numbers>
 
 #include "analyzer/ident/statistics.hpp"
+#include "analyzer/noise/fourier.hpp"
 #include "common/units.hpp"
 
 namespace inertia::diagnose {
@@ -125,27 +125,30 @@ double low_band_variance(const std::vector<std::vector<Complex>>& responses, Ind
     psd[static_cast<std::size_t>(j)] = sigma2 * noise.gain2(f, fs) / fs + 0.5 * noise.power_law_psd(f, fs);
   }
   const double scale = fs / static_cast<double>(grid);
-  Eigen::FFT<double> fft;
-  std::vector<Complex> product(static_cast<std::size_t>(grid)), pseudo_product(static_cast<std::size_t>(grid)), cov, pseudo;
+  noise::ComplexFourier cov_fourier(grid), pseudo_fourier(grid);
   double variance = 0.0;
   for (Index k = lo; k < hi; ++k) {
     for (Index m = lo; m < hi; ++m) {
       const auto& ck = responses[static_cast<std::size_t>(k)];
       const auto& cm = responses[static_cast<std::size_t>(m)];
+      auto product = cov_fourier.values();
+      auto pseudo_product = pseudo_fourier.values();
       for (Index j = 0; j < grid; ++j) {
         const auto at = static_cast<std::size_t>(j);
-        product[at] = psd[at] * ck[at] * std::conj(cm[at]);
-        pseudo_product[at] = psd[at] * ck[at] * cm[static_cast<std::size_t>((grid - j) % grid)];
+        product(j) = psd[at] * ck[at] * std::conj(cm[at]);
+        pseudo_product(j) = psd[at] * ck[at] * cm[static_cast<std::size_t>((grid - j) % grid)];
       }
-      fft.inv(cov, product);   // sum_j P_j e^{i 2 pi j D / grid} / grid
-      fft.inv(pseudo, pseudo_product);
+      cov_fourier.inverse();   // sum_j P_j e^{i 2 pi j D / grid} / grid
+      pseudo_fourier.inverse();
+      const auto cov = cov_fourier.values();
+      const auto pseudo = pseudo_fourier.values();
       for (Index d = -(segments - 1); d < segments; ++d) {
         const Index shift = d * hop;
         if (std::abs(shift) >= grid / 2) continue;
-        const auto at = static_cast<std::size_t>((shift + grid) % grid);
+        const Index at = (shift + grid) % grid;
         const double g = static_cast<double>(grid) * scale;
         variance += static_cast<double>(segments - std::abs(d)) *
-                    (std::norm(cov[at] * g) + std::norm(pseudo[at] * g)) / (expected(k) * expected(m));
+                    (std::norm(cov(at) * g) + std::norm(pseudo(at) * g)) / (expected(k) * expected(m));
       }
     }
   }
@@ -167,9 +170,7 @@ CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise)
   const double w_energy = w.squaredNorm();
   const Index half = length / 2;
   Eigen::VectorXd power = Eigen::VectorXd::Zero(half + 1);   // sum over segments of |X_k|^2
-  Eigen::FFT<double> fft;
-  std::vector<double> buf(static_cast<std::size_t>(length));
-  std::vector<Complex> spec;
+  noise::RealFourier fourier(length);
   // With power-law noise (flicker, random walk) in the model each segment's mean is taken off
   // first (Welch's constant detrend): a segment's mean then carries the noise slower than the
   // whole record, whose expectation 1/f noise leaves undefined (it diverges without a lower
@@ -178,9 +179,9 @@ CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise)
   const bool detrend = noise.has_slow_noise();
   for (Index s = 0; s < segments; ++s) {
     const double mean = detrend ? cr.residual.segment(s * hop, length).mean() : 0.0;
-    for (Index k = 0; k < length; ++k) buf[static_cast<std::size_t>(k)] = w(k) * (cr.residual(s * hop + k) - mean);
-    fft.fwd(spec, buf);
-    for (Index k = 0; k <= half; ++k) power(k) += std::norm(spec[static_cast<std::size_t>(k)]);
+    fourier.samples() = w.array() * (cr.residual.segment(s * hop, length).array() - mean);
+    fourier.forward();
+    power += fourier.spectrum().cwiseAbs2();
   }
   // Expected |X_k|^2 under the model: sigma^2 |H|^2 sum w^2; one-sided PSD factor 2 / (fs sum w^2).
   // The detrended bin k is sum_n c_n x_n with c_n = w_n e^{-i 2 pi k n / L} - W_k / L (W_k the
@@ -207,20 +208,22 @@ CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise)
     grid = kFine * length;
     const double bin_hz = fs / static_cast<double>(length);
     const auto two_sided = [&](double f) { return 0.5 * noise.power_law_psd(std::abs(f), fs); };
-    std::vector<Complex> kernel(static_cast<std::size_t>(grid)), response;
+    noise::ComplexFourier fourier_fine(grid);
+    auto kernel = fourier_fine.values();   // zero-padded c, then its transform C
+    std::vector<Complex> response;
     low_responses.clear();
     for (Index k = 0; k <= half; ++k) {
       if (k < kFullBins) {
-        std::fill(kernel.begin(), kernel.end(), Complex(0.0, 0.0));
+        kernel.setZero();
         Complex w_k = 0.0;   // W_k
         for (Index m = 0; m < length; ++m) {
           const double phase = -2.0 * std::numbers::pi * static_cast<double>(k * m) / static_cast<double>(length);
-          kernel[static_cast<std::size_t>(m)] = w(m) * std::polar(1.0, phase);
-          w_k += kernel[static_cast<std::size_t>(m)];
+          kernel(m) = w(m) * std::polar(1.0, phase);
+          w_k += kernel(m);
         }
-        if (detrend)
-          for (Index m = 0; m < length; ++m) kernel[static_cast<std::size_t>(m)] -= w_k / static_cast<double>(length);
-        fft.fwd(response, kernel);
+        if (detrend) kernel.head(length).array() -= w_k / static_cast<double>(length);
+        fourier_fine.forward();
+        response.assign(kernel.data(), kernel.data() + grid);
         low_responses.push_back(response);
         double e = 0.0;
         for (Index m = 1; m < grid; ++m) {   // m = 0 is f = 0: the detrended kernel is 0 there
@@ -231,9 +234,10 @@ CaseBands case_bands(const CaseResidual& cr, double fs, const NoiseModel& noise)
       } else {
         if (k == kFullBins) {
           // The window's own spectral main lobe, once.
-          std::fill(kernel.begin(), kernel.end(), Complex(0.0, 0.0));
-          for (Index m = 0; m < length; ++m) kernel[static_cast<std::size_t>(m)] = w(m);
-          fft.fwd(response, kernel);
+          kernel.setZero();
+          kernel.head(length) = w.cast<Complex>();
+          fourier_fine.forward();
+          response.assign(kernel.data(), kernel.data() + grid);
         }
         double e = 0.0, lobe = 0.0;
         for (Index m = -kLobe; m <= kLobe; ++m) {

@@ -8,10 +8,10 @@
 #include <optional>
 #include <stdexcept>
 #include <utility>
-#include <unsupported/Eigen/FFT>
 #include <vector>
 
 #include "analyzer/noise/allan.hpp"
+#include "analyzer/noise/fourier.hpp"
 #include "analyzer/noise/noise_analysis.hpp"
 #include "common/parallel.hpp"
 
@@ -37,13 +37,10 @@ SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double
   // A flicker or random-walk spectrum is infinite at DC: there it is taken at half a bin, and what
   // lies below the record's lowest frequency is the offsets between cases (cluster_offsets).
   if (!std::isfinite(out.density(0))) out.density(0) = density(0.5 / static_cast<double>(out.length));
-  std::vector<std::complex<double>> bins(static_cast<std::size_t>(half + 1));
-  for (Eigen::Index k = 0; k <= half; ++k) bins[static_cast<std::size_t>(k)] = out.density(k);
-  Eigen::FFT<double> fft;
-  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
-  std::vector<double> r;
-  fft.inv(r, bins, static_cast<std::size_t>(out.length));   // (1/L) sum_k S_k e^{2 pi i k tau / L}
-  out.autocovariance = Eigen::Map<const Eigen::VectorXd>(r.data(), rows);
+  RealFourier fourier(out.length);
+  fourier.spectrum() = out.density.cast<std::complex<double>>();
+  fourier.inverse();   // (1/L) sum_k S_k e^{2 pi i k tau / L}
+  out.autocovariance = fourier.samples().head(rows);
   return out;
 }
 
@@ -130,17 +127,14 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
 #pragma omp parallel num_threads(parallel::threads_for(p))
 #endif
   {
-    Eigen::FFT<double> fft;
-    fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
-    std::vector<double> column(static_cast<std::size_t>(spectrum.length), 0.0);
-    std::vector<std::complex<double>> bins;
+    RealFourier fourier(spectrum.length);   // samples beyond the column's rows stay zero
 #ifdef _OPENMP
 #pragma omp for schedule(static)
 #endif
     for (Eigen::Index j = 0; j < p; ++j) {
-      Eigen::Map<Eigen::VectorXd>(column.data(), x.rows()) = x.col(j);
-      fft.fwd(bins, column);
-      weighted.col(j) = Eigen::Map<const Eigen::VectorXcd>(bins.data(), half + 1).cwiseProduct(weight);
+      fourier.samples().head(x.rows()) = x.col(j);
+      fourier.forward();
+      weighted.col(j) = fourier.spectrum().cwiseProduct(weight);
     }
   }
   Eigen::MatrixXd out = (weighted.adjoint() * weighted).real();
@@ -151,27 +145,23 @@ Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::R
   if (x.rows() != spectrum.rows) throw std::invalid_argument("covariance_times: rows differ from the spectrum's");
   // The circulant of length L >= 2n restricted to the first n rows and columns is the Toeplitz R,
   // so the first n samples of the circular convolution of the zero-padded column are R x.
-  const Eigen::Index half = spectrum.length / 2;
   Eigen::MatrixXd out(x.rows(), x.cols());
   // The columns split over threads as in quadratic_form.
 #ifdef _OPENMP
 #pragma omp parallel num_threads(parallel::threads_for(x.cols()))
 #endif
   {
-    Eigen::FFT<double> fft;
-    fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
-    std::vector<double> column(static_cast<std::size_t>(spectrum.length), 0.0);
-    std::vector<std::complex<double>> bins;
+    RealFourier fourier(spectrum.length);
 #ifdef _OPENMP
 #pragma omp for schedule(static)
 #endif
     for (Eigen::Index j = 0; j < x.cols(); ++j) {
-      std::fill(column.begin(), column.end(), 0.0);
-      Eigen::Map<Eigen::VectorXd>(column.data(), x.rows()) = x.col(j);
-      fft.fwd(bins, column);
-      for (Eigen::Index k = 0; k <= half; ++k) bins[static_cast<std::size_t>(k)] *= spectrum.density(k);
-      fft.inv(column, bins, static_cast<std::size_t>(spectrum.length));
-      out.col(j) = Eigen::Map<const Eigen::VectorXd>(column.data(), x.rows());
+      fourier.samples().head(x.rows()) = x.col(j);
+      fourier.samples().tail(spectrum.length - x.rows()).setZero();   // the inverse of the column before filled them
+      fourier.forward();
+      fourier.spectrum().array() *= spectrum.density.array();
+      fourier.inverse();
+      out.col(j) = fourier.samples().head(x.rows());
     }
   }
   return out;

@@ -8,8 +8,8 @@
 #include <complex>
 #include <numbers>
 #include <stdexcept>
-#include <unsupported/Eigen/FFT>
 
+#include "analyzer/noise/fourier.hpp"
 #include "common/input_error.hpp"
 
 namespace inertia::noise {
@@ -58,16 +58,13 @@ Psd welch(const std::vector<Eigen::VectorXd>& stretches, double sample_period_s,
   Eigen::VectorXd window(l), sum = Eigen::VectorXd::Zero(bins);
   for (Eigen::Index i = 0; i < l; ++i) window(i) = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(l));
   const double window_energy = window.squaredNorm();
-  Eigen::FFT<double> fft;
-  std::vector<double> in(static_cast<std::size_t>(l));
-  std::vector<std::complex<double>> spectrum;
+  RealFourier fourier(l);
   for (const Eigen::VectorXd& x : stretches) {
     for (Eigen::Index start = 0; start + l <= x.size(); start += l / 2) {
       const auto seg = x.segment(start, l);
-      const double mean = seg.mean();
-      for (Eigen::Index i = 0; i < l; ++i) in[static_cast<std::size_t>(i)] = (seg(i) - mean) * window(i);
-      fft.fwd(spectrum, in);
-      for (Eigen::Index b = 0; b < bins; ++b) sum(b) += std::norm(spectrum[static_cast<std::size_t>(b)]);
+      fourier.samples() = (seg.array() - seg.mean()) * window.array();
+      fourier.forward();
+      sum += fourier.spectrum().cwiseAbs2();
       ++out.segments;
     }
   }

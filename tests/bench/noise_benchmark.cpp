@@ -3,12 +3,20 @@
 // decimation beyond), and the memory it holds (independent of the record's length). Blocks of
 // samples are the usual entry (a record's stretch); one sample at a time costs a copy into the
 // block more, and the call.
+// The real Fourier transform of the sandwich's X'RX (analyzer/noise/fourier.hpp, FFTW) against
+// Eigen's bundled kissfft, which it replaced: both in every iteration, alternating, at the
+// power-of-two lengths a case's zero-padded column takes; ratio = kissfft's time / FFTW's.
 // Run: build/bench/bench_noise
 #include <benchmark/benchmark.h>
 
+#include <chrono>
+#include <complex>
 #include <random>
+#include <unsupported/Eigen/FFT>
+#include <vector>
 
 #include "analyzer/noise/allan.hpp"
+#include "analyzer/noise/fourier.hpp"
 
 namespace {
 
@@ -44,5 +52,48 @@ void BM_AllanPushOneByOne(benchmark::State& state) {
   report(state, acc);
 }
 BENCHMARK(BM_AllanPushOneByOne)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+void BM_RealFourierAgainstKissfft(benchmark::State& state) {
+  const auto length = static_cast<Eigen::Index>(state.range(0));
+  std::mt19937_64 rng(2);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::vector<double> column(static_cast<std::size_t>(length), 0.0);
+  for (Eigen::Index i = 0; i < length / 2; ++i) column[static_cast<std::size_t>(i)] = g(rng);   // a column padded to 2n
+  inertia::noise::RealFourier fftw(length);
+  Eigen::FFT<double> kiss;
+  kiss.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+  std::vector<std::complex<double>> bins;
+  using Clock = std::chrono::steady_clock;
+  double fftw_s = 0.0, kiss_s = 0.0;
+  bool fftw_first = true;
+  for (auto _ : state) {
+    const auto run_fftw = [&] {
+      const auto t0 = Clock::now();
+      fftw.samples() = Eigen::Map<const Eigen::VectorXd>(column.data(), length);
+      fftw.forward();
+      benchmark::DoNotOptimize(fftw.spectrum().data());
+      fftw_s += std::chrono::duration<double>(Clock::now() - t0).count();
+    };
+    const auto run_kiss = [&] {
+      const auto t0 = Clock::now();
+      kiss.fwd(bins, column);
+      benchmark::DoNotOptimize(bins.data());
+      kiss_s += std::chrono::duration<double>(Clock::now() - t0).count();
+    };
+    if (fftw_first) {
+      run_fftw();
+      run_kiss();
+    } else {
+      run_kiss();
+      run_fftw();
+    }
+    fftw_first = !fftw_first;
+  }
+  const double n = static_cast<double>(state.iterations());
+  state.counters["fftw_ms"] = 1e3 * fftw_s / n;
+  state.counters["kissfft_ms"] = 1e3 * kiss_s / n;
+  state.counters["ratio_kissfft_over_fftw"] = kiss_s / fftw_s;
+}
+BENCHMARK(BM_RealFourierAgainstKissfft)->Arg(1 << 16)->Arg(1 << 18)->Arg(1 << 20)->Unit(benchmark::kMillisecond)->MinTime(1.0);
 
 }  // namespace
