@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-#include "analyzer/ident/symmetric.hpp"
+#include "analyzer/ident/row_products.hpp"
 
 namespace inertia::ident {
 
@@ -15,10 +15,10 @@ void ErrGram::add(const Eigen::Ref<const Eigen::MatrixXd>& phi_block,
   if (phi_block.cols() != p || y_block.size() != phi_block.rows())
     throw std::invalid_argument("ErrGram::add: block sizes do not match");
   // SYRK on the lower triangle (half the flops of a GEMM), then mirror so users see a full matrix.
-  gram_.topLeftCorner(p, p).selfadjointView<Eigen::Lower>().rankUpdate(phi_block.transpose());
-  gram_.row(p).head(p) += (phi_block.transpose() * y_block).transpose();
+  gram_.topLeftCorner(p, p) += ident::gram(phi_block);
+  gram_.row(p).head(p) += ident::cross_product(phi_block, y_block).transpose();
   gram_(p, p) += y_block.squaredNorm();
-  mirror_lower(gram_);
+  gram_.col(p).head(p) = gram_.row(p).head(p).transpose();
   samples_ += phi_block.rows();
 }
 
@@ -143,12 +143,12 @@ ErrRanking err_rank(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   // 'Evidence behind choices in the code'.
   if (options.max_terms < 0 || 7 * (wanted + 1) > 2 * p) return err_rank(ErrGram::from_data(phi, y).matrix(), options);
   Eigen::VectorXd y_column(p + 1);
-  y_column.head(p).noalias() = phi.transpose() * y;
+  y_column.head(p) = ident::cross_product(phi, y);
   y_column(p) = y.squaredNorm();
   return rank_on_columns(phi.colwise().squaredNorm().transpose(), y_column,
                          [&](Eigen::Index m) -> Eigen::VectorXd {
                            Eigen::VectorXd col(p + 1);
-                           col.head(p).noalias() = phi.transpose() * phi.col(m);
+                           col.head(p) = ident::cross_product(phi, phi.col(m));
                            col(p) = y_column(m);
                            return col;
                          },
@@ -163,7 +163,7 @@ Eigen::MatrixXd bias_corrected_gram(const Eigen::Ref<const Eigen::MatrixXd>& gra
   const Eigen::Index q = static_cast<Eigen::Index>(output_multiplied.size());
   if (factors.cols() != q) throw std::invalid_argument("bias_corrected_gram: factors must be N x q");
   Eigen::MatrixXd g = gram;
-  const Eigen::MatrixXd ff = factors.transpose() * factors;
+  const Eigen::MatrixXd ff = ident::gram(factors);
   const Eigen::VectorXd fs = factors.colwise().sum().transpose();
   for (Eigen::Index a = 0; a < q; ++a) {
     const Eigen::Index ca = output_multiplied[static_cast<std::size_t>(a)];

@@ -7,6 +7,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "analyzer/ident/row_products.hpp"
 #include "analyzer/ident/term.hpp"
 #include "common/input_error.hpp"
 
@@ -54,7 +55,7 @@ NormalEquations NormalEquations::from_rows(const Eigen::Ref<const Eigen::MatrixX
   Eigen::VectorXd factor_sum;
   if (!rational.columns.empty()) {
     const Eigen::MatrixXd factors = denominator_factors(phi, y, rational, labels);
-    factor_gram = factors.transpose() * factors;
+    factor_gram = ident::gram(factors);
     factor_sum = factors.colwise().sum().transpose();
   }
   return {std::move(augmented), phi.rows(), std::move(labels), rational.columns, std::move(factor_gram),

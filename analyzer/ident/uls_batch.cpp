@@ -6,6 +6,7 @@
 #include <limits>
 #include <numeric>
 
+#include "analyzer/ident/row_products.hpp"
 #include "analyzer/ident/symmetric.hpp"
 
 namespace inertia::ident {
@@ -65,15 +66,13 @@ UlsStatistics UlsStatistics::from_data(const Eigen::Ref<const Eigen::MatrixXd>& 
   UlsStatistics s;
   s.samples = n;
   // SYRK (half the flops of a GEMM): the only O(N p^2) work of a polynomial fit.
-  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(p, p);
-  g.selfadjointView<Eigen::Lower>().rankUpdate(phi.transpose());
-  mirror_lower(g);
+  const Eigen::MatrixXd g = ident::gram(phi);
   const Eigen::VectorXd sign = linear_form_signs(p, output_multiplied_columns);
   s.scale = (g.diagonal() / static_cast<double>(std::max<Index>(n, 1))).cwiseSqrt();
   const Eigen::VectorXd inv =
       (s.scale.array() > 0.0).select(sign.array() / s.scale.array(), sign.array()).matrix();
   s.gram = inv.asDiagonal() * g * inv.asDiagonal();
-  s.cross = inv.asDiagonal() * (phi.transpose() * y);
+  s.cross = inv.asDiagonal() * ident::cross_product(phi, y);
   s.yy = y.squaredNorm();
   s.s11 = static_cast<double>(n);
   // Denominator positions ascending; factors follow output_multiplied_columns' order.
@@ -90,7 +89,7 @@ UlsStatistics UlsStatistics::from_data(const Eigen::Ref<const Eigen::MatrixXd>& 
     const double sc = s.scale[den[a].first];
     fscale[a] = sc > 0.0 ? 1.0 / sc : 1.0;
   }
-  s.den_gram = fscale.asDiagonal() * (f.transpose() * f) * fscale.asDiagonal();
+  s.den_gram = fscale.asDiagonal() * ident::gram(f) * fscale.asDiagonal();
   s.den_sum = fscale.asDiagonal() * f.colwise().sum().transpose();
   return s;
 }
@@ -484,15 +483,12 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   const Index a = p + n_e + 1;   // augmented size; y is the last column
   Eigen::MatrixXd augmented = Eigen::MatrixXd::Zero(a, a);
   {
-    Eigen::MatrixXd process = Eigen::MatrixXd::Zero(p, p);
-    process.selfadjointView<Eigen::Lower>().rankUpdate(x.leftCols(p).transpose());
-    mirror_lower(process);
-    augmented.topLeftCorner(p, p) = process;
-    augmented.col(a - 1).head(p) = x.leftCols(p).transpose() * y;
+    augmented.topLeftCorner(p, p) = ident::gram(x.leftCols(p));
+    augmented.col(a - 1).head(p) = ident::cross_product(x.leftCols(p), y);
     augmented.row(a - 1).head(p) = augmented.col(a - 1).head(p).transpose();
     augmented(a - 1, a - 1) = y.squaredNorm();
   }
-  const Eigen::MatrixXd factor_gram = xf.transpose() * xf;
+  const Eigen::MatrixXd factor_gram = ident::gram(xf);
   const Eigen::VectorXd factor_sum = xf.colwise().sum().transpose();
   xcols.resize(static_cast<std::size_t>(p + n_e));
   std::iota(xcols.begin(), xcols.end(), Index{0});
@@ -508,10 +504,10 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
       if (n > i) x.col(p + i - 1).tail(n - i) = res.residuals.head(n - i);
     }
     const auto e = x.middleCols(p, n_e);
-    augmented.block(0, p, p, n_e).noalias() = x.leftCols(p).transpose() * e;
+    augmented.block(0, p, p, n_e) = ident::cross_product(x.leftCols(p), e);
     augmented.block(p, 0, n_e, p) = augmented.block(0, p, p, n_e).transpose();
-    augmented.block(p, p, n_e, n_e).noalias() = e.transpose() * e;
-    augmented.col(a - 1).segment(p, n_e).noalias() = e.transpose() * y;
+    augmented.block(p, p, n_e, n_e) = ident::gram(e);
+    augmented.col(a - 1).segment(p, n_e) = ident::cross_product(e, y);
     augmented.row(a - 1).segment(p, n_e) = augmented.col(a - 1).segment(p, n_e).transpose();
     stats = UlsStatistics::from_gram(augmented, n, xr.columns, factor_gram, factor_sum);
     sol = solve_uls(stats, xlabels, options);

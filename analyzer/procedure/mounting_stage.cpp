@@ -22,6 +22,7 @@
 #include "analyzer/procedure/post_selection_inference.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/whitened_problem.hpp"
+#include "common/parallel.hpp"
 
 namespace inertia::procedure {
 namespace {
@@ -284,7 +285,9 @@ MisalignmentFixedPoint misalignment_fixed_point(const MountingCases& m, const st
         return SquareCornerSearch(t, {}, data).rss(std::nullopt);
       };
       constexpr double kProbe = 0.5 * std::numbers::pi / 180.0;
-      const double r0 = rss_at(f.twist), rm = rss_at(f.twist - kProbe), rp = rss_at(f.twist + kProbe);
+      std::array<double, 3> probe{f.twist, f.twist - kProbe, f.twist + kProbe};   // each its own regression, side by side
+      parallel::for_each_index(3, [&](long i) { probe[static_cast<std::size_t>(i)] = rss_at(probe[static_cast<std::size_t>(i)]); });
+      const double r0 = probe[0], rm = probe[1], rp = probe[2];
       const double curvature = rp + rm - 2.0 * r0;
       if (curvature > 0.0) {
         f.twist += std::clamp(-kProbe * (rp - rm) / (2.0 * curvature), -4.0 * kProbe, 4.0 * kProbe);

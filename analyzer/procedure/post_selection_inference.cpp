@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "analyzer/ident/normal_equations.hpp"
+#include "analyzer/ident/row_products.hpp"
 #include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
@@ -249,9 +250,9 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     coloured.meat.topLeftCorner(p, p) = terms_meat(in_meat, in_meat);
     if (q > 0) {
       const Eigen::MatrixXd r_searched = noise_times(x.rightCols(q));
-      coloured.meat.topRightCorner(p, q) = x.leftCols(p).transpose() * r_searched;
+      coloured.meat.topRightCorner(p, q) = ident::cross_product(x.leftCols(p), r_searched);
       coloured.meat.bottomLeftCorner(q, p) = coloured.meat.topRightCorner(p, q).transpose();
-      const Eigen::MatrixXd searched_meat = x.rightCols(q).transpose() * r_searched;
+      const Eigen::MatrixXd searched_meat = ident::cross_product(x.rightCols(q), r_searched);
       coloured.meat.bottomRightCorner(q, q) = 0.5 * (searched_meat + searched_meat.transpose());
     }
     coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
@@ -273,7 +274,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
         z_placed.row(std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), id) - coloured.cluster_ids.begin()) +=
             placed.row(r);
       }
-      const Eigen::MatrixXd x_placed = x.transpose() * placed;
+      const Eigen::MatrixXd x_placed = ident::cross_product(x, placed);
       coloured.meat.noalias() += x_placed * x_placed.transpose();
       coloured.cross.noalias() += x_placed * z_placed.transpose();
       coloured.sums_covariance.noalias() += z_placed * z_placed.transpose();
@@ -319,7 +320,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     // joint covariance includes them); what is reported is the terms'.
     out.searched_covariance = out.offsets.covariance.bottomRightCorner(searched.cols(), searched.cols());
     out.offsets.classical =
-        fit.residual_variance * (x_process.transpose() * x_process).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
+        fit.residual_variance * ident::gram(x_process).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
     for (Eigen::MatrixXd* m : {&out.offsets.within, &out.offsets.covariance}) *m = m->topLeftCorner(p, p).eval();
     // The fit's covariance (ULS's, with its bias correction) takes the residual as white and the
     // searched parameters as known: what the residual's colour, the offsets between phases and

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <utility>
 
+#include "analyzer/ident/row_products.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/post_selection_inference.hpp"
@@ -29,11 +30,11 @@ Eigen::VectorXd gauss_newton_step(const StackedRegression& s, const ident::UlsRe
     const auto at = std::find(s.labels.begin(), s.labels.end(), fit.labels[std::size_t(j)]);
     x.col(j) = s.phi.col(at - s.labels.begin());
   }
-  const Eigen::LDLT<Eigen::MatrixXd> gram(x.transpose() * x);
-  const Eigen::MatrixXd projected = derivatives - x * gram.solve(x.transpose() * derivatives);
-  const Eigen::MatrixXd jj = projected.transpose() * projected;
+  const Eigen::LDLT<Eigen::MatrixXd> gram(ident::gram(x));
+  const Eigen::MatrixXd projected = derivatives - x * gram.solve(ident::cross_product(x, derivatives));
+  const Eigen::MatrixXd jj = ident::gram(projected);
   information = jj / fit.residual_variance;
-  return jj.ldlt().solve(projected.transpose() * fit.residuals);
+  return jj.ldlt().solve(ident::cross_product(projected, fit.residuals));
 }
 
 /// The batch's turned regression on its whitened rows: each step a Gauss-Newton step of the

@@ -7,7 +7,9 @@
 #include <limits>
 #include <numbers>
 #include <span>
+#include <vector>
 
+#include "analyzer/ident/row_products.hpp"
 #include "analyzer/procedure/corner_search.hpp"
 #include "common/parallel.hpp"
 
@@ -109,8 +111,8 @@ double max_corner(const std::vector<CaseRows>& layout, const dataset::Dataset& d
 SquareCornerSearch::SquareCornerSearch(const StackedRegression& s, std::vector<Eigen::Index> squares,
                                        const dataset::Dataset& data)
     : s_(s), squares_(std::move(squares)), data_(data) {
-  gram_ = s.phi.transpose() * s.phi;
-  xty_ = s.phi.transpose() * s.y;
+  gram_ = ident::gram(s.phi);
+  xty_ = ident::cross_product(s.phi, s.y);
   yy_ = s.y.squaredNorm();
 }
 
@@ -126,8 +128,8 @@ double SquareCornerSearch::rss(std::optional<double> corner_rad_s) const {
       all[static_cast<std::size_t>(i)] = i;
     }
     highpass_columns(f, all, s_.cases, data_, *corner_rad_s);
-    const Eigen::MatrixXd cross = f.transpose() * s_.phi;   // n x p, square columns still unfiltered on the right
-    const Eigen::MatrixXd ff = f.transpose() * f;
+    const Eigen::MatrixXd cross = ident::cross_product(f, s_.phi);   // n x p, square columns still unfiltered on the right
+    const Eigen::MatrixXd ff = ident::gram(f);
     for (Eigen::Index i = 0; i < n; ++i) {
       const Eigen::Index a = squares_[static_cast<std::size_t>(i)];
       g.row(a) = cross.row(i);
@@ -161,7 +163,18 @@ std::optional<double> SquareCornerSearch::best(double lo, double hi) const {
   std::vector<double> nodes(kGridCorners);
   const double l0 = std::log(lo), l1 = std::log(hi);
   for (int i = 0; i < kGridCorners; ++i) nodes[static_cast<std::size_t>(i)] = std::exp(l0 + (l1 - l0) * i / (kGridCorners - 1));
-  return least_residual_corner(nodes, true, [this](std::optional<double> corner) { return rss(corner); }).corner_rad_s;
+  // The nodes' residuals (and the static squares') do not depend on one another: side by side
+  // first, on --jobs threads, each into its slot; the refinement between them is sequential.
+  std::vector<double> at_node(nodes.size() + 1);
+  parallel::for_each_index(static_cast<long>(at_node.size()), [&](long i) {
+    const auto k = static_cast<std::size_t>(i);
+    at_node[k] = k == nodes.size() ? rss(std::nullopt) : rss(nodes[k]);
+  });
+  return least_residual_corner(nodes, true, [&](std::optional<double> corner) {
+           if (!corner) return at_node.back();
+           const auto node = std::find(nodes.begin(), nodes.end(), *corner);
+           return node != nodes.end() ? at_node[static_cast<std::size_t>(node - nodes.begin())] : rss(corner);
+         }).corner_rad_s;
 }
 
 }  // namespace inertia::procedure
