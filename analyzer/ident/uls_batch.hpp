@@ -18,6 +18,8 @@
 // are ordinary polynomial terms that need no correction at all.
 #include <Eigen/Dense>
 
+#include <algorithm>
+#include <cstddef>
 #include <functional>
 #include <optional>
 
@@ -107,6 +109,10 @@ struct UlsResult {
   CovarianceKind covariance_kind = CovarianceKind::Classical;
 
   [[nodiscard]] Eigen::VectorXd process_theta() const { return theta.head(process_terms); }
+  /// The process terms' labels (the noise lags' left out): ident::parse_terms makes them terms.
+  [[nodiscard]] std::vector<std::string> process_labels() const {
+    return {labels.begin(), labels.begin() + std::min<std::ptrdiff_t>(process_terms, static_cast<std::ptrdiff_t>(labels.size()))};
+  }
 };
 
 /// The sign each column takes in ULS's linear form: -1 for an output-multiplied column (its

@@ -323,9 +323,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
                                        "+-{:.2f} deg (--mounting-tolerance-deg), and what that moves is in the sd",
                                        held_turns.size(), rad_to_deg(options.mounting_tolerance_rad)));
   }
-  for (const std::string& label : result.fit.labels) {
-    if (result.terms.size() < static_cast<std::size_t>(result.fit.process_terms)) result.terms.push_back(ident::parse_term(label));
-  }
+  result.terms = ident::parse_terms(result.fit.process_labels());
   result.t_test = ident::parameter_t_test(result.fit.process_theta(), result.fit.std_dev.head(result.fit.process_terms),
                                           result.fit.residuals.size());
   for (Eigen::Index j = 0; j < result.t_test.p_value.size() && j < result.test_dof.size(); ++j) {

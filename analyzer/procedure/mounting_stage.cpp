@@ -172,9 +172,7 @@ class MisalignmentHook final : public ident::FitHook {
     if (!theta) return false;   // no a_x, a_y, a_z yet: nothing to align; score the F_E problem
     const frames::Dcm m_cs = with_twist(misalignment_from_sensitivities(*theta, frames::Dcm::Identity()), twist_);
     misalignments_[j - 1] = m_cs;
-    std::vector<Term> ranked;
-    for (const std::string& label : ranked_fit.labels) ranked.push_back(ident::parse_term(label));
-    std::vector<Term> s_terms = ident::to_sensor_frame(ranked);
+    std::vector<Term> s_terms = ident::to_sensor_frame(ident::parse_terms(ranked_fit.process_labels()));
     // M_E^S came from this data: its tilt stays free in the F_S fit (kept, never pruned), or the
     // t-tests would credit its error to terms that share its directions (under gravity a tilt
     // error is a per-orientation offset, which 1, abs(a_i), sign(a_i) and the squares can fit).
@@ -413,8 +411,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   {
     // Honest inference on the selected model (as the batch stage's): offsets between the
     // mounting's phases (a pose's placement) are not information about its terms.
-    std::vector<Term> selected_terms;
-    for (const std::string& label : best.fit.labels) selected_terms.push_back(ident::parse_term(label));
+    const std::vector<Term> selected_terms = ident::parse_terms(best.fit.process_labels());
     const StackedRegression stage = whitened_regression(selected_terms, m, *best_misalignment, data, dataset_label,
                                                         first_row, square_corner, whitener);
     std::vector<CaseOutcome> outcomes(data.cases.size());

@@ -87,8 +87,7 @@ Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<
 Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step, const ArWhitener& whitener,
                                       const std::function<StackedRegression(std::span<const Term>, double)>& stack_at) {
   const Eigen::Index p = fit.process_terms;
-  std::vector<Term> terms;
-  for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
+  const std::vector<Term> terms = ident::parse_terms(fit.process_labels());
   const StackedRegression up = stack_at(terms, step), down = stack_at(terms, -step);
   StackedRegression difference;
   difference.y = (up.phi - down.phi) * fit.theta.head(p) / (2.0 * step);

@@ -455,8 +455,9 @@ TEST(Statistics, ClusterOffsetsOfPlacementsAreUnbiasedOnATumble) {
 // turn-on repeatability common to the poses, of 4 times a placement's variance) they reject it in
 // most draws, and the offsets take it there. Only part of a common offset shows in the residual:
 // the fit takes the up and down poses' difference into the scale factor and the six means' mean
-// into the bias (measured 2026-11-30: 84.7 % rejected, 4.7 % without it). Over 2000 draws a
-// rejection rate's binomial sd is 0.49 %: the band at the level is 3 of them.
+// into the bias (the measured rates: docs/validation.md, 'Stated placements in the inference's
+// noise'). Over 2000 draws a rejection rate's binomial sd is 0.49 %: the band at the level is 3
+// of them.
 TEST(Statistics, StatedOffsetsInTheNoiseAreRejectedAtTheirLevelAndAnExcessIsEstimated) {
   constexpr int kDraws = 2000, kRows = 40;
   const std::vector<std::array<double, 3>> poses{{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
