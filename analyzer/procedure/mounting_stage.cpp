@@ -254,6 +254,8 @@ MisalignmentFixedPoint misalignment_fixed_point(const MountingCases& m, const st
   MisalignmentFixedPoint f;
   const bool twist_matters = uses_cross_axes(es_terms);
   for (f.refinements = 0; f.refinements < std::max(1, options.max_refinements); ++f.refinements) {
+    // The pass before's problem is not needed for this one's: freed before this one is stacked.
+    f.es = StackedRegression();
     // The squares' corner hardly moves with M_C^S after the second pass: it is searched twice.
     WhitenedProblem problem = whiten_problem(stack_regressions(es_terms, stack_inputs(m, f.m_cs), data.t_ref, dataset_label, first_row),
                                              data, whitening_options(options, options.square_highpass && f.refinements < 2, f.square_corner));

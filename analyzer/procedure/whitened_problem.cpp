@@ -102,9 +102,14 @@ WhitenedProblem whiten_problem(StackedRegression stacked, const dataset::Dataset
     const SquareCornerSearch search(s, square_columns(s.labels), data);
     return search.best(options.corner_min_rad_s, std::min(options.corner_max_rad_s, max_corner(s.cases, data)));
   };
-  std::optional<StackedRegression> unfiltered;   // for the corner's search after the whitening
-  if (options.search_square_corner && !square_columns(stacked.labels).empty()) {
-    unfiltered = stacked;
+  // For the corner's search after the whitening: the squares' columns before their high pass
+  // (the other columns do not depend on the corner, and the stack is not copied whole).
+  const std::vector<Eigen::Index> squares = square_columns(stacked.labels);
+  const bool search_after_whitening = options.search_square_corner && !squares.empty();
+  Eigen::MatrixXd unfiltered_squares;
+  if (search_after_whitening) {
+    unfiltered_squares.resize(stacked.phi.rows(), static_cast<Eigen::Index>(squares.size()));
+    for (std::size_t i = 0; i < squares.size(); ++i) unfiltered_squares.col(static_cast<Eigen::Index>(i)) = stacked.phi.col(squares[i]);
     out.square_corner_rad_s = search_corner(stacked);
   }
   apply_square_model(stacked, data, out.square_corner_rad_s);
@@ -116,20 +121,16 @@ WhitenedProblem whiten_problem(StackedRegression stacked, const dataset::Dataset
   const ident::UlsResult ols = fit_identifiable(stacked, data.sensor, out.identifiable, uls, dropped);
   out.whitener = ArWhitener::fit(ols.residuals, stacked.cases, options.max_order);
   out.noise_law = static_noise_law(ols.residuals, stacked.cases, data);
-  if (unfiltered) {
+  if (search_after_whitening) {
     // Only the squares depend on the corner: the other columns are whitened once, for the
     // corner's search and as the result, and the squares pass the corner's high pass and the
     // whitener on their own.
-    stacked = StackedRegression();
-    const std::vector<Eigen::Index> squares = square_columns(unfiltered->labels);
-    const std::vector<CaseRows> layout = unfiltered->cases;
-    Eigen::MatrixXd through(unfiltered->phi.rows(), static_cast<Eigen::Index>(squares.size()));
+    for (std::size_t i = 0; i < squares.size(); ++i) stacked.phi.col(squares[i]) = unfiltered_squares.col(static_cast<Eigen::Index>(i));
+    const std::vector<CaseRows> layout = stacked.cases;
+    Eigen::MatrixXd& through = unfiltered_squares;
     std::vector<Eigen::Index> all(squares.size());
-    for (std::size_t i = 0; i < squares.size(); ++i) {
-      through.col(static_cast<Eigen::Index>(i)) = unfiltered->phi.col(squares[i]);
-      all[i] = static_cast<Eigen::Index>(i);
-    }
-    StackedRegression whitened = std::move(*unfiltered);
+    for (std::size_t i = 0; i < squares.size(); ++i) all[i] = static_cast<Eigen::Index>(i);
+    StackedRegression whitened = std::move(stacked);
     out.whitener.apply(whitened);
     out.square_corner_rad_s = search_corner(whitened);
     if (out.square_corner_rad_s) {
