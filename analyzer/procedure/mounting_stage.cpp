@@ -15,6 +15,7 @@
 #include "analyzer/ident/selection.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
 #include "analyzer/procedure/misalignment.hpp"
+#include "analyzer/procedure/mounting_regressions.hpp"
 #include "analyzer/procedure/mounting_rules.hpp"
 #include "analyzer/procedure/mountings.hpp"
 #include "analyzer/procedure/placement.hpp"
@@ -102,26 +103,6 @@ int max_lag_of(const std::vector<Term>& terms) {
   return lag;
 }
 
-/// One mounting's regression as algorithm 2 fits it before whitening: its cases stacked with
-/// M_C^S = m_cs, the squares through the mounting's high pass.
-StackedRegression mounting_regression(std::span<const Term> terms, const MountingCases& m, const frames::Dcm& m_cs,
-                                      const dataset::Dataset& data, std::string_view label,
-                                      Eigen::Index first_row, std::optional<double> square_corner) {
-  StackedRegression s = stack_regressions(terms, stack_inputs(m, m_cs), data.t_ref, label, first_row);
-  apply_square_model(s, data, square_corner);
-  return s;
-}
-
-/// The same, AR-whitened: the rows algorithm 2 fits.
-StackedRegression whitened_regression(std::span<const Term> terms, const MountingCases& m, const frames::Dcm& m_cs,
-                                      const dataset::Dataset& data, std::string_view label,
-                                      Eigen::Index first_row, std::optional<double> square_corner,
-                                      const ArWhitener& whitener) {
-  StackedRegression s = mounting_regression(terms, m, m_cs, data, label, first_row, square_corner);
-  whitener.apply(s);
-  return s;
-}
-
 /// The F_S terms a tilt of the input axis adds to the sensitivity term when `s_terms` has it
 /// (a_i; w_i for gyroscopes) and lacks them: to first order in the tilt (d_p, d_o),
 /// theta_i (n_i + d_p n_p + d_o n_o) . a = theta_i a_i + theta_i d_p a_p + theta_i d_o a_o.
@@ -154,12 +135,9 @@ void set_angles(MountingResult& result, const Eigen::Vector3d& sd) {
 /// problem of the ranked terms built with it.
 class MisalignmentHook final : public ident::FitHook {
  public:
-  MisalignmentHook(const MountingCases& m, const std::vector<Term>& es_terms,
-                   const dataset::Dataset& data, std::string_view label, Eigen::Index first_row,
-                   const ArWhitener& whitener, std::optional<double> square_corner, double twist,
+  MisalignmentHook(const MountingRegressions& regressions, const dataset::Dataset& data, double twist,
                    std::array<bool, 2> tilt_axes)
-      : m_(m), es_terms_(es_terms), data_(data), label_(label), first_row_(first_row),
-        whitener_(whitener), square_corner_(square_corner), twist_(twist), tilt_axes_(tilt_axes) {}
+      : regressions_(regressions), data_(data), twist_(twist), tilt_axes_(tilt_axes) {}
 
   /// The tilt terms kept in the stage of j ranked terms (empty: none).
   [[nodiscard]] std::vector<std::string> tilts(std::size_t j) const {
@@ -183,8 +161,7 @@ class MisalignmentHook final : public ident::FitHook {
     for (std::size_t c = model_terms; c < s_terms.size(); ++c) stage.kept.push_back(static_cast<Eigen::Index>(c));
     if (tilts_.size() < j) tilts_.resize(j);
     tilts_[j - 1] = ident::to_strings(tilts);
-    StackedRegression s =
-        whitened_regression(s_terms, m_, m_cs, data_, label_, first_row_, square_corner_, whitener_);
+    StackedRegression s = regressions_.whitened(s_terms, m_cs);
     stage.phi = std::move(s.phi);
     stage.y = std::move(s.y);
     stage.labels = std::move(s.labels);
@@ -197,13 +174,8 @@ class MisalignmentHook final : public ident::FitHook {
   }
 
  private:
-  const MountingCases& m_;
-  const std::vector<Term>& es_terms_;
+  const MountingRegressions& regressions_;
   const dataset::Dataset& data_;
-  std::string_view label_;
-  Eigen::Index first_row_;
-  const ArWhitener& whitener_;
-  std::optional<double> square_corner_;
   double twist_;
   std::array<bool, 2> tilt_axes_;
   std::vector<std::optional<frames::Dcm>> misalignments_;
@@ -278,10 +250,10 @@ MisalignmentFixedPoint misalignment_fixed_point(const MountingCases& m, const st
     const frames::Dcm aligned = misalignment_from_sensitivities(*theta, frames::Dcm::Identity());
     if (options.estimate_twist && twist_matters) {
       // One parabolic step on the residual sum of squares as a function of the twist.
+      const MountingRegressions regressions(m, data, dataset_label, first_row, f.square_corner, f.whitener, es_terms);
       const auto rss_at = [&](double psi) {
         // Whitened: the GLS criterion; unwhitened, the 1/f noise the columns can fit decides.
-        const StackedRegression t = whitened_regression(es_terms, m, with_twist(aligned, psi), data, dataset_label,
-                                                        first_row, f.square_corner, f.whitener);
+        const StackedRegression t = regressions.whitened(es_terms, with_twist(aligned, psi));
         return SquareCornerSearch(t, {}, data).rss(std::nullopt);
       };
       constexpr double kProbe = 0.5 * std::numbers::pi / 180.0;
@@ -369,14 +341,15 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   for (Eigen::Index j = 0; j < es.phi.cols(); ++j) {
     if (std::find(usable.begin(), usable.end(), j) == usable.end()) result.excluded.push_back(es.labels[static_cast<std::size_t>(j)]);
   }
+  // Every F_S regression from here on: the candidates' terms in F_S, with any M_C^S.
+  const MountingRegressions regressions(m, data, dataset_label, first_row, square_corner, whitener, ident::to_sensor_frame(es_terms));
 
   if (!options.misalignment.select) {
     // A fixed model: its misalignment is the fixed point above; its F_S fit for the record.
     result.m_cs = m_cs;
     result.es_terms = ident::to_strings(es_terms);
     const std::vector<Term> s_terms = ident::to_sensor_frame(es_terms);
-    StackedRegression s =
-        whitened_regression(s_terms, m, m_cs, data, dataset_label, first_row, square_corner, whitener);
+    StackedRegression s = regressions.whitened(s_terms, m_cs);
     std::vector<Eigen::Index> columns = identifiable_ranking(s, data.sensor, options.selection.err);
     result.s_fit = fit_identifiable(s, data.sensor, columns, options.selection.uls, result.excluded);
     result.s_terms = s.labels;
@@ -387,7 +360,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   }
 
   // Steps 2-15 on the converged F_E problem.
-  MisalignmentHook hook(m, es_terms, data, dataset_label, first_row, whitener, square_corner, twist, tilt_axes);
+  MisalignmentHook hook(regressions, data, twist, tilt_axes);
   ident::SelectionProblem problem{es.phi, es.y, es.labels, es.rational, {}};
   ident::SelectionOptions selection = options.selection;
   selection.uls.noise_lags = 0;
@@ -414,8 +387,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     // Honest inference on the selected model (as the batch stage's): offsets between the
     // mounting's phases (a pose's placement) are not information about its terms.
     const std::vector<Term> selected_terms = ident::parse_terms(best.fit.process_labels());
-    const StackedRegression stage = whitened_regression(selected_terms, m, *best_misalignment, data, dataset_label,
-                                                        first_row, square_corner, whitener);
+    const StackedRegression stage = regressions.whitened(selected_terms, *best_misalignment);
     std::vector<CaseOutcome> outcomes(data.cases.size());
     for (std::size_t index : cases) outcomes[index].m_es = *best_misalignment * data.cases[index].m_ec;
     const PhaseLayout layout = phase_layout(stage, selected_terms, data, outcomes, dataset_label);
@@ -480,8 +452,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
       result.m_cs = with_twist(misalignment_from_sensitivities(result.m_cs.transpose() * theta, frames::Dcm::Identity()), twist);
       set_angles(result, result.angles_sd);
     }
-    StackedRegression s =
-        whitened_regression(s_terms, m, result.m_cs, data, dataset_label, first_row, square_corner, whitener);
+    StackedRegression s = regressions.whitened(s_terms, result.m_cs);
     std::vector<Eigen::Index> columns(s_terms.size());
     for (std::size_t i = 0; i < columns.size(); ++i) columns[i] = static_cast<Eigen::Index>(i);
     result.s_fit = fit_identifiable(s, data.sensor, columns, options.selection.uls, result.excluded);

@@ -1,0 +1,145 @@
+#include "analyzer/procedure/mounting_regressions.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "analyzer/procedure/square_highpass.hpp"
+#include "analyzer/procedure/whitened_problem.hpp"
+#include "common/parallel.hpp"
+
+namespace inertia::procedure {
+
+using ident::Term;
+
+StackedRegression mounting_regression(std::span<const Term> terms, const MountingCases& m, const frames::Dcm& m_cs,
+                                      const dataset::Dataset& data, std::string_view label, Eigen::Index first_row,
+                                      std::optional<double> square_corner) {
+  StackedRegression s = stack_regressions(terms, stack_inputs(m, m_cs), data.t_ref, label, first_row);
+  apply_square_model(s, data, square_corner);
+  return s;
+}
+
+StackedRegression whitened_regression(std::span<const Term> terms, const MountingCases& m, const frames::Dcm& m_cs,
+                                      const dataset::Dataset& data, std::string_view label, Eigen::Index first_row,
+                                      std::optional<double> square_corner, const ArWhitener& whitener) {
+  StackedRegression s = mounting_regression(terms, m, m_cs, data, label, first_row, square_corner);
+  whitener.apply(s);
+  return s;
+}
+
+MountingRegressions::MountingRegressions(const MountingCases& m, const dataset::Dataset& data, std::string_view label,
+                                         Eigen::Index first_row, std::optional<double> square_corner,
+                                         const ArWhitener& whitener, std::span<const Term> cover)
+    : m_(m), data_(data), label_(label), first_row_(first_row), square_corner_(square_corner), whitener_(whitener) {
+  const std::lock_guard lock(mutex_);
+  whiten_missing(cover);
+}
+
+bool MountingRegressions::combines(const Term& term) const {
+  return ident::expandable(term) && !term.is_output_multiplied() && term.max_lag() <= first_row_;
+}
+
+void MountingRegressions::whiten_missing(std::span<const Term> terms) const {
+  std::vector<Key> missing;
+  for (const Term& term : terms) {
+    if (!combines(term)) continue;
+    const bool through_highpass = square_corner_.has_value() && is_square_term(term);
+    const ident::FrameExpansion expansion(term);
+    for (const Term& monomial : expansion.monomials()) {
+      Key key{monomial, through_highpass};
+      if (!column_of_.contains(key) && std::find(missing.begin(), missing.end(), key) == missing.end()) missing.push_back(std::move(key));
+    }
+  }
+  if (missing.empty() && frame_) return;
+  // The monomials hold no sensor-frame variable: the stack's M_C^S does not enter them.
+  std::vector<Term> monomials;
+  std::vector<Eigen::Index> highpassed;
+  for (const auto& [monomial, through_highpass] : missing) {
+    if (through_highpass) highpassed.push_back(static_cast<Eigen::Index>(monomials.size()));
+    monomials.push_back(monomial);
+  }
+  StackedRegression s = stack_regressions(monomials, stack_inputs(m_, frames::Dcm::Identity()), data_.t_ref, label_, first_row_);
+  if (!highpassed.empty()) highpass_columns(s.phi, highpassed, s.cases, data_, *square_corner_);
+  whitener_.apply(s);
+  for (std::size_t j = 0; j < missing.size(); ++j) {
+    columns_.emplace_back(s.phi.col(static_cast<Eigen::Index>(j)));
+    column_of_.emplace(missing[j], &columns_.back());
+  }
+  if (!frame_) {
+    s.phi.resize(s.y.size(), 0);
+    s.labels.clear();
+    frame_ = std::move(s);
+  }
+}
+
+const MountingRegressions::Expanded& MountingRegressions::expanded(const Term& term) const {
+  if (const auto found = expanded_.find(term); found != expanded_.end()) return found->second;
+  const bool through_highpass = square_corner_.has_value() && is_square_term(term);
+  Expanded e{ident::FrameExpansion(term), {}};
+  for (const Term& monomial : e.expansion.monomials()) e.columns.push_back(column_of_.at(Key{monomial, through_highpass}));
+  return expanded_.emplace(term, std::move(e)).first->second;
+}
+
+StackedRegression MountingRegressions::whitened(std::span<const Term> terms, const frames::Dcm& m_cs) const {
+  if (ident::first_usable_row(terms) > first_row_) {
+    // Lags beyond the mounting's first row move the rows: built directly.
+    return whitened_regression(terms, m_, m_cs, data_, label_, first_row_, square_corner_, whitener_);
+  }
+  std::vector<Term> direct_terms;
+  std::vector<Eigen::Index> direct_at;
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    if (combines(terms[j])) continue;
+    direct_terms.push_back(terms[j]);
+    direct_at.push_back(static_cast<Eigen::Index>(j));
+  }
+  const StackedRegression direct =
+      direct_terms.empty() ? StackedRegression()
+                           : whitened_regression(direct_terms, m_, m_cs, data_, label_, first_row_, square_corner_, whitener_);
+
+  StackedRegression out;
+  std::vector<const Expanded*> combined(terms.size(), nullptr);
+  {
+    const std::lock_guard lock(mutex_);
+    whiten_missing(terms);
+    for (std::size_t j = 0; j < terms.size(); ++j)
+      if (combines(terms[j])) combined[j] = &expanded(terms[j]);
+    out.y = frame_->y;
+    out.cases = frame_->cases;
+  }
+  const Eigen::Index rows = out.y.size();
+  if (!direct_terms.empty() && direct.phi.rows() != rows) {
+    throw std::logic_error("MountingRegressions: the directly built columns have other rows than the monomials'");
+  }
+  out.labels = ident::to_strings(std::vector<Term>(terms.begin(), terms.end()));
+  const auto columns = static_cast<Eigen::Index>(terms.size());
+  out.phi.resize(rows, columns);
+  // Each column on its own: the same arithmetic on any number of threads.
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) num_threads(parallel::threads_for(columns))
+#endif
+  for (Eigen::Index j = 0; j < columns; ++j) {
+    const Expanded* e = combined[static_cast<std::size_t>(j)];
+    if (e == nullptr) continue;
+    Eigen::VectorXd coefficients(static_cast<Eigen::Index>(e->columns.size()));
+    e->expansion.coefficients(m_cs, coefficients);
+    auto column = out.phi.col(j);
+    column.setZero();
+    for (std::size_t k = 0; k < e->columns.size(); ++k) {
+      const double c = coefficients(static_cast<Eigen::Index>(k));
+      if (c != 0.0) column += c * *e->columns[k];
+    }
+  }
+  for (std::size_t k = 0; k < direct_at.size(); ++k) out.phi.col(direct_at[k]) = direct.phi.col(static_cast<Eigen::Index>(k));
+  if (!direct.rational.columns.empty()) {
+    out.rational.factors = direct.rational.factors;
+    for (const Eigen::Index c : direct.rational.columns) out.rational.columns.push_back(direct_at[static_cast<std::size_t>(c)]);
+  }
+  return out;
+}
+
+std::size_t MountingRegressions::monomial_columns() const {
+  const std::lock_guard lock(mutex_);
+  return columns_.size();
+}
+
+}  // namespace inertia::procedure

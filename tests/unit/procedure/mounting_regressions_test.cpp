@@ -1,0 +1,112 @@
+// A mounting's whitened regression from its monomials' whitened columns (MountingRegressions)
+// against the same regression built directly (whitened_regression), for every kind of term: plain
+// powers and products of sensor-frame variables, the squares through the high pass, frame-free and
+// external-frame factors, terms that do not expand (abs, sign), output-multiplied terms, and lags
+// beyond the mounting's first row.
+#include "analyzer/procedure/mounting_regressions.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <string>
+#include <vector>
+
+#include "analyzer/ident/term.hpp"
+#include "analyzer/procedure/pipeline_options.hpp"
+#include "common/frames.hpp"
+
+namespace inertia::procedure {
+namespace {
+
+/// Two cases of one mounting with varying specific force, temperature and a nonzero output, the
+/// second turned in F_E and weighted: what mounting_cases turns into the nominal case frame.
+dataset::Dataset two_case_mounting() {
+  dataset::Dataset data;
+  data.t_ref = 25.0;
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (int c = 0; c < 2; ++c) {
+    dataset::CaseData k;
+    k.name = "case" + std::to_string(c);
+    k.kind = dataset::CaseKind::Shaker;
+    k.mounting = "fixture";
+    k.sample_period_s = 1e-3;
+    const Eigen::Index n = 3000 + 500 * c;
+    k.t = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * k.sample_period_s);
+    k.a_e.resize(n, 3);
+    for (Eigen::Index r = 0; r < n; ++r) {
+      const double s = static_cast<double>(r) * k.sample_period_s;
+      k.a_e.row(r) << 20.0 * std::sin(60.0 * s) + normal(rng), 9.81 + 0.3 * normal(rng), 2.0 * std::cos(7.0 * s) + 0.1 * normal(rng);
+    }
+    k.temp = Eigen::VectorXd::LinSpaced(n, 20.0, 30.0 + c);
+    k.y = 0.1 * k.a_e.col(0) + Eigen::VectorXd::Constant(n, 3.0) + 0.01 * Eigen::VectorXd::NullaryExpr(n, [&] { return normal(rng); });
+    if (c == 1) k.m_ec = frames::frame_rotation(Eigen::Vector3d(1.0, 2.0, -0.5).normalized(), 0.4);
+    data.cases.push_back(std::move(k));
+  }
+  return data;
+}
+
+TEST(MountingRegressions, CombinedColumnsAreTheDirectlyBuiltOnesForEveryKindOfTerm) {
+  const dataset::Dataset data = two_case_mounting();
+  PipelineOptions options;
+  options.case_weights = {{"case1", 2.5}};
+  const MountingCases m = mounting_cases(data, {0, 1}, options, std::nullopt);
+  // An AR(3) whitener and a corner: both filters act on every column.
+  const ArWhitener whitener = ArWhitener::of(Eigen::Vector3d(0.5, -0.2, 0.1));
+  const double corner = 40.0;
+  const Eigen::Index first_row = 1;
+  const std::vector<ident::Term> cover = ident::parse_terms({"1", "a_i", "a_p", "a_o", "a_i^2", "a_p^2", "a_i*a_o", "a_i^2*a_p"});
+  const MountingRegressions regressions(m, data, "test", first_row, corner, whitener, cover);
+  // 1; a_x a_y a_z; the six products of two, plain and through the high pass; the ten of three.
+  EXPECT_EQ(regressions.monomial_columns(), 26u);
+
+  // Asked for more than it covers: new monomials, terms that stay direct, an output-multiplied
+  // term, a lag within the first row.
+  const std::vector<ident::Term> terms = ident::parse_terms({"1", "a_i", "a_o^2", "a_i^2", "a_p*a_o", "T*a_i", "a_x", "abs(a_i)",
+                                                             "sign(a_p)*a_i", "y*a_i", "a_i[k-1]", "T^2", "a_p^2"});
+  for (const double angle : {0.0, 0.03, 1.1}) {
+    const frames::Dcm m_cs = frames::frame_rotation(Eigen::Vector3d(0.3, -1.0, 0.7).normalized(), angle);
+    const StackedRegression direct = whitened_regression(terms, m, m_cs, data, "test", first_row, corner, whitener);
+    const StackedRegression combined = regressions.whitened(terms, m_cs);
+    ASSERT_EQ(combined.labels, direct.labels);
+    ASSERT_EQ(combined.phi.rows(), direct.phi.rows());
+    ASSERT_EQ(combined.phi.cols(), direct.phi.cols());
+    ASSERT_EQ(combined.cases.size(), direct.cases.size());
+    for (std::size_t c = 0; c < direct.cases.size(); ++c) {
+      EXPECT_EQ(combined.cases[c].begin, direct.cases[c].begin);
+      EXPECT_EQ(combined.cases[c].rows, direct.cases[c].rows);
+      EXPECT_EQ(combined.cases[c].first_sample, direct.cases[c].first_sample);
+    }
+    EXPECT_EQ(combined.y, direct.y);
+    // A combination of monomials rounds differently from the product of the turned coordinates:
+    // each column within a few rounding units of its own size.
+    for (Eigen::Index j = 0; j < direct.phi.cols(); ++j) {
+      const double scale = direct.phi.col(j).cwiseAbs().maxCoeff();
+      EXPECT_LE((combined.phi.col(j) - direct.phi.col(j)).cwiseAbs().maxCoeff(), 1e-13 * scale)
+          << direct.labels[std::size_t(j)] << " at " << angle << " rad";
+    }
+    EXPECT_EQ(combined.rational.columns, direct.rational.columns);
+    EXPECT_EQ(combined.rational.factors, direct.rational.factors);
+  }
+  // The monomials asked for beyond the cover (T a_x, T a_y, T a_z, the three a[k-1], T^2) were
+  // whitened once and kept.
+  EXPECT_EQ(regressions.monomial_columns(), 33u);
+  (void)regressions.whitened(terms, frames::Dcm::Identity());
+  EXPECT_EQ(regressions.monomial_columns(), 33u);
+}
+
+TEST(MountingRegressions, LagsBeyondTheFirstRowMoveTheRowsAndAreBuiltDirectly) {
+  const dataset::Dataset data = two_case_mounting();
+  const MountingCases m = mounting_cases(data, {0, 1}, PipelineOptions{}, std::nullopt);
+  const ArWhitener whitener = ArWhitener::of(Eigen::Vector2d(0.4, 0.1));
+  const MountingRegressions regressions(m, data, "test", 0, std::nullopt, whitener, ident::parse_terms({"1", "a_i"}));
+  const std::vector<ident::Term> terms = ident::parse_terms({"1", "a_i", "a_p[k-2]"});
+  const frames::Dcm m_cs = frames::frame_rotation(Eigen::Vector3d::UnitZ(), 0.2);
+  const StackedRegression direct = whitened_regression(terms, m, m_cs, data, "test", 0, std::nullopt, whitener);
+  const StackedRegression combined = regressions.whitened(terms, m_cs);
+  EXPECT_EQ(combined.phi, direct.phi);
+  EXPECT_EQ(combined.y, direct.y);
+}
+
+}  // namespace
+}  // namespace inertia::procedure
