@@ -5,6 +5,10 @@
 #include <cstdio>
 #include <limits>
 #include <numeric>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
 
 #include "analyzer/ident/row_products.hpp"
 #include "analyzer/ident/symmetric.hpp"
@@ -27,6 +31,96 @@ Index factor_index(const OutputMultiplied& rational, Index column) {
 // Rows per block in the data passes that build p x p products, so the temporaries stay small
 // (a few MB) whatever N is.
 constexpr Index kBlockRows = 4096;
+
+/// Anderson mixing (type II, undamped) for a fixed point v = F(v) of a few coefficients: from
+/// the iterate v_k and its image F(v_k), the next iterate F(v_k) - dF gamma, gamma the least
+/// squares fit of the step g_k = F(v_k) - v_k by the last `depth` steps' differences dG (dF the
+/// images' differences). A step larger than the smallest one seen starts the history again.
+class AndersonMixing {
+ public:
+  explicit AndersonMixing(Index depth) : depth_(depth) {}
+
+  void reset() {
+    steps_.clear();
+    images_.clear();
+    smallest_ = std::numeric_limits<double>::infinity();
+  }
+
+  [[nodiscard]] Eigen::VectorXd next(const Eigen::VectorXd& v, const Eigen::VectorXd& fv) {
+    const Eigen::VectorXd g = fv - v;
+    const double norm = g.norm();
+    if (!(norm <= smallest_)) reset();
+    smallest_ = std::min(smallest_, norm);
+    steps_.push_back(g);
+    images_.push_back(fv);
+    if (static_cast<Index>(steps_.size()) > depth_ + 1) {
+      steps_.erase(steps_.begin());
+      images_.erase(images_.begin());
+    }
+    const auto m = static_cast<Index>(steps_.size()) - 1;
+    if (m == 0) return fv;
+    Eigen::MatrixXd dg(g.size(), m), df(g.size(), m);
+    for (Index j = 0; j < m; ++j) {
+      dg.col(j) = steps_[std::size_t(j + 1)] - steps_[std::size_t(j)];
+      df.col(j) = images_[std::size_t(j + 1)] - images_[std::size_t(j)];
+    }
+    const Eigen::VectorXd gamma = dg.colPivHouseholderQr().solve(g);
+    return gamma.allFinite() ? Eigen::VectorXd(fv - df * gamma) : fv;
+  }
+
+ private:
+  Index depth_;
+  std::vector<Eigen::VectorXd> steps_, images_;
+  double smallest_ = std::numeric_limits<double>::infinity();
+};
+
+/// True when 1 + c_1 q^-1 + ... + c_n q^-n has every root strictly inside the unit circle, so
+/// its inverse filter is stable.
+bool minimum_phase(const Eigen::VectorXd& c) {
+  const Index n = c.size();
+  if (n == 0) return true;
+  Eigen::MatrixXd companion = Eigen::MatrixXd::Zero(n, n);
+  companion.row(0) = -c.transpose();
+  for (Index i = 1; i < n; ++i) companion(i, i - 1) = 1.0;
+  const Eigen::VectorXcd roots = Eigen::EigenSolver<Eigen::MatrixXd>(companion, false).eigenvalues();
+  return roots.allFinite() && roots.cwiseAbs().maxCoeff() < 1.0;
+}
+
+/// The residuals the ELS passes converge to for the coefficients of one pass: the noise columns
+/// e[k-i] built from the residuals themselves, eps(k) = (zeta_0(k) - sum_i c_i eps(k - i)) / b(k),
+/// with zeta_0 = y b - a the process terms' part of the fit's linear form (finish_uls) and the
+/// residuals before the first row zero, as the passes take them. A plain pass turns the residuals
+/// by C(q) - 1 once, so its error shrinks only by |C - 1| per pass, slowest at the frequencies
+/// where that is near 1 (about 0.74 per pass on the paper's plan); these residuals are that
+/// fixed point for the coefficients at hand, and only the coefficients are left to settle. None
+/// when C(q) is not minimum phase: the recursion would grow, and a plain pass is taken instead.
+std::optional<Eigen::VectorXd> self_consistent_residuals(const Eigen::Ref<const Eigen::MatrixXd>& x,
+                                                         const Eigen::Ref<const Eigen::VectorXd>& y, Index p,
+                                                         const OutputMultiplied& rational, const Eigen::MatrixXd& factors,
+                                                         const Eigen::VectorXd& theta) {
+  const Index n = x.rows(), n_e = theta.size() - p;
+  const Eigen::VectorXd c = theta.tail(n_e);
+  if (!minimum_phase(c)) return std::nullopt;
+  Eigen::VectorXd zeta = y;
+  Eigen::VectorXd b = Eigen::VectorXd::Ones(n);
+  for (Index j = 0; j < p; ++j) {
+    const Index f = factor_index(rational, j);
+    if (f < 0) {
+      zeta.noalias() -= theta(j) * x.col(j);
+    } else {
+      b.noalias() += theta(j) * factors.col(f);
+      zeta.noalias() += theta(j) * x.col(j);
+    }
+  }
+  Eigen::VectorXd eps(n);
+  for (Index k = 0; k < n; ++k) {
+    double value = zeta(k);
+    for (Index i = 1; i <= n_e && i <= k; ++i) value -= c(i - 1) * eps(k - i);
+    eps(k) = value / b(k);
+  }
+  if (!eps.allFinite()) return std::nullopt;
+  return eps;
+}
 
 }  // namespace
 
@@ -498,10 +592,13 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   bool converged = false;
   double last_change = 0.0;
   int pass = 0;
+  Eigen::VectorXd residuals = res.residuals;   // what the pass's noise columns are built from
+  AndersonMixing mixing(3);
+  Eigen::VectorXd theta_in;   // the coefficients `residuals` are self-consistent for (none: a fit's own)
   for (pass = 1; pass <= options.max_noise_iterations; ++pass) {
     for (Index i = 1; i <= n_e; ++i) {
       x.col(p + i - 1).head(std::min(i, n)).setZero();  // residuals before the record: 0
-      if (n > i) x.col(p + i - 1).tail(n - i) = res.residuals.head(n - i);
+      if (n > i) x.col(p + i - 1).tail(n - i) = residuals.head(n - i);
     }
     const auto e = x.middleCols(p, n_e);
     augmented.block(0, p, p, n_e) = ident::cross_product(x.leftCols(p), e);
@@ -520,6 +617,16 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
     if (small && sol.converged) {
       converged = true;
       break;
+    }
+    // The next pass's residuals: self-consistent for coefficients mixed from the last passes'.
+    const Eigen::VectorXd next = theta_in.size() == 0 ? res.theta : mixing.next(theta_in, res.theta);
+    if (std::optional<Eigen::VectorXd> consistent = self_consistent_residuals(x, y, p, xr, xf, next)) {
+      residuals = std::move(*consistent);
+      theta_in = next;
+    } else {
+      residuals = res.residuals;
+      theta_in.resize(0);
+      mixing.reset();
     }
   }
   res.process_terms = p;

@@ -145,6 +145,29 @@ TEST(UlsBatch, ExtendedLeastSquaresReportsTheLastPassesChange) {
   EXPECT_GT(cut.noise_last_change, 1e3 * options.tolerance);
 }
 
+// The passes' fixed point: the noise columns built from the returned residuals themselves, one
+// more least-squares fit returns the same coefficients. MA(1) noise with c = 0.8 is where plain
+// passes (each turning the residuals' error by C(q) - 1 once) crawl, by up to 0.8 per pass, for
+// some 80 passes to the tolerance; residuals self-consistent for the coefficients at hand, mixed
+// over the last passes, settle in a few.
+TEST(UlsBatch, ExtendedLeastSquaresSettlesOnItsFixedPointInFewPasses) {
+  for (unsigned seed = 0; seed < 5; ++seed) {
+    const auto ex = testing::armax_example(40 + seed, 5000, 0.2);
+    UlsOptions options;
+    options.noise_lags = 1;
+    const UlsResult fit = uls_batch(ex.phi, ex.y, ex.labels, {}, options);
+    ASSERT_TRUE(fit.converged) << seed;
+    EXPECT_LE(fit.noise_iterations, 20) << seed;
+    Eigen::MatrixXd x(ex.phi.rows(), 4);
+    x.leftCols(3) = ex.phi;
+    x(0, 3) = 0.0;
+    x.col(3).tail(x.rows() - 1) = fit.residuals.head(x.rows() - 1);
+    const Eigen::VectorXd refit = x.colPivHouseholderQr().solve(ex.y);
+    EXPECT_LE((refit - fit.theta).norm(), 1e-6 * fit.theta.norm()) << seed;
+    EXPECT_LE((ex.y - x * fit.theta - fit.residuals).norm(), 1e-6 * fit.residuals.norm()) << seed;
+  }
+}
+
 // a_i^2 + a_p^2 + a_o^2 = g^2 on rotation-table data: with the bias these four are collinear.
 TEST(UlsBatch, CollinearTermsAreReportedByName) {
   const Eigen::Index n = 400;
