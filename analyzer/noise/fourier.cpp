@@ -57,39 +57,36 @@ fftw_complex* as_fftw(std::complex<double>* p) { return reinterpret_cast<fftw_co
 
 }  // namespace
 
-void RealFourier::Free::operator()(void* p) const { fftw_free(p); }
-void ComplexFourier::Free::operator()(void* p) const { fftw_free(p); }
+void detail::FftwFree::operator()(void* p) const { fftw_free(p); }
 
 RealFourier::RealFourier(Eigen::Index length) : length_(length) {
   check_length(length);
   samples_.reset(aligned_zeros<double>(length));
   spectrum_.reset(aligned_zeros<std::complex<double>>(bins()));
-  forward_plan_ = plan_for(Kind::RealForward, length);
-  inverse_plan_ = plan_for(Kind::RealInverse, length);
+  plans_ = {plan_for(Kind::RealForward, length), plan_for(Kind::RealInverse, length)};
 }
 
-void RealFourier::forward() { fftw_execute_dft_r2c(static_cast<fftw_plan>(forward_plan_), samples_.get(), as_fftw(spectrum_.get())); }
+void RealFourier::forward() { fftw_execute_dft_r2c(static_cast<fftw_plan>(plans_.forward), samples_.get(), as_fftw(spectrum_.get())); }
 
 void RealFourier::inverse() {
   spectrum_[0].imag(0.0);
   if (length_ % 2 == 0) spectrum_[static_cast<std::size_t>(length_ / 2)].imag(0.0);
-  fftw_execute_dft_c2r(static_cast<fftw_plan>(inverse_plan_), as_fftw(spectrum_.get()), samples_.get());
+  fftw_execute_dft_c2r(static_cast<fftw_plan>(plans_.inverse), as_fftw(spectrum_.get()), samples_.get());
   samples() *= 1.0 / static_cast<double>(length_);
 }
 
 ComplexFourier::ComplexFourier(Eigen::Index length) : length_(length) {
   check_length(length);
   values_.reset(aligned_zeros<std::complex<double>>(length));
-  forward_plan_ = plan_for(Kind::ComplexForward, length);
-  inverse_plan_ = plan_for(Kind::ComplexInverse, length);
+  plans_ = {plan_for(Kind::ComplexForward, length), plan_for(Kind::ComplexInverse, length)};
 }
 
 void ComplexFourier::forward() {
-  fftw_execute_dft(static_cast<fftw_plan>(forward_plan_), as_fftw(values_.get()), as_fftw(values_.get()));
+  fftw_execute_dft(static_cast<fftw_plan>(plans_.forward), as_fftw(values_.get()), as_fftw(values_.get()));
 }
 
 void ComplexFourier::inverse() {
-  fftw_execute_dft(static_cast<fftw_plan>(inverse_plan_), as_fftw(values_.get()), as_fftw(values_.get()));
+  fftw_execute_dft(static_cast<fftw_plan>(plans_.inverse), as_fftw(values_.get()), as_fftw(values_.get()));
   values() *= 1.0 / static_cast<double>(length_);
 }
 

@@ -21,6 +21,21 @@
 
 namespace inertia::noise {
 
+namespace detail {
+/// Frees what fftw_malloc gave.
+struct FftwFree {
+  void operator()(void* p) const;
+};
+/// A buffer of `T` from fftw_malloc (FFTW's alignment), zeroed.
+template <typename T>
+using FftwBuffer = std::unique_ptr<T[], FftwFree>;
+/// A transform's two shared plans (fftw_plan, which this header does not name).
+struct FftwPlans {
+  void* forward = nullptr;
+  void* inverse = nullptr;
+};
+}  // namespace detail
+
 /// The transform of real sequences of length L: L samples <-> the L/2 + 1 bins k = 0 .. L/2 (the
 /// rest follow by conjugate symmetry).
 class RealFourier {
@@ -42,14 +57,10 @@ class RealFourier {
   void inverse();
 
  private:
-  struct Free {
-    void operator()(void* p) const;
-  };
   Eigen::Index length_;
-  std::unique_ptr<double[], Free> samples_;
-  std::unique_ptr<std::complex<double>[], Free> spectrum_;
-  void* forward_plan_;
-  void* inverse_plan_;
+  detail::FftwBuffer<double> samples_;
+  detail::FftwBuffer<std::complex<double>> spectrum_;
+  detail::FftwPlans plans_;
 };
 
 /// The transform of complex sequences of length L, in place on values().
@@ -66,13 +77,9 @@ class ComplexFourier {
   void inverse();
 
  private:
-  struct Free {
-    void operator()(void* p) const;
-  };
   Eigen::Index length_;
-  std::unique_ptr<std::complex<double>[], Free> values_;
-  void* forward_plan_;
-  void* inverse_plan_;
+  detail::FftwBuffer<std::complex<double>> values_;
+  detail::FftwPlans plans_;
 };
 
 }  // namespace inertia::noise
