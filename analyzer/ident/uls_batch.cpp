@@ -91,7 +91,7 @@ bool minimum_phase(const Eigen::VectorXd& c) {
 /// with zeta_0 = y b - a the process terms' part of the fit's linear form (finish_uls) and the
 /// residuals before the first row zero, as the passes take them. A plain pass turns the residuals
 /// by C(q) - 1 once, so its error shrinks only by |C - 1| per pass, slowest at the frequencies
-/// where that is near 1 (about 0.74 per pass on the paper's plan); these residuals are that
+/// where that is near 1 (docs/validation.md has the passes it took); these residuals are that
 /// fixed point for the coefficients at hand, and only the coefficients are left to settle. None
 /// when C(q) is not minimum phase: the recursion would grow, and a plain pass is taken instead.
 std::optional<Eigen::VectorXd> self_consistent_residuals(const Eigen::Ref<const Eigen::MatrixXd>& x,

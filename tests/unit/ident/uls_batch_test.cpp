@@ -147,9 +147,9 @@ TEST(UlsBatch, ExtendedLeastSquaresReportsTheLastPassesChange) {
 
 // The passes' fixed point: the noise columns built from the returned residuals themselves, one
 // more least-squares fit returns the same coefficients. MA(1) noise with c = 0.8 is where plain
-// passes (each turning the residuals' error by C(q) - 1 once) crawl, by up to 0.8 per pass, for
-// some 80 passes to the tolerance; residuals self-consistent for the coefficients at hand, mixed
-// over the last passes, settle in a few.
+// passes (each turning the residuals' error by C(q) - 1 once) crawl, by up to 0.8 per pass;
+// residuals self-consistent for the coefficients at hand, mixed over the last passes, settle in
+// a few.
 TEST(UlsBatch, ExtendedLeastSquaresSettlesOnItsFixedPointInFewPasses) {
   for (unsigned seed = 0; seed < 5; ++seed) {
     const auto ex = testing::armax_example(40 + seed, 5000, 0.2);
