@@ -28,6 +28,49 @@ Index factor_index(const OutputMultiplied& rational, Index column) {
   return it == rational.columns.end() ? -1 : static_cast<Index>(it - rational.columns.begin());
 }
 
+/// The fit's linear form for the coefficients `theta` of phi's `columns`: b(k) = 1 + the
+/// output-multiplied terms' theta_j p_b,j(k), and zeta(k) = y b - a, a(k) the other terms' sum
+/// (ident/uls.hpp); the residual is zeta / b.
+struct LinearForm {
+  Eigen::VectorXd zeta, b;
+};
+
+LinearForm linear_form(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
+                       std::span<const Index> columns, const Eigen::Ref<const Eigen::VectorXd>& theta,
+                       const OutputMultiplied& rational, const Eigen::Ref<const Eigen::MatrixXd>& factors) {
+  const Index n = phi.rows();
+  const auto p = static_cast<Index>(columns.size());
+  // Row blocks outermost: the block's accumulators stay in cache while each column segment
+  // streams through once, so the pass reads every column once instead of re-reading three
+  // N-vectors per column (the selection runs this once per candidate model; at N = 1e6 it is
+  // memory-bound).
+  Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
+  Eigen::VectorXd b = Eigen::VectorXd::Ones(n);
+  Eigen::VectorXd lin = Eigen::VectorXd::Zero(n);  // minus the output-multiplied terms' theta_j c_j
+  std::vector<Index> fidx(static_cast<std::size_t>(p), -1);
+  for (Index j = 0; j < p; ++j) fidx[static_cast<std::size_t>(j)] = factor_index(rational, columns[j]);
+  constexpr Index kResidualBlock = 1024;
+  for (Index k0 = 0; k0 < n; k0 += kResidualBlock) {
+    const Index rows = std::min(kResidualBlock, n - k0);
+    auto a_blk = a.segment(k0, rows);
+    auto b_blk = b.segment(k0, rows);
+    auto lin_blk = lin.segment(k0, rows);
+    for (Index j = 0; j < p; ++j) {
+      const Index c = columns[j];
+      const double th = theta(j);
+      const Index f = fidx[static_cast<std::size_t>(j)];
+      if (f < 0) {
+        a_blk.noalias() += th * phi.col(c).segment(k0, rows);
+      } else {
+        b_blk.noalias() += th * factors.col(f).segment(k0, rows);
+        lin_blk.noalias() -= th * phi.col(c).segment(k0, rows);
+      }
+    }
+  }
+  lin += a;
+  return {y - lin, std::move(b)};
+}
+
 // Rows per block in the data passes that build p x p products, so the temporaries stay small
 // (a few MB) whatever N is.
 constexpr Index kBlockRows = 4096;
@@ -88,7 +131,7 @@ bool minimum_phase(const Eigen::VectorXd& c) {
 
 /// The residuals the ELS passes converge to for the coefficients of one pass: the noise columns
 /// e[k-i] built from the residuals themselves, eps(k) = (zeta_0(k) - sum_i c_i eps(k - i)) / b(k),
-/// with zeta_0 = y b - a the process terms' part of the fit's linear form (finish_uls) and the
+/// with zeta_0 = y b - a the process terms' part of the fit's linear form (linear_form) and the
 /// residuals before the first row zero, as the passes take them. A plain pass turns the residuals
 /// by C(q) - 1 once, so its error shrinks only by |C - 1| per pass, slowest at the frequencies
 /// where that is near 1 (docs/validation.md has the passes it took); these residuals are that
@@ -101,17 +144,9 @@ std::optional<Eigen::VectorXd> self_consistent_residuals(const Eigen::Ref<const 
   const Index n = x.rows(), n_e = theta.size() - p;
   const Eigen::VectorXd c = theta.tail(n_e);
   if (!minimum_phase(c)) return std::nullopt;
-  Eigen::VectorXd zeta = y;
-  Eigen::VectorXd b = Eigen::VectorXd::Ones(n);
-  for (Index j = 0; j < p; ++j) {
-    const Index f = factor_index(rational, j);
-    if (f < 0) {
-      zeta.noalias() -= theta(j) * x.col(j);
-    } else {
-      b.noalias() += theta(j) * factors.col(f);
-      zeta.noalias() += theta(j) * x.col(j);
-    }
-  }
+  std::vector<Index> columns(static_cast<std::size_t>(p));
+  std::iota(columns.begin(), columns.end(), Index{0});
+  const auto [zeta, b] = linear_form(x, y, columns, theta.head(p), rational, factors);
   Eigen::VectorXd eps(n);
   for (Index k = 0; k < n; ++k) {
     double value = zeta(k);
@@ -444,35 +479,9 @@ UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   const Index p = static_cast<Index>(columns.size());
   UlsResult out = solved_terms(solution, labels, columns);
 
-  // a(k), b(k) and zeta(k) = y b - a without copying the columns. Row blocks outermost: the
-  // block's accumulators stay in cache while each column segment streams through once, so the
-  // pass reads every column once instead of re-reading three N-vectors per column (the selection
-  // runs this once per candidate model; at N = 1e6 it is memory-bound).
-  Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
-  Eigen::VectorXd b = Eigen::VectorXd::Ones(n);
-  Eigen::VectorXd lin = Eigen::VectorXd::Zero(n);  // sum theta_j phi_lin,j
+  const auto [zeta, b] = linear_form(phi, y, columns, solution.theta, rational, factors);
   std::vector<Index> fidx(static_cast<std::size_t>(p), -1);
   for (Index j = 0; j < p; ++j) fidx[static_cast<std::size_t>(j)] = factor_index(rational, columns[j]);
-  constexpr Index kResidualBlock = 1024;
-  for (Index k0 = 0; k0 < n; k0 += kResidualBlock) {
-    const Index rows = std::min(kResidualBlock, n - k0);
-    auto a_blk = a.segment(k0, rows);
-    auto b_blk = b.segment(k0, rows);
-    auto lin_blk = lin.segment(k0, rows);
-    for (Index j = 0; j < p; ++j) {
-      const Index c = columns[j];
-      const double th = solution.theta[j];
-      const Index f = fidx[static_cast<std::size_t>(j)];
-      if (f < 0) {
-        a_blk.noalias() += th * phi.col(c).segment(k0, rows);
-      } else {
-        b_blk.noalias() += th * factors.col(f).segment(k0, rows);
-        lin_blk.noalias() -= th * phi.col(c).segment(k0, rows);
-      }
-    }
-  }
-  lin += a;
-  const Eigen::VectorXd zeta = y - lin;
   // eps = zeta / b: for raw rows the same as y - a / b (there c_j = y p_b,j, so y b - a = zeta),
   // and still right for rows through the noise model's A(q) (prewhitening.hpp), where the filtered
   // c_j is not the filtered y times the (unfiltered) factor: y - a / b there leaves a misfit that

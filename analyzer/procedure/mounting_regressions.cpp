@@ -40,44 +40,47 @@ bool MountingRegressions::combines(const Term& term) const {
 }
 
 void MountingRegressions::whiten_missing(std::span<const Term> terms) const {
+  // Each new term's expansion once, and the monomials it needs that are not whitened yet.
+  std::vector<Term> new_terms;
   std::vector<Key> missing;
   for (const Term& term : terms) {
-    if (!combines(term)) continue;
+    if (!combines(term) || expanded_.contains(term) || std::find(new_terms.begin(), new_terms.end(), term) != new_terms.end())
+      continue;
+    new_terms.push_back(term);
+    // A square's monomials pass the squares' high pass with it.
     const bool through_highpass = square_corner_.has_value() && is_square_term(term);
-    const ident::FrameExpansion expansion(term);
-    for (const Term& monomial : expansion.monomials()) {
+    Expanded& e = expanded_.emplace(term, Expanded{ident::FrameExpansion(term), {}, {}}).first->second;
+    for (const Term& monomial : e.expansion.monomials()) {
       Key key{monomial, through_highpass};
-      if (!column_of_.contains(key) && std::find(missing.begin(), missing.end(), key) == missing.end()) missing.push_back(std::move(key));
+      if (!column_of_.contains(key) && std::find(missing.begin(), missing.end(), key) == missing.end()) missing.push_back(key);
+      e.keys.push_back(std::move(key));
     }
   }
-  if (missing.empty() && frame_) return;
-  // The monomials hold no sensor-frame variable: the stack's M_C^S does not enter them.
-  std::vector<Term> monomials;
-  std::vector<Eigen::Index> highpassed;
-  for (const auto& [monomial, through_highpass] : missing) {
-    if (through_highpass) highpassed.push_back(static_cast<Eigen::Index>(monomials.size()));
-    monomials.push_back(monomial);
+  if (!missing.empty() || !frame_) {
+    // The monomials hold no sensor-frame variable: the stack's M_C^S does not enter them.
+    std::vector<Term> monomials;
+    std::vector<Eigen::Index> highpassed;
+    for (const auto& [monomial, through_highpass] : missing) {
+      if (through_highpass) highpassed.push_back(static_cast<Eigen::Index>(monomials.size()));
+      monomials.push_back(monomial);
+    }
+    StackedRegression s = stack_regressions(monomials, stack_inputs(m_, frames::Dcm::Identity()), data_.t_ref, label_, first_row_);
+    if (!highpassed.empty()) highpass_columns(s.phi, highpassed, s.cases, data_, *square_corner_);
+    whitener_.apply(s);
+    for (std::size_t j = 0; j < missing.size(); ++j) {
+      columns_.emplace_back(s.phi.col(static_cast<Eigen::Index>(j)));
+      column_of_.emplace(missing[j], &columns_.back());
+    }
+    if (!frame_) {
+      s.phi.resize(s.y.size(), 0);
+      s.labels.clear();
+      frame_ = std::move(s);
+    }
   }
-  StackedRegression s = stack_regressions(monomials, stack_inputs(m_, frames::Dcm::Identity()), data_.t_ref, label_, first_row_);
-  if (!highpassed.empty()) highpass_columns(s.phi, highpassed, s.cases, data_, *square_corner_);
-  whitener_.apply(s);
-  for (std::size_t j = 0; j < missing.size(); ++j) {
-    columns_.emplace_back(s.phi.col(static_cast<Eigen::Index>(j)));
-    column_of_.emplace(missing[j], &columns_.back());
+  for (const Term& term : new_terms) {
+    Expanded& e = expanded_.at(term);
+    for (const Key& key : e.keys) e.columns.push_back(column_of_.at(key));
   }
-  if (!frame_) {
-    s.phi.resize(s.y.size(), 0);
-    s.labels.clear();
-    frame_ = std::move(s);
-  }
-}
-
-const MountingRegressions::Expanded& MountingRegressions::expanded(const Term& term) const {
-  if (const auto found = expanded_.find(term); found != expanded_.end()) return found->second;
-  const bool through_highpass = square_corner_.has_value() && is_square_term(term);
-  Expanded e{ident::FrameExpansion(term), {}};
-  for (const Term& monomial : e.expansion.monomials()) e.columns.push_back(column_of_.at(Key{monomial, through_highpass}));
-  return expanded_.emplace(term, std::move(e)).first->second;
 }
 
 StackedRegression MountingRegressions::whitened(std::span<const Term> terms, const frames::Dcm& m_cs) const {
@@ -102,7 +105,7 @@ StackedRegression MountingRegressions::whitened(std::span<const Term> terms, con
     const std::lock_guard lock(mutex_);
     whiten_missing(terms);
     for (std::size_t j = 0; j < terms.size(); ++j)
-      if (combines(terms[j])) combined[j] = &expanded(terms[j]);
+      if (combines(terms[j])) combined[j] = &expanded_.at(terms[j]);
     out.y = frame_->y;
     out.cases = frame_->cases;
   }

@@ -66,14 +66,15 @@ class MountingRegressions {
   using Key = std::pair<ident::Term, bool>;
   struct Expanded {
     ident::FrameExpansion expansion;
-    std::vector<const Eigen::VectorXd*> columns;   // the whitened column of each monomial
+    std::vector<Key> keys;                          // each monomial's column key
+    std::vector<const Eigen::VectorXd*> columns;   // and its whitened column
   };
 
   [[nodiscard]] bool combines(const ident::Term& term) const;
-  /// Whitens every monomial of `terms` not held yet. Caller holds mutex_.
+  /// Expands every term of `terms` that combines() and is not held yet, and whitens the
+  /// monomials not held yet: afterwards expanded_ holds each such term with its columns.
+  /// Caller holds mutex_.
   void whiten_missing(std::span<const ident::Term> terms) const;
-  /// The expansion of a term that combines() and its monomials' columns. Caller holds mutex_.
-  const Expanded& expanded(const ident::Term& term) const;
 
   const MountingCases& m_;
   const dataset::Dataset& data_;
