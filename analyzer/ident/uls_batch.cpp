@@ -6,6 +6,7 @@
 #include <limits>
 #include <numeric>
 #include <optional>
+#include <ranges>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -550,16 +551,18 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                                 std::to_string(p + n_e) + " parameters");
   const Eigen::MatrixXd all_factors = denominator_factors(phi, y, rational, labels);
 
-  // Work on a compact copy [Phi(:, cols), E]: the ELS passes rebuild E in place.
+  // Work on a compact copy [Phi(:, cols), E]: the ELS passes rebuild E in place. Without noise
+  // terms, columns that are Phi's first p are used where they are (no copy of the stack).
   const Index n = phi.rows();
-  Eigen::MatrixXd x(n, p + n_e);
+  const bool in_place = n_e == 0 && std::equal(cols.begin(), cols.end(), std::views::iota(Index{0}, p).begin());
+  Eigen::MatrixXd x(in_place ? 0 : n, in_place ? 0 : p + n_e);
   std::vector<std::string> xlabels;
   OutputMultiplied xr;
   std::vector<Index> xden_cols;  // columns of all_factors in xr order
   for (Index j = 0; j < p; ++j) {
     const Index c = cols[static_cast<std::size_t>(j)];
     if (c < 0 || c >= phi.cols()) throw std::invalid_argument("ULS: column index out of range");
-    x.col(j) = phi.col(c);
+    if (!in_place) x.col(j) = phi.col(c);
     xlabels.push_back(labels[static_cast<std::size_t>(c)]);
     const Index f = factor_index(rational, c);
     if (f >= 0) {
@@ -574,10 +577,11 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   std::iota(xcols.begin(), xcols.end(), Index{0});
 
   // Process-only fit first: it gives the residuals the noise columns are built from.
-  UlsStatistics stats =
-      UlsStatistics::from_data(x.leftCols(p), y, xr.columns, xf);
+  using ConstRef = Eigen::Ref<const Eigen::MatrixXd>;
+  const ConstRef process = in_place ? ConstRef(phi.leftCols(p)) : ConstRef(x.leftCols(p));
+  UlsStatistics stats = UlsStatistics::from_data(process, y, xr.columns, xf);
   UlsSolution sol = solve_uls(stats, xlabels, options);
-  UlsResult res = finish_uls(x.leftCols(p), y, xlabels, xcols, xr, xf, sol, options);
+  UlsResult res = finish_uls(process, y, xlabels, xcols, xr, xf, sol, options);
   if (n_e == 0) return res;
 
   // ELS: rebuild e[k-i] from the current residuals and refit until stable. Only the noise columns

@@ -185,7 +185,9 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       stack_columns[std::size_t(j)] = column;
     }
     x.leftCols(p) *= ident::linear_form_signs(p, output_multiplied).asDiagonal();   // the linear form
-    x.rightCols(searched.cols()) = searched;
+    const Eigen::Index n_searched = searched.cols();
+    x.rightCols(n_searched) = searched;
+    searched = Eigen::MatrixXd();   // x holds them now: one copy, not two, at this stage's peak
     if (spectra.empty()) {
       std::map<int, Eigen::Index> order;   // cluster id -> column of Z (ascending ids)
       for (const int id : h.layout->clusters) order.emplace(id, 0);
@@ -244,7 +246,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       in_meat.resize(static_cast<std::size_t>(p));
       std::iota(in_meat.begin(), in_meat.end(), Eigen::Index{0});
     }
-    const Eigen::Index q = searched.cols();
+    const Eigen::Index q = n_searched;
     coloured.meat = Eigen::MatrixXd::Zero(x.cols(), x.cols());
     coloured.meat.topLeftCorner(p, p) = terms_meat(in_meat, in_meat);
     if (q > 0) {
@@ -282,7 +284,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     }
     // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
     out.offsets = ident::cluster_offsets(cluster_sums, ident::GramFactor::from_rows(x), fit.residual_variance, 0, &coloured);
-    const Eigen::MatrixXd x_process = x.leftCols(p);
+    const auto x_process = x.leftCols(p);
     // Which terms live between the phases: little of their column varies within one.
     const std::vector<bool> phase_level = ident::phase_level_columns(cluster_sums, x_process.colwise().squaredNorm().transpose());
     // When the phases' means are all the model's columns say (every term constant within each
@@ -317,7 +319,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     }
     // The searched parameters' rows and columns have done their work (the terms' block of the
     // joint covariance includes them); what is reported is the terms'.
-    out.searched_covariance = out.offsets.covariance.bottomRightCorner(searched.cols(), searched.cols());
+    out.searched_covariance = out.offsets.covariance.bottomRightCorner(n_searched, n_searched);
     out.offsets.classical =
         fit.residual_variance * ident::gram(x_process).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
     for (Eigen::MatrixXd* m : {&out.offsets.within, &out.offsets.covariance}) *m = m->topLeftCorner(p, p).eval();
