@@ -378,6 +378,9 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   for (std::size_t i = 0; i < best.ranked_terms; ++i) {
     result.es_terms.push_back(es.labels[static_cast<std::size_t>(selected.ranking[i])]);
   }
+  // The F_E problem has done its work (the selection): every fit below is an F_S regression from
+  // `regressions`, and the rows are freed before the inference's buffers are taken.
+  f.es = StackedRegression();
   // The kept tilt corrects M_E^S (algorithm 1 on the model's sensitivities theta_i n_i + theta_p
   // n_p + theta_o n_o), and the selected terms are fitted without it on the F_S regression built
   // with the corrected M_E^S.
