@@ -113,38 +113,53 @@ SegmentSpectrum fitted_spectrum_through_ar(const Eigen::Ref<const Eigen::VectorX
   return out;
 }
 
+namespace {
+
+/// R x of one column through `fourier` (its length the spectrum's): the circulant of length
+/// L >= 2n restricted to the first n rows and columns is the Toeplitz R, so the first n samples
+/// of the circular convolution of the zero-padded column are R x.
+template <class Column, class Out>
+void covariance_column(RealFourier& fourier, const SegmentSpectrum& spectrum, const Column& column, Out&& out) {
+  const Eigen::Index n = column.size();
+  fourier.samples().head(n) = column;
+  fourier.samples().tail(spectrum.length - n).setZero();   // the inverse of the column before filled them
+  fourier.forward();
+  fourier.spectrum().array() *= spectrum.density.array();
+  fourier.inverse();
+  out = fourier.samples().head(n);
+}
+
+}  // namespace
+
 Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x) {
   if (x.rows() != spectrum.rows) throw std::invalid_argument("quadratic_form: rows differ from the spectrum's");
-  const Eigen::Index p = x.cols(), half = spectrum.length / 2;
-  Eigen::MatrixXcd weighted(half + 1, p);
-  // Each bin k in 1 .. L/2-1 stands for k and L-k (a real column's spectrum is symmetric).
-  Eigen::VectorXd weight(half + 1);
-  for (Eigen::Index k = 0; k <= half; ++k)
-    weight(k) = std::sqrt((k == 0 || k == half ? 1.0 : 2.0) * spectrum.density(k) / static_cast<double>(spectrum.length));
-  // The columns' transforms split over parallel::jobs() threads, each with its own transform
-  // (its plan cache) and buffers.
+  // x'(R x), R x a few columns at a time: the memory is a few columns per thread, not the
+  // columns' spectra (twice the columns' size), which on a long case were the run's peak.
+  constexpr Eigen::Index kBlock = 4;
+  const Eigen::Index p = x.cols(), blocks = (p + kBlock - 1) / kBlock;
+  Eigen::MatrixXd out(p, p);
+  // The blocks split over parallel::jobs() threads, each with its own transform (its plan cache)
+  // and buffers; a block's arithmetic does not depend on its thread.
 #ifdef _OPENMP
-#pragma omp parallel num_threads(parallel::threads_for(p))
+#pragma omp parallel num_threads(parallel::threads_for(blocks))
 #endif
   {
-    RealFourier fourier(spectrum.length);   // samples beyond the column's rows stay zero
+    RealFourier fourier(spectrum.length);
+    Eigen::MatrixXd r_x(x.rows(), std::min(kBlock, p));
 #ifdef _OPENMP
-#pragma omp for schedule(static)
+#pragma omp for schedule(dynamic, 1)
 #endif
-    for (Eigen::Index j = 0; j < p; ++j) {
-      fourier.samples().head(x.rows()) = x.col(j);
-      fourier.forward();
-      weighted.col(j) = fourier.spectrum().cwiseProduct(weight);
+    for (Eigen::Index b = 0; b < blocks; ++b) {
+      const Eigen::Index first = b * kBlock, count = std::min(kBlock, p - first);
+      for (Eigen::Index j = 0; j < count; ++j) covariance_column(fourier, spectrum, x.col(first + j), r_x.col(j));
+      out.middleCols(first, count).noalias() = x.transpose() * r_x.leftCols(count);
     }
   }
-  Eigen::MatrixXd out = (weighted.adjoint() * weighted).real();
   return 0.5 * (out + out.transpose());
 }
 
 Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x) {
   if (x.rows() != spectrum.rows) throw std::invalid_argument("covariance_times: rows differ from the spectrum's");
-  // The circulant of length L >= 2n restricted to the first n rows and columns is the Toeplitz R,
-  // so the first n samples of the circular convolution of the zero-padded column are R x.
   Eigen::MatrixXd out(x.rows(), x.cols());
   // The columns split over threads as in quadratic_form.
 #ifdef _OPENMP
@@ -155,14 +170,7 @@ Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::R
 #ifdef _OPENMP
 #pragma omp for schedule(static)
 #endif
-    for (Eigen::Index j = 0; j < x.cols(); ++j) {
-      fourier.samples().head(x.rows()) = x.col(j);
-      fourier.samples().tail(spectrum.length - x.rows()).setZero();   // the inverse of the column before filled them
-      fourier.forward();
-      fourier.spectrum().array() *= spectrum.density.array();
-      fourier.inverse();
-      out.col(j) = fourier.samples().head(x.rows());
-    }
+    for (Eigen::Index j = 0; j < x.cols(); ++j) covariance_column(fourier, spectrum, x.col(j), out.col(j));
   }
   return out;
 }

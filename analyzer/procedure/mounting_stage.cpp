@@ -161,6 +161,7 @@ class MisalignmentHook final : public ident::FitHook {
     for (std::size_t c = model_terms; c < s_terms.size(); ++c) stage.kept.push_back(static_cast<Eigen::Index>(c));
     if (tilts_.size() < j) tilts_.resize(j);
     tilts_[j - 1] = ident::to_strings(tilts);
+    stage.phi.resize(0, 0);   // the stage before's rows: freed before this one's are built
     StackedRegression s = regressions_.whitened(s_terms, m_cs);
     stage.phi = std::move(s.phi);
     stage.y = std::move(s.y);

@@ -1,8 +1,8 @@
 #include "analyzer/procedure/prewhitening.hpp"
 
 #include <algorithm>
-
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "common/parallel.hpp"
@@ -135,6 +135,23 @@ void filter_columns(const Eigen::VectorXd& a, Eigen::MatrixXd& x, const std::vec
   }
 }
 
+/// Keeps x's first `rows` rows in place. conservativeResize of a column-major matrix's rows
+/// builds a new matrix and copies into it, for a moment holding the stack twice (the whitened
+/// batch's refits made that the run's peak). Here each column's leading rows move down to where a
+/// matrix of `rows` rows keeps them, and the buffer shrinks by realloc: Eigen leaves the
+/// coefficients unchanged when resize() keeps their number, and conservativeResize() of a
+/// column-major matrix that keeps its rows reallocates.
+void keep_leading_rows(Eigen::MatrixXd& x, Eigen::Index rows) {
+  const Eigen::Index n = x.rows(), cols = x.cols();
+  if (rows >= n) return;
+  double* data = x.data();
+  for (Eigen::Index j = 1; j < cols; ++j)
+    std::memmove(data + j * rows, data + j * n, static_cast<std::size_t>(rows) * sizeof(double));
+  x.resize(1, n * cols);
+  x.conservativeResize(1, rows * cols);
+  x.resize(rows, cols);
+}
+
 Eigen::Index total_rows(const std::vector<CaseRows>& cases) {
   Eigen::Index rows = 0;
   for (const CaseRows& c : cases) rows += c.rows;
@@ -163,9 +180,9 @@ void ArWhitener::apply(StackedRegression& s) const {
     }
   }
   const Eigen::Index out = total_rows(cases);
-  s.phi.conservativeResize(out, Eigen::NoChange);
+  keep_leading_rows(s.phi, out);
   s.y.conservativeResize(out);
-  if (s.rational.factors.rows() > 0) s.rational.factors.conservativeResize(out, Eigen::NoChange);
+  if (s.rational.factors.rows() > 0) keep_leading_rows(s.rational.factors, out);
   s.cases = std::move(cases);
 }
 
@@ -174,7 +191,7 @@ void ArWhitener::apply_to_columns(Eigen::MatrixXd& x, const std::vector<CaseRows
   if (m == 0) return;
   const std::vector<CaseRows> filtered = filtered_layout(cases, m);
   filter_columns(a_, x, cases, filtered);
-  x.conservativeResize(total_rows(filtered), Eigen::NoChange);
+  keep_leading_rows(x, total_rows(filtered));
 }
 
 }  // namespace inertia::procedure
