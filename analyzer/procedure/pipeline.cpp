@@ -12,6 +12,11 @@ namespace inertia::procedure {
 
 PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions& options,
                             std::string_view dataset_label) {
+  return identify_batch(run_mounting_stages(data, options, dataset_label), data, options, dataset_label);
+}
+
+PipelineResult run_mounting_stages(const dataset::Dataset& data, const PipelineOptions& options,
+                                   std::string_view dataset_label) {
   check_plan(data, options, dataset_label);
   PipelineResult result;
   result.cases.resize(data.cases.size());
@@ -42,9 +47,7 @@ PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions&
       break;
     }
   }
-
-  // Blocks 7-11.
-  return identify_batch(std::move(result), data, options, dataset_label);
+  return result;
 }
 
 }  // namespace inertia::procedure

@@ -22,9 +22,16 @@
 
 namespace inertia::procedure {
 
-/// Runs blocks 5-11 on `data`. Throws InputError for bad input (missing columns, bad options) and
-/// std::runtime_error when nothing can be identified (the message names the terms involved).
+/// Runs blocks 5-11 on `data`: identify_batch(run_mounting_stages(...)). Throws InputError for bad
+/// input (missing columns, bad options) and std::runtime_error when nothing can be identified (the
+/// message names the terms involved).
 PipelineResult run_pipeline(const dataset::Dataset& data, const PipelineOptions& options,
                             std::string_view dataset_label);
+
+/// Blocks 5-6 alone: the plan checked, every mounting's algorithm 2, each case's M_E^S. They read
+/// no batch option (options.batch, batch_square_highpass), so runs that differ only in the batch
+/// model can share them and call identify_batch (batch_stage.hpp) on each.
+PipelineResult run_mounting_stages(const dataset::Dataset& data, const PipelineOptions& options,
+                                   std::string_view dataset_label);
 
 }  // namespace inertia::procedure

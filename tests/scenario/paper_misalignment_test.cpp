@@ -30,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "analyzer/procedure/batch_stage.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/pipeline.hpp"
 #include "common/config/bench_config.hpp"
@@ -136,6 +137,17 @@ TEST(PaperMisalignment, BatchRecoversTheQuadraticCoefficients) {
     std::printf("batch %s: %.6g (truth %.6g)\n", name.c_str(), estimate, value);
     EXPECT_NEAR(estimate, value, (name == "a_i" ? 1e-3 : 0.15) * std::abs(value)) << name;
   }
+
+  // Blocks 5-6 read no batch option: mountings estimated under another batch model give the
+  // batch the same frames (reproduce-paper shares them between its cases (2) and (3)).
+  PipelineOptions other = p;
+  other.batch.fixed_terms = {"1", "a_i"};
+  other.batch_square_highpass = !p.batch_square_highpass;
+  const auto shared = inertia::procedure::identify_batch(inertia::procedure::run_mounting_stages(data, other, "paper"), data, p, "paper");
+  ASSERT_EQ(shared.fit.labels, result.fit.labels);
+  EXPECT_LE((shared.fit.theta - result.fit.theta).norm(), 1e-12 * result.fit.theta.norm());
+  for (std::size_t c = 0; c < data.cases.size(); ++c)
+    EXPECT_LE((shared.cases[c].m_es - result.cases[c].m_es).norm(), 1e-12) << data.cases[c].name;
 }
 
 }  // namespace
