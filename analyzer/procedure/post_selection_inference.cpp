@@ -221,7 +221,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     if (h.placements) placed = h.placements(fit);
     if (placed.cols() > 0 && placed.rows() != s.phi.rows()) throw std::logic_error("infer_after_selection: placements of another stack");
     // R m for columns m over the stack's rows: each case of the plan under its own spectrum.
-    const auto noise_times = [&](const Eigen::MatrixXd& m) {
+    const auto noise_times = [&](const Eigen::Ref<const Eigen::MatrixXd>& m) {
       Eigen::MatrixXd out = Eigen::MatrixXd::Zero(m.rows(), m.cols());
       for (std::size_t r = 0; r < spectra.size(); ++r) {
         const CaseRows& run = h.layout->noise_runs[r];
@@ -250,10 +250,17 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     coloured.meat = Eigen::MatrixXd::Zero(x.cols(), x.cols());
     coloured.meat.topLeftCorner(p, p) = terms_meat(in_meat, in_meat);
     if (q > 0) {
-      const Eigen::MatrixXd r_searched = noise_times(x.rightCols(q));
-      coloured.meat.topRightCorner(p, q) = ident::cross_product(x.leftCols(p), r_searched);
-      coloured.meat.bottomLeftCorner(q, p) = coloured.meat.topRightCorner(p, q).transpose();
-      const Eigen::MatrixXd searched_meat = ident::cross_product(x.rightCols(q), r_searched);
+      // X'R S and S'R S a noise run at a time: R S for one run's rows, not for the stack's.
+      Eigen::MatrixXd terms_searched = Eigen::MatrixXd::Zero(p, q), searched_meat = Eigen::MatrixXd::Zero(q, q);
+      for (std::size_t r = 0; r < spectra.size(); ++r) {
+        const CaseRows& run = h.layout->noise_runs[r];
+        const auto searched_rows = x.rightCols(q).middleRows(run.begin, run.rows);
+        const Eigen::MatrixXd r_searched = noise::covariance_times(spectra[r], searched_rows);
+        terms_searched += ident::cross_product(x.leftCols(p).middleRows(run.begin, run.rows), r_searched);
+        searched_meat += ident::cross_product(searched_rows, r_searched);
+      }
+      coloured.meat.topRightCorner(p, q) = terms_searched;
+      coloured.meat.bottomLeftCorner(q, p) = terms_searched.transpose();
       coloured.meat.bottomRightCorner(q, q) = 0.5 * (searched_meat + searched_meat.transpose());
     }
     coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
