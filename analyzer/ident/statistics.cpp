@@ -243,7 +243,22 @@ Eigen::MatrixXd inverse_gram_factor(const Eigen::Ref<const Eigen::MatrixXd>& x) 
   Eigen::VectorXd scale = x.colwise().norm().transpose();
   for (Eigen::Index j = 0; j < p; ++j)
     if (!(scale(j) > 0.0)) scale(j) = 1.0;
-  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(x * scale.cwiseInverse().asDiagonal());
+  // The triangular factor of X S^-1 by blocks of rows, each block's QR taken under the factor so
+  // far: the QR of the whole to rounding (a tall-skinny QR), holding one block, not a copy of X.
+  // The column pivoting then acts on that p x p factor, whose columns have X S^-1's norms.
+  constexpr Eigen::Index kBlockRows = 4096;
+  const Eigen::Index n = x.rows();
+  Eigen::MatrixXd stacked = Eigen::MatrixXd::Zero(std::min(n, kBlockRows) + p, p);
+  Eigen::Index held = 0;   // rows of the factor so far at the top of `stacked`
+  for (Eigen::Index k0 = 0; k0 < n; k0 += kBlockRows) {
+    const Eigen::Index rows = std::min(kBlockRows, n - k0);
+    stacked.middleRows(held, rows) = x.middleRows(k0, rows) * scale.cwiseInverse().asDiagonal();
+    const Eigen::HouseholderQR<Eigen::MatrixXd> block(stacked.topRows(held + rows));
+    held = std::min(held + rows, p);
+    stacked.topRows(held) = block.matrixQR().topRows(held).triangularView<Eigen::Upper>();
+  }
+  stacked.middleRows(held, p - held).setZero();   // fewer rows than columns: the missing ones are zero
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(stacked.topRows(p));
   Eigen::MatrixXd r = qr.matrixR().topLeftCorner(p, p).triangularView<Eigen::Upper>();
   // A dependent column gets an enormous variance, not an infinite one (as an LDLT of X'X gives).
   const double floor = p > 0 ? 1e-15 * std::abs(r(0, 0)) : 0.0;
@@ -256,8 +271,15 @@ Eigen::MatrixXd inverse_gram_factor(const Eigen::Ref<const Eigen::MatrixXd>& x) 
 
 /// (X'X)^-1 M (X'X)^-1 with B from inverse_gram_factor.
 Eigen::MatrixXd sandwich(const Eigen::MatrixXd& b, const Eigen::MatrixXd& meat) {
-  const Eigen::MatrixXd out = b.transpose() * (b * meat * b.transpose()) * b;
-  return 0.5 * (out + out.transpose());
+  // B M B' = C C' (its eigenvalues below zero, rounding of a semidefinite meat, dropped), and the
+  // sandwich the Gram of B'C: semidefinite by construction, where B'(B M B')B, on a nearly
+  // dependent design (B's entries large), cancels to rounding noise of either sign.
+  Eigen::MatrixXd inner = b * meat * b.transpose();
+  inner = 0.5 * (inner + inner.transpose()).eval();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(inner);
+  const Eigen::MatrixXd c = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  const Eigen::MatrixXd bc = b.transpose() * c;
+  return bc * bc.transpose();
 }
 }  // namespace
 
