@@ -612,7 +612,10 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& gra
   out.theta = (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() * eig.eigenvectors().transpose() * rhs)
                   .cwiseQuotient(scale);
   const Eigen::MatrixXd b = GramFactor::from_gram(a, sums.rows.sum()).inverse_factor;
-  Eigen::MatrixXd noise_meat = sigma2 * twice;   // X2'RX2
+  // X2'RX2 with R white within a cluster and the clusters' sums of covariance S: X2 = D + M, D the
+  // rows' deviations from their cluster's mean and M the weighed means, so the meat is
+  // sigma2 D'D + W S W' (D'M = 0, M'M = W N W'), semidefinite as the sandwich takes it.
+  Eigen::MatrixXd noise_meat = sigma2 * twice;
   if (sums_covariance != nullptr) {
     const Eigen::MatrixXd between = weighed_means * sums.rows.asDiagonal() * weighed_means.transpose();   // S2 N^-1 S2'
     noise_meat += weighed_means * *sums_covariance * weighed_means.transpose() - sigma2 * between;

@@ -31,9 +31,11 @@ Index factor_index(const OutputMultiplied& rational, Index column) {
 
 /// The fit's linear form for the coefficients `theta` of phi's `columns`: b(k) = 1 + the
 /// output-multiplied terms' theta_j p_b,j(k), and zeta(k) = y b - a, a(k) the other terms' sum
-/// (ident/uls.hpp); the residual is zeta / b.
+/// (ident/uls.hpp); the residual is zeta / b. factor_of(j): the index in `factors` of the j-th
+/// column's output factor p_b,j, or -1 for a column that does not multiply the output.
 struct LinearForm {
   Eigen::VectorXd zeta, b;
+  std::vector<Index> factor_of;
 };
 
 LinearForm linear_form(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
@@ -69,7 +71,7 @@ LinearForm linear_form(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen
     }
   }
   lin += a;
-  return {y - lin, std::move(b)};
+  return {y - lin, std::move(b), std::move(fidx)};
 }
 
 // Rows per block in the data passes that build p x p products, so the temporaries stay small
@@ -147,7 +149,9 @@ std::optional<Eigen::VectorXd> self_consistent_residuals(const Eigen::Ref<const 
   if (!minimum_phase(c)) return std::nullopt;
   std::vector<Index> columns(static_cast<std::size_t>(p));
   std::iota(columns.begin(), columns.end(), Index{0});
-  const auto [zeta, b] = linear_form(x, y, columns, theta.head(p), rational, factors);
+  const LinearForm form = linear_form(x, y, columns, theta.head(p), rational, factors);
+  const Eigen::VectorXd& zeta = form.zeta;
+  const Eigen::VectorXd& b = form.b;
   Eigen::VectorXd eps(n);
   for (Index k = 0; k < n; ++k) {
     double value = zeta(k);
@@ -480,9 +484,7 @@ UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   const Index p = static_cast<Index>(columns.size());
   UlsResult out = solved_terms(solution, labels, columns);
 
-  const auto [zeta, b] = linear_form(phi, y, columns, solution.theta, rational, factors);
-  std::vector<Index> fidx(static_cast<std::size_t>(p), -1);
-  for (Index j = 0; j < p; ++j) fidx[static_cast<std::size_t>(j)] = factor_index(rational, columns[j]);
+  const auto [zeta, b, fidx] = linear_form(phi, y, columns, solution.theta, rational, factors);
   // eps = zeta / b: for raw rows the same as y - a / b (there c_j = y p_b,j, so y b - a = zeta),
   // and still right for rows through the noise model's A(q) (prewhitening.hpp), where the filtered
   // c_j is not the filtered y times the (unfiltered) factor: y - a / b there leaves a misfit that

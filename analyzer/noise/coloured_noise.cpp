@@ -134,7 +134,7 @@ void covariance_column(RealFourier& fourier, const SegmentSpectrum& spectrum, co
 Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x) {
   if (x.rows() != spectrum.rows) throw std::invalid_argument("quadratic_form: rows differ from the spectrum's");
   // x'(R x), R x a few columns at a time: the memory is a few columns per thread, not the
-  // columns' spectra (twice the columns' size), which on a long case were the run's peak.
+  // columns' spectra (twice the columns' size).
   constexpr Eigen::Index kBlock = 4;
   const Eigen::Index p = x.cols(), blocks = (p + kBlock - 1) / kBlock;
   Eigen::MatrixXd out(p, p);

@@ -136,8 +136,7 @@ void filter_columns(const Eigen::VectorXd& a, Eigen::MatrixXd& x, const std::vec
 }
 
 /// Keeps x's first `rows` rows in place. conservativeResize of a column-major matrix's rows
-/// builds a new matrix and copies into it, for a moment holding the stack twice (the whitened
-/// batch's refits made that the run's peak). Here each column's leading rows move down to where a
+/// builds a new matrix and copies into it, for a moment holding the stack twice. Here each column's leading rows move down to where a
 /// matrix of `rows` rows keeps them, and the buffer shrinks by realloc: Eigen leaves the
 /// coefficients unchanged when resize() keeps their number, and conservativeResize() of a
 /// column-major matrix that keeps its rows reallocates.
