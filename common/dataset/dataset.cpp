@@ -13,6 +13,7 @@
 #include <cstring>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <system_error>
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -25,6 +26,7 @@
 #include "common/dataset/huge_pages.hpp"
 #include "common/disk_space.hpp"
 #include "common/input_error.hpp"
+#include "common/parallel.hpp"
 #include "common/units.hpp"
 
 namespace inertia::dataset {
@@ -250,10 +252,11 @@ void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostrea
     }
     const char* f = q;
     for (std::size_t c = 0; c < columns.size(); ++c) {
-      const SourcePosition here{name, line, c + 1};
+      // Built only for an error: a position holds the file's name, and rows run to millions.
+      const auto here = [&] { return SourcePosition{name, line, c + 1}; };
       if (c > 0) {
         if (f >= le || *f != ',') {
-          throw InputError(here, fmt::format("row has {} fields, the header has {}: column '{}' is missing",
+          throw InputError(here(), fmt::format("row has {} fields, the header has {}: column '{}' is missing",
                                              c, columns.size(), column_names[c]));
         }
         ++f;
@@ -267,15 +270,15 @@ void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostrea
         const char* after = ptr;
         while (after < le && is_blank(*after)) ++after;
         if (ec == std::errc::result_out_of_range) {
-          throw InputError(here, fmt::format("number out of range in column '{}': '{}'", column_names[c],
+          throw InputError(here(), fmt::format("number out of range in column '{}': '{}'", column_names[c],
                                              field_text(start, le)));
         }
         if (ec != std::errc() || ptr == f || (after < le && *after != ',')) {
-          throw InputError(here, fmt::format("not a number in column '{}': '{}'", column_names[c],
+          throw InputError(here(), fmt::format("not a number in column '{}': '{}'", column_names[c],
                                              field_text(start, le)));
         }
         if (!std::isfinite(v)) {
-          throw InputError(here, fmt::format("{} in column '{}': every value must be finite", field_text(start, le),
+          throw InputError(here(), fmt::format("{} in column '{}': every value must be finite", field_text(start, le),
                                              column_names[c]));
         }
         d[row] = v;
@@ -289,7 +292,7 @@ void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostrea
             const auto it = std::find(out.phase_names.begin(), out.phase_names.end(), label);
             if (it == out.phase_names.end()) {
               if (out.phase_names.size() > 0xFFFF) {
-                throw InputError(here, "more than 65536 distinct phase labels");
+                throw InputError(here(), "more than 65536 distinct phase labels");
               }
               out.phase_names.emplace_back(label);
               last_phase = out.phase_names.size() - 1;
@@ -502,6 +505,7 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
   if (cases == nullptr || cases->empty() || !cases->is_array_of_tables()) {
     throw InputError(position_of(cases_node, file), "'case' must be one or more [[case]] tables");
   }
+  std::vector<std::filesystem::path> csv_files;
   for (const toml::node& node : *cases) {
     const toml::table& table = *node.as_table();
     CaseData c;
@@ -566,9 +570,17 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
       throw InputError(position_of(*table.get("file"), file),
                        fmt::format("case '{}': file '{}' not found", c.name, csv.string()));
     }
-    read_case_csv(csv, c, warnings);
+    csv_files.push_back(csv);
     data.cases.push_back(std::move(c));
   }
+  // The cases' files side by side, after every check of dataset.toml; the first error by case
+  // order is the one thrown, and the warnings come in case order, as one after the other gives.
+  std::vector<std::ostringstream> case_warnings(csv_files.size());
+  parallel::for_each_index(static_cast<long>(csv_files.size()), [&](long i) {
+    const auto at = static_cast<std::size_t>(i);
+    read_case_csv(csv_files[at], data.cases[at], case_warnings[at]);
+  });
+  for (const std::ostringstream& w : case_warnings) warnings << w.str();
   return data;
 }
 

@@ -1,5 +1,6 @@
 // Dataset folder contract (docs/design.md, "Dataset folder"): round trip, deterministic bytes, and a
 // file:line:column for every kind of bad CSV or dataset.toml.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <string>
 
 #include "common/dataset/dataset.hpp"
+#include "common/parallel.hpp"
 #include "common/disk_space.hpp"
 #include "common/input_error.hpp"
 
@@ -262,6 +264,53 @@ INSTANTIATE_TEST_SUITE_P(
         BadCsv{"blank_line_inside", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n\n0.2,1,2,3,4\n", 3, 0, "empty line"},
         BadCsv{"duplicate_column", "t,a_x,a_y,a_z,y,a_x\n0,1,2,3,4,5\n", 1, 6, "duplicate column 'a_x'"}),
     [](const ::testing::TestParamInfo<BadCsv>& info) { return std::string(info.param.name); });
+
+// Four cases, their files read side by side: the same data and warnings, in case order, as one
+// thread gives; with two bad files the error is the first case's, whichever thread ends first.
+TEST(Dataset, CasesReadSideBySideGiveTheSerialDataWarningsAndFirstError) {
+  const fs::path dir = fresh_dir("side_by_side");
+  std::string toml = "sensor = \"accelerometer\"\noutput_unit = \"mA\"\nt_ref = 25.0\n";
+  for (int i = 0; i < 4; ++i) {
+    toml += fmt::format("[[case]]\nname = \"c{0}\"\nkind = \"shaker\"\nfile = \"c{0}.csv\"\n"
+                        "m_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n", i);
+    std::string csv = fmt::format("t,a_x,a_y,a_z,y,extra{}\n", i);
+    for (int k = 0; k < 2000; ++k) csv += fmt::format("{},{},{},{},{},?\n", 0.001 * k, i + k, 2 * k, 3 * k, 0.5 * k - i);
+    spit(dir / fmt::format("c{}.csv", i), csv);
+  }
+  spit(dir / "dataset.toml", toml);
+  const auto read_with = [&](int jobs, std::string& warnings_text) {
+    parallel::set_jobs(jobs);
+    std::ostringstream warnings;
+    Dataset d = read_dataset(dir, warnings);
+    parallel::set_jobs(1);
+    warnings_text = warnings.str();
+    return d;
+  };
+  std::string serial_warnings, parallel_warnings;
+  const Dataset serial = read_with(1, serial_warnings);
+  const Dataset side_by_side = read_with(4, parallel_warnings);
+  ASSERT_EQ(side_by_side.cases.size(), 4U);
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(side_by_side.cases[i].a_e, serial.cases[i].a_e);
+    EXPECT_EQ(side_by_side.cases[i].y, serial.cases[i].y);
+    EXPECT_EQ(side_by_side.cases[i].a_e(7, 0), static_cast<double>(i + 7));
+  }
+  EXPECT_EQ(parallel_warnings, serial_warnings);
+  EXPECT_LT(parallel_warnings.find("extra0"), parallel_warnings.find("extra3")) << parallel_warnings;
+
+  // c1 fails at its last row, c3 at its first: c1's error, though c3's comes first in time.
+  std::string c1 = slurp(dir / "c1.csv");
+  c1 += "9,1,2,x,4,?\n";
+  spit(dir / "c1.csv", c1);
+  spit(dir / "c3.csv", "t,a_x,a_y,a_z,y\n0,1,2,3,abc\n");
+  for (const int jobs : {1, 4}) {
+    parallel::set_jobs(jobs);
+    const InputError e = read_error(dir);
+    parallel::set_jobs(1);
+    EXPECT_EQ(e.where().file, (dir / "c1.csv").string()) << e.what();
+    EXPECT_EQ(e.where().line, 2002U) << e.what();
+  }
+}
 
 TEST(Dataset, TrailingBlankLinesAreAllowed) {
   const fs::path dir = folder_with_csv("trailing", "t,a_x,a_y,a_z,y\n0,1,2,3,4\n0.1,1,2,3,5\n\n\n");
