@@ -9,6 +9,7 @@
 
 #include "common/dataset/huge_pages.hpp"
 #include "common/input_error.hpp"
+#include "common/parallel.hpp"
 
 namespace inertia::ident {
 
@@ -152,19 +153,22 @@ void fill_regressors(std::span<const Term> terms, const SignalSet& signals, Eige
     throw std::invalid_argument(fmt::format("fill_regressors: phi is {}x{}, expected {}x{}", phi.rows(), phi.cols(),
                                             rows, terms.size()));
   }
-  for (std::size_t j = 0; j < terms.size(); ++j) {
+  // The columns are independent: filled on the --jobs threads (each also takes its pages' first
+  // touch, which on a long record costs as much as the products).
+  parallel::for_each_index(static_cast<long>(terms.size()), [&](long index) {
+    const auto j = static_cast<std::size_t>(index);
     auto col = phi.col(static_cast<Eigen::Index>(j));
     const auto& factors = terms[j].factors();
     if (factors.empty()) {
       col.setOnes();
-      continue;
+      return;
     }
     // Row r is sample first_row + r; a factor lagged by L reads sample first_row + r - L.
     for (std::size_t i = 0; i < factors.size(); ++i) {
       const Factor& f = factors[i];
       apply_factor(col, signals.get(f.variable).segment(first_row - f.lag, rows), f, i == 0);
     }
-  }
+  });
 }
 
 Regression build_regression(std::span<const Term> terms, const SignalSet& signals, Eigen::Index min_first_row) {

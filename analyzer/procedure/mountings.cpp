@@ -5,6 +5,8 @@
 
 #include <algorithm>
 
+#include "common/parallel.hpp"
+
 namespace inertia::procedure {
 
 MountingGroups group_mountings(const std::vector<MountingKey>& cases, dataset::SensorKind sensor,
@@ -71,15 +73,18 @@ MountingCases mounting_cases(const dataset::Dataset& data, const std::vector<std
                              const PipelineOptions& options, std::optional<double> known_bias) {
   MountingCases m;
   m.indices = indices;
-  for (std::size_t index : indices) {
-    dataset::CaseData c = data.cases.at(index);
+  m.cases.resize(indices.size());
+  parallel::for_each_index(static_cast<long>(indices.size()), [&](long i) {
+    dataset::CaseData& c = m.cases[static_cast<std::size_t>(i)];
+    c = data.cases.at(indices[static_cast<std::size_t>(i)]);
     c.a_e = c.a_e * c.m_ec.transpose();   // rows: (M_E^C a_E)^T
     if (c.w_e) *c.w_e = *c.w_e * c.m_ec.transpose();
     c.m_ec = frames::Dcm::Identity();
     if (known_bias) c.y.array() -= *known_bias;
+  });
+  for (const dataset::CaseData& c : m.cases) {
     m.kind.add_case(c.kind);
     m.weights.push_back(case_weight(options, c));
-    m.cases.push_back(std::move(c));
   }
   return m;
 }
