@@ -100,12 +100,12 @@ bool plot(const std::filesystem::path& dir, const noise::NoiseAnalysis& a, const
   {
     std::ofstream g(dir / "noise.gp");
     g << "set terminal pngcairo size 900,600\nset logscale xy\nset grid\n";
-    g << "set output '" << (dir / "adev.png").string() << "'\n";
+    g << "set output 'adev.png'\n";   // names relative to the script's folder, where gnuplot runs
     g << "set xlabel 'tau [s]'\nset ylabel 'Allan deviation [" << unit << "]'\n";
-    g << "plot '" << (dir / "adev.dat").string() << "' u 1:2:3:4 w yerrorbars t 'ADEV (95 % interval)', '' u 1:5 w lp t 'MDEV', '' u 1:6 w l lw 2 t 'fitted Q N B K R'\n";
-    g << "set output '" << (dir / "psd.png").string() << "'\n";
+    g << "plot 'adev.dat' u 1:2:3:4 w yerrorbars t 'ADEV (95 % interval)', '' u 1:5 w lp t 'MDEV', '' u 1:6 w l lw 2 t 'fitted Q N B K R'\n";
+    g << "set output 'psd.png'\n";
     g << "set xlabel 'frequency [Hz]'\nset ylabel 'PSD [" << unit << "^2/Hz]'\n";
-    g << "plot '" << (dir / "psd.dat").string() << "' u 1:2 w l t 'Welch (Hann, 50 % overlap)', '' u 1:3 w l lw 2 t 'fitted model'\n";
+    g << "plot 'psd.dat' u 1:2 w l t 'Welch (Hann, 50 % overlap)', '' u 1:3 w l lw 2 t 'fitted model'\n";
   }
   return report::run_gnuplot(dir / "noise.gp");
 }

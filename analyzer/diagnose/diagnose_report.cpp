@@ -156,16 +156,16 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
   if (plots) {
     const std::filesystem::path dir = out / "plots";
     std::filesystem::create_directories(dir);
-    std::ofstream gp(dir / "residuals.gp");
+    std::ofstream gp(dir / "residuals.gp");   // files named relative to plots/, where gnuplot runs
     gp << "set terminal pngcairo size 1200,400\nset grid\n";
     gp << fmt::format("set xlabel 't (s)'\nset ylabel 'residual ({})'\n", unit);
     for (std::size_t c = 0; c < r.case_names.size(); ++c) {
       const std::string name = "residual_" + slug(r.case_names[c]);
       write_traces(dir / (name + ".dat"), r.time[c], r.residual_before[c], r.residual_after[c]);
-      gp << fmt::format("set output '{}'\nset title 'residual, case {}: before and after'\n", (dir / (name + ".png")).string(),
+      gp << fmt::format("set output '{}'\nset title 'residual, case {}: before and after'\n", name + ".png",
                         r.case_names[c]);
       gp << fmt::format("plot '{0}' using 1:2 with lines lc rgb '#cc4444' title 'baseline', "
-                        "'{0}' using 1:3 with lines lc rgb '#2255aa' title 'final'\n", (dir / (name + ".dat")).string());
+                        "'{0}' using 1:3 with lines lc rgb '#2255aa' title 'final'\n", name + ".dat");
     }
     {
       std::ofstream bars(dir / "segments.dat");
@@ -179,7 +179,7 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
                       "set logscale y\n"
                       "set ylabel 'RMS ({})'\nplot '{}' using 2:xtic(1) title 'baseline', '' using 3 title 'final', "
                       "{} with lines lc rgb 'black' title 'noise reference'\n",
-                      (dir / "segments.png").string(), unit, (dir / "segments.dat").string(), r.noise_reference);
+                      "segments.png", unit, "segments.dat", r.noise_reference);
     // Spectra: baseline and final residual PSD with the model's noise PSD, log-log.
     gp << "unset style\nset style data lines\nset xtics norotate\nset logscale xy\nset xlabel 'f (Hz)'\n";
     gp << fmt::format("set ylabel 'PSD ({}^2/Hz)'\n", unit);
@@ -194,11 +194,11 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
           f << fmt::format("{:.6g} {:.6g} {:.6g} {:.6g}\n", b.plot_f(k), b.plot_psd(k), la.bands[c].plot_psd(k), b.plot_model(k));
         }
       }
-      gp << fmt::format("set output '{}'\nset title 'residual PSD, case {}'\n", (dir / (name + ".png")).string(),
+      gp << fmt::format("set output '{}'\nset title 'residual PSD, case {}'\n", name + ".png",
                         r.case_names[b.case_index]);
       gp << fmt::format("plot '{0}' using 1:2 lc rgb '#cc4444' title 'baseline', '{0}' using 1:3 lc rgb '#2255aa' "
                         "title 'final', '{0}' using 1:4 lc rgb 'black' dt 2 title 'model noise'\n",
-                        (dir / (name + ".dat")).string());
+                        name + ".dat");
       spectra.push_back(r.case_names[b.case_index]);
     }
     if (!lb.conditions.empty() && lb.conditions.size() == la.conditions.size()) {
@@ -215,7 +215,7 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
                         "set style fill solid 0.8\nset xtics rotate by -45\nunset xlabel\nset ylabel 'RMS ratio'\n"
                         "plot '{}' using 2:xtic(1) title 'baseline', '' using 3 title 'final', 1 with lines lc rgb "
                         "'black' title 'model noise'\n",
-                        (dir / "conditions.png").string(), (dir / "conditions.dat").string());
+                        "conditions.png", "conditions.dat");
     }
     gp.close();
     md << "## Plots\n\n";

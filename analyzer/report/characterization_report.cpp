@@ -247,14 +247,14 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
   std::ostringstream gp;
   if (in.plots) {
     gp << "set terminal pngcairo size 1200," << 260 * std::max<std::size_t>(1, data.cases.size()) << "\n";
-    gp << "set output '" << (plots / "verification.png").string() << "'\n";
+    gp << "set output 'verification.png'\n";   // names relative to plots/, where gnuplot runs
     gp << "set multiplot layout " << data.cases.size() << ",1 title 'Free-run error per case (model - measured, "
        << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";
   }
   std::ostringstream gp_res;
   if (in.plots) {
     gp_res << "set terminal pngcairo size 1200," << 260 * std::max<std::size_t>(1, data.cases.size()) << "\n";
-    gp_res << "set output '" << (plots / "residuals.png").string() << "'\n";
+    gp_res << "set output 'residuals.png'\n";
     gp_res << "set multiplot layout " << data.cases.size() << ",1 title 'Innovation per case (one-step residual after the noise model, "
            << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";
   }
@@ -283,8 +283,10 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
       const std::filesystem::path res_file = plots / ("residual_" + slug(cd.name) + ".dat");
       write_trace(ver_file, tr.t, tr.verification);
       write_trace(res_file, tr.t_innovation, tr.innovation);
-      gp << "set title '" << cd.name << "'\nplot '" << ver_file.string() << "' with lines notitle\n";
-      gp_res << "set title '" << cd.name << "'\nplot '" << res_file.string() << "' with lines notitle\n";
+      gp << "set title " << gnuplot_quoted(cd.name) << "\nplot " << gnuplot_quoted(ver_file.filename().string())
+         << " with lines notitle\n";
+      gp_res << "set title " << gnuplot_quoted(cd.name) << "\nplot " << gnuplot_quoted(res_file.filename().string())
+             << " with lines notitle\n";
     }
   }
   if (in.plots) {
@@ -292,7 +294,8 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     gp_res << "unset multiplot\n";
     std::ofstream(plots / "verification.gp") << gp.str();
     std::ofstream(plots / "residuals.gp") << gp_res.str();
-    const bool drawn = run_gnuplot(plots / "verification.gp") && run_gnuplot(plots / "residuals.gp");
+    const std::vector<bool> drawn_each = run_gnuplot_all(std::array{plots / "verification.gp", plots / "residuals.gp"});
+    const bool drawn = drawn_each[0] && drawn_each[1];
     md << "\n## Plots\n\n";
     if (drawn) {
       md << "![verification error per case](plots/verification.png)\n\n![residuals per case](plots/residuals.png)\n";

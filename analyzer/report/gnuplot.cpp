@@ -2,7 +2,14 @@
 
 #include <fmt/format.h>
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
 #include <cctype>
+#include <cerrno>
 #include <cstdint>
 #include <cstdlib>
 #include <fstream>
@@ -13,18 +20,48 @@
 namespace inertia::report {
 namespace {
 
-/// `text` as one word of a POSIX shell command: single-quoted, each ' closed, escaped and reopened.
-std::string shell_quoted(const std::string& text) {
-  std::string out = "'";
-  for (char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
+/// Starts `gnuplot NAME` in the script's folder, its standard streams on /dev/null. The child's
+/// pid, or -1 when it could not start.
+pid_t spawn_gnuplot(const std::filesystem::path& script) {
+  posix_spawn_file_actions_t actions;
+  if (::posix_spawn_file_actions_init(&actions) != 0) return -1;
+  const std::string folder = script.has_parent_path() ? script.parent_path().string() : std::string(".");
+  const std::string name = script.filename().string();
+  const bool prepared = ::posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0) == 0 &&
+                        ::posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0) == 0 &&
+                        ::posix_spawn_file_actions_adddup2(&actions, 1, 2) == 0 &&
+                        ::posix_spawn_file_actions_addchdir_np(&actions, folder.c_str()) == 0;
+  pid_t pid = -1;
+  std::array<char*, 3> argv{const_cast<char*>("gnuplot"), const_cast<char*>(name.c_str()), nullptr};
+  if (prepared && ::posix_spawnp(&pid, "gnuplot", &actions, nullptr, argv.data(), environ) != 0) pid = -1;
+  ::posix_spawn_file_actions_destroy(&actions);
+  return prepared ? pid : -1;
+}
+
+/// Whether the child `pid` ended with status 0.
+bool exited_cleanly(pid_t pid) {
+  int status = 0;
+  pid_t got = -1;
+  do {
+    got = ::waitpid(pid, &status, 0);
+  } while (got < 0 && errno == EINTR);
+  return got == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0;
 }
 
 }  // namespace
 
 bool run_gnuplot(const std::filesystem::path& script) {
-  const std::string command = "gnuplot " + shell_quoted(script.string()) + " >/dev/null 2>&1";
-  return std::system(command.c_str()) == 0;   // NOLINT(cert-env33-c): gnuplot is the plotting tool we chose
+  return run_gnuplot_all(std::span<const std::filesystem::path>(&script, 1)).front();
+}
+
+std::vector<bool> run_gnuplot_all(std::span<const std::filesystem::path> scripts) {
+  std::vector<pid_t> children;
+  children.reserve(scripts.size());
+  for (const std::filesystem::path& script : scripts) children.push_back(spawn_gnuplot(script));
+  std::vector<bool> drawn;
+  drawn.reserve(children.size());
+  for (const pid_t pid : children) drawn.push_back(pid > 0 && exited_cleanly(pid));
+  return drawn;
 }
 
 std::string gnuplot_quoted(std::string_view text) {

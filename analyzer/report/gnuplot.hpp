@@ -3,14 +3,21 @@
 // a script rendered to SVG text for a page that inlines its plots (the parameter sheet).
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace inertia::report {
 
-/// Runs gnuplot on `script`, its output discarded. False when gnuplot is not installed or the
-/// script fails.
+/// Runs gnuplot on `script` in the script's folder (so that a script names its data files and
+/// outputs relative to itself, and runs again as `gnuplot NAME.gp` there), its output discarded.
+/// False when gnuplot is not installed or the script fails.
 bool run_gnuplot(const std::filesystem::path& script);
+
+/// run_gnuplot on each of `scripts`, one gnuplot process each, all side by side: a report's
+/// plots take the time of the slowest, not of all. Element i says whether script i drew.
+std::vector<bool> run_gnuplot_all(std::span<const std::filesystem::path> scripts);
 
 /// `text` as a gnuplot string literal (single-quoted): a data file's path, a label.
 std::string gnuplot_quoted(std::string_view text);
