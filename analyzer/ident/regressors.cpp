@@ -42,24 +42,19 @@ SignalSet signals_from_case(const dataset::CaseData& c, const Eigen::Matrix3d& m
   if (!dataset_label.empty()) origin += fmt::format(" of dataset {}", dataset_label);
   SignalSet s(c.size(), std::move(origin));
   const auto wanted = [&only](Variable v) { return !only || only->test(static_cast<std::size_t>(v)); };
-  const auto any_wanted = [&wanted](std::initializer_list<Variable> vs) { return std::any_of(vs.begin(), vs.end(), wanted); };
-  // Rows of a_e are samples: a_S^T = a_E^T (M_E^S)^T.
-  if (any_wanted({Variable::Ai, Variable::Ap, Variable::Ao})) {
-    const Eigen::Matrix<double, Eigen::Dynamic, 3> a_s = c.a_e * m_es.transpose();
-    if (wanted(Variable::Ai)) s.set(Variable::Ai, a_s.col(0));
-    if (wanted(Variable::Ap)) s.set(Variable::Ap, a_s.col(1));
-    if (wanted(Variable::Ao)) s.set(Variable::Ao, a_s.col(2));
-  }
+  // Rows of a_e are samples: a_S^T = a_E^T (M_E^S)^T, each sensor axis straight into its own
+  // vector (no N x 3 temporary copied out column by column).
+  const auto sensed = [&m_es](const auto& e, Eigen::Index axis) -> Eigen::VectorXd { return e * m_es.row(axis).transpose(); };
+  if (wanted(Variable::Ai)) s.set(Variable::Ai, sensed(c.a_e, 0));
+  if (wanted(Variable::Ap)) s.set(Variable::Ap, sensed(c.a_e, 1));
+  if (wanted(Variable::Ao)) s.set(Variable::Ao, sensed(c.a_e, 2));
   if (wanted(Variable::Ax)) s.set(Variable::Ax, c.a_e.col(0));
   if (wanted(Variable::Ay)) s.set(Variable::Ay, c.a_e.col(1));
   if (wanted(Variable::Az)) s.set(Variable::Az, c.a_e.col(2));
   if (c.w_e) {
-    if (any_wanted({Variable::Wi, Variable::Wp, Variable::Wo})) {
-      const Eigen::Matrix<double, Eigen::Dynamic, 3> w_s = *c.w_e * m_es.transpose();
-      if (wanted(Variable::Wi)) s.set(Variable::Wi, w_s.col(0));
-      if (wanted(Variable::Wp)) s.set(Variable::Wp, w_s.col(1));
-      if (wanted(Variable::Wo)) s.set(Variable::Wo, w_s.col(2));
-    }
+    if (wanted(Variable::Wi)) s.set(Variable::Wi, sensed(*c.w_e, 0));
+    if (wanted(Variable::Wp)) s.set(Variable::Wp, sensed(*c.w_e, 1));
+    if (wanted(Variable::Wo)) s.set(Variable::Wo, sensed(*c.w_e, 2));
     if (wanted(Variable::Wx)) s.set(Variable::Wx, c.w_e->col(0));
     if (wanted(Variable::Wy)) s.set(Variable::Wy, c.w_e->col(1));
     if (wanted(Variable::Wz)) s.set(Variable::Wz, c.w_e->col(2));
