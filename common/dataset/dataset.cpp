@@ -7,14 +7,18 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <system_error>
+#include <vector>
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
@@ -122,57 +126,92 @@ std::string_view field_text(const char* p, const char* eol) {
   return trim(std::string_view(p, static_cast<std::size_t>((q ? q : eol) - p)));
 }
 
-}  // namespace
+// One case file being read: its bytes, the header's columns, the outputs sized from the count of
+// lines, and the rows split into chunks of whole lines. A chunk parses on its own into its own rows
+// (line = row + 2, so every position is known before parsing), which lets the chunks of every case
+// of a dataset run on the --jobs threads; its phase labels are numbered within the chunk and
+// renumbered in order of first appearance when the case is finished.
+class CaseCsv {
+ public:
+  CaseCsv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings);
 
-void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings) {
-  const std::string name = file.string();
-  const FileBytes buf(file);
-  const char* p = buf.data();
-  const char* const end = buf.data() + buf.size();
-  if (buf.size() >= 3 && std::memcmp(p, "\xEF\xBB\xBF", 3) == 0) p += 3;  // UTF-8 BOM from spreadsheets
+  [[nodiscard]] std::size_t chunks() const { return chunks_.size(); }
+  /// Parses chunk `c` into its rows. Throws InputError at the chunk's first bad line.
+  void parse_chunk(std::size_t c);
+  /// After every chunk parsed: the phase labels numbered over the file, trailing blank lines
+  /// dropped, the time column checked and the sample period set.
+  void finish();
 
-  const auto next_eol = [&](const char* from) {
-    const char* q = static_cast<const char*>(std::memchr(from, '\n', static_cast<std::size_t>(end - from)));
-    return q ? q : end;
+ private:
+  // Lines of up to this many bytes per chunk: a few per case for the threads to share, and few
+  // enough that their labels and bookkeeping cost nothing.
+  static constexpr std::size_t kChunkBytes = std::size_t{4} << 20;
+
+  struct Chunk {
+    const char* begin = nullptr;
+    const char* end = nullptr;
+    Eigen::Index first_row = 0, end_row = 0;   // its rows: [first_row, end_row)
+    Eigen::Index blank_row = -1;   // the row of the first (trailing) blank line it met; -1: none
+    std::vector<std::string> phase_names;   // in order of first appearance in the chunk
+    std::vector<Eigen::Index> phase_first_row;   // the row each of them first appears on
   };
+
+  [[nodiscard]] const char* next_eol(const char* from) const {
+    const char* q = static_cast<const char*>(std::memchr(from, '\n', static_cast<std::size_t>(end_ - from)));
+    return q ? q : end_;
+  }
+
+  std::string name_;
+  FileBytes buf_;
+  const char* end_ = nullptr;
+  CaseData& out_;
+  std::vector<Column> columns_;
+  std::vector<std::string> column_names_;
+  std::array<std::size_t, kColumnNames.size()> where_{};  // 1-based field index of each known column, 0 if absent
+  std::vector<double*> dest_;
+  Eigen::Index rows_ = 0;   // lines after the header, trailing blank ones included
+  std::vector<Chunk> chunks_;
+};
+
+CaseCsv::CaseCsv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings)
+    : name_(file.string()), buf_(file), end_(buf_.data() + buf_.size()), out_(out) {
+  const char* p = buf_.data();
+  if (buf_.size() >= 3 && std::memcmp(p, "\xEF\xBB\xBF", 3) == 0) p += 3;  // UTF-8 BOM from spreadsheets
 
   // Header.
   const char* header_end = next_eol(p);
   const std::string_view header = trim(std::string_view(p, static_cast<std::size_t>(header_end - p)));
   if (header.empty()) {
-    throw InputError(SourcePosition{name, 1, 0},
+    throw InputError(SourcePosition{name_, 1, 0},
                      "empty file or empty header row: expected a header such as 't,a_x,a_y,a_z,y'");
   }
-  std::vector<Column> columns;
-  std::vector<std::string> column_names;
-  std::array<std::size_t, kColumnNames.size()> where{};  // 1-based field index of each known column, 0 if absent
   for (std::size_t start = 0;;) {
     const std::size_t comma = header.find(',', start);
     const std::string_view field =
         trim(header.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
-    const std::size_t index = columns.size() + 1;
+    const std::size_t index = columns_.size() + 1;
     if (field.empty()) {
-      throw InputError(SourcePosition{name, 1, index}, fmt::format("empty column name in field {}", index));
+      throw InputError(SourcePosition{name_, 1, index}, fmt::format("empty column name in field {}", index));
     }
     const Column c = column_from_name(field);
     if (c == Column::Unknown) {
-      warnings << fmt::format("{}:1:{}: warning: unknown column '{}' ignored\n", name, index, field);
-    } else if (where[static_cast<std::size_t>(c)] != 0) {
-      throw InputError(SourcePosition{name, 1, index},
+      warnings << fmt::format("{}:1:{}: warning: unknown column '{}' ignored\n", name_, index, field);
+    } else if (where_[static_cast<std::size_t>(c)] != 0) {
+      throw InputError(SourcePosition{name_, 1, index},
                        fmt::format("duplicate column '{}' (also field {})", field,
-                                   where[static_cast<std::size_t>(c)]));
+                                   where_[static_cast<std::size_t>(c)]));
     } else {
-      where[static_cast<std::size_t>(c)] = index;
+      where_[static_cast<std::size_t>(c)] = index;
     }
-    columns.push_back(c);
-    column_names.emplace_back(field);
+    columns_.push_back(c);
+    column_names_.emplace_back(field);
     if (comma == std::string_view::npos) break;
     start = comma + 1;
   }
-  const auto has = [&](Column c) { return where[static_cast<std::size_t>(c)] != 0; };
+  const auto has = [&](Column c) { return where_[static_cast<std::size_t>(c)] != 0; };
   for (Column c : {Column::T, Column::Ax, Column::Ay, Column::Az, Column::Y}) {
     if (!has(c)) {
-      throw InputError(SourcePosition{name, 1, 0},
+      throw InputError(SourcePosition{name_, 1, 0},
                        fmt::format("missing required column '{}' (header: '{}'; required: t, a_x, a_y, a_z, y)",
                                    kColumnNames[static_cast<std::size_t>(c)], header));
     }
@@ -185,83 +224,95 @@ void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostrea
       std::string& list = has(c) ? present : missing;
       if (!list.empty()) list += ", ";
       list += kColumnNames[static_cast<std::size_t>(c)];
-      if (has(c) && first == 0) first = where[static_cast<std::size_t>(c)];
+      if (has(c) && first == 0) first = where_[static_cast<std::size_t>(c)];
     }
-    throw InputError(SourcePosition{name, 1, first},
+    throw InputError(SourcePosition{name_, 1, first},
                      fmt::format("column '{}' present but {} missing: rate columns w_x, w_y, w_z come as all three or none",
                                  present, missing));
   }
 
-  // Size the outputs from the number of line breaks: one pass of memchr, then no reallocation.
-  const char* body = header_end == end ? end : header_end + 1;
-  Eigen::Index rows = 0;
-  for (const char* q = body; q < end;) {
+  // Size the outputs from the number of line breaks (one pass of memchr, then no reallocation),
+  // and cut the lines into chunks on the way.
+  const char* body = header_end == end_ ? end_ : header_end + 1;
+  for (const char* q = body; q < end_;) {
+    if (chunks_.empty() || q - chunks_.back().begin >= static_cast<std::ptrdiff_t>(kChunkBytes)) {
+      if (!chunks_.empty()) chunks_.back().end = q;
+      Chunk next;
+      next.begin = q;
+      next.end = end_;
+      next.first_row = rows_;
+      chunks_.push_back(std::move(next));
+    }
     const char* e = next_eol(q);
-    ++rows;
-    q = e == end ? end : e + 1;
+    ++rows_;
+    q = e == end_ ? end_ : e + 1;
   }
-  out.t.resize(rows);
-  out.a_e.resize(rows, 3);
-  out.y.resize(rows);
-  if (rate_columns == 3) out.w_e.emplace(rows, 3); else out.w_e.reset();
-  if (has(Column::Temp)) out.temp.emplace(rows); else out.temp.reset();
-  out.phase_names.clear();
-  out.phase.clear();
-  if (has(Column::Phase)) out.phase.resize(static_cast<std::size_t>(rows));
+  for (std::size_t c = 0; c < chunks_.size(); ++c) chunks_[c].end_row = c + 1 < chunks_.size() ? chunks_[c + 1].first_row : rows_;
+  out_.t.resize(rows_);
+  out_.a_e.resize(rows_, 3);
+  out_.y.resize(rows_);
+  if (rate_columns == 3) out_.w_e.emplace(rows_, 3); else out_.w_e.reset();
+  if (has(Column::Temp)) out_.temp.emplace(rows_); else out_.temp.reset();
+  out_.phase_names.clear();
+  out_.phase.clear();
+  if (has(Column::Phase)) out_.phase.resize(static_cast<std::size_t>(rows_));
   const auto advise = [](auto& m) { advise_huge_pages(m.data(), static_cast<std::size_t>(m.size()) * sizeof(double)); };
-  advise(out.t);
-  advise(out.a_e);
-  advise(out.y);
-  if (out.w_e) advise(*out.w_e);
-  if (out.temp) advise(*out.temp);
+  advise(out_.t);
+  advise(out_.a_e);
+  advise(out_.y);
+  if (out_.w_e) advise(*out_.w_e);
+  if (out_.temp) advise(*out_.temp);
 
-  std::vector<double*> dest(columns.size(), nullptr);
-  for (std::size_t i = 0; i < columns.size(); ++i) {
-    switch (columns[i]) {
-      case Column::T: dest[i] = out.t.data(); break;
-      case Column::Ax: dest[i] = out.a_e.col(0).data(); break;
-      case Column::Ay: dest[i] = out.a_e.col(1).data(); break;
-      case Column::Az: dest[i] = out.a_e.col(2).data(); break;
-      case Column::Wx: dest[i] = out.w_e->col(0).data(); break;
-      case Column::Wy: dest[i] = out.w_e->col(1).data(); break;
-      case Column::Wz: dest[i] = out.w_e->col(2).data(); break;
-      case Column::Temp: dest[i] = out.temp->data(); break;
-      case Column::Y: dest[i] = out.y.data(); break;
+  dest_.assign(columns_.size(), nullptr);
+  for (std::size_t i = 0; i < columns_.size(); ++i) {
+    switch (columns_[i]) {
+      case Column::T: dest_[i] = out_.t.data(); break;
+      case Column::Ax: dest_[i] = out_.a_e.col(0).data(); break;
+      case Column::Ay: dest_[i] = out_.a_e.col(1).data(); break;
+      case Column::Az: dest_[i] = out_.a_e.col(2).data(); break;
+      case Column::Wx: dest_[i] = out_.w_e->col(0).data(); break;
+      case Column::Wy: dest_[i] = out_.w_e->col(1).data(); break;
+      case Column::Wz: dest_[i] = out_.w_e->col(2).data(); break;
+      case Column::Temp: dest_[i] = out_.temp->data(); break;
+      case Column::Y: dest_[i] = out_.y.data(); break;
       case Column::Phase: case Column::Unknown: break;
     }
   }
-  std::size_t last_phase = 0;
+}
 
+void CaseCsv::parse_chunk(std::size_t index) {
+  Chunk& chunk = chunks_.at(index);
+  std::size_t last_phase = 0;
   // Rows. A row is line `row + 2`; blank lines are allowed only at the end of the file so that
   // this mapping (used in every error message) stays exact.
-  Eigen::Index row = 0;
-  std::size_t line = 1;
-  for (const char* q = body; q < end;) {
+  Eigen::Index row = chunk.first_row;
+  for (const char* q = chunk.begin; q < chunk.end;) {
     const char* eol = next_eol(q);
-    const char* next = eol == end ? end : eol + 1;
-    ++line;
+    const char* next = eol == end_ ? end_ : eol + 1;
+    const std::size_t line = static_cast<std::size_t>(row) + 2;
     const char* le = eol;
     if (le > q && le[-1] == '\r') --le;
     if (trim(std::string_view(q, static_cast<std::size_t>(le - q))).empty()) {
-      for (const char* r = next; r < end; ++r) {
+      for (const char* r = next; r < end_; ++r) {
         if (!is_blank(*r) && *r != '\r' && *r != '\n') {
-          throw InputError(SourcePosition{name, line, 0}, "empty line inside the data");
+          throw InputError(SourcePosition{name_, line, 0}, "empty line inside the data");
         }
       }
-      break;
+      chunk.blank_row = row;
+      return;
     }
     const char* f = q;
-    for (std::size_t c = 0; c < columns.size(); ++c) {
+    for (std::size_t c = 0; c < columns_.size(); ++c) {
       // Built only for an error: a position holds the file's name, and rows run to millions.
-      const auto here = [&] { return SourcePosition{name, line, c + 1}; };
+      const auto here = [&] { return SourcePosition{name_, line, c + 1}; };
       if (c > 0) {
         if (f >= le || *f != ',') {
           throw InputError(here(), fmt::format("row has {} fields, the header has {}: column '{}' is missing",
-                                             c, columns.size(), column_names[c]));
+                                               c, columns_.size(), column_names_[c]));
         }
         ++f;
       }
-      if (double* d = dest[c]) {
+      if (double* d = dest_[c]) {
         while (f < le && is_blank(*f)) ++f;
         const char* start = f;
         if (f < le && *f == '+') ++f;  // from_chars refuses a leading '+', other writers emit it
@@ -270,79 +321,127 @@ void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostrea
         const char* after = ptr;
         while (after < le && is_blank(*after)) ++after;
         if (ec == std::errc::result_out_of_range) {
-          throw InputError(here(), fmt::format("number out of range in column '{}': '{}'", column_names[c],
-                                             field_text(start, le)));
+          throw InputError(here(), fmt::format("number out of range in column '{}': '{}'", column_names_[c],
+                                               field_text(start, le)));
         }
         if (ec != std::errc() || ptr == f || (after < le && *after != ',')) {
-          throw InputError(here(), fmt::format("not a number in column '{}': '{}'", column_names[c],
-                                             field_text(start, le)));
+          throw InputError(here(), fmt::format("not a number in column '{}': '{}'", column_names_[c],
+                                               field_text(start, le)));
         }
         if (!std::isfinite(v)) {
           throw InputError(here(), fmt::format("{} in column '{}': every value must be finite", field_text(start, le),
-                                             column_names[c]));
+                                               column_names_[c]));
         }
         d[row] = v;
         f = after;
       } else {
         const char* comma = static_cast<const char*>(std::memchr(f, ',', static_cast<std::size_t>(le - f)));
         const char* field_end = comma ? comma : le;
-        if (columns[c] == Column::Phase) {
+        if (columns_[c] == Column::Phase) {
           const std::string_view label(f, static_cast<std::size_t>(field_end - f));
-          if (last_phase >= out.phase_names.size() || out.phase_names[last_phase] != label) {
-            const auto it = std::find(out.phase_names.begin(), out.phase_names.end(), label);
-            if (it == out.phase_names.end()) {
-              if (out.phase_names.size() > 0xFFFF) {
-                throw InputError(here(), "more than 65536 distinct phase labels");
-              }
-              out.phase_names.emplace_back(label);
-              last_phase = out.phase_names.size() - 1;
+          std::vector<std::string>& names = chunk.phase_names;
+          if (last_phase >= names.size() || names[last_phase] != label) {
+            const auto it = std::find(names.begin(), names.end(), label);
+            if (it == names.end()) {
+              if (names.size() > 0xFFFF) throw InputError(here(), "more than 65536 distinct phase labels");
+              names.emplace_back(label);
+              chunk.phase_first_row.push_back(row);
+              last_phase = names.size() - 1;
             } else {
-              last_phase = static_cast<std::size_t>(it - out.phase_names.begin());
+              last_phase = static_cast<std::size_t>(it - names.begin());
             }
           }
-          out.phase[static_cast<std::size_t>(row)] = static_cast<std::uint16_t>(last_phase);
+          out_.phase[static_cast<std::size_t>(row)] = static_cast<std::uint16_t>(last_phase);
         }
         f = field_end;
       }
     }
     if (f < le) {
-      throw InputError(SourcePosition{name, line, columns.size() + 1},
-                       fmt::format("row has more fields than the header's {}", columns.size()));
+      throw InputError(SourcePosition{name_, line, columns_.size() + 1},
+                       fmt::format("row has more fields than the header's {}", columns_.size()));
     }
     ++row;
     q = next;
   }
+}
 
-  if (row < rows) {  // trailing blank lines were counted
-    out.t.conservativeResize(row);
-    out.a_e.conservativeResize(row, 3);
-    out.y.conservativeResize(row);
-    if (out.w_e) out.w_e->conservativeResize(row, 3);
-    if (out.temp) out.temp->conservativeResize(row);
-    if (!out.phase.empty()) out.phase.resize(static_cast<std::size_t>(row));
+void CaseCsv::finish() {
+  Eigen::Index row = rows_;
+  for (const Chunk& chunk : chunks_) {
+    if (chunk.blank_row >= 0) {
+      row = chunk.blank_row;
+      break;
+    }
   }
-  const std::size_t t_col = where[static_cast<std::size_t>(Column::T)];
+  // The labels over the file in order of first appearance: each chunk's, in chunk order.
+  if (!out_.phase.empty()) {
+    std::vector<std::uint16_t> renumber;
+    for (const Chunk& chunk : chunks_) {
+      if (chunk.first_row >= row) break;
+      renumber.assign(chunk.phase_names.size(), 0);
+      bool same = true;
+      for (std::size_t local = 0; local < chunk.phase_names.size(); ++local) {
+        const auto it = std::find(out_.phase_names.begin(), out_.phase_names.end(), chunk.phase_names[local]);
+        const auto global = static_cast<std::size_t>(it - out_.phase_names.begin());
+        if (it == out_.phase_names.end()) {
+          if (out_.phase_names.size() > 0xFFFF) {
+            throw InputError(SourcePosition{name_, static_cast<std::size_t>(chunk.phase_first_row[local]) + 2,
+                                            where_[static_cast<std::size_t>(Column::Phase)]},
+                             "more than 65536 distinct phase labels");
+          }
+          out_.phase_names.push_back(chunk.phase_names[local]);
+        }
+        renumber[local] = static_cast<std::uint16_t>(global);
+        same = same && global == local;
+      }
+      if (same) continue;
+      const Eigen::Index chunk_end = std::min(row, chunk.end_row);
+      for (Eigen::Index k = chunk.first_row; k < chunk_end; ++k) {
+        std::uint16_t& label = out_.phase[static_cast<std::size_t>(k)];
+        label = renumber[label];
+      }
+    }
+  }
+
+  if (row < rows_) {  // trailing blank lines were counted
+    out_.t.conservativeResize(row);
+    out_.a_e.conservativeResize(row, 3);
+    out_.y.conservativeResize(row);
+    if (out_.w_e) out_.w_e->conservativeResize(row, 3);
+    if (out_.temp) out_.temp->conservativeResize(row);
+    if (!out_.phase.empty()) out_.phase.resize(static_cast<std::size_t>(row));
+  }
+  const std::size_t t_col = where_[static_cast<std::size_t>(Column::T)];
   if (row < 2) {
-    throw InputError(SourcePosition{name, row == 0 ? 1u : 2u, 0},
+    throw InputError(SourcePosition{name_, row == 0 ? 1u : 2u, 0},
                      fmt::format("{} data row{}: at least two rows are needed to define the sample period",
                                  row == 0 ? "no" : "only one", row == 1 ? "" : "s"));
   }
-  const double period = (out.t[row - 1] - out.t[0]) / static_cast<double>(row - 1);
+  const double period = (out_.t[row - 1] - out_.t[0]) / static_cast<double>(row - 1);
   if (!(period > 0.0)) {
-    throw InputError(SourcePosition{name, 2 + static_cast<std::size_t>(row - 1), t_col},
+    throw InputError(SourcePosition{name_, 2 + static_cast<std::size_t>(row - 1), t_col},
                      "time column 't' does not increase (last time <= first time)");
   }
   const double tolerance = kTimeJitterTolerance * period;
   for (Eigen::Index k = 0; k + 1 < row; ++k) {
-    const double step = out.t[k + 1] - out.t[k];
+    const double step = out_.t[k + 1] - out_.t[k];
     if (std::abs(step - period) > tolerance) {
-      throw InputError(SourcePosition{name, 3 + static_cast<std::size_t>(k), t_col},
+      throw InputError(SourcePosition{name_, 3 + static_cast<std::size_t>(k), t_col},
                        fmt::format("non-uniform time column 't': step {} s from the previous row differs from the "
                                    "mean period {} s by more than the relative jitter tolerance {}",
                                    step, period, kTimeJitterTolerance));
     }
   }
-  out.sample_period_s = period;
+  out_.sample_period_s = period;
+}
+
+}  // namespace
+
+void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings) {
+  CaseCsv csv(file, out, warnings);
+  // The chunks start in index order, so the error rethrown (the first by index) is the file's first.
+  parallel::for_each_index(static_cast<long>(csv.chunks()), [&](long c) { csv.parse_chunk(static_cast<std::size_t>(c)); });
+  csv.finish();
 }
 
 namespace {
@@ -462,6 +561,63 @@ void write_file(const std::filesystem::path& file, const std::string& bytes) {
 
 Dataset read_dataset(const std::filesystem::path& dir) { return read_dataset(dir, std::cerr); }
 
+namespace {
+
+/// The cases' CSV files after every check of dataset.toml: the headers in case order, then the
+/// chunks of every file on the --jobs threads, then each case finished in order. What is thrown
+/// and the warnings written are what reading one file after the other gives: the first error by
+/// case and line, the warnings of the cases up to it.
+void read_case_files(const std::vector<std::filesystem::path>& files, std::vector<CaseData>& cases, std::ostream& warnings) {
+  const std::size_t count = files.size();
+  std::vector<std::optional<CaseCsv>> readers(count);
+  std::vector<std::ostringstream> case_warnings(count);
+  std::exception_ptr header_error;
+  std::size_t opened = 0;   // the cases whose header read; the next one's failed, if any
+  for (; opened < count; ++opened) {
+    try {
+      readers[opened].emplace(files[opened], cases[opened], case_warnings[opened]);
+    } catch (...) {
+      header_error = std::current_exception();
+      break;
+    }
+  }
+  struct Work {
+    std::size_t file = 0, chunk = 0;
+    std::exception_ptr error;
+  };
+  std::vector<Work> work;
+  for (std::size_t i = 0; i < opened; ++i)
+    for (std::size_t c = 0; c < readers[i]->chunks(); ++c) work.push_back({i, c, nullptr});
+  // Once a chunk fails, the later files' chunks are not parsed: their errors would come after it.
+  std::atomic<std::size_t> first_failed_file{count};
+  parallel::for_each_index(static_cast<long>(work.size()), [&](long index) {
+    Work& w = work[static_cast<std::size_t>(index)];
+    if (w.file > first_failed_file.load()) return;
+    try {
+      readers[w.file]->parse_chunk(w.chunk);
+    } catch (...) {
+      w.error = std::current_exception();
+      std::size_t seen = first_failed_file.load();
+      while (w.file < seen && !first_failed_file.compare_exchange_weak(seen, w.file)) {
+      }
+    }
+  });
+  std::size_t next_work = 0;
+  for (std::size_t i = 0; i < opened; ++i) {
+    warnings << case_warnings[i].str();
+    for (; next_work < work.size() && work[next_work].file == i; ++next_work)
+      if (work[next_work].error) std::rethrow_exception(work[next_work].error);
+    readers[i]->finish();
+    readers[i].reset();   // its file unmapped
+  }
+  if (header_error) {
+    warnings << case_warnings[opened].str();
+    std::rethrow_exception(header_error);
+  }
+}
+
+}  // namespace
+
 Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
   const std::filesystem::path toml_path = dir / "dataset.toml";
   const std::string file = toml_path.string();
@@ -573,14 +729,7 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
     csv_files.push_back(csv);
     data.cases.push_back(std::move(c));
   }
-  // The cases' files side by side, after every check of dataset.toml; the first error by case
-  // order is the one thrown, and the warnings come in case order, as one after the other gives.
-  std::vector<std::ostringstream> case_warnings(csv_files.size());
-  parallel::for_each_index(static_cast<long>(csv_files.size()), [&](long i) {
-    const auto at = static_cast<std::size_t>(i);
-    read_case_csv(csv_files[at], data.cases[at], case_warnings[at]);
-  });
-  for (const std::ostringstream& w : case_warnings) warnings << w.str();
+  read_case_files(csv_files, data.cases, warnings);
   return data;
 }
 

@@ -3,7 +3,8 @@
 //    to 60 terms: squares, products, abs/sign, lags, y lags), the size algorithm 2 starts from.
 //  - BM_FillRegressors: the same into a Phi allocated once (no page faults): the compute cost.
 //  - BM_ReadDataset: one case CSV of 1e6 rows x 9 columns (t, a, w, temp, y) as the daemon's
-//    10 kHz recordings produce, parsed by read_dataset. Items = rows.
+//    10 kHz recordings produce, parsed by read_dataset on 1 and on 2 threads (its chunks side by
+//    side; the second argument). Items = rows.
 // Run: build/bench/bench_regressors [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
 
@@ -14,6 +15,7 @@
 #include "analyzer/ident/candidates.hpp"
 #include "analyzer/ident/regressors.hpp"
 #include "common/dataset/dataset.hpp"
+#include "common/parallel.hpp"
 
 namespace {
 
@@ -106,14 +108,16 @@ void BM_ReadDataset(benchmark::State& state) {
   const std::filesystem::path dir = make_dataset(rows);
   const auto bytes = std::filesystem::file_size(dir / "shaker-random.csv");
   std::ostringstream warnings;
+  parallel::set_jobs(static_cast<int>(state.range(1)));
   for (auto _ : state) {
     dataset::Dataset d = dataset::read_dataset(dir, warnings);
     benchmark::DoNotOptimize(d.cases[0].y.data());
   }
+  parallel::set_jobs(1);
   state.SetItemsProcessed(state.iterations() * rows);
   state.SetBytesProcessed(state.iterations() * static_cast<std::int64_t>(bytes));
   std::filesystem::remove_all(dir);
 }
-BENCHMARK(BM_ReadDataset)->Arg(kSamples)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3.0);
+BENCHMARK(BM_ReadDataset)->Args({kSamples, 1})->Args({kSamples, 2})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3.0);
 
 }  // namespace

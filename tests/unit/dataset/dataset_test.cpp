@@ -4,18 +4,21 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <random>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "common/dataset/dataset.hpp"
-#include "common/parallel.hpp"
 #include "common/disk_space.hpp"
 #include "common/input_error.hpp"
+#include "common/parallel.hpp"
 
 namespace inertia::dataset {
 namespace {
@@ -310,6 +313,72 @@ TEST(Dataset, CasesReadSideBySideGiveTheSerialDataWarningsAndFirstError) {
     EXPECT_EQ(e.where().file, (dir / "c1.csv").string()) << e.what();
     EXPECT_EQ(e.where().line, 2002U) << e.what();
   }
+}
+
+// A case file of several chunks (a reader parses 4 MiB of lines at a time, on the --jobs threads):
+// the values, the phase labels numbered in order of first appearance over the whole file though
+// each chunk meets them in its own order, and the first bad line's position, with 1 and 2 threads.
+TEST(Dataset, AFileReadInChunksGivesTheRowsLabelsAndFirstErrorOfTheWholeFile) {
+  const fs::path dir = fresh_dir("chunks");
+  spit(dir / "dataset.toml", std::string(kToml));
+  constexpr int kRows = 300000;
+  const auto label_of = [](int k) {
+    // Each third of the file starts with a label the one before did not have, then an old one.
+    static const std::array<const char*, 6> labels{"rest", "sine", "rest", "sweep", "sine", "shock"};
+    return labels[static_cast<std::size_t>(2 * (k / (kRows / 3)) + (k / 997) % 2)];
+  };
+  std::string csv = "t,a_x,a_y,a_z,y,phase\n";
+  std::vector<std::string> names;
+  std::vector<std::uint16_t> phase;
+  for (int k = 0; k < kRows; ++k) {
+    const std::string label = label_of(k);
+    auto it = std::find(names.begin(), names.end(), label);
+    if (it == names.end()) it = names.insert(names.end(), label);
+    phase.push_back(static_cast<std::uint16_t>(it - names.begin()));
+    csv += fmt::format("{},{},{},{},{},{}\n", 0.001 * k, k % 1000, -k, 0.5 * (k % 7), k * 1e-6, label);
+  }
+  ASSERT_GT(csv.size(), std::size_t{8} << 20) << "at least three chunks";
+  spit(dir / "c1.csv", csv);
+  for (const int jobs : {1, 2}) {
+    parallel::set_jobs(jobs);
+    std::ostringstream warnings;
+    const Dataset d = read_dataset(dir, warnings);
+    parallel::set_jobs(1);
+    const CaseData& c = d.cases.at(0);
+    ASSERT_EQ(c.size(), kRows);
+    EXPECT_EQ(c.phase_names, names) << "jobs " << jobs;
+    EXPECT_TRUE(c.phase == phase) << "jobs " << jobs;
+    for (const int k : {0, 1, kRows / 3, kRows / 2, kRows - 1}) {
+      EXPECT_EQ(c.a_e(k, 0), k % 1000);
+      EXPECT_EQ(c.a_e(k, 1), -k);
+      EXPECT_EQ(c.y(k), k * 1e-6);
+    }
+  }
+  // Bad lines in the second and the last chunk: the second's is the one named.
+  const std::size_t second = csv.find('\n', std::size_t{5} << 20) + 1;
+  const std::size_t last = csv.find('\n', csv.size() - 1000) + 1;
+  const auto line_at = [&](std::size_t offset) { return 1 + static_cast<std::size_t>(std::count(csv.begin(), csv.begin() + static_cast<std::ptrdiff_t>(offset), '\n')); };
+  std::string bad = csv;
+  bad.replace(last, bad.find(',', last) - last, "x");
+  bad.replace(second, bad.find(',', second) - second, "oops");
+  spit(dir / "c1.csv", bad);
+  for (const int jobs : {1, 2}) {
+    parallel::set_jobs(jobs);
+    const InputError e = read_error(dir);
+    parallel::set_jobs(1);
+    EXPECT_EQ(e.where().line, line_at(second)) << e.what();
+    EXPECT_EQ(e.where().column, 1U) << e.what();
+  }
+  // A blank line in the middle chunk is inside the data, at its own line.
+  std::string blank = csv;
+  const std::size_t middle = csv.find('\n', csv.size() / 2) + 1;
+  blank.insert(middle, "\n");
+  spit(dir / "c1.csv", blank);
+  parallel::set_jobs(2);
+  const InputError e = read_error(dir);
+  parallel::set_jobs(1);
+  EXPECT_EQ(e.where().line, line_at(middle)) << e.what();
+  EXPECT_NE(std::string(e.what()).find("empty line inside the data"), std::string::npos) << e.what();
 }
 
 TEST(Dataset, TrailingBlankLinesAreAllowed) {
