@@ -27,7 +27,7 @@ struct SvgSize {
 };
 
 /// The SVG gnuplot draws from `script_body` (the plot commands, data files named by absolute path
-/// or relative to gnuplot's working directory): the body runs after `set terminal svg size W,H
+/// or relative to work_dir, where gnuplot runs): the body runs after `set terminal svg size W,H
 /// dynamic enhanced font 'sans,10'` and `set output`, as work_dir/plot.gp, drawing to
 /// work_dir/plot.svg (both overwritten). The text starts at its <svg> element, without the XML
 /// prolog or DOCTYPE, so that it inlines in an HTML page. nullopt when gnuplot is not installed,
