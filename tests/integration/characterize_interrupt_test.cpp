@@ -9,12 +9,11 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <string>
 #include <thread>
 
 #include "common/output_folder.hpp"
+#include "tests/support/files.hpp"
 #include "tests/support/scratch_dirs.hpp"
 
 namespace inertia {
@@ -22,12 +21,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kAnalyze = std::string(INERTIA_BINARY_DIR) + "/bin/inertia-analyze";
-
-std::string text_of(const fs::path& f) {
-  std::ifstream in(f);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using testing::analyze_binary;
+using testing::text_of;
 
 pid_t start(const std::vector<std::string>& args, const fs::path& output) {
   const pid_t pid = ::fork();
@@ -60,11 +55,11 @@ int incomplete_folders(const fs::path& target) {
 TEST(CharacterizeInterrupt, SigintStopsWithinASecondAndTheEarlierOutputStands) {
   const testing::TempDir dir("inertia-interrupt");
   const fs::path data = dir.path / "data", out = dir.path / "char";
-  ASSERT_EQ(finish(start({kAnalyze, "simulate", "--bench", std::string(INERTIA_SOURCE_DIR) + "/config/sim-paper.toml", "--out",
+  ASSERT_EQ(finish(start({analyze_binary(), "simulate", "--bench", std::string(INERTIA_SOURCE_DIR) + "/config/sim-paper.toml", "--out",
                           data.string()},
                          dir.path / "simulate.txt")),
             0);
-  const std::vector<std::string> characterize = {kAnalyze, "characterize", "--dataset", data.string(), "--out", out.string()};
+  const std::vector<std::string> characterize = {analyze_binary(), "characterize", "--dataset", data.string(), "--out", out.string()};
   const auto t0 = std::chrono::steady_clock::now();
   ASSERT_EQ(finish(start(characterize, dir.path / "first.txt")), 0) << text_of(dir.path / "first.txt");
   const double whole_run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

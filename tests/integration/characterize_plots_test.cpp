@@ -6,10 +6,9 @@
 
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <string>
 
+#include "tests/support/files.hpp"
 #include "tests/support/scratch_dirs.hpp"
 
 namespace inertia {
@@ -17,12 +16,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kAnalyze = std::string(INERTIA_BINARY_DIR) + "/bin/inertia-analyze";
-
-std::string text_of(const fs::path& f) {
-  std::ifstream in(f);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using testing::analyze_binary;
+using testing::text_of;
 
 int shell(const std::string& command) {
   const int status = std::system(command.c_str());   // NOLINT(cert-env33-c): the test drives the real binaries
@@ -33,11 +28,11 @@ TEST(CharacterizePlots, TheReportsPlotsAreDrawnAndTheirScriptsRunAgainInPlace) {
   if (shell("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "gnuplot is not installed";
   const testing::TempDir dir("inertia-plots");
   const fs::path data = dir.path / "data", out = dir.path / "char";
-  ASSERT_EQ(shell(kAnalyze + " simulate --bench " + INERTIA_SOURCE_DIR + "/config/sim-shaker.toml --out " + data.string() +
+  ASSERT_EQ(shell(analyze_binary() + " simulate --bench " + INERTIA_SOURCE_DIR + "/config/sim-shaker.toml --out " + data.string() +
                   " >" + (dir.path / "simulate.txt").string() + " 2>&1"),
             0)
       << text_of(dir.path / "simulate.txt");
-  ASSERT_EQ(shell(kAnalyze + " characterize --dataset " + (data / "acc-a").string() + " --out " + out.string() + " >" +
+  ASSERT_EQ(shell(analyze_binary() + " characterize --dataset " + (data / "acc-a").string() + " --out " + out.string() + " >" +
                   (dir.path / "characterize.txt").string() + " 2>&1"),
             0)
       << text_of(dir.path / "characterize.txt");

@@ -37,11 +37,12 @@
 #include "analyzer/procedure/misalignment.hpp"
 #include "common/units.hpp"
 #include "tests/integration/daqd_harness.hpp"
+#include "tests/support/files.hpp"
 
 namespace inertia::daq::testing {
 namespace {
 
-std::string analyze_binary() { return std::string(INERTIA_BINARY_DIR) + "/bin/inertia-analyze"; }
+using inertia::testing::analyze_binary;
 
 int run_command(const std::string& command, const fs::path& output) {
   const int st = std::system((command + " > " + output.string() + " 2>&1").c_str());

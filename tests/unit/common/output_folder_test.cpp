@@ -7,12 +7,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <fstream>
-#include <iterator>
 #include <string>
 
 #include "common/atomic_file.hpp"
 #include "common/input_error.hpp"
+#include "tests/support/files.hpp"
 #include "tests/support/scratch_dirs.hpp"
 
 namespace inertia {
@@ -20,10 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string text_of(const fs::path& f) {
-  std::ifstream in(f);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using testing::text_of;
 
 int staging_folders_beside(const fs::path& target) {
   int n = 0;
