@@ -148,8 +148,8 @@ void fill_regressors(std::span<const Term> terms, const SignalSet& signals, Eige
     throw std::invalid_argument(fmt::format("fill_regressors: phi is {}x{}, expected {}x{}", phi.rows(), phi.cols(),
                                             rows, terms.size()));
   }
-  // The columns are independent: filled on the --jobs threads (each also takes its pages' first
-  // touch, which on a long record costs as much as the products).
+  // The columns are independent: filled on the --jobs threads, each of which also takes the first
+  // touch of the pages it writes.
   parallel::for_each_index(static_cast<long>(terms.size()), [&](long index) {
     const auto j = static_cast<std::size_t>(index);
     auto col = phi.col(static_cast<Eigen::Index>(j));
