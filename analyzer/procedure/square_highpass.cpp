@@ -114,30 +114,107 @@ SquareCornerSearch::SquareCornerSearch(const StackedRegression& s, std::vector<E
   gram_ = ident::gram(s.phi);
   xty_ = ident::cross_product(s.phi, s.y);
   yy_ = s.y.squaredNorm();
+  for (std::size_t c = 0; c < s.cases.size(); ++c) {
+    const CaseRows& rows = s.cases[c];
+    for (Eigen::Index k0 = 0; k0 < rows.rows; k0 += kBlockRows)
+      blocks_.push_back({c, rows.begin + k0, std::min(kBlockRows, rows.rows - k0), k0 == 0});
+  }
+}
+
+void SquareCornerSearch::filter_block(const Block& block, const HighpassCoefficients& c, std::span<double> h,
+                                      Eigen::MatrixXd* out) const {
+  const auto n = squares_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const double* x = s_.phi.col(squares_[i]).data() + block.begin;
+    // A case starts settled (highpass_in_place): output 0, the previous input its first sample.
+    double state = block.starts_case ? 0.0 : h[i];
+    double previous = block.starts_case ? x[0] : x[-1];
+    double* f = out != nullptr ? out->col(static_cast<Eigen::Index>(i)).data() : nullptr;
+    for (Eigen::Index k = 0; k < block.rows; ++k) {
+      state = c.p * state + c.g * (x[k] - previous);
+      previous = x[k];
+      if (f != nullptr) f[k] = state;
+    }
+    h[i] = state;
+  }
+}
+
+SquareCornerSearch::FilteredProducts SquareCornerSearch::filtered_products(double corner_rad_s) const {
+  const auto n = static_cast<Eigen::Index>(squares_.size());
+  const Eigen::Index p = s_.phi.cols();
+  const auto blocks = static_cast<long>(blocks_.size());
+  // Each block's products on their own, added in block order: the same bits on any number of
+  // threads. A block's filter starts from the output the block before it left, so with more than
+  // one thread those outputs are found first by running the recursion alone (cheap next to the
+  // products, and the same arithmetic, so the same values).
+  const int threads = parallel::threads_for(blocks);
+  std::vector<double> start(blocks_.size() * static_cast<std::size_t>(n), 0.0);
+  const auto coefficients = [&](const Block& b) {
+    return highpass_coefficients(corner_rad_s, data_.cases.at(s_.cases[b.layout_index].case_index).sample_period_s);
+  };
+  if (threads > 1) {
+    std::vector<double> h(static_cast<std::size_t>(n), 0.0);
+    for (std::size_t b = 0; b < blocks_.size(); ++b) {
+      std::copy(h.begin(), h.end(), start.begin() + static_cast<std::ptrdiff_t>(b * static_cast<std::size_t>(n)));
+      filter_block(blocks_[b], coefficients(blocks_[b]), h, nullptr);
+    }
+  }
+  std::vector<FilteredProducts> parts(blocks_.size());
+  const auto block_products = [&](long b, std::span<double> h, Eigen::MatrixXd& f) {
+    const Block& block = blocks_[static_cast<std::size_t>(b)];
+    filter_block(block, coefficients(block), h, &f);
+    FilteredProducts& part = parts[static_cast<std::size_t>(b)];
+    part.cross.resize(n, p);
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const auto column = s_.phi.col(j).segment(block.begin, block.rows);
+      for (Eigen::Index i = 0; i < n; ++i) part.cross(i, j) = f.col(i).head(block.rows).dot(column);
+    }
+    part.gram.noalias() = f.topRows(block.rows).transpose() * f.topRows(block.rows);
+    part.y.noalias() = f.topRows(block.rows).transpose() * s_.y.segment(block.begin, block.rows);
+  };
+  if (threads > 1) {
+#ifdef _OPENMP
+#pragma omp parallel num_threads(threads)
+#endif
+    {
+      Eigen::MatrixXd f(kBlockRows, n);
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 8)
+#endif
+      for (long b = 0; b < blocks; ++b) {
+        const auto offset = static_cast<std::size_t>(b) * static_cast<std::size_t>(n);
+        block_products(b, std::span<double>(start).subspan(offset, static_cast<std::size_t>(n)), f);
+      }
+    }
+  } else {
+    Eigen::MatrixXd f(kBlockRows, n);
+    std::vector<double> h(static_cast<std::size_t>(n), 0.0);
+    for (long b = 0; b < blocks; ++b) block_products(b, h, f);
+  }
+  FilteredProducts sum{Eigen::MatrixXd::Zero(n, p), Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
+  for (const FilteredProducts& part : parts) {
+    sum.cross += part.cross;
+    sum.gram += part.gram;
+    sum.y += part.y;
+  }
+  return sum;
 }
 
 double SquareCornerSearch::rss(std::optional<double> corner_rad_s) const {
   Eigen::MatrixXd g = gram_;
   Eigen::VectorXd v = xty_;
-  if (corner_rad_s) {
+  if (corner_rad_s && !squares_.empty()) {
+    // Only the squares' rows and columns of the Gram matrix, and their entries of X'y, change.
     const auto n = static_cast<Eigen::Index>(squares_.size());
-    Eigen::MatrixXd f(s_.phi.rows(), n);
-    std::vector<Eigen::Index> all(squares_.size());
-    for (Eigen::Index i = 0; i < n; ++i) {
-      f.col(i) = s_.phi.col(squares_[static_cast<std::size_t>(i)]);
-      all[static_cast<std::size_t>(i)] = i;
-    }
-    highpass_columns(f, all, s_.cases, data_, *corner_rad_s);
-    const Eigen::MatrixXd cross = ident::cross_product(f, s_.phi);   // n x p, square columns still unfiltered on the right
-    const Eigen::MatrixXd ff = ident::gram(f);
+    const FilteredProducts filtered = filtered_products(*corner_rad_s);   // square columns still unfiltered on the right of cross
     for (Eigen::Index i = 0; i < n; ++i) {
       const Eigen::Index a = squares_[static_cast<std::size_t>(i)];
-      g.row(a) = cross.row(i);
-      g.col(a) = cross.row(i).transpose();
-      v(a) = f.col(i).dot(s_.y);
+      g.row(a) = filtered.cross.row(i);
+      g.col(a) = filtered.cross.row(i).transpose();
+      v(a) = filtered.y(i);
     }
     for (Eigen::Index i = 0; i < n; ++i) {
-      for (Eigen::Index j = 0; j < n; ++j) g(squares_[static_cast<std::size_t>(i)], squares_[static_cast<std::size_t>(j)]) = ff(i, j);
+      for (Eigen::Index j = 0; j < n; ++j) g(squares_[static_cast<std::size_t>(i)], squares_[static_cast<std::size_t>(j)]) = filtered.gram(i, j);
     }
   }
   // Scaled pseudo-inverse (dependent columns are harmless here: only the residual counts).

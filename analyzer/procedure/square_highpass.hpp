@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "analyzer/ident/term.hpp"
@@ -50,8 +51,11 @@ double max_corner(const std::vector<CaseRows>& layout, const dataset::Dataset& d
 
 /// Eq. 12's corner b from data: the residual sum of squares of the least-squares fit of y on
 /// every column of a stacked problem when its square columns pass s / (s + b) (or stay static).
-/// The Gram matrix of the columns is computed once; each corner costs one filter pass over the
-/// square columns and their products with the rest. Used where a model's squares are fitted
+/// The Gram matrix of the columns is computed once; each corner costs one pass over the rows in
+/// blocks: the square columns filtered into a block-sized buffer and multiplied with the block's
+/// columns while it is in cache, so a corner allocates nothing of the record's length and reads
+/// the stack once. The blocks' products are added in block order: the same bits on any number of
+/// threads (parallel::jobs). Used where a model's squares are fitted
 /// (pipeline) and where a model without them is diagnosed (diagnose).
 class SquareCornerSearch {
  public:
@@ -68,12 +72,32 @@ class SquareCornerSearch {
   [[nodiscard]] std::optional<double> best(double lo, double hi) const;
 
  private:
+  static constexpr Eigen::Index kBlockRows = 1024;   // a block's filtered squares stay in L1/L2
+
+  struct Block {
+    std::size_t layout_index = 0;   // into s_.cases
+    Eigen::Index begin = 0, rows = 0;
+    bool starts_case = false;
+  };
+  /// The filtered square columns' products over rows: with every column (cross, n x p), with
+  /// themselves (gram, n x n) and with y.
+  struct FilteredProducts {
+    Eigen::MatrixXd cross, gram;
+    Eigen::VectorXd y;
+  };
+
+  /// The squares' high pass over `block`, continued from the outputs `h` (one per square; updated),
+  /// written to `out`'s first block.rows rows when given.
+  void filter_block(const Block& block, const HighpassCoefficients& c, std::span<double> h, Eigen::MatrixXd* out) const;
+  [[nodiscard]] FilteredProducts filtered_products(double corner_rad_s) const;
+
   const StackedRegression& s_;
   std::vector<Eigen::Index> squares_;
   const dataset::Dataset& data_;
   Eigen::MatrixXd gram_;
   Eigen::VectorXd xty_;
   double yy_ = 0.0;
+  std::vector<Block> blocks_;   // every case's rows in blocks of kBlockRows, in stack order
 };
 
 }  // namespace inertia::procedure

@@ -11,6 +11,7 @@
 #include <numbers>
 #include <random>
 
+#include "common/parallel.hpp"
 #include "tests/support/reference_highpass.hpp"
 
 namespace inertia::procedure {
@@ -175,6 +176,26 @@ TEST(SquareCornerSearch, RssEqualsADirectSolveStaticAndFiltered) {
     const double expected = direct_rss(filtered, p.s.y);
     EXPECT_NEAR(search.rss(b), expected, 1e-8 * expected) << "b = " << b;
   }
+}
+
+TEST(SquareCornerSearch, RssIsTheSameBitsOnAnyNumberOfJobs) {
+  // The corner's products are formed over blocks of rows that a case's filter runs through; with
+  // more than one job the blocks' filter states are found first. Cases of 1500 and 1000 rows
+  // span blocks, and neither is a whole number of them.
+  const CornerProblem p = corner_problem(250.0, 0.05, 12);
+  std::vector<double> serial;
+  parallel::set_jobs(1);
+  {
+    const SquareCornerSearch search(p.s, {2, 3}, p.data);
+    for (const double b : {3.0, 250.0, 4000.0}) serial.push_back(search.rss(b));
+  }
+  for (const int jobs : {2, 3}) {
+    parallel::set_jobs(jobs);
+    const SquareCornerSearch search(p.s, {2, 3}, p.data);
+    std::size_t k = 0;
+    for (const double b : {3.0, 250.0, 4000.0}) EXPECT_EQ(search.rss(b), serial[k++]) << "jobs " << jobs << ", b = " << b;
+  }
+  parallel::set_jobs(1);
 }
 
 TEST(SquareCornerSearch, DependentColumnsLeaveTheResidualAlone) {
