@@ -121,21 +121,13 @@ SquareCornerSearch::SquareCornerSearch(const StackedRegression& s, std::vector<E
   }
 }
 
-void SquareCornerSearch::filter_block(const Block& block, const HighpassCoefficients& c, std::span<double> h,
-                                      Eigen::MatrixXd* out) const {
-  const auto n = squares_.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const double* x = s_.phi.col(squares_[i]).data() + block.begin;
-    // A case starts settled (highpass_in_place): output 0, the previous input its first sample.
-    double state = block.starts_case ? 0.0 : h[i];
-    double previous = block.starts_case ? x[0] : x[-1];
-    double* f = out != nullptr ? out->col(static_cast<Eigen::Index>(i)).data() : nullptr;
-    for (Eigen::Index k = 0; k < block.rows; ++k) {
-      state = c.p * state + c.g * (x[k] - previous);
-      previous = x[k];
-      if (f != nullptr) f[k] = state;
-    }
-    h[i] = state;
+void SquareCornerSearch::filter_block(const Block& block, double corner_rad_s, std::span<HighpassState> state,
+                                      Eigen::MatrixXd& out) const {
+  const double period = data_.cases.at(s_.cases[block.layout_index].case_index).sample_period_s;
+  for (std::size_t i = 0; i < squares_.size(); ++i) {
+    auto f = out.col(static_cast<Eigen::Index>(i)).head(block.rows);
+    f = s_.phi.col(squares_[i]).segment(block.begin, block.rows);
+    highpass_in_place(f, corner_rad_s, period, state[i]);
   }
 }
 
@@ -144,25 +136,25 @@ SquareCornerSearch::FilteredProducts SquareCornerSearch::filtered_products(doubl
   const Eigen::Index p = s_.phi.cols();
   const auto blocks = static_cast<long>(blocks_.size());
   // Each block's products on their own, added in block order: the same bits on any number of
-  // threads. A block's filter starts from the output the block before it left, so with more than
-  // one thread those outputs are found first by running the recursion alone (cheap next to the
-  // products, and the same arithmetic, so the same values).
+  // threads. A block's filter continues from the state the block before it left, so with more
+  // than one thread those states are found first by running the filter alone (cheap next to the
+  // products, and the same arithmetic, so the same values). A case's first block starts settled.
   const int threads = parallel::threads_for(blocks);
-  std::vector<double> start(blocks_.size() * static_cast<std::size_t>(n), 0.0);
-  const auto coefficients = [&](const Block& b) {
-    return highpass_coefficients(corner_rad_s, data_.cases.at(s_.cases[b.layout_index].case_index).sample_period_s);
-  };
+  const auto count = static_cast<std::size_t>(n);
+  std::vector<HighpassState> start(blocks_.size() * count);
   if (threads > 1) {
-    std::vector<double> h(static_cast<std::size_t>(n), 0.0);
+    Eigen::MatrixXd f(kBlockRows, n);
+    std::vector<HighpassState> carried(count);
     for (std::size_t b = 0; b < blocks_.size(); ++b) {
-      std::copy(h.begin(), h.end(), start.begin() + static_cast<std::ptrdiff_t>(b * static_cast<std::size_t>(n)));
-      filter_block(blocks_[b], coefficients(blocks_[b]), h, nullptr);
+      if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
+      std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(b * count));
+      filter_block(blocks_[b], corner_rad_s, carried, f);
     }
   }
   std::vector<FilteredProducts> parts(blocks_.size());
-  const auto block_products = [&](long b, std::span<double> h, Eigen::MatrixXd& f) {
+  const auto block_products = [&](long b, std::span<HighpassState> state, Eigen::MatrixXd& f) {
     const Block& block = blocks_[static_cast<std::size_t>(b)];
-    filter_block(block, coefficients(block), h, &f);
+    filter_block(block, corner_rad_s, state, f);
     FilteredProducts& part = parts[static_cast<std::size_t>(b)];
     part.cross.resize(n, p);
     for (Eigen::Index j = 0; j < p; ++j) {
@@ -181,15 +173,15 @@ SquareCornerSearch::FilteredProducts SquareCornerSearch::filtered_products(doubl
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 8)
 #endif
-      for (long b = 0; b < blocks; ++b) {
-        const auto offset = static_cast<std::size_t>(b) * static_cast<std::size_t>(n);
-        block_products(b, std::span<double>(start).subspan(offset, static_cast<std::size_t>(n)), f);
-      }
+      for (long b = 0; b < blocks; ++b) block_products(b, std::span<HighpassState>(start).subspan(static_cast<std::size_t>(b) * count, count), f);
     }
   } else {
     Eigen::MatrixXd f(kBlockRows, n);
-    std::vector<double> h(static_cast<std::size_t>(n), 0.0);
-    for (long b = 0; b < blocks; ++b) block_products(b, h, f);
+    std::vector<HighpassState> carried(count);
+    for (long b = 0; b < blocks; ++b) {
+      if (blocks_[static_cast<std::size_t>(b)].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
+      block_products(b, carried, f);
+    }
   }
   FilteredProducts sum{Eigen::MatrixXd::Zero(n, p), Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
   for (const FilteredProducts& part : parts) {

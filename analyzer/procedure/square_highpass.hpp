@@ -86,9 +86,9 @@ class SquareCornerSearch {
     Eigen::VectorXd y;
   };
 
-  /// The squares' high pass over `block`, continued from the outputs `h` (one per square; updated),
-  /// written to `out`'s first block.rows rows when given.
-  void filter_block(const Block& block, const HighpassCoefficients& c, std::span<double> h, Eigen::MatrixXd* out) const;
+  /// The squares' high pass over `block` (highpass_in_place), continued from `state` (one per
+  /// square; updated), into `out`'s first block.rows rows.
+  void filter_block(const Block& block, double corner_rad_s, std::span<HighpassState> state, Eigen::MatrixXd& out) const;
   [[nodiscard]] FilteredProducts filtered_products(double corner_rad_s) const;
 
   const StackedRegression& s_;
