@@ -587,6 +587,7 @@ int run_daemon(const DaemonOptions& command_line) {
       std::cerr << "inertia-daqd: simulated bench: " << sim->frames_lost() << " CAN frame(s) lost on purpose ([bench.sim_timing] frame_loss)\n";
   }
   for (auto& s : samplers) s->stop();
+  if (sim) sim->stop_servers();
   publisher.stop();
   if (log) log->stop();
 

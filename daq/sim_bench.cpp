@@ -90,6 +90,7 @@ SimBench::SimBench(const config::BenchConfig& bench, SimOptions options)
 
 SimBench::~SimBench() {
   stop();
+  stop_servers();
   // The samplers may still hold devices reading our wires; the daemon stops them first.
 }
 
@@ -278,6 +279,9 @@ void SimBench::start(std::int64_t t0_ns, SpscRing<PlanMark>* marks) {
 void SimBench::stop() {
   stop_.store(true, std::memory_order_release);
   if (thread_.joinable()) thread_.join();
+}
+
+void SimBench::stop_servers() {
   if (controllers_) controllers_->stop();
 }
 

@@ -95,7 +95,12 @@ class SimBench {
 
   /// Starts the driver at simulated time 0 = t0_ns (CLOCK_MONOTONIC). Marks go to `marks`.
   void start(std::int64_t t0_ns, SpscRing<PlanMark>* marks);
+  /// Stops the driver: no sample, edge or controller state is written after it. The simulated
+  /// Modbus servers keep answering until stop_servers(), so a controller's sampler stopped after
+  /// the driver sees its server as a real bench's would be, not gone.
   void stop();
+  /// Stops the simulated Modbus servers (after the samplers that poll them).
+  void stop_servers();
   [[nodiscard]] bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
   [[nodiscard]] std::uint64_t samples_written() const noexcept { return written_.load(std::memory_order_relaxed); }
 
