@@ -440,6 +440,7 @@ TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) 
 
   // Unmixed: the live estimate equals the clean log's, every data block having arrived.
   EXPECT_EQ(s.queue_drops, 0);
+  EXPECT_EQ(s.gaps, 0) << "a data block was lost on its way (the estimate then differs)\n" << online.output();
   const auto estimates = decoded<model_estimate_t>(received, "INERTIA_ESTIMATE_ACC1");
   ASSERT_FALSE(estimates.empty());
   const model_estimate_t& last = estimates.back().second;
