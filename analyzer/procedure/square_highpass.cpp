@@ -131,31 +131,38 @@ void SquareCornerSearch::filter_block(const Block& block, double corner_rad_s, s
   }
 }
 
-SquareCornerSearch::FilteredProducts SquareCornerSearch::filtered_products(double corner_rad_s) const {
+std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_products(std::span<const double> corners_rad_s) const {
   const auto n = static_cast<Eigen::Index>(squares_.size());
   const Eigen::Index p = s_.phi.cols();
   const auto blocks = static_cast<long>(blocks_.size());
+  const std::size_t m = corners_rad_s.size();
   // Each block's products on their own, added in block order: the same bits on any number of
-  // threads. A block's filter continues from the state the block before it left, so with more
-  // than one thread those states are found first by running the filter alone (cheap next to the
-  // products, and the same arithmetic, so the same values). A case's first block starts settled.
+  // threads and corners. A block's filter continues from the state the block before it left, so
+  // with more than one thread those states are found first by running the filter alone (cheap
+  // next to the products, and the same arithmetic, so the same values), each corner's chain on its
+  // own thread. A case's first block starts settled. The corners share each block's pass: its
+  // columns are read from memory once for all of them.
   const int threads = parallel::threads_for(blocks);
   const auto count = static_cast<std::size_t>(n);
-  std::vector<HighpassState> start(blocks_.size() * count);
+  const auto state_at = [&](std::size_t b, std::size_t c) { return (b * m + c) * count; };
+  std::vector<HighpassState> start(blocks_.size() * m * count);
   if (threads > 1) {
-    Eigen::MatrixXd f(kBlockRows, n);
-    std::vector<HighpassState> carried(count);
-    for (std::size_t b = 0; b < blocks_.size(); ++b) {
-      if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
-      std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(b * count));
-      filter_block(blocks_[b], corner_rad_s, carried, f);
-    }
+    parallel::for_each_index(static_cast<long>(m), [&](long corner) {
+      const auto c = static_cast<std::size_t>(corner);
+      Eigen::MatrixXd f(kBlockRows, n);
+      std::vector<HighpassState> carried(count);
+      for (std::size_t b = 0; b < blocks_.size(); ++b) {
+        if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
+        std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(b, c)));
+        filter_block(blocks_[b], corners_rad_s[c], carried, f);
+      }
+    });
   }
-  std::vector<FilteredProducts> parts(blocks_.size());
-  const auto block_products = [&](long b, std::span<HighpassState> state, Eigen::MatrixXd& f) {
+  std::vector<FilteredProducts> parts(blocks_.size() * m);
+  const auto block_products = [&](long b, std::size_t c, std::span<HighpassState> state, Eigen::MatrixXd& f) {
     const Block& block = blocks_[static_cast<std::size_t>(b)];
-    filter_block(block, corner_rad_s, state, f);
-    FilteredProducts& part = parts[static_cast<std::size_t>(b)];
+    filter_block(block, corners_rad_s[c], state, f);
+    FilteredProducts& part = parts[static_cast<std::size_t>(b) * m + c];
     part.cross.resize(n, p);
     for (Eigen::Index j = 0; j < p; ++j) {
       const auto column = s_.phi.col(j).segment(block.begin, block.rows);
@@ -173,40 +180,60 @@ SquareCornerSearch::FilteredProducts SquareCornerSearch::filtered_products(doubl
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 8)
 #endif
-      for (long b = 0; b < blocks; ++b) block_products(b, std::span<HighpassState>(start).subspan(static_cast<std::size_t>(b) * count, count), f);
+      for (long b = 0; b < blocks; ++b) {
+        for (std::size_t c = 0; c < m; ++c)
+          block_products(b, c, std::span<HighpassState>(start).subspan(state_at(static_cast<std::size_t>(b), c), count), f);
+      }
     }
   } else {
     Eigen::MatrixXd f(kBlockRows, n);
-    std::vector<HighpassState> carried(count);
+    std::vector<HighpassState> carried(m * count);
     for (long b = 0; b < blocks; ++b) {
       if (blocks_[static_cast<std::size_t>(b)].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
-      block_products(b, carried, f);
+      for (std::size_t c = 0; c < m; ++c) block_products(b, c, std::span<HighpassState>(carried).subspan(c * count, count), f);
     }
   }
-  FilteredProducts sum{Eigen::MatrixXd::Zero(n, p), Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
-  for (const FilteredProducts& part : parts) {
-    sum.cross += part.cross;
-    sum.gram += part.gram;
-    sum.y += part.y;
+  std::vector<FilteredProducts> sums(m, FilteredProducts{Eigen::MatrixXd::Zero(n, p), Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)});
+  for (std::size_t b = 0; b < blocks_.size(); ++b) {
+    for (std::size_t c = 0; c < m; ++c) {
+      const FilteredProducts& part = parts[b * m + c];
+      sums[c].cross += part.cross;
+      sums[c].gram += part.gram;
+      sums[c].y += part.y;
+    }
   }
-  return sum;
+  return sums;
 }
 
 double SquareCornerSearch::rss(std::optional<double> corner_rad_s) const {
+  if (!corner_rad_s || squares_.empty()) return rss_with(nullptr);
+  return rss(std::span<const double>(&*corner_rad_s, 1)).front();
+}
+
+std::vector<double> SquareCornerSearch::rss(std::span<const double> corners_rad_s) const {
+  std::vector<double> out;
+  if (squares_.empty()) {
+    out.assign(corners_rad_s.size(), rss_with(nullptr));
+    return out;
+  }
+  for (const FilteredProducts& filtered : filtered_products(corners_rad_s)) out.push_back(rss_with(&filtered));
+  return out;
+}
+
+double SquareCornerSearch::rss_with(const FilteredProducts* filtered) const {
   Eigen::MatrixXd g = gram_;
   Eigen::VectorXd v = xty_;
-  if (corner_rad_s && !squares_.empty()) {
+  if (filtered != nullptr) {
     // Only the squares' rows and columns of the Gram matrix, and their entries of X'y, change.
     const auto n = static_cast<Eigen::Index>(squares_.size());
-    const FilteredProducts filtered = filtered_products(*corner_rad_s);   // square columns still unfiltered on the right of cross
     for (Eigen::Index i = 0; i < n; ++i) {
       const Eigen::Index a = squares_[static_cast<std::size_t>(i)];
-      g.row(a) = filtered.cross.row(i);
-      g.col(a) = filtered.cross.row(i).transpose();
-      v(a) = filtered.y(i);
+      g.row(a) = filtered->cross.row(i);
+      g.col(a) = filtered->cross.row(i).transpose();
+      v(a) = filtered->y(i);
     }
     for (Eigen::Index i = 0; i < n; ++i) {
-      for (Eigen::Index j = 0; j < n; ++j) g(squares_[static_cast<std::size_t>(i)], squares_[static_cast<std::size_t>(j)]) = filtered.gram(i, j);
+      for (Eigen::Index j = 0; j < n; ++j) g(squares_[static_cast<std::size_t>(i)], squares_[static_cast<std::size_t>(j)]) = filtered->gram(i, j);
     }
   }
   // Scaled pseudo-inverse (dependent columns are harmless here: only the residual counts).
@@ -232,15 +259,11 @@ std::optional<double> SquareCornerSearch::best(double lo, double hi) const {
   std::vector<double> nodes(kGridCorners);
   const double l0 = std::log(lo), l1 = std::log(hi);
   for (int i = 0; i < kGridCorners; ++i) nodes[static_cast<std::size_t>(i)] = std::exp(l0 + (l1 - l0) * i / (kGridCorners - 1));
-  // The nodes' residuals (and the static squares') do not depend on one another: side by side
-  // first, on --jobs threads, each into its slot; the refinement between them is sequential.
-  std::vector<double> at_node(nodes.size() + 1);
-  parallel::for_each_index(static_cast<long>(at_node.size()), [&](long i) {
-    const auto k = static_cast<std::size_t>(i);
-    at_node[k] = k == nodes.size() ? rss(std::nullopt) : rss(nodes[k]);
-  });
+  // The nodes' residuals in one pass over the rows; the refinement between them is sequential.
+  const std::vector<double> at_node = rss(std::span<const double>(nodes));
+  const double at_static = rss(std::nullopt);
   return least_residual_corner(nodes, true, [&](std::optional<double> corner) {
-           if (!corner) return at_node.back();
+           if (!corner) return at_static;
            const auto node = std::find(nodes.begin(), nodes.end(), *corner);
            return node != nodes.end() ? at_node[static_cast<std::size_t>(node - nodes.begin())] : rss(corner);
          }).corner_rad_s;

@@ -65,6 +65,9 @@ class SquareCornerSearch {
   SquareCornerSearch(const StackedRegression& s, std::vector<Eigen::Index> squares, const dataset::Dataset& data);
 
   [[nodiscard]] double rss(std::optional<double> corner_rad_s) const;
+  /// rss at each of `corners` (rad/s), the same bits as one call per corner, from one pass over
+  /// the rows: each block's columns are read once for every corner while they are in cache.
+  [[nodiscard]] std::vector<double> rss(std::span<const double> corners_rad_s) const;
 
   /// The corner minimizing rss over [lo, hi] by least_residual_corner (corner_search.hpp) on a
   /// log-spaced grid of kGridCorners, or nullopt when the static squares fit better. lo == hi:
@@ -89,7 +92,10 @@ class SquareCornerSearch {
   /// The squares' high pass over `block` (highpass_in_place), continued from `state` (one per
   /// square; updated), into `out`'s first block.rows rows.
   void filter_block(const Block& block, double corner_rad_s, std::span<HighpassState> state, Eigen::MatrixXd& out) const;
-  [[nodiscard]] FilteredProducts filtered_products(double corner_rad_s) const;
+  /// The products at each corner, in one pass over the blocks.
+  [[nodiscard]] std::vector<FilteredProducts> filtered_products(std::span<const double> corners_rad_s) const;
+  /// The residual of the fit with the squares' products `filtered` (nullptr: the static squares).
+  [[nodiscard]] double rss_with(const FilteredProducts* filtered) const;
 
   const StackedRegression& s_;
   std::vector<Eigen::Index> squares_;

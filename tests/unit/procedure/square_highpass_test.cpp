@@ -198,6 +198,21 @@ TEST(SquareCornerSearch, RssIsTheSameBitsOnAnyNumberOfJobs) {
   parallel::set_jobs(1);
 }
 
+TEST(SquareCornerSearch, SeveralCornersInOnePassGiveEachCornersBits) {
+  // The search's grid is one pass over the rows for all its corners; each corner's residual must
+  // be what a pass of its own gives, on one job and on several.
+  const CornerProblem p = corner_problem(250.0, 0.05, 13);
+  const std::vector<double> corners{3.0, 40.0, 250.0, 251.0, 4000.0};
+  for (const int jobs : {1, 2, 3}) {
+    parallel::set_jobs(jobs);
+    const SquareCornerSearch search(p.s, {2, 3}, p.data);
+    const std::vector<double> together = search.rss(std::span<const double>(corners));
+    ASSERT_EQ(together.size(), corners.size());
+    for (std::size_t k = 0; k < corners.size(); ++k) EXPECT_EQ(together[k], search.rss(corners[k])) << "jobs " << jobs << ", b = " << corners[k];
+  }
+  parallel::set_jobs(1);
+}
+
 TEST(SquareCornerSearch, DependentColumnsLeaveTheResidualAlone) {
   // A column repeated: the residual is that of the distinct columns (the search's pseudo-inverse).
   CornerProblem p = corner_problem(std::nullopt, 0.05, 9);
