@@ -623,23 +623,29 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
     augmented.row(a - 1).segment(p, n_e) = augmented.col(a - 1).segment(p, n_e).transpose();
     stats = UlsStatistics::from_gram(augmented, n, xr.columns, factor_gram, factor_sum);
     sol = solve_uls(stats, xlabels, options);
-    res = finish_uls(x, y, xlabels, xcols, xr, xf, sol, options);
     total_iterations += sol.iterations;
-    const double change = (res.theta - previous).norm() / std::max(res.theta.norm(), std::numeric_limits<double>::min());
+    const double change = (sol.theta - previous).norm() / std::max(sol.theta.norm(), std::numeric_limits<double>::min());
     const bool small = change <= options.tolerance;
     last_change = change;
-    previous = res.theta;
+    previous = sol.theta;
+    // Only the pass that ends the fit needs its residuals and covariance (a pass over the rows):
+    // the passes before it carry their coefficients alone.
     if (small && sol.converged) {
+      res = finish_uls(x, y, xlabels, xcols, xr, xf, sol, options);
       converged = true;
       break;
     }
+    if (pass == options.max_noise_iterations) {
+      res = finish_uls(x, y, xlabels, xcols, xr, xf, sol, options);
+      break;
+    }
     // The next pass's residuals: self-consistent for coefficients mixed from the last passes'.
-    const Eigen::VectorXd next = theta_in.size() == 0 ? res.theta : mixing.next(theta_in, res.theta);
+    const Eigen::VectorXd next = theta_in.size() == 0 ? sol.theta : mixing.next(theta_in, sol.theta);
     if (std::optional<Eigen::VectorXd> consistent = self_consistent_residuals(x, y, p, xr, xf, next)) {
       residuals = std::move(*consistent);
       theta_in = next;
     } else {
-      residuals = res.residuals;
+      residuals = finish_uls(x, y, xlabels, xcols, xr, xf, sol, options).residuals;   // a plain pass: this fit's own
       theta_in.resize(0);
       mixing.reset();
     }
