@@ -153,10 +153,13 @@ std::optional<Eigen::VectorXd> self_consistent_residuals(const Eigen::Ref<const 
   const Eigen::VectorXd& zeta = form.zeta;
   const Eigen::VectorXd& b = form.b;
   Eigen::VectorXd eps(n);
+  // A chain of dependent steps, so its latency is its cost: without output-multiplied terms b is
+  // 1 and the division (exact then) is left out of the chain.
+  const bool divides = !rational.columns.empty();
   for (Index k = 0; k < n; ++k) {
     double value = zeta(k);
     for (Index i = 1; i <= n_e && i <= k; ++i) value -= c(i - 1) * eps(k - i);
-    eps(k) = value / b(k);
+    eps(k) = divides ? value / b(k) : value;
   }
   if (!eps.allFinite()) return std::nullopt;
   return eps;
