@@ -1,5 +1,7 @@
 #include "analyzer/procedure/batch_regression.hpp"
 
+#include <algorithm>
+
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/mountings.hpp"
 #include "analyzer/procedure/whitened_problem.hpp"
@@ -36,10 +38,14 @@ Eigen::MatrixXd BatchRegression::placement_columns(std::span<const ident::Term> 
 }
 
 StackedRegression BatchRegression::unwhitened(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
-                                              const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const {
+                                              const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner,
+                                              std::span<const std::size_t> only) const {
   std::vector<CaseOutcome> cases(data_.cases.size());
   set_case_frames(data_, mountings, turns, cases);
-  StackedRegression s = stack_regressions(terms, batch_inputs(data_, options_, cases), data_.t_ref, label_, first_row_);
+  std::vector<StackInput> inputs = batch_inputs(data_, options_, cases);
+  if (!only.empty())
+    std::erase_if(inputs, [&](const StackInput& in) { return std::find(only.begin(), only.end(), in.case_index) == only.end(); });
+  StackedRegression s = stack_regressions(terms, inputs, data_.t_ref, label_, first_row_);
   apply_square_model(s, data_, corner);
   return s;
 }

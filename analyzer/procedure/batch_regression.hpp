@@ -39,9 +39,11 @@ class BatchRegression {
 
   [[nodiscard]] StackedRegression operator()(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
                                              const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const;
-  /// The same regression before its whitener (prediction_derivative whitens what it needs of it).
+  /// The same regression before its whitener (prediction_derivative whitens what it needs of it),
+  /// of the cases `only` (empty: every case).
   [[nodiscard]] StackedRegression unwhitened(std::span<const ident::Term> terms, const std::vector<MountingResult>& mountings,
-                                             const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner) const;
+                                             const std::vector<Eigen::Vector3d>& turns, std::optional<double> corner,
+                                             std::span<const std::size_t> only = {}) const;
   /// procedure::placement_columns over this regression's rows.
   [[nodiscard]] Eigen::MatrixXd placement_columns(std::span<const ident::Term> terms, const Eigen::VectorXd& theta,
                                                   const std::vector<MountingResult>& mountings,

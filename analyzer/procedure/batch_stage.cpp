@@ -181,16 +181,19 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
     for (std::size_t i = 0; i < searches.size(); ++i) {
       const Searched& search = searches[i];
       if (search.axis == 0 && !has_square_term(fit)) continue;
+      // A turn moves its mounting's cases only: the others are not built.
+      const std::span<const std::size_t> moved_cases =
+          search.axis > 0 ? std::span<const std::size_t>(result.mountings[search.mounting].cases) : std::span<const std::size_t>();
       const auto stack_at = [&](std::span<const Term> terms, double moved) {
         std::vector<Eigen::Vector3d> tilts = nominal;
         if (search.axis > 0) tilts[search.mounting](search.axis - 1) = moved;
         return rows_at.unwhitened(terms, result.mountings, tilts,
-                                  search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s);
+                                  search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s, moved_cases);
       };
       // Steps: 1 % of the corner; 1e-4 rad of a turn (the columns are smooth in both).
       const double step = search.axis == 0 ? 1e-2 * *result.square_corner_rad_s : 1e-4;
       columns.conservativeResize(Eigen::NoChange, columns.cols() + 1);
-      columns.col(columns.cols() - 1) = prediction_derivative(fit, step, rows_at.whitener(), stack_at);
+      columns.col(columns.cols() - 1) = prediction_derivative(fit, step, rows_at.whitener(), batch.cases, stack_at);
       out.ids.push_back(i);
     }
     return out;

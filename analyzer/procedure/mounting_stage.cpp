@@ -406,7 +406,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
       honest.searched = [&](const ident::UlsResult& fit) {
         if (!has_square_term(fit)) return SearchedColumns{};
         // The columns are smooth in the corner: 1 % keeps the difference far above rounding.
-        return SearchedColumns{Eigen::MatrixXd(prediction_derivative(fit, 1e-2 * *square_corner, whitener, [&](std::span<const Term> terms, double moved) {
+        return SearchedColumns{Eigen::MatrixXd(prediction_derivative(fit, 1e-2 * *square_corner, whitener, stage.cases, [&](std::span<const Term> terms, double moved) {
                                  return mounting_regression(terms, m, *best_misalignment, data, dataset_label, first_row,
                                                             *square_corner + moved);
                                })),

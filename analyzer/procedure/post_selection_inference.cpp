@@ -85,6 +85,7 @@ Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<
 }
 
 Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step, const ArWhitener& whitener,
+                                      const std::vector<CaseRows>& layout,
                                       const std::function<StackedRegression(std::span<const Term>, double)>& stack_at) {
   const Eigen::Index p = fit.process_terms;
   const std::vector<Term> terms = ident::parse_terms(fit.process_labels());
@@ -94,7 +95,15 @@ Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step, 
   difference.phi.resize(difference.y.size(), 0);
   difference.cases = up.cases;
   whitener.apply(difference);
-  return std::move(difference.y);
+  // Each built case's rows to its place in the layout; a case not built did not move.
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(layout.empty() ? 0 : layout.back().begin + layout.back().rows);
+  for (const CaseRows& built : difference.cases) {
+    const auto at = std::find_if(layout.begin(), layout.end(), [&](const CaseRows& r) { return r.case_index == built.case_index; });
+    if (at == layout.end() || at->rows != built.rows)
+      throw std::logic_error("prediction_derivative: the rebuilt regression's rows are not the fit's");
+    out.segment(at->begin, at->rows) = difference.y.segment(built.begin, built.rows);
+  }
+  return out;
 }
 
 noise::SegmentSpectrum residual_spectrum(const Eigen::Ref<const Eigen::VectorXd>& run, const Eigen::VectorXd& ar,

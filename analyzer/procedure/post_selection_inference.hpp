@@ -49,8 +49,11 @@ Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<
 /// with, by a central difference, as a whitened column: `stack_at(terms, offset)` rebuilds the
 /// regression of the fit's terms with the parameter moved by `offset`, before whitening. The
 /// whitener is linear and acts case by case, so the difference of the two predictions is whitened
-/// once instead of every column of both regressions.
+/// once instead of every column of both regressions. The column is on the whitened rows `layout`
+/// (the fit's stack's cases); `stack_at` may build only the cases the parameter moves, and the
+/// others' rows are zero.
 Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step, const ArWhitener& whitener,
+                                      const std::vector<CaseRows>& layout,
                                       const std::function<StackedRegression(std::span<const ident::Term>, double)>& stack_at);
 
 /// Parameters the fit's columns depend on that were estimated by a search on the same data (the

@@ -59,10 +59,11 @@ class RowTurns final : public TurnedBatch {
     Eigen::MatrixXd derivatives(batch_.phi.rows(), static_cast<Eigen::Index>(parameters.size()));
     for (std::size_t i = 0; i < parameters.size(); ++i) {
       derivatives.col(static_cast<Eigen::Index>(i)) =
-          prediction_derivative(fit, kTurnDerivativeStepRad, batch_at_.whitener(), [&](std::span<const Term> terms, double moved) {
+          prediction_derivative(fit, kTurnDerivativeStepRad, batch_at_.whitener(), batch_.cases, [&](std::span<const Term> terms, double moved) {
             std::vector<Eigen::Vector3d> turns = nominal_;
             turns[parameters[i].mounting](parameters[i].axis) = moved;
-            return batch_at_.unwhitened(terms, mountings_, turns, square_corner_);
+            // The turn moves its mounting's cases only: the others are not built.
+            return batch_at_.unwhitened(terms, mountings_, turns, square_corner_, mountings_[parameters[i].mounting].cases);
           });
     }
     TurnStep out;
