@@ -445,6 +445,7 @@ TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) 
   ASSERT_FALSE(estimates.empty());
   const model_estimate_t& last = estimates.back().second;
   const std::string clean_out = clean.output();
+  SCOPED_TRACE("the live analyzer's own output:\n" + online.output() + "\nthe replay's:\n" + clean_out);
   for (std::int32_t j = 0; j < last.num_terms; ++j) {
     const std::string& term = last.terms[static_cast<std::size_t>(j)];
     const auto at = clean_out.find("\n  " + term + " ");
