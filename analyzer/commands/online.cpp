@@ -582,6 +582,15 @@ void print_comparison(const online::OnlineSnapshot& last, const std::filesystem:
   }
 }
 
+/// What the fusion made of one sensor's stream: its rows, gaps, exclusions, and a missing bench.
+/// Printed the same after a live run and a replay, so the two can be compared.
+void print_stream_summary(const SensorPipeline& p, std::ostream& out) {
+  fmt::print(out, "online: {}: {} fused rows, {} gap(s), {} exclusion(s), {} block(s) before the bench\n", p.name, p.rows_fused,
+             p.assembler->gaps().size(), p.assembler->exclusions().size(), p.assembler->skipped_blocks());
+  for (const fusion::StreamGap& g : p.assembler->gaps()) fmt::print(out, "online: {}: gap: {}\n", p.name, describe(g));
+  if (!p.assembler->has_bench()) fmt::print(out, "online: {}: no INERTIA_BENCH received (is inertia-daqd running on this LCM URL?)\n", p.name);
+}
+
 void print_settling(const SensorPipeline& p, const online::OnlineSnapshot& last, std::ostream& out) {
   if (p.history.empty()) return;
   fmt::print(out, "online: {}: live estimate history ({} estimates with samples; times from the first fused sample)\n",
@@ -725,6 +734,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
       fmt::print(out, "{}: {} (of {} bytes): read up to it\n", options.replay.string(), log.stop_reason(), log.size());
     worker.finish_replay();
     for (const auto& p : pipelines) {
+      print_stream_summary(*p, out);
       const online::OnlineSnapshot last = p->estimator->snapshot();
       print_settling(*p, last, out);
       if (const auto* file = compare_file(p->name)) print_comparison(last, *file, out);
@@ -809,10 +819,7 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
                l[l.size() / 2], l[static_cast<std::size_t>(0.99 * static_cast<double>(l.size() - 1))], l.back(), l.size());
   }
   for (const auto& p : pipelines) {
-    fmt::print(out, "online: {}: {} fused rows, {} gap(s), {} exclusion(s), {} block(s) before the bench\n", p->name,
-               p->rows_fused, p->assembler->gaps().size(), p->assembler->exclusions().size(), p->assembler->skipped_blocks());
-    for (const fusion::StreamGap& g : p->assembler->gaps()) fmt::print(out, "online: {}: gap: {}\n", p->name, describe(g));
-    if (!p->assembler->has_bench()) fmt::print(out, "online: {}: no INERTIA_BENCH received (is inertia-daqd running on this LCM URL?)\n", p->name);
+    print_stream_summary(*p, out);
     const online::OnlineSnapshot last = p->estimator->snapshot();
     print_settling(*p, last, out);
     if (const auto* file = compare_file(p->name)) print_comparison(last, *file, out);
