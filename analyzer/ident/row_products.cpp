@@ -10,6 +10,9 @@
 namespace inertia::ident {
 namespace {
 
+/// Up to this many columns of B, A'B is formed one column at a time.
+constexpr Eigen::Index kNarrowColumns = 4;
+
 /// The sum over the row blocks [k0, k0 + rows) of block(k0, rows, part), each part a zero
 /// out_rows x out_cols matrix the block adds into, added in block order.
 template <class Block>
@@ -35,7 +38,12 @@ Eigen::MatrixXd summed_over_blocks(Eigen::Index rows, Eigen::Index out_rows, Eig
 Eigen::MatrixXd cross_product(const Eigen::Ref<const Eigen::MatrixXd>& a, const Eigen::Ref<const Eigen::MatrixXd>& b) {
   if (a.rows() != b.rows()) throw std::invalid_argument("cross_product: the factors' rows differ");
   return summed_over_blocks(a.rows(), a.cols(), b.cols(), [&](Eigen::Index k0, Eigen::Index rows, Eigen::MatrixXd& part) {
-    part.noalias() += a.middleRows(k0, rows).transpose() * b.middleRows(k0, rows);
+    if (b.cols() <= kNarrowColumns) {
+      for (Eigen::Index j = 0; j < b.cols(); ++j)
+        part.col(j).noalias() += a.middleRows(k0, rows).transpose() * b.col(j).segment(k0, rows);
+    } else {
+      part.noalias() += a.middleRows(k0, rows).transpose() * b.middleRows(k0, rows);
+    }
   });
 }
 

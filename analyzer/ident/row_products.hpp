@@ -13,7 +13,9 @@ namespace inertia::ident {
 
 inline constexpr Eigen::Index kProductBlockRows = Eigen::Index{1} << 15;
 
-/// A'B (a.cols() x b.cols()); a and b have the same rows. B may be a vector (a column).
+/// A'B (a.cols() x b.cols()); a and b have the same rows. B may be a vector (a column). A narrow B
+/// (a few columns: the output, ELS's noise columns) is taken a column at a time, A' times a
+/// vector: a matrix product would copy (pack) all of A's rows for a few columns of output.
 [[nodiscard]] Eigen::MatrixXd cross_product(const Eigen::Ref<const Eigen::MatrixXd>& a, const Eigen::Ref<const Eigen::MatrixXd>& b);
 /// A'A, both triangles (a SYRK per block: half a GEMM's flops).
 [[nodiscard]] Eigen::MatrixXd gram(const Eigen::Ref<const Eigen::MatrixXd>& a);

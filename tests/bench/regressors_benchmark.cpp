@@ -5,15 +5,20 @@
 //  - BM_ReadDataset: one case CSV of 1e6 rows x 9 columns (t, a, w, temp, y) as the daemon's
 //    10 kHz recordings produce, parsed by read_dataset on 1 and on 2 threads (its chunks side by
 //    side; the second argument). Items = rows.
+//  - BM_NarrowCrossProduct against its peer BM_NarrowCrossProductAsOneGemm: A'E for A of 1e6 rows x
+//    20 columns and E of 2 columns (ELS's noise columns at order 2, once per pass), as
+//    ident::cross_product forms it (a column of E at a time) and as one matrix product per block.
 // Run: build/bench/bench_regressors [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <random>
 #include <sstream>
 
 #include "analyzer/ident/candidates.hpp"
 #include "analyzer/ident/regressors.hpp"
+#include "analyzer/ident/row_products.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/parallel.hpp"
 
@@ -102,6 +107,27 @@ std::filesystem::path make_dataset(Eigen::Index rows) {
   dataset::write_dataset(dir, d);
   return dir;
 }
+
+void BM_NarrowCrossProduct(benchmark::State& state) {
+  const Eigen::MatrixXd a = Eigen::MatrixXd::Random(kSamples, 20), e = Eigen::MatrixXd::Random(kSamples, 2);
+  for (auto _ : state) benchmark::DoNotOptimize(ident::cross_product(a, e));
+  state.SetItemsProcessed(state.iterations() * kSamples);
+}
+BENCHMARK(BM_NarrowCrossProduct)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+
+void BM_NarrowCrossProductAsOneGemm(benchmark::State& state) {
+  const Eigen::MatrixXd a = Eigen::MatrixXd::Random(kSamples, 20), e = Eigen::MatrixXd::Random(kSamples, 2);
+  for (auto _ : state) {
+    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(20, 2);
+    for (Eigen::Index k0 = 0; k0 < kSamples; k0 += ident::kProductBlockRows) {
+      const Eigen::Index rows = std::min(ident::kProductBlockRows, kSamples - k0);
+      out.noalias() += a.middleRows(k0, rows).transpose() * e.middleRows(k0, rows);
+    }
+    benchmark::DoNotOptimize(out);
+  }
+  state.SetItemsProcessed(state.iterations() * kSamples);
+}
+BENCHMARK(BM_NarrowCrossProductAsOneGemm)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 
 void BM_ReadDataset(benchmark::State& state) {
   const Eigen::Index rows = state.range(0);

@@ -41,11 +41,13 @@ class RowProducts : public ::testing::Test {
 TEST_F(RowProducts, CrossProductAndGramAreTheSumsOverRowsAcrossBlockEdges) {
   // Row counts below, at and across the block size, and many blocks.
   for (const Eigen::Index rows : {Eigen::Index{1}, Eigen::Index{100}, kProductBlockRows, kProductBlockRows + 1, 5 * kProductBlockRows + 17}) {
-    const Eigen::MatrixXd a = gaussian(rows, 7, 1), b = gaussian(rows, 3, 2);
+    // A narrow B (a column at a time) and a wide one (one product of the blocks).
+    const Eigen::MatrixXd a = gaussian(rows, 7, 1), b = gaussian(rows, 3, 2), wide = gaussian(rows, 6, 5);
     const Eigen::MatrixXd expected_cross = exact_cross(a, b), expected_gram = exact_cross(a, a);
     // Rounding of a sum of n products of O(1) terms: a few n eps of the sum of their magnitudes.
     const double tolerance = 8.0 * std::numeric_limits<double>::epsilon() * static_cast<double>(rows) * (1.0 + 3.5 * 3.5);
     EXPECT_LT((cross_product(a, b) - expected_cross).cwiseAbs().maxCoeff(), tolerance) << rows << " rows";
+    EXPECT_LT((cross_product(a, wide) - exact_cross(a, wide)).cwiseAbs().maxCoeff(), tolerance) << rows << " rows, wide B";
     const Eigen::MatrixXd g = gram(a);
     EXPECT_LT((g - expected_gram).cwiseAbs().maxCoeff(), tolerance) << rows << " rows";
     EXPECT_EQ(g, g.transpose()) << "both triangles, the same numbers";
@@ -62,6 +64,17 @@ TEST_F(RowProducts, TheAnswerIsTheSameBitsOnOneAndSeveralThreads) {
     parallel::set_jobs(jobs);
     EXPECT_EQ(cross_product(a, b), cross1) << jobs << " jobs";
     EXPECT_EQ(gram(a), gram1) << jobs << " jobs";
+  }
+}
+
+TEST_F(RowProducts, ANarrowFactorsColumnsAreEachTheirOwnProduct) {
+  // A'[e1 e2] column by column is A'e1 and A'e2 to the bit, as the ELS passes' noise columns and
+  // the output's products are formed alike.
+  const Eigen::MatrixXd a = gaussian(3 * kProductBlockRows + 11, 12, 6), b = gaussian(a.rows(), 2, 7);
+  const Eigen::MatrixXd both = cross_product(a, b);
+  for (Eigen::Index j = 0; j < b.cols(); ++j) {
+    const Eigen::VectorXd column = b.col(j);
+    EXPECT_EQ(Eigen::MatrixXd(both.col(j)), cross_product(a, column)) << "column " << j;
   }
 }
 
