@@ -234,12 +234,12 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
     return folded;
   };
   const double weight = m.info.weight();
-  // The corner: the one with the least residual, searched again after the first step of the
-  // fixed point (as the batch pipeline does; it hardly moves with M_C^S after that).
+  // The corner: the one with the least residual, on the fixed point's passes that search it
+  // (procedure::corner_searched_on, as the batch pipeline's).
   std::optional<double> corner;
   StatFit f;
   for (out.refinements = 0; out.refinements < options_.max_refinements; ++out.refinements) {
-    if (out.refinements < 2) {
+    if (procedure::corner_searched_on(out.refinements)) {
       corner = best_corner([&](std::optional<double> b) {
                  StatFit g = fit(gram_at(out.m_cs, b), weight, es, infos, {out.m_cs});
                  g.corner_rad_s = b;

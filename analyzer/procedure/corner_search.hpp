@@ -19,6 +19,11 @@
 
 namespace inertia::procedure {
 
+/// Whether the misalignment fixed point's pass `refinement` (0 the first) searches the corner:
+/// the corner hardly moves with M_C^S after the first step, so it is searched on the first two
+/// passes and held on the later ones. The offline fixed point and the live solver both ask here.
+[[nodiscard]] constexpr bool corner_searched_on(int refinement) { return refinement < 2; }
+
 struct CornerChoice {
   std::optional<double> corner_rad_s;   // none: the static squares
   double rss = std::numeric_limits<double>::infinity();

@@ -13,6 +13,7 @@
 
 #include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/selection.hpp"
+#include "analyzer/procedure/corner_search.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/mounting_regressions.hpp"
@@ -229,9 +230,9 @@ MisalignmentFixedPoint misalignment_fixed_point(const MountingCases& m, const st
   for (f.refinements = 0; f.refinements < std::max(1, options.max_refinements); ++f.refinements) {
     // The pass before's problem is not needed for this one's: freed before this one is stacked.
     f.es = StackedRegression();
-    // The squares' corner hardly moves with M_C^S after the second pass: it is searched twice.
-    WhitenedProblem problem = whiten_problem(stack_regressions(es_terms, stack_inputs(m, f.m_cs), data.t_ref, dataset_label, first_row),
-                                             data, whitening_options(options, options.square_highpass && f.refinements < 2, f.square_corner));
+    WhitenedProblem problem =
+        whiten_problem(stack_regressions(es_terms, stack_inputs(m, f.m_cs), data.t_ref, dataset_label, first_row), data,
+                       whitening_options(options, options.square_highpass && corner_searched_on(f.refinements), f.square_corner));
     f.es = std::move(problem.regression);
     f.whitener = std::move(problem.whitener);
     f.noise_law = std::move(problem.noise_law);

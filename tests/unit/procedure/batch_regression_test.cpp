@@ -5,7 +5,6 @@
 
 #include <gtest/gtest.h>
 
-#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -13,36 +12,17 @@
 #include "analyzer/ident/term.hpp"
 #include "analyzer/procedure/post_selection_inference.hpp"
 #include "common/frames.hpp"
+#include "tests/support/synthetic_cases.hpp"
 
 namespace inertia::procedure {
 namespace {
 
-/// Three shaker cases with varying specific force and temperature: two of mounting "a", one of
-/// mounting "b", each case turned differently in F_E.
+/// Three shaker cases: two of mounting "a", one of mounting "b", each turned differently in F_E.
 dataset::Dataset two_mountings() {
-  dataset::Dataset data;
-  data.t_ref = 25.0;
-  std::mt19937_64 rng(11);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  for (int c = 0; c < 3; ++c) {
-    dataset::CaseData k;
-    k.name = "case" + std::to_string(c);
-    k.kind = dataset::CaseKind::Shaker;
-    k.mounting = c < 2 ? "a" : "b";
-    k.sample_period_s = 1e-3;
-    const Eigen::Index n = 2000 + 700 * c;
-    k.t = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * k.sample_period_s);
-    k.a_e.resize(n, 3);
-    for (Eigen::Index r = 0; r < n; ++r) {
-      const double s = static_cast<double>(r) * k.sample_period_s;
-      k.a_e.row(r) << 15.0 * std::sin((40.0 + 10.0 * c) * s) + normal(rng), 9.81 + 0.3 * normal(rng), 3.0 * std::cos(9.0 * s);
-    }
-    k.temp = Eigen::VectorXd::LinSpaced(n, 20.0, 28.0 + c);
-    k.y = 0.1 * k.a_e.col(0) + 0.01 * Eigen::VectorXd::NullaryExpr(n, [&] { return normal(rng); });
-    k.m_ec = frames::frame_rotation(Eigen::Vector3d(1.0, -0.5 * c, 2.0).normalized(), 0.2 * c);
-    data.cases.push_back(std::move(k));
-  }
-  return data;
+  std::vector<testing::SyntheticCase> cases;
+  for (int c = 0; c < 3; ++c)
+    cases.push_back({c < 2 ? "a" : "b", 2000 + 700 * c, frames::frame_rotation(Eigen::Vector3d(1.0, -0.5 * c, 2.0).normalized(), 0.2 * c)});
+  return testing::synthetic_shaker_cases(cases, 11);
 }
 
 TEST(BatchRegression, ATurnsDerivativeFromItsMountingsCasesIsTheWholeStacksBits) {

@@ -7,43 +7,22 @@
 
 #include <gtest/gtest.h>
 
-#include <random>
 #include <string>
 #include <vector>
 
 #include "analyzer/ident/term.hpp"
 #include "analyzer/procedure/pipeline_options.hpp"
 #include "common/frames.hpp"
+#include "tests/support/synthetic_cases.hpp"
 
 namespace inertia::procedure {
 namespace {
 
-/// Two cases of one mounting with varying specific force, temperature and a nonzero output, the
-/// second turned in F_E and weighted: what mounting_cases turns into the nominal case frame.
+/// Two cases of one mounting, the second turned in F_E: what mounting_cases turns into the nominal
+/// case frame.
 dataset::Dataset two_case_mounting() {
-  dataset::Dataset data;
-  data.t_ref = 25.0;
-  std::mt19937_64 rng(5);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  for (int c = 0; c < 2; ++c) {
-    dataset::CaseData k;
-    k.name = "case" + std::to_string(c);
-    k.kind = dataset::CaseKind::Shaker;
-    k.mounting = "fixture";
-    k.sample_period_s = 1e-3;
-    const Eigen::Index n = 3000 + 500 * c;
-    k.t = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1) * k.sample_period_s);
-    k.a_e.resize(n, 3);
-    for (Eigen::Index r = 0; r < n; ++r) {
-      const double s = static_cast<double>(r) * k.sample_period_s;
-      k.a_e.row(r) << 20.0 * std::sin(60.0 * s) + normal(rng), 9.81 + 0.3 * normal(rng), 2.0 * std::cos(7.0 * s) + 0.1 * normal(rng);
-    }
-    k.temp = Eigen::VectorXd::LinSpaced(n, 20.0, 30.0 + c);
-    k.y = 0.1 * k.a_e.col(0) + Eigen::VectorXd::Constant(n, 3.0) + 0.01 * Eigen::VectorXd::NullaryExpr(n, [&] { return normal(rng); });
-    if (c == 1) k.m_ec = frames::frame_rotation(Eigen::Vector3d(1.0, 2.0, -0.5).normalized(), 0.4);
-    data.cases.push_back(std::move(k));
-  }
-  return data;
+  return testing::synthetic_shaker_cases(
+      {{"fixture", 3000}, {"fixture", 3500, frames::frame_rotation(Eigen::Vector3d(1.0, 2.0, -0.5).normalized(), 0.4)}}, 5);
 }
 
 TEST(MountingRegressions, CombinedColumnsAreTheDirectlyBuiltOnesForEveryKindOfTerm) {
