@@ -182,17 +182,26 @@ int run_noise(const NoiseCommandOptions& options, std::ostream& out) {
   if (options.tau_max_s < 0.0) throw InputError("noise: --tau-max must be >= 0");
   const bool from_log = !options.event_log.empty();
   OutputFolder folder(options.out, "noise");   // takes --out's place once whole
-  const dataset::Dataset data = from_log ? fusion::log_dataset(options.event_log, options.sensor, std::cerr)
-                                         : dataset::read_dataset(options.dataset);
   noise::NoiseAnalysisOptions ao;
   ao.only_case = options.case_name;
   ao.tau_max_s = options.tau_max_s;
-  const noise::NoiseAnalysis a = noise::analyse_noise(data, ao);
+  // A dataset's case files are streamed (a record of hours at 10 kHz is not held); a log is fused
+  // into rows first (fusion::log_dataset).
+  std::string output_unit;
+  const noise::NoiseAnalysis a = [&] {
+    if (!from_log) {
+      output_unit = dataset::read_dataset_description(options.dataset).output_unit;
+      return noise::analyse_noise(options.dataset, ao);
+    }
+    const dataset::Dataset data = fusion::log_dataset(options.event_log, options.sensor, std::cerr);
+    output_unit = data.output_unit;
+    return noise::analyse_noise(data, ao);
+  }();
   const std::string source = (from_log ? options.event_log : options.dataset).string();
-  write_toml(folder.path() / "noise.toml", a, data.output_unit, source);
+  write_toml(folder.path() / "noise.toml", a, output_unit, source);
   {
     std::ofstream md(folder.path() / "report.md");
-    write_noise_section(md, out, a, data.output_unit, source, options.plots ? folder.path() / "plots" : std::filesystem::path());
+    write_noise_section(md, out, a, output_unit, source, options.plots ? folder.path() / "plots" : std::filesystem::path());
   }
   folder.commit();
   fmt::print(out, "wrote {} and {}\n", (folder.target() / "noise.toml").string(), (folder.target() / "report.md").string());

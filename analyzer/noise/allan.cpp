@@ -22,7 +22,9 @@ struct AllanAccumulator::Level {
   int first_octave = 0, last_octave = 0;   // octaves k (m = 2^k of this level's samples)
   bool modified = false;
   Eigen::Index history = 0;          // samples kept for the next block (its differences reach back)
-  std::vector<double> samples;       // [0, fill): `history` older samples, then the block
+  // [0, fill): `history` older samples, then the block. Aligned as Eigen aligns its own arrays, so
+  // that a reduction over it (the centre) adds in the same order whatever the heap hands out.
+  std::vector<double, Eigen::aligned_allocator<double>> samples;
   Eigen::Index fill = 0, fresh = 0;  // [fresh, fill): not yet in the sums
   std::int64_t count = 0;            // samples received
   std::optional<double> centre;      // taken off in the phase: the previous block's mean

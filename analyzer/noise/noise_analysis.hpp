@@ -12,6 +12,7 @@
 // their degrees of freedom add (nothing is averaged across a gap).
 #include <Eigen/Dense>
 
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -29,9 +30,12 @@ struct Stretch {
   double duration_s = 0.0;
 };
 
+/// The fewest rows a static stretch is analysed on.
+inline constexpr Eigen::Index kMinStretchRows = 64;
+
 /// The static stretches of `data` (of case `only_case` when non-empty) of at least min_samples rows.
 std::vector<Stretch> static_stretches(const dataset::Dataset& data, const std::string& only_case = {},
-                                      Eigen::Index min_samples = 64);
+                                      Eigen::Index min_samples = kMinStretchRows);
 
 struct Psd {
   std::vector<double> frequency_hz;
@@ -40,9 +44,6 @@ struct Psd {
   Eigen::Index segment_length = 0;
 };
 
-/// One-sided Welch PSD (Hann window, 50 % overlap) of several stretches of one rate, averaged over
-/// every segment of every stretch at least segment_length long. segment_length: a power of two.
-Psd welch(const std::vector<Eigen::VectorXd>& stretches, double sample_period_s, Eigen::Index segment_length);
 
 /// The fitted model's one-sided PSD at f (Hz).
 double model_psd(const NoiseFit& fit, double f_hz, double tau0_s);
@@ -64,7 +65,17 @@ struct NoiseAnalysisOptions {
   NoiseFitOptions fit;
 };
 
-/// The whole analysis of `data`'s output. Throws InputError when there is no static stretch.
+/// The whole analysis of `data`'s output. Throws InputError when there is no static stretch. The
+/// PSD is the one-sided Welch estimate (Hann window, 50 % overlap, each segment's mean removed)
+/// over every segment of every stretch, segments of a power of two up to 2^16 samples and at
+/// least four to the longest stretch.
 NoiseAnalysis analyse_noise(const dataset::Dataset& data, const NoiseAnalysisOptions& options = {});
+
+/// The same analysis of the dataset folder `dataset_dir`, its case files streamed
+/// (dataset::CaseRowStream): the memory held is a block of rows and the accumulators, whatever
+/// the record's length. Each case file is read twice: the first pass checks it (read_dataset's
+/// errors) and finds its stretches, the second feeds them. The answer is analyse_noise's of
+/// read_dataset(dataset_dir), to the bit.
+NoiseAnalysis analyse_noise(const std::filesystem::path& dataset_dir, const NoiseAnalysisOptions& options = {});
 
 }  // namespace inertia::noise

@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -79,7 +80,9 @@ std::string_view trim(std::string_view s) {
 // is not possible (a pipe, an empty file).
 class FileBytes {
  public:
-  explicit FileBytes(const std::filesystem::path& file) {
+  /// `whole`: the file is read in at once (MAP_POPULATE); otherwise pages come in as they are
+  /// read and release_before() gives them back, so a file read front to back holds a few pages.
+  explicit FileBytes(const std::filesystem::path& file, bool whole = true) {
     const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) {
       throw InputError(SourcePosition{file.string(), 0, 0},
@@ -87,7 +90,7 @@ class FileBytes {
     }
     struct stat st {};
     if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
-      void* p = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+      void* p = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE | (whole ? MAP_POPULATE : 0), fd, 0);
       if (p != MAP_FAILED) {
         (void)::madvise(p, static_cast<std::size_t>(st.st_size), MADV_SEQUENTIAL);
         map_ = static_cast<const char*>(p);
@@ -114,9 +117,24 @@ class FileBytes {
   [[nodiscard]] const char* data() const { return map_ != nullptr ? map_ : copy_.data(); }
   [[nodiscard]] std::size_t size() const { return map_ != nullptr ? size_ : copy_.size(); }
 
+  /// The mapped pages wholly before `p` leave the process (read again from the page cache if
+  /// touched later): what a pass front to back has read no longer counts in its memory.
+  void release_before(const char* p) {
+    if (map_ == nullptr || p <= map_) return;
+    const auto page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+    const std::size_t end = static_cast<std::size_t>(p - map_) / page * page;
+    if (end > released_) {
+      (void)::madvise(const_cast<char*>(map_) + released_, end - released_, MADV_DONTNEED);
+      released_ = end;
+    }
+  }
+  /// Every page may be read again (a second pass).
+  void rewind() { released_ = 0; }
+
  private:
   const char* map_ = nullptr;
   std::size_t size_ = 0;
+  std::size_t released_ = 0;
   std::string copy_;
 };
 
@@ -126,6 +144,39 @@ std::string_view field_text(const char* p, const char* eol) {
   return trim(std::string_view(p, static_cast<std::size_t>((q ? q : eol) - p)));
 }
 
+/// The sample period of a case file's `rows` rows from its first and last time; throws for fewer
+/// than two rows or a time that does not increase.
+double sample_period(const std::string& file, std::size_t t_col, Eigen::Index rows, double first_t, double last_t) {
+  if (rows < 2) {
+    throw InputError(SourcePosition{file, rows == 0 ? 1u : 2u, 0},
+                     fmt::format("{} data row{}: at least two rows are needed to define the sample period",
+                                 rows == 0 ? "no" : "only one", rows == 1 ? "" : "s"));
+  }
+  const double period = (last_t - first_t) / static_cast<double>(rows - 1);
+  if (!(period > 0.0)) {
+    throw InputError(SourcePosition{file, 2 + static_cast<std::size_t>(rows - 1), t_col},
+                     "time column 't' does not increase (last time <= first time)");
+  }
+  return period;
+}
+
+/// The first step of times `t` (rows first_row.., after `previous`, the row before's time if
+/// any) that differs from `period` by more than kTimeJitterTolerance of it, as the error to throw.
+std::optional<InputError> uneven_step(const std::string& file, std::size_t t_col, const Eigen::Ref<const Eigen::VectorXd>& t,
+                                      Eigen::Index first_row, std::optional<double> previous, double period) {
+  const double tolerance = kTimeJitterTolerance * period;
+  for (Eigen::Index k = previous ? -1 : 0; k + 1 < t.size(); ++k) {
+    const double step = t[k + 1] - (k < 0 ? *previous : t[k]);
+    if (std::abs(step - period) > tolerance) {
+      return InputError(SourcePosition{file, 3 + static_cast<std::size_t>(first_row + k), t_col},
+                        fmt::format("non-uniform time column 't': step {} s from the previous row differs from the "
+                                    "mean period {} s by more than the relative jitter tolerance {}",
+                                    step, period, kTimeJitterTolerance));
+    }
+  }
+  return std::nullopt;
+}
+
 // One case file being read: its bytes, the header's columns, the outputs sized from the count of
 // lines, and the rows split into chunks of whole lines. A chunk parses on its own into its own rows
 // (line = row + 2, so every position is known before parsing), which lets the chunks of every case
@@ -133,14 +184,31 @@ std::string_view field_text(const char* p, const char* eol) {
 // renumbered in order of first appearance when the case is finished.
 class CaseCsv {
  public:
-  CaseCsv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings);
+  /// Reads the header and cuts the rows into chunks. `out`'s columns are sized for every row
+  /// (read whole), or, with `whole` false, left alone: the chunks are then parsed one at a time
+  /// into blocks of their own (parse_chunk_into), the file read front to back.
+  CaseCsv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings, bool whole = true);
 
   [[nodiscard]] std::size_t chunks() const { return chunks_.size(); }
-  /// Parses chunk `c` into its rows. Throws InputError at the chunk's first bad line.
+  /// Parses chunk `c` into its rows of `out`. Throws InputError at the chunk's first bad line.
   void parse_chunk(std::size_t c);
+  /// Parses chunk `c` into `block`, sized to the chunk's rows (fewer when a trailing blank line
+  /// ends the data in it); phase labels are numbered within the chunk (chunk_phase_names).
+  void parse_chunk_into(std::size_t c, CaseData& block);
+  [[nodiscard]] Eigen::Index chunk_first_row(std::size_t c) const { return chunks_.at(c).first_row; }
+  [[nodiscard]] const std::vector<std::string>& chunk_phase_names(std::size_t c) const { return chunks_.at(c).phase_names; }
+  /// The chunk's labels (count of them, from its first row) numbered over the file: `names` gets
+  /// the labels not met before, in order of first appearance.
+  void number_phases_over_file(std::size_t c, std::vector<std::string>& names, std::uint16_t* labels, Eigen::Index count) const;
+  /// The pages of the chunks before `c` leave the process (whole = false).
+  void release_before_chunk(std::size_t c) { buf_.release_before(chunks_.at(c).begin); }
+  /// For another pass from the first chunk.
+  void rewind() { buf_.rewind(); }
   /// After every chunk parsed: the phase labels numbered over the file, trailing blank lines
   /// dropped, the time column checked and the sample period set.
   void finish();
+  [[nodiscard]] const std::string& name() const { return name_; }
+  [[nodiscard]] std::size_t time_column() const { return where_[static_cast<std::size_t>(Column::T)]; }
 
  private:
   // Lines of up to this many bytes per chunk: a few per case for the threads to share, and few
@@ -171,10 +239,55 @@ class CaseCsv {
   std::vector<double*> dest_;
   Eigen::Index rows_ = 0;   // lines after the header, trailing blank ones included
   std::vector<Chunk> chunks_;
+
+  /// Where each field of a row goes in `c`'s columns (nullptr: not a number column).
+  [[nodiscard]] std::vector<double*> destinations(CaseData& c) const;
+  /// Sizes `c`'s columns for `rows` rows, the columns this file has.
+  void size_columns(CaseData& c, Eigen::Index rows) const;
+  /// Parses `chunk`'s rows: row r's fields to dest[field][r - offset], its phase to phase[r - offset].
+  void parse_rows(Chunk& chunk, const std::vector<double*>& dest, std::uint16_t* phase, Eigen::Index offset);
 };
 
-CaseCsv::CaseCsv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings)
-    : name_(file.string()), buf_(file), end_(buf_.data() + buf_.size()), out_(out) {
+std::vector<double*> CaseCsv::destinations(CaseData& c) const {
+  std::vector<double*> dest(columns_.size(), nullptr);
+  for (std::size_t i = 0; i < columns_.size(); ++i) {
+    switch (columns_[i]) {
+      case Column::T: dest[i] = c.t.data(); break;
+      case Column::Ax: dest[i] = c.a_e.col(0).data(); break;
+      case Column::Ay: dest[i] = c.a_e.col(1).data(); break;
+      case Column::Az: dest[i] = c.a_e.col(2).data(); break;
+      case Column::Wx: dest[i] = c.w_e->col(0).data(); break;
+      case Column::Wy: dest[i] = c.w_e->col(1).data(); break;
+      case Column::Wz: dest[i] = c.w_e->col(2).data(); break;
+      case Column::Temp: dest[i] = c.temp->data(); break;
+      case Column::Y: dest[i] = c.y.data(); break;
+      case Column::Phase: case Column::Unknown: break;
+    }
+  }
+  return dest;
+}
+
+void CaseCsv::size_columns(CaseData& c, Eigen::Index rows) const {
+  const auto has = [&](Column col) { return where_[static_cast<std::size_t>(col)] != 0; };
+  c.t.resize(rows);
+  c.a_e.resize(rows, 3);
+  c.y.resize(rows);
+  if (has(Column::Wx)) {
+    if (c.w_e) c.w_e->resize(rows, 3); else c.w_e.emplace(rows, 3);
+  } else {
+    c.w_e.reset();
+  }
+  if (has(Column::Temp)) {
+    if (c.temp) c.temp->resize(rows); else c.temp.emplace(rows);
+  } else {
+    c.temp.reset();
+  }
+  c.phase.clear();
+  if (has(Column::Phase)) c.phase.resize(static_cast<std::size_t>(rows));
+}
+
+CaseCsv::CaseCsv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings, bool whole)
+    : name_(file.string()), buf_(file, whole), end_(buf_.data() + buf_.size()), out_(out) {
   const char* p = buf_.data();
   if (buf_.size() >= 3 && std::memcmp(p, "\xEF\xBB\xBF", 3) == 0) p += 3;  // UTF-8 BOM from spreadsheets
 
@@ -237,6 +350,7 @@ CaseCsv::CaseCsv(const std::filesystem::path& file, CaseData& out, std::ostream&
   for (const char* q = body; q < end_;) {
     if (chunks_.empty() || q - chunks_.back().begin >= static_cast<std::ptrdiff_t>(kChunkBytes)) {
       if (!chunks_.empty()) chunks_.back().end = q;
+      if (!whole) buf_.release_before(q);   // counted: its pages are not needed until parsed
       Chunk next;
       next.begin = q;
       next.end = end_;
@@ -248,40 +362,42 @@ CaseCsv::CaseCsv(const std::filesystem::path& file, CaseData& out, std::ostream&
     q = e == end_ ? end_ : e + 1;
   }
   for (std::size_t c = 0; c < chunks_.size(); ++c) chunks_[c].end_row = c + 1 < chunks_.size() ? chunks_[c + 1].first_row : rows_;
-  out_.t.resize(rows_);
-  out_.a_e.resize(rows_, 3);
-  out_.y.resize(rows_);
-  if (rate_columns == 3) out_.w_e.emplace(rows_, 3); else out_.w_e.reset();
-  if (has(Column::Temp)) out_.temp.emplace(rows_); else out_.temp.reset();
   out_.phase_names.clear();
-  out_.phase.clear();
-  if (has(Column::Phase)) out_.phase.resize(static_cast<std::size_t>(rows_));
+  if (!whole) return;
+  size_columns(out_, rows_);
   const auto advise = [](auto& m) { advise_huge_pages(m.data(), static_cast<std::size_t>(m.size()) * sizeof(double)); };
   advise(out_.t);
   advise(out_.a_e);
   advise(out_.y);
   if (out_.w_e) advise(*out_.w_e);
   if (out_.temp) advise(*out_.temp);
-
-  dest_.assign(columns_.size(), nullptr);
-  for (std::size_t i = 0; i < columns_.size(); ++i) {
-    switch (columns_[i]) {
-      case Column::T: dest_[i] = out_.t.data(); break;
-      case Column::Ax: dest_[i] = out_.a_e.col(0).data(); break;
-      case Column::Ay: dest_[i] = out_.a_e.col(1).data(); break;
-      case Column::Az: dest_[i] = out_.a_e.col(2).data(); break;
-      case Column::Wx: dest_[i] = out_.w_e->col(0).data(); break;
-      case Column::Wy: dest_[i] = out_.w_e->col(1).data(); break;
-      case Column::Wz: dest_[i] = out_.w_e->col(2).data(); break;
-      case Column::Temp: dest_[i] = out_.temp->data(); break;
-      case Column::Y: dest_[i] = out_.y.data(); break;
-      case Column::Phase: case Column::Unknown: break;
-    }
-  }
+  dest_ = destinations(out_);
 }
 
 void CaseCsv::parse_chunk(std::size_t index) {
+  parse_rows(chunks_.at(index), dest_, out_.phase.empty() ? nullptr : out_.phase.data(), 0);
+}
+
+void CaseCsv::parse_chunk_into(std::size_t index, CaseData& block) {
   Chunk& chunk = chunks_.at(index);
+  size_columns(block, chunk.end_row - chunk.first_row);
+  block.phase_names.clear();
+  parse_rows(chunk, destinations(block), block.phase.empty() ? nullptr : block.phase.data(), chunk.first_row);
+  if (chunk.blank_row >= 0) {   // the data end inside this chunk
+    const Eigen::Index rows = chunk.blank_row - chunk.first_row;
+    block.t.conservativeResize(rows);
+    block.a_e.conservativeResize(rows, 3);
+    block.y.conservativeResize(rows);
+    if (block.w_e) block.w_e->conservativeResize(rows, 3);
+    if (block.temp) block.temp->conservativeResize(rows);
+    if (!block.phase.empty()) block.phase.resize(static_cast<std::size_t>(rows));
+  }
+}
+
+void CaseCsv::parse_rows(Chunk& chunk, const std::vector<double*>& dest, std::uint16_t* phase, Eigen::Index offset) {
+  chunk.blank_row = -1;
+  chunk.phase_names.clear();
+  chunk.phase_first_row.clear();
   std::size_t last_phase = 0;
   // Rows. A row is line `row + 2`; blank lines are allowed only at the end of the file so that
   // this mapping (used in every error message) stays exact.
@@ -312,7 +428,7 @@ void CaseCsv::parse_chunk(std::size_t index) {
         }
         ++f;
       }
-      if (double* d = dest_[c]) {
+      if (double* d = dest[c]) {
         while (f < le && is_blank(*f)) ++f;
         const char* start = f;
         if (f < le && *f == '+') ++f;  // from_chars refuses a leading '+', other writers emit it
@@ -332,7 +448,7 @@ void CaseCsv::parse_chunk(std::size_t index) {
           throw InputError(here(), fmt::format("{} in column '{}': every value must be finite", field_text(start, le),
                                                column_names_[c]));
         }
-        d[row] = v;
+        d[row - offset] = v;
         f = after;
       } else {
         const char* comma = static_cast<const char*>(std::memchr(f, ',', static_cast<std::size_t>(le - f)));
@@ -351,7 +467,7 @@ void CaseCsv::parse_chunk(std::size_t index) {
               last_phase = static_cast<std::size_t>(it - names.begin());
             }
           }
-          out_.phase[static_cast<std::size_t>(row)] = static_cast<std::uint16_t>(last_phase);
+          phase[row - offset] = static_cast<std::uint16_t>(last_phase);
         }
         f = field_end;
       }
@@ -375,31 +491,10 @@ void CaseCsv::finish() {
   }
   // The labels over the file in order of first appearance: each chunk's, in chunk order.
   if (!out_.phase.empty()) {
-    std::vector<std::uint16_t> renumber;
-    for (const Chunk& chunk : chunks_) {
+    for (std::size_t c = 0; c < chunks_.size(); ++c) {
+      const Chunk& chunk = chunks_[c];
       if (chunk.first_row >= row) break;
-      renumber.assign(chunk.phase_names.size(), 0);
-      bool same = true;
-      for (std::size_t local = 0; local < chunk.phase_names.size(); ++local) {
-        const auto it = std::find(out_.phase_names.begin(), out_.phase_names.end(), chunk.phase_names[local]);
-        const auto global = static_cast<std::size_t>(it - out_.phase_names.begin());
-        if (it == out_.phase_names.end()) {
-          if (out_.phase_names.size() > 0xFFFF) {
-            throw InputError(SourcePosition{name_, static_cast<std::size_t>(chunk.phase_first_row[local]) + 2,
-                                            where_[static_cast<std::size_t>(Column::Phase)]},
-                             "more than 65536 distinct phase labels");
-          }
-          out_.phase_names.push_back(chunk.phase_names[local]);
-        }
-        renumber[local] = static_cast<std::uint16_t>(global);
-        same = same && global == local;
-      }
-      if (same) continue;
-      const Eigen::Index chunk_end = std::min(row, chunk.end_row);
-      for (Eigen::Index k = chunk.first_row; k < chunk_end; ++k) {
-        std::uint16_t& label = out_.phase[static_cast<std::size_t>(k)];
-        label = renumber[label];
-      }
+      number_phases_over_file(c, out_.phase_names, out_.phase.data() + chunk.first_row, std::min(row, chunk.end_row) - chunk.first_row);
     }
   }
 
@@ -411,28 +506,31 @@ void CaseCsv::finish() {
     if (out_.temp) out_.temp->conservativeResize(row);
     if (!out_.phase.empty()) out_.phase.resize(static_cast<std::size_t>(row));
   }
-  const std::size_t t_col = where_[static_cast<std::size_t>(Column::T)];
-  if (row < 2) {
-    throw InputError(SourcePosition{name_, row == 0 ? 1u : 2u, 0},
-                     fmt::format("{} data row{}: at least two rows are needed to define the sample period",
-                                 row == 0 ? "no" : "only one", row == 1 ? "" : "s"));
-  }
-  const double period = (out_.t[row - 1] - out_.t[0]) / static_cast<double>(row - 1);
-  if (!(period > 0.0)) {
-    throw InputError(SourcePosition{name_, 2 + static_cast<std::size_t>(row - 1), t_col},
-                     "time column 't' does not increase (last time <= first time)");
-  }
-  const double tolerance = kTimeJitterTolerance * period;
-  for (Eigen::Index k = 0; k + 1 < row; ++k) {
-    const double step = out_.t[k + 1] - out_.t[k];
-    if (std::abs(step - period) > tolerance) {
-      throw InputError(SourcePosition{name_, 3 + static_cast<std::size_t>(k), t_col},
-                       fmt::format("non-uniform time column 't': step {} s from the previous row differs from the "
-                                   "mean period {} s by more than the relative jitter tolerance {}",
-                                   step, period, kTimeJitterTolerance));
+  out_.sample_period_s = sample_period(name_, time_column(), row, row > 0 ? out_.t[0] : 0.0, row > 0 ? out_.t[row - 1] : 0.0);
+  if (const std::optional<InputError> step = uneven_step(name_, time_column(), out_.t.head(row), 0, std::nullopt, out_.sample_period_s))
+    throw *step;
+}
+
+void CaseCsv::number_phases_over_file(std::size_t c, std::vector<std::string>& names, std::uint16_t* labels, Eigen::Index count) const {
+  const Chunk& chunk = chunks_.at(c);
+  std::vector<std::uint16_t> renumber(chunk.phase_names.size(), 0);
+  bool same = true;
+  for (std::size_t local = 0; local < chunk.phase_names.size(); ++local) {
+    const auto it = std::find(names.begin(), names.end(), chunk.phase_names[local]);
+    const auto global = static_cast<std::size_t>(it - names.begin());
+    if (it == names.end()) {
+      if (names.size() > 0xFFFF) {
+        throw InputError(SourcePosition{name_, static_cast<std::size_t>(chunk.phase_first_row[local]) + 2,
+                                        where_[static_cast<std::size_t>(Column::Phase)]},
+                         "more than 65536 distinct phase labels");
+      }
+      names.push_back(chunk.phase_names[local]);
     }
+    renumber[local] = static_cast<std::uint16_t>(global);
+    same = same && global == local;
   }
-  out_.sample_period_s = period;
+  if (same) return;
+  for (Eigen::Index k = 0; k < count; ++k) labels[k] = renumber[labels[k]];
 }
 
 }  // namespace
@@ -619,6 +717,14 @@ void read_case_files(const std::vector<std::filesystem::path>& files, std::vecto
 }  // namespace
 
 Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
+  Dataset data = read_dataset_description(dir);
+  std::vector<std::filesystem::path> csv_files;
+  for (const CaseData& c : data.cases) csv_files.push_back(dir / c.file);
+  read_case_files(csv_files, data.cases, warnings);
+  return data;
+}
+
+Dataset read_dataset_description(const std::filesystem::path& dir) {
   const std::filesystem::path toml_path = dir / "dataset.toml";
   const std::string file = toml_path.string();
   toml::table root;
@@ -661,7 +767,6 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
   if (cases == nullptr || cases->empty() || !cases->is_array_of_tables()) {
     throw InputError(position_of(cases_node, file), "'case' must be one or more [[case]] tables");
   }
-  std::vector<std::filesystem::path> csv_files;
   for (const toml::node& node : *cases) {
     const toml::table& table = *node.as_table();
     CaseData c;
@@ -726,12 +831,86 @@ Dataset read_dataset(const std::filesystem::path& dir, std::ostream& warnings) {
       throw InputError(position_of(*table.get("file"), file),
                        fmt::format("case '{}': file '{}' not found", c.name, csv.string()));
     }
-    csv_files.push_back(csv);
     data.cases.push_back(std::move(c));
   }
-  read_case_files(csv_files, data.cases, warnings);
   return data;
 }
+
+struct CaseRowStream::Impl {
+  CaseData shape;   // the header's columns; no rows
+  CaseCsv csv;
+  Eigen::Index rows = 0;
+  double period = 0.0;
+  std::vector<std::string> phase_names;
+
+  Impl(const std::filesystem::path& file, std::ostream& warnings) : csv(file, shape, warnings, false) {}
+
+  /// The rows the file holds and its last time: the last chunk with a data row, parsed first.
+  /// None when that chunk does not parse (the pass in order then stops at its error).
+  std::optional<double> last_time() {
+    CaseData block;
+    for (std::size_t c = csv.chunks(); c-- > 0;) {
+      try {
+        csv.parse_chunk_into(c, block);
+      } catch (const InputError&) {
+        return std::nullopt;
+      }
+      if (block.size() > 0) {
+        rows = csv.chunk_first_row(c) + block.size();
+        return block.t[block.size() - 1];
+      }
+    }
+    return std::nullopt;
+  }
+
+  /// One pass over the chunks in order, each block to `consume` (when set) with its labels
+  /// numbered over the file. With `check`, the errors read_case_csv raises, in its order: a bad
+  /// field at once, the time column's once every row has parsed.
+  void pass(const BlockConsumer& consume, bool check) {
+    const std::optional<double> last_t = check ? last_time() : std::nullopt;
+    csv.rewind();
+    phase_names.clear();
+    std::optional<InputError> time_error;
+    std::optional<double> previous;
+    CaseData block;
+    for (std::size_t c = 0; c < csv.chunks(); ++c) {
+      csv.parse_chunk_into(c, block);
+      if (block.size() == 0) break;   // trailing blank lines
+      const Eigen::Index first_row = csv.chunk_first_row(c);
+      if (!block.phase.empty()) csv.number_phases_over_file(c, phase_names, block.phase.data(), block.size());
+      if (check && c == 0 && last_t) {
+        try {
+          period = sample_period(csv.name(), csv.time_column(), rows, block.t[0], *last_t);
+        } catch (const InputError& e) {
+          time_error = e;
+        }
+      }
+      if (check && !time_error && period > 0.0) time_error = uneven_step(csv.name(), csv.time_column(), block.t, first_row, previous, period);
+      previous = block.t[block.size() - 1];
+      block.phase_names = phase_names;
+      block.sample_period_s = period;
+      if (consume) consume(block, first_row);
+      if (c + 1 < csv.chunks()) csv.release_before_chunk(c + 1);
+    }
+    if (!check) return;
+    if (!last_t) (void)sample_period(csv.name(), csv.time_column(), 0, 0.0, 0.0);   // no data row
+    if (time_error) throw *time_error;
+  }
+};
+
+CaseRowStream::CaseRowStream(const std::filesystem::path& file, std::ostream& warnings, const BlockConsumer& check)
+    : impl_(std::make_unique<Impl>(file, warnings)) {
+  impl_->pass(check, true);
+}
+
+CaseRowStream::~CaseRowStream() = default;
+CaseRowStream::CaseRowStream(CaseRowStream&&) noexcept = default;
+CaseRowStream& CaseRowStream::operator=(CaseRowStream&&) noexcept = default;
+
+Eigen::Index CaseRowStream::rows() const { return impl_->rows; }
+double CaseRowStream::sample_period_s() const { return impl_->period; }
+const std::vector<std::string>& CaseRowStream::phase_names() const { return impl_->phase_names; }
+void CaseRowStream::for_each_block(const BlockConsumer& consume) { impl_->pass(consume, false); }
 
 std::uintmax_t csv_bytes(const Dataset& data) {
   // Each case's rows formatted up to kSampledRows, the rest taken at their mean length: the

@@ -4,7 +4,9 @@
 #include <Eigen/Dense>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <iosfwd>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -96,6 +98,42 @@ Dataset read_dataset(const std::filesystem::path& dir);   // warnings go to std:
 /// Reads one case CSV into `out` (t, a_e, w_e, temp, y, phase, sample_period_s); the other fields
 /// of `out` are left as they are. `file` is the path used for reading and in error messages.
 void read_case_csv(const std::filesystem::path& file, CaseData& out, std::ostream& warnings);
+
+/// dataset.toml alone, with read_dataset's checks of it: every case's description (name, kind,
+/// file, m_ec, ...) without its rows, for a reader that streams the case files (CaseRowStream).
+Dataset read_dataset_description(const std::filesystem::path& dir);
+
+/// A block of a case file's rows: CaseData's columns over rows [first_row, first_row + size()),
+/// its phase labels numbered over the file so far (block.phase_names), its sample_period_s the
+/// file's.
+using BlockConsumer = std::function<void(const CaseData& block, Eigen::Index first_row)>;
+
+/// One case CSV read a block of rows at a time, for a record too long to hold: the file is mapped
+/// and read front to back, each block's pages given back to the system once parsed, so the
+/// memory held is a block's (a few MB of text and its rows) whatever the file's length. Serial:
+/// one thread parses.
+class CaseRowStream {
+ public:
+  /// Reads the header and checks every row: the errors read_case_csv raises, in its order (a bad
+  /// field where it is met, the time column once every row has parsed). `check`, when set, sees
+  /// each block on this first pass (a reader that needs two passes takes its first here); a block
+  /// seen before an error is thrown belongs to a file that is refused.
+  CaseRowStream(const std::filesystem::path& file, std::ostream& warnings, const BlockConsumer& check = {});
+  ~CaseRowStream();
+  CaseRowStream(CaseRowStream&&) noexcept;
+  CaseRowStream& operator=(CaseRowStream&&) noexcept;
+
+  [[nodiscard]] Eigen::Index rows() const;
+  [[nodiscard]] double sample_period_s() const;
+  /// The file's phase labels in order of first appearance (empty: no phase column).
+  [[nodiscard]] const std::vector<std::string>& phase_names() const;
+  /// The rows again, block by block in order (the file was checked: nothing is thrown for it).
+  void for_each_block(const BlockConsumer& consume);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 /// Writes dataset.toml and one CSV per case into `dir` (created if needed). Numbers are written
 /// with std::to_chars' shortest round-trip form, so read_dataset gives back the same doubles and

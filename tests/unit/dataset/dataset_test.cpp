@@ -243,6 +243,14 @@ TEST_P(BadCsvTest, NamesFileLineAndColumn) {
   EXPECT_EQ(e.where().column, bad.column) << e.what();
   EXPECT_NE(std::string(e.what()).find(bad.message_part), std::string::npos) << e.what();
   EXPECT_NE(std::string(e.what()).find("c1.csv:"), std::string::npos) << e.what();
+  // The file streamed: the same error, word for word.
+  std::ostringstream warnings;
+  try {
+    CaseRowStream stream(dir / "c1.csv", warnings);
+    ADD_FAILURE() << "the stream read a bad file";
+  } catch (const InputError& streamed) {
+    EXPECT_STREQ(streamed.what(), e.what());
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(
@@ -379,6 +387,119 @@ TEST(Dataset, AFileReadInChunksGivesTheRowsLabelsAndFirstErrorOfTheWholeFile) {
   parallel::set_jobs(1);
   EXPECT_EQ(e.where().line, line_at(middle)) << e.what();
   EXPECT_NE(std::string(e.what()).find("empty line inside the data"), std::string::npos) << e.what();
+}
+
+/// The blocks of a streamed case file put back together.
+CaseData streamed_whole(const fs::path& file, int* blocks = nullptr) {
+  std::ostringstream warnings;
+  CaseData whole;
+  std::vector<CaseData> parts;
+  Eigen::Index checked = 0;
+  CaseRowStream stream(file, warnings, [&](const CaseData& block, Eigen::Index first_row) {
+    EXPECT_EQ(first_row, checked) << "the check pass sees every row in order";
+    checked += block.size();
+  });
+  EXPECT_EQ(checked, stream.rows());
+  Eigen::Index next = 0;
+  stream.for_each_block([&](const CaseData& block, Eigen::Index first_row) {
+    EXPECT_EQ(first_row, next);
+    next += block.size();
+    parts.push_back(block);
+  });
+  if (blocks != nullptr) *blocks = static_cast<int>(parts.size());
+  const Eigen::Index n = stream.rows();
+  whole.t.resize(n);
+  whole.a_e.resize(n, 3);
+  whole.y.resize(n);
+  if (!parts.empty() && parts.front().temp) whole.temp.emplace(n);
+  if (!parts.empty() && parts.front().w_e) whole.w_e.emplace(n, 3);
+  Eigen::Index at = 0;
+  for (const CaseData& b : parts) {
+    whole.t.segment(at, b.size()) = b.t;
+    whole.a_e.middleRows(at, b.size()) = b.a_e;
+    whole.y.segment(at, b.size()) = b.y;
+    if (b.temp) whole.temp->segment(at, b.size()) = *b.temp;
+    if (b.w_e) whole.w_e->middleRows(at, b.size()) = *b.w_e;
+    whole.phase.insert(whole.phase.end(), b.phase.begin(), b.phase.end());
+    at += b.size();
+  }
+  whole.phase_names = stream.phase_names();
+  whole.sample_period_s = stream.sample_period_s();
+  return whole;
+}
+
+TEST(Dataset, AStreamedFileGivesTheRowsLabelsAndPeriodOfTheWholeRead) {
+  const fs::path dir = fresh_dir("streamed");
+  Dataset d = sample_dataset();
+  // Enough rows for several blocks, the labels of the later ones first met late.
+  CaseData& c = d.cases.at(0);
+  const Eigen::Index n = 60000;
+  c.t = Eigen::VectorXd::LinSpaced(n, 1.25, 1.25 + static_cast<double>(n - 1) * 1e-4);
+  c.a_e = Matrix3Columns::Random(n, 3);
+  c.w_e = Matrix3Columns::Random(n, 3);
+  c.temp = Eigen::VectorXd::Random(n);
+  c.y = Eigen::VectorXd::Random(n);
+  c.phase.resize(static_cast<std::size_t>(n));
+  for (Eigen::Index k = 0; k < n; ++k) c.phase[static_cast<std::size_t>(k)] = static_cast<std::uint16_t>(k < n / 2 ? (k / 100) % 2 : 2);
+  write_dataset(dir, d);
+  std::ostringstream warnings;
+  const Dataset read = read_dataset(dir, warnings);
+  const CaseData& expected = read.cases.at(0);
+  int blocks = 0;
+  const CaseData got = streamed_whole(dir / c.file, &blocks);
+  EXPECT_GE(blocks, 2) << "the file is more than one block";
+  ASSERT_EQ(got.t.size(), expected.t.size());
+  EXPECT_EQ(got.t, expected.t);
+  EXPECT_EQ(got.a_e, expected.a_e);
+  EXPECT_EQ(*got.w_e, *expected.w_e);
+  EXPECT_EQ(*got.temp, *expected.temp);
+  EXPECT_EQ(got.y, expected.y);
+  EXPECT_TRUE(got.phase == expected.phase);
+  EXPECT_EQ(got.phase_names, expected.phase_names);
+  EXPECT_EQ(got.sample_period_s, expected.sample_period_s);
+  // The description alone: the cases without rows.
+  const Dataset description = read_dataset_description(dir);
+  ASSERT_EQ(description.cases.size(), read.cases.size());
+  EXPECT_EQ(description.cases.at(0).file, c.file);
+  EXPECT_EQ(description.cases.at(0).size(), 0);
+}
+
+TEST(Dataset, AStreamedFileRaisesTheWholeReadsFirstErrorAcrossBlocks) {
+  const fs::path dir = fresh_dir("streamed-errors");
+  spit(dir / "dataset.toml", std::string(kToml));
+  std::string csv = "t,a_x,a_y,a_z,y\n";
+  for (int k = 0; k < 400000; ++k) csv += fmt::format("{},{},{},{},{}\n", 0.001 * k, k % 1000, -k, 0.5 * (k % 7), k * 1e-6);
+  ASSERT_GT(csv.size(), std::size_t{8} << 20) << "several blocks";
+  const std::size_t second = csv.find('\n', std::size_t{5} << 20) + 1;
+  const std::size_t last = csv.find('\n', csv.size() - 1000) + 1;
+  const auto error_of = [&](const std::string& text, bool streamed) {
+    spit(dir / "c1.csv", text);
+    if (!streamed) return std::string(read_error(dir).what());
+    std::ostringstream warnings;
+    try {
+      CaseRowStream stream(dir / "c1.csv", warnings);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("none");
+  };
+  // A time step off in the second block and a bad field in the last: the field is named first,
+  // as the whole read names it (the time column is checked once every row has parsed).
+  std::string both = csv;
+  both.replace(last, both.find(',', last) - last, "x");
+  both.replace(second, both.find(',', second) - second, "1e3");
+  EXPECT_EQ(error_of(both, true), error_of(both, false));
+  EXPECT_NE(error_of(both, true).find("not a number in column 't'"), std::string::npos);
+  // The time step alone: the row after the step, in the second block.
+  std::string step = csv;
+  step.replace(second, step.find(',', second) - second, "1e3");
+  EXPECT_EQ(error_of(step, true), error_of(step, false));
+  EXPECT_NE(error_of(step, true).find("non-uniform time column"), std::string::npos);
+  // Trailing blank lines end the data; a blank line inside is named at its line.
+  EXPECT_EQ(error_of(csv + "\n\n", true), "none");
+  std::string blank = csv;
+  blank.insert(second, "\n");
+  EXPECT_EQ(error_of(blank, true), error_of(blank, false));
 }
 
 TEST(Dataset, TrailingBlankLinesAreAllowed) {

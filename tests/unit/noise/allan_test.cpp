@@ -167,5 +167,26 @@ TEST(Allan, EdfFollowsTheTableForWhiteNoise) {
   EXPECT_GT(overlapping_edf(10000.0, 4.0, -2), 100.0);
 }
 
+// The record pushed whole or in pieces of any size: the same points to the bit (each level's
+// blocks are the same, and a sum over a block adds in the same order wherever the heap put it).
+TEST(AllanAccumulator, ThePointsDoNotDependOnHowTheSamplesArePushed) {
+  std::mt19937_64 rng(1);
+  std::normal_distribution<double> g(0.0, 0.01);
+  Eigen::VectorXd y(40000);
+  for (double& v : y) v = 3.0 + g(rng);
+  AllanAccumulator whole(1e-3), pieces(1e-3);
+  whole.push(y);
+  pieces.push(y.head(12345));
+  pieces.push(y(12345));
+  pieces.push(y.tail(y.size() - 12346));
+  const std::vector<AllanPoint> a = whole.points(), b = pieces.points();
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].avar, b[i].avar) << "tau " << a[i].tau;
+    EXPECT_EQ(std::isnan(a[i].mvar), std::isnan(b[i].mvar)) << "tau " << a[i].tau;
+    if (!std::isnan(a[i].mvar)) EXPECT_EQ(a[i].mvar, b[i].mvar) << "tau " << a[i].tau;
+  }
+}
+
 }  // namespace
 }  // namespace inertia::noise

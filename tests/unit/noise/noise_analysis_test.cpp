@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <filesystem>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -80,6 +81,68 @@ TEST(NoiseAnalysis, NoRestNamesWhatIsMissing) {
   EXPECT_THROW((void)analyse_noise(d, o), InputError);
   o.only_case = "shaker-ia";
   EXPECT_NO_THROW((void)analyse_noise(d, o)) << "a case named is taken whole";
+}
+
+/// Every number of two analyses, compared bit for bit.
+void expect_same_analysis(const NoiseAnalysis& a, const NoiseAnalysis& b) {
+  ASSERT_EQ(a.stretches.size(), b.stretches.size());
+  for (std::size_t i = 0; i < a.stretches.size(); ++i) {
+    EXPECT_EQ(a.stretches[i].case_index, b.stretches[i].case_index);
+    EXPECT_EQ(a.stretches[i].begin, b.stretches[i].begin);
+    EXPECT_EQ(a.stretches[i].end, b.stretches[i].end);
+    EXPECT_EQ(a.stretches[i].duration_s, b.stretches[i].duration_s);
+  }
+  EXPECT_EQ(a.tau0_s, b.tau0_s);
+  ASSERT_EQ(a.points.size(), b.points.size());
+  for (std::size_t i = 0; i < a.points.size(); ++i) {
+    EXPECT_EQ(a.points[i].avar, b.points[i].avar) << "tau " << a.points[i].tau;
+    EXPECT_EQ(std::isnan(a.points[i].mvar), std::isnan(b.points[i].mvar));
+    if (!std::isnan(a.points[i].mvar)) EXPECT_EQ(a.points[i].mvar, b.points[i].mvar) << "tau " << a.points[i].tau;
+    EXPECT_EQ(a.points[i].terms, b.points[i].terms);
+  }
+  ASSERT_EQ(a.fit.has_value(), b.fit.has_value());
+  if (a.fit)
+    for (std::size_t t = 0; t < a.fit->terms.size(); ++t) EXPECT_EQ(a.fit->terms[t].value, b.fit->terms[t].value) << "term " << t;
+  EXPECT_EQ(a.psd.segments, b.psd.segments);
+  EXPECT_EQ(a.psd.segment_length, b.psd.segment_length);
+  EXPECT_EQ(a.psd.density, b.psd.density);
+  EXPECT_EQ(a.notes, b.notes);
+}
+
+/// A dataset folder written to disk: a static case, a shaker case with rest phases between its
+/// other phases (several blocks of the streamed file), and a case with another sample period.
+std::filesystem::path written_dataset() {
+  const std::filesystem::path dir = std::filesystem::path(INERTIA_BINARY_DIR) / "test-data" / "noise-streamed";
+  std::filesystem::remove_all(dir);
+  dataset::Dataset d;
+  d.output_unit = "mA";
+  dataset::CaseData labelled = rest_case("shaker-ia", 90000, 0.02, 6);
+  labelled.kind = CaseKind::Shaker;
+  labelled.phase_names = {"rest", "sine", "dwell"};
+  for (Eigen::Index k = 0; k < labelled.size(); ++k)
+    labelled.phase.push_back(static_cast<std::uint16_t>(k < 30000 ? 0 : k < 50000 ? 1 : k < 50030 ? 2 : k < 60000 ? 1 : 2));
+  dataset::CaseData slow = rest_case("slow", 3000, 0.01, 7);
+  slow.sample_period_s = 2e-3;
+  slow.t = Eigen::VectorXd::LinSpaced(3000, 0.0, 2999 * 2e-3);
+  d.cases = {rest_case("pose-1", 40000, 0.01, 5), labelled, slow};
+  for (dataset::CaseData& c : d.cases) c.file = c.name + ".csv";
+  dataset::write_dataset(dir, d);
+  return dir;
+}
+
+TEST(NoiseAnalysis, AStreamedDatasetGivesTheAnalysisOfTheDatasetReadWhole) {
+  const std::filesystem::path dir = written_dataset();
+  const dataset::Dataset whole = dataset::read_dataset(dir);
+  const NoiseAnalysis streamed = analyse_noise(dir);
+  expect_same_analysis(streamed, analyse_noise(whole));
+  // The labelled case's rest and dwell runs, its 30 dwell rows too few; the slow case left out.
+  EXPECT_EQ(streamed.stretches.size(), 4u);
+  EXPECT_NE(streamed.notes.front().find("case slow: sampled every"), std::string::npos) << streamed.notes.front();
+  NoiseAnalysisOptions one;
+  one.only_case = "shaker-ia";
+  expect_same_analysis(analyse_noise(dir, one), analyse_noise(whole, one));
+  one.only_case = "nosuch";
+  EXPECT_THROW((void)analyse_noise(dir, one), InputError);
 }
 
 /// model_psd is the spectrum whose Allan variance is model_avar, for the sampled series: the
