@@ -872,29 +872,55 @@ struct CaseRowStream::Impl {
     phase_names.clear();
     std::optional<InputError> time_error;
     std::optional<double> previous;
-    CaseData block;
-    for (std::size_t c = 0; c < csv.chunks(); ++c) {
-      csv.parse_chunk_into(c, block);
-      if (block.size() == 0) break;   // trailing blank lines
-      const Eigen::Index first_row = csv.chunk_first_row(c);
-      if (!block.phase.empty()) csv.number_phases_over_file(c, phase_names, block.phase.data(), block.size());
-      if (check && c == 0 && last_t) {
+    // The chunks parse a group at a time on the --jobs threads, each into a block of its own,
+    // and are then taken in order: memory holds one group.
+    const auto group = static_cast<std::size_t>(std::max(1, parallel::jobs()));
+    std::vector<CaseData> blocks(group);
+    std::vector<std::exception_ptr> errors(group);
+    for (std::size_t first = 0; first < csv.chunks(); first += group) {
+      const std::size_t count = std::min(group, csv.chunks() - first);
+      parallel::for_each_index(static_cast<long>(count), [&](long i) {
+        errors[static_cast<std::size_t>(i)] = nullptr;
         try {
-          period = sample_period(csv.name(), csv.time_column(), rows, block.t[0], *last_t);
-        } catch (const InputError& e) {
-          time_error = e;
+          csv.parse_chunk_into(first + static_cast<std::size_t>(i), blocks[static_cast<std::size_t>(i)]);
+        } catch (...) {
+          errors[static_cast<std::size_t>(i)] = std::current_exception();
+        }
+      });
+      for (std::size_t i = 0; i < count; ++i) {
+        if (errors[i]) std::rethrow_exception(errors[i]);
+        if (!take(first + i, blocks[i], consume, check, last_t, time_error, previous)) {
+          first = csv.chunks();   // trailing blank lines: the data ended
+          break;
         }
       }
-      if (check && !time_error && period > 0.0) time_error = uneven_step(csv.name(), csv.time_column(), block.t, first_row, previous, period);
-      previous = block.t[block.size() - 1];
-      block.phase_names = phase_names;
-      block.sample_period_s = period;
-      if (consume) consume(block, first_row);
-      if (c + 1 < csv.chunks()) csv.release_before_chunk(c + 1);
+      if (first + count < csv.chunks()) csv.release_before_chunk(first + count);
     }
     if (!check) return;
     if (!last_t) (void)sample_period(csv.name(), csv.time_column(), 0, 0.0, 0.0);   // no data row
     if (time_error) throw *time_error;
+  }
+
+  /// Chunk c's parsed block, in order: its labels numbered over the file, its time steps checked,
+  /// then to `consume`. False when the block is empty (the data ended before it).
+  bool take(std::size_t c, CaseData& block, const BlockConsumer& consume, bool check, const std::optional<double>& last_t,
+            std::optional<InputError>& time_error, std::optional<double>& previous) {
+    if (block.size() == 0) return false;
+    const Eigen::Index first_row = csv.chunk_first_row(c);
+    if (!block.phase.empty()) csv.number_phases_over_file(c, phase_names, block.phase.data(), block.size());
+    if (check && c == 0 && last_t) {
+      try {
+        period = sample_period(csv.name(), csv.time_column(), rows, block.t[0], *last_t);
+      } catch (const InputError& e) {
+        time_error = e;
+      }
+    }
+    if (check && !time_error && period > 0.0) time_error = uneven_step(csv.name(), csv.time_column(), block.t, first_row, previous, period);
+    previous = block.t[block.size() - 1];
+    block.phase_names = phase_names;
+    block.sample_period_s = period;
+    if (consume) consume(block, first_row);
+    return true;
   }
 };
 

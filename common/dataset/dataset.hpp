@@ -110,8 +110,8 @@ using BlockConsumer = std::function<void(const CaseData& block, Eigen::Index fir
 
 /// One case CSV read a block of rows at a time, for a record too long to hold: the file is mapped
 /// and read front to back, each block's pages given back to the system once parsed, so the
-/// memory held is a block's (a few MB of text and its rows) whatever the file's length. Serial:
-/// one thread parses.
+/// memory held is a group of blocks' (a few MB of text and its rows each, one block per --jobs
+/// thread, which parse a group side by side) whatever the file's length.
 class CaseRowStream {
  public:
   /// Reads the header and checks every row: the errors read_case_csv raises, in its order (a bad

@@ -446,7 +446,9 @@ TEST(Dataset, AStreamedFileGivesTheRowsLabelsAndPeriodOfTheWholeRead) {
   const Dataset read = read_dataset(dir, warnings);
   const CaseData& expected = read.cases.at(0);
   int blocks = 0;
+  parallel::set_jobs(2);   // blocks parsed side by side, taken in order
   const CaseData got = streamed_whole(dir / c.file, &blocks);
+  parallel::set_jobs(1);
   EXPECT_GE(blocks, 2) << "the file is more than one block";
   ASSERT_EQ(got.t.size(), expected.t.size());
   EXPECT_EQ(got.t, expected.t);
@@ -483,23 +485,29 @@ TEST(Dataset, AStreamedFileRaisesTheWholeReadsFirstErrorAcrossBlocks) {
     }
     return std::string("none");
   };
-  // A time step off in the second block and a bad field in the last: the field is named first,
-  // as the whole read names it (the time column is checked once every row has parsed).
-  std::string both = csv;
-  both.replace(last, both.find(',', last) - last, "x");
-  both.replace(second, both.find(',', second) - second, "1e3");
-  EXPECT_EQ(error_of(both, true), error_of(both, false));
-  EXPECT_NE(error_of(both, true).find("not a number in column 't'"), std::string::npos);
-  // The time step alone: the row after the step, in the second block.
-  std::string step = csv;
-  step.replace(second, step.find(',', second) - second, "1e3");
-  EXPECT_EQ(error_of(step, true), error_of(step, false));
-  EXPECT_NE(error_of(step, true).find("non-uniform time column"), std::string::npos);
-  // Trailing blank lines end the data; a blank line inside is named at its line.
-  EXPECT_EQ(error_of(csv + "\n\n", true), "none");
-  std::string blank = csv;
-  blank.insert(second, "\n");
-  EXPECT_EQ(error_of(blank, true), error_of(blank, false));
+  // On one thread and with the blocks parsed side by side.
+  for (const int jobs : {1, 2}) {
+    parallel::set_jobs(jobs);
+    SCOPED_TRACE(jobs);
+    // A time step off in the second block and a bad field in the last: the field is named first,
+    // as the whole read names it (the time column is checked once every row has parsed).
+    std::string both = csv;
+    both.replace(last, both.find(',', last) - last, "x");
+    both.replace(second, both.find(',', second) - second, "1e3");
+    EXPECT_EQ(error_of(both, true), error_of(both, false));
+    EXPECT_NE(error_of(both, true).find("not a number in column 't'"), std::string::npos);
+    // The time step alone: the row after the step, in the second block.
+    std::string step = csv;
+    step.replace(second, step.find(',', second) - second, "1e3");
+    EXPECT_EQ(error_of(step, true), error_of(step, false));
+    EXPECT_NE(error_of(step, true).find("non-uniform time column"), std::string::npos);
+    // Trailing blank lines end the data; a blank line inside is named at its line.
+    EXPECT_EQ(error_of(csv + "\n\n", true), "none");
+    std::string blank = csv;
+    blank.insert(second, "\n");
+    EXPECT_EQ(error_of(blank, true), error_of(blank, false));
+  }
+  parallel::set_jobs(1);
 }
 
 TEST(Dataset, TrailingBlankLinesAreAllowed) {
