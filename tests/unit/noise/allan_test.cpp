@@ -184,7 +184,9 @@ TEST(AllanAccumulator, ThePointsDoNotDependOnHowTheSamplesArePushed) {
   for (std::size_t i = 0; i < a.size(); ++i) {
     EXPECT_EQ(a[i].avar, b[i].avar) << "tau " << a[i].tau;
     EXPECT_EQ(std::isnan(a[i].mvar), std::isnan(b[i].mvar)) << "tau " << a[i].tau;
-    if (!std::isnan(a[i].mvar)) EXPECT_EQ(a[i].mvar, b[i].mvar) << "tau " << a[i].tau;
+    if (!std::isnan(a[i].mvar)) {
+      EXPECT_EQ(a[i].mvar, b[i].mvar) << "tau " << a[i].tau;
+    }
   }
 }
 

@@ -97,12 +97,15 @@ void expect_same_analysis(const NoiseAnalysis& a, const NoiseAnalysis& b) {
   for (std::size_t i = 0; i < a.points.size(); ++i) {
     EXPECT_EQ(a.points[i].avar, b.points[i].avar) << "tau " << a.points[i].tau;
     EXPECT_EQ(std::isnan(a.points[i].mvar), std::isnan(b.points[i].mvar));
-    if (!std::isnan(a.points[i].mvar)) EXPECT_EQ(a.points[i].mvar, b.points[i].mvar) << "tau " << a.points[i].tau;
+    if (!std::isnan(a.points[i].mvar)) {
+      EXPECT_EQ(a.points[i].mvar, b.points[i].mvar) << "tau " << a.points[i].tau;
+    }
     EXPECT_EQ(a.points[i].terms, b.points[i].terms);
   }
   ASSERT_EQ(a.fit.has_value(), b.fit.has_value());
-  if (a.fit)
+  if (a.fit) {
     for (std::size_t t = 0; t < a.fit->terms.size(); ++t) EXPECT_EQ(a.fit->terms[t].value, b.fit->terms[t].value) << "term " << t;
+  }
   EXPECT_EQ(a.psd.segments, b.psd.segments);
   EXPECT_EQ(a.psd.segment_length, b.psd.segment_length);
   EXPECT_EQ(a.psd.density, b.psd.density);
