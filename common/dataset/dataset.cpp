@@ -177,6 +177,16 @@ std::optional<InputError> uneven_step(const std::string& file, std::size_t t_col
   return std::nullopt;
 }
 
+/// Every column of `c` cut to its first `rows` rows.
+void keep_first_rows(CaseData& c, Eigen::Index rows) {
+  c.t.conservativeResize(rows);
+  c.a_e.conservativeResize(rows, 3);
+  c.y.conservativeResize(rows);
+  if (c.w_e) c.w_e->conservativeResize(rows, 3);
+  if (c.temp) c.temp->conservativeResize(rows);
+  if (!c.phase.empty()) c.phase.resize(static_cast<std::size_t>(rows));
+}
+
 // One case file being read: its bytes, the header's columns, the outputs sized from the count of
 // lines, and the rows split into chunks of whole lines. A chunk parses on its own into its own rows
 // (line = row + 2, so every position is known before parsing), which lets the chunks of every case
@@ -383,15 +393,7 @@ void CaseCsv::parse_chunk_into(std::size_t index, CaseData& block) {
   size_columns(block, chunk.end_row - chunk.first_row);
   block.phase_names.clear();
   parse_rows(chunk, destinations(block), block.phase.empty() ? nullptr : block.phase.data(), chunk.first_row);
-  if (chunk.blank_row >= 0) {   // the data end inside this chunk
-    const Eigen::Index rows = chunk.blank_row - chunk.first_row;
-    block.t.conservativeResize(rows);
-    block.a_e.conservativeResize(rows, 3);
-    block.y.conservativeResize(rows);
-    if (block.w_e) block.w_e->conservativeResize(rows, 3);
-    if (block.temp) block.temp->conservativeResize(rows);
-    if (!block.phase.empty()) block.phase.resize(static_cast<std::size_t>(rows));
-  }
+  if (chunk.blank_row >= 0) keep_first_rows(block, chunk.blank_row - chunk.first_row);   // the data end inside this chunk
 }
 
 void CaseCsv::parse_rows(Chunk& chunk, const std::vector<double*>& dest, std::uint16_t* phase, Eigen::Index offset) {
@@ -498,14 +500,7 @@ void CaseCsv::finish() {
     }
   }
 
-  if (row < rows_) {  // trailing blank lines were counted
-    out_.t.conservativeResize(row);
-    out_.a_e.conservativeResize(row, 3);
-    out_.y.conservativeResize(row);
-    if (out_.w_e) out_.w_e->conservativeResize(row, 3);
-    if (out_.temp) out_.temp->conservativeResize(row);
-    if (!out_.phase.empty()) out_.phase.resize(static_cast<std::size_t>(row));
-  }
+  if (row < rows_) keep_first_rows(out_, row);   // trailing blank lines were counted
   out_.sample_period_s = sample_period(name_, time_column(), row, row > 0 ? out_.t[0] : 0.0, row > 0 ? out_.t[row - 1] : 0.0);
   if (const std::optional<InputError> step = uneven_step(name_, time_column(), out_.t.head(row), 0, std::nullopt, out_.sample_period_s))
     throw *step;

@@ -1,11 +1,9 @@
 // `inertia-analyze noise --dataset` streams its case files (dataset::CaseRowStream): its peak
 // memory does not grow with the record. The same static record at two lengths, 6x apart, run as
 // the real binary; the peak resident set of each from the kernel (wait4's ru_maxrss).
-#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <iostream>
@@ -14,6 +12,7 @@
 #include <vector>
 
 #include "common/dataset/dataset.hpp"
+#include "tests/support/child_process.hpp"
 #include "tests/support/files.hpp"
 #include "tests/support/scratch_dirs.hpp"
 
@@ -43,17 +42,7 @@ void write_rest_record(const fs::path& dir, Eigen::Index rows) {
 
 /// Runs `args`, output to `log`; returns (exit status, peak resident set in kB).
 std::pair<int, long> run_measured(const std::vector<std::string>& args, const fs::path& log) {
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    ::dup2(fd, 1);
-    ::dup2(fd, 2);
-    std::vector<char*> argv;
-    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(argv[0], argv.data());
-    ::_exit(127);
-  }
+  const pid_t pid = testing::start_child(args, log);
   int status = 0;
   struct rusage usage {};
   ::wait4(pid, &status, 0, &usage);
