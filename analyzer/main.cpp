@@ -2,11 +2,13 @@
 // Exit status: 0 success, 2 bad input (InputError, CLI misuse), 1 anything else.
 #include <CLI/CLI.hpp>
 #include <malloc.h>
-#include <sys/mman.h>
 #include <unistd.h>
 
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <string_view>
 #include <charconv>
 #include <cmath>
 #include <map>
@@ -308,41 +310,63 @@ int run(int argc, char** argv) {
   return inertia::kExitBadInput;
 }
 
-/// Grows the heap by `bytes` (address space only: nothing is touched, so nothing is resident)
-/// and asks the kernel to back it with transparent huge pages. The regressor matrices then live
-/// on 2 MB pages: one TLB entry and one fault per 2 MB instead of per 4 kB, which saves a
-/// noticeable share of characterize's time (docs/validation.md, 'Evidence behind choices in the
-/// code'). The freed block stays in the heap (M_TRIM_THRESHOLD above), so later allocations reuse
-/// the advised range; beyond it the heap grows with ordinary pages. glibc's own switch for this
-/// (the tunable glibc.malloc.hugetlb) is read from the environment only at process start.
-void reserve_heap_with_huge_pages(std::size_t bytes) {
-  char* const before = static_cast<char*>(::sbrk(0));
-  void* block = std::malloc(bytes);
-  char* const after = static_cast<char*>(::sbrk(0));
-  std::free(block);
-  if (block == nullptr || after <= before) return;
-  const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
-  const std::uintptr_t start = (reinterpret_cast<std::uintptr_t>(before) + page - 1) & ~(page - 1);
-  const std::uintptr_t end = reinterpret_cast<std::uintptr_t>(after) & ~(page - 1);
-  if (end > start) (void)::madvise(reinterpret_cast<void*>(start), end - start, MADV_HUGEPAGE);
+/// glibc's malloc as the analysis wants it, a process-wide policy set here and not in the library.
+/// The analysis allocates and frees regressor matrices of tens of MB (the paper plan) to GB (an
+/// hour at 10 kHz) hundreds of times, each written right after allocation:
+///  - freed memory stays in the heap, whatever its size, so the next matrix reuses pages already
+///    faulted in (by default glibc maps each large block afresh and unmaps it on free, or trims
+///    the heap after it);
+///  - the heap and any mapped block are advised MADV_HUGEPAGE (glibc.malloc.hugetlb=1): a fault
+///    per 2 MB instead of per 4 KiB;
+///  - one arena for every thread: the --jobs threads' buffers return to the heap the next matrix
+///    reuses instead of staying in an arena of their own.
+/// Their effect grows with the record (docs/validation.md, 'Evidence behind choices in the
+/// code'). glibc reads the tunables that say so from the environment at process start only, so
+/// the program runs itself again, once, with them put before any others in GLIBC_TUNABLES: the
+/// same PID, arguments and open files. A marker variable, removed in the second run, says the
+/// tunables are in force (glibc may rewrite GLIBC_TUNABLES as it reads it). A caller who sets any
+/// glibc.malloc tunable gets exactly those. Where the program is not run again (the kernel has no
+/// huge pages; valgrind, whose tools follow a new image only when asked; an exec that fails),
+/// mallopt keeps freed blocks up to 1 GB in the heap and the pages stay 4 KiB.
+void configure_malloc(char** argv) {
+  constexpr const char* kConfigured = "INERTIA_ANALYZE_MALLOC_TUNED";
+  constexpr std::string_view kMallocTunables =
+      "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=1099511627776:glibc.malloc.trim_threshold=1099511627776:"
+      "glibc.malloc.arena_max=1";
+  if (std::getenv(kConfigured) != nullptr) {
+    ::unsetenv(kConfigured);
+    return;
+  }
+  const char* given = std::getenv("GLIBC_TUNABLES");
+  const std::string tunables = given != nullptr ? given : "";
+  if (tunables.find("glibc.malloc.") != std::string::npos) return;
+  const auto huge_pages_available = [] {
+    std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
+    std::string modes;
+    return std::getline(mode, modes) && modes.find("[never]") == std::string::npos;
+  };
+  const char* preload = std::getenv("LD_PRELOAD");
+  const bool under_valgrind = preload != nullptr && std::strstr(preload, "vgpreload") != nullptr;
+  if (!under_valgrind && huge_pages_available()) {
+    const std::string with_ours = std::string(kMallocTunables) + (tunables.empty() ? "" : ":" + tunables);
+    if (::setenv("GLIBC_TUNABLES", with_ours.c_str(), 1) == 0 && ::setenv(kConfigured, "1", 1) == 0)
+      ::execv("/proc/self/exe", argv);
+    ::unsetenv(kConfigured);
+    if (given != nullptr) {
+      ::setenv("GLIBC_TUNABLES", tunables.c_str(), 1);
+    } else {
+      ::unsetenv("GLIBC_TUNABLES");
+    }
+  }
+  mallopt(M_MMAP_THRESHOLD, 1024 * 1024 * 1024);
+  mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
+  mallopt(M_ARENA_MAX, 1);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  // The analysis allocates and frees regressor matrices of tens of MB hundreds of times. glibc
-  // serves each from a fresh mmap (or trims the heap after the free), so every one costs a page
-  // fault per 4 kB, and on the paper dataset those faults are a large share of characterize's
-  // time. Keeping freed memory in the heap lets the next matrix reuse it, for little more peak
-  // RSS (docs/validation.md, 'Evidence behind choices in the code'). A process-wide allocator
-  // policy, so it is set here and not in the library.
-  mallopt(M_MMAP_THRESHOLD, 1024 * 1024 * 1024);
-  mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
-  // One arena for every thread: the --jobs threads' buffers (a transform's plan and columns,
-  // tens of MB each) then return to the heap the next matrix reuses, instead of staying in an
-  // arena of their own.
-  mallopt(M_ARENA_MAX, 1);
-  reserve_heap_with_huge_pages(768u << 20);
+  configure_malloc(argv);
   try {
     return run(argc, argv);
   } catch (const inertia::InputError& e) {
