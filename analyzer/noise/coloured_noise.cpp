@@ -184,18 +184,23 @@ namespace {
 ///   sum_{i = a0}^{a1-1} sum_{j = b0}^{b1-1} r(i - j) = P2(a1 - b0 + 1) - P2(a0 - b0 + 1) - P2(a1 - b1 + 1) + P2(a0 - b1 + 1).
 class LagSums {
  public:
-  explicit LagSums(const Eigen::VectorXd& autocovariance) : n_(autocovariance.size()) {
+  /// What the sums serve: row() alone needs the first running sums (16 B a lag), block() the
+  /// second too.
+  enum class Reach { Rows, Blocks };
+
+  LagSums(const Eigen::VectorXd& autocovariance, Reach reach) : n_(autocovariance.size()) {
     first_.assign(static_cast<std::size_t>(2 * n_), 0.0L);
-    second_.assign(static_cast<std::size_t>(2 * n_ + 1), 0.0L);
     for (Eigen::Index i = 0; i + 1 < 2 * n_; ++i)
       first_[std::size_t(i + 1)] = first_[std::size_t(i)] + static_cast<long double>(autocovariance(std::abs(i - (n_ - 1))));
+    if (reach == Reach::Rows) return;
+    second_.assign(static_cast<std::size_t>(2 * n_ + 1), 0.0L);
     for (Eigen::Index i = 0; i < 2 * n_; ++i) second_[std::size_t(i + 1)] = second_[std::size_t(i)] + first_[std::size_t(i)];
   }
 
   /// sum over j in [b0, b1) of r(i - j), rows i, b0, b1 of the stretch.
   [[nodiscard]] long double row(Eigen::Index i, Eigen::Index b0, Eigen::Index b1) const { return p1(i - b0 + 1) - p1(i - b1 + 1); }
 
-  /// sum over i in [a0, a1), j in [b0, b1) of r(i - j).
+  /// sum over i in [a0, a1), j in [b0, b1) of r(i - j). Reach::Blocks only.
   [[nodiscard]] long double block(Eigen::Index a0, Eigen::Index a1, Eigen::Index b0, Eigen::Index b1) const {
     return (p2(a1 - b0 + 1) - p2(a0 - b0 + 1)) - (p2(a1 - b1 + 1) - p2(a0 - b1 + 1));
   }
@@ -227,7 +232,7 @@ std::vector<std::vector<std::pair<Eigen::Index, Eigen::Index>>> group_runs(const
 
 Eigen::MatrixXd group_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows) {
   if (static_cast<Eigen::Index>(rows.group.size()) != spectrum.rows) throw std::invalid_argument("group_covariance: rows differ from the spectrum's");
-  const LagSums sums(spectrum.autocovariance);
+  const LagSums sums(spectrum.autocovariance, LagSums::Reach::Blocks);
   const auto runs = group_runs(rows);
   Eigen::MatrixXd out(rows.groups, rows.groups);
   for (Eigen::Index g = 0; g < rows.groups; ++g) {
@@ -245,7 +250,7 @@ Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const Ro
                                        const Eigen::Ref<const Eigen::MatrixXd>& x) {
   if (static_cast<Eigen::Index>(rows.group.size()) != spectrum.rows || x.rows() != spectrum.rows)
     throw std::invalid_argument("group_cross_covariance: rows differ from the spectrum's");
-  const LagSums sums(spectrum.autocovariance);
+  const LagSums sums(spectrum.autocovariance, LagSums::Reach::Rows);
   const auto runs = group_runs(rows);
   Eigen::MatrixXd out(x.cols(), rows.groups);
   Eigen::VectorXd rz(x.rows());   // R z_h
