@@ -532,10 +532,28 @@ UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   return out;
 }
 
-UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
-                    const Eigen::Ref<const Eigen::VectorXd>& y,
-                    const std::vector<std::string>& labels, const OutputMultiplied& rational,
-                    const UlsOptions& options, std::span<const Index> columns) {
+namespace {
+
+/// uls_batch's problem, checked: the columns `columns` of phi (all when empty) in a compact copy
+/// [Phi(:, cols), E] with room for the noise columns E, which the ELS passes rebuild in place.
+/// Without noise terms, columns that are Phi's first p are used where they are (no copy of the
+/// stack).
+struct CompactProblem {
+  Index p = 0;                        // process columns
+  bool in_place = false;              // x is phi's first p columns, not a copy
+  Eigen::MatrixXd x;                  // the copy (empty in place)
+  std::vector<std::string> labels;    // of x's columns, noise columns included
+  OutputMultiplied rational;          // x's output-multiplied columns
+  Eigen::MatrixXd factors;            // their p_b, in rational's order
+
+  [[nodiscard]] Eigen::Ref<const Eigen::MatrixXd> process(const Eigen::Ref<const Eigen::MatrixXd>& phi) const {
+    return in_place ? Eigen::Ref<const Eigen::MatrixXd>(phi.leftCols(p)) : Eigen::Ref<const Eigen::MatrixXd>(x.leftCols(p));
+  }
+};
+
+CompactProblem compact_problem(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
+                               const std::vector<std::string>& labels, const OutputMultiplied& rational,
+                               const UlsOptions& options, std::span<const Index> columns) {
   std::string why;
   if (!options.is_valid(&why)) throw std::invalid_argument("ULS options: " + why);
   if (static_cast<Index>(labels.size()) != phi.cols())
@@ -549,41 +567,61 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
     cols.resize(static_cast<std::size_t>(phi.cols()));
     std::iota(cols.begin(), cols.end(), Index{0});
   }
-  const Index p = static_cast<Index>(cols.size());
+  CompactProblem out;
+  const Index p = out.p = static_cast<Index>(cols.size());
   const Index n_e = options.noise_lags;
   if (phi.rows() <= p + n_e)
     throw std::invalid_argument("ULS: " + std::to_string(phi.rows()) + " samples for " +
                                 std::to_string(p + n_e) + " parameters");
   const Eigen::MatrixXd all_factors = denominator_factors(phi, y, rational, labels);
-
-  // Work on a compact copy [Phi(:, cols), E]: the ELS passes rebuild E in place. Without noise
-  // terms, columns that are Phi's first p are used where they are (no copy of the stack).
   const Index n = phi.rows();
-  const bool in_place = n_e == 0 && std::equal(cols.begin(), cols.end(), std::views::iota(Index{0}, p).begin());
-  Eigen::MatrixXd x(in_place ? 0 : n, in_place ? 0 : p + n_e);
-  std::vector<std::string> xlabels;
-  OutputMultiplied xr;
-  std::vector<Index> xden_cols;  // columns of all_factors in xr order
+  out.in_place = n_e == 0 && std::equal(cols.begin(), cols.end(), std::views::iota(Index{0}, p).begin());
+  out.x.resize(out.in_place ? 0 : n, out.in_place ? 0 : p + n_e);
+  std::vector<Index> xden_cols;  // columns of all_factors in out.rational's order
   for (Index j = 0; j < p; ++j) {
     const Index c = cols[static_cast<std::size_t>(j)];
     if (c < 0 || c >= phi.cols()) throw std::invalid_argument("ULS: column index out of range");
-    if (!in_place) x.col(j) = phi.col(c);
-    xlabels.push_back(labels[static_cast<std::size_t>(c)]);
+    if (!out.in_place) out.x.col(j) = phi.col(c);
+    out.labels.push_back(labels[static_cast<std::size_t>(c)]);
     const Index f = factor_index(rational, c);
     if (f >= 0) {
-      xr.columns.push_back(j);
+      out.rational.columns.push_back(j);
       xden_cols.push_back(f);
     }
   }
-  Eigen::MatrixXd xf(n, static_cast<Index>(xden_cols.size()));
-  for (Index t = 0; t < xf.cols(); ++t) xf.col(t) = all_factors.col(xden_cols[static_cast<std::size_t>(t)]);
-  for (Index i = 1; i <= n_e; ++i) xlabels.push_back("e[k-" + std::to_string(i) + "]");
+  out.factors.resize(n, static_cast<Index>(xden_cols.size()));
+  for (Index t = 0; t < out.factors.cols(); ++t) out.factors.col(t) = all_factors.col(xden_cols[static_cast<std::size_t>(t)]);
+  for (Index i = 1; i <= n_e; ++i) out.labels.push_back("e[k-" + std::to_string(i) + "]");
+  return out;
+}
+
+}  // namespace
+
+Eigen::VectorXd uls_coefficients(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
+                                 const std::vector<std::string>& labels, const OutputMultiplied& rational,
+                                 const UlsOptions& options, std::span<const Index> columns) {
+  if (options.noise_lags > 0) return uls_batch(phi, y, labels, rational, options, columns).theta;
+  const CompactProblem c = compact_problem(phi, y, labels, rational, options, columns);
+  return solve_uls(UlsStatistics::from_data(c.process(phi), y, c.rational.columns, c.factors), c.labels, options).theta;
+}
+
+UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
+                    const Eigen::Ref<const Eigen::VectorXd>& y,
+                    const std::vector<std::string>& labels, const OutputMultiplied& rational,
+                    const UlsOptions& options, std::span<const Index> columns) {
+  CompactProblem c = compact_problem(phi, y, labels, rational, options, columns);
+  const Index p = c.p;
+  const Index n_e = options.noise_lags;
+  const Index n = phi.rows();
+  Eigen::MatrixXd& x = c.x;
+  const std::vector<std::string>& xlabels = c.labels;
+  const OutputMultiplied& xr = c.rational;
+  const Eigen::MatrixXd& xf = c.factors;
   std::vector<Index> xcols(static_cast<std::size_t>(p));
   std::iota(xcols.begin(), xcols.end(), Index{0});
 
   // Process-only fit first: it gives the residuals the noise columns are built from.
-  using ConstRef = Eigen::Ref<const Eigen::MatrixXd>;
-  const ConstRef process = in_place ? ConstRef(phi.leftCols(p)) : ConstRef(x.leftCols(p));
+  const Eigen::Ref<const Eigen::MatrixXd> process = c.process(phi);
   UlsStatistics stats = UlsStatistics::from_data(process, y, xr.columns, xf);
   UlsSolution sol = solve_uls(stats, xlabels, options);
   UlsResult res = finish_uls(process, y, xlabels, xcols, xr, xf, sol, options);

@@ -191,6 +191,13 @@ UlsResult uls_batch(const Eigen::Ref<const Eigen::MatrixXd>& phi,
                     const std::vector<std::string>& labels, const OutputMultiplied& rational,
                     const UlsOptions& options, std::span<const Index> columns = {});
 
+/// uls_batch's theta alone: without noise lags, from the statistics (no residuals, no covariance:
+/// no O(N) buffers beyond what the statistics need), the same numbers; with noise lags, the ELS
+/// fit's (the passes need the residuals).
+Eigen::VectorXd uls_coefficients(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
+                                 const std::vector<std::string>& labels, const OutputMultiplied& rational,
+                                 const UlsOptions& options, std::span<const Index> columns = {});
+
 /// What a solution from solve_uls() fixes of a UlsResult over `columns` (positions into `labels`,
 /// in solution order): the labels, theta, sigma^2, the iterations and the condition number. The
 /// residuals and the covariance are the caller's: from the rows (finish_uls) or the statistics.

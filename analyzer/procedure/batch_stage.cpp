@@ -226,7 +226,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
               const StackedRegression s = rows_at(terms, result.mountings, tilts, result.square_corner_rad_s);
               std::vector<Eigen::Index> all(terms.size());
               for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
-              return ident::uls_batch(s.phi, s.y, s.labels, s.rational, uls, all).theta.head(p);
+              return ident::uls_coefficients(s.phi, s.y, s.labels, s.rational, uls, all).head(p);
             });
         if (d) held_part += *d * d->transpose();
       }

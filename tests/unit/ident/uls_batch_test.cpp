@@ -83,6 +83,26 @@ TEST(UlsBatch, BillingsZhuRationalExampleIsUnbiased) {
   EXPECT_NEAR(sigma2.mean(), sigma * sigma, 4.0 * sigma * sigma * std::sqrt(2.0 / double(n * runs)));
 }
 
+// uls_coefficients is uls_batch's theta without the residuals: the same numbers for every column
+// set (all, a subset in another order), with output-multiplied columns, and with noise lags.
+TEST(UlsBatch, CoefficientsAloneAreTheFullFitsTheta) {
+  const auto ex = testing::rational_example(7, 3000, 0.1);
+  const OutputMultiplied rational{ex.output_multiplied, ex.factors};
+  UlsOptions els;
+  els.noise_lags = 1;
+  const std::vector<Index> subset{4, 0, 1};
+  for (const UlsOptions& options : {UlsOptions{}, els}) {
+    for (const std::vector<Index>& columns : {std::vector<Index>{}, subset}) {
+      const Eigen::VectorXd alone = uls_coefficients(ex.phi, ex.y, ex.labels, rational, options, columns);
+      const UlsResult full = uls_batch(ex.phi, ex.y, ex.labels, rational, options, columns);
+      ASSERT_EQ(alone.size(), full.theta.size()) << options.noise_lags << " lags, " << columns.size() << " columns";
+      for (Eigen::Index j = 0; j < alone.size(); ++j)
+        EXPECT_EQ(alone(j), full.theta(j)) << options.noise_lags << " lags, " << columns.size() << " columns, " << j;
+    }
+  }
+  EXPECT_THROW((void)uls_coefficients(ex.phi, ex.y, {"1"}, rational, UlsOptions{}), std::invalid_argument);
+}
+
 // ELS beside output-multiplied columns: on the Billings-Zhu model with white noise the passes
 // keep the rational part unbiased and find no noise lag (its coefficient zero within the spread).
 TEST(UlsBatch, ExtendedLeastSquaresOnARationalModelFindsNoLagInWhiteNoise) {
