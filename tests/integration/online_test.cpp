@@ -35,6 +35,18 @@ std::vector<std::pair<std::int64_t, T>> decoded(const std::vector<LcmCollector::
   return out;
 }
 
+/// Waits until the live analyzer says it is listening (its "online: bench ..." line, printed once
+/// it has subscribed), at most 30 s: a message published before that is lost to it, and a loaded
+/// machine can take longer than any fixed pause to start the process.
+[[nodiscard]] bool listening(const DaqdProcess& online) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (online.output().find("online: bench ") != std::string::npos) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return false;
+}
+
 struct LiveRun {
   std::vector<LcmCollector::Received> received;
   std::string online_output, daqd_output;
@@ -50,7 +62,7 @@ LiveRun run_live(const TempDir& tmp, const std::string& config, const std::vecto
   std::vector<std::string> args = {"online", "--config", config, "--lcm-url", url, "--publish-hz", "10"};
   args.insert(args.end(), online_extra.begin(), online_extra.end());
   DaqdProcess online(args, {}, tmp.path / "online.txt", analyze_binary());
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));   // subscribed before the daemon's first message
+  EXPECT_TRUE(listening(online)) << online.output();   // subscribed before the daemon's first message
   DaqdProcess daqd({"--config", config, "--lcm-url", url, "--log", (tmp.path / "log").string()}, {}, tmp.path / "daqd.txt");
   EXPECT_EQ(daqd.wait(120), 0) << daqd.output();
   std::this_thread::sleep_for(std::chrono::milliseconds(700));   // the last blocks reach the analyzer
@@ -363,7 +375,7 @@ TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) 
   LcmCollector live(url);
   DaqdProcess online({"online", "--config", config, "--lcm-url", url, "--publish-hz", "10"}, {}, tmp.path / "online.txt",
                      analyze_binary());
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ASSERT_TRUE(listening(online)) << online.output();
   lcm::LCM out(url);
   ASSERT_TRUE(out.good());
   int sent_malformed = 0, sent_oversized = 0, sent_invalid = 0, sent_refused = 0;
