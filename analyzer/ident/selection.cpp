@@ -23,6 +23,8 @@ class FitContext {
 
   /// Step 10: the fit of `columns` with its final covariance.
   [[nodiscard]] virtual UlsResult fit(const std::vector<Index>& columns) const = 0;
+  /// Step 5: the fit of `columns`, its coefficients alone where they need no data pass.
+  [[nodiscard]] virtual UlsResult coefficients(const std::vector<Index>& columns) const { return fit(columns); }
   /// theta and sd for the t-test of step 9.
   [[nodiscard]] virtual std::pair<Eigen::VectorXd, Eigen::VectorXd> theta_sd(const std::vector<Index>& columns) const = 0;
   /// Steps 11-12 of the fit of `columns`: the residual mean test and AIC (eq. 9).
@@ -85,6 +87,13 @@ class RowsContext final : public FitContext {
   UlsResult fit(const std::vector<Index>& columns) const override {
     if (options_.noise_lags > 0) return uls_batch(phi_, y_, labels_, rational_, options_, columns);
     return finish_uls(phi_, y_, labels_, columns, rational_, factors_, solve(columns), options_);
+  }
+
+  // Without noise lags theta comes from the statistics; the residuals and the covariance would
+  // cost a pass over the rows.
+  UlsResult coefficients(const std::vector<Index>& columns) const override {
+    if (options_.noise_lags > 0) return fit(columns);
+    return solved_terms(solve(columns), labels_, columns);
   }
 
   // Polynomial fits without noise lags come from the statistics alone: pruning j terms one at a
@@ -273,7 +282,7 @@ SelectionResult select_on(const FitContext& base, std::vector<Index> ranking, co
     try {
       const std::vector<Index> ranked(out.ranking.begin(), out.ranking.begin() + static_cast<std::ptrdiff_t>(j));
       if (hook != nullptr) {
-        const UlsResult ranked_fit = base.fit(ranked);  // step 5
+        const UlsResult ranked_fit = base.coefficients(ranked);  // step 5
         model.transformed = hook->transform(j, ranked_fit, stage);
       }
       if (model.transformed) {

@@ -64,7 +64,8 @@ struct StageProblem {
 class FitHook {
  public:
   virtual ~FitHook() = default;
-  /// j: number of ranked candidates in `ranked_fit` (the step-5 ULS fit, labels in ranked order).
+  /// j: number of ranked candidates in `ranked_fit` (the step-5 ULS fit, labels in ranked order;
+  /// its coefficients alone where the fit needs no rows for them: no residuals, no covariance).
   /// Fill `stage` with the problem whose columns are then pruned (step 9) and scored (steps 10-12)
   /// - e.g. the F_S regression built with the misalignment estimated from ranked_fit - and return
   /// true. Return false to prune and score the step-5 problem itself. Every stage must have the
