@@ -387,7 +387,7 @@ Workspace build_workspace(const dataset::Dataset& data, const model::ModelFile& 
     const dataset::CaseData& c = data.cases[i];
     w.case_mounting.push_back(mounting_index(mountings, c));
     const Eigen::Matrix3d m_es = model.m_cs * c.m_ec;
-    inputs.push_back({i, &c, m_es, 1.0});
+    inputs.push_back({i, &c, m_es, 1.0, {}});
     w.signals.push_back(ident::signals_from_case(c, m_es, data.t_ref, label));
     w.sample_period_s.push_back(c.sample_period_s);
     // Noise terms e[k-j] describe the residual, not an input: the simulation drops them, so they

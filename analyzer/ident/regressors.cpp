@@ -37,7 +37,7 @@ VariableSet variables_of(std::span<const Term> terms) {
 }
 
 SignalSet signals_from_case(const dataset::CaseData& c, const Eigen::Matrix3d& m_es, double t_ref,
-                            std::string_view dataset_label, const std::optional<VariableSet>& only) {
+                            std::string_view dataset_label, const std::optional<VariableSet>& only, const CaseReading& reading) {
   std::string origin = fmt::format("case '{}'", c.name);
   if (!dataset_label.empty()) origin += fmt::format(" of dataset {}", dataset_label);
   SignalSet s(c.size(), std::move(origin));
@@ -45,22 +45,27 @@ SignalSet signals_from_case(const dataset::CaseData& c, const Eigen::Matrix3d& m
   // Rows of a_e are samples: a_S^T = a_E^T (M_E^S)^T, each sensor axis straight into its own
   // vector (no N x 3 temporary copied out column by column).
   const auto sensed = [&m_es](const auto& e, Eigen::Index axis) -> Eigen::VectorXd { return e * m_es.row(axis).transpose(); };
+  // The external variables as given, or turned into the reading's frame.
+  const bool in_f_e = reading.external == Eigen::Matrix3d::Identity();
+  const auto external = [&](const auto& e, Eigen::Index axis) -> Eigen::VectorXd {
+    return in_f_e ? Eigen::VectorXd(e.col(axis)) : Eigen::VectorXd(e * reading.external.row(axis).transpose());
+  };
   if (wanted(Variable::Ai)) s.set(Variable::Ai, sensed(c.a_e, 0));
   if (wanted(Variable::Ap)) s.set(Variable::Ap, sensed(c.a_e, 1));
   if (wanted(Variable::Ao)) s.set(Variable::Ao, sensed(c.a_e, 2));
-  if (wanted(Variable::Ax)) s.set(Variable::Ax, c.a_e.col(0));
-  if (wanted(Variable::Ay)) s.set(Variable::Ay, c.a_e.col(1));
-  if (wanted(Variable::Az)) s.set(Variable::Az, c.a_e.col(2));
+  if (wanted(Variable::Ax)) s.set(Variable::Ax, external(c.a_e, 0));
+  if (wanted(Variable::Ay)) s.set(Variable::Ay, external(c.a_e, 1));
+  if (wanted(Variable::Az)) s.set(Variable::Az, external(c.a_e, 2));
   if (c.w_e) {
     if (wanted(Variable::Wi)) s.set(Variable::Wi, sensed(*c.w_e, 0));
     if (wanted(Variable::Wp)) s.set(Variable::Wp, sensed(*c.w_e, 1));
     if (wanted(Variable::Wo)) s.set(Variable::Wo, sensed(*c.w_e, 2));
-    if (wanted(Variable::Wx)) s.set(Variable::Wx, c.w_e->col(0));
-    if (wanted(Variable::Wy)) s.set(Variable::Wy, c.w_e->col(1));
-    if (wanted(Variable::Wz)) s.set(Variable::Wz, c.w_e->col(2));
+    if (wanted(Variable::Wx)) s.set(Variable::Wx, external(*c.w_e, 0));
+    if (wanted(Variable::Wy)) s.set(Variable::Wy, external(*c.w_e, 1));
+    if (wanted(Variable::Wz)) s.set(Variable::Wz, external(*c.w_e, 2));
   }
   if (c.temp && wanted(Variable::T)) s.set(Variable::T, (c.temp->array() - t_ref).matrix());
-  if (wanted(Variable::Y)) s.set(Variable::Y, c.y);
+  if (wanted(Variable::Y)) s.set(Variable::Y, reading.y_offset == 0.0 ? c.y : Eigen::VectorXd(c.y.array() - reading.y_offset));
   return s;
 }
 

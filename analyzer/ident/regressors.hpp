@@ -50,13 +50,24 @@ using VariableSet = std::bitset<kVariableCount>;
 /// The variables `terms` are built from.
 VariableSet variables_of(std::span<const Term> terms);
 
-/// Signals of one case: a_i, a_p, a_o = M_E^S a_E per sample; a_x, a_y, a_z = a_E; w likewise
-/// when the case has w_x, w_y, w_z; T = temp - t_ref when it has temp; y. Not e: the estimator
-/// sets it (SignalSet::set(Variable::E, residuals)) once it has residuals.
+/// How a case's samples are read beyond M_E^S: the frame its external variables (a_x .. w_z) are
+/// given in, as the rotation from F_E into it (identity: F_E itself; a mounting's fit reads them in
+/// its nominal case frame, M_E^C), and an offset taken from the output (a bias known from
+/// another mounting).
+struct CaseReading {
+  Eigen::Matrix3d external = Eigen::Matrix3d::Identity();
+  double y_offset = 0.0;
+};
+
+/// Signals of one case: a_i, a_p, a_o = M_E^S a_E per sample; a_x, a_y, a_z = a_E (turned by
+/// `reading.external`); w likewise when the case has w_x, w_y, w_z; T = temp - t_ref when it has
+/// temp; y (less `reading.y_offset`). Not e: the estimator sets it (SignalSet::set(Variable::E,
+/// residuals)) once it has residuals.
 /// `dataset_label` names the dataset in error messages (its folder, usually). With `only`, just
 /// those variables (a stack of some terms copies no column it does not use).
 SignalSet signals_from_case(const dataset::CaseData& c, const Eigen::Matrix3d& m_es, double t_ref,
-                            std::string_view dataset_label = {}, const std::optional<VariableSet>& only = std::nullopt);
+                            std::string_view dataset_label = {}, const std::optional<VariableSet>& only = std::nullopt,
+                            const CaseReading& reading = {});
 
 /// The same for case `case_index` of `data` (t_ref and the label from `data`).
 SignalSet signals_from_dataset(const dataset::Dataset& data, std::size_t case_index, const Eigen::Matrix3d& m_es);

@@ -22,7 +22,7 @@ std::vector<StackInput> batch_inputs(const dataset::Dataset& data, const Pipelin
                                      const std::vector<CaseOutcome>& cases) {
   std::vector<StackInput> inputs;
   for (std::size_t i = 0; i < data.cases.size(); ++i) {
-    inputs.push_back({i, &data.cases[i], cases[i].m_es, case_weight(options, data.cases[i])});
+    inputs.push_back({i, &data.cases[i], cases[i].m_es, case_weight(options, data.cases[i]), {}});
   }
   return inputs;
 }

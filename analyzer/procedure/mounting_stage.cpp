@@ -67,22 +67,11 @@ std::optional<Eigen::Vector3d> external_sensitivities(const std::vector<std::str
   return s;
 }
 
-/// Gram matrix of [IRA XRA YRA 1] over a mounting's rows (specific force, or rate for a
-/// gyroscope; a case without rates has none): what excitation.hpp judges.
-/// [input 1]'[input 1] over one case's samples (specific force, or rates for a gyroscope).
-Eigen::Matrix4d case_input_gram(const dataset::CaseData& c, dataset::SensorKind sensor) {
-  const bool gyro = sensor == dataset::SensorKind::Gyroscope;
-  if (gyro && !c.w_e) return Eigen::Matrix4d::Zero();
-  const auto& x = gyro ? *c.w_e : c.a_e;
-  Eigen::MatrixXd rows(x.rows(), 4);
-  rows.leftCols(3) = x;
-  rows.col(3).setOnes();
-  return rows.transpose() * rows;
-}
-
-Eigen::Matrix4d input_gram(const std::vector<dataset::CaseData>& cases, dataset::SensorKind sensor) {
+/// Gram matrix of [IRA XRA YRA 1] over a mounting's rows in its nominal case frame (specific
+/// force, or rate for a gyroscope; a case without rates has none): what excitation.hpp judges.
+Eigen::Matrix4d input_gram(const MountingCases& m, dataset::SensorKind sensor) {
   Eigen::Matrix4d g = Eigen::Matrix4d::Zero();
-  for (const dataset::CaseData& c : cases) g += case_input_gram(c, sensor);
+  for (const dataset::CaseData* c : m.cases) g += case_input_gram(*c, sensor);
   return g;
 }
 
@@ -90,10 +79,10 @@ Eigen::Matrix4d input_gram(const std::vector<dataset::CaseData>& cases, dataset:
 /// clusters in the inference (its contiguous phases).
 std::vector<CasePlacement> placements_of(const MountingCases& m, dataset::SensorKind sensor) {
   std::vector<CasePlacement> out;
-  for (const dataset::CaseData& c : m.cases) {
+  for (const dataset::CaseData* c : m.cases) {
     std::size_t clusters = 1;
-    for (std::size_t k = 1; k < c.phase.size(); ++k) clusters += c.phase[k] != c.phase[k - 1] ? 1 : 0;
-    out.push_back({case_input_gram(c, sensor), c.placement_sd_rad, clusters});
+    for (std::size_t k = 1; k < c->phase.size(); ++k) clusters += c->phase[k] != c->phase[k - 1] ? 1 : 0;
+    out.push_back({case_input_gram(*c, sensor), c->placement_sd_rad, clusters});
   }
   return out;
 }
@@ -291,7 +280,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
 
   // What this mounting's inputs can determine; an axis without its own excitation keeps the
   // nominal case frame (excitation.hpp).
-  result.excitation = axis_excitation(input_gram(m.cases, data.sensor), !known_bias.has_value());
+  result.excitation = axis_excitation(input_gram(m, data.sensor), !known_bias.has_value());
   result.held = held_angle_notes(result.excitation, gyro, !known_bias.has_value());
   if (!result.excitation.aligns()) {
     // Nothing to align: both angles are held (algorithm 2 would only fit the scale factor).
@@ -316,7 +305,8 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     es_terms = std::move(kept);
   }
   if (options.misalignment.select) {
-    for (const UndeterminedTerm& u : remove_unexcited_terms(es_terms, m.cases, data.t_ref)) result.excluded.push_back(u.term);
+    for (const UndeterminedTerm& u : remove_unexcited_terms(es_terms, stack_inputs(m, frames::Dcm::Identity()), data.t_ref))
+      result.excluded.push_back(u.term);
   }
   {
     const std::array<const char*, 3> names = sensitivity_names(data.sensor);

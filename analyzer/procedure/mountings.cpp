@@ -5,7 +5,6 @@
 
 #include <algorithm>
 
-#include "common/parallel.hpp"
 
 namespace inertia::procedure {
 
@@ -73,16 +72,10 @@ MountingCases mounting_cases(const dataset::Dataset& data, const std::vector<std
                              const PipelineOptions& options, std::optional<double> known_bias) {
   MountingCases m;
   m.indices = indices;
-  m.cases.resize(indices.size());
-  parallel::for_each_index(static_cast<long>(indices.size()), [&](long i) {
-    dataset::CaseData& c = m.cases[static_cast<std::size_t>(i)];
-    c = data.cases.at(indices[static_cast<std::size_t>(i)]);
-    c.a_e = c.a_e * c.m_ec.transpose();   // rows: (M_E^C a_E)^T
-    if (c.w_e) *c.w_e = *c.w_e * c.m_ec.transpose();
-    c.m_ec = frames::Dcm::Identity();
-    if (known_bias) c.y.array() -= *known_bias;
-  });
-  for (const dataset::CaseData& c : m.cases) {
+  m.known_bias = known_bias.value_or(0.0);
+  for (const std::size_t index : indices) {
+    const dataset::CaseData& c = data.cases.at(index);
+    m.cases.push_back(&c);
     m.kind.add_case(c.kind);
     m.weights.push_back(case_weight(options, c));
   }
@@ -91,8 +84,26 @@ MountingCases mounting_cases(const dataset::Dataset& data, const std::vector<std
 
 std::vector<StackInput> stack_inputs(const MountingCases& m, const frames::Dcm& m_cs) {
   std::vector<StackInput> inputs;
-  for (std::size_t i = 0; i < m.cases.size(); ++i) inputs.push_back({m.indices[i], &m.cases[i], m_cs, m.weights[i]});
+  for (std::size_t i = 0; i < m.cases.size(); ++i) {
+    const dataset::CaseData& c = *m.cases[i];
+    inputs.push_back({m.indices[i], &c, m_cs * c.m_ec, m.weights[i], {c.m_ec, m.known_bias}});
+  }
   return inputs;
+}
+
+Eigen::Matrix4d case_input_gram(const dataset::CaseData& c, dataset::SensorKind sensor) {
+  const bool gyro = sensor == dataset::SensorKind::Gyroscope;
+  if (gyro && !c.w_e) return Eigen::Matrix4d::Zero();
+  const auto& x = gyro ? *c.w_e : c.a_e;
+  // [x 1]'[x 1] in F_E, turned into the case frame: T G T' with T = diag(M_E^C, 1).
+  Eigen::Matrix4d g;
+  g.topLeftCorner<3, 3>() = x.transpose() * x;
+  g.topRightCorner<3, 1>() = x.colwise().sum().transpose();
+  g.bottomLeftCorner<1, 3>() = g.topRightCorner<3, 1>().transpose();
+  g(3, 3) = static_cast<double>(x.rows());
+  Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+  t.topLeftCorner<3, 3>() = c.m_ec;
+  return t * g * t.transpose();
 }
 
 }  // namespace inertia::procedure

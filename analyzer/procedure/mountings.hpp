@@ -50,19 +50,28 @@ double case_weight(const PipelineOptions& options, const dataset::CaseData& c);
 
 /// One mounting's cases with their references turned into the nominal case frame, so that the
 /// shared misalignment is a single M_C^S (with m_ec = I in the copies).
+/// A mounting's cases as its fit reads them: the external variables in the nominal case frame
+/// (M_E^C a_E), and the output less a bias known from another mounting.
 struct MountingCases {
-  std::vector<std::size_t> indices;         // dataset case indices
-  std::vector<dataset::CaseData> cases;     // copies in the nominal case frame
+  std::vector<std::size_t> indices;               // dataset case indices
+  std::vector<const dataset::CaseData*> cases;    // the dataset's, in that order
   std::vector<double> weights;
+  double known_bias = 0.0;                        // taken from the output (0: none)
   MountingKind kind;
 };
 
 /// The cases `indices` of `data` as their mounting's fit sees them; `known_bias` (output unit),
-/// when given, is subtracted from the output.
+/// when given, is subtracted from the output. `data` must outlive the result.
 MountingCases mounting_cases(const dataset::Dataset& data, const std::vector<std::size_t>& indices,
                              const PipelineOptions& options, std::optional<double> known_bias);
 
-/// The mounting's cases to stack, each with M_C^S = `m_cs`.
+/// The mounting's cases to stack, each with M_C^S = `m_cs` (M_E^S = M_C^S M_E^C) and read in its
+/// nominal case frame.
 std::vector<StackInput> stack_inputs(const MountingCases& m, const frames::Dcm& m_cs);
+
+/// [input 1]'[input 1] of one case in its nominal case frame (specific force, or rates for a
+/// gyroscope; zero for a gyroscope's case without rates): what the excitation and placement
+/// rules read.
+Eigen::Matrix4d case_input_gram(const dataset::CaseData& c, dataset::SensorKind sensor);
 
 }  // namespace inertia::procedure

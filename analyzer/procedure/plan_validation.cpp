@@ -173,7 +173,7 @@ bool judged_by_excitation(const ident::Term& term) {
 }
 
 void add_excitation(std::span<const ident::Term> terms, const dataset::CaseData& c, const Eigen::Matrix3d& m_nominal, double t_ref,
-                    Eigen::Index first_row, std::span<TermExcitation> tallies) {
+                    Eigen::Index first_row, std::span<TermExcitation> tallies, const ident::CaseReading& reading) {
   using ident::Variable;
   // The case's signals once for every term the rule judges and the case can evaluate.
   std::vector<std::size_t> judged;
@@ -189,7 +189,7 @@ void add_excitation(std::span<const ident::Term> terms, const dataset::CaseData&
     for (Variable v : variables) wanted.set(static_cast<std::size_t>(v));
   }
   if (judged.empty()) return;
-  const ident::SignalSet nominal = ident::signals_from_case(c, m_nominal, t_ref, {}, wanted);
+  const ident::SignalSet nominal = ident::signals_from_case(c, m_nominal, t_ref, {}, wanted, reading);
   // The same signals with every inertial variable at its input vector's magnitude.
   ident::SignalSet full = nominal;
   const Eigen::VectorXd a_magnitude = c.a_e.rowwise().norm();
@@ -223,10 +223,17 @@ std::string unexcited_reason(const ident::Term& term, const TermExcitation& tall
 
 std::vector<UndeterminedTerm> remove_unexcited_terms(std::vector<ident::Term>& candidates, std::span<const dataset::CaseData> cases,
                                                      double t_ref) {
+  std::vector<StackInput> inputs;
+  for (std::size_t i = 0; i < cases.size(); ++i) inputs.push_back({i, &cases[i], cases[i].m_ec, 1.0, {}});
+  return remove_unexcited_terms(candidates, inputs, t_ref);
+}
+
+std::vector<UndeterminedTerm> remove_unexcited_terms(std::vector<ident::Term>& candidates, std::span<const StackInput> inputs,
+                                                     double t_ref) {
   std::vector<UndeterminedTerm> out;
   std::vector<ident::Term> kept;
   std::vector<TermExcitation> tallies(candidates.size());
-  for (const dataset::CaseData& c : cases) add_excitation(candidates, c, c.m_ec, t_ref, 0, tallies);
+  for (const StackInput& in : inputs) add_excitation(candidates, *in.data, in.m_es, t_ref, 0, tallies, in.reading);
   for (std::size_t i = 0; i < candidates.size(); ++i) {
     if (tallies[i].excited()) {
       kept.push_back(candidates[i]);

@@ -60,10 +60,11 @@ struct TermExcitation {
 
 /// Adds to `tallies[i]`, for each of `terms[i]` the rule judges, the rows from `first_row` on of
 /// `c`, its references turned into the nominal frame by `m_nominal` (the case's m_ec; the identity
-/// for references already in that frame). Rows before a term's largest lag are skipped; a case
-/// without a term's rates or temperature adds nothing to it. The case's signals are built once.
+/// for references already in that frame) and read as `reading` says. Rows before a term's largest
+/// lag are skipped; a case without a term's rates or temperature adds nothing to it. The case's
+/// signals are built once.
 void add_excitation(std::span<const ident::Term> terms, const dataset::CaseData& c, const Eigen::Matrix3d& m_nominal, double t_ref,
-                    Eigen::Index first_row, std::span<TermExcitation> tallies);
+                    Eigen::Index first_row, std::span<TermExcitation> tallies, const ident::CaseReading& reading = {});
 
 /// Why a term with `tally` is not determined, for the user.
 std::string unexcited_reason(const ident::Term& term, const TermExcitation& tally);
@@ -71,6 +72,9 @@ std::string unexcited_reason(const ident::Term& term, const TermExcitation& tall
 /// Takes out of `candidates` the terms judged_by_excitation that `cases` do not excite, and says
 /// why for each.
 std::vector<UndeterminedTerm> remove_unexcited_terms(std::vector<ident::Term>& candidates, std::span<const dataset::CaseData> cases,
+                                                     double t_ref);
+/// The same over cases as a stack reads them: each input's M_E^S taken as its nominal frame.
+std::vector<UndeterminedTerm> remove_unexcited_terms(std::vector<ident::Term>& candidates, std::span<const StackInput> inputs,
                                                      double t_ref);
 
 /// The columns of `s` that are not in `ranking` (identifiable_ranking), each with why: a zero

@@ -71,7 +71,7 @@ Eigen::VectorXd cross_axis_loading(const StackedRegression& whitened, std::span<
   const bool gyro = data.sensor == dataset::SensorKind::Gyroscope;
   const std::vector<Term> cross = ident::parse_terms(gyro ? std::vector<std::string>{"w_p", "w_o"} : std::vector<std::string>{"a_p", "a_o"});
   std::vector<StackInput> inputs;
-  for (const CaseRows& rows : whitened.cases) inputs.push_back({rows.case_index, &data.cases[rows.case_index], cases[rows.case_index].m_es, 1.0});
+  for (const CaseRows& rows : whitened.cases) inputs.push_back({rows.case_index, &data.cases[rows.case_index], cases[rows.case_index].m_es, 1.0, {}});
   const StackedRegression raw = stack_regressions(cross, inputs, data.t_ref, label, ident::first_usable_row(candidates));
   Eigen::VectorXd out(whitened.phi.rows());
   for (std::size_t c = 0; c < whitened.cases.size(); ++c) {

@@ -46,12 +46,12 @@ StackedRegression stack_regressions(std::span<const ident::Term> terms, std::spa
   const Eigen::Index first_row = std::max(ident::first_usable_row(terms), min_first_row);
   Eigen::Index row = 0;
   for (const StackInput& in : inputs) {
-    const ident::SignalSet signals = ident::signals_from_case(*in.data, in.m_es, t_ref, dataset_label, needed);
+    const ident::SignalSet signals = ident::signals_from_case(*in.data, in.m_es, t_ref, dataset_label, needed, in.reading);
     const Eigen::Index rows = std::max<Eigen::Index>(0, in.data->size() - first_row);   // as stack_layout
     if (rows == 0) continue;
     // Fill straight into the stack: no per-case copy of a matrix that can be hundreds of MB.
     ident::fill_regressors(terms, signals, first_row, out.phi.middleRows(row, rows));
-    out.y.segment(row, rows) = in.data->y.tail(rows);
+    out.y.segment(row, rows) = in.data->y.tail(rows).array() - in.reading.y_offset;
     if (!factor_terms.empty()) ident::fill_regressors(factor_terms, signals, first_row, out.rational.factors.middleRows(row, rows));
     if (in.weight != 1.0) {
       const double w = std::sqrt(in.weight);

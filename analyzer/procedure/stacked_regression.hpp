@@ -39,6 +39,7 @@ struct StackInput {
   const dataset::CaseData* data = nullptr;
   Eigen::Matrix3d m_es = Eigen::Matrix3d::Identity();
   double weight = 1.0;
+  ident::CaseReading reading;   // the external variables' frame and the output's offset
 };
 
 /// Builds each case's regression over `terms` and stacks them. `min_first_row` aligns every case

@@ -57,8 +57,8 @@ TEST(StackRegressions, TwoCasesByHand) {
   const dataset::CaseData a = case_a(), b = case_b();
   // "a_o*a_i" is spelled out of canonical order on purpose: the label is the canonical name.
   const std::vector<ident::Term> terms = ident::parse_terms({"a_i", "1", "a_p[k-1]", "a_o*a_i", "a_i*T"});
-  const std::vector<StackInput> inputs = {StackInput{0, &a, Eigen::Matrix3d::Identity(), 1.0},
-                                          StackInput{7, &b, permutation(), 4.0}};
+  const std::vector<StackInput> inputs = {StackInput{0, &a, Eigen::Matrix3d::Identity(), 1.0, {}},
+                                          StackInput{7, &b, permutation(), 4.0, {}}};
   const StackedRegression s = stack_regressions(terms, inputs, kTRef, "test");
 
   EXPECT_EQ(s.labels, (std::vector<std::string>{"a_i", "1", "a_p[k-1]", "a_i*a_o", "a_i*T"}));
@@ -99,8 +99,8 @@ TEST(StackRegressions, TwoCasesByHand) {
 TEST(StackRegressions, MinFirstRowAlignsEveryCaseOnTheSameSample) {
   const dataset::CaseData a = case_a(), b = case_b();
   const std::vector<ident::Term> terms = ident::parse_terms({"a_i"});
-  const std::vector<StackInput> inputs = {StackInput{0, &a, Eigen::Matrix3d::Identity(), 1.0},
-                                          StackInput{1, &b, permutation(), 1.0}};
+  const std::vector<StackInput> inputs = {StackInput{0, &a, Eigen::Matrix3d::Identity(), 1.0, {}},
+                                          StackInput{1, &b, permutation(), 1.0, {}}};
   const StackedRegression s = stack_regressions(terms, inputs, kTRef, "test", 3);
   // Samples 3.. of each case: a_x of A at k = 3, 4; a_y of B at k = 3.
   ASSERT_EQ(s.phi.rows(), 3);
@@ -117,8 +117,8 @@ TEST(StackRegressions, MinFirstRowAlignsEveryCaseOnTheSameSample) {
 TEST(StackRegressions, OutputMultipliedFactorsAreKeptUnweighted) {
   const dataset::CaseData a = case_a(), b = case_b();
   const std::vector<ident::Term> terms = ident::parse_terms({"1", "a_i", "y*a_i"});
-  const std::vector<StackInput> inputs = {StackInput{0, &a, Eigen::Matrix3d::Identity(), 1.0},
-                                          StackInput{1, &b, permutation(), 4.0}};
+  const std::vector<StackInput> inputs = {StackInput{0, &a, Eigen::Matrix3d::Identity(), 1.0, {}},
+                                          StackInput{1, &b, permutation(), 4.0, {}}};
   const StackedRegression s = stack_regressions(terms, inputs, kTRef, "test");
   // No lags: every sample is a row.
   ASSERT_EQ(s.phi.rows(), 9);
@@ -139,16 +139,16 @@ TEST(StackRegressions, RefusesMissingColumnsAndBadWeights) {
   dataset::CaseData a = case_a();
   a.temp.reset();
   const std::vector<ident::Term> with_t = ident::parse_terms({"1", "a_i*T"});
-  const std::vector<StackInput> no_temp = {StackInput{0, &a, Eigen::Matrix3d::Identity(), 1.0}};
+  const std::vector<StackInput> no_temp = {StackInput{0, &a, Eigen::Matrix3d::Identity(), 1.0, {}}};
   EXPECT_THROW(stack_regressions(with_t, no_temp, kTRef, "test"), InputError);
 
   const dataset::CaseData b = case_b();
   const std::vector<ident::Term> terms = ident::parse_terms({"1", "a_i"});
   for (const double w : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
-    const std::vector<StackInput> bad = {StackInput{0, &b, Eigen::Matrix3d::Identity(), w}};
+    const std::vector<StackInput> bad = {StackInput{0, &b, Eigen::Matrix3d::Identity(), w, {}}};
     EXPECT_THROW(stack_regressions(terms, bad, kTRef, "test"), std::invalid_argument) << "weight " << w;
   }
-  const std::vector<StackInput> no_data = {StackInput{0, nullptr, Eigen::Matrix3d::Identity(), 1.0}};
+  const std::vector<StackInput> no_data = {StackInput{0, nullptr, Eigen::Matrix3d::Identity(), 1.0, {}}};
   EXPECT_THROW(stack_regressions(terms, no_data, kTRef, "test"), std::invalid_argument);
 }
 
