@@ -89,11 +89,20 @@ Eigen::VectorXd prediction_derivative(const ident::UlsResult& fit, double step, 
                                       const std::function<StackedRegression(std::span<const Term>, double)>& stack_at) {
   const Eigen::Index p = fit.process_terms;
   const std::vector<Term> terms = ident::parse_terms(fit.process_labels());
-  const StackedRegression up = stack_at(terms, step), down = stack_at(terms, -step);
+  // One rebuilt regression at a time: each is reduced to its prediction before the next is built.
   StackedRegression difference;
-  difference.y = (up.phi - down.phi) * fit.theta.head(p) / (2.0 * step);
+  {
+    const StackedRegression up = stack_at(terms, step);
+    difference.y.noalias() = up.phi * fit.theta.head(p);
+    difference.cases = up.cases;
+  }
+  {
+    const StackedRegression down = stack_at(terms, -step);
+    if (down.phi.rows() != difference.y.size()) throw std::logic_error("prediction_derivative: the two rebuilt regressions differ in rows");
+    difference.y.noalias() -= down.phi * fit.theta.head(p);
+  }
+  difference.y /= 2.0 * step;
   difference.phi.resize(difference.y.size(), 0);
-  difference.cases = up.cases;
   whitener.apply(difference);
   // Each built case's rows to its place in the layout; a case not built did not move.
   Eigen::VectorXd out = Eigen::VectorXd::Zero(layout.empty() ? 0 : layout.back().begin + layout.back().rows);
