@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <span>
 #include <stdexcept>
@@ -211,6 +212,19 @@ struct MisalignmentFixedPoint {
   int refinements = 0;
 };
 
+/// The fixed point stops once a pass moves M_C^S by less than this fraction of the angles' sd (the
+/// full candidate set's): each pass shrinks the step by orders of magnitude, so the passes after it
+/// would move the result far below what the data tell. Never below 1e-10 rad (rounding).
+constexpr double kFixedPointShareOfSd = 1e-3;
+
+double fixed_point_tolerance(const MisalignmentFixedPoint& f) {
+  const Eigen::Vector3d sd = misalignment_angles(f.sensitivities, f.sensitivity_covariance).sd;
+  double smallest = std::numeric_limits<double>::infinity();
+  for (int a = 1; a < 3; ++a)
+    if (std::isfinite(sd(a)) && sd(a) > 0.0) smallest = std::min(smallest, sd(a));
+  return std::isfinite(smallest) ? std::max(1e-10, kFixedPointShareOfSd * smallest) : 1e-10;
+}
+
 MisalignmentFixedPoint misalignment_fixed_point(const MountingCases& m, const std::vector<Term>& es_terms, Eigen::Index first_row,
                                                 const dataset::Dataset& data, const PipelineOptions& options,
                                                 const std::string& mounting, std::string_view dataset_label) {
@@ -261,7 +275,7 @@ MisalignmentFixedPoint misalignment_fixed_point(const MountingCases& m, const st
     const frames::Dcm next = with_twist(aligned, f.twist);
     const double change = frames::angle_between(next, f.m_cs);
     f.m_cs = next;
-    if (change < 1e-10) break;
+    if (change < fixed_point_tolerance(f)) break;
   }
   return f;
 }
