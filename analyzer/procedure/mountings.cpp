@@ -5,7 +5,6 @@
 
 #include <algorithm>
 
-
 namespace inertia::procedure {
 
 MountingGroups group_mountings(const std::vector<MountingKey>& cases, dataset::SensorKind sensor,

@@ -4,9 +4,12 @@
 // external-frame factors, terms that do not expand (abs, sign), output-multiplied terms, and lags
 // beyond the mounting's first row.
 #include "analyzer/procedure/mounting_regressions.hpp"
+#include "analyzer/procedure/plan_validation.hpp"
+#include "analyzer/procedure/stacked_regression.hpp"
 
 #include <gtest/gtest.h>
 
+#include <span>
 #include <string>
 #include <vector>
 
@@ -85,6 +88,54 @@ TEST(MountingRegressions, LagsBeyondTheFirstRowMoveTheRowsAndAreBuiltDirectly) {
   const StackedRegression combined = regressions.whitened(terms, m_cs);
   EXPECT_EQ(combined.phi, direct.phi);
   EXPECT_EQ(combined.y, direct.y);
+}
+
+// mounting_cases reads the dataset's cases in place: each stack input turns the external
+// variables into the nominal case frame and takes the known bias from the output. The same
+// regression, inputs' Gram and excitation as from copies of the cases turned and offset.
+TEST(MountingCases, ReadTheCasesInTheNominalFrameLessTheKnownBias) {
+  dataset::Dataset data = two_case_mounting();
+  for (dataset::CaseData& c : data.cases) c.w_e = Eigen::MatrixXd::Random(c.size(), 3);
+  constexpr double kBias = 0.37;
+  const MountingCases m = mounting_cases(data, {0, 1}, PipelineOptions{}, kBias);
+  ASSERT_EQ(m.cases.size(), 2u);
+  EXPECT_EQ(m.cases[1], &data.cases[1]);   // no copy
+  std::vector<dataset::CaseData> turned = {data.cases[0], data.cases[1]};
+  for (dataset::CaseData& c : turned) {
+    c.a_e = c.a_e * c.m_ec.transpose();
+    if (c.w_e) *c.w_e = *c.w_e * c.m_ec.transpose();
+    c.m_ec = frames::Dcm::Identity();
+    c.y.array() -= kBias;
+  }
+  const frames::Dcm m_cs = frames::frame_rotation(Eigen::Vector3d(0.3, -1.0, 0.7).normalized(), 0.05);
+  const std::vector<StackInput> copies = {{0, &turned[0], m_cs, 1.0, {}}, {1, &turned[1], m_cs, 1.0, {}}};
+  const std::vector<ident::Term> terms =
+      ident::parse_terms({"1", "a_i", "a_p*a_o", "a_x", "a_y*a_z", "w_z", "w_i", "T*a_i", "y*a_i", "a_o[k-1]"});
+  const StackedRegression in_place = stack_regressions(terms, stack_inputs(m, m_cs), data.t_ref, "test");
+  const StackedRegression from_copies = stack_regressions(terms, copies, data.t_ref, "test");
+  ASSERT_EQ(in_place.phi.rows(), from_copies.phi.rows());
+  // The turn is applied in another order (M_C^S M_E^C at once): within a few rounding units.
+  for (Eigen::Index j = 0; j < in_place.phi.cols(); ++j) {
+    const double scale = from_copies.phi.col(j).cwiseAbs().maxCoeff();
+    EXPECT_LE((in_place.phi.col(j) - from_copies.phi.col(j)).cwiseAbs().maxCoeff(), 1e-14 * scale) << in_place.labels[std::size_t(j)];
+  }
+  EXPECT_EQ(in_place.y, from_copies.y);
+  ASSERT_EQ(in_place.rational.factors.cols(), 1);   // y*a_i's a_i
+  EXPECT_LE((in_place.rational.factors - from_copies.rational.factors).cwiseAbs().maxCoeff(),
+            1e-14 * from_copies.rational.factors.cwiseAbs().maxCoeff());
+  for (std::size_t c = 0; c < turned.size(); ++c) {
+    for (const dataset::SensorKind sensor : {dataset::SensorKind::Accelerometer, dataset::SensorKind::Gyroscope}) {
+      const Eigen::Matrix4d expected = case_input_gram(turned[c], sensor);
+      EXPECT_LE((case_input_gram(data.cases[c], sensor) - expected).cwiseAbs().maxCoeff(), 1e-12 * expected.cwiseAbs().maxCoeff());
+    }
+  }
+  // The excitation rule judges the same products.
+  std::vector<ident::Term> judged_in_place = ident::parse_terms({"a_i*a_p", "a_p*a_o", "a_x*a_y", "a_i^2", "a_p^2"});
+  std::vector<ident::Term> judged_copies = judged_in_place;
+  const std::vector<UndeterminedTerm> left_in_place = remove_unexcited_terms(judged_in_place, stack_inputs(m, frames::Dcm::Identity()), data.t_ref);
+  const std::vector<UndeterminedTerm> left_copies = remove_unexcited_terms(judged_copies, std::span<const dataset::CaseData>(turned), data.t_ref);
+  EXPECT_EQ(judged_in_place, judged_copies);
+  EXPECT_EQ(left_in_place.size(), left_copies.size());
 }
 
 }  // namespace
