@@ -34,7 +34,8 @@ Index factor_index(const OutputMultiplied& rational, Index column) {
 /// (ident/uls.hpp); the residual is zeta / b. factor_of(j): the index in `factors` of the j-th
 /// column's output factor p_b,j, or -1 for a column that does not multiply the output.
 struct LinearForm {
-  Eigen::VectorXd zeta, b;
+  Eigen::VectorXd zeta;
+  Eigen::VectorXd b;   // empty where no column is output-multiplied: b = 1 on every row
   std::vector<Index> factor_of;
 };
 
@@ -47,12 +48,26 @@ LinearForm linear_form(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen
   // streams through once, so the pass reads every column once instead of re-reading three
   // N-vectors per column (the selection runs this once per candidate model; at N = 1e6 it is
   // memory-bound).
-  Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
-  Eigen::VectorXd b = Eigen::VectorXd::Ones(n);
-  Eigen::VectorXd lin = Eigen::VectorXd::Zero(n);  // minus the output-multiplied terms' theta_j c_j
   std::vector<Index> fidx(static_cast<std::size_t>(p), -1);
   for (Index j = 0; j < p; ++j) fidx[static_cast<std::size_t>(j)] = factor_index(rational, columns[j]);
   constexpr Index kResidualBlock = 1024;
+  if (std::all_of(fidx.begin(), fidx.end(), [](Index f) { return f < 0; })) {
+    // A polynomial fit: zeta = y - Phi theta, each block's prediction summed in cache and taken
+    // from y once (the same sums, in the same order, as below).
+    Eigen::VectorXd zeta(n);
+    Eigen::VectorXd prediction(std::min(kResidualBlock, n));
+    for (Index k0 = 0; k0 < n; k0 += kResidualBlock) {
+      const Index rows = std::min(kResidualBlock, n - k0);
+      auto block = prediction.head(rows);
+      block.setZero();
+      for (Index j = 0; j < p; ++j) block.noalias() += theta(j) * phi.col(columns[j]).segment(k0, rows);
+      zeta.segment(k0, rows) = y.segment(k0, rows) - block;
+    }
+    return {std::move(zeta), Eigen::VectorXd(), std::move(fidx)};
+  }
+  Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
+  Eigen::VectorXd b = Eigen::VectorXd::Ones(n);
+  Eigen::VectorXd lin = Eigen::VectorXd::Zero(n);  // minus the output-multiplied terms' theta_j c_j
   for (Index k0 = 0; k0 < n; k0 += kResidualBlock) {
     const Index rows = std::min(kResidualBlock, n - k0);
     auto a_blk = a.segment(k0, rows);
@@ -154,8 +169,8 @@ std::optional<Eigen::VectorXd> self_consistent_residuals(const Eigen::Ref<const 
   const Eigen::VectorXd& b = form.b;
   Eigen::VectorXd eps(n);
   // A chain of dependent steps, so its latency is its cost: without output-multiplied terms b is
-  // 1 and the division (exact then) is left out of the chain.
-  const bool divides = !rational.columns.empty();
+  // 1 (linear_form leaves it empty) and the division is left out of the chain.
+  const bool divides = b.size() > 0;
   for (Index k = 0; k < n; ++k) {
     double value = zeta(k);
     for (Index i = 1; i <= n_e && i <= k; ++i) value -= c(i - 1) * eps(k - i);
@@ -493,7 +508,7 @@ UlsResult finish_uls(const Eigen::Ref<const Eigen::MatrixXd>& phi,
   // c_j is not the filtered y times the (unfiltered) factor: y - a / b there leaves a misfit that
   // follows the output-multiplied columns, far above rounding on a noise-free gyro on a rate table
   // (docs/validation.md, 'Evidence behind choices in the code').
-  out.residuals = zeta.cwiseQuotient(b);
+  out.residuals = b.size() == 0 ? zeta : Eigen::VectorXd(zeta.cwiseQuotient(b));
   const double dof = static_cast<double>(std::max<Index>(n - p, 1));
   out.residual_variance = out.residuals.squaredNorm() / dof;
   const bool rational_fit =
