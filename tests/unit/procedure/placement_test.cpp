@@ -114,7 +114,7 @@ TEST(Placement, ColumnsAreWhatEachCasesTurnMovesThePredictionAndPiecesTurnTogeth
   const std::vector<ident::Term> terms = ident::parse_terms({"a_i", "a_p", "1"});
   const Eigen::Vector3d theta(1.01, 2e-3, 0.05);
   std::vector<StackInput> inputs;
-  for (std::size_t i = 0; i < data.cases.size(); ++i) inputs.push_back({i, &data.cases[i], Eigen::Matrix3d::Identity(), 1.0});
+  for (std::size_t i = 0; i < data.cases.size(); ++i) inputs.push_back({i, &data.cases[i], Eigen::Matrix3d::Identity(), 1.0, {}});
   const Eigen::MatrixXd p = placement_columns(terms, theta, inputs, placements, data, "test", 0, std::nullopt, ArWhitener());
   ASSERT_EQ(p.rows(), 18);
   ASSERT_EQ(p.cols(), 6);
