@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -98,7 +99,8 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   // searched parameters' derivatives and the held angles' refits need.
   const BatchRegression batch_at(data, options, dataset_label, ident::first_usable_row(candidates), whitener);
   RelativeTwists twists = relative_twists(std::move(whitened.regression), std::move(result.mountings), batch_at, candidates,
-                                          result.square_corner_rad_s, data, options);
+                                          result.square_corner_rad_s, data, options,
+                                          batch_law ? batch_law->below_record(whitener) : std::function<double(double)>());
   const StackedRegression& filtered = twists.batch;
   result.mountings = std::move(twists.mountings);
   result.notes.insert(result.notes.end(), twists.notes.begin(), twists.notes.end());

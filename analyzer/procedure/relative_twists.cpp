@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <utility>
 
 #include "analyzer/ident/row_products.hpp"
+#include "analyzer/noise/coloured_noise.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/post_selection_inference.hpp"
@@ -21,9 +23,14 @@ using ident::Term;
 /// One Gauss-Newton step for parameters the columns of the fitted, whitened stack `s` are built
 /// with (variable projection: the terms re-fitted at every value). `derivatives`: the fitted
 /// prediction's derivative per parameter (prediction_derivative). With J~ the derivatives with
-/// the fit's columns projected out, the step is (J~'J~)^-1 J~'r; `information` gets J~'J~ /
-/// sigma^2, the parameters' information with the terms free.
+/// the fit's columns projected out, the step is (J~'J~)^-1 J~'r. `information` gets the inverse of
+/// the step's covariance (J~'J~)^-1 J~'RJ~ (J~'J~)^-1, R the whitened residual's covariance per
+/// noise run (`runs`) under its fitted spectrum (residual_spectrum, `below_record` below one cycle
+/// per run): the parameters' information with the terms free and the residual's low-frequency
+/// colour counted. A turn read from long static stretches is read from their means, which the
+/// noise's flicker moves far more than the white part of the whitened residual says.
 Eigen::VectorXd gauss_newton_step(const StackedRegression& s, const ident::UlsResult& fit, const Eigen::MatrixXd& derivatives,
+                                  const std::vector<CaseRows>& runs, const std::function<double(double)>& below_record,
                                   Eigen::MatrixXd& information) {
   Eigen::MatrixXd x(s.phi.rows(), fit.process_terms);
   for (Eigen::Index j = 0; j < x.cols(); ++j) {
@@ -33,8 +40,16 @@ Eigen::VectorXd gauss_newton_step(const StackedRegression& s, const ident::UlsRe
   const Eigen::LDLT<Eigen::MatrixXd> gram(ident::gram(x));
   const Eigen::MatrixXd projected = derivatives - x * gram.solve(ident::cross_product(x, derivatives));
   const Eigen::MatrixXd jj = ident::gram(projected);
-  information = jj / fit.residual_variance;
-  return jj.ldlt().solve(ident::cross_product(projected, fit.residuals));
+  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(jj.rows(), jj.cols());
+  for (const CaseRows& run : runs) {
+    const noise::SegmentSpectrum spectrum = residual_spectrum(fit.residuals.segment(run.begin, run.rows), Eigen::VectorXd(), below_record);
+    meat += noise::quadratic_form(spectrum, projected.middleRows(run.begin, run.rows));
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> jj_factor(jj);
+  const Eigen::MatrixXd bread = jj_factor.solve(Eigen::MatrixXd::Identity(jj.rows(), jj.cols()));
+  const Eigen::MatrixXd covariance = bread * meat * bread;
+  information = (0.5 * (covariance + covariance.transpose())).ldlt().solve(Eigen::MatrixXd::Identity(jj.rows(), jj.cols()));
+  return jj_factor.solve(ident::cross_product(projected, fit.residuals));
 }
 
 /// The batch's turned regression on its whitened rows: each step a Gauss-Newton step of the
@@ -44,9 +59,9 @@ class RowTurns final : public TurnedBatch {
  public:
   RowTurns(StackedRegression& batch, std::vector<MountingResult>& mountings, const BatchRegression& batch_at,
            std::span<const Term> candidates, std::optional<double> square_corner, const dataset::Dataset& data,
-           const PipelineOptions& options, RelativeTwists& out, std::string reference)
+           const PipelineOptions& options, std::function<double(double)> below_record, RelativeTwists& out, std::string reference)
       : batch_(batch), mountings_(mountings), batch_at_(batch_at), candidates_(candidates), square_corner_(square_corner),
-        data_(data), options_(options), out_(out), reference_(std::move(reference)),
+        data_(data), options_(options), below_record_(std::move(below_record)), out_(out), reference_(std::move(reference)),
         nominal_(mountings.size(), Eigen::Vector3d::Zero()) {
     uls_ = options.selection.uls;
     uls_.noise_lags = 0;
@@ -67,7 +82,7 @@ class RowTurns final : public TurnedBatch {
           });
     }
     TurnStep out;
-    out.delta = gauss_newton_step(batch_, fit, derivatives, out.information);
+    out.delta = gauss_newton_step(batch_, fit, derivatives, plan_case_rows(batch_, data_), below_record_, out.information);
     return out;
   }
 
@@ -123,6 +138,7 @@ class RowTurns final : public TurnedBatch {
   std::optional<double> square_corner_;
   const dataset::Dataset& data_;
   const PipelineOptions& options_;
+  std::function<double(double)> below_record_;
   RelativeTwists& out_;
   std::string reference_;
   std::vector<Eigen::Vector3d> nominal_;
@@ -133,7 +149,8 @@ class RowTurns final : public TurnedBatch {
 
 RelativeTwists relative_twists(StackedRegression batch, std::vector<MountingResult> mountings, const BatchRegression& batch_at,
                                std::span<const Term> candidates, std::optional<double> square_corner,
-                               const dataset::Dataset& data, const PipelineOptions& options) {
+                               const dataset::Dataset& data, const PipelineOptions& options,
+                               const std::function<double(double)>& below_record) {
   RelativeTwists out;
   const auto finish = [&]() {
     out.batch = std::move(batch);
@@ -152,7 +169,7 @@ RelativeTwists relative_twists(StackedRegression batch, std::vector<MountingResu
     if (mountings[k].aligned && k != reference_index) turning.push_back(k);
     tilts_determined[k] = {mountings[k].excitation.determined[1], mountings[k].excitation.determined[2]};
   }
-  RowTurns rows(batch, mountings, batch_at, candidates, square_corner, data, options, out, reference_at->mounting);
+  RowTurns rows(batch, mountings, batch_at, candidates, square_corner, data, options, below_record, out, reference_at->mounting);
   out.estimated = search_turns(rows, std::move(turning), tilts_determined, options.mounting_tolerance_rad);
   for (std::size_t k : out.estimated) {
     // The tilts as algorithm 1 reads them: of n_i alone (the twist is angles(0)).

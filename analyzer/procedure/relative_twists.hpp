@@ -5,6 +5,7 @@
 // frames.
 #include <Eigen/Dense>
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -32,9 +33,11 @@ struct RelativeTwists {
 /// whitened batch `batch` of every identifiable candidate (`candidates`). The tilts join because
 /// a held twist leaks into them. A twist whose sd, with the tilts free, exceeds the mounting
 /// tolerance is held at the nominal frame; the rest turn their mounting's M_C^S, and the batch is
-/// rebuilt with them (`batch_at`).
+/// rebuilt with them (`batch_at`). The sd is the search's sandwich under each case's residual
+/// spectrum, `below_record` (StaticNoiseLaw::below_record) below one cycle per case.
 RelativeTwists relative_twists(StackedRegression batch, std::vector<MountingResult> mountings, const BatchRegression& batch_at,
                                std::span<const ident::Term> candidates, std::optional<double> square_corner,
-                               const dataset::Dataset& data, const PipelineOptions& options);
+                               const dataset::Dataset& data, const PipelineOptions& options,
+                               const std::function<double(double)>& below_record = {});
 
 }  // namespace inertia::procedure

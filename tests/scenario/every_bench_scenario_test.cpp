@@ -206,6 +206,42 @@ TEST(RelativeTwist, TheBatchFindsTheShakersTurnAboutTheInputAxisAgainstTheTable)
   EXPECT_EQ(s.within, s.total);
 }
 
+// The paper's plan (sim-paper, 10 kHz, table 1's 1/f noise) with every dwell 64 s instead of 1 s:
+// long rests whose means the flicker moves by about its B, far more than the whitened residual's
+// white part says. Counted as white, those means put the shaker mounting's twist about n_i at an
+// sd of 0.97 deg on seed 101, inside the 1 deg tolerance, and the batch estimated it at -3.70 +-
+// 0.55 deg against a true +1.16, with a_i*a_o 21 and a_i 23 of their sd from the truth. The
+// search's sd under each case's fitted residual spectrum (relative_twists.cpp) is 10 deg: the rests
+// do not determine the twist, it is held, and every estimate is within 3 sd of the truth. One seed
+// (5.5 M rows; the figures over more in docs/validation.md, 'Long rests').
+TEST(RelativeTwist, LongRestsLeaveTheTwistToWhatTheirMeansCanCarry) {
+  inertia::config::BenchConfig file =
+      inertia::config::load_bench_config(std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-paper.toml");
+  for (inertia::config::TestCase& c : file.cases)
+    for (inertia::config::Phase& phase : c.phases)
+      if (phase.kind == inertia::config::PhaseKind::Dwell) phase.duration_s *= 64.0;
+  constexpr std::uint64_t kSeed = 101;
+  const inertia::config::BenchConfig bench = with_seed(file, kSeed);
+  const inertia::sim::BenchSimulation sim = inertia::sim::simulate_bench(bench);
+  const inertia::dataset::Dataset data = inertia::sim::sensor_dataset(bench, sim, 0);
+  const PipelineResult r = inertia::procedure::run_pipeline(data, inertia::procedure::PipelineOptions{}, "paper, long rests");
+  ASSERT_EQ(r.mountings.size(), 2u);
+  const inertia::procedure::MountingResult& shaker = r.mountings[1];
+  const auto& c = sim.cases.at(shaker.cases.front()).sensors.at(0);
+  const Eigen::AngleAxisd error(Eigen::Matrix3d(shaker.m_cs * (c.m_cs * c.mounting.case_rotation).transpose()));
+  const double twist_error = error.angle() * error.axis()(0);
+  std::printf("long rests: shaker twist %+.4f +- %.4f deg (sd 0: held); against the truth %+.4f deg\n",
+              inertia::rad_to_deg(shaker.angles(0)), inertia::rad_to_deg(shaker.angles_sd(0)), inertia::rad_to_deg(twist_error));
+  if (shaker.angles_sd(0) > 0.0) {
+    EXPECT_LE(std::abs(twist_error), 3.0 * shaker.angles_sd(0)) << "an estimated twist";
+  }
+  Scores s;
+  score(r, sim, 0, truth_terms(sim, 0), kSeed, s);
+  std::printf("long rests: %d of %d estimates within 3 sd of truth\n", s.within, s.total);
+  for (const std::string& m : s.misses) std::printf("  outside: %s\n", m.c_str());
+  EXPECT_EQ(s.within, s.total);
+}
+
 // The six-position tumble (IEEE Std 1293) with 3 mrad placement error per axis per pose and a
 // linear sensor, over 100 seeds (INERTIA_SCENARIO_SEEDS to change): a term beyond bias and scale
 // factor in at most 5 % of the seeds, and the 95 % intervals (Student's t on each estimate's dof)
