@@ -175,39 +175,52 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   for (std::size_t k = 0; k < result.mountings.size(); ++k)
     for (int axis = 1; axis < 3; ++axis)
       if (result.mountings[k].excitation.determined[static_cast<std::size_t>(axis)]) searches.push_back({k, axis});
-  for (std::size_t k : twists.estimated) searches.push_back({k, 3});
+  // The fitted prediction's derivative with respect to a searched parameter, as a whitened column.
+  const auto searched_derivative = [&](const ident::UlsResult& fit, const Searched& search) {
+    // A turn moves its mounting's cases only: the others are not built.
+    const std::span<const std::size_t> moved_cases =
+        search.axis > 0 ? std::span<const std::size_t>(result.mountings[search.mounting].cases) : std::span<const std::size_t>();
+    const auto stack_at = [&](std::span<const Term> terms, double moved) {
+      std::vector<Eigen::Vector3d> tilts = nominal;
+      if (search.axis > 0) tilts[search.mounting](search.axis - 1) = moved;
+      return rows_at.unwhitened(terms, result.mountings, tilts,
+                                search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s, moved_cases);
+    };
+    // Steps: 1 % of the corner; 1e-4 rad of a turn (the columns are smooth in both).
+    const double step = search.axis == 0 ? 1e-2 * *result.square_corner_rad_s : 1e-4;
+    return prediction_derivative(fit, step, rows_at.whitener(), batch.cases, stack_at);
+  };
   honest.searched = [&](const ident::UlsResult& fit) {
     SearchedColumns out;
     Eigen::MatrixXd& columns = out.derivatives;
     columns.resize(batch.phi.rows(), 0);
     for (std::size_t i = 0; i < searches.size(); ++i) {
-      const Searched& search = searches[i];
-      if (search.axis == 0 && !has_square_term(fit)) continue;
-      // A turn moves its mounting's cases only: the others are not built.
-      const std::span<const std::size_t> moved_cases =
-          search.axis > 0 ? std::span<const std::size_t>(result.mountings[search.mounting].cases) : std::span<const std::size_t>();
-      const auto stack_at = [&](std::span<const Term> terms, double moved) {
-        std::vector<Eigen::Vector3d> tilts = nominal;
-        if (search.axis > 0) tilts[search.mounting](search.axis - 1) = moved;
-        return rows_at.unwhitened(terms, result.mountings, tilts,
-                                  search.axis == 0 ? *result.square_corner_rad_s + moved : result.square_corner_rad_s, moved_cases);
-      };
-      // Steps: 1 % of the corner; 1e-4 rad of a turn (the columns are smooth in both).
-      const double step = search.axis == 0 ? 1e-2 * *result.square_corner_rad_s : 1e-4;
+      if (searches[i].axis == 0 && !has_square_term(fit)) continue;
       columns.conservativeResize(Eigen::NoChange, columns.cols() + 1);
-      columns.col(columns.cols() - 1) = prediction_derivative(fit, step, rows_at.whitener(), batch.cases, stack_at);
+      columns.col(columns.cols() - 1) = searched_derivative(fit, searches[i]);
       out.ids.push_back(i);
     }
     return out;
   };
-  // The cases' stated placements: part of the residual's covariance.
+  // The cases' stated placements, and each twist the batch estimated (relative_twists), are
+  // known parts of the residual's covariance: what a turn by its sd moves the fit's prediction.
+  // A twist's sd is its search's, with every candidate term free. As a column of the Jacobian it
+  // would be re-estimated with the selected terms alone, and the selection leaves out the terms it
+  // is collinear with: then the twist looks determined where the plan does not determine it, and
+  // the terms it absorbs miss the truth by hundreds of their sd (docs/validation.md, 'Long rests').
   const std::vector<StatedPlacement> placements = stated_placements(data);
-  if (!placements.empty()) {
+  if (!placements.empty() || !twists.estimated.empty()) {
     honest.placements = [&](const ident::UlsResult& fit) {
       std::vector<Term> terms;
       for (Eigen::Index j = 0; j < fit.process_terms; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
-      return rows_at.placement_columns(terms, fit.theta.head(fit.process_terms), result.mountings, nominal,
-                                       result.square_corner_rad_s, placements);
+      Eigen::MatrixXd columns = placements.empty() ? Eigen::MatrixXd(batch.phi.rows(), 0)
+                                                   : rows_at.placement_columns(terms, fit.theta.head(fit.process_terms), result.mountings,
+                                                                               nominal, result.square_corner_rad_s, placements);
+      for (std::size_t k : twists.estimated) {
+        columns.conservativeResize(Eigen::NoChange, columns.cols() + 1);
+        columns.col(columns.cols() - 1) = twists.twist_sd_rad[k] * searched_derivative(fit, {k, 3});
+      }
+      return columns;
     };
   }
   // Held angles and held twists: each turned by the tolerance moves the coefficients by d.
@@ -316,7 +329,8 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
         std::sqrt(std::max(0.0, inference.searched_covariance(i, i)));
   }
   for (std::size_t k : twists.estimated) {
-    const MountingResult& m = result.mountings[k];
+    MountingResult& m = result.mountings[k];
+    m.angles_sd(0) = twists.twist_sd_rad[k];
     result.notes.push_back(fmt::format("mounting '{}' is turned {:+.4f} +- {:.4f} deg about n_i against '{}' (found in the batch, "
                                        "with its tilts: one set of cross-axis terms holds in both; the sensor's p and o axes "
                                        "are those of '{}''s nominal frame, as algorithm 1 takes them)",

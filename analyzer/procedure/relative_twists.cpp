@@ -86,11 +86,14 @@ class RowTurns final : public TurnedBatch {
     return out;
   }
 
-  void turn(std::span<const TurnParameter> parameters, const Eigen::VectorXd& delta, const Eigen::MatrixXd&) override {
+  void turn(std::span<const TurnParameter> parameters, const Eigen::VectorXd& delta, const Eigen::MatrixXd& covariance) override {
     const std::vector<Eigen::Vector3d> turns = turns_of(parameters, delta, mountings_.size());
-    for (const TurnParameter& twist : parameters) {
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+      const TurnParameter& twist = parameters[i];
       if (twist.axis != 2) continue;
       const std::size_t k = twist.mounting;
+      const auto at = static_cast<Eigen::Index>(i);
+      out_.twist_sd_rad[k] = std::sqrt(std::max(0.0, covariance(at, at)));
       MountingResult& m = mountings_[k];
       m.m_cs = turned(m.m_cs, turns[k]);
       m.twist_rad += turns[k](2);
@@ -152,6 +155,7 @@ RelativeTwists relative_twists(StackedRegression batch, std::vector<MountingResu
                                const dataset::Dataset& data, const PipelineOptions& options,
                                const std::function<double(double)>& below_record) {
   RelativeTwists out;
+  out.twist_sd_rad.assign(mountings.size(), 0.0);
   const auto finish = [&]() {
     out.batch = std::move(batch);
     out.mountings = std::move(mountings);

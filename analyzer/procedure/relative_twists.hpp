@@ -25,6 +25,9 @@ struct RelativeTwists {
   std::vector<MountingResult> mountings;    // M_C^S, twist and angles of the turned ones
   std::vector<std::size_t> estimated;       // mountings whose twist (and tilts) the batch refined
   std::vector<std::size_t> held;            // mountings whose twist the plan does not determine
+  /// Per mounting, an estimated twist's sd at the search's last step (every candidate term free,
+  /// the residual's spectrum counted); 0 for the others.
+  std::vector<double> twist_sd_rad;
   std::vector<std::string> notes;           // for the user: each held twist, and why
 };
 
