@@ -262,7 +262,8 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   in.dataset_label = label;
   in.plots = options.plots;
   if (truth) in.truth = report::TruthForReport{truth->terms, truth->m_es};
-  const std::filesystem::path report_file = report::write_characterization_report(in, folder.path());
+  report::WrittenReport written = report::write_characterization_report(in, folder.path());
+  const std::filesystem::path& report_file = written.file;
   if (noise_analysis) {
     std::ofstream md(report_file, std::ios::app);
     md << "\n## Noise of the static stretches\n\n";
@@ -275,6 +276,7 @@ int run_characterize(const CharacterizeOptions& options, std::ostream& out) {
   } catch (const InputError& e) {
     fmt::print(out, "no parameter sheet: {}\n", e.what());
   }
+  report::finish_report_plots(written);
   model::write_model(model_file, model);
   folder.commit();
   fmt::print(out, "wrote {}: model.toml, {}{}{}\n", folder.target().string(), report_file.filename().string(),

@@ -92,7 +92,7 @@ std::vector<ident::StaticGain> sensor_static_gains(const procedure::PipelineResu
   return gains;
 }
 
-std::filesystem::path write_characterization_report(const ReportInputs& in, const std::filesystem::path& out) {
+WrittenReport write_characterization_report(const ReportInputs& in, const std::filesystem::path& out) {
   if (in.data == nullptr || in.result == nullptr) throw std::invalid_argument("report: no dataset or result");
   const dataset::Dataset& data = *in.data;
   const procedure::PipelineResult& r = *in.result;
@@ -294,18 +294,25 @@ std::filesystem::path write_characterization_report(const ReportInputs& in, cons
     gp_res << "unset multiplot\n";
     std::ofstream(plots / "verification.gp") << gp.str();
     std::ofstream(plots / "residuals.gp") << gp_res.str();
-    const std::vector<bool> drawn_each = run_gnuplot_all(std::array{plots / "verification.gp", plots / "residuals.gp"});
-    const bool drawn = drawn_each[0] && drawn_each[1];
-    md << "\n## Plots\n\n";
-    if (drawn) {
-      md << "![verification error per case](plots/verification.png)\n\n![residuals per case](plots/residuals.png)\n";
-    } else {
-      md << "gnuplot did not run (is `gnuplot` installed?): the data files and scripts are in plots/.\n";
-    }
   }
-  const std::filesystem::path file = out / "report.md";
-  std::ofstream(file) << md.str();
-  return file;
+  WrittenReport written;
+  written.file = out / "report.md";
+  std::ofstream(written.file) << md.str();
+  if (in.plots) written.plots = std::make_unique<GnuplotRuns>(std::array{plots / "verification.gp", plots / "residuals.gp"});
+  return written;
+}
+
+void finish_report_plots(WrittenReport& report) {
+  if (!report.plots) return;
+  const std::vector<bool> drawn_each = report.plots->wait();
+  report.plots.reset();
+  std::ofstream md(report.file, std::ios::app);
+  md << "\n## Plots\n\n";
+  if (std::all_of(drawn_each.begin(), drawn_each.end(), [](bool drawn) { return drawn; })) {
+    md << "![verification error per case](plots/verification.png)\n\n![residuals per case](plots/residuals.png)\n";
+  } else {
+    md << "gnuplot did not run (is `gnuplot` installed?): the data files and scripts are in plots/.\n";
+  }
 }
 
 }  // namespace inertia::report

@@ -7,12 +7,14 @@
 // gnuplot the data files and scripts stay for the user and the report says so.
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 
 #include "analyzer/ident/static_gain.hpp"
 #include "analyzer/procedure/batch_stage.hpp"
 #include "analyzer/procedure/pipeline.hpp"
+#include "analyzer/report/gnuplot.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/frames.hpp"
 
@@ -36,7 +38,17 @@ struct ReportInputs {
 /// without the squares when they pass eq. 12's high pass, whose columns carry no static part.
 std::vector<ident::StaticGain> sensor_static_gains(const procedure::PipelineResult& result);
 
-/// Writes report.md (and plots/) into `out`. Returns the report path.
-std::filesystem::path write_characterization_report(const ReportInputs& in, const std::filesystem::path& out);
+/// report.md as written, and its plots while gnuplot draws them.
+struct WrittenReport {
+  std::filesystem::path file;
+  std::unique_ptr<GnuplotRuns> plots;   // none: no plots asked for
+};
+
+/// Writes report.md into `out`, and plots/ with the plots' data and scripts, which gnuplot starts
+/// drawing: the caller appends to the report while they draw, then finish_report_plots.
+WrittenReport write_characterization_report(const ReportInputs& in, const std::filesystem::path& out);
+
+/// Waits for the report's plots and appends its Plots section: the images, or why there are none.
+void finish_report_plots(WrittenReport& report);
 
 }  // namespace inertia::report

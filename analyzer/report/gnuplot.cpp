@@ -54,13 +54,20 @@ bool run_gnuplot(const std::filesystem::path& script) {
   return run_gnuplot_all(std::span<const std::filesystem::path>(&script, 1)).front();
 }
 
-std::vector<bool> run_gnuplot_all(std::span<const std::filesystem::path> scripts) {
-  std::vector<pid_t> children;
-  children.reserve(scripts.size());
-  for (const std::filesystem::path& script : scripts) children.push_back(spawn_gnuplot(script));
+std::vector<bool> run_gnuplot_all(std::span<const std::filesystem::path> scripts) { return GnuplotRuns(scripts).wait(); }
+
+GnuplotRuns::GnuplotRuns(std::span<const std::filesystem::path> scripts) {
+  children_.reserve(scripts.size());
+  for (const std::filesystem::path& script : scripts) children_.push_back(spawn_gnuplot(script));
+}
+
+GnuplotRuns::~GnuplotRuns() { wait(); }
+
+std::vector<bool> GnuplotRuns::wait() {
   std::vector<bool> drawn;
-  drawn.reserve(children.size());
-  for (const pid_t pid : children) drawn.push_back(pid > 0 && exited_cleanly(pid));
+  drawn.reserve(children_.size());
+  for (const pid_t pid : children_) drawn.push_back(pid > 0 && exited_cleanly(pid));
+  children_.clear();
   return drawn;
 }
 

@@ -19,6 +19,23 @@ bool run_gnuplot(const std::filesystem::path& script);
 /// plots take the time of the slowest, not of all. Element i says whether script i drew.
 std::vector<bool> run_gnuplot_all(std::span<const std::filesystem::path> scripts);
 
+/// gnuplot on each of `scripts` (as run_gnuplot), started side by side when constructed and waited
+/// for in wait(): the caller writes the rest of its output while they draw. The destructor waits
+/// for runs not waited for, so that no child outlives the folder it draws into.
+class GnuplotRuns {
+ public:
+  explicit GnuplotRuns(std::span<const std::filesystem::path> scripts);
+  ~GnuplotRuns();
+  GnuplotRuns(const GnuplotRuns&) = delete;
+  GnuplotRuns& operator=(const GnuplotRuns&) = delete;
+
+  /// Element i says whether script i drew; the runs' children are reaped.
+  std::vector<bool> wait();
+
+ private:
+  std::vector<int> children_;   // pids; -1 when a script's gnuplot could not start
+};
+
 /// `text` as a gnuplot string literal (single-quoted): a data file's path, a label.
 std::string gnuplot_quoted(std::string_view text);
 
