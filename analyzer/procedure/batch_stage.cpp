@@ -9,11 +9,14 @@
 #include <functional>
 #include <optional>
 #include <span>
+#include <stdexcept>
+#include <tuple>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "analyzer/ident/normal_equations.hpp"
+#include "analyzer/ident/row_products.hpp"
 #include "analyzer/ident/selection.hpp"
 #include "analyzer/ident/statistics.hpp"
 #include "analyzer/procedure/batch_regression.hpp"
@@ -232,12 +235,57 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
       Eigen::MatrixXd held_part = Eigen::MatrixXd::Zero(p, p);
       std::vector<Term> terms;
       for (Eigen::Index j = 0; j < p; ++j) terms.push_back(ident::parse_term(fit.labels[std::size_t(j)]));
+      // A turned mounting changes its own cases' rows alone. Where the terms are linear least
+      // squares (no output-multiplied column, no noise lags), the refit takes the batch's normal
+      // equations with that mounting's share replaced by its turned rows', and the other cases
+      // are not built again.
+      std::vector<Eigen::Index> stack_columns;
+      for (Eigen::Index j = 0; j < p; ++j)
+        stack_columns.push_back(std::find(batch.labels.begin(), batch.labels.end(), fit.labels[std::size_t(j)]) - batch.labels.begin());
+      const bool linear = uls.noise_lags == 0 && std::none_of(stack_columns.begin(), stack_columns.end(), [&](Eigen::Index c) {
+        return std::find(batch.rational.columns.begin(), batch.rational.columns.end(), c) != batch.rational.columns.end();
+      });
+      // X'X and X'y of the terms' columns over rows [begin, begin + rows) of the batch, a block of
+      // rows at a time (the columns are not contiguous in the stack, and a copy of them all would
+      // be the size of the fit's stack again).
+      const auto normal_equations = [&](Eigen::Index begin, Eigen::Index rows) {
+        constexpr Eigen::Index kBlockRows = 16384;
+        std::pair<Eigen::MatrixXd, Eigen::VectorXd> out{Eigen::MatrixXd::Zero(p, p), Eigen::VectorXd::Zero(p)};
+        for (Eigen::Index at = begin; at < begin + rows; at += kBlockRows) {
+          const Eigen::Index n = std::min(kBlockRows, begin + rows - at);
+          const Eigen::MatrixXd x = batch.phi.middleRows(at, n)(Eigen::all, stack_columns);
+          out.first += ident::gram(x);
+          out.second += ident::cross_product(x, batch.y.segment(at, n));
+        }
+        return out;
+      };
+      Eigen::MatrixXd gram_all;
+      Eigen::VectorXd cross_all;
+      if (linear) std::tie(gram_all, cross_all) = normal_equations(0, batch.phi.rows());
       for (const HeldColumn& h : held_turns) {
         const std::optional<Eigen::VectorXd> d = held_angle_response(
             fit.theta.head(p), h.component, options.mounting_tolerance_rad,
             [&](const Eigen::Vector3d& turn) -> std::optional<Eigen::VectorXd> {
               std::vector<Eigen::Vector3d> tilts = nominal;
               tilts[h.mounting] = turn;
+              if (linear) {
+                const std::vector<std::size_t>& moved = result.mountings[h.mounting].cases;
+                StackedRegression turned = rows_at.unwhitened(terms, result.mountings, tilts, result.square_corner_rad_s, moved);
+                rows_at.whitener().apply(turned);
+                Eigen::MatrixXd gram = gram_all;
+                Eigen::VectorXd cross = cross_all;
+                for (const CaseRows& built : turned.cases) {
+                  const auto at = std::find_if(batch.cases.begin(), batch.cases.end(),
+                                               [&](const CaseRows& r) { return r.case_index == built.case_index; });
+                  if (at == batch.cases.end() || at->rows != built.rows)
+                    throw std::logic_error("held angle refit: the turned mounting's rows are not the batch's");
+                  const auto [gram_was, cross_was] = normal_equations(at->begin, at->rows);
+                  const auto now = turned.phi.middleRows(built.begin, built.rows);
+                  gram += ident::gram(now) - gram_was;
+                  cross += ident::cross_product(now, turned.y.segment(built.begin, built.rows)) - cross_was;
+                }
+                return Eigen::VectorXd(gram.ldlt().solve(cross));
+              }
               const StackedRegression s = rows_at(terms, result.mountings, tilts, result.square_corner_rad_s);
               std::vector<Eigen::Index> all(terms.size());
               for (std::size_t j = 0; j < all.size(); ++j) all[j] = static_cast<Eigen::Index>(j);
