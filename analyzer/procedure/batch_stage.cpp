@@ -210,7 +210,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   // A twist's sd is its search's, with every candidate term free. As a column of the Jacobian it
   // would be re-estimated with the selected terms alone, and the selection leaves out the terms it
   // is collinear with: then the twist looks determined where the plan does not determine it, and
-  // the terms it absorbs miss the truth by hundreds of their sd (docs/validation.md, 'Long rests').
+  // the terms it absorbs miss the truth far beyond their sd (docs/validation.md, 'Long rests').
   const std::vector<StatedPlacement> placements = stated_placements(data);
   if (!placements.empty() || !twists.estimated.empty()) {
     honest.placements = [&](const ident::UlsResult& fit) {
