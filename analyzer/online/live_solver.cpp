@@ -339,8 +339,8 @@ class StatisticsTurns final : public procedure::TurnedBatch {
   StatisticsTurns(const LiveSolver& solver, const std::vector<const Information*>& infos, std::vector<Eigen::Matrix3d>& m_cs,
                   std::optional<double> corner, double long_run_variance_factor, double tolerance_rad,
                   std::vector<RelativeTurn>& out)
-      : solver_(solver), infos_(infos), m_cs_(m_cs), corner_(corner), long_run_variance_factor_(long_run_variance_factor),
-        tolerance_rad_(tolerance_rad), out_(out) {}
+      : solver_(solver), infos_(infos), m_cs_(m_cs), start_m_cs_(m_cs), corner_(corner),
+        long_run_variance_factor_(long_run_variance_factor), tolerance_rad_(tolerance_rad), out_(out) {}
 
   std::optional<procedure::TurnStep> step(std::span<const procedure::TurnParameter> parameters) override {
     const StatFit at = solver_.fit_batch_at(infos_, m_cs_, corner_);
@@ -393,10 +393,17 @@ class StatisticsTurns final : public procedure::TurnedBatch {
     }
   }
 
+  void restore(std::span<const std::size_t> mountings) override {
+    for (const std::size_t k : mountings) {
+      m_cs_[k] = start_m_cs_[k];
+      out_[k] = RelativeTurn{};
+    }
+  }
+
   void hold(std::span<const procedure::TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd&,
-            double sd) override {
+            const procedure::TwistHeld& why) override {
     RelativeTurn& r = out_[parameters[twist].mounting];
-    r.twist_sd_rad = sd;
+    r.twist_sd_rad = why.sd_rad;
     r.held = true;
     r.covariance(0, 0) = tolerance_rad_ * tolerance_rad_;
   }
@@ -414,6 +421,7 @@ class StatisticsTurns final : public procedure::TurnedBatch {
   const LiveSolver& solver_;
   const std::vector<const Information*>& infos_;
   std::vector<Eigen::Matrix3d>& m_cs_;
+  const std::vector<Eigen::Matrix3d> start_m_cs_;   // the frames the search started from
   std::optional<double> corner_;
   double long_run_variance_factor_;
   double tolerance_rad_;

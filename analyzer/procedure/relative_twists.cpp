@@ -65,6 +65,7 @@ class RowTurns final : public TurnedBatch {
         nominal_(mountings.size(), Eigen::Vector3d::Zero()) {
     uls_ = options.selection.uls;
     uls_.noise_lags = 0;
+    for (const MountingResult& m : mountings) start_.push_back({m.m_cs, m.twist_rad, m.twist_reference, m.angles(0)});
   }
 
   std::optional<TurnStep> step(std::span<const TurnParameter> parameters) override {
@@ -103,8 +104,21 @@ class RowTurns final : public TurnedBatch {
     batch_ = batch_at_(candidates_, mountings_, nominal_, square_corner_);
   }
 
+  void restore(std::span<const std::size_t> mountings) override {
+    for (const std::size_t k : mountings) {
+      MountingResult& m = mountings_[k];
+      const StartFrame& start = start_[k];
+      m.m_cs = start.m_cs;
+      m.twist_rad = start.twist_rad;
+      m.twist_reference = start.twist_reference;
+      m.angles(0) = start.twist_angle;
+      out_.twist_sd_rad[k] = 0.0;
+    }
+    batch_ = batch_at_(candidates_, mountings_, nominal_, square_corner_);
+  }
+
   void hold(std::span<const TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd& information,
-            double sd) override {
+            const TwistHeld& why) override {
     MountingResult& m = mountings_[parameters[twist].mounting];
     out_.held.push_back(parameters[twist].mounting);
     m.twist_reference = reference_;
@@ -126,14 +140,44 @@ class RowTurns final : public TurnedBatch {
       m.angles_sd(angle) = std::hypot(m.angles_sd(angle), shift(static_cast<Eigen::Index>(r)));
       m.angles_held_sd(angle) = std::abs(shift(static_cast<Eigen::Index>(r)));
     }
-    out_.notes.push_back(fmt::format(
-        "the twist about n_i of mounting '{}' against '{}' is not determined by this plan (sd {:.2g} deg with its "
-        "tilts free, more than the {:.2f} deg mounting tolerance): held at the nominal frame, and what the tolerance "
-        "moves is in the sd; more cross-axis excitation (a_p, a_o) in both mountings determines it",
-        m.mounting, reference_, rad_to_deg(sd), rad_to_deg(options_.mounting_tolerance_rad)));
+    out_.notes.push_back(held_note(m.mounting, why));
   }
 
  private:
+  /// What turn() changes of a mounting, as the search found it.
+  struct StartFrame {
+    frames::Dcm m_cs;
+    double twist_rad = 0.0;
+    std::string twist_reference;
+    double twist_angle = 0.0;
+  };
+
+  std::string held_note(const std::string& mounting, const TwistHeld& why) const {
+    const std::string held = "held at the nominal frame, and what the tolerance moves is in the sd";
+    const double tolerance_deg = rad_to_deg(options_.mounting_tolerance_rad);
+    switch (why.reason) {
+      case TwistHeld::Reason::SearchDidNotSettle:
+        return fmt::format(
+            "the search for the twist about n_i of mounting '{}' against '{}' did not settle in {} steps (it was at "
+            "{:+.2f} deg from the nominal frame, sd {:.2g} deg there, {:.2g} deg at the nominal frame): the residual "
+            "does not single out one twist, as when a tilt the plan does not excite is held away from its truth; {}",
+            mounting, reference_, kTurnMaxSteps, rad_to_deg(why.found_rad), rad_to_deg(why.found_sd_rad),
+            rad_to_deg(why.sd_rad), held);
+      case TwistHeld::Reason::SdAboveToleranceWhereFound:
+        return fmt::format(
+            "the twist about n_i of mounting '{}' against '{}' is not determined where the search ended ({:+.2f} deg "
+            "from the nominal frame, sd {:.2g} deg with its tilts free, more than the {:.2f} deg mounting tolerance): {}",
+            mounting, reference_, rad_to_deg(why.found_rad), rad_to_deg(why.found_sd_rad), tolerance_deg, held);
+      case TwistHeld::Reason::SdAboveTolerance:
+        break;
+    }
+    return fmt::format(
+        "the twist about n_i of mounting '{}' against '{}' is not determined by this plan (sd {:.2g} deg with its "
+        "tilts free, more than the {:.2f} deg mounting tolerance): {}; more cross-axis excitation (a_p, a_o) in "
+        "both mountings determines it",
+        mounting, reference_, rad_to_deg(why.sd_rad), tolerance_deg, held);
+  }
+
   StackedRegression& batch_;
   std::vector<MountingResult>& mountings_;
   const BatchRegression& batch_at_;
@@ -146,6 +190,7 @@ class RowTurns final : public TurnedBatch {
   std::string reference_;
   std::vector<Eigen::Vector3d> nominal_;
   ident::UlsOptions uls_;
+  std::vector<StartFrame> start_;
 };
 
 }  // namespace

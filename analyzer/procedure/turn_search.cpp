@@ -1,5 +1,6 @@
 #include "analyzer/procedure/turn_search.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace inertia::procedure {
@@ -17,40 +18,86 @@ Eigen::VectorXd turn_sd(const Eigen::MatrixXd& information, Eigen::MatrixXd* cov
   return inverse.diagonal().cwiseMax(0.0).cwiseSqrt();
 }
 
+namespace {
+
+/// Each turning mounting's tilts its excitation determines, then its twist.
+std::vector<TurnParameter> parameters_of(const std::vector<std::size_t>& turning,
+                                         std::span<const std::array<bool, 2>> tilts_determined) {
+  std::vector<TurnParameter> parameters;
+  for (std::size_t k : turning) {
+    for (int axis = 0; axis < 2; ++axis)
+      if (tilts_determined[k][static_cast<std::size_t>(axis)]) parameters.push_back({k, axis});
+    parameters.push_back({k, 2});
+  }
+  return parameters;
+}
+
+}  // namespace
+
 std::vector<std::size_t> search_turns(TurnedBatch& batch, std::vector<std::size_t> turning,
                                       std::span<const std::array<bool, 2>> tilts_determined, double tolerance_rad) {
-  std::vector<std::size_t> turned;
-  for (int iteration = 0; iteration < kTurnMaxSteps && !turning.empty(); ++iteration) {
-    std::vector<TurnParameter> parameters;
-    for (std::size_t k : turning) {
-      for (int axis = 0; axis < 2; ++axis)
-        if (tilts_determined[k][static_cast<std::size_t>(axis)]) parameters.push_back({k, axis});
-      parameters.push_back({k, 2});
+  const auto determined_within = [&](double sd) { return std::isfinite(sd) && sd > 0.0 && sd <= tolerance_rad; };
+  // Each pass starts from the nominal frames; a pass whose twists the data do not determine holds
+  // them, and the next runs without them.
+  while (!turning.empty()) {
+    const std::vector<TurnParameter> parameters = parameters_of(turning, tilts_determined);
+    std::optional<TurnStep> step = batch.step(parameters);
+    if (!step) return {};
+    const TurnStep nominal = *step;
+    const Eigen::VectorXd nominal_sd = turn_sd(nominal.information);
+    std::vector<std::size_t> determined;
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+      if (parameters[i].axis != 2) continue;
+      const double sd = nominal_sd(static_cast<Eigen::Index>(i));
+      if (determined_within(sd))
+        determined.push_back(parameters[i].mounting);
+      else
+        batch.hold(parameters, i, nominal.information, {TwistHeld::Reason::SdAboveTolerance, sd});
     }
-    const std::optional<TurnStep> step = batch.step(parameters);
-    if (!step) break;
-    Eigen::MatrixXd covariance;
-    const Eigen::VectorXd sd = turn_sd(step->information, &covariance);
-    if (iteration == 0) {
-      std::vector<std::size_t> determined;
-      for (std::size_t i = 0; i < parameters.size(); ++i) {
-        if (parameters[i].axis != 2) continue;
-        const double twist_sd = sd(static_cast<Eigen::Index>(i));
-        if (std::isfinite(twist_sd) && twist_sd > 0.0 && twist_sd <= tolerance_rad)
-          determined.push_back(parameters[i].mounting);
-        else
-          batch.hold(parameters, i, step->information, twist_sd);
-      }
-      if (determined.size() < turning.size()) {
-        turning = determined;
-        continue;   // the step again, without the held twists
-      }
+    if (determined.size() < turning.size()) {
+      turning = std::move(determined);
+      continue;
     }
-    batch.turn(parameters, step->delta, covariance);
-    turned = turning;
-    if ((step->delta.array().abs() <= kTurnConvergence * sd.array()).all()) break;
+    Eigen::VectorXd found = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(parameters.size()));
+    Eigen::VectorXd sd = nominal_sd;
+    bool settled = false;
+    for (int iteration = 1;; ++iteration) {
+      Eigen::MatrixXd covariance;
+      sd = turn_sd(step->information, &covariance);
+      batch.turn(parameters, step->delta, covariance);
+      found += step->delta;
+      if ((step->delta.array().abs() <= kTurnConvergence * sd.array()).all()) {
+        settled = true;
+        break;
+      }
+      if (iteration == kTurnMaxSteps) {
+        settled = (step->delta.array().abs() <= kTurnSettled * sd.array()).all();
+        break;
+      }
+      step = batch.step(parameters);
+      if (!step) break;
+    }
+    std::vector<std::size_t> undetermined;   // the twists the search found where the data do not determine them
+    for (std::size_t i = 0; i < parameters.size(); ++i)
+      if (parameters[i].axis == 2 && !determined_within(sd(static_cast<Eigen::Index>(i)))) undetermined.push_back(i);
+    if (settled && undetermined.empty()) return turning;
+    batch.restore(turning);
+    determined.clear();
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+      if (parameters[i].axis != 2) continue;
+      const auto at = static_cast<Eigen::Index>(i);
+      const bool held = !settled || std::find(undetermined.begin(), undetermined.end(), i) != undetermined.end();
+      if (!held) {
+        determined.push_back(parameters[i].mounting);
+        continue;
+      }
+      batch.hold(parameters, i, nominal.information,
+                 {settled ? TwistHeld::Reason::SdAboveToleranceWhereFound : TwistHeld::Reason::SearchDidNotSettle,
+                  nominal_sd(at), found(at), sd(at)});
+    }
+    turning = std::move(determined);
   }
-  return turned;
+  return {};
 }
 
 }  // namespace inertia::procedure

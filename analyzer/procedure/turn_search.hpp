@@ -21,6 +21,11 @@ inline constexpr double kTurnConvergence = 1e-6;
 /// columns: each step gains about three digits, so a search that has not converged by then is
 /// wandering on a flat residual).
 inline constexpr int kTurnMaxSteps = 12;
+/// A search that gave up with a last step above this fraction of a parameter's sd has not found
+/// the least residual to within what the data determine: the residual wanders along the twists or
+/// has several minima there (a tilt the plan holds away from its truth does this), so the twists
+/// it moved are held. Below it, where the search stopped is as good as the least residual.
+inline constexpr double kTurnSettled = 0.1;
 /// The step (rad) of the central differences that give the prediction's derivative with respect
 /// to a turn: the fitted prediction is smooth in the turn (products of the rotation's entries),
 /// so the difference's truncation (h^2) is far below the data's resolution.
@@ -45,6 +50,19 @@ struct TurnStep {
   Eigen::MatrixXd information;
 };
 
+/// Why a twist stays at the nominal frame, and the figures that say so.
+struct TwistHeld {
+  enum class Reason {
+    SdAboveTolerance,             // at the nominal frame its sd (tilts free) exceeds the tolerance
+    SearchDidNotSettle,           // the steps did not settle (kTurnSettled), or the batch lost its fit
+    SdAboveToleranceWhereFound,   // the search settled where the twist's sd exceeds the tolerance
+  };
+  Reason reason = Reason::SdAboveTolerance;
+  double sd_rad = 0.0;          // at the nominal frame, its tilts free
+  double found_rad = 0.0;       // the last two reasons: where the search stopped, from the nominal frame
+  double found_sd_rad = 0.0;    // ... and its sd there
+};
+
 /// What the search asks of the batch regression whose mountings it turns.
 class TurnedBatch {
  public:
@@ -56,17 +74,23 @@ class TurnedBatch {
   /// inverse at the step).
   virtual void turn(std::span<const TurnParameter> parameters, const Eigen::VectorXd& delta,
                     const Eigen::MatrixXd& covariance) = 0;
-  /// The twist `parameters[twist]` is not determined (its sd `sd` exceeds the mounting tolerance):
-  /// it stays at the nominal frame. `information`: of every parameter at the first step.
+  /// Returns `mountings` to the frames the search started from, and forgets what turn() recorded
+  /// of them.
+  virtual void restore(std::span<const std::size_t> mountings) = 0;
+  /// The twist `parameters[twist]` is not determined (`why`): it stays at the nominal frame.
+  /// `information`: of every parameter at the nominal frames.
   virtual void hold(std::span<const TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd& information,
-                    double sd) = 0;
+                    const TwistHeld& why) = 0;
 };
 
 /// The mountings `turning` turned against the reference, each by its twist about n_i and the tilts
 /// its excitation determines (`tilts_determined[mounting][axis]`, turned()'s axes 0 and 1): the
-/// tilts join because a held twist leaks into them. At the first step a twist whose sd with the
+/// tilts join because a held twist leaks into them. At the nominal frames a twist whose sd with the
 /// tilts free exceeds `tolerance_rad` is held (TurnedBatch::hold) and the step is taken again
-/// without it; then steps until kTurnConvergence or kTurnMaxSteps. Returns the mountings turned.
+/// without it; then steps until kTurnConvergence or kTurnMaxSteps. A search that did not settle
+/// (kTurnSettled) is undone and its twists held; one that settled where a twist's sd exceeds the
+/// tolerance is undone, that twist held, and the search run again without it. Returns the
+/// mountings turned.
 std::vector<std::size_t> search_turns(TurnedBatch& batch, std::vector<std::size_t> turning,
                                       std::span<const std::array<bool, 2>> tilts_determined, double tolerance_rad);
 

@@ -312,32 +312,68 @@ TEST(OnlineEstimator, FindsTheBatchsTwistAgainstTheReferenceMounting) {
 }
 
 TEST(OnlineEstimator, FindsTheBatchsTwistWhereTheFixtureDeterminesItWeakly) {
-  // Two orientations on the fixture (IA, PA), then one (IA: its tilt about p is not excited and
-  // stays held, so the search leaves it out, as the batch's): the twist is determined weakly, and
-  // the residual sum is not convex on the way to it. Gauss-Newton's J~'J~ is positive in every
-  // step, on the rows and on the statistics alike, so live lands where the batch does.
-  // The tolerance is 2 deg: the twist's sd with the tilts free is about 1 deg here, and the batch's,
-  // under the residual's fitted spectrum, a little more than the live one's under white noise.
+  // Two orientations on the fixture (IA, PA): the twist is determined weakly, and the residual sum
+  // is not convex on the way to it. Gauss-Newton's J~'J~ is positive in every step, on the rows and
+  // on the statistics alike, so live lands where the batch does.
+  // The tolerance is 2 deg: the twist's sd with the tilts free is about 0.5 deg here.
   constexpr double kNoiseSd = 1e-3;
   const double tolerance = deg_to_rad(2.0);
-  for (int orientations = 2; orientations >= 1; --orientations) {
-    SCOPED_TRACE(orientations);
-    const Plan p = two_mountings(500.0, kNoiseSd, 11, 6000, 3000, truth_values(), orientations);
-    OnlineOptions options = white_noise();
-    options.solver.mounting_tolerance_rad = tolerance;
-    OnlineEstimator est(dataset::SensorKind::Accelerometer, model_file(kModel, 500.0), 25.0, options);
-    feed(est, p, 3);
-    const OnlineSnapshot live = est.snapshot();
-    procedure::PipelineOptions po = fixed_model_pipeline();
-    po.mounting_tolerance_rad = tolerance;
-    const procedure::PipelineResult batch = procedure::run_pipeline(as_dataset(p), po, "test");
-    ASSERT_EQ(live.mountings.size(), 2u);
-    const procedure::MountingResult& shaker = batch.mountings[1];
-    ASSERT_GT(shaker.angles_sd(0), 0.0) << "the batch held the twist";
-    ASSERT_GT(live.mountings[1].angles_sd_rad(0), 0.0) << "live held the twist, or its sd is not positive";
-    const double within = turn_search_agreement_in_sd(p, shaker.angles_sd(0), kNoiseSd);
-    EXPECT_NEAR(live.mountings[1].angles_rad(0), shaker.angles(0), within * shaker.angles_sd(0));
-    EXPECT_EQ(live.mountings[1].angles_sd_rad(1) == tolerance, orientations == 1) << "the tilt about p held";
+  const Plan p = two_mountings(500.0, kNoiseSd, 11, 6000, 3000, truth_values(), 2);
+  OnlineOptions options = white_noise();
+  options.solver.mounting_tolerance_rad = tolerance;
+  OnlineEstimator est(dataset::SensorKind::Accelerometer, model_file(kModel, 500.0), 25.0, options);
+  feed(est, p, 3);
+  const OnlineSnapshot live = est.snapshot();
+  procedure::PipelineOptions po = fixed_model_pipeline();
+  po.mounting_tolerance_rad = tolerance;
+  const procedure::PipelineResult batch = procedure::run_pipeline(as_dataset(p), po, "test");
+  ASSERT_EQ(live.mountings.size(), 2u);
+  const procedure::MountingResult& shaker = batch.mountings[1];
+  ASSERT_GT(shaker.angles_sd(0), 0.0) << "the batch held the twist";
+  ASSERT_GT(live.mountings[1].angles_sd_rad(0), 0.0) << "live held the twist, or its sd is not positive";
+  const double within = turn_search_agreement_in_sd(p, shaker.angles_sd(0), kNoiseSd);
+  EXPECT_NEAR(live.mountings[1].angles_rad(0), shaker.angles(0), within * shaker.angles_sd(0));
+}
+
+TEST(OnlineEstimator, HoldsTheTwistWhereAHeldTiltLeavesItNoSingleLeastResidual) {
+  // One orientation on the fixture (IA): its tilt about p is not excited, and stays at the nominal
+  // frame 1.3 deg from its truth. At the nominal frame the twist looks determined (sd 0.15 deg live),
+  // but the residual the held tilt leaves has no single least value near it: Gauss-Newton's steps
+  // go 9 deg one way, then 14 and 16 the other, and still move two thirds of the live sd after 12
+  // steps, at 13 deg, where the batch's sd (under the residual's fitted spectrum) is 11 deg. The
+  // two mountings' true frames differ about n_i by a few hundredths of a degree (the product of
+  // their 2 and 1.5 deg tilts). Both hold the twist at the nominal frame, and the batch says why.
+  constexpr double kNoiseSd = 1e-3;
+  const double tolerance = deg_to_rad(2.0);
+  const Plan p = two_mountings(500.0, kNoiseSd, 11, 6000, 3000, truth_values(), 1);
+  OnlineOptions options = white_noise();
+  options.solver.mounting_tolerance_rad = tolerance;
+  OnlineEstimator est(dataset::SensorKind::Accelerometer, model_file(kModel, 500.0), 25.0, options);
+  feed(est, p, 3);
+  const OnlineSnapshot live = est.snapshot();
+  procedure::PipelineOptions po = fixed_model_pipeline();
+  po.mounting_tolerance_rad = tolerance;
+  const procedure::PipelineResult batch = procedure::run_pipeline(as_dataset(p), po, "test");
+  ASSERT_EQ(live.mountings.size(), 2u);
+  const procedure::MountingResult& shaker = batch.mountings[1];
+  EXPECT_EQ(shaker.angles(0), 0.0) << "the batch's twist is at the nominal frame";
+  EXPECT_EQ(shaker.angles_sd(0), 0.0) << "the batch's twist is held";
+  EXPECT_TRUE(std::any_of(batch.notes.begin(), batch.notes.end(), [](const std::string& n) {
+    return n.find("twist about n_i of mounting 'shaker-fixture'") != std::string::npos && n.find("held at the nominal frame") != std::string::npos;
+  })) << "the batch says why";
+  EXPECT_TRUE(std::isnan(live.mountings[1].angles_rad(0))) << "live holds the twist: " << live.mountings[1].angles_rad(0);
+  EXPECT_EQ(live.mountings[1].angles_sd_rad(1), tolerance) << "the tilt about p held";
+  // The terms carry what the held angles move (the tolerance) in their sd: each within 3 sd.
+  const Eigen::VectorXd truth = truth_values();
+  for (Index j = 0; j < truth.size(); ++j) {
+    const auto at = std::find(live.terms.begin(), live.terms.end(), kModel[static_cast<std::size_t>(j)]);
+    ASSERT_NE(at, live.terms.end());
+    const auto k = at - live.terms.begin();
+    EXPECT_NEAR(live.values(k), truth(j), 3.0 * live.std_devs(k)) << "live " << kModel[static_cast<std::size_t>(j)];
+    const auto b = std::find(batch.fit.labels.begin(), batch.fit.labels.end(), kModel[static_cast<std::size_t>(j)]);
+    ASSERT_NE(b, batch.fit.labels.end());
+    const auto i = b - batch.fit.labels.begin();
+    EXPECT_NEAR(batch.fit.theta(i), truth(j), 3.0 * batch.fit.std_dev(i)) << "batch " << kModel[static_cast<std::size_t>(j)];
   }
 }
 

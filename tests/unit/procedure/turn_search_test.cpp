@@ -13,20 +13,26 @@ namespace {
 using inertia::procedure::kTurnConvergence;
 using inertia::procedure::kTurnMaxSteps;
 using inertia::procedure::search_turns;
+using inertia::procedure::kTurnSettled;
 using inertia::procedure::TurnedBatch;
+using inertia::procedure::TwistHeld;
 using inertia::procedure::TurnParameter;
 using inertia::procedure::TurnStep;
 
 /// Residual sum sum_p (x_p - best_p)^2 / sd_p^2 over every (mounting, axis): Newton's step is
 /// best - x, exact, and the information is diag(1 / sd^2). `gain` < 1 takes only part of the step,
-/// as a search that needs several steps.
+/// as a search that needs several steps; `gain` above 1 overshoots, and above 2 wanders off. A
+/// parameter listed in `sd_beyond` has that sd once it is more than `beyond` from the nominal frame.
 class QuadraticBatch final : public TurnedBatch {
  public:
-  std::map<std::pair<std::size_t, int>, double> best, sd, at;
+  std::map<std::pair<std::size_t, int>, double> best, sd, at, sd_beyond;
+  double beyond = 0.0;
   double gain = 1.0;
   int steps = 0;
   std::vector<std::vector<TurnParameter>> asked;
-  std::vector<std::pair<std::size_t, double>> held;   // (mounting, twist sd)
+  std::vector<std::pair<std::size_t, double>> held;   // (mounting, twist sd at the nominal frame)
+  std::vector<TwistHeld> why;                          // ... and why, in the same order
+  std::vector<std::size_t> restored;
 
   std::optional<TurnStep> step(std::span<const TurnParameter> parameters) override {
     ++steps;
@@ -38,15 +44,23 @@ class QuadraticBatch final : public TurnedBatch {
     for (Eigen::Index i = 0; i < n; ++i) {
       const auto key = std::pair{parameters[static_cast<std::size_t>(i)].mounting, parameters[static_cast<std::size_t>(i)].axis};
       s.delta(i) = gain * (best[key] - at[key]);
-      s.information(i, i) = 1.0 / (sd[key] * sd[key]);
+      const double sd_here = sd_beyond.contains(key) && std::abs(at[key]) > beyond ? sd_beyond[key] : sd[key];
+      s.information(i, i) = 1.0 / (sd_here * sd_here);
     }
     return s;
   }
   void turn(std::span<const TurnParameter> parameters, const Eigen::VectorXd& delta, const Eigen::MatrixXd&) override {
     for (std::size_t i = 0; i < parameters.size(); ++i) at[{parameters[i].mounting, parameters[i].axis}] += delta(static_cast<Eigen::Index>(i));
   }
-  void hold(std::span<const TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd&, double twist_sd) override {
-    held.emplace_back(parameters[twist].mounting, twist_sd);
+  void restore(std::span<const std::size_t> mountings) override {
+    for (const std::size_t k : mountings) {
+      restored.push_back(k);
+      for (int axis = 0; axis < 3; ++axis) at[{k, axis}] = 0.0;
+    }
+  }
+  void hold(std::span<const TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd&, const TwistHeld& w) override {
+    held.emplace_back(parameters[twist].mounting, w.sd_rad);
+    why.push_back(w);
   }
 };
 
@@ -89,6 +103,8 @@ TEST(TurnSearch, ATwistTheDataDoNotDetermineIsHeldAndTheStepTakenAgainWithoutIt)
   ASSERT_EQ(b.held.size(), 1U);
   EXPECT_EQ(b.held[0].first, 2U);
   EXPECT_DOUBLE_EQ(b.held[0].second, 2.0 * kTolerance);
+  EXPECT_EQ(b.why[0].reason, TwistHeld::Reason::SdAboveTolerance);
+  EXPECT_TRUE(b.restored.empty()) << "nothing was turned before the hold";
   // The first step asked for both mountings, every later one for mounting 1 alone.
   ASSERT_GE(b.asked.size(), 2U);
   EXPECT_EQ(b.asked[0].size(), 6U);
@@ -96,6 +112,55 @@ TEST(TurnSearch, ATwistTheDataDoNotDetermineIsHeldAndTheStepTakenAgainWithoutIt)
     for (const TurnParameter& p : b.asked[s]) EXPECT_EQ(p.mounting, 1U);
   for (int axis = 0; axis < 3; ++axis) EXPECT_EQ((b.at[{2, axis}]), 0.0) << "mounting 2 stays at the nominal frame";
   EXPECT_NEAR((b.at[{1, 2}]), (b.best[{1, 2}]), 1e-12);
+}
+
+TEST(TurnSearch, ASearchThatDoesNotSettleIsUndoneAndItsTwistsHeld) {
+  // Each step overshoots the least residual by 0.75 of the distance: after kTurnMaxSteps the
+  // last step is still 1.75 * 0.75^11 = 0.074 of the 6e-3 start, far above kTurnSettled sd.
+  QuadraticBatch b = two_mountings(1e-4);
+  b.gain = 1.75;
+  const std::vector<std::array<bool, 2>> tilts(3, {true, true});
+  EXPECT_TRUE(search_turns(b, {1, 2}, tilts, kTolerance).empty());
+  EXPECT_EQ(b.steps, kTurnMaxSteps);
+  EXPECT_EQ(b.restored, (std::vector<std::size_t>{1, 2}));
+  for (const auto& [key, value] : b.at) EXPECT_EQ(value, 0.0) << key.first << "/" << key.second << " back at the nominal frame";
+  ASSERT_EQ(b.held.size(), 2U);
+  for (std::size_t h = 0; h < 2; ++h) {
+    const std::size_t k = h + 1;
+    EXPECT_EQ(b.held[h].first, k);
+    EXPECT_EQ(b.why[h].reason, TwistHeld::Reason::SearchDidNotSettle);
+    EXPECT_DOUBLE_EQ(b.why[h].sd_rad, 1e-4);
+    // Where the search stopped: the start's distance times (1 - (1 - gain)^steps).
+    const double distance = b.best[{k, 2}];
+    EXPECT_NEAR(b.why[h].found_rad, distance * (1.0 - std::pow(1.0 - b.gain, kTurnMaxSteps)), 1e-15);
+  }
+  // The same search with steps that shrink within kTurnSettled sd keeps where it stopped.
+  QuadraticBatch slow = two_mountings(1e-4);
+  slow.gain = 0.5;
+  ASSERT_LT(0.5 * 6e-3 * std::pow(0.5, kTurnMaxSteps - 1), kTurnSettled * 1e-4);
+  EXPECT_EQ(search_turns(slow, {1, 2}, tilts, kTolerance), (std::vector<std::size_t>{1, 2}));
+  EXPECT_TRUE(slow.held.empty());
+}
+
+TEST(TurnSearch, ATwistFoundWhereItsSdExceedsTheToleranceIsHeldAndTheRestSearchedAgain) {
+  // Mounting 2's twist is determined at the nominal frame (sd 1e-4) and not beyond 1e-3 of it
+  // (sd twice the tolerance), where the least residual lies (6e-3).
+  QuadraticBatch b = two_mountings(1e-4);
+  b.sd_beyond[{2, 2}] = 2.0 * kTolerance;
+  b.beyond = 1e-3;
+  const std::vector<std::array<bool, 2>> tilts(3, {true, true});
+  EXPECT_EQ(search_turns(b, {1, 2}, tilts, kTolerance), (std::vector<std::size_t>{1}));
+  EXPECT_EQ(b.restored, (std::vector<std::size_t>{1, 2}));
+  ASSERT_EQ(b.held.size(), 1U);
+  EXPECT_EQ(b.held[0].first, 2U);
+  EXPECT_EQ(b.why[0].reason, TwistHeld::Reason::SdAboveToleranceWhereFound);
+  EXPECT_DOUBLE_EQ(b.why[0].found_rad, 6e-3);
+  EXPECT_DOUBLE_EQ(b.why[0].found_sd_rad, 2.0 * kTolerance);
+  for (int axis = 0; axis < 3; ++axis) {
+    EXPECT_EQ((b.at[{2, axis}]), 0.0) << "mounting 2 back at the nominal frame";
+    EXPECT_NEAR((b.at[{1, axis}]), (b.best[{1, axis}]), 1e-12) << "mounting 1 searched again alone";
+  }
+  for (const TurnParameter& p : b.asked.back()) EXPECT_EQ(p.mounting, 1U);
 }
 
 TEST(TurnSearch, OnlyTheTiltsTheExcitationDeterminesAreSearched) {
@@ -119,7 +184,8 @@ TEST(TurnSearch, ABatchWithoutAFitEndsTheSearchWithWhatWasTurned) {
    public:
     std::optional<TurnStep> step(std::span<const TurnParameter>) override { return std::nullopt; }
     void turn(std::span<const TurnParameter>, const Eigen::VectorXd&, const Eigen::MatrixXd&) override { ADD_FAILURE(); }
-    void hold(std::span<const TurnParameter>, std::size_t, const Eigen::MatrixXd&, double) override { ADD_FAILURE(); }
+    void restore(std::span<const std::size_t>) override { ADD_FAILURE(); }
+    void hold(std::span<const TurnParameter>, std::size_t, const Eigen::MatrixXd&, const TwistHeld&) override { ADD_FAILURE(); }
   } none;
   const std::vector<std::array<bool, 2>> tilts(2, {true, true});
   EXPECT_TRUE(search_turns(none, {1}, tilts, kTolerance).empty());
