@@ -133,6 +133,10 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     if (turns[m].held) {
       c += turns[m].covariance;
       held[0] = true;
+      const std::string why = procedure::held_twist_note(statistics.mountings[m].name, statistics.mountings[*reference].name,
+                                                         turns[m].why, live.options.solver.mounting_tolerance_rad);
+      for (MountingFit* f : {&fits[m], update_states ? &statistics.mountings[m].fit : nullptr})
+        if (f != nullptr) f->note += (f->note.empty() ? "" : "; ") + why;
     }
     angle_covariances.push_back(c);
     held_angles.push_back(held);

@@ -404,6 +404,7 @@ class StatisticsTurns final : public procedure::TurnedBatch {
             const procedure::TwistHeld& why) override {
     RelativeTurn& r = out_[parameters[twist].mounting];
     r.twist_sd_rad = why.sd_rad;
+    r.why = why;
     r.held = true;
     r.covariance(0, 0) = tolerance_rad_ * tolerance_rad_;
   }

@@ -139,6 +139,7 @@ struct RelativeTurn {
   /// at where the mounting's fit left them, within the tolerance (in `covariance`). Angles about
   /// i, p, o, as MountingFit::held.
   std::array<bool, 3> held_angles{};
+  procedure::TwistHeld why;   // of a held twist
 };
 
 class LiveSolver {

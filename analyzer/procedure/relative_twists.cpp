@@ -1,7 +1,5 @@
 #include "analyzer/procedure/relative_twists.hpp"
 
-#include <fmt/format.h>
-
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -13,7 +11,6 @@
 #include "analyzer/procedure/misalignment.hpp"
 #include "analyzer/procedure/post_selection_inference.hpp"
 #include "analyzer/procedure/turn_search.hpp"
-#include "common/units.hpp"
 
 namespace inertia::procedure {
 namespace {
@@ -140,7 +137,7 @@ class RowTurns final : public TurnedBatch {
       m.angles_sd(angle) = std::hypot(m.angles_sd(angle), shift(static_cast<Eigen::Index>(r)));
       m.angles_held_sd(angle) = std::abs(shift(static_cast<Eigen::Index>(r)));
     }
-    out_.notes.push_back(held_note(m.mounting, why));
+    out_.notes.push_back(held_twist_note(m.mounting, reference_, why, options_.mounting_tolerance_rad));
   }
 
  private:
@@ -151,32 +148,6 @@ class RowTurns final : public TurnedBatch {
     std::string twist_reference;
     double twist_angle = 0.0;
   };
-
-  std::string held_note(const std::string& mounting, const TwistHeld& why) const {
-    const std::string held = "held at the nominal frame, and what the tolerance moves is in the sd";
-    const double tolerance_deg = rad_to_deg(options_.mounting_tolerance_rad);
-    switch (why.reason) {
-      case TwistHeld::Reason::SearchDidNotSettle:
-        return fmt::format(
-            "the search for the twist about n_i of mounting '{}' against '{}' did not settle in {} steps (it was at "
-            "{:+.2f} deg from the nominal frame, sd {:.2g} deg there, {:.2g} deg at the nominal frame): the residual "
-            "does not single out one twist, as when a tilt the plan does not excite is held away from its truth; {}",
-            mounting, reference_, kTurnMaxSteps, rad_to_deg(why.found_rad), rad_to_deg(why.found_sd_rad),
-            rad_to_deg(why.sd_rad), held);
-      case TwistHeld::Reason::SdAboveToleranceWhereFound:
-        return fmt::format(
-            "the twist about n_i of mounting '{}' against '{}' is not determined where the search ended ({:+.2f} deg "
-            "from the nominal frame, sd {:.2g} deg with its tilts free, more than the {:.2f} deg mounting tolerance): {}",
-            mounting, reference_, rad_to_deg(why.found_rad), rad_to_deg(why.found_sd_rad), tolerance_deg, held);
-      case TwistHeld::Reason::SdAboveTolerance:
-        break;
-    }
-    return fmt::format(
-        "the twist about n_i of mounting '{}' against '{}' is not determined by this plan (sd {:.2g} deg with its "
-        "tilts free, more than the {:.2f} deg mounting tolerance): {}; more cross-axis excitation (a_p, a_o) in "
-        "both mountings determines it",
-        mounting, reference_, rad_to_deg(why.sd_rad), tolerance_deg, held);
-  }
 
   StackedRegression& batch_;
   std::vector<MountingResult>& mountings_;

@@ -1,7 +1,11 @@
 #include "analyzer/procedure/turn_search.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
+
+#include "common/units.hpp"
 
 namespace inertia::procedure {
 
@@ -16,6 +20,32 @@ Eigen::VectorXd turn_sd(const Eigen::MatrixXd& information, Eigen::MatrixXd* cov
   const Eigen::MatrixXd inverse = information.ldlt().solve(Eigen::MatrixXd::Identity(information.rows(), information.cols()));
   if (covariance != nullptr) *covariance = inverse;
   return inverse.diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
+std::string held_twist_note(std::string_view mounting, std::string_view reference, const TwistHeld& why,
+                            double tolerance_rad) {
+  constexpr std::string_view kHeld = "held at the nominal frame, and what the tolerance moves is in the sd";
+  switch (why.reason) {
+    case TwistHeld::Reason::SearchDidNotSettle:
+      return fmt::format(
+          "the search for the twist about n_i of mounting '{}' against '{}' did not settle in {} steps (it was at "
+          "{:+.2f} deg from the nominal frame, sd {:.2g} deg there, {:.2g} deg at the nominal frame): the residual "
+          "does not single out one twist, as when a tilt the plan does not excite is held away from its truth; {}",
+          mounting, reference, kTurnMaxSteps, rad_to_deg(why.found_rad), rad_to_deg(why.found_sd_rad),
+          rad_to_deg(why.sd_rad), kHeld);
+    case TwistHeld::Reason::SdAboveToleranceWhereFound:
+      return fmt::format(
+          "the twist about n_i of mounting '{}' against '{}' is not determined where the search ended ({:+.2f} deg "
+          "from the nominal frame, sd {:.2g} deg with its tilts free, more than the {:.2f} deg mounting tolerance): {}",
+          mounting, reference, rad_to_deg(why.found_rad), rad_to_deg(why.found_sd_rad), rad_to_deg(tolerance_rad), kHeld);
+    case TwistHeld::Reason::SdAboveTolerance:
+      break;
+  }
+  return fmt::format(
+      "the twist about n_i of mounting '{}' against '{}' is not determined by this plan (sd {:.2g} deg with its "
+      "tilts free, more than the {:.2f} deg mounting tolerance): {}; more cross-axis excitation (a_p, a_o) in "
+      "both mountings determines it",
+      mounting, reference, rad_to_deg(why.sd_rad), rad_to_deg(tolerance_rad), kHeld);
 }
 
 namespace {

@@ -10,6 +10,8 @@
 #include <cstddef>
 #include <optional>
 #include <span>
+#include <string>
+#include <string_view>
 #include <vector>
 
 namespace inertia::procedure {
@@ -82,6 +84,10 @@ class TurnedBatch {
   virtual void hold(std::span<const TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd& information,
                     const TwistHeld& why) = 0;
 };
+
+/// For the user: why the twist of mounting `mounting` against `reference` is held (batch and live).
+std::string held_twist_note(std::string_view mounting, std::string_view reference, const TwistHeld& why,
+                            double tolerance_rad);
 
 /// The mountings `turning` turned against the reference, each by its twist about n_i and the tilts
 /// its excitation determines (`tilts_determined[mounting][axis]`, turned()'s axes 0 and 1): the
