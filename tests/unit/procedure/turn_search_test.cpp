@@ -163,6 +163,36 @@ TEST(TurnSearch, ATwistFoundWhereItsSdExceedsTheToleranceIsHeldAndTheRestSearche
   for (const TurnParameter& p : b.asked.back()) EXPECT_EQ(p.mounting, 1U);
 }
 
+TEST(TurnSearch, ABatchThatLosesItsFitOnTheWayIsUndoneAndItsTwistsHeld) {
+  // The fit fails at the third step (a turned batch without a fit): the search has not settled,
+  // and what it turned is undone.
+  class LosesItsFit final : public TurnedBatch {
+   public:
+    QuadraticBatch quadratic = two_mountings(1e-4);
+    std::optional<TurnStep> step(std::span<const TurnParameter> parameters) override {
+      if (quadratic.steps == 2) return std::nullopt;
+      return quadratic.step(parameters);
+    }
+    void turn(std::span<const TurnParameter> parameters, const Eigen::VectorXd& delta, const Eigen::MatrixXd& c) override {
+      quadratic.turn(parameters, delta, c);
+    }
+    void restore(std::span<const std::size_t> mountings) override { quadratic.restore(mountings); }
+    void hold(std::span<const TurnParameter> parameters, std::size_t twist, const Eigen::MatrixXd& i, const TwistHeld& w) override {
+      quadratic.hold(parameters, twist, i, w);
+    }
+  } batch;
+  batch.quadratic.gain = 0.5;
+  const std::vector<std::array<bool, 2>> tilts(3, {true, true});
+  EXPECT_TRUE(search_turns(batch, {1, 2}, tilts, kTolerance).empty());
+  EXPECT_EQ(batch.quadratic.restored, (std::vector<std::size_t>{1, 2}));
+  for (const auto& [key, value] : batch.quadratic.at) EXPECT_EQ(value, 0.0) << key.first << "/" << key.second;
+  ASSERT_EQ(batch.quadratic.why.size(), 2U);
+  for (const TwistHeld& w : batch.quadratic.why) {
+    EXPECT_EQ(w.reason, TwistHeld::Reason::SearchDidNotSettle);
+    EXPECT_GT(w.found_rad, 0.0) << "where the two steps taken left it";
+  }
+}
+
 TEST(TurnSearch, OnlyTheTiltsTheExcitationDeterminesAreSearched) {
   QuadraticBatch b = two_mountings(1e-4);
   std::vector<std::array<bool, 2>> tilts(3, {true, true});
