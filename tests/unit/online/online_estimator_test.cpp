@@ -311,27 +311,43 @@ TEST(OnlineEstimator, FindsTheBatchsTwistAgainstTheReferenceMounting) {
   expect_the_batchs_terms(live, batch, 3.0 * within);   // the twist's uncertainty in the sd by the two routes
 }
 
+/// The shaker fixture with `orientations` of IA, PA (two_mountings, seed 11) under a 2 deg mounting
+/// tolerance: live and the batch on the same rows.
+struct WeakFixture {
+  static constexpr double kNoiseSd = 1e-3;
+  static inline const double kTolerance = deg_to_rad(2.0);
+  Plan plan;
+  OnlineSnapshot live;
+  procedure::PipelineResult batch;
+};
+WeakFixture weak_fixture(int orientations) {
+  WeakFixture f;
+  f.plan = two_mountings(500.0, WeakFixture::kNoiseSd, 11, 6000, 3000, truth_values(), orientations);
+  OnlineOptions options = white_noise();
+  options.solver.mounting_tolerance_rad = WeakFixture::kTolerance;
+  OnlineEstimator est(dataset::SensorKind::Accelerometer, model_file(kModel, 500.0), 25.0, options);
+  feed(est, f.plan, 3);
+  f.live = est.snapshot();
+  procedure::PipelineOptions po = fixed_model_pipeline();
+  po.mounting_tolerance_rad = WeakFixture::kTolerance;
+  f.batch = procedure::run_pipeline(as_dataset(f.plan), po, "test");
+  return f;
+}
+
 TEST(OnlineEstimator, FindsTheBatchsTwistWhereTheFixtureDeterminesItWeakly) {
   // Two orientations on the fixture (IA, PA): the twist is determined weakly, and the residual sum
   // is not convex on the way to it. Gauss-Newton's J~'J~ is positive in every step, on the rows and
   // on the statistics alike, so live lands where the batch does.
   // The tolerance is 2 deg: the twist's sd with the tilts free is about 0.5 deg here.
-  constexpr double kNoiseSd = 1e-3;
-  const double tolerance = deg_to_rad(2.0);
-  const Plan p = two_mountings(500.0, kNoiseSd, 11, 6000, 3000, truth_values(), 2);
-  OnlineOptions options = white_noise();
-  options.solver.mounting_tolerance_rad = tolerance;
-  OnlineEstimator est(dataset::SensorKind::Accelerometer, model_file(kModel, 500.0), 25.0, options);
-  feed(est, p, 3);
-  const OnlineSnapshot live = est.snapshot();
-  procedure::PipelineOptions po = fixed_model_pipeline();
-  po.mounting_tolerance_rad = tolerance;
-  const procedure::PipelineResult batch = procedure::run_pipeline(as_dataset(p), po, "test");
+  const WeakFixture f = weak_fixture(2);
+  const Plan& p = f.plan;
+  const OnlineSnapshot& live = f.live;
+  const procedure::PipelineResult& batch = f.batch;
   ASSERT_EQ(live.mountings.size(), 2u);
   const procedure::MountingResult& shaker = batch.mountings[1];
   ASSERT_GT(shaker.angles_sd(0), 0.0) << "the batch held the twist";
   ASSERT_GT(live.mountings[1].angles_sd_rad(0), 0.0) << "live held the twist, or its sd is not positive";
-  const double within = turn_search_agreement_in_sd(p, shaker.angles_sd(0), kNoiseSd);
+  const double within = turn_search_agreement_in_sd(p, shaker.angles_sd(0), WeakFixture::kNoiseSd);
   EXPECT_NEAR(live.mountings[1].angles_rad(0), shaker.angles(0), within * shaker.angles_sd(0));
 }
 
@@ -343,17 +359,10 @@ TEST(OnlineEstimator, HoldsTheTwistWhereAHeldTiltLeavesItNoSingleLeastResidual) 
   // steps, at 13 deg, where the batch's sd (under the residual's fitted spectrum) is 11 deg. The
   // two mountings' true frames differ about n_i by a few hundredths of a degree (the product of
   // their 2 and 1.5 deg tilts). Both hold the twist at the nominal frame, and the batch says why.
-  constexpr double kNoiseSd = 1e-3;
-  const double tolerance = deg_to_rad(2.0);
-  const Plan p = two_mountings(500.0, kNoiseSd, 11, 6000, 3000, truth_values(), 1);
-  OnlineOptions options = white_noise();
-  options.solver.mounting_tolerance_rad = tolerance;
-  OnlineEstimator est(dataset::SensorKind::Accelerometer, model_file(kModel, 500.0), 25.0, options);
-  feed(est, p, 3);
-  const OnlineSnapshot live = est.snapshot();
-  procedure::PipelineOptions po = fixed_model_pipeline();
-  po.mounting_tolerance_rad = tolerance;
-  const procedure::PipelineResult batch = procedure::run_pipeline(as_dataset(p), po, "test");
+  const WeakFixture f = weak_fixture(1);
+  const OnlineSnapshot& live = f.live;
+  const procedure::PipelineResult& batch = f.batch;
+  const double tolerance = WeakFixture::kTolerance;
   ASSERT_EQ(live.mountings.size(), 2u);
   const procedure::MountingResult& shaker = batch.mountings[1];
   EXPECT_EQ(shaker.angles(0), 0.0) << "the batch's twist is at the nominal frame";
