@@ -238,21 +238,20 @@ constexpr int kTwoComponentDof = 4;
 /// square of X's, can give negative variances, read as a t of infinity, on nearly dependent
 /// columns (on a tumble, sign(a_i) and a_i*abs(a_i) differ from a_i only in the poses with the
 /// input axis level; docs/validation.md, 'Evidence behind choices in the code').
-Eigen::MatrixXd inverse_gram_factor(const Eigen::Ref<const Eigen::MatrixXd>& x) {
-  const Eigen::Index p = x.cols();
-  Eigen::VectorXd scale = x.colwise().norm().transpose();
+Eigen::MatrixXd inverse_gram_factor(const RowBlocks& x, Eigen::VectorXd scale) {
+  const Eigen::Index p = x.cols;
   for (Eigen::Index j = 0; j < p; ++j)
     if (!(scale(j) > 0.0)) scale(j) = 1.0;
   // The triangular factor of X S^-1 by blocks of rows, each block's QR taken under the factor so
   // far: the QR of the whole to rounding (a tall-skinny QR), holding one block, not a copy of X.
   // The column pivoting then acts on that p x p factor, whose columns have X S^-1's norms.
-  constexpr Eigen::Index kBlockRows = 4096;
-  const Eigen::Index n = x.rows();
-  Eigen::MatrixXd stacked = Eigen::MatrixXd::Zero(std::min(n, kBlockRows) + p, p);
+  const Eigen::Index n = x.rows;
+  Eigen::MatrixXd stacked = Eigen::MatrixXd::Zero(std::min(n, RowBlocks::kRows) + p, p);
   Eigen::Index held = 0;   // rows of the factor so far at the top of `stacked`
-  for (Eigen::Index k0 = 0; k0 < n; k0 += kBlockRows) {
-    const Eigen::Index rows = std::min(kBlockRows, n - k0);
-    stacked.middleRows(held, rows) = x.middleRows(k0, rows) * scale.cwiseInverse().asDiagonal();
+  for (Eigen::Index k0 = 0; k0 < n; k0 += RowBlocks::kRows) {
+    const Eigen::Index rows = std::min(RowBlocks::kRows, n - k0);
+    x.fill(k0, stacked.middleRows(held, rows));
+    stacked.middleRows(held, rows) *= scale.cwiseInverse().asDiagonal();
     const Eigen::HouseholderQR<Eigen::MatrixXd> block(stacked.topRows(held + rows));
     held = std::min(held + rows, p);
     stacked.topRows(held) = block.matrixQR().topRows(held).triangularView<Eigen::Upper>();
@@ -322,9 +321,28 @@ ClusterSums ClusterSums::from_rows(const Eigen::Ref<const Eigen::MatrixXd>& x, c
 }
 
 GramFactor GramFactor::from_rows(const Eigen::Ref<const Eigen::MatrixXd>& x) {
+  const RowBlocks blocks{x.rows(), x.cols(), [&](Eigen::Index begin, Eigen::Ref<Eigen::MatrixXd> block) {
+                           block = x.middleRows(begin, block.rows());
+                         }};
+  const Eigen::VectorXd norms = x.colwise().norm().transpose();
   GramFactor out;
-  out.inverse_factor = inverse_gram_factor(x);
-  out.column_rms = (x.colwise().norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(x.rows(), 1)))).transpose();
+  out.inverse_factor = inverse_gram_factor(blocks, norms);
+  out.column_rms = norms / std::sqrt(static_cast<double>(std::max<Eigen::Index>(x.rows(), 1)));
+  return out;
+}
+
+GramFactor GramFactor::from_blocks(const RowBlocks& x) {
+  Eigen::VectorXd squares = Eigen::VectorXd::Zero(x.cols);
+  Eigen::MatrixXd block(std::min(x.rows, RowBlocks::kRows), x.cols);
+  for (Eigen::Index k0 = 0; k0 < x.rows; k0 += RowBlocks::kRows) {
+    const Eigen::Index rows = std::min(RowBlocks::kRows, x.rows - k0);
+    x.fill(k0, block.topRows(rows));
+    squares += block.topRows(rows).colwise().squaredNorm().transpose();
+  }
+  const Eigen::VectorXd norms = squares.cwiseSqrt();
+  GramFactor out;
+  out.inverse_factor = inverse_gram_factor(x, norms);
+  out.column_rms = norms / std::sqrt(static_cast<double>(std::max<Eigen::Index>(x.rows, 1)));
   return out;
 }
 
@@ -552,7 +570,7 @@ RandomEffectsFit random_effects_fit(const Eigen::Ref<const Eigen::MatrixXd>& x, 
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> fitted(once_scaled.leftCols(estimated));
   if (fitted.rank() < estimated) throw std::invalid_argument("random_effects_fit: the weighed columns are linearly dependent");
   out.theta = fitted.solve(y_once).cwiseQuotient(scale.head(estimated));
-  const Eigen::MatrixXd b = inverse_gram_factor(once);
+  const Eigen::MatrixXd b = GramFactor::from_rows(once).inverse_factor;
   const Eigen::MatrixXd noise_meat = twice.transpose() * noise_times(twice);
   Eigen::MatrixXd offsets_meat = Eigen::MatrixXd::Zero(p, p);
   for (Eigen::Index g = 0; g < next; ++g) {

@@ -147,12 +147,22 @@ struct ClusterSums {
   static ClusterSums from_rows(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& residuals,
                                const std::vector<int>& cluster, const Eigen::VectorXd& loading = Eigen::VectorXd());
 };
+/// A tall matrix read a block of rows at a time, for what needs all of its rows but not at once:
+/// `fill(begin, block)` writes rows [begin, begin + block.rows()) of it into `block`.
+struct RowBlocks {
+  static constexpr Eigen::Index kRows = 4096;   // the rows of the blocks its readers ask for
+  Eigen::Index rows = 0;
+  Eigen::Index cols = 0;
+  std::function<void(Eigen::Index, Eigen::Ref<Eigen::MatrixXd>)> fill;
+};
 /// The regression's Gram as cluster_offsets reads it.
 struct GramFactor {
   Eigen::MatrixXd inverse_factor;   ///< B (p x p) with (X'X)^-1 = B'B: sandwiches B'(B M B')B stay semidefinite
   Eigen::VectorXd column_rms;       ///< sqrt(diag(X'X) / N): the scale at which a column's cluster means count
   /// From the rows, through the QR of the columns scaled to unit norm (X's condition, not its square).
   static GramFactor from_rows(const Eigen::Ref<const Eigen::MatrixXd>& x);
+  /// The same from X by blocks of rows (two passes: the columns' norms, then the QR).
+  static GramFactor from_blocks(const RowBlocks& x);
   /// From X'X over `rows` rows, through the eigen decomposition of the Gram scaled to unit diagonal,
   /// where only the statistics are kept.
   static GramFactor from_gram(const Eigen::Ref<const Eigen::MatrixXd>& gram, double rows);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <numeric>
 #include <optional>
 #include <stdexcept>
 #include <utility>
@@ -132,11 +133,23 @@ void covariance_column(RealFourier& fourier, const SegmentSpectrum& spectrum, co
 }  // namespace
 
 Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x) {
+  std::vector<Eigen::Index> all(static_cast<std::size_t>(x.cols()));
+  std::iota(all.begin(), all.end(), Eigen::Index{0});
+  return quadratic_form(spectrum, x, all);
+}
+
+Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x,
+                               std::span<const Eigen::Index> columns) {
   if (x.rows() != spectrum.rows) throw std::invalid_argument("quadratic_form: rows differ from the spectrum's");
-  // x'(R x), R x a few columns at a time: the memory is a few columns per thread, not the
-  // columns' spectra (twice the columns' size).
+  for (const Eigen::Index c : columns)
+    if (c < 0 || c >= x.cols()) throw std::invalid_argument("quadratic_form: a column beyond x's");
+  // x_S'(R x_S), R x_S a few columns at a time: the memory is a few columns per thread, not the
+  // columns' spectra (twice the columns' size). x'(R x_S) is taken for every column of x (one
+  // product, x in place) and the rows of S kept.
   constexpr Eigen::Index kBlock = 4;
-  const Eigen::Index p = x.cols(), blocks = (p + kBlock - 1) / kBlock;
+  const auto p = static_cast<Eigen::Index>(columns.size());
+  const Eigen::Index blocks = (p + kBlock - 1) / kBlock;
+  const std::vector<Eigen::Index> rows_kept(columns.begin(), columns.end());
   Eigen::MatrixXd out(p, p);
   // The blocks split over parallel::jobs() threads, each with its own transform (its plan cache)
   // and buffers; a block's arithmetic does not depend on its thread.
@@ -151,8 +164,10 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
 #endif
     for (Eigen::Index b = 0; b < blocks; ++b) {
       const Eigen::Index first = b * kBlock, count = std::min(kBlock, p - first);
-      for (Eigen::Index j = 0; j < count; ++j) covariance_column(fourier, spectrum, x.col(first + j), r_x.col(j));
-      out.middleCols(first, count).noalias() = x.transpose() * r_x.leftCols(count);
+      for (Eigen::Index j = 0; j < count; ++j)
+        covariance_column(fourier, spectrum, x.col(columns[std::size_t(first + j)]), r_x.col(j));
+      const Eigen::MatrixXd products = x.transpose() * r_x.leftCols(count);
+      out.middleCols(first, count) = products(rows_kept, Eigen::all);
     }
   }
   return 0.5 * (out + out.transpose());
@@ -248,11 +263,16 @@ Eigen::MatrixXd group_covariance(const SegmentSpectrum& spectrum, const RowGroup
 
 Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows,
                                        const Eigen::Ref<const Eigen::MatrixXd>& x) {
-  if (static_cast<Eigen::Index>(rows.group.size()) != spectrum.rows || x.rows() != spectrum.rows)
+  return group_cross_covariance(spectrum, rows, x, Eigen::MatrixXd(x.rows(), 0));
+}
+
+Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows,
+                                       const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::MatrixXd>& w) {
+  if (static_cast<Eigen::Index>(rows.group.size()) != spectrum.rows || x.rows() != spectrum.rows || w.rows() != spectrum.rows)
     throw std::invalid_argument("group_cross_covariance: rows differ from the spectrum's");
   const LagSums sums(spectrum.autocovariance, LagSums::Reach::Rows);
   const auto runs = group_runs(rows);
-  Eigen::MatrixXd out(x.cols(), rows.groups);
+  Eigen::MatrixXd out(x.cols() + w.cols(), rows.groups);
   Eigen::VectorXd rz(x.rows());   // R z_h
   for (Eigen::Index h = 0; h < rows.groups; ++h) {
     for (Eigen::Index i = 0; i < x.rows(); ++i) {
@@ -260,7 +280,8 @@ Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const Ro
       for (const auto& [b0, b1] : runs[std::size_t(h)]) s += sums.row(i, b0, b1);
       rz(i) = static_cast<double>(s);
     }
-    out.col(h).noalias() = x.transpose() * rz;
+    out.col(h).head(x.cols()).noalias() = x.transpose() * rz;
+    if (w.cols() > 0) out.col(h).tail(w.cols()).noalias() = w.transpose() * rz;
   }
   return out;
 }

@@ -25,6 +25,7 @@
 
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -74,6 +75,10 @@ SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double
 /// x' R x for the rows of x under the spectrum (x.rows() == spectrum.rows).
 Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x);
 
+/// x_S' R x_S for the columns S = `columns` of x, in that order, without a copy of them.
+Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref<const Eigen::MatrixXd>& x,
+                               std::span<const Eigen::Index> columns);
+
 /// R x for the rows of x under the spectrum (x.rows() == spectrum.rows): the covariance of the
 /// noise with each column's weighted sum of it, x'(R x) = quadratic_form, and z'(R x) for any
 /// other columns z of the same rows.
@@ -95,6 +100,10 @@ Eigen::MatrixXd group_covariance(const SegmentSpectrum& spectrum, const RowGroup
 /// X'RZ (x.cols() x groups) under the spectrum (x.rows() == spectrum.rows == group.size()).
 Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows,
                                        const Eigen::Ref<const Eigen::MatrixXd>& x);
+
+/// [X W]'RZ for columns of the same rows held apart, without a copy of them side by side.
+Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows,
+                                       const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::MatrixXd>& w);
 
 
 }  // namespace inertia::noise

@@ -173,6 +173,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
   Eigen::MatrixXd noise_sums_covariance;   // Z'RZ of the noise alone
   std::vector<Eigen::Index> meat_columns;
   Eigen::MatrixXd terms_meat;
+  Eigen::MatrixXd stack_gram;              // the stack's columns' Gram, of which the terms' is a part
   for (;;) {
     InferenceOutcome out;
     const auto finish = [&]() {
@@ -192,20 +193,29 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     }
     if (searched.cols() == 0) searched.resize(s.phi.rows(), 0);
     if (searched.rows() != s.phi.rows()) throw std::logic_error("infer_after_selection: searched columns of another stack");
-    Eigen::MatrixXd x(s.phi.rows(), p + searched.cols());
+    // X = [the terms' columns of the stack in the fit's linear form, the searched parameters'
+    // derivatives] is never copied whole (it would hold the terms' part of the stack again): the
+    // sums below read the stack's columns in place and keep the terms' rows of what they give.
     std::vector<Eigen::Index> output_multiplied;
     std::vector<Eigen::Index> stack_columns(static_cast<std::size_t>(p));   // each term's column of the stack
     for (Eigen::Index j = 0; j < p; ++j) {
       const auto column = static_cast<Eigen::Index>(std::find(s.labels.begin(), s.labels.end(), fit.labels[std::size_t(j)]) -
                                                     s.labels.begin());
       if (std::find(s.rational.columns.begin(), s.rational.columns.end(), column) != s.rational.columns.end()) output_multiplied.push_back(j);
-      x.col(j) = s.phi.col(column);
       stack_columns[std::size_t(j)] = column;
     }
-    x.leftCols(p) *= ident::linear_form_signs(p, output_multiplied).asDiagonal();   // the linear form
+    const Eigen::VectorXd signs = ident::linear_form_signs(p, output_multiplied);   // the linear form
+    // The terms' rows, in the linear form, of something with one row per column of the stack.
+    const auto terms_rows = [&](const Eigen::MatrixXd& per_stack_column) -> Eigen::MatrixXd {
+      return signs.asDiagonal() * per_stack_column(stack_columns, Eigen::all);
+    };
     const Eigen::Index n_searched = searched.cols();
-    x.rightCols(n_searched) = searched;
-    searched = Eigen::MatrixXd();   // x holds them now: one copy, not two, at this stage's peak
+    // Rows [begin, begin + block.rows()) of X.
+    const auto fill_x = [&](Eigen::Index begin, Eigen::Ref<Eigen::MatrixXd> block) {
+      for (Eigen::Index j = 0; j < p; ++j) block.col(j) = signs(j) * s.phi.col(stack_columns[std::size_t(j)]).segment(begin, block.rows());
+      block.rightCols(n_searched) = searched.middleRows(begin, block.rows());
+    };
+    const ident::RowBlocks x_blocks{s.phi.rows(), p + n_searched, fill_x};
     if (spectra.empty()) {
       std::map<int, Eigen::Index> order;   // cluster id -> column of Z (ascending ids)
       for (const int id : h.layout->clusters) order.emplace(id, 0);
@@ -259,39 +269,52 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       terms_meat = Eigen::MatrixXd::Zero(p, p);
       for (std::size_t r = 0; r < spectra.size(); ++r) {
         const CaseRows& run = h.layout->noise_runs[r];
-        terms_meat += noise::quadratic_form(spectra[r], x.leftCols(p).middleRows(run.begin, run.rows));
+        terms_meat += noise::quadratic_form(spectra[r], s.phi.middleRows(run.begin, run.rows), stack_columns);
       }
+      terms_meat = signs.asDiagonal() * terms_meat * signs.asDiagonal();
       in_meat.resize(static_cast<std::size_t>(p));
       std::iota(in_meat.begin(), in_meat.end(), Eigen::Index{0});
     }
     const Eigen::Index q = n_searched;
-    coloured.meat = Eigen::MatrixXd::Zero(x.cols(), x.cols());
+    coloured.meat = Eigen::MatrixXd::Zero(p + q, p + q);
     coloured.meat.topLeftCorner(p, p) = terms_meat(in_meat, in_meat);
     if (q > 0) {
       // X'R S and S'R S a noise run at a time: R S for one run's rows, not for the stack's.
-      Eigen::MatrixXd terms_searched = Eigen::MatrixXd::Zero(p, q), searched_meat = Eigen::MatrixXd::Zero(q, q);
+      Eigen::MatrixXd stack_searched = Eigen::MatrixXd::Zero(s.phi.cols(), q), searched_meat = Eigen::MatrixXd::Zero(q, q);
       for (std::size_t r = 0; r < spectra.size(); ++r) {
         const CaseRows& run = h.layout->noise_runs[r];
-        const auto searched_rows = x.rightCols(q).middleRows(run.begin, run.rows);
+        const auto searched_rows = searched.middleRows(run.begin, run.rows);
         const Eigen::MatrixXd r_searched = noise::covariance_times(spectra[r], searched_rows);
-        terms_searched += ident::cross_product(x.leftCols(p).middleRows(run.begin, run.rows), r_searched);
+        stack_searched += ident::cross_product(s.phi.middleRows(run.begin, run.rows), r_searched);
         searched_meat += ident::cross_product(searched_rows, r_searched);
       }
+      const Eigen::MatrixXd terms_searched = terms_rows(stack_searched);
       coloured.meat.topRightCorner(p, q) = terms_searched;
       coloured.meat.bottomLeftCorner(q, p) = terms_searched.transpose();
       coloured.meat.bottomRightCorner(q, q) = 0.5 * (searched_meat + searched_meat.transpose());
     }
-    coloured.cross = Eigen::MatrixXd::Zero(x.cols(), static_cast<Eigen::Index>(coloured.cluster_ids.size()));
+    coloured.cross = Eigen::MatrixXd::Zero(p + q, static_cast<Eigen::Index>(coloured.cluster_ids.size()));
     for (std::size_t r = 0; r < spectra.size(); ++r) {
       const CaseRows& run = h.layout->noise_runs[r];
-      const auto xr = x.middleRows(run.begin, run.rows);
-      const Eigen::MatrixXd cross = noise::group_cross_covariance(spectra[r], run_phases[r], xr);
-      for (std::size_t a = 0; a < run_phase_columns[r].size(); ++a) coloured.cross.col(run_phase_columns[r][a]) += cross.col(Eigen::Index(a));
+      const Eigen::MatrixXd cross = noise::group_cross_covariance(spectra[r], run_phases[r], s.phi.middleRows(run.begin, run.rows),
+                                                                  searched.middleRows(run.begin, run.rows));
+      const Eigen::MatrixXd terms_cross = terms_rows(cross.topRows(s.phi.cols()));
+      for (std::size_t a = 0; a < run_phase_columns[r].size(); ++a) {
+        auto cluster = coloured.cross.col(run_phase_columns[r][a]);
+        cluster.head(p) += terms_cross.col(Eigen::Index(a));
+        cluster.tail(q) += cross.col(Eigen::Index(a)).tail(q);
+      }
     }
     // The placements' part P P' of R (X'PP'X, X'PP'Z, Z'PP'Z), and what each placement leaves on
     // the clusters' means, the offsets' known part where they are weighed.
     coloured.sums_covariance = noise_sums_covariance;
-    const ident::ClusterSums cluster_sums = ident::ClusterSums::from_rows(x, fit.residuals, h.layout->clusters, h.layout->loading);
+    ident::ClusterSums cluster_sums = ident::ClusterSums::from_rows(s.phi, fit.residuals, h.layout->clusters, h.layout->loading);
+    {
+      const Eigen::MatrixXd searched_sums = ident::ClusterSums::from_rows(searched, fit.residuals, h.layout->clusters).columns;
+      Eigen::MatrixXd columns_sums(p + q, cluster_sums.columns.cols());
+      columns_sums << terms_rows(cluster_sums.columns), searched_sums;
+      cluster_sums.columns = std::move(columns_sums);
+    }
     Eigen::VectorXd placed_offset_variance;
     if (placed.cols() > 0) {
       Eigen::MatrixXd z_placed = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(coloured.cluster_ids.size()), placed.cols());
@@ -300,18 +323,20 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
         z_placed.row(std::lower_bound(coloured.cluster_ids.begin(), coloured.cluster_ids.end(), id) - coloured.cluster_ids.begin()) +=
             placed.row(r);
       }
-      const Eigen::MatrixXd x_placed = ident::cross_product(x, placed);
+      Eigen::MatrixXd x_placed(p + q, placed.cols());
+      x_placed << terms_rows(ident::cross_product(s.phi, placed)), ident::cross_product(searched, placed);
       coloured.meat.noalias() += x_placed * x_placed.transpose();
       coloured.cross.noalias() += x_placed * z_placed.transpose();
       coloured.sums_covariance.noalias() += z_placed * z_placed.transpose();
       coloured.stated_offsets = true;
       placed_offset_variance = z_placed.rowwise().squaredNorm().cwiseQuotient(cluster_sums.rows.cwiseAbs2());
     }
-    // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in x.
-    out.offsets = ident::cluster_offsets(cluster_sums, ident::GramFactor::from_rows(x), fit.residual_variance, 0, &coloured);
-    const auto x_process = x.leftCols(p);
+    // Nothing is estimated elsewhere from the phases' means: what was (angles, corner) is in X.
+    out.offsets = ident::cluster_offsets(cluster_sums, ident::GramFactor::from_blocks(x_blocks), fit.residual_variance, 0, &coloured);
+    if (stack_gram.size() == 0) stack_gram = ident::gram(s.phi);
+    const Eigen::MatrixXd terms_gram = signs.asDiagonal() * stack_gram(stack_columns, stack_columns) * signs.asDiagonal();
     // Which terms live between the phases: little of their column varies within one.
-    const std::vector<bool> phase_level = ident::phase_level_columns(cluster_sums, x_process.colwise().squaredNorm().transpose());
+    const std::vector<bool> phase_level = ident::phase_level_columns(cluster_sums, terms_gram.diagonal());
     // When the phases' means are all the model's columns say (every term constant within each
     // phase: static poses) and their offsets differ, each mean is weighed by what its offset
     // leaves of it (random effects). Where a column varies within the phases the weights would
@@ -329,7 +354,10 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
       if (placed.cols() > 0) out.noalias() += placed * (placed.transpose() * m);
       return out;
     };
-    if (means_only && (out.offsets.tau2 > 0.0 || placed.cols() > 0) && output_multiplied.empty() && fit.theta.size() == p)
+    if (means_only && (out.offsets.tau2 > 0.0 || placed.cols() > 0) && output_multiplied.empty() && fit.theta.size() == p) {
+      // The weighed fit reads X whole (static poses: a plan of few rows per parameter).
+      Eigen::MatrixXd x(x_blocks.rows, x_blocks.cols);
+      fill_x(0, x);
       weighed = ident::weighed_by_offsets(
           out.offsets, cluster_sums.loading, noise_sums_covariance.diagonal(),
           [&](const Eigen::VectorXd& tau2) {
@@ -337,6 +365,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
                                              covariance_times, placed_offset_variance);
           },
           placed_offset_variance);
+    }
     if (weighed) {
       out.offsets.within = weighed->within;
       out.offsets.covariance = weighed->covariance;
@@ -345,8 +374,7 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     // The searched parameters' rows and columns have done their work (the terms' block of the
     // joint covariance includes them); what is reported is the terms'.
     out.searched_covariance = out.offsets.covariance.bottomRightCorner(n_searched, n_searched);
-    out.offsets.classical =
-        fit.residual_variance * ident::gram(x_process).ldlt().solve(Eigen::MatrixXd::Identity(p, p));
+    out.offsets.classical = fit.residual_variance * terms_gram.ldlt().solve(Eigen::MatrixXd::Identity(p, p));
     for (Eigen::MatrixXd* m : {&out.offsets.within, &out.offsets.covariance}) *m = m->topLeftCorner(p, p).eval();
     // The fit's covariance (ULS's, with its bias correction) takes the residual as white and the
     // searched parameters as known: what the residual's colour, the offsets between phases and
@@ -361,7 +389,8 @@ InferenceOutcome infer_after_selection(const InferenceProblem& h, std::vector<Ei
     }
     if (weighed) {
       fit.theta.head(p) = weighed->theta;
-      fit.residuals = s.y - x.leftCols(p) * weighed->theta;
+      fit.residuals = s.y;
+      for (Eigen::Index j = 0; j < p; ++j) fit.residuals -= (signs(j) * weighed->theta(j)) * s.phi.col(stack_columns[std::size_t(j)]);
       fit.residual_variance = fit.residuals.squaredNorm() / static_cast<double>(std::max<Eigen::Index>(1, fit.residuals.size() - p));
     }
     fit.covariance.topLeftCorner(p, p) = covariance;

@@ -602,6 +602,37 @@ TEST(Statistics, ClusterOffsetsOnANearlyDependentDesignGiveVariancesNotRoundingN
   }
 }
 
+// X read a block of rows at a time (several blocks and a short last one, the columns a hair from
+// dependent): the same factor as from X whole, to rounding, and so the same offsets.
+TEST(Statistics, GramFactorFromBlocksOfRowsEqualsTheOneFromTheRows) {
+  const Eigen::Index n = 3 * RowBlocks::kRows + 123;
+  Eigen::MatrixXd x(n, 4);
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const double level = double(k % 9) - 4.0;
+    x.row(k) << 1.0, level, level + 1e-7 * normal(rng), 1e3 * std::sin(0.01 * double(k));
+  }
+  int blocks_read = 0;
+  const RowBlocks blocks{n, x.cols(), [&](Eigen::Index begin, Eigen::Ref<Eigen::MatrixXd> block) {
+                           ++blocks_read;
+                           block = x.middleRows(begin, block.rows());
+                         }};
+  const GramFactor whole = GramFactor::from_rows(x), by_blocks = GramFactor::from_blocks(blocks);
+  EXPECT_EQ(blocks_read, 8);   // two passes of four blocks: the norms, then the QR
+  const Eigen::MatrixXd inverse_whole = whole.inverse_factor.transpose() * whole.inverse_factor;
+  const Eigen::MatrixXd inverse_blocks = by_blocks.inverse_factor.transpose() * by_blocks.inverse_factor;
+  for (Eigen::Index i = 0; i < 4; ++i) {
+    EXPECT_NEAR(by_blocks.column_rms(i), whole.column_rms(i), 1e-14 * whole.column_rms(i)) << i;
+    for (Eigen::Index j = 0; j < 4; ++j)
+      EXPECT_NEAR(inverse_blocks(i, j), inverse_whole(i, j), 1e-9 * std::sqrt(inverse_whole(i, i) * inverse_whole(j, j))) << i << " " << j;
+  }
+  // (X'X)^-1 = B'B itself: X B' has orthonormal columns (the Q of X's QR), to X's condition (about
+  // 1e7) times the rounding, where X'X would square it.
+  const Eigen::MatrixXd q = x * by_blocks.inverse_factor.transpose();
+  EXPECT_LT((q.transpose() * q - Eigen::MatrixXd::Identity(4, 4)).norm(), 1e-7);
+}
+
 TEST(TermToPrune, TheLargestPValueAboveTheThresholdLeavesOneAtATime) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::vector<double> p{0.001, 0.4, nan, 0.9, 0.02};

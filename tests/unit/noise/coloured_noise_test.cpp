@@ -72,6 +72,22 @@ TEST(ColouredNoise, CovarianceTimesEqualsTheToeplitzProduct) {
   EXPECT_LT((x.transpose() * covariance_times(spectrum, x) - quadratic_form(spectrum, x)).norm(), 1e-10 * direct.norm());
 }
 
+// Some columns of x, in any order, without a copy: the rows and columns of the whole form.
+TEST(ColouredNoise, QuadraticFormOfSomeColumnsIsThatPartOfTheWholeForm) {
+  const Eigen::Index n = 500;
+  const Eigen::MatrixXd x = Eigen::MatrixXd::Random(n, 7);
+  const SegmentSpectrum spectrum = spectrum_of(n, [&](double f) { return ar1_density(f, 0.8, 0.5); });
+  const Eigen::MatrixXd whole = quadratic_form(spectrum, x);
+  const std::vector<Eigen::Index> some{5, 0, 3, 6, 1};
+  const Eigen::MatrixXd part = quadratic_form(spectrum, x, some);
+  ASSERT_EQ(part.rows(), 5);
+  for (std::size_t a = 0; a < some.size(); ++a)
+    for (std::size_t b = 0; b < some.size(); ++b)
+      EXPECT_NEAR(part(Eigen::Index(a), Eigen::Index(b)), whole(some[a], some[b]), 1e-12 * whole.norm()) << a << " " << b;
+  const std::vector<Eigen::Index> beyond{1, 7};
+  EXPECT_THROW((void)quadratic_form(spectrum, x, beyond), std::invalid_argument);
+}
+
 TEST(ColouredNoise, GroupSumsEqualTheToeplitzFormOfTheIndicators) {
   // A long memory (phi 0.999: r falls by e in 1000 lags) makes every block's sum large against
   // its neighbours', where the running sums' differences lose most digits. Groups split into
@@ -99,6 +115,12 @@ TEST(ColouredNoise, GroupSumsEqualTheToeplitzFormOfTheIndicators) {
       EXPECT_NEAR(cross_by_sums(j, g), xrz(j, g), 1e-12 * std::sqrt((x.col(j).transpose() * r * x.col(j)).value() * zrz(g, g)))
           << j << " " << g;
   }
+  // Columns held apart, [X W]'RZ in one pass: the rows of each.
+  const Eigen::MatrixXd w = Eigen::MatrixXd::Random(n, 2);
+  const Eigen::MatrixXd both = group_cross_covariance(spectrum, rows, x, w);
+  ASSERT_EQ(both.rows(), 5);
+  EXPECT_EQ(Eigen::MatrixXd(both.topRows(3)), cross_by_sums);
+  EXPECT_EQ(Eigen::MatrixXd(both.bottomRows(2)), group_cross_covariance(spectrum, rows, w));
   // A row's group out of range is refused.
   rows.group[3] = 4;
   EXPECT_THROW((void)group_covariance(spectrum, rows), std::invalid_argument);
