@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <optional>
 #include <utility>
 #include <stdexcept>
@@ -126,6 +127,56 @@ class RowsContext final : public FitContext {
   Eigen::Ref<const Eigen::VectorXd> y_;
   const OutputMultiplied& rational_;
   Eigen::MatrixXd factors_;
+};
+
+// A stage's normal equations and its residuals from elsewhere (StageProblem::equations): the fits,
+// tests and scores of RowsContext without noise lags or output-multiplied columns, the same
+// numbers to rounding, from the statistics and one residual pass per fit instead of its rows.
+class SumsContext final : public FitContext {
+ public:
+  SumsContext(const NormalEquations& equations, const std::function<Eigen::VectorXd(std::span<const Index>, const Eigen::VectorXd&)>& residuals,
+              const UlsOptions& options)
+      : FitContext(equations.labels(), options), equations_(equations), residuals_(residuals) {
+    if (options.noise_lags > 0 || !equations.output_multiplied().empty())
+      throw std::invalid_argument("selection: a stage given by its sums is fitted by linear least squares alone");
+    if (!residuals) throw std::invalid_argument("selection: a stage given by its sums needs its residuals");
+    std::vector<Index> all(static_cast<std::size_t>(equations.columns()));
+    for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<Index>(i);
+    stats_ = equations.statistics(all);
+  }
+
+  // As finish_uls for a classical fit: the residual's energy over N - p times (Phi'Phi)^-1.
+  UlsResult fit(const std::vector<Index>& columns) const override {
+    const UlsSolution sol = solve(columns);
+    UlsResult out = solved_terms(sol, labels_, columns);
+    out.residuals = residuals_(columns, sol.theta);
+    if (out.residuals.size() != samples()) throw std::logic_error("selection: the stage's residuals are not its rows");
+    const double dof = static_cast<double>(std::max<Index>(samples() - static_cast<Index>(columns.size()), 1));
+    out.residual_variance = out.residuals.squaredNorm() / dof;
+    out.covariance_kind = CovarianceKind::Classical;
+    out.covariance = out.residual_variance * sol.gram_inverse;
+    out.std_dev = out.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    return out;
+  }
+
+  UlsResult coefficients(const std::vector<Index>& columns) const override { return solved_terms(solve(columns), labels_, columns); }
+
+  std::pair<Eigen::VectorXd, Eigen::VectorXd> theta_sd(const std::vector<Index>& columns) const override {
+    const UlsSolution sol = solve(columns);
+    return {sol.theta, solution_sd(sol, static_cast<Index>(columns.size()), false)};
+  }
+
+  void score(const UlsResult& fit, const std::vector<Index>&, CandidateModel& model) const override {
+    model.residual_mean = residual_mean_test(fit.residuals);                        // step 12
+    model.aic = aic(fit.residuals, static_cast<Index>(fit.theta.size()));           // step 11
+  }
+
+  Eigen::MatrixXd err_gram() const override { return augmented_from_statistics(); }
+  Index samples() const override { return equations_.samples(); }
+
+ private:
+  const NormalEquations& equations_;
+  const std::function<Eigen::VectorXd(std::span<const Index>, const Eigen::VectorXd&)>& residuals_;
 };
 
 // The normal equations alone: every fit, test and score from the statistics, no residuals.
@@ -286,7 +337,13 @@ SelectionResult select_on(const FitContext& base, std::vector<Index> ranking, co
         model.transformed = hook->transform(j, ranked_fit, stage);
       }
       if (model.transformed) {
-        const RowsContext staged(stage.phi, stage.y, stage.labels, stage.rational, options.uls);
+        std::unique_ptr<FitContext> stage_context;
+        if (stage.equations) {
+          stage_context = std::make_unique<SumsContext>(*stage.equations, stage.residuals, options.uls);
+        } else {
+          stage_context = std::make_unique<RowsContext>(stage.phi, stage.y, stage.labels, stage.rational, options.uls);
+        }
+        const FitContext& staged = *stage_context;
         std::vector<Index> all(static_cast<std::size_t>(staged.terms()));
         for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<Index>(i);
         if (scored_samples >= 0 && staged.samples() != scored_samples)

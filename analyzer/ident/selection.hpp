@@ -16,6 +16,9 @@
 
 #include <Eigen/Dense>
 
+#include <functional>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -56,6 +59,12 @@ struct StageProblem {
   /// a misalignment estimated from the same data, so that the other terms' t-tests allow for its
   /// uncertainty. They are fitted and counted (AIC) in every model of the stage.
   std::vector<Index> kept;
+  /// A stage whose columns are sums of columns held elsewhere may give, instead of phi and y, its
+  /// normal equations and its residual y - Phi(:, columns) theta: the same fits, tests and scores
+  /// without a copy of its rows. Linear least squares only (no output-multiplied column, no noise
+  /// lags). With `equations` set, phi, y and rational are not read.
+  std::optional<NormalEquations> equations;
+  std::function<Eigen::VectorXd(std::span<const Index> columns, const Eigen::VectorXd& theta)> residuals;
 };
 
 /// Algorithm 2 steps 6-8 plug in here; section 2.7.2 is select_model without a hook.

@@ -1,8 +1,11 @@
 #include "analyzer/procedure/mounting_regressions.hpp"
 
 #include <algorithm>
+#include <map>
+#include <memory>
 #include <stdexcept>
 
+#include "analyzer/ident/row_products.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "analyzer/procedure/whitened_problem.hpp"
 #include "common/parallel.hpp"
@@ -67,9 +70,27 @@ void MountingRegressions::whiten_missing(std::span<const Term> terms) const {
     StackedRegression s = stack_regressions(monomials, stack_inputs(m_, frames::Dcm::Identity()), data_.t_ref, label_, first_row_);
     if (!highpassed.empty()) highpass_columns(s.phi, highpassed, s.cases, data_, *square_corner_);
     whitener_.apply(s);
+    // The new columns' rows and columns of [M y]'[M y]: against each other and y in one product,
+    // against the columns held before one column at a time.
+    const Eigen::Index held = static_cast<Eigen::Index>(columns_.size()), added = s.phi.cols();
+    Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(held + added + 1, held + added + 1);
+    if (held > 0) {
+      gram.topLeftCorner(held, held) = monomial_gram_.topLeftCorner(held, held);
+      gram.row(held + added).head(held) = monomial_gram_.row(held).head(held);
+      gram(held + added, held + added) = monomial_gram_(held, held);
+      for (Eigen::Index k = 0; k < held; ++k) gram.row(k).segment(held, added).noalias() = columns_[std::size_t(k)].transpose() * s.phi;
+    } else {
+      gram(added, added) = s.y.squaredNorm();
+    }
+    gram.block(held, held, added, added) = ident::gram(s.phi);
+    gram.row(held + added).segment(held, added) = ident::cross_product(frame_ ? frame_->y : s.y, s.phi);
+    gram.topRightCorner(held + added, 1) = gram.bottomLeftCorner(1, held + added).transpose();
+    gram.block(held, 0, added, held) = gram.block(0, held, held, added).transpose();
+    monomial_gram_ = std::move(gram);
     for (std::size_t j = 0; j < missing.size(); ++j) {
       columns_.emplace_back(s.phi.col(static_cast<Eigen::Index>(j)));
       column_of_.emplace(missing[j], &columns_.back());
+      gram_index_.emplace(&columns_.back(), held + static_cast<Eigen::Index>(j));
     }
     if (!frame_) {
       s.phi.resize(s.y.size(), 0);
@@ -137,6 +158,98 @@ StackedRegression MountingRegressions::whitened(std::span<const Term> terms, con
     out.rational.factors = direct.rational.factors;
     for (const Eigen::Index c : direct.rational.columns) out.rational.columns.push_back(direct_at[static_cast<std::size_t>(c)]);
   }
+  return out;
+}
+
+std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> terms, const frames::Dcm& m_cs) const {
+  if (ident::first_usable_row(terms) > first_row_) return std::nullopt;
+  if (std::any_of(terms.begin(), terms.end(), [](const Term& t) { return t.is_output_multiplied(); })) return std::nullopt;
+  std::vector<Term> direct_terms;
+  std::vector<Eigen::Index> direct_at;
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    if (combines(terms[j])) continue;
+    direct_terms.push_back(terms[j]);
+    direct_at.push_back(static_cast<Eigen::Index>(j));
+  }
+  // The terms that do not combine, built as whitened() builds them; the residual holds them.
+  auto direct = std::make_shared<const Eigen::MatrixXd>(
+      direct_terms.empty() ? Eigen::MatrixXd()
+                           : whitened_regression(direct_terms, m_, m_cs, data_, label_, first_row_, square_corner_, whitener_).phi);
+  const auto p = static_cast<Eigen::Index>(terms.size());
+  // Each combined term as T's row: its monomials' columns and coefficients.
+  struct Combination {
+    std::vector<const Eigen::VectorXd*> columns;
+    Eigen::VectorXd coefficients;
+  };
+  std::vector<Combination> combinations(terms.size());
+  Eigen::MatrixXd monomial_gram;
+  std::map<const Eigen::VectorXd*, Eigen::Index> gram_index;
+  const Eigen::VectorXd* y = nullptr;
+  {
+    const std::lock_guard lock(mutex_);
+    whiten_missing(terms);
+    for (std::size_t j = 0; j < terms.size(); ++j) {
+      if (!combines(terms[j])) continue;
+      const Expanded& e = expanded_.at(terms[j]);
+      combinations[j].columns = e.columns;
+      combinations[j].coefficients.resize(static_cast<Eigen::Index>(e.columns.size()));
+      e.expansion.coefficients(m_cs, combinations[j].coefficients);
+    }
+    monomial_gram = monomial_gram_;
+    gram_index = gram_index_;
+    y = &frame_->y;   // frame_ is set once and never changes
+  }
+  const Eigen::Index rows = y->size(), k_count = monomial_gram.rows() - 1;
+  if (direct->cols() > 0 && direct->rows() != rows)
+    throw std::logic_error("MountingRegressions: the directly built columns have other rows than the monomials'");
+  // T (monomials x terms): zero for the direct terms.
+  Eigen::MatrixXd t = Eigen::MatrixXd::Zero(k_count, p);
+  for (Eigen::Index j = 0; j < p; ++j) {
+    const Combination& c = combinations[std::size_t(j)];
+    for (std::size_t k = 0; k < c.columns.size(); ++k) t(gram_index.at(c.columns[k]), j) += c.coefficients(Eigen::Index(k));
+  }
+  Eigen::MatrixXd augmented = Eigen::MatrixXd::Zero(p + 1, p + 1);
+  augmented.topLeftCorner(p, p) = t.transpose() * monomial_gram.topLeftCorner(k_count, k_count) * t;
+  augmented.col(p).head(p) = t.transpose() * monomial_gram.col(k_count).head(k_count);
+  augmented(p, p) = monomial_gram(k_count, k_count);
+  if (direct->cols() > 0) {
+    // The direct columns against the monomials, each other and y.
+    Eigen::MatrixXd monomials_direct(k_count, direct->cols());
+    for (const auto& [column, k] : gram_index) monomials_direct.row(k).noalias() = column->transpose() * *direct;
+    const Eigen::MatrixXd terms_direct = t.transpose() * monomials_direct;   // p x d, rows of direct terms 0
+    const Eigen::MatrixXd direct_gram = ident::gram(*direct);
+    const Eigen::VectorXd direct_y = ident::cross_product(*direct, *y);
+    for (std::size_t a = 0; a < direct_at.size(); ++a) {
+      const Eigen::Index j = direct_at[a];
+      augmented.col(j).head(p) = terms_direct.col(Eigen::Index(a));
+      for (std::size_t b = 0; b < direct_at.size(); ++b) augmented(direct_at[b], j) = direct_gram(Eigen::Index(b), Eigen::Index(a));
+      augmented(j, p) = direct_y(Eigen::Index(a));
+    }
+    for (const Eigen::Index j : direct_at) augmented.row(j).head(p) = augmented.col(j).head(p).transpose();
+  }
+  augmented.row(p).head(p) = augmented.col(p).head(p).transpose();
+  augmented.topLeftCorner(p, p) = (0.5 * (augmented.topLeftCorner(p, p) + augmented.topLeftCorner(p, p).transpose())).eval();
+  RegressionSums out{ident::NormalEquations(std::move(augmented), rows, ident::to_strings(std::vector<Term>(terms.begin(), terms.end()))), {}};
+  out.residuals = [combinations = std::move(combinations), direct, direct_at, y](std::span<const Eigen::Index> columns,
+                                                                                   const Eigen::VectorXd& theta) {
+    // y - Phi theta as y - M (T theta) - D theta_D: each monomial's weight, then one pass.
+    std::map<const Eigen::VectorXd*, double> weight;
+    Eigen::VectorXd out = *y;
+    for (std::size_t a = 0; a < columns.size(); ++a) {
+      const auto j = static_cast<std::size_t>(columns[a]);
+      const double theta_j = theta(static_cast<Eigen::Index>(a));
+      const auto at = std::find(direct_at.begin(), direct_at.end(), columns[a]);
+      if (at != direct_at.end()) {
+        out -= theta_j * direct->col(at - direct_at.begin());
+        continue;
+      }
+      for (std::size_t k = 0; k < combinations[j].columns.size(); ++k)
+        weight[combinations[j].columns[k]] += theta_j * combinations[j].coefficients(Eigen::Index(k));
+    }
+    for (const auto& [column, w] : weight)
+      if (w != 0.0) out -= w * *column;
+    return out;
+  };
   return out;
 }
 

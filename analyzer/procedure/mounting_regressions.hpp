@@ -15,6 +15,7 @@
 #include <Eigen/Dense>
 
 #include <deque>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -25,6 +26,7 @@
 #include <vector>
 
 #include "analyzer/ident/frame_expansion.hpp"
+#include "analyzer/ident/normal_equations.hpp"
 #include "analyzer/ident/term.hpp"
 #include "analyzer/procedure/mountings.hpp"
 #include "analyzer/procedure/prewhitening.hpp"
@@ -45,6 +47,14 @@ StackedRegression whitened_regression(std::span<const ident::Term> terms, const 
                                       const dataset::Dataset& data, std::string_view label, Eigen::Index first_row,
                                       std::optional<double> square_corner, const ArWhitener& whitener);
 
+/// A regression given by its normal equations and its residual, not its rows: what algorithm 2's
+/// stages need of a mounting's regression (ident::StageProblem::equations).
+struct RegressionSums {
+  ident::NormalEquations equations;
+  /// y - Phi(:, columns) theta over the regression's rows.
+  std::function<Eigen::VectorXd(std::span<const Eigen::Index>, const Eigen::VectorXd&)> residuals;
+};
+
 /// whitened_regression for one mounting, corner and whitener, for any terms and M_C^S, from the
 /// monomials' whitened columns. The referenced mounting, dataset and whitener must outlive it.
 /// Thread: whitened() may be called from several threads at once (a monomial not yet whitened is
@@ -57,6 +67,13 @@ class MountingRegressions {
 
   /// What whitened_regression(terms, m, m_cs, ...) gives, to rounding.
   [[nodiscard]] StackedRegression whitened(std::span<const ident::Term> terms, const frames::Dcm& m_cs) const;
+
+  /// whitened(terms, m_cs)'s normal equations and residual, to rounding, without its rows: the
+  /// combined columns' Gram from the monomials' (T G T'), each residual one pass over the
+  /// monomials. Terms that do not combine are built as whitened() builds them and held by the
+  /// residual. None where whitened() would build every row directly (lags beyond the first row)
+  /// or a term is output-multiplied (its fit needs the rows).
+  [[nodiscard]] std::optional<RegressionSums> sums(std::span<const ident::Term> terms, const frames::Dcm& m_cs) const;
 
   /// The number of whitened monomial columns held (for tests).
   [[nodiscard]] std::size_t monomial_columns() const;
@@ -88,6 +105,10 @@ class MountingRegressions {
   mutable std::map<Key, const Eigen::VectorXd*> column_of_;
   mutable std::map<ident::Term, Expanded> expanded_;
   mutable std::optional<StackedRegression> frame_;              // y and the rows' layout, whitened, no columns
+  /// [M y]'[M y] of the monomials' columns in columns_' order, y last: their Gram and products
+  /// with y, kept up to date as columns are added.
+  mutable Eigen::MatrixXd monomial_gram_;
+  mutable std::map<const Eigen::VectorXd*, Eigen::Index> gram_index_;
 };
 
 }  // namespace inertia::procedure

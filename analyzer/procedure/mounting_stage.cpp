@@ -153,6 +153,18 @@ class MisalignmentHook final : public ident::FitHook {
     if (tilts_.size() < j) tilts_.resize(j);
     tilts_[j - 1] = ident::to_strings(tilts);
     stage.phi.resize(0, 0);   // the stage before's rows: freed before this one's are built
+    stage.y.resize(0);
+    // The stage's normal equations and residuals from the whitened monomials where its terms
+    // allow (no copy of its rows), else its rows.
+    if (std::optional<RegressionSums> sums = regressions_.sums(s_terms, m_cs)) {
+      stage.labels = sums->equations.labels();
+      stage.rational = {};
+      stage.equations = std::move(sums->equations);
+      stage.residuals = std::move(sums->residuals);
+      return true;
+    }
+    stage.equations.reset();
+    stage.residuals = nullptr;
     StackedRegression s = regressions_.whitened(s_terms, m_cs);
     stage.phi = std::move(s.phi);
     stage.y = std::move(s.y);

@@ -29,13 +29,16 @@ using ident::Term;
 Eigen::VectorXd gauss_newton_step(const StackedRegression& s, const ident::UlsResult& fit, const Eigen::MatrixXd& derivatives,
                                   const std::vector<CaseRows>& runs, const std::function<double(double)>& below_record,
                                   Eigen::MatrixXd& information) {
-  Eigen::MatrixXd x(s.phi.rows(), fit.process_terms);
-  for (Eigen::Index j = 0; j < x.cols(); ++j) {
-    const auto at = std::find(s.labels.begin(), s.labels.end(), fit.labels[std::size_t(j)]);
-    x.col(j) = s.phi.col(at - s.labels.begin());
-  }
-  const Eigen::LDLT<Eigen::MatrixXd> gram(ident::gram(x));
-  const Eigen::MatrixXd projected = derivatives - x * gram.solve(ident::cross_product(x, derivatives));
+  // The fit's columns X are read where they are in the stack, not copied: their Gram and
+  // products are the stack's, the terms' rows and columns kept.
+  std::vector<Eigen::Index> columns(static_cast<std::size_t>(fit.process_terms));
+  for (std::size_t j = 0; j < columns.size(); ++j)
+    columns[j] = std::find(s.labels.begin(), s.labels.end(), fit.labels[j]) - s.labels.begin();
+  const Eigen::LDLT<Eigen::MatrixXd> gram(Eigen::MatrixXd(ident::gram(s.phi)(columns, columns)));
+  const Eigen::MatrixXd coefficients = gram.solve(Eigen::MatrixXd(ident::cross_product(s.phi, derivatives)(columns, Eigen::all)));
+  Eigen::MatrixXd projected = derivatives;
+  for (std::size_t j = 0; j < columns.size(); ++j)
+    projected.noalias() -= s.phi.col(columns[j]) * coefficients.row(static_cast<Eigen::Index>(j));
   const Eigen::MatrixXd jj = ident::gram(projected);
   Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(jj.rows(), jj.cols());
   for (const CaseRows& run : runs) {

@@ -150,6 +150,67 @@ TEST(Selection, HookReplacesTheScoredProblem) {
   EXPECT_FALSE(plain.best_model().transformed);
 }
 
+// The same stage given by its sums (StageProblem::equations and residuals) instead of its rows:
+// the same candidates, pruning, scores and best model, to rounding.
+class StageHook final : public FitHook {
+ public:
+  StageHook(const SparseCase& c, bool by_sums) : c_(c), by_sums_(by_sums) {}
+  bool transform(std::size_t, const UlsResult&, StageProblem& stage) override {
+    const Eigen::VectorXd y = 2.0 * c_.y;
+    stage.labels = c_.labels;
+    if (by_sums_) {
+      stage.equations = NormalEquations::from_rows(c_.phi, y, c_.labels);
+      stage.residuals = [this, y](std::span<const Index> columns, const Eigen::VectorXd& theta) {
+        ++residual_passes;
+        Eigen::VectorXd out = y;
+        for (std::size_t k = 0; k < columns.size(); ++k) out -= theta(Index(k)) * c_.phi.col(columns[k]);
+        return out;
+      };
+    } else {
+      stage.phi = c_.phi;
+      stage.y = y;
+    }
+    return true;
+  }
+  int residual_passes = 0;
+
+ private:
+  const SparseCase& c_;
+  bool by_sums_;
+};
+
+TEST(Selection, AStageGivenByItsSumsScoresAsItsRows) {
+  const SparseCase c = sparse_case(5, 2000, 0.1);
+  const SelectionProblem problem(c.phi, c.y, c.labels);
+  SelectionOptions options;
+  options.max_terms = 6;
+  StageHook rows(c, false), sums(c, true);
+  const SelectionResult by_rows = select_model(problem, options, &rows);
+  const SelectionResult by_sums = select_model(problem, options, &sums);
+  EXPECT_GT(sums.residual_passes, 0);
+  ASSERT_EQ(by_sums.candidates.size(), by_rows.candidates.size());
+  EXPECT_EQ(by_sums.best, by_rows.best);
+  for (std::size_t k = 0; k < by_rows.candidates.size(); ++k) {
+    const CandidateModel& a = by_rows.candidates[k];
+    const CandidateModel& b = by_sums.candidates[k];
+    ASSERT_EQ(a.ok, b.ok) << k;
+    EXPECT_EQ(a.columns, b.columns) << k;
+    EXPECT_EQ(a.removed, b.removed) << k;
+    EXPECT_NEAR(b.aic, a.aic, 1e-9 * std::abs(a.aic)) << k;
+    EXPECT_NEAR(b.residual_mean.p_value, a.residual_mean.p_value, 1e-9) << k;
+    EXPECT_NEAR(b.fitness, a.fitness, 1e-9) << k;
+    ASSERT_EQ(b.fit.theta.size(), a.fit.theta.size()) << k;
+    for (Eigen::Index j = 0; j < a.fit.theta.size(); ++j) {
+      EXPECT_NEAR(b.fit.theta(j), a.fit.theta(j), 1e-9 * a.fit.std_dev(j)) << k << " " << j;
+      EXPECT_NEAR(b.fit.std_dev(j), a.fit.std_dev(j), 1e-9 * a.fit.std_dev(j)) << k << " " << j;
+    }
+  }
+  // Noise lags need the rows: a hook that gives sums for them is the caller's error.
+  SelectionOptions els = options;
+  els.uls.noise_lags = 2;
+  EXPECT_THROW((void)select_model(problem, els, &sums), std::invalid_argument);
+}
+
 // A hook's nuisance column (StageProblem::kept) survives step 9 whatever its t, and is fitted in
 // the scored model; without `kept` the same column, pure noise, is pruned.
 class NuisanceHook final : public FitHook {

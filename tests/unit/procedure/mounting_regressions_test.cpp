@@ -77,6 +77,46 @@ TEST(MountingRegressions, CombinedColumnsAreTheDirectlyBuiltOnesForEveryKindOfTe
   EXPECT_EQ(regressions.monomial_columns(), 33u);
 }
 
+// A stage's normal equations from the monomials' Gram and its residual from one pass over them:
+// those of the rows whitened() builds, to rounding, with terms that stay direct (abs, sign) and
+// monomials beyond the cover whitened on the way; none where a term needs the rows.
+TEST(MountingRegressions, SumsAreTheNormalEquationsAndResidualsOfTheRows) {
+  const dataset::Dataset data = two_case_mounting();
+  const MountingCases m = mounting_cases(data, {0, 1}, PipelineOptions{}, std::nullopt);
+  const ArWhitener whitener = ArWhitener::of(Eigen::Vector3d(0.5, -0.2, 0.1));
+  const double corner = 40.0;
+  const Eigen::Index first_row = 1;
+  const MountingRegressions regressions(m, data, "test", first_row, corner, whitener, ident::parse_terms({"1", "a_i", "a_p", "a_i^2"}));
+  const std::vector<ident::Term> terms =
+      ident::parse_terms({"1", "a_i", "a_o^2", "a_i^2", "a_p*a_o", "abs(a_i)", "T*a_i", "sign(a_p)*a_i", "a_i[k-1]", "a_p"});
+  for (const double angle : {0.0, 0.03, 1.1}) {
+    const frames::Dcm m_cs = frames::frame_rotation(Eigen::Vector3d(0.3, -1.0, 0.7).normalized(), angle);
+    const std::optional<RegressionSums> sums = regressions.sums(terms, m_cs);
+    ASSERT_TRUE(sums.has_value());
+    const StackedRegression rows = regressions.whitened(terms, m_cs);
+    const ident::NormalEquations from_rows = ident::NormalEquations::from_rows(rows.phi, rows.y, rows.labels);
+    ASSERT_EQ(sums->equations.labels(), rows.labels);
+    EXPECT_EQ(sums->equations.samples(), rows.phi.rows());
+    const Eigen::MatrixXd& a = sums->equations.augmented();
+    const Eigen::MatrixXd& b = from_rows.augmented();
+    ASSERT_EQ(a.rows(), b.rows());
+    for (Eigen::Index i = 0; i < a.rows(); ++i)
+      for (Eigen::Index j = 0; j < a.cols(); ++j)
+        EXPECT_NEAR(a(i, j), b(i, j), 1e-12 * std::sqrt(b(i, i) * b(j, j))) << rows.labels.size() << " " << i << " " << j << " at " << angle;
+    // The residual of a fit of some of the columns, in any order.
+    const std::vector<Eigen::Index> columns{5, 0, 2, 7, 1, 9};
+    Eigen::VectorXd theta(static_cast<Eigen::Index>(columns.size()));
+    theta << 0.3, -1.2, 2.5e-3, 0.07, 0.99, -4e-4;
+    Eigen::VectorXd expected = rows.y;
+    for (std::size_t k = 0; k < columns.size(); ++k) expected -= theta(Eigen::Index(k)) * rows.phi.col(columns[k]);
+    const Eigen::VectorXd residual = sums->residuals(columns, theta);
+    ASSERT_EQ(residual.size(), expected.size());
+    EXPECT_LE((residual - expected).cwiseAbs().maxCoeff(), 1e-12 * rows.y.cwiseAbs().maxCoeff()) << angle;
+  }
+  // An output-multiplied term's fit needs its rows.
+  EXPECT_FALSE(regressions.sums(ident::parse_terms({"1", "a_i", "y*a_i"}), frames::Dcm::Identity()).has_value());
+}
+
 TEST(MountingRegressions, LagsBeyondTheFirstRowMoveTheRowsAndAreBuiltDirectly) {
   const dataset::Dataset data = two_case_mounting();
   const MountingCases m = mounting_cases(data, {0, 1}, PipelineOptions{}, std::nullopt);
