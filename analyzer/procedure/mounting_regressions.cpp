@@ -72,13 +72,15 @@ void MountingRegressions::whiten_missing(std::span<const Term> terms) const {
     whitener_.apply(s);
     // The new columns' rows and columns of [M y]'[M y]: against each other and y in one product,
     // against the columns held before one column at a time.
-    const Eigen::Index held = static_cast<Eigen::Index>(columns_.size()), added = s.phi.cols();
+    const auto held = static_cast<Eigen::Index>(gram_index_.size());
+    const Eigen::Index added = s.phi.cols();
     Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(held + added + 1, held + added + 1);
     if (held > 0) {
       gram.topLeftCorner(held, held) = monomial_gram_.topLeftCorner(held, held);
       gram.row(held + added).head(held) = monomial_gram_.row(held).head(held);
       gram(held + added, held + added) = monomial_gram_(held, held);
-      for (Eigen::Index k = 0; k < held; ++k) gram.row(k).segment(held, added).noalias() = columns_[std::size_t(k)].transpose() * s.phi;
+      for (const auto& [column, k] : gram_index_)
+        gram.row(k).segment(held, added).noalias() = Eigen::Map<const Eigen::VectorXd>(column, s.phi.rows()).transpose() * s.phi;
     } else {
       gram(added, added) = s.y.squaredNorm();
     }
@@ -87,10 +89,11 @@ void MountingRegressions::whiten_missing(std::span<const Term> terms) const {
     gram.topRightCorner(held + added, 1) = gram.bottomLeftCorner(1, held + added).transpose();
     gram.block(held, 0, added, held) = gram.block(0, held, held, added).transpose();
     monomial_gram_ = std::move(gram);
+    const Eigen::MatrixXd& block = blocks_.emplace_back(std::move(s.phi));
     for (std::size_t j = 0; j < missing.size(); ++j) {
-      columns_.emplace_back(s.phi.col(static_cast<Eigen::Index>(j)));
-      column_of_.emplace(missing[j], &columns_.back());
-      gram_index_.emplace(&columns_.back(), held + static_cast<Eigen::Index>(j));
+      const double* column = block.col(static_cast<Eigen::Index>(j)).data();
+      column_of_.emplace(missing[j], column);
+      gram_index_.emplace(column, held + static_cast<Eigen::Index>(j));
     }
     if (!frame_) {
       s.phi.resize(s.y.size(), 0);
@@ -150,7 +153,7 @@ StackedRegression MountingRegressions::whitened(std::span<const Term> terms, con
     column.setZero();
     for (std::size_t k = 0; k < e->columns.size(); ++k) {
       const double c = coefficients(static_cast<Eigen::Index>(k));
-      if (c != 0.0) column += c * *e->columns[k];
+      if (c != 0.0) column += c * Eigen::Map<const Eigen::VectorXd>(e->columns[k], rows);
     }
   }
   for (std::size_t k = 0; k < direct_at.size(); ++k) out.phi.col(direct_at[k]) = direct.phi.col(static_cast<Eigen::Index>(k));
@@ -178,12 +181,12 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
   const auto p = static_cast<Eigen::Index>(terms.size());
   // Each combined term as T's row: its monomials' columns and coefficients.
   struct Combination {
-    std::vector<const Eigen::VectorXd*> columns;
+    std::vector<const double*> columns;
     Eigen::VectorXd coefficients;
   };
   std::vector<Combination> combinations(terms.size());
   Eigen::MatrixXd monomial_gram;
-  std::map<const Eigen::VectorXd*, Eigen::Index> gram_index;
+  std::map<const double*, Eigen::Index> gram_index;
   const Eigen::VectorXd* y = nullptr;
   {
     const std::lock_guard lock(mutex_);
@@ -215,7 +218,8 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
   if (direct->cols() > 0) {
     // The direct columns against the monomials, each other and y.
     Eigen::MatrixXd monomials_direct(k_count, direct->cols());
-    for (const auto& [column, k] : gram_index) monomials_direct.row(k).noalias() = column->transpose() * *direct;
+    for (const auto& [column, k] : gram_index)
+      monomials_direct.row(k).noalias() = Eigen::Map<const Eigen::VectorXd>(column, rows).transpose() * *direct;
     const Eigen::MatrixXd terms_direct = t.transpose() * monomials_direct;   // p x d, rows of direct terms 0
     const Eigen::MatrixXd direct_gram = ident::gram(*direct);
     const Eigen::VectorXd direct_y = ident::cross_product(*direct, *y);
@@ -233,7 +237,7 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
   out.residuals = [combinations = std::move(combinations), direct, direct_at, y](std::span<const Eigen::Index> columns,
                                                                                    const Eigen::VectorXd& theta) {
     // y - Phi theta as y - M (T theta) - D theta_D: each monomial's weight, then one pass.
-    std::map<const Eigen::VectorXd*, double> weight;
+    std::map<const double*, double> weight;
     Eigen::VectorXd out = *y;
     for (std::size_t a = 0; a < columns.size(); ++a) {
       const auto j = static_cast<std::size_t>(columns[a]);
@@ -247,7 +251,7 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
         weight[combinations[j].columns[k]] += theta_j * combinations[j].coefficients(Eigen::Index(k));
     }
     for (const auto& [column, w] : weight)
-      if (w != 0.0) out -= w * *column;
+      if (w != 0.0) out -= w * Eigen::Map<const Eigen::VectorXd>(column, out.size());
     return out;
   };
   return out;
@@ -255,7 +259,7 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
 
 std::size_t MountingRegressions::monomial_columns() const {
   const std::lock_guard lock(mutex_);
-  return columns_.size();
+  return gram_index_.size();
 }
 
 }  // namespace inertia::procedure

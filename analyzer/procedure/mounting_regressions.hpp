@@ -84,7 +84,7 @@ class MountingRegressions {
   struct Expanded {
     ident::FrameExpansion expansion;
     std::vector<Key> keys;                          // each monomial's column key
-    std::vector<const Eigen::VectorXd*> columns;   // and its whitened column
+    std::vector<const double*> columns;            // and its whitened column (column())
   };
 
   [[nodiscard]] bool combines(const ident::Term& term) const;
@@ -101,14 +101,16 @@ class MountingRegressions {
   const ArWhitener& whitener_;
 
   mutable std::mutex mutex_;
-  mutable std::deque<Eigen::VectorXd> columns_;                 // stable addresses as it grows
-  mutable std::map<Key, const Eigen::VectorXd*> column_of_;
+  /// The whitened monomials, each batch whitened together kept as its stack's matrix (no copy of
+  /// its columns); a column is known by its first coefficient, stable as the deque grows.
+  mutable std::deque<Eigen::MatrixXd> blocks_;
+  mutable std::map<Key, const double*> column_of_;
   mutable std::map<ident::Term, Expanded> expanded_;
   mutable std::optional<StackedRegression> frame_;              // y and the rows' layout, whitened, no columns
   /// [M y]'[M y] of the monomials' columns in columns_' order, y last: their Gram and products
   /// with y, kept up to date as columns are added.
   mutable Eigen::MatrixXd monomial_gram_;
-  mutable std::map<const Eigen::VectorXd*, Eigen::Index> gram_index_;
+  mutable std::map<const double*, Eigen::Index> gram_index_;
 };
 
 }  // namespace inertia::procedure
