@@ -119,15 +119,15 @@ namespace {
 /// R x of one column through `fourier` (its length the spectrum's): the circulant of length
 /// L >= 2n restricted to the first n rows and columns is the Toeplitz R, so the first n samples
 /// of the circular convolution of the zero-padded column are R x.
-template <class Column, class Out>
-void covariance_column(RealFourier& fourier, const SegmentSpectrum& spectrum, const Column& column, Out&& out) {
+/// R x is left in fourier.samples().head(n).
+template <class Column>
+void covariance_column(RealFourier& fourier, const SegmentSpectrum& spectrum, const Column& column) {
   const Eigen::Index n = column.size();
   fourier.samples().head(n) = column;
   fourier.samples().tail(spectrum.length - n).setZero();   // the inverse of the column before filled them
   fourier.forward();
   fourier.spectrum().array() *= spectrum.density.array();
   fourier.inverse();
-  out = fourier.samples().head(n);
 }
 
 }  // namespace
@@ -143,31 +143,28 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
   if (x.rows() != spectrum.rows) throw std::invalid_argument("quadratic_form: rows differ from the spectrum's");
   for (const Eigen::Index c : columns)
     if (c < 0 || c >= x.cols()) throw std::invalid_argument("quadratic_form: a column beyond x's");
-  // x_S'(R x_S), R x_S a few columns at a time: the memory is a few columns per thread, not the
-  // columns' spectra (twice the columns' size). x'(R x_S) is taken for every column of x (one
-  // product, x in place) and the rows of S kept.
-  constexpr Eigen::Index kBlock = 4;
+  // x_S'(R x_S) a column of S at a time: R x_j in the transform's own buffer, then x'(R x_j) for
+  // every column of x (x in place) and the rows of S kept. A thread holds its transform's buffers
+  // and nothing of the rows' size besides.
   const auto p = static_cast<Eigen::Index>(columns.size());
-  const Eigen::Index blocks = (p + kBlock - 1) / kBlock;
   const std::vector<Eigen::Index> rows_kept(columns.begin(), columns.end());
+  const Eigen::Index n = x.rows();
   Eigen::MatrixXd out(p, p);
-  // The blocks split over parallel::jobs() threads, each with its own transform (its plan cache)
-  // and buffers; a block's arithmetic does not depend on its thread.
+  // The columns split over parallel::jobs() threads, each with its own transform (its plan cache);
+  // a column's arithmetic does not depend on its thread.
 #ifdef _OPENMP
-#pragma omp parallel num_threads(parallel::threads_for(blocks))
+#pragma omp parallel num_threads(parallel::threads_for(p))
 #endif
   {
     RealFourier fourier(spectrum.length);
-    Eigen::MatrixXd r_x(x.rows(), std::min(kBlock, p));
+    Eigen::VectorXd products(x.cols());
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
 #endif
-    for (Eigen::Index b = 0; b < blocks; ++b) {
-      const Eigen::Index first = b * kBlock, count = std::min(kBlock, p - first);
-      for (Eigen::Index j = 0; j < count; ++j)
-        covariance_column(fourier, spectrum, x.col(columns[std::size_t(first + j)]), r_x.col(j));
-      const Eigen::MatrixXd products = x.transpose() * r_x.leftCols(count);
-      out.middleCols(first, count) = products(rows_kept, Eigen::all);
+    for (Eigen::Index j = 0; j < p; ++j) {
+      covariance_column(fourier, spectrum, x.col(columns[std::size_t(j)]));
+      products.noalias() = x.transpose() * fourier.samples().head(n);
+      out.col(j) = products(rows_kept);
     }
   }
   return 0.5 * (out + out.transpose());
@@ -185,7 +182,10 @@ Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::R
 #ifdef _OPENMP
 #pragma omp for schedule(static)
 #endif
-    for (Eigen::Index j = 0; j < x.cols(); ++j) covariance_column(fourier, spectrum, x.col(j), out.col(j));
+    for (Eigen::Index j = 0; j < x.cols(); ++j) {
+      covariance_column(fourier, spectrum, x.col(j));
+      out.col(j) = fourier.samples().head(x.rows());
+    }
   }
   return out;
 }
