@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <numbers>
@@ -199,33 +201,60 @@ namespace {
 ///   sum_{i = a0}^{a1-1} sum_{j = b0}^{b1-1} r(i - j) = P2(a1 - b0 + 1) - P2(a0 - b0 + 1) - P2(a1 - b1 + 1) + P2(a0 - b1 + 1).
 class LagSums {
  public:
-  /// What the sums serve: row() alone needs the first running sums (16 B a lag), block() the
-  /// second too.
-  enum class Reach { Rows, Blocks };
-
-  LagSums(const Eigen::VectorXd& autocovariance, Reach reach) : n_(autocovariance.size()) {
+  /// For row(): the first running sums at every lag (16 B a lag).
+  explicit LagSums(const Eigen::VectorXd& autocovariance) : n_(autocovariance.size()) {
     first_.assign(static_cast<std::size_t>(2 * n_), 0.0L);
-    for (Eigen::Index i = 0; i + 1 < 2 * n_; ++i)
-      first_[std::size_t(i + 1)] = first_[std::size_t(i)] + static_cast<long double>(autocovariance(std::abs(i - (n_ - 1))));
-    if (reach == Reach::Rows) return;
-    second_.assign(static_cast<std::size_t>(2 * n_ + 1), 0.0L);
-    for (Eigen::Index i = 0; i < 2 * n_; ++i) second_[std::size_t(i + 1)] = second_[std::size_t(i)] + first_[std::size_t(i)];
+    for (Eigen::Index i = 0; i + 1 < 2 * n_; ++i) first_[std::size_t(i + 1)] = first_[std::size_t(i)] + lag(autocovariance, i);
   }
 
-  /// sum over j in [b0, b1) of r(i - j), rows i, b0, b1 of the stretch.
+  /// For block(): the second running sums at the points `second_at` alone (each a k of P2(k)),
+  /// taken in one pass of both running sums, the same additions in the same order: nothing of the
+  /// stretch's length is held.
+  LagSums(const Eigen::VectorXd& autocovariance, std::vector<Eigen::Index> second_at) : n_(autocovariance.size()) {
+    std::sort(second_at.begin(), second_at.end());
+    second_at.erase(std::unique(second_at.begin(), second_at.end()), second_at.end());
+    for (const Eigen::Index k : second_at)
+      if (k + n_ - 1 < 0 || k + n_ - 1 > 2 * n_) throw std::invalid_argument("LagSums: a point beyond the stretch's lags");
+    second_points_ = std::move(second_at);
+    second_values_.resize(second_points_.size());
+    long double first = 0.0L, second = 0.0L;   // P1 and P2 at index i = k + n - 1
+    std::size_t next = 0;
+    for (Eigen::Index i = 0; i <= 2 * n_ && next < second_points_.size(); ++i) {
+      while (next < second_points_.size() && second_points_[next] + n_ - 1 == i) second_values_[next++] = second;
+      second += first;
+      if (i + 1 < 2 * n_) first += lag(autocovariance, i);
+    }
+  }
+
+  /// sum over j in [b0, b1) of r(i - j), rows i, b0, b1 of the stretch. The first constructor only.
   [[nodiscard]] long double row(Eigen::Index i, Eigen::Index b0, Eigen::Index b1) const { return p1(i - b0 + 1) - p1(i - b1 + 1); }
 
-  /// sum over i in [a0, a1), j in [b0, b1) of r(i - j). Reach::Blocks only.
+  /// sum over i in [a0, a1), j in [b0, b1) of r(i - j). The second constructor only, with the four
+  /// points block_points gives among its points.
   [[nodiscard]] long double block(Eigen::Index a0, Eigen::Index a1, Eigen::Index b0, Eigen::Index b1) const {
     return (p2(a1 - b0 + 1) - p2(a0 - b0 + 1)) - (p2(a1 - b1 + 1) - p2(a0 - b1 + 1));
   }
+  /// The points of P2 that block(a0, a1, b0, b1) reads.
+  static std::array<Eigen::Index, 4> block_points(Eigen::Index a0, Eigen::Index a1, Eigen::Index b0, Eigen::Index b1) {
+    return {a1 - b0 + 1, a0 - b0 + 1, a1 - b1 + 1, a0 - b1 + 1};
+  }
 
  private:
+  /// r at the lag of running index i, |i - (n - 1)|, widened.
+  [[nodiscard]] long double lag(const Eigen::VectorXd& autocovariance, Eigen::Index i) const {
+    return static_cast<long double>(autocovariance(std::abs(i - (n_ - 1))));
+  }
   [[nodiscard]] long double p1(Eigen::Index k) const { return first_[std::size_t(k + n_ - 1)]; }
-  [[nodiscard]] long double p2(Eigen::Index k) const { return second_[std::size_t(k + n_ - 1)]; }
+  [[nodiscard]] long double p2(Eigen::Index k) const {
+    const auto at = std::lower_bound(second_points_.begin(), second_points_.end(), k);
+    if (at == second_points_.end() || *at != k) throw std::logic_error("LagSums: P2 read at a point not taken");
+    return second_values_[std::size_t(at - second_points_.begin())];
+  }
 
   Eigen::Index n_;
-  std::vector<long double> first_, second_;
+  std::vector<long double> first_;
+  std::vector<Eigen::Index> second_points_;
+  std::vector<long double> second_values_;
 };
 
 /// Each group's maximal runs of consecutive rows, [begin, end).
@@ -247,8 +276,14 @@ std::vector<std::vector<std::pair<Eigen::Index, Eigen::Index>>> group_runs(const
 
 Eigen::MatrixXd group_covariance(const SegmentSpectrum& spectrum, const RowGroups& rows) {
   if (static_cast<Eigen::Index>(rows.group.size()) != spectrum.rows) throw std::invalid_argument("group_covariance: rows differ from the spectrum's");
-  const LagSums sums(spectrum.autocovariance, LagSums::Reach::Blocks);
   const auto runs = group_runs(rows);
+  std::vector<Eigen::Index> points;
+  for (Eigen::Index g = 0; g < rows.groups; ++g)
+    for (Eigen::Index h = 0; h <= g; ++h)
+      for (const auto& [a0, a1] : runs[std::size_t(g)])
+        for (const auto& [b0, b1] : runs[std::size_t(h)])
+          for (const Eigen::Index k : LagSums::block_points(a0, a1, b0, b1)) points.push_back(k);
+  const LagSums sums(spectrum.autocovariance, std::move(points));
   Eigen::MatrixXd out(rows.groups, rows.groups);
   for (Eigen::Index g = 0; g < rows.groups; ++g) {
     for (Eigen::Index h = 0; h <= g; ++h) {
@@ -270,7 +305,7 @@ Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const Ro
                                        const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::MatrixXd>& w) {
   if (static_cast<Eigen::Index>(rows.group.size()) != spectrum.rows || x.rows() != spectrum.rows || w.rows() != spectrum.rows)
     throw std::invalid_argument("group_cross_covariance: rows differ from the spectrum's");
-  const LagSums sums(spectrum.autocovariance, LagSums::Reach::Rows);
+  const LagSums sums(spectrum.autocovariance);
   const auto runs = group_runs(rows);
   Eigen::MatrixXd out(x.cols() + w.cols(), rows.groups);
   Eigen::VectorXd rz(x.rows());   // R z_h
