@@ -1,7 +1,6 @@
 #include "analyzer/procedure/mounting_regressions.hpp"
 
 #include <algorithm>
-#include <map>
 #include <memory>
 #include <stdexcept>
 
@@ -181,12 +180,12 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
   const auto p = static_cast<Eigen::Index>(terms.size());
   // Each combined term as T's row: its monomials' columns and coefficients.
   struct Combination {
-    std::vector<const double*> columns;
+    std::vector<Eigen::Index> monomials;   // rows of the monomials' Gram
     Eigen::VectorXd coefficients;
   };
   std::vector<Combination> combinations(terms.size());
   Eigen::MatrixXd monomial_gram;
-  std::map<const double*, Eigen::Index> gram_index;
+  std::vector<const double*> monomial_columns;   // in the Gram's order
   const Eigen::VectorXd* y = nullptr;
   {
     const std::lock_guard lock(mutex_);
@@ -194,12 +193,13 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
     for (std::size_t j = 0; j < terms.size(); ++j) {
       if (!combines(terms[j])) continue;
       const Expanded& e = expanded_.at(terms[j]);
-      combinations[j].columns = e.columns;
+      for (const double* column : e.columns) combinations[j].monomials.push_back(gram_index_.at(column));
       combinations[j].coefficients.resize(static_cast<Eigen::Index>(e.columns.size()));
       e.expansion.coefficients(m_cs, combinations[j].coefficients);
     }
     monomial_gram = monomial_gram_;
-    gram_index = gram_index_;
+    monomial_columns.resize(gram_index_.size());
+    for (const auto& [column, k] : gram_index_) monomial_columns[std::size_t(k)] = column;
     y = &frame_->y;   // frame_ is set once and never changes
   }
   const Eigen::Index rows = y->size(), k_count = monomial_gram.rows() - 1;
@@ -209,7 +209,7 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
   Eigen::MatrixXd t = Eigen::MatrixXd::Zero(k_count, p);
   for (Eigen::Index j = 0; j < p; ++j) {
     const Combination& c = combinations[std::size_t(j)];
-    for (std::size_t k = 0; k < c.columns.size(); ++k) t(gram_index.at(c.columns[k]), j) += c.coefficients(Eigen::Index(k));
+    for (std::size_t k = 0; k < c.monomials.size(); ++k) t(c.monomials[k], j) += c.coefficients(Eigen::Index(k));
   }
   Eigen::MatrixXd augmented = Eigen::MatrixXd::Zero(p + 1, p + 1);
   augmented.topLeftCorner(p, p) = t.transpose() * monomial_gram.topLeftCorner(k_count, k_count) * t;
@@ -218,8 +218,8 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
   if (direct->cols() > 0) {
     // The direct columns against the monomials, each other and y.
     Eigen::MatrixXd monomials_direct(k_count, direct->cols());
-    for (const auto& [column, k] : gram_index)
-      monomials_direct.row(k).noalias() = Eigen::Map<const Eigen::VectorXd>(column, rows).transpose() * *direct;
+    for (Eigen::Index k = 0; k < k_count; ++k)
+      monomials_direct.row(k).noalias() = Eigen::Map<const Eigen::VectorXd>(monomial_columns[std::size_t(k)], rows).transpose() * *direct;
     const Eigen::MatrixXd terms_direct = t.transpose() * monomials_direct;   // p x d, rows of direct terms 0
     const Eigen::MatrixXd direct_gram = ident::gram(*direct);
     const Eigen::VectorXd direct_y = ident::cross_product(*direct, *y);
@@ -234,10 +234,11 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
   augmented.row(p).head(p) = augmented.col(p).head(p).transpose();
   augmented.topLeftCorner(p, p) = (0.5 * (augmented.topLeftCorner(p, p) + augmented.topLeftCorner(p, p).transpose())).eval();
   RegressionSums out{ident::NormalEquations(std::move(augmented), rows, ident::to_strings(std::vector<Term>(terms.begin(), terms.end()))), {}};
-  out.residuals = [combinations = std::move(combinations), direct, direct_at, y](std::span<const Eigen::Index> columns,
-                                                                                   const Eigen::VectorXd& theta) {
-    // y - Phi theta as y - M (T theta) - D theta_D: each monomial's weight, then one pass.
-    std::map<const double*, double> weight;
+  out.residuals = [combinations = std::move(combinations), monomial_columns = std::move(monomial_columns), direct, direct_at,
+                   y](std::span<const Eigen::Index> columns, const Eigen::VectorXd& theta) {
+    // y - Phi theta as y - M (T theta) - D theta_D: each monomial's weight, then one pass in the
+    // monomials' order (the same additions on every run).
+    Eigen::VectorXd weight = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(monomial_columns.size()));
     Eigen::VectorXd out = *y;
     for (std::size_t a = 0; a < columns.size(); ++a) {
       const auto j = static_cast<std::size_t>(columns[a]);
@@ -247,11 +248,11 @@ std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> te
         out -= theta_j * direct->col(at - direct_at.begin());
         continue;
       }
-      for (std::size_t k = 0; k < combinations[j].columns.size(); ++k)
-        weight[combinations[j].columns[k]] += theta_j * combinations[j].coefficients(Eigen::Index(k));
+      for (std::size_t k = 0; k < combinations[j].monomials.size(); ++k)
+        weight(combinations[j].monomials[k]) += theta_j * combinations[j].coefficients(Eigen::Index(k));
     }
-    for (const auto& [column, w] : weight)
-      if (w != 0.0) out -= w * Eigen::Map<const Eigen::VectorXd>(column, out.size());
+    for (Eigen::Index k = 0; k < weight.size(); ++k)
+      if (weight(k) != 0.0) out -= weight(k) * Eigen::Map<const Eigen::VectorXd>(monomial_columns[std::size_t(k)], out.size());
     return out;
   };
   return out;
