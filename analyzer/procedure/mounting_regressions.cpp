@@ -106,21 +106,26 @@ void MountingRegressions::whiten_missing(std::span<const Term> terms) const {
   }
 }
 
+MountingRegressions::DirectPart MountingRegressions::direct_part(std::span<const Term> terms, const frames::Dcm& m_cs) const {
+  DirectPart out;
+  std::vector<Term> direct_terms;
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    if (combines(terms[j])) continue;
+    direct_terms.push_back(terms[j]);
+    out.at.push_back(static_cast<Eigen::Index>(j));
+  }
+  if (!direct_terms.empty()) out.rows = whitened_regression(direct_terms, m_, m_cs, data_, label_, first_row_, square_corner_, whitener_);
+  return out;
+}
+
 StackedRegression MountingRegressions::whitened(std::span<const Term> terms, const frames::Dcm& m_cs) const {
   if (ident::first_usable_row(terms) > first_row_) {
     // Lags beyond the mounting's first row move the rows: built directly.
     return whitened_regression(terms, m_, m_cs, data_, label_, first_row_, square_corner_, whitener_);
   }
-  std::vector<Term> direct_terms;
-  std::vector<Eigen::Index> direct_at;
-  for (std::size_t j = 0; j < terms.size(); ++j) {
-    if (combines(terms[j])) continue;
-    direct_terms.push_back(terms[j]);
-    direct_at.push_back(static_cast<Eigen::Index>(j));
-  }
-  const StackedRegression direct =
-      direct_terms.empty() ? StackedRegression()
-                           : whitened_regression(direct_terms, m_, m_cs, data_, label_, first_row_, square_corner_, whitener_);
+  const DirectPart part = direct_part(terms, m_cs);
+  const std::vector<Eigen::Index>& direct_at = part.at;
+  const StackedRegression& direct = part.rows;
 
   StackedRegression out;
   std::vector<const Expanded*> combined(terms.size(), nullptr);
@@ -133,7 +138,7 @@ StackedRegression MountingRegressions::whitened(std::span<const Term> terms, con
     out.cases = frame_->cases;
   }
   const Eigen::Index rows = out.y.size();
-  if (!direct_terms.empty() && direct.phi.rows() != rows) {
+  if (!direct_at.empty() && direct.phi.rows() != rows) {
     throw std::logic_error("MountingRegressions: the directly built columns have other rows than the monomials'");
   }
   out.labels = ident::to_strings(std::vector<Term>(terms.begin(), terms.end()));
@@ -166,17 +171,10 @@ StackedRegression MountingRegressions::whitened(std::span<const Term> terms, con
 std::optional<RegressionSums> MountingRegressions::sums(std::span<const Term> terms, const frames::Dcm& m_cs) const {
   if (ident::first_usable_row(terms) > first_row_) return std::nullopt;
   if (std::any_of(terms.begin(), terms.end(), [](const Term& t) { return t.is_output_multiplied(); })) return std::nullopt;
-  std::vector<Term> direct_terms;
-  std::vector<Eigen::Index> direct_at;
-  for (std::size_t j = 0; j < terms.size(); ++j) {
-    if (combines(terms[j])) continue;
-    direct_terms.push_back(terms[j]);
-    direct_at.push_back(static_cast<Eigen::Index>(j));
-  }
   // The terms that do not combine, built as whitened() builds them; the residual holds them.
-  auto direct = std::make_shared<const Eigen::MatrixXd>(
-      direct_terms.empty() ? Eigen::MatrixXd()
-                           : whitened_regression(direct_terms, m_, m_cs, data_, label_, first_row_, square_corner_, whitener_).phi);
+  DirectPart part = direct_part(terms, m_cs);
+  const std::vector<Eigen::Index> direct_at = std::move(part.at);
+  auto direct = std::make_shared<const Eigen::MatrixXd>(std::move(part.rows.phi));
   const auto p = static_cast<Eigen::Index>(terms.size());
   // Each combined term as T's row: its monomials' columns and coefficients.
   struct Combination {

@@ -88,6 +88,12 @@ class MountingRegressions {
   };
 
   [[nodiscard]] bool combines(const ident::Term& term) const;
+  /// The terms of a request that do not combine: their places in it and their rows, built directly.
+  struct DirectPart {
+    std::vector<Eigen::Index> at;
+    StackedRegression rows;   // empty when every term combines
+  };
+  [[nodiscard]] DirectPart direct_part(std::span<const ident::Term> terms, const frames::Dcm& m_cs) const;
   /// Expands every term of `terms` that combines() and is not held yet, and whitens the
   /// monomials not held yet: afterwards expanded_ holds each such term with its columns.
   /// Caller holds mutex_.
