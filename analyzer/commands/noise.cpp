@@ -99,7 +99,7 @@ bool plot(const std::filesystem::path& dir, const noise::NoiseAnalysis& a, const
   }
   {
     std::ofstream g(dir / "noise.gp");
-    g << "set terminal pngcairo size 900,600\nset logscale xy\nset grid\n";
+    g << report::png_terminal(900, 600) << "set logscale xy\nset grid\n";
     g << "set output 'adev.png'\n";   // names relative to the script's folder, where gnuplot runs
     g << "set xlabel 'tau [s]'\nset ylabel 'Allan deviation [" << unit << "]'\n";
     g << "plot 'adev.dat' u 1:2:3:4 w yerrorbars t 'ADEV (95 % interval)', '' u 1:5 w lp t 'MDEV', '' u 1:6 w l lw 2 t 'fitted Q N B K R'\n";

@@ -157,7 +157,7 @@ std::filesystem::path write_diagnose_report(const dataset::Dataset& data, const 
     const std::filesystem::path dir = out / "plots";
     std::filesystem::create_directories(dir);
     std::ofstream gp(dir / "residuals.gp");   // files named relative to plots/, where gnuplot runs
-    gp << "set terminal pngcairo size 1200,400\nset grid\n";
+    gp << report::png_terminal(1200, 400) << "set grid\n";
     gp << fmt::format("set xlabel 't (s)'\nset ylabel 'residual ({})'\n", unit);
     for (std::size_t c = 0; c < r.case_names.size(); ++c) {
       const std::string name = "residual_" + slug(r.case_names[c]);

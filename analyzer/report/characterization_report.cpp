@@ -244,16 +244,17 @@ WrittenReport write_characterization_report(const ReportInputs& in, const std::f
         "its cross-correlation with the sensitive input, lags -20..20, against 95% bands.\n\n";
   md << "| case | phase | samples | free-run RMS | free-run mean | mean test p | innovation RMS | whiteness | independent of input |\n";
   md << "|---|---|---|---|---|---|---|---|---|\n";
+  const int plot_height = 260 * static_cast<int>(std::max<std::size_t>(1, data.cases.size()));
   std::ostringstream gp;
   if (in.plots) {
-    gp << "set terminal pngcairo size 1200," << 260 * std::max<std::size_t>(1, data.cases.size()) << "\n";
+    gp << png_terminal(1200, plot_height);
     gp << "set output 'verification.png'\n";   // names relative to plots/, where gnuplot runs
     gp << "set multiplot layout " << data.cases.size() << ",1 title 'Free-run error per case (model - measured, "
        << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";
   }
   std::ostringstream gp_res;
   if (in.plots) {
-    gp_res << "set terminal pngcairo size 1200," << 260 * std::max<std::size_t>(1, data.cases.size()) << "\n";
+    gp_res << png_terminal(1200, plot_height);
     gp_res << "set output 'residuals.png'\n";
     gp_res << "set multiplot layout " << data.cases.size() << ",1 title 'Innovation per case (one-step residual after the noise model, "
            << data.output_unit << ")'\nset grid\nset xlabel 't (s)'\n";

@@ -71,6 +71,8 @@ std::vector<bool> GnuplotRuns::wait() {
   return drawn;
 }
 
+std::string png_terminal(int width, int height) { return fmt::format("set terminal png size {},{}\n", width, height); }
+
 std::string gnuplot_quoted(std::string_view text) {
   // In a single-quoted gnuplot string, '' stands for one quote and nothing else is special.
   std::string out = "'";

@@ -36,6 +36,12 @@ class GnuplotRuns {
   std::vector<int> children_;   // pids; -1 when a script's gnuplot could not start
 };
 
+/// The `set terminal` line (newline included) of every PNG a report draws, `width` x `height`
+/// pixels: gnuplot's libgd terminal. The reports' time traces are thousands of noisy segments a
+/// plot, which the cairo terminal antialiases at three times the cost for no visible gain
+/// (docs/validation.md, "The reports' PNGs").
+std::string png_terminal(int width, int height);
+
 /// `text` as a gnuplot string literal (single-quoted): a data file's path, a label.
 std::string gnuplot_quoted(std::string_view text);
 
