@@ -32,51 +32,72 @@ void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, doubl
   highpass_in_place(x, corner_rad_s, sample_period_s, state);
 }
 
+namespace {
+
+/// The recursion on W columns side by side, its memory in registers (locals the stores into the
+/// columns cannot alias).
+template <std::size_t W>
+void highpass_chains(double* const* columns, Eigen::Index rows, const HighpassCoefficients* coefficients, HighpassState* states) {
+  double p[W], g[W], h[W], previous[W];
+  for (std::size_t i = 0; i < W; ++i) {
+    if (!states[i].started) states[i] = {columns[i][0], 0.0, true};
+    p[i] = coefficients[i].p;
+    g[i] = coefficients[i].g;
+    h[i] = states[i].output;
+    previous[i] = states[i].previous_input;
+  }
+  for (Eigen::Index k = 0; k < rows; ++k) {
+    for (std::size_t i = 0; i < W; ++i) {
+      const double input = columns[i][k];
+      h[i] = p[i] * h[i] + g[i] * (input - previous[i]);
+      previous[i] = input;
+      columns[i][k] = h[i];
+    }
+  }
+  for (std::size_t i = 0; i < W; ++i) states[i] = {previous[i], h[i], true};
+}
+
+/// The recursion on `columns` (each `rows` long, filtered in place), column i with
+/// coefficients[i] and continued from states[i] (updated). One column's recursion is a chain of
+/// dependent multiply-adds, so up to four run side by side, sample by sample, to keep the
+/// pipeline full. Every filter of this file runs here: a column's arithmetic is the same whichever
+/// columns run beside it.
+void highpass_side_by_side(std::span<double* const> columns, Eigen::Index rows, std::span<const HighpassCoefficients> coefficients,
+                           std::span<HighpassState> states) {
+  if (rows <= 0) return;
+  std::size_t i = 0;
+  for (; i + 4 <= columns.size(); i += 4) highpass_chains<4>(&columns[i], rows, &coefficients[i], &states[i]);
+  switch (columns.size() - i) {
+    case 3: highpass_chains<3>(&columns[i], rows, &coefficients[i], &states[i]); break;
+    case 2: highpass_chains<2>(&columns[i], rows, &coefficients[i], &states[i]); break;
+    case 1: highpass_chains<1>(&columns[i], rows, &coefficients[i], &states[i]); break;
+    default: break;
+  }
+}
+
+}  // namespace
+
 void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s,
                        HighpassState& state) {
-  if (x.size() == 0) return;
-  const auto [p, g] = highpass_coefficients(corner_rad_s, sample_period_s);
-  if (!state.started) {
-    state = {x(0), 0.0, true};
-  }
-  double h = state.output, previous = state.previous_input;
-  for (Eigen::Index k = 0; k < x.size(); ++k) {
-    const double input = x(k);
-    h = p * h + g * (input - previous);
-    previous = input;
-    x(k) = h;
-  }
-  state.previous_input = previous;
-  state.output = h;
+  double* const column = x.data();
+  const HighpassCoefficients coefficients = highpass_coefficients(corner_rad_s, sample_period_s);
+  highpass_side_by_side(std::span<double* const>(&column, 1), x.size(), std::span<const HighpassCoefficients>(&coefficients, 1),
+                        std::span<HighpassState>(&state, 1));
 }
 
 namespace {
 
 void highpass_columns_side_by_side(Eigen::MatrixXd& x, std::span<const Eigen::Index> columns, const std::vector<CaseRows>& layout,
                                    const dataset::Dataset& data, double corner_rad_s) {
-  // The columns run side by side, sample by sample: one column's recursion is a chain of
-  // dependent multiply-adds, so interleaving independent ones keeps the pipeline full (the corner
-  // search filters the squares some 40 times per fit). Same arithmetic as highpass_in_place.
   const auto n = columns.size();
-  std::vector<double> h(n), previous(n);
   std::vector<double*> col(n);
+  std::vector<HighpassState> states(n);
   for (const CaseRows& rows : layout) {
     if (rows.rows <= 0) continue;
-    const double period = data.cases.at(rows.case_index).sample_period_s;
-    const auto [p, g] = highpass_coefficients(corner_rad_s, period);
-    for (std::size_t i = 0; i < n; ++i) {
-      col[i] = x.col(columns[i]).data() + rows.begin;
-      h[i] = 0.0;
-      previous[i] = col[i][0];
-    }
-    for (Eigen::Index k = 0; k < rows.rows; ++k) {
-      for (std::size_t i = 0; i < n; ++i) {
-        const double input = col[i][k];
-        h[i] = p * h[i] + g * (input - previous[i]);
-        previous[i] = input;
-        col[i][k] = h[i];
-      }
-    }
+    const std::vector<HighpassCoefficients> coefficients(n, highpass_coefficients(corner_rad_s, data.cases.at(rows.case_index).sample_period_s));
+    for (std::size_t i = 0; i < n; ++i) col[i] = x.col(columns[i]).data() + rows.begin;
+    std::fill(states.begin(), states.end(), HighpassState{});   // each case starts settled
+    highpass_side_by_side(col, rows.rows, coefficients, states);
   }
 }
 
@@ -121,14 +142,23 @@ SquareCornerSearch::SquareCornerSearch(const StackedRegression& s, std::vector<E
   }
 }
 
-void SquareCornerSearch::filter_block(const Block& block, double corner_rad_s, std::span<HighpassState> state,
+void SquareCornerSearch::filter_block(const Block& block, std::span<const double> corners_rad_s, std::span<HighpassState> state,
                                       Eigen::MatrixXd& out) const {
   const double period = data_.cases.at(s_.cases[block.layout_index].case_index).sample_period_s;
-  for (std::size_t i = 0; i < squares_.size(); ++i) {
-    auto f = out.col(static_cast<Eigen::Index>(i)).head(block.rows);
-    f = s_.phi.col(squares_[i]).segment(block.begin, block.rows);
-    highpass_in_place(f, corner_rad_s, period, state[i]);
+  const std::size_t n = squares_.size();
+  const std::size_t count = corners_rad_s.size() * n;
+  std::vector<double*> columns(count);
+  std::vector<HighpassCoefficients> coefficients(count);
+  for (std::size_t c = 0; c < corners_rad_s.size(); ++c) {
+    const HighpassCoefficients at_corner = highpass_coefficients(corners_rad_s[c], period);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto column = static_cast<Eigen::Index>(c * n + i);
+      out.col(column).head(block.rows) = s_.phi.col(squares_[i]).segment(block.begin, block.rows);
+      columns[c * n + i] = out.col(column).data();
+      coefficients[c * n + i] = at_corner;
+    }
   }
+  highpass_side_by_side(columns, block.rows, coefficients, state);
 }
 
 std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_products(std::span<const double> corners_rad_s) const {
@@ -139,58 +169,63 @@ std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_p
   // Each block's products on their own, added in block order: the same bits on any number of
   // threads and corners. A block's filter continues from the state the block before it left, so
   // with more than one thread those states are found first by running the filter alone (cheap
-  // next to the products, and the same arithmetic, so the same values), each corner's chain on its
-  // own thread. A case's first block starts settled. The corners share each block's pass: its
-  // columns are read from memory once for all of them.
+  // next to the products, and the same arithmetic, so the same values), the corners split into
+  // one share per thread, each share's chains side by side. A case's first block starts settled.
+  // The corners share each block's pass: its columns are read from memory once for all of them,
+  // and every corner's squares are filtered side by side.
   const int threads = parallel::threads_for(blocks);
   const auto count = static_cast<std::size_t>(n);
   const auto state_at = [&](std::size_t b, std::size_t c) { return (b * m + c) * count; };
+  const auto block_buffer = [&] { return Eigen::MatrixXd(kBlockRows, n * static_cast<Eigen::Index>(m)); };
   std::vector<HighpassState> start(blocks_.size() * m * count);
   if (threads > 1) {
-    parallel::for_each_index(static_cast<long>(m), [&](long corner) {
-      const auto c = static_cast<std::size_t>(corner);
-      Eigen::MatrixXd f(kBlockRows, n);
-      std::vector<HighpassState> carried(count);
+    const auto shares = static_cast<long>(std::min<std::size_t>(static_cast<std::size_t>(threads), m));
+    parallel::for_each_index(shares, [&](long share) {
+      const std::size_t c0 = m * static_cast<std::size_t>(share) / static_cast<std::size_t>(shares);
+      const std::size_t c1 = m * static_cast<std::size_t>(share + 1) / static_cast<std::size_t>(shares);
+      Eigen::MatrixXd f = block_buffer();
+      std::vector<HighpassState> carried((c1 - c0) * count);
       for (std::size_t b = 0; b < blocks_.size(); ++b) {
         if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
-        std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(b, c)));
-        filter_block(blocks_[b], corners_rad_s[c], carried, f);
+        std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(b, c0)));
+        filter_block(blocks_[b], corners_rad_s.subspan(c0, c1 - c0), carried, f);
       }
     });
   }
   std::vector<FilteredProducts> parts(blocks_.size() * m);
-  const auto block_products = [&](long b, std::size_t c, std::span<HighpassState> state, Eigen::MatrixXd& f) {
+  const auto block_products = [&](long b, std::span<HighpassState> state, Eigen::MatrixXd& f) {
     const Block& block = blocks_[static_cast<std::size_t>(b)];
-    filter_block(block, corners_rad_s[c], state, f);
-    FilteredProducts& part = parts[static_cast<std::size_t>(b) * m + c];
-    part.cross.resize(n, p);
-    for (Eigen::Index j = 0; j < p; ++j) {
-      const auto column = s_.phi.col(j).segment(block.begin, block.rows);
-      for (Eigen::Index i = 0; i < n; ++i) part.cross(i, j) = f.col(i).head(block.rows).dot(column);
+    filter_block(block, corners_rad_s, state, f);
+    for (std::size_t c = 0; c < m; ++c) {
+      const auto filtered = f.middleCols(static_cast<Eigen::Index>(c) * n, n).topRows(block.rows);
+      FilteredProducts& part = parts[static_cast<std::size_t>(b) * m + c];
+      part.cross.resize(n, p);
+      for (Eigen::Index j = 0; j < p; ++j) {
+        const auto column = s_.phi.col(j).segment(block.begin, block.rows);
+        for (Eigen::Index i = 0; i < n; ++i) part.cross(i, j) = filtered.col(i).dot(column);
+      }
+      part.gram.noalias() = filtered.transpose() * filtered;
+      part.y.noalias() = filtered.transpose() * s_.y.segment(block.begin, block.rows);
     }
-    part.gram.noalias() = f.topRows(block.rows).transpose() * f.topRows(block.rows);
-    part.y.noalias() = f.topRows(block.rows).transpose() * s_.y.segment(block.begin, block.rows);
   };
   if (threads > 1) {
 #ifdef _OPENMP
 #pragma omp parallel num_threads(threads)
 #endif
     {
-      Eigen::MatrixXd f(kBlockRows, n);
+      Eigen::MatrixXd f = block_buffer();
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 8)
 #endif
-      for (long b = 0; b < blocks; ++b) {
-        for (std::size_t c = 0; c < m; ++c)
-          block_products(b, c, std::span<HighpassState>(start).subspan(state_at(static_cast<std::size_t>(b), c), count), f);
-      }
+      for (long b = 0; b < blocks; ++b)
+        block_products(b, std::span<HighpassState>(start).subspan(state_at(static_cast<std::size_t>(b), 0), m * count), f);
     }
   } else {
-    Eigen::MatrixXd f(kBlockRows, n);
+    Eigen::MatrixXd f = block_buffer();
     std::vector<HighpassState> carried(m * count);
     for (long b = 0; b < blocks; ++b) {
       if (blocks_[static_cast<std::size_t>(b)].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
-      for (std::size_t c = 0; c < m; ++c) block_products(b, c, std::span<HighpassState>(carried).subspan(c * count, count), f);
+      block_products(b, carried, f);
     }
   }
   std::vector<FilteredProducts> sums(m, FilteredProducts{Eigen::MatrixXd::Zero(n, p), Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)});

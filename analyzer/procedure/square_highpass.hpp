@@ -89,9 +89,11 @@ class SquareCornerSearch {
     Eigen::VectorXd y;
   };
 
-  /// The squares' high pass over `block` (highpass_in_place), continued from `state` (one per
-  /// square; updated), into `out`'s first block.rows rows.
-  void filter_block(const Block& block, double corner_rad_s, std::span<HighpassState> state, Eigen::MatrixXd& out) const;
+  /// The squares' high pass over `block` at each of `corners_rad_s` (highpass_in_place),
+  /// continued from `state` (one per corner and square, corner-major; updated), into `out`'s first
+  /// block.rows rows: column c * squares + i is square i at corner c.
+  void filter_block(const Block& block, std::span<const double> corners_rad_s, std::span<HighpassState> state,
+                    Eigen::MatrixXd& out) const;
   /// The products at each corner, in one pass over the blocks.
   [[nodiscard]] std::vector<FilteredProducts> filtered_products(std::span<const double> corners_rad_s) const;
   /// The residual of the fit with the squares' products `filtered` (nullptr: the static squares).
