@@ -308,15 +308,24 @@ Eigen::MatrixXd group_cross_covariance(const SegmentSpectrum& spectrum, const Ro
   const LagSums sums(spectrum.autocovariance);
   const auto runs = group_runs(rows);
   Eigen::MatrixXd out(x.cols() + w.cols(), rows.groups);
-  Eigen::VectorXd rz(x.rows());   // R z_h
-  for (Eigen::Index h = 0; h < rows.groups; ++h) {
-    for (Eigen::Index i = 0; i < x.rows(); ++i) {
-      long double s = 0.0L;
-      for (const auto& [b0, b1] : runs[std::size_t(h)]) s += sums.row(i, b0, b1);
-      rz(i) = static_cast<double>(s);
+  // The groups split over parallel::jobs() threads; a group's column does not depend on its thread.
+#ifdef _OPENMP
+#pragma omp parallel num_threads(parallel::threads_for(rows.groups))
+#endif
+  {
+    Eigen::VectorXd rz(x.rows());   // R z_h
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+    for (Eigen::Index h = 0; h < rows.groups; ++h) {
+      for (Eigen::Index i = 0; i < x.rows(); ++i) {
+        long double s = 0.0L;
+        for (const auto& [b0, b1] : runs[std::size_t(h)]) s += sums.row(i, b0, b1);
+        rz(i) = static_cast<double>(s);
+      }
+      out.col(h).head(x.cols()).noalias() = x.transpose() * rz;
+      if (w.cols() > 0) out.col(h).tail(w.cols()).noalias() = w.transpose() * rz;
     }
-    out.col(h).head(x.cols()).noalias() = x.transpose() * rz;
-    if (w.cols() > 0) out.col(h).tail(w.cols()).noalias() = w.transpose() * rz;
   }
   return out;
 }

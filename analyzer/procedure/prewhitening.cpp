@@ -18,7 +18,12 @@ ArWhitener ArWhitener::fit(const Eigen::VectorXd& residuals, const std::vector<C
   for (const CaseRows& c : layout) {
     const Eigen::VectorXd e = residuals.segment(c.begin, c.rows);
     n += static_cast<double>(c.rows);
-    for (int lag = 0; lag <= max_order && lag < c.rows; ++lag) {
+    // The lags split over parallel::jobs() threads; a lag's sum does not depend on its thread.
+    const int lags = static_cast<int>(std::min<Eigen::Index>(max_order + 1, c.rows));
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) num_threads(parallel::threads_for(lags))
+#endif
+    for (int lag = 0; lag < lags; ++lag) {
       acov(lag) += e.head(c.rows - lag).dot(e.tail(c.rows - lag));
     }
   }
