@@ -18,7 +18,8 @@ void set_jobs(int jobs);
 [[nodiscard]] int threads_for(long items);
 
 /// Runs task(i) for every i in [0, items) on threads_for(items) threads, each thread taking the
-/// next index not yet taken: whole runs (a seed's simulation and procedure) side by side. Tasks
+/// next index not yet taken: whole runs (a seed's simulation and procedure) side by side. The
+/// caller is one of the threads; its helpers are kept from one call to the next. Tasks
 /// must not touch one another's data; results go to slots the caller sized (one per index), so
 /// they do not depend on the number of threads. The loops inside a task run on its thread alone.
 /// Once a task throws no new task starts, and the first exception (by index) is rethrown here

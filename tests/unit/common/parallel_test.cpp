@@ -3,8 +3,10 @@
 #include "common/parallel.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -69,6 +71,41 @@ TEST_F(Jobs, TheFirstFailingIndexsExceptionReachesTheCallerAndNoNewTaskStarts) {
                }),
                std::invalid_argument);
   EXPECT_EQ(threads_for(10), 2);
+}
+
+TEST_F(Jobs, CallsOneAfterAnotherShareTheSameHelperThreads) {
+  // Threads are kept from one call to the next: a call's helper is no new thread. The kernel's
+  // thread ids (gettid) tell threads apart; pthread ids are reused with the stacks glibc caches.
+  set_jobs(2);
+  std::mutex lock;
+  std::set<pid_t> threads;
+  for (int call = 0; call < 20; ++call) {
+    for_each_index(16, [&](long) {
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+      const std::lock_guard<std::mutex> guard(lock);
+      threads.insert(::gettid());
+    });
+  }
+  EXPECT_GE(threads.size(), 1U);
+  EXPECT_LE(threads.size(), 2U) << "the caller and one kept helper";
+}
+
+TEST_F(Jobs, CallersSideBySideEachRunEveryIndexOnce) {
+  // Two callers at once: one has the kept helpers, the other starts threads of its own.
+  set_jobs(2);
+  constexpr long kItems = 200;
+  std::vector<std::vector<std::atomic<int>>> runs(2);
+  for (auto& r : runs) r = std::vector<std::atomic<int>>(kItems);
+  std::vector<std::thread> callers;
+  for (std::size_t c = 0; c < runs.size(); ++c) {
+    callers.emplace_back([&, c] {
+      for (int round = 0; round < 10; ++round)
+        for_each_index(kItems, [&](long i) { ++runs[c][static_cast<std::size_t>(i)]; });
+    });
+  }
+  for (std::thread& t : callers) t.join();
+  for (std::size_t c = 0; c < runs.size(); ++c)
+    for (long i = 0; i < kItems; ++i) EXPECT_EQ(runs[c][static_cast<std::size_t>(i)].load(), 10) << "caller " << c << ", index " << i;
 }
 
 }  // namespace
