@@ -108,7 +108,10 @@ struct CaseScore {
 /// Table 4's verification: the identified model fed with every case's references mapped to F_S
 /// with the TRUE misalignment (as the paper does), compared with the sensor's output.
 void verify(const dataset::Dataset& data, const PipelineResult& result, const SeedTruth& truth, CaseScore& score) {
-  std::vector<double> clean_err, measured_err, own_err;
+  // Eigen's allocator: the variance below sums with packets from the first aligned element, so
+  // storage aligned by chance (malloc's 16 bytes) would move the sum's rounding with the heap.
+  using Errors = std::vector<double, Eigen::aligned_allocator<double>>;
+  Errors clean_err, measured_err, own_err;
   std::vector<std::string> where;   // "case/phase" of every sample of clean_err
   const Eigen::VectorXd theta = result.fit.process_theta();
   for (std::size_t c = 0; c < data.cases.size(); ++c) {
@@ -136,7 +139,7 @@ void verify(const dataset::Dataset& data, const PipelineResult& result, const Se
       where.push_back(cd.phase.empty() ? cd.name : cd.name + "/" + cd.phase_names[cd.phase[static_cast<std::size_t>(k)]]);
     }
   }
-  const auto variance = [](const std::vector<double>& e) {
+  const auto variance = [](const Errors& e) {
     const Eigen::Map<const Eigen::VectorXd> v(e.data(), static_cast<Eigen::Index>(e.size()));
     return (v.array() - v.mean()).square().sum() / static_cast<double>(std::max<std::size_t>(1, e.size() - 1));
   };
