@@ -27,11 +27,6 @@ HighpassCoefficients highpass_coefficients(double corner_rad_s, double sample_pe
   return {(c - corner_rad_s) / (c + corner_rad_s), c / (c + corner_rad_s)};
 }
 
-void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s) {
-  HighpassState state;
-  highpass_in_place(x, corner_rad_s, sample_period_s, state);
-}
-
 namespace {
 
 /// The recursion on W columns side by side, its memory in registers (locals the stores into the
@@ -75,18 +70,7 @@ void highpass_side_by_side(std::span<double* const> columns, Eigen::Index rows, 
   }
 }
 
-}  // namespace
-
-void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s,
-                       HighpassState& state) {
-  double* const column = x.data();
-  const HighpassCoefficients coefficients = highpass_coefficients(corner_rad_s, sample_period_s);
-  highpass_side_by_side(std::span<double* const>(&column, 1), x.size(), std::span<const HighpassCoefficients>(&coefficients, 1),
-                        std::span<HighpassState>(&state, 1));
-}
-
-namespace {
-
+/// The high pass on `columns` of `x`, case by case, side by side.
 void highpass_columns_side_by_side(Eigen::MatrixXd& x, std::span<const Eigen::Index> columns, const std::vector<CaseRows>& layout,
                                    const dataset::Dataset& data, double corner_rad_s) {
   const auto n = columns.size();
@@ -102,6 +86,19 @@ void highpass_columns_side_by_side(Eigen::MatrixXd& x, std::span<const Eigen::In
 }
 
 }  // namespace
+
+void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s,
+                       HighpassState& state) {
+  double* const column = x.data();
+  const HighpassCoefficients coefficients = highpass_coefficients(corner_rad_s, sample_period_s);
+  highpass_side_by_side(std::span<double* const>(&column, 1), x.size(), std::span<const HighpassCoefficients>(&coefficients, 1),
+                        std::span<HighpassState>(&state, 1));
+}
+
+void highpass_in_place(Eigen::Ref<Eigen::VectorXd> x, double corner_rad_s, double sample_period_s) {
+  HighpassState state;
+  highpass_in_place(x, corner_rad_s, sample_period_s, state);
+}
 
 void highpass_columns(Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns, const std::vector<CaseRows>& layout,
                       const dataset::Dataset& data, double corner_rad_s) {
@@ -142,96 +139,113 @@ SquareCornerSearch::SquareCornerSearch(const StackedRegression& s, std::vector<E
   }
 }
 
+SquareCornerSearch::BlockFilter SquareCornerSearch::block_filter(std::size_t corners) const {
+  const std::size_t count = corners * squares_.size();
+  BlockFilter filter{Eigen::MatrixXd(kBlockRows, static_cast<Eigen::Index>(count)), std::vector<double*>(count),
+                     std::vector<HighpassCoefficients>(count), SIZE_MAX};
+  for (std::size_t k = 0; k < count; ++k) filter.columns[k] = filter.out.col(static_cast<Eigen::Index>(k)).data();
+  return filter;
+}
+
 void SquareCornerSearch::filter_block(const Block& block, std::span<const double> corners_rad_s, std::span<HighpassState> state,
-                                      Eigen::MatrixXd& out) const {
-  const double period = data_.cases.at(s_.cases[block.layout_index].case_index).sample_period_s;
+                                      BlockFilter& filter) const {
   const std::size_t n = squares_.size();
-  const std::size_t count = corners_rad_s.size() * n;
-  std::vector<double*> columns(count);
-  std::vector<HighpassCoefficients> coefficients(count);
+  if (block.layout_index != filter.layout_index) {
+    const double period = data_.cases.at(s_.cases[block.layout_index].case_index).sample_period_s;
+    for (std::size_t c = 0; c < corners_rad_s.size(); ++c)
+      std::fill_n(filter.coefficients.begin() + static_cast<std::ptrdiff_t>(c * n), n, highpass_coefficients(corners_rad_s[c], period));
+    filter.layout_index = block.layout_index;
+  }
   for (std::size_t c = 0; c < corners_rad_s.size(); ++c) {
-    const HighpassCoefficients at_corner = highpass_coefficients(corners_rad_s[c], period);
-    for (std::size_t i = 0; i < n; ++i) {
-      const auto column = static_cast<Eigen::Index>(c * n + i);
-      out.col(column).head(block.rows) = s_.phi.col(squares_[i]).segment(block.begin, block.rows);
-      columns[c * n + i] = out.col(column).data();
-      coefficients[c * n + i] = at_corner;
+    for (std::size_t i = 0; i < n; ++i)
+      filter.out.col(static_cast<Eigen::Index>(c * n + i)).head(block.rows) = s_.phi.col(squares_[i]).segment(block.begin, block.rows);
+  }
+  highpass_side_by_side(filter.columns, block.rows, filter.coefficients, state);
+}
+
+void SquareCornerSearch::add_products(std::size_t begin, std::size_t end, std::span<const double> corners_rad_s,
+                                      std::span<HighpassState> state, BlockFilter& filter, std::span<FilteredProducts> sums) const {
+  const auto n = static_cast<Eigen::Index>(squares_.size());
+  const Eigen::Index p = s_.phi.cols();
+  for (std::size_t b = begin; b < end; ++b) {
+    const Block& block = blocks_[b];
+    if (block.starts_case) std::fill(state.begin(), state.end(), HighpassState{});   // each case starts settled
+    filter_block(block, corners_rad_s, state, filter);
+    for (std::size_t c = 0; c < corners_rad_s.size(); ++c) {
+      const auto filtered = filter.out.middleCols(static_cast<Eigen::Index>(c) * n, n).topRows(block.rows);
+      FilteredProducts& sum = sums[c];
+      for (Eigen::Index j = 0; j < p; ++j) {
+        const auto column = s_.phi.col(j).segment(block.begin, block.rows);
+        for (Eigen::Index i = 0; i < n; ++i) sum.cross(i, j) += filtered.col(i).dot(column);
+      }
+      sum.gram.noalias() += filtered.transpose() * filtered;
+      sum.y.noalias() += filtered.transpose() * s_.y.segment(block.begin, block.rows);
     }
   }
-  highpass_side_by_side(columns, block.rows, coefficients, state);
 }
 
 std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_products(std::span<const double> corners_rad_s) const {
   const auto n = static_cast<Eigen::Index>(squares_.size());
   const Eigen::Index p = s_.phi.cols();
-  const auto blocks = static_cast<long>(blocks_.size());
   const std::size_t m = corners_rad_s.size();
-  // Each block's products on their own, added in block order: the same bits on any number of
-  // threads and corners. A block's filter continues from the state the block before it left, so
-  // with more than one thread those states are found first by running the filter alone (cheap
-  // next to the products, and the same arithmetic, so the same values), the corners split into
-  // one share per thread, each share's chains side by side. A case's first block starts settled.
-  // The corners share each block's pass: its columns are read from memory once for all of them,
-  // and every corner's squares are filtered side by side.
-  const int threads = parallel::threads_for(blocks);
-  const auto count = static_cast<std::size_t>(n);
-  const auto state_at = [&](std::size_t b, std::size_t c) { return (b * m + c) * count; };
-  const auto block_buffer = [&] { return Eigen::MatrixXd(kBlockRows, n * static_cast<Eigen::Index>(m)); };
-  std::vector<HighpassState> start(blocks_.size() * m * count);
+  const std::size_t count = static_cast<std::size_t>(n);
+  const std::size_t blocks = blocks_.size();
+  const std::size_t groups = std::min(blocks, kMaxGroups);
+  const auto group_begin = [&](std::size_t g) { return blocks * g / groups; };
+  const auto zero = [&] { return FilteredProducts{Eigen::MatrixXd::Zero(n, p), Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)}; };
+  // Each group's products on their own (its blocks in order), the groups then added in order: the
+  // same bits on any number of threads and corners. A block's filter continues from the state the
+  // block before it left, so with more than one thread each group's first state is found first by
+  // running the filter alone (cheap next to the products, and the same arithmetic, so the same
+  // values), the corners split into one share per thread, each share's chains side by side. The
+  // corners share each block's pass: its columns are read from memory once for all of them, and
+  // every corner's squares are filtered side by side.
+  const int threads = parallel::threads_for(static_cast<long>(groups));
+  std::vector<FilteredProducts> parts(groups * m);
+  for (FilteredProducts& part : parts) part = zero();
+  const auto state_at = [&](std::size_t g, std::size_t c) { return (g * m + c) * count; };
+  std::vector<HighpassState> start(groups * m * count);
   if (threads > 1) {
     const auto shares = static_cast<long>(std::min<std::size_t>(static_cast<std::size_t>(threads), m));
     parallel::for_each_index(shares, [&](long share) {
       const std::size_t c0 = m * static_cast<std::size_t>(share) / static_cast<std::size_t>(shares);
       const std::size_t c1 = m * static_cast<std::size_t>(share + 1) / static_cast<std::size_t>(shares);
-      Eigen::MatrixXd f = block_buffer();
+      const std::span<const double> corners = corners_rad_s.subspan(c0, c1 - c0);
+      BlockFilter filter = block_filter(corners.size());
       std::vector<HighpassState> carried((c1 - c0) * count);
-      for (std::size_t b = 0; b < blocks_.size(); ++b) {
-        if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
-        std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(b, c0)));
-        filter_block(blocks_[b], corners_rad_s.subspan(c0, c1 - c0), carried, f);
+      for (std::size_t g = 0; g < groups; ++g) {
+        for (std::size_t b = group_begin(g); b < group_begin(g + 1); ++b) {
+          if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
+          if (b == group_begin(g)) std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(g, c0)));
+          filter_block(blocks_[b], corners, carried, filter);
+        }
       }
     });
-  }
-  std::vector<FilteredProducts> parts(blocks_.size() * m);
-  const auto block_products = [&](long b, std::span<HighpassState> state, Eigen::MatrixXd& f) {
-    const Block& block = blocks_[static_cast<std::size_t>(b)];
-    filter_block(block, corners_rad_s, state, f);
-    for (std::size_t c = 0; c < m; ++c) {
-      const auto filtered = f.middleCols(static_cast<Eigen::Index>(c) * n, n).topRows(block.rows);
-      FilteredProducts& part = parts[static_cast<std::size_t>(b) * m + c];
-      part.cross.resize(n, p);
-      for (Eigen::Index j = 0; j < p; ++j) {
-        const auto column = s_.phi.col(j).segment(block.begin, block.rows);
-        for (Eigen::Index i = 0; i < n; ++i) part.cross(i, j) = filtered.col(i).dot(column);
-      }
-      part.gram.noalias() = filtered.transpose() * filtered;
-      part.y.noalias() = filtered.transpose() * s_.y.segment(block.begin, block.rows);
-    }
-  };
-  if (threads > 1) {
 #ifdef _OPENMP
 #pragma omp parallel num_threads(threads)
 #endif
     {
-      Eigen::MatrixXd f = block_buffer();
+      BlockFilter filter = block_filter(m);
 #ifdef _OPENMP
-#pragma omp for schedule(dynamic, 8)
+#pragma omp for schedule(dynamic, 1)
 #endif
-      for (long b = 0; b < blocks; ++b)
-        block_products(b, std::span<HighpassState>(start).subspan(state_at(static_cast<std::size_t>(b), 0), m * count), f);
+      for (long g = 0; g < static_cast<long>(groups); ++g) {
+        const auto group = static_cast<std::size_t>(g);
+        add_products(group_begin(group), group_begin(group + 1), corners_rad_s,
+                     std::span<HighpassState>(start).subspan(state_at(group, 0), m * count), filter,
+                     std::span<FilteredProducts>(parts).subspan(group * m, m));
+      }
     }
   } else {
-    Eigen::MatrixXd f = block_buffer();
+    BlockFilter filter = block_filter(m);
     std::vector<HighpassState> carried(m * count);
-    for (long b = 0; b < blocks; ++b) {
-      if (blocks_[static_cast<std::size_t>(b)].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
-      block_products(b, carried, f);
-    }
+    for (std::size_t g = 0; g < groups; ++g)
+      add_products(group_begin(g), group_begin(g + 1), corners_rad_s, carried, filter, std::span<FilteredProducts>(parts).subspan(g * m, m));
   }
-  std::vector<FilteredProducts> sums(m, FilteredProducts{Eigen::MatrixXd::Zero(n, p), Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)});
-  for (std::size_t b = 0; b < blocks_.size(); ++b) {
+  std::vector<FilteredProducts> sums(m, zero());
+  for (std::size_t g = 0; g < groups; ++g) {
     for (std::size_t c = 0; c < m; ++c) {
-      const FilteredProducts& part = parts[b * m + c];
+      const FilteredProducts& part = parts[g * m + c];
       sums[c].cross += part.cross;
       sums[c].gram += part.gram;
       sums[c].y += part.y;

@@ -7,6 +7,7 @@
 //   h(k) = p h(k-1) + g (x(k) - x(k-1)),  c = b / tan(b T / 2),  p = (c - b)/(c + b),  g = c/(c + b).
 #include <Eigen/Dense>
 
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <vector>
@@ -76,6 +77,10 @@ class SquareCornerSearch {
 
  private:
   static constexpr Eigen::Index kBlockRows = 1024;   // a block's filtered squares stay in L1/L2
+  /// The blocks split into at most this many groups of consecutive blocks: each group's products
+  /// are summed block by block, then the groups' sums in order. What a pass holds is bounded by
+  /// the groups, not the record, and the sums do not depend on the number of threads.
+  static constexpr std::size_t kMaxGroups = 64;
 
   struct Block {
     std::size_t layout_index = 0;   // into s_.cases
@@ -88,12 +93,27 @@ class SquareCornerSearch {
     Eigen::MatrixXd cross, gram;
     Eigen::VectorXd y;
   };
+  /// One thread's filter of the squares over blocks at a pass's corners: the block's filtered
+  /// squares (column c * squares + i is square i at corner c), those columns' addresses, and each
+  /// column's high-pass coefficients at the sample period of the case last filtered (worked out
+  /// again only when a block starts another case).
+  struct BlockFilter {
+    Eigen::MatrixXd out;
+    std::vector<double*> columns;
+    std::vector<HighpassCoefficients> coefficients;
+    std::size_t layout_index = SIZE_MAX;
+  };
 
-  /// The squares' high pass over `block` at each of `corners_rad_s` (highpass_in_place),
-  /// continued from `state` (one per corner and square, corner-major; updated), into `out`'s first
-  /// block.rows rows: column c * squares + i is square i at corner c.
+  [[nodiscard]] BlockFilter block_filter(std::size_t corners) const;
+  /// The squares' high pass over `block` at each of `corners_rad_s` (highpass_in_place; as many
+  /// as `filter` was made for), continued from `state` (one per corner and square, corner-major;
+  /// updated), into filter.out's first block.rows rows.
   void filter_block(const Block& block, std::span<const double> corners_rad_s, std::span<HighpassState> state,
-                    Eigen::MatrixXd& out) const;
+                    BlockFilter& filter) const;
+  /// The blocks [begin, end)'s products at each corner added into `sums` (one per corner), the
+  /// filter continued from `state` (reset where a case starts; updated).
+  void add_products(std::size_t begin, std::size_t end, std::span<const double> corners_rad_s, std::span<HighpassState> state,
+                    BlockFilter& filter, std::span<FilteredProducts> sums) const;
   /// The products at each corner, in one pass over the blocks.
   [[nodiscard]] std::vector<FilteredProducts> filtered_products(std::span<const double> corners_rad_s) const;
   /// The residual of the fit with the squares' products `filtered` (nullptr: the static squares).

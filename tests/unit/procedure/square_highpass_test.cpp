@@ -135,11 +135,10 @@ struct CornerProblem {
   Eigen::MatrixXd raw;   // phi with static squares
 };
 
-CornerProblem corner_problem(std::optional<double> corner, double noise_sd, std::uint64_t seed) {
+CornerProblem corner_problem(std::optional<double> corner, double noise_sd, std::uint64_t seed, Index n0 = 1500, Index n1 = 1000) {
   CornerProblem p;
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> g(0.0, 1.0);
-  const Index n0 = 1500, n1 = 1000;
   p.s.cases = {CaseRows{0, 0, n0, 0}, CaseRows{1, n0, n1, 0}};
   p.s.labels = {"1", "a_i", "a_i^2", "a_p^2"};
   p.raw.resize(n0 + n1, 4);
@@ -194,6 +193,37 @@ TEST(SquareCornerSearch, RssIsTheSameBitsOnAnyNumberOfJobs) {
     const SquareCornerSearch search(p.s, {2, 3}, p.data);
     std::size_t k = 0;
     for (const double b : {3.0, 250.0, 4000.0}) EXPECT_EQ(search.rss(b), serial[k++]) << "jobs " << jobs << ", b = " << b;
+  }
+  parallel::set_jobs(1);
+}
+
+TEST(SquareCornerSearch, GroupsOfSeveralBlocksGiveTheSameBitsOnAnyNumberOfJobs) {
+  // Cases of 70,000 and 33,000 rows are 103 blocks, more than the pass's groups: groups of one and
+  // two blocks, one of them across the cases' boundary, whose filter must restart there with the
+  // second case's sample period.
+  CornerProblem p = corner_problem(250.0, 0.05, 14, 70'000, 33'000);
+  p.data.cases[1].sample_period_s = 2e-3;
+  const std::vector<double> corners{3.0, 250.0, 1200.0};   // below both cases' Nyquist
+  std::vector<double> serial;
+  parallel::set_jobs(1);
+  {
+    const SquareCornerSearch search(p.s, {2, 3}, p.data);
+    serial = search.rss(std::span<const double>(corners));
+    for (std::size_t k = 0; k < corners.size(); ++k) {
+      Eigen::MatrixXd filtered = p.raw;
+      for (const CaseRows& r : p.s.cases)
+        for (Index j : {2, 3})
+          filtered.col(j).segment(r.begin, r.rows) =
+              reference_highpass(p.raw.col(j).segment(r.begin, r.rows), corners[k], p.data.cases[r.case_index].sample_period_s);
+      const double expected = direct_rss(filtered, p.s.y);
+      EXPECT_NEAR(serial[k], expected, 1e-8 * expected) << "b = " << corners[k];
+    }
+  }
+  for (const int jobs : {2, 3}) {
+    parallel::set_jobs(jobs);
+    const SquareCornerSearch search(p.s, {2, 3}, p.data);
+    const std::vector<double> together = search.rss(std::span<const double>(corners));
+    for (std::size_t k = 0; k < corners.size(); ++k) EXPECT_EQ(together[k], serial[k]) << "jobs " << jobs << ", b = " << corners[k];
   }
   parallel::set_jobs(1);
 }
