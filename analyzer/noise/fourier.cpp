@@ -14,18 +14,17 @@ namespace {
 enum class Kind { RealForward, RealInverse, ComplexForward, ComplexInverse };
 
 /// One plan per kind and length for the process, made on first use under the lock. The plans
-/// live as long as the process (FFTW's own cache of twiddles with them).
-fftw_plan plan_for(Kind kind, Eigen::Index length) {
+/// live as long as the process (FFTW's own cache of twiddles with them). `real` and `complex` are
+/// the caller's own buffers (fftw_malloc'd, so of the alignment every later buffer has; one and
+/// the same for an in-place transform): FFTW_ESTIMATE plans without touching them, so planning
+/// takes no memory of its own beside FFTW's.
+fftw_plan plan_for(Kind kind, Eigen::Index length, double* real, fftw_complex* complex) {
   static std::mutex lock;
   static std::map<std::pair<Kind, Eigen::Index>, fftw_plan> plans;
   const std::scoped_lock guard(lock);
   auto found = plans.find({kind, length});
   if (found != plans.end()) return found->second;
   const int n = static_cast<int>(length);
-  // FFTW_ESTIMATE does not touch the arrays; they only tell the planner their alignment (that of
-  // fftw_malloc, as every object's buffers) and whether the transform is in place.
-  double* real = fftw_alloc_real(static_cast<std::size_t>(length));
-  fftw_complex* complex = fftw_alloc_complex(static_cast<std::size_t>(length));
   fftw_plan plan = nullptr;
   switch (kind) {
     case Kind::RealForward: plan = fftw_plan_dft_r2c_1d(n, real, complex, FFTW_ESTIMATE); break;
@@ -33,8 +32,6 @@ fftw_plan plan_for(Kind kind, Eigen::Index length) {
     case Kind::ComplexForward: plan = fftw_plan_dft_1d(n, complex, complex, FFTW_FORWARD, FFTW_ESTIMATE); break;
     case Kind::ComplexInverse: plan = fftw_plan_dft_1d(n, complex, complex, FFTW_BACKWARD, FFTW_ESTIMATE); break;
   }
-  fftw_free(real);
-  fftw_free(complex);
   if (plan == nullptr) throw std::runtime_error("FFTW made no plan for a transform of this length");
   plans.emplace(std::pair{kind, length}, plan);
   return plan;
@@ -63,7 +60,8 @@ RealFourier::RealFourier(Eigen::Index length) : length_(length) {
   check_length(length);
   samples_.reset(aligned_zeros<double>(length));
   spectrum_.reset(aligned_zeros<std::complex<double>>(bins()));
-  plans_ = {plan_for(Kind::RealForward, length), plan_for(Kind::RealInverse, length)};
+  plans_ = {plan_for(Kind::RealForward, length, samples_.get(), as_fftw(spectrum_.get())),
+            plan_for(Kind::RealInverse, length, samples_.get(), as_fftw(spectrum_.get()))};
 }
 
 void RealFourier::forward() { fftw_execute_dft_r2c(static_cast<fftw_plan>(plans_.forward), samples_.get(), as_fftw(spectrum_.get())); }
@@ -78,7 +76,8 @@ void RealFourier::inverse() {
 ComplexFourier::ComplexFourier(Eigen::Index length) : length_(length) {
   check_length(length);
   values_.reset(aligned_zeros<std::complex<double>>(length));
-  plans_ = {plan_for(Kind::ComplexForward, length), plan_for(Kind::ComplexInverse, length)};
+  plans_ = {plan_for(Kind::ComplexForward, length, nullptr, as_fftw(values_.get())),
+            plan_for(Kind::ComplexInverse, length, nullptr, as_fftw(values_.get()))};
 }
 
 void ComplexFourier::forward() {
