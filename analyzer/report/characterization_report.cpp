@@ -271,13 +271,16 @@ WrittenReport write_characterization_report(const ReportInputs& in, const std::f
                       white.pass ? "pass" : "fail", white.outside, white.lags.size(), indep.pass ? "pass" : "fail",
                       indep.outside, indep.lags.size());
     for (std::size_t p = 0; p < cd.phase_names.size() && !tr.phase.empty(); ++p) {
-      std::vector<double> ver;
+      const auto rows = static_cast<Eigen::Index>(std::count(tr.phase.begin(), tr.phase.end(), p));
+      if (rows == 0) continue;
+      // Eigen's own storage: a vectorized sum starts at the first aligned element, which for a
+      // map over malloc'd memory would depend on where the heap put it.
+      Eigen::VectorXd vv(rows);
+      Eigen::Index i = 0;
       for (std::size_t k = 0; k < tr.phase.size(); ++k) {
-        if (tr.phase[k] == p) ver.push_back(tr.verification(static_cast<Eigen::Index>(k)));
+        if (tr.phase[k] == p) vv(i++) = tr.verification(static_cast<Eigen::Index>(k));
       }
-      if (ver.empty()) continue;
-      const Eigen::Map<Eigen::VectorXd> vv(ver.data(), static_cast<Eigen::Index>(ver.size()));
-      md << fmt::format("| {} | {} | {} | {:.4g} | {:+.3g} | | | | |\n", cd.name, cd.phase_names[p], ver.size(), rms(vv), vv.mean());
+      md << fmt::format("| {} | {} | {} | {:.4g} | {:+.3g} | | | | |\n", cd.name, cd.phase_names[p], rows, rms(vv), vv.mean());
     }
     if (in.plots) {
       const std::filesystem::path ver_file = plots / ("verification_" + slug(cd.name) + ".dat");
