@@ -16,7 +16,7 @@ ArWhitener ArWhitener::fit(const Eigen::VectorXd& residuals, const std::vector<C
   Eigen::VectorXd acov = Eigen::VectorXd::Zero(max_order + 1);
   double n = 0.0;
   for (const CaseRows& c : layout) {
-    const Eigen::VectorXd e = residuals.segment(c.begin, c.rows);
+    const auto e = residuals.segment(c.begin, c.rows);   // read in place: the products' sums do not depend on where it starts
     n += static_cast<double>(c.rows);
     // The lags split over parallel::jobs() threads; a lag's sum does not depend on its thread.
     const int lags = static_cast<int>(std::min<Eigen::Index>(max_order + 1, c.rows));
