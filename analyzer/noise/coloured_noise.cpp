@@ -29,6 +29,18 @@ Eigen::Index padded_length(Eigen::Index rows) {
 
 }  // namespace
 
+namespace {
+
+/// `out`'s autocovariance, lags 0 .. rows-1, from its density on the bins, by one inverse
+/// transform on `fourier` (of out.length).
+void set_autocovariance(SegmentSpectrum& out, RealFourier& fourier) {
+  fourier.spectrum() = out.density.cast<std::complex<double>>();
+  fourier.inverse();   // (1/L) sum_k S_k e^{2 pi i k tau / L}
+  out.autocovariance = fourier.samples().head(out.rows);
+}
+
+}  // namespace
+
 SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double)>& density) {
   if (rows < 1) throw std::invalid_argument("spectrum_of: no rows");
   SegmentSpectrum out;
@@ -41,9 +53,7 @@ SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double
   // lies below the record's lowest frequency is the offsets between cases (cluster_offsets).
   if (!std::isfinite(out.density(0))) out.density(0) = density(0.5 / static_cast<double>(out.length));
   RealFourier fourier(out.length);
-  fourier.spectrum() = out.density.cast<std::complex<double>>();
-  fourier.inverse();   // (1/L) sum_k S_k e^{2 pi i k tau / L}
-  out.autocovariance = fourier.samples().head(rows);
+  set_autocovariance(out, fourier);
   return out;
 }
 
@@ -106,11 +116,28 @@ SegmentSpectrum fitted_spectrum_through_ar(const Eigen::Ref<const Eigen::VectorX
                                            Eigen::Index rows, const std::function<double(double)>& below_record) {
   if (rows < innovation.size()) throw std::invalid_argument("fitted_spectrum_through_ar: fewer rows than the innovation's");
   FittedDensity fitted = fitted_density(innovation, below_record);
-  SegmentSpectrum out = spectrum_of(std::max<Eigen::Index>(rows, 1), [&](double f) {
-    std::complex<double> a = 1.0;   // A(e^{2 pi i f}) = 1 - sum a_j e^{-2 pi i f j}
+  SegmentSpectrum out;
+  out.rows = std::max<Eigen::Index>(rows, 1);
+  out.length = padded_length(out.rows);
+  const auto length = static_cast<double>(out.length);
+  // A(e^{2 pi i f}) = 1 - sum a_j e^{-2 pi i f j} on every bin f = k / L at once: the DFT of A's
+  // coefficients (folded modulo L, which the bins cannot tell apart), one transform instead of
+  // an order's worth of sines per bin.
+  RealFourier fourier(out.length);
+  fourier.samples().setZero();
+  fourier.samples()(0) = 1.0;
+  for (Eigen::Index j = 1; j <= ar.size(); ++j) fourier.samples()(j % out.length) -= ar(j - 1);
+  fourier.forward();
+  const Eigen::Index half = out.length / 2;
+  out.density.resize(half + 1);
+  for (Eigen::Index k = 0; k <= half; ++k) out.density(k) = fitted.density(static_cast<double>(k) / length) / std::norm(fourier.spectrum()(k));
+  if (!std::isfinite(out.density(0))) {   // as spectrum_of: half a bin
+    const double f = 0.5 / length;
+    std::complex<double> a = 1.0;
     for (Eigen::Index j = 1; j <= ar.size(); ++j) a -= ar(j - 1) * std::polar(1.0, -2.0 * std::numbers::pi * f * static_cast<double>(j));
-    return fitted.density(f) / std::norm(a);
-  });
+    out.density(0) = fitted.density(f) / std::norm(a);
+  }
+  set_autocovariance(out, fourier);
   out.fit = std::move(fitted.fit);
   out.model = fmt::format("{} through AR({})", fitted.model, ar.size());
   return out;

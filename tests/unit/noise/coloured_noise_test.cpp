@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <complex>
 #include <numbers>
 #include <random>
 
@@ -194,6 +195,27 @@ TEST(ColouredNoise, SandwichSdMatchesTheSpreadUnderFlickerNoise) {
   }
   // The slow sine is where the 1/f power is: the classical sd is optimistic there.
   EXPECT_GT(sd(z_classical[0]), 1.5);
+}
+
+/// The density through the AR model on every bin is the innovation's over |A(e^{2 pi i f})|^2 of
+/// the polynomial itself, also for a model longer than the padded transform (its coefficients fold).
+TEST(ColouredNoise, SpectrumThroughTheArModelIsTheDensityOverThePolynomialsGainOnEveryBin) {
+  sim::GaussianSource white(77, 1);
+  for (const Eigen::Index rows : {Eigen::Index{3}, Eigen::Index{50}}) {
+    Eigen::VectorXd innovation(rows);
+    for (Eigen::Index k = 0; k < rows; ++k) innovation(k) = white.next();
+    const Eigen::VectorXd ar = (Eigen::VectorXd(9) << 0.5, -0.2, 0.1, 0.05, -0.03, 0.02, 0.01, -0.01, 0.005).finished();
+    const SegmentSpectrum through = fitted_spectrum_through_ar(innovation, ar, rows);
+    const FittedDensity fitted = fitted_density(innovation);
+    ASSERT_EQ(through.density.size(), through.length / 2 + 1);
+    for (Eigen::Index k = 0; k <= through.length / 2; ++k) {
+      const double f = static_cast<double>(k) / static_cast<double>(through.length);
+      std::complex<double> a = 1.0;
+      for (Eigen::Index j = 1; j <= ar.size(); ++j) a -= ar(j - 1) * std::polar(1.0, -2.0 * std::numbers::pi * f * static_cast<double>(j));
+      const double direct = fitted.density(f) / std::norm(a);
+      EXPECT_NEAR(through.density(k), direct, 1e-12 * direct) << "rows " << rows << ", bin " << k << " of " << through.length;
+    }
+  }
 }
 
 /// Rows kept unfiltered under AR(1) noise (phi 0.9): the innovation's fitted spectrum through the
