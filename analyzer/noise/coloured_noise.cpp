@@ -27,10 +27,6 @@ Eigen::Index padded_length(Eigen::Index rows) {
   return length;
 }
 
-}  // namespace
-
-namespace {
-
 /// `out`'s autocovariance, lags 0 .. rows-1, from its density on the bins, by one inverse
 /// transform on `fourier` (of out.length).
 void set_autocovariance(SegmentSpectrum& out, RealFourier& fourier) {
