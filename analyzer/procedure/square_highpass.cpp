@@ -163,24 +163,21 @@ void SquareCornerSearch::filter_block(const Block& block, std::span<const double
   highpass_side_by_side(filter.columns, block.rows, filter.coefficients, state);
 }
 
-void SquareCornerSearch::add_products(std::size_t begin, std::size_t end, std::span<const double> corners_rad_s,
-                                      std::span<HighpassState> state, BlockFilter& filter, std::span<FilteredProducts> sums) const {
+void SquareCornerSearch::block_products(std::size_t b, std::span<const double> corners_rad_s, std::span<HighpassState> state,
+                                        BlockFilter& filter, std::span<FilteredProducts> out) const {
   const auto n = static_cast<Eigen::Index>(squares_.size());
   const Eigen::Index p = s_.phi.cols();
-  for (std::size_t b = begin; b < end; ++b) {
-    const Block& block = blocks_[b];
-    if (block.starts_case) std::fill(state.begin(), state.end(), HighpassState{});   // each case starts settled
-    filter_block(block, corners_rad_s, state, filter);
-    for (std::size_t c = 0; c < corners_rad_s.size(); ++c) {
-      const auto filtered = filter.out.middleCols(static_cast<Eigen::Index>(c) * n, n).topRows(block.rows);
-      FilteredProducts& sum = sums[c];
-      for (Eigen::Index j = 0; j < p; ++j) {
-        const auto column = s_.phi.col(j).segment(block.begin, block.rows);
-        for (Eigen::Index i = 0; i < n; ++i) sum.cross(i, j) += filtered.col(i).dot(column);
-      }
-      sum.gram.noalias() += filtered.transpose() * filtered;
-      sum.y.noalias() += filtered.transpose() * s_.y.segment(block.begin, block.rows);
+  const Block& block = blocks_[b];
+  filter_block(block, corners_rad_s, state, filter);
+  for (std::size_t c = 0; c < corners_rad_s.size(); ++c) {
+    const auto filtered = filter.out.middleCols(static_cast<Eigen::Index>(c) * n, n).topRows(block.rows);
+    FilteredProducts& part = out[c];
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const auto column = s_.phi.col(j).segment(block.begin, block.rows);
+      for (Eigen::Index i = 0; i < n; ++i) part.cross(i, j) = filtered.col(i).dot(column);
     }
+    part.gram.noalias() = filtered.transpose() * filtered;
+    part.y.noalias() = filtered.transpose() * s_.y.segment(block.begin, block.rows);
   }
 }
 
@@ -190,22 +187,33 @@ std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_p
   const std::size_t m = corners_rad_s.size();
   const std::size_t count = static_cast<std::size_t>(n);
   const std::size_t blocks = blocks_.size();
-  const std::size_t groups = std::min(blocks, kMaxGroups);
-  const auto group_begin = [&](std::size_t g) { return blocks * g / groups; };
   const auto zero = [&] { return FilteredProducts{Eigen::MatrixXd::Zero(n, p), Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)}; };
-  // Each group's products on their own (its blocks in order), the groups then added in order: the
-  // same bits on any number of threads and corners. A block's filter continues from the state the
-  // block before it left, so with more than one thread each group's first state is found first by
-  // running the filter alone (cheap next to the products, and the same arithmetic, so the same
-  // values), the corners split into one share per thread, each share's chains side by side. The
-  // corners share each block's pass: its columns are read from memory once for all of them, and
-  // every corner's squares are filtered side by side.
-  const int threads = parallel::threads_for(static_cast<long>(groups));
-  std::vector<FilteredProducts> parts(groups * m);
-  for (FilteredProducts& part : parts) part = zero();
-  const auto state_at = [&](std::size_t g, std::size_t c) { return (g * m + c) * count; };
-  std::vector<HighpassState> start(groups * m * count);
+  // Each block's products on their own, added to the sums in block order: the same bits on any
+  // number of threads and corners. The threads form a window of blocks side by side, then one adds
+  // them. A block's filter continues from the state the block before it left, so with more than
+  // one thread those states are found first by running the filter alone (cheap next to the
+  // products, and the same arithmetic, so the same values), the corners split into one share per
+  // thread, each share's chains side by side. A case's first block starts settled. The corners
+  // share each block's pass: its columns are read from memory once for all of them, and every
+  // corner's squares are filtered side by side.
+  const std::size_t window_blocks = std::min(blocks, kWindowBlocks);
+  const int threads = parallel::threads_for(static_cast<long>(window_blocks));
+  std::vector<FilteredProducts> window(window_blocks * m);
+  for (FilteredProducts& part : window) part = zero();
+  std::vector<FilteredProducts> sums(m, zero());
+  const auto add_in_order = [&](std::size_t parts) {
+    for (std::size_t k = 0; k < parts; ++k) {
+      for (std::size_t c = 0; c < m; ++c) {
+        const FilteredProducts& part = window[k * m + c];
+        sums[c].cross += part.cross;
+        sums[c].gram += part.gram;
+        sums[c].y += part.y;
+      }
+    }
+  };
   if (threads > 1) {
+    const auto state_at = [&](std::size_t b, std::size_t c) { return (b * m + c) * count; };
+    std::vector<HighpassState> start(blocks * m * count);
     const auto shares = static_cast<long>(std::min<std::size_t>(static_cast<std::size_t>(threads), m));
     parallel::for_each_index(shares, [&](long share) {
       const std::size_t c0 = m * static_cast<std::size_t>(share) / static_cast<std::size_t>(shares);
@@ -213,12 +221,10 @@ std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_p
       const std::span<const double> corners = corners_rad_s.subspan(c0, c1 - c0);
       BlockFilter filter = block_filter(corners.size());
       std::vector<HighpassState> carried((c1 - c0) * count);
-      for (std::size_t g = 0; g < groups; ++g) {
-        for (std::size_t b = group_begin(g); b < group_begin(g + 1); ++b) {
-          if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
-          if (b == group_begin(g)) std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(g, c0)));
-          filter_block(blocks_[b], corners, carried, filter);
-        }
+      for (std::size_t b = 0; b < blocks; ++b) {
+        if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
+        std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(b, c0)));
+        filter_block(blocks_[b], corners, carried, filter);
       }
     });
 #ifdef _OPENMP
@@ -226,29 +232,29 @@ std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_p
 #endif
     {
       BlockFilter filter = block_filter(m);
+      for (std::size_t first = 0; first < blocks; first += window_blocks) {
+        const auto last = static_cast<long>(std::min(blocks, first + window_blocks));
 #ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1)
+#pragma omp for schedule(dynamic, 4)
 #endif
-      for (long g = 0; g < static_cast<long>(groups); ++g) {
-        const auto group = static_cast<std::size_t>(g);
-        add_products(group_begin(group), group_begin(group + 1), corners_rad_s,
-                     std::span<HighpassState>(start).subspan(state_at(group, 0), m * count), filter,
-                     std::span<FilteredProducts>(parts).subspan(group * m, m));
+        for (long b = static_cast<long>(first); b < last; ++b) {
+          const auto block = static_cast<std::size_t>(b);
+          block_products(block, corners_rad_s, std::span<HighpassState>(start).subspan(state_at(block, 0), m * count), filter,
+                         std::span<FilteredProducts>(window).subspan((block - first) * m, m));
+        }
+#ifdef _OPENMP
+#pragma omp single
+#endif
+        add_in_order(static_cast<std::size_t>(last) - first);
       }
     }
   } else {
     BlockFilter filter = block_filter(m);
     std::vector<HighpassState> carried(m * count);
-    for (std::size_t g = 0; g < groups; ++g)
-      add_products(group_begin(g), group_begin(g + 1), corners_rad_s, carried, filter, std::span<FilteredProducts>(parts).subspan(g * m, m));
-  }
-  std::vector<FilteredProducts> sums(m, zero());
-  for (std::size_t g = 0; g < groups; ++g) {
-    for (std::size_t c = 0; c < m; ++c) {
-      const FilteredProducts& part = parts[g * m + c];
-      sums[c].cross += part.cross;
-      sums[c].gram += part.gram;
-      sums[c].y += part.y;
+    for (std::size_t b = 0; b < blocks; ++b) {
+      if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
+      block_products(b, corners_rad_s, carried, filter, std::span<FilteredProducts>(window).first(m));
+      add_in_order(1);
     }
   }
   return sums;

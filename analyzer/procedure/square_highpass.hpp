@@ -77,10 +77,9 @@ class SquareCornerSearch {
 
  private:
   static constexpr Eigen::Index kBlockRows = 1024;   // a block's filtered squares stay in L1/L2
-  /// The blocks split into at most this many groups of consecutive blocks: each group's products
-  /// are summed block by block, then the groups' sums in order. What a pass holds is bounded by
-  /// the groups, not the record, and the sums do not depend on the number of threads.
-  static constexpr std::size_t kMaxGroups = 64;
+  /// Blocks whose products are formed side by side before they are added, in block order: what a
+  /// pass holds is bounded by the window, not the record, and the sums are those of one thread.
+  static constexpr std::size_t kWindowBlocks = 64;
 
   struct Block {
     std::size_t layout_index = 0;   // into s_.cases
@@ -110,10 +109,10 @@ class SquareCornerSearch {
   /// updated), into filter.out's first block.rows rows.
   void filter_block(const Block& block, std::span<const double> corners_rad_s, std::span<HighpassState> state,
                     BlockFilter& filter) const;
-  /// The blocks [begin, end)'s products at each corner added into `sums` (one per corner), the
-  /// filter continued from `state` (reset where a case starts; updated).
-  void add_products(std::size_t begin, std::size_t end, std::span<const double> corners_rad_s, std::span<HighpassState> state,
-                    BlockFilter& filter, std::span<FilteredProducts> sums) const;
+  /// Block b's products at each corner into `out` (one per corner), the filter continued from
+  /// `state` (updated).
+  void block_products(std::size_t b, std::span<const double> corners_rad_s, std::span<HighpassState> state, BlockFilter& filter,
+                      std::span<FilteredProducts> out) const;
   /// The products at each corner, in one pass over the blocks.
   [[nodiscard]] std::vector<FilteredProducts> filtered_products(std::span<const double> corners_rad_s) const;
   /// The residual of the fit with the squares' products `filtered` (nullptr: the static squares).

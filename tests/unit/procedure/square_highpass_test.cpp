@@ -197,11 +197,10 @@ TEST(SquareCornerSearch, RssIsTheSameBitsOnAnyNumberOfJobs) {
   parallel::set_jobs(1);
 }
 
-TEST(SquareCornerSearch, GroupsOfSeveralBlocksGiveTheSameBitsOnAnyNumberOfJobs) {
-  // Cases of 72,000 and 32,000 rows are 71 + 32 = 103 blocks of 1024, more than the pass's 64
-  // groups: groups of one and two blocks (group g starts at block 103 g / 64). Group 44 holds
-  // blocks 70 and 71, the first case's last and the second's first: its filter must restart
-  // there, with the second case's sample period.
+TEST(SquareCornerSearch, MoreBlocksThanAWindowGiveTheSameBitsOnAnyNumberOfJobs) {
+  // Cases of 72,000 and 32,000 rows are 71 + 32 = 103 blocks of 1024, more than a window of 64:
+  // the second window holds the first case's last block and the second's first, whose filter must
+  // restart there with the second case's sample period.
   CornerProblem p = corner_problem(250.0, 0.05, 14, 72'000, 32'000);
   p.data.cases[1].sample_period_s = 2e-3;
   const std::vector<double> corners{3.0, 250.0, 1200.0};   // below both cases' Nyquist
