@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "analyzer/ident/row_products.hpp"
+#include "analyzer/ident/statistics.hpp"
 #include "analyzer/ident/term.hpp"
 #include "common/input_error.hpp"
 
@@ -60,6 +61,33 @@ NormalEquations NormalEquations::from_rows(const Eigen::Ref<const Eigen::MatrixX
   }
   return {std::move(augmented), phi.rows(), std::move(labels), rational.columns, std::move(factor_gram),
           std::move(factor_sum)};
+}
+
+void NormalEquations::set_successive_differences(Eigen::MatrixXd augmented, Index pairs) {
+  if (augmented.rows() != augmented_.rows() || augmented.cols() != augmented_.cols())
+    throw std::invalid_argument("NormalEquations: the differences' Gram matrix is not the equations' size");
+  if (pairs < 0) throw std::invalid_argument("NormalEquations: a negative number of differenced rows");
+  difference_augmented_ = std::move(augmented);
+  difference_pairs_ = pairs;
+}
+
+void NormalEquations::set_successive_differences(const Eigen::Ref<const Eigen::MatrixXd>& phi,
+                                                 const Eigen::Ref<const Eigen::VectorXd>& y,
+                                                 std::span<const Index> stretch_starts) {
+  const Index n = phi.rows();
+  if (y.size() != n) throw std::invalid_argument("NormalEquations: y and Phi differ in length");
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(phi.cols() + 1, phi.cols() + 1);
+  Index pairs = 0;
+  for_each_stretch(n, stretch_starts, [&](Index begin, Index end) {
+    if (end - begin < 2) return;
+    const Index m = end - begin - 1;
+    Eigen::MatrixXd d(m, phi.cols() + 1);
+    d.leftCols(phi.cols()) = phi.middleRows(begin + 1, m) - phi.middleRows(begin, m);
+    d.col(phi.cols()) = y.segment(begin + 1, m) - y.segment(begin, m);
+    gram += ErrGram::from_data(d.leftCols(phi.cols()), d.col(phi.cols())).matrix();
+    pairs += m;
+  });
+  set_successive_differences(std::move(gram), pairs);
 }
 
 Eigen::MatrixXd NormalEquations::augmented(std::span<const Index> positions) const {

@@ -68,6 +68,17 @@ class NormalEquations {
   [[nodiscard]] const Eigen::MatrixXd& factor_gram() const { return factor_gram_; }
   [[nodiscard]] const Eigen::VectorXd& factor_sum() const { return factor_sum_; }
 
+  /// The successive differences' augmented Gram matrix [dPhi dy]'[dPhi dy], each row less the row
+  /// before it within a stretch of contiguous rows, over `pairs` differenced rows: what step 12's
+  /// lag-1 correlation reads of the residual of any coefficients (statistics.hpp). Held only when
+  /// given (pairs 0: not held).
+  void set_successive_differences(Eigen::MatrixXd augmented, Index pairs);
+  /// The same from rows: `stretch_starts` the first row of each stretch after the first (empty: one).
+  void set_successive_differences(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
+                                  std::span<const Index> stretch_starts = {});
+  [[nodiscard]] const Eigen::MatrixXd& difference_augmented() const { return difference_augmented_; }
+  [[nodiscard]] Index difference_pairs() const { return difference_pairs_; }
+
   /// The augmented Gram matrix of the columns `positions` (any order), y last.
   [[nodiscard]] Eigen::MatrixXd augmented(std::span<const Index> positions) const;
   /// ULS's sufficient statistics of the columns `positions` (ascending), factor sums included.
@@ -80,6 +91,8 @@ class NormalEquations {
   std::vector<Index> output_multiplied_;
   Eigen::MatrixXd factor_gram_;
   Eigen::VectorXd factor_sum_;
+  Eigen::MatrixXd difference_augmented_;
+  Index difference_pairs_ = 0;
 };
 
 struct IdentifiableRanking {

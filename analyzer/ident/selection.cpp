@@ -75,8 +75,9 @@ class FitContext {
 class RowsContext final : public FitContext {
  public:
   RowsContext(const Eigen::Ref<const Eigen::MatrixXd>& phi, const Eigen::Ref<const Eigen::VectorXd>& y,
-              const std::vector<std::string>& labels, const OutputMultiplied& rational, const UlsOptions& options)
-      : FitContext(labels, options), phi_(phi), y_(y), rational_(rational) {
+              const std::vector<std::string>& labels, const OutputMultiplied& rational, std::span<const Index> stretch_starts,
+              const UlsOptions& options)
+      : FitContext(labels, options), phi_(phi), y_(y), rational_(rational), stretch_starts_(stretch_starts) {
     if (static_cast<Index>(labels.size()) != phi.cols())
       throw std::invalid_argument("selection: " + std::to_string(labels.size()) + " labels for " +
                                   std::to_string(phi.cols()) + " columns");
@@ -110,7 +111,7 @@ class RowsContext final : public FitContext {
   }
 
   void score(const UlsResult& fit, const std::vector<Index>&, CandidateModel& model) const override {
-    model.residual_mean = residual_mean_test(fit.residuals);                        // step 12
+    model.residual_mean = residual_mean_test(fit.residuals, stretch_starts_);      // step 12
     model.aic = aic(fit.residuals, static_cast<Index>(fit.theta.size()));           // step 11
   }
 
@@ -126,6 +127,7 @@ class RowsContext final : public FitContext {
   Eigen::Ref<const Eigen::MatrixXd> phi_;
   Eigen::Ref<const Eigen::VectorXd> y_;
   const OutputMultiplied& rational_;
+  std::span<const Index> stretch_starts_;
   Eigen::MatrixXd factors_;
 };
 
@@ -135,8 +137,8 @@ class RowsContext final : public FitContext {
 class SumsContext final : public FitContext {
  public:
   SumsContext(const NormalEquations& equations, const std::function<Eigen::VectorXd(std::span<const Index>, const Eigen::VectorXd&)>& residuals,
-              const UlsOptions& options)
-      : FitContext(equations.labels(), options), equations_(equations), residuals_(residuals) {
+              std::span<const Index> stretch_starts, const UlsOptions& options)
+      : FitContext(equations.labels(), options), equations_(equations), residuals_(residuals), stretch_starts_(stretch_starts) {
     if (options.noise_lags > 0 || !equations.output_multiplied().empty())
       throw std::invalid_argument("selection: a stage given by its sums is fitted by linear least squares alone");
     if (!residuals) throw std::invalid_argument("selection: a stage given by its sums needs its residuals");
@@ -167,7 +169,7 @@ class SumsContext final : public FitContext {
   }
 
   void score(const UlsResult& fit, const std::vector<Index>&, CandidateModel& model) const override {
-    model.residual_mean = residual_mean_test(fit.residuals);                        // step 12
+    model.residual_mean = residual_mean_test(fit.residuals, stretch_starts_);      // step 12
     model.aic = aic(fit.residuals, static_cast<Index>(fit.theta.size()));           // step 11
   }
 
@@ -177,6 +179,7 @@ class SumsContext final : public FitContext {
  private:
   const NormalEquations& equations_;
   const std::function<Eigen::VectorXd(std::span<const Index>, const Eigen::VectorXd&)>& residuals_;
+  std::span<const Index> stretch_starts_;
 };
 
 // The normal equations alone: every fit, test and score from the statistics, no residuals.
@@ -186,9 +189,10 @@ class SumsContext final : public FitContext {
 //    to about log10(y'y / sum zeta^2) fewer digits than from the residuals, ample for the
 //    differences AIC compares at bench noise.
 //  - Step 12 reads the residual's sum through the bias candidate's column (constant: "1", or "1"
-//    through the noise model's A(q), whose gain is A(1)), whether the model holds it or not, on N
-//    samples: without the residual's lag products there is no N_eff. With no bias among the
-//    candidates the mean is not known: not tested (p_res = 1, mean NaN).
+//    through the noise model's A(q), whose gain is A(1)), whether the model holds it or not, and
+//    its successive differences' energy from the differenced rows' Gram matrix
+//    (NormalEquations::successive_differences), so N_eff is the rows' (statistics.hpp). With no
+//    bias among the candidates the mean is not known: not tested (p_res = 1, mean NaN).
 class EquationsContext final : public FitContext {
  public:
   EquationsContext(const NormalEquations& equations, const UlsOptions& options)
@@ -238,8 +242,18 @@ class EquationsContext final : public FitContext {
       product -= signs(columns[j]) * fit.theta(static_cast<Index>(j)) * a(bias_, columns[j]);
     const double level = std::sqrt(a(bias_, bias_) / static_cast<double>(n));
     const double mean = product / (level * static_cast<double>(n));
-    const double variance = (energy - static_cast<double>(n) * mean * mean) / static_cast<double>(n - 1);
-    model.residual_mean = residual_mean_test(mean, variance, static_cast<double>(n));
+    // The residual's differences are the differenced rows' [dPhi dy] v, v = [-sign_j theta_j; 1].
+    double differences = 0.0;
+    const Index pairs = equations_.difference_pairs();
+    if (pairs > 0) {
+      std::vector<Index> at(columns.begin(), columns.end());
+      at.push_back(y);
+      Eigen::VectorXd v(static_cast<Index>(at.size()));
+      for (std::size_t j = 0; j < columns.size(); ++j) v(static_cast<Index>(j)) = -signs(columns[j]) * fit.theta(static_cast<Index>(j));
+      v(v.size() - 1) = 1.0;
+      differences = v.dot(equations_.difference_augmented()(at, at) * v);
+    }
+    model.residual_mean = residual_mean_test(mean, energy - static_cast<double>(n) * mean * mean, n, differences, pairs);
   }
 
   Eigen::MatrixXd err_gram() const override { return augmented_from_statistics(); }
@@ -311,7 +325,7 @@ namespace {
 
 // Algorithm 2 on `base`, whatever its source.
 SelectionResult select_on(const FitContext& base, std::vector<Index> ranking, const std::vector<Index>& kept_columns,
-                          const SelectionOptions& options, FitHook* hook) {
+                          std::span<const Index> stretch_starts, const SelectionOptions& options, FitHook* hook) {
   SelectionResult out;
   out.ranking = std::move(ranking);
   if (out.ranking.empty()) out.ranking = err_rank(base.err_gram(), options.err).order;
@@ -339,9 +353,9 @@ SelectionResult select_on(const FitContext& base, std::vector<Index> ranking, co
       if (model.transformed) {
         std::unique_ptr<FitContext> stage_context;
         if (stage.equations) {
-          stage_context = std::make_unique<SumsContext>(*stage.equations, stage.residuals, options.uls);
+          stage_context = std::make_unique<SumsContext>(*stage.equations, stage.residuals, stretch_starts, options.uls);
         } else {
-          stage_context = std::make_unique<RowsContext>(stage.phi, stage.y, stage.labels, stage.rational, options.uls);
+          stage_context = std::make_unique<RowsContext>(stage.phi, stage.y, stage.labels, stage.rational, stretch_starts, options.uls);
         }
         const FitContext& staged = *stage_context;
         std::vector<Index> all(static_cast<std::size_t>(staged.terms()));
@@ -427,8 +441,8 @@ SelectionResult select_on(const FitContext& base, std::vector<Index> ranking, co
 SelectionResult select_model(const SelectionProblem& problem, const SelectionOptions& options, FitHook* hook) {
   std::string why;
   if (!options.is_valid(&why)) throw std::invalid_argument("selection options: " + why);
-  const RowsContext base(problem.phi, problem.y, problem.labels, problem.rational, options.uls);
-  return select_on(base, problem.ranking, problem.kept, options, hook);
+  const RowsContext base(problem.phi, problem.y, problem.labels, problem.rational, problem.stretch_starts, options.uls);
+  return select_on(base, problem.ranking, problem.kept, problem.stretch_starts, options, hook);
 }
 
 SelectionResult select_model(const NormalEquations& equations, std::vector<Index> ranking, const std::vector<Index>& kept,
@@ -436,7 +450,7 @@ SelectionResult select_model(const NormalEquations& equations, std::vector<Index
   std::string why;
   if (!options.is_valid(&why)) throw std::invalid_argument("selection options: " + why);
   const EquationsContext base(equations, options.uls);
-  return select_on(base, std::move(ranking), kept, options, nullptr);
+  return select_on(base, std::move(ranking), kept, {}, options, nullptr);
 }
 
 }  // namespace inertia::ident

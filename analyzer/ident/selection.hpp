@@ -47,6 +47,10 @@ struct SelectionProblem {
   /// Columns step 9 never removes once ranked in (the model's given terms, such as a sensor's bias
   /// and scale factor): a candidate near collinear with one of them must not take its place.
   std::vector<Index> kept;
+  /// The first row of each contiguous stretch after the first (the stacked cases; empty: one
+  /// stretch): step 12's lag-1 correlation pairs neighbours within a stretch (statistics.hpp).
+  /// A hook's stages have the same rows, so the same stretches.
+  std::vector<Index> stretch_starts;
 };
 
 /// A regression problem owned by the engine and filled by a FitHook (algorithm 2 steps 6-7).
@@ -153,7 +157,8 @@ SelectionResult select_model(const SelectionProblem& problem, const SelectionOpt
 
 /// Section 2.7.2 on the normal equations alone (no rows): what the live estimator keeps. The same
 /// steps and rules as above, the fits and scores from the statistics (step 12 through the bias
-/// candidate's column, without N_eff; selection.cpp's EquationsContext says how each differs from the rows'). The
+/// candidate's column and the successive differences' Gram matrix, N_eff as the rows' when the
+/// equations hold it; selection.cpp's EquationsContext says how each differs from the rows'). The
 /// models' fits have no residuals. `ranking`: as SelectionProblem::ranking (empty: plain ERR);
 /// `kept`: as SelectionProblem::kept. Throws as above, and std::invalid_argument for noise lags
 /// (ELS needs the residuals).

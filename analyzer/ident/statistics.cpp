@@ -140,20 +140,38 @@ Eigen::VectorXd relative_likelihood(const Eigen::Ref<const Eigen::VectorXd>& aic
   return out;
 }
 
+SuccessiveDifferences successive_differences(const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                                             std::span<const Eigen::Index> stretch_starts) {
+  SuccessiveDifferences out;
+  for_each_stretch(residuals.size(), stretch_starts, [&](Eigen::Index begin, Eigen::Index end) {
+    if (end - begin < 2) return;
+    const Eigen::Index pairs = end - begin - 1;
+    out.energy += (residuals.segment(begin + 1, pairs) - residuals.segment(begin, pairs)).squaredNorm();
+    out.pairs += pairs;
+  });
+  return out;
+}
+
 ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& residuals,
-                                    bool effective_size) {
+                                    std::span<const Eigen::Index> stretch_starts, bool effective_size) {
   const Eigen::Index n = residuals.size();
   if (n < 3) throw std::invalid_argument("residual mean test needs at least 3 samples");
   const double mean = residuals.mean();
-  const Eigen::VectorXd c = residuals.array() - mean;
-  const double ss = c.squaredNorm();
-  const double r1 = ss > 0.0 ? c.head(n - 1).dot(c.tail(n - 1)) / ss : 0.0;
-  double n_eff = static_cast<double>(n);
-  if (effective_size) {
-    const double clamped = std::clamp(r1, -0.999, 0.999);
-    n_eff = std::clamp(static_cast<double>(n) * (1.0 - clamped) / (1.0 + clamped), 2.0, static_cast<double>(n));
-  }
-  ResidualMeanTest out = residual_mean_test(mean, ss / static_cast<double>(n - 1), n_eff);
+  const double ss = (residuals.array() - mean).square().sum();
+  if (!effective_size) return residual_mean_test(mean, ss / static_cast<double>(n - 1), static_cast<double>(n));
+  const SuccessiveDifferences d = successive_differences(residuals, stretch_starts);
+  return residual_mean_test(mean, ss, n, d.energy, d.pairs);
+}
+
+ResidualMeanTest residual_mean_test(double mean, double centred_energy, Eigen::Index samples, double difference_energy,
+                                    Eigen::Index pairs) {
+  if (samples < 3) throw std::invalid_argument("residual mean test needs at least 3 samples");
+  const auto n = static_cast<double>(samples);
+  const double ss = std::max(centred_energy, 0.0);
+  const double r1 = ss > 0.0 && pairs > 0 ? 1.0 - (std::max(difference_energy, 0.0) / static_cast<double>(pairs)) / (2.0 * ss / n) : 0.0;
+  const double clamped = std::clamp(r1, -0.999, 0.999);
+  const double n_eff = std::clamp(n * (1.0 - clamped) / (1.0 + clamped), 2.0, n);
+  ResidualMeanTest out = residual_mean_test(mean, ss / (n - 1.0), n_eff);
   out.lag1_autocorrelation = r1;
   return out;
 }

@@ -9,6 +9,7 @@
 #include <map>
 #include <optional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -68,11 +69,43 @@ struct ResidualMeanTest {
 /// variance because it needs no bandwidth choice and is exact for the AR(1) residuals that
 /// dominate in practice; N_eff never exceeds N (negative r1 would claim more information than
 /// the samples hold; clamping keeps the test conservative).
+/// r1 comes from the successive differences (von Neumann's ratio): r1 = 1 - (D / P) / (2 SS / N),
+/// D the sum of squared differences of neighbouring residuals within a stretch of contiguous rows,
+/// P the number of such pairs, SS the energy about the mean. Differences are what sums give: the
+/// normal equations of the successively differenced rows hold D for any coefficients, so the live
+/// estimator, which keeps no rows, tests by the same numbers (select_model on NormalEquations).
+/// `stretch_starts`: the first row of each stretch after the first (the stacked cases; empty: one
+/// stretch). A pair across stretches would pair the end of one case with the start of another.
 ResidualMeanTest residual_mean_test(const Eigen::Ref<const Eigen::VectorXd>& residuals,
-                                    bool effective_size = true);
-/// The same test from the residual's mean, variance (about the mean, N - 1 divisor) and effective
-/// sample count: what the normal equations alone give (select_model on NormalEquations).
+                                    std::span<const Eigen::Index> stretch_starts = {}, bool effective_size = true);
+/// The same test from the residual's sums: mean, energy about the mean (SS) over `samples` rows,
+/// and the successive differences' energy D over `pairs` pairs (pairs 0: r1 is not known, N_eff = N).
+ResidualMeanTest residual_mean_test(double mean, double centred_energy, Eigen::Index samples,
+                                    double difference_energy, Eigen::Index pairs);
+/// The test from the residual's mean, variance (about the mean, N - 1 divisor) and effective
+/// sample count.
 ResidualMeanTest residual_mean_test(double mean, double variance, double effective_samples);
+/// Calls f(begin, end) for each stretch [begin, end) of the rows [0, n) that `stretch_starts` (the
+/// first row of each stretch after the first, ascending) cut. Throws std::invalid_argument when
+/// they are not ascending within [0, n].
+template <class F>
+void for_each_stretch(Eigen::Index n, std::span<const Eigen::Index> stretch_starts, F&& f) {
+  Eigen::Index begin = 0;
+  for (const Eigen::Index start : stretch_starts) {
+    if (start < begin || start > n) throw std::invalid_argument("stretch starts out of order or beyond the rows");
+    f(begin, start);
+    begin = start;
+  }
+  f(begin, n);
+}
+/// D of `residuals`: the squared differences of neighbours within each stretch (as above), and
+/// their number.
+struct SuccessiveDifferences {
+  double energy = 0.0;
+  Eigen::Index pairs = 0;
+};
+[[nodiscard]] SuccessiveDifferences successive_differences(const Eigen::Ref<const Eigen::VectorXd>& residuals,
+                                                           std::span<const Eigen::Index> stretch_starts = {});
 
 /// Offsets between clusters that the noise model does not explain, and what they do to a
 /// least-squares estimate (a variance-components model: y = X theta + u_g + e, u_g ~ N(0, tau^2)

@@ -119,6 +119,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
     ident::SelectionOptions selection = options.selection;
     selection.uls.noise_lags = 0;   // structure first; the noise model joins the final fit
     ident::SelectionProblem problem{filtered.phi, filtered.y, filtered.labels, filtered.rational, ranking};
+    problem.stretch_starts = stretch_starts(filtered.cases);
     // Every inertial sensor has a bias and a scale factor: the t-test of step 9 weighs the other
     // terms against them, never them against a candidate. Pruning the weaker of a near-collinear
     // pair first, it could take the bias out of the model and name a_p in its place (a_p's column
@@ -396,7 +397,7 @@ PipelineResult identify_batch(PipelineResult mounted, const dataset::Dataset& da
   for (Eigen::Index j = 0; j < result.t_test.p_value.size() && j < result.test_dof.size(); ++j) {
     result.t_test.p_value(j) = ident::student_t_two_sided_p(result.t_test.t(j), result.test_dof(j));
   }
-  result.residual_mean = ident::residual_mean_test(result.fit.residuals);
+  result.residual_mean = ident::residual_mean_test(result.fit.residuals, stretch_starts(batch.cases));
   result.aic = ident::aic(result.fit.residuals, result.fit.theta.size());
   return result;
 }

@@ -383,6 +383,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
   ident::SelectionOptions selection = options.selection;
   selection.uls.noise_lags = 0;
   problem.ranking = usable;   // identifiable columns in ERR order, sensitivities first
+  problem.stretch_starts = stretch_starts(es.cases);
   const ident::SelectionResult selected = ident::select_model(problem, selection, &hook);
   const ident::CandidateModel& best = selected.best_model();
   result.candidates_tried = selected.candidates.size();

@@ -6,6 +6,12 @@
 
 namespace inertia::procedure {
 
+std::vector<Eigen::Index> stretch_starts(std::span<const CaseRows> cases) {
+  std::vector<Eigen::Index> out;
+  for (std::size_t k = 1; k < cases.size(); ++k) out.push_back(cases[k].begin);
+  return out;
+}
+
 std::vector<CaseRows> stack_layout(std::span<const ident::Term> terms, std::span<const StackInput> inputs,
                                    Eigen::Index min_first_row) {
   const Eigen::Index first_row = std::max(ident::first_usable_row(terms), min_first_row);

@@ -48,6 +48,10 @@ struct StackInput {
 StackedRegression stack_regressions(std::span<const ident::Term> terms, std::span<const StackInput> inputs,
                                     double t_ref, std::string_view dataset_label, Eigen::Index min_first_row = 0);
 
+/// The first row of each case after the first: where the stack's contiguous stretches start
+/// (ident::SelectionProblem::stretch_starts).
+[[nodiscard]] std::vector<Eigen::Index> stretch_starts(std::span<const CaseRows> cases);
+
 /// The rows stack_regressions gives each of `inputs` (a case too short for the terms' lags has
 /// none and no entry), without building them.
 std::vector<CaseRows> stack_layout(std::span<const ident::Term> terms, std::span<const StackInput> inputs,

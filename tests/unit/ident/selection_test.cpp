@@ -288,8 +288,8 @@ TEST(Selection, AKeptBiasIsNotReplacedByACandidateCollinearWithIt) {
 
 // Section 2.7.2 on the normal equations alone (the live estimator's) against the rows: the same
 // ranking, pruning and scores, so the same model; its coefficients and classical sd to rounding.
-// AIC differs only by the residual energy taken from the statistics, step 12 by N_eff (the
-// rows' test reads the lag-1 autocorrelation of white residuals, close to 0).
+// AIC differs only by the residual energy taken from the statistics; step 12 here by N_eff, since
+// these equations hold no successive differences (the next test gives them).
 TEST(Selection, OnTheNormalEquationsSelectsWhatTheRowsSelect) {
   constexpr int kSeeds = 40;
   int same = 0;
@@ -319,6 +319,49 @@ TEST(Selection, OnTheNormalEquationsSelectsWhatTheRowsSelect) {
     EXPECT_NEAR(b.residual_mean.mean, a.residual_mean.mean, 1e-9) << "seed " << seed;
   }
   EXPECT_EQ(same, kSeeds);
+}
+
+// Step 12 on the normal equations reads the residual's lag-1 correlation from the successive
+// differences' Gram matrix (NormalEquations::set_successive_differences), as the rows' test reads
+// it from the residuals: with AR(1) noise (r1 = 0.6) in three stacked stretches, the same N_eff and
+// p_res, and the same model. A pair across two stretches would count in neither.
+TEST(Selection, OnTheNormalEquationsStepTwelveReadsTheRowsLagOneCorrelation) {
+  constexpr int kSeeds = 20;
+  const std::vector<Index> starts{700, 1300};
+  for (int seed = 0; seed < kSeeds; ++seed) {
+    SparseCase c = sparse_case(5000 + static_cast<unsigned>(seed), 2000, 0.0);
+    std::mt19937_64 rng(6000 + static_cast<unsigned>(seed));
+    std::normal_distribution<double> g(0.0, 0.5);
+    double e = 0.0;
+    for (Index k = 0; k < c.y.size(); ++k) {
+      if (k == 0 || std::find(starts.begin(), starts.end(), k) != starts.end()) e = 0.0;
+      e = 0.6 * e + g(rng);
+      c.y(k) += e;
+    }
+    const std::vector<Index> kept{0};
+    SelectionProblem problem(c.phi, c.y, c.labels);
+    problem.kept = kept;
+    problem.stretch_starts = starts;
+    const SelectionResult rows = select_model(problem, SelectionOptions{});
+    NormalEquations equations = NormalEquations::from_rows(c.phi, c.y, c.labels);
+    equations.set_successive_differences(c.phi, c.y, starts);
+    EXPECT_EQ(equations.difference_pairs(), 2000 - 3);
+    const SelectionResult statistics = select_model(equations, {}, kept, SelectionOptions{});
+    const CandidateModel& a = rows.best_model();
+    const CandidateModel& b = statistics.best_model();
+    ASSERT_EQ(a.columns, b.columns) << "seed " << seed;
+    EXPECT_LT(a.residual_mean.effective_samples, 0.4 * 2000.0) << "seed " << seed << ": the noise's correlation is seen";
+    EXPECT_NEAR(b.residual_mean.lag1_autocorrelation, a.residual_mean.lag1_autocorrelation, 1e-9) << "seed " << seed;
+    EXPECT_NEAR(b.residual_mean.effective_samples, a.residual_mean.effective_samples, 1e-9 * a.residual_mean.effective_samples)
+        << "seed " << seed;
+    EXPECT_NEAR(b.residual_mean.p_value, a.residual_mean.p_value, 1e-9) << "seed " << seed;
+    for (std::size_t j = 0; j < rows.candidates.size(); ++j) {
+      if (!rows.candidates[j].ok || !statistics.candidates[j].ok) continue;
+      EXPECT_NEAR(statistics.candidates[j].residual_mean.effective_samples, rows.candidates[j].residual_mean.effective_samples,
+                  1e-8 * rows.candidates[j].residual_mean.effective_samples)
+          << "seed " << seed << ", j " << j + 1;
+    }
+  }
 }
 
 // Without the bias among the candidates the statistics cannot give the residual's mean: step 12 is

@@ -70,9 +70,9 @@ TEST(Statistics, ResidualMeanTestFalseAlarmRate) {
   int effective = 0, naive = 0, white = 0;
   for (int s = 0; s < seeds; ++s) {
     const Eigen::VectorXd e = ar1(rng, 2000, phi);
-    effective += residual_mean_test(e, true).p_value < 0.05;
-    naive += residual_mean_test(e, false).p_value < 0.05;
-    white += residual_mean_test(ar1(rng, 2000, 0.0), true).p_value < 0.05;
+    effective += residual_mean_test(e).p_value < 0.05;
+    naive += residual_mean_test(e, {}, false).p_value < 0.05;
+    white += residual_mean_test(ar1(rng, 2000, 0.0)).p_value < 0.05;
   }
   const double sd = std::sqrt(0.05 * 0.95 / seeds);  // binomial sd of a 5% rate
   const double rate = double(effective) / seeds, naive_rate = double(naive) / seeds;
@@ -84,7 +84,7 @@ TEST(Statistics, ResidualMeanTestFalseAlarmRate) {
   EXPECT_GT(naive_rate, 0.4);
   // A real offset of 6 long-run standard errors (sqrt(1/((1-phi)^2 N)) = 0.112) is found.
   const Eigen::VectorXd shifted = ar1(rng, 2000, phi).array() + 6.0 * std::sqrt(25.0 / 2000.0);
-  EXPECT_LT(residual_mean_test(shifted, true).p_value, 0.05);
+  EXPECT_LT(residual_mean_test(shifted).p_value, 0.05);
 }
 
 // The test from moments equals the test of the rows that have them.
@@ -94,13 +94,51 @@ TEST(Statistics, ResidualMeanTestFromMomentsEqualsTheRows) {
     const Eigen::VectorXd e = ar1(rng, 500, 0.3).array() + offset;
     const double mean = e.mean();
     const double variance = (e.array() - mean).square().sum() / 499.0;
-    const ResidualMeanTest rows = residual_mean_test(e, false);
+    const ResidualMeanTest rows = residual_mean_test(e, {}, false);
     const ResidualMeanTest moments = residual_mean_test(mean, variance, 500.0);
     EXPECT_DOUBLE_EQ(moments.mean, rows.mean);
     EXPECT_NEAR(moments.t, rows.t, 1e-12 * std::max(1.0, std::abs(rows.t)));
     EXPECT_NEAR(moments.p_value, rows.p_value, 1e-12);
   }
   EXPECT_THROW((void)residual_mean_test(0.0, 1.0, 1.0), std::invalid_argument);
+}
+
+// Step 12's lag-1 correlation from successive differences, neighbours paired within a stretch only:
+// the sums' test equals the rows', a jump between two stretches does not enter it, and on one long
+// AR(1) stretch the ratio agrees with the sample autocorrelation.
+TEST(Statistics, ResidualMeanTestPairsNeighboursWithinAStretch) {
+  std::mt19937_64 rng(79);
+  Eigen::VectorXd e(1200);
+  e.head(500) = ar1(rng, 500, 0.5);
+  e.tail(700) = ar1(rng, 700, 0.5).array() + 3.0;   // a second case, its own level
+  const std::vector<Eigen::Index> starts{500};
+  double d = 0.0;
+  for (Eigen::Index k = 1; k < 1200; ++k)
+    if (k != 500) d += (e(k) - e(k - 1)) * (e(k) - e(k - 1));
+  const SuccessiveDifferences sd = successive_differences(e, starts);
+  EXPECT_EQ(sd.pairs, 1198);
+  EXPECT_NEAR(sd.energy, d, 1e-12 * d);
+  const double mean = e.mean();
+  const double ss = (e.array() - mean).square().sum();
+  const ResidualMeanTest rows = residual_mean_test(e, starts);
+  const ResidualMeanTest sums = residual_mean_test(mean, ss, 1200, d, 1198);
+  EXPECT_DOUBLE_EQ(rows.lag1_autocorrelation, sums.lag1_autocorrelation);
+  EXPECT_DOUBLE_EQ(rows.effective_samples, sums.effective_samples);
+  EXPECT_DOUBLE_EQ(rows.p_value, sums.p_value);
+  EXPECT_NEAR(rows.lag1_autocorrelation, 1.0 - (d / 1198.0) / (2.0 * ss / 1200.0), 1e-15);
+  // Across the jump the pair would add 3^2 to D: the stretches are what keeps it out.
+  EXPECT_GT(successive_differences(e).energy, d + 4.0);
+  // Without differences (pairs 0) nothing is known of r1: N.
+  EXPECT_EQ(residual_mean_test(mean, ss, 1200, 0.0, 0).effective_samples, 1200.0);
+
+  const Eigen::VectorXd long_run = ar1(rng, 20000, 0.5);
+  const Eigen::VectorXd c = long_run.array() - long_run.mean();
+  const double acf = c.head(19999).dot(c.tail(19999)) / c.squaredNorm();
+  EXPECT_NEAR(residual_mean_test(long_run).lag1_autocorrelation, acf, 1e-3);
+  EXPECT_NEAR(acf, 0.5, 4.0 * std::sqrt((1.0 - 0.25) / 20000.0));
+
+  EXPECT_THROW((void)successive_differences(e, std::vector<Eigen::Index>{600, 500}), std::invalid_argument);
+  EXPECT_THROW((void)successive_differences(e, std::vector<Eigen::Index>{1300}), std::invalid_argument);
 }
 
 TEST(Statistics, WhitenessVerdict) {
