@@ -9,13 +9,13 @@ namespace inertia::online {
 
 using Eigen::Index;
 
-Information::Information(Index base, Index filtered, std::size_t nodes)
+RowProducts::RowProducts(Index base, Index filtered, std::size_t nodes)
     : gram_(base), cross_(nodes, Eigen::MatrixXd::Zero(filtered, base + 1)), pairs_(nodes) {
   for (std::size_t k = 0; k < nodes; ++k)
     for (std::size_t d = 0; d < CornerGrid::kStencil && k + d < nodes; ++d) pairs_[k].push_back(Eigen::MatrixXd::Zero(filtered, filtered));
 }
 
-void Information::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
+void RowProducts::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
                       const Eigen::Ref<const Eigen::VectorXd>& y) {
   const Index n = base.rows();
   if (n == 0) return;
@@ -27,10 +27,86 @@ void Information::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::
     cross_[k].col(b).noalias() += f.transpose() * y;
     for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d].noalias() += f.transpose() * filtered[k + d].topRows(n);
   }
+}
+
+void RowProducts::add(const RowProducts& other) {
+  gram_.matrix() += other.gram_.matrix();
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    cross_[k] += other.cross_[k];
+    for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d] += other.pairs_[k][d];
+  }
+}
+
+void RowProducts::subtract(const RowProducts& other) {
+  gram_.matrix() -= other.gram_.matrix();
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    cross_[k] -= other.cross_[k];
+    for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d] -= other.pairs_[k][d];
+  }
+}
+
+void RowProducts::scale(double factor) {
+  gram_.matrix() *= factor;
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    cross_[k] *= factor;
+    for (auto& m : pairs_[k]) m *= factor;
+  }
+}
+
+void RowProducts::clear() {
+  gram_.matrix().setZero();
+  for (std::size_t k = 0; k < cross_.size(); ++k) {
+    cross_[k].setZero();
+    for (auto& m : pairs_[k]) m.setZero();
+  }
+}
+
+Eigen::MatrixXd RowProducts::pair(int a, int b) const {
+  if (a <= b) return pairs_[static_cast<std::size_t>(a)][static_cast<std::size_t>(b - a)];
+  return pairs_[static_cast<std::size_t>(b)][static_cast<std::size_t>(a - b)].transpose();
+}
+
+Eigen::MatrixXd RowProducts::model_gram(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                        const CornerWeights& corner) const {
+  const Eigen::MatrixXd& g = gram_.matrix();
+  const Index b = g.rows() - 1;
+  const Index p = t_base.rows();
+  Eigen::MatrixXd out(p + 1, p + 1);
+  const Eigen::MatrixXd tg = t_base * g.topLeftCorner(b, b);
+  out.topLeftCorner(p, p).noalias() = tg * t_base.transpose();
+  out.topRightCorner(p, 1).noalias() = t_base * g.topRightCorner(b, 1);
+  out(p, p) = g(b, b);
+  if (corner.filtered() && t_filtered.cols() > 0) {
+    // F = sum_j w_j F_j: its products with [B y] and with itself from the nodes' products.
+    const Index f = t_filtered.cols();
+    Eigen::MatrixXd fby = Eigen::MatrixXd::Zero(f, b + 1);
+    Eigen::MatrixXd ff = Eigen::MatrixXd::Zero(f, f);
+    for (const auto& [j, wj] : corner.nodes) {
+      fby += wj * cross_[static_cast<std::size_t>(j)];
+      for (const auto& [l, wl] : corner.nodes) ff += wj * wl * pair(j, l);
+    }
+    const Eigen::MatrixXd mixed = t_filtered * fby.leftCols(b) * t_base.transpose();
+    out.topLeftCorner(p, p) += mixed + mixed.transpose();
+    out.topLeftCorner(p, p).noalias() += t_filtered * ff * t_filtered.transpose();
+    out.topRightCorner(p, 1).noalias() += t_filtered * fby.col(b);
+  }
+  out.bottomLeftCorner(1, p) = out.topRightCorner(p, 1).transpose();
+  return out;
+}
+
+Information::Information(Index base, Index filtered, std::size_t nodes)
+    : rows_(base, filtered, nodes), differences_(base, filtered, nodes) {}
+
+void Information::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
+                      const Eigen::Ref<const Eigen::VectorXd>& y) {
+  const Index n = base.rows();
+  if (n == 0) return;
+  rows_.add(base, filtered, y);
+  const Index b = base.cols();
   if (!run_open_) {
     Run r;
     r.base = Eigen::VectorXd::Zero(b + 1);
-    r.filtered.assign(cross_.size(), Eigen::VectorXd::Zero(cross_.empty() ? 0 : cross_[0].rows()));
+    r.filtered.assign(rows_.nodes(), Eigen::VectorXd::Zero(rows_.nodes() == 0 ? 0 : rows_.cross(0).rows()));
     runs_.push_back(std::move(r));
     run_open_ = true;
   }
@@ -38,10 +114,16 @@ void Information::add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::
   const auto c = base.col(0);   // the constant, through the noise model's A(q): A(1) on every row
   run.base.head(b).noalias() += base.transpose() * c;
   run.base(b) += y.dot(c);
-  for (std::size_t k = 0; k < cross_.size(); ++k) run.filtered[k].noalias() += filtered[k].topRows(n).transpose() * c;
+  for (std::size_t k = 0; k < rows_.nodes(); ++k) run.filtered[k].noalias() += filtered[k].topRows(n).transpose() * c;
   run.samples += n;
   samples_ += n;
   weight_ += static_cast<double>(n);
+}
+
+void Information::add_differences(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
+                                  const Eigen::Ref<const Eigen::VectorXd>& y) {
+  differences_.add(base, filtered, y);
+  difference_weight_ += static_cast<double>(base.rows());
 }
 
 namespace {
@@ -82,25 +164,21 @@ void Information::add(const Information& other, bool continues_run) {
   }
   runs_.insert(runs_.end(), from, other.runs_.end());
   run_open_ = false;   // rows added after another's are not its run's
-  gram_.matrix() += other.gram_.matrix();
-  for (std::size_t k = 0; k < cross_.size(); ++k) {
-    cross_[k] += other.cross_[k];
-    for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d] += other.pairs_[k][d];
-  }
+  rows_.add(other.rows_);
+  differences_.add(other.differences_);
   samples_ += other.samples_;
   weight_ += other.weight_;
+  difference_weight_ += other.difference_weight_;
 }
 
 void Information::subtract(const Information& other) {
   // The runs are not taken out: whose they were is not known here (runs() stays as it was).
   inputs_ -= other.inputs_;
-  gram_.matrix() -= other.gram_.matrix();
-  for (std::size_t k = 0; k < cross_.size(); ++k) {
-    cross_[k] -= other.cross_[k];
-    for (std::size_t d = 0; d < pairs_[k].size(); ++d) pairs_[k][d] -= other.pairs_[k][d];
-  }
+  rows_.subtract(other.rows_);
+  differences_.subtract(other.differences_);
   samples_ -= other.samples_;
   weight_ -= other.weight_;
+  difference_weight_ -= other.difference_weight_;
 }
 
 void Information::scale(double factor) {
@@ -110,58 +188,21 @@ void Information::scale(double factor) {
     r.inputs *= factor;
     for (Eigen::VectorXd& f : r.filtered) f *= factor;
   }
-  gram_.matrix() *= factor;
-  for (std::size_t k = 0; k < cross_.size(); ++k) {
-    cross_[k] *= factor;
-    for (auto& m : pairs_[k]) m *= factor;
-  }
+  rows_.scale(factor);
+  differences_.scale(factor);
   weight_ *= factor;
+  difference_weight_ *= factor;
 }
 
 void Information::clear() {
   inputs_.setZero();
   runs_.clear();
   run_open_ = false;
-  gram_.matrix().setZero();
-  for (std::size_t k = 0; k < cross_.size(); ++k) {
-    cross_[k].setZero();
-    for (auto& m : pairs_[k]) m.setZero();
-  }
+  rows_.clear();
+  differences_.clear();
   samples_ = 0;
   weight_ = 0.0;
-}
-
-Eigen::MatrixXd Information::pair(int a, int b) const {
-  if (a <= b) return pairs_[static_cast<std::size_t>(a)][static_cast<std::size_t>(b - a)];
-  return pairs_[static_cast<std::size_t>(b)][static_cast<std::size_t>(a - b)].transpose();
-}
-
-Eigen::MatrixXd Information::model_gram(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
-                                        const CornerWeights& corner) const {
-  const Eigen::MatrixXd& g = gram_.matrix();
-  const Index b = g.rows() - 1;
-  const Index p = t_base.rows();
-  Eigen::MatrixXd out(p + 1, p + 1);
-  const Eigen::MatrixXd tg = t_base * g.topLeftCorner(b, b);
-  out.topLeftCorner(p, p).noalias() = tg * t_base.transpose();
-  out.topRightCorner(p, 1).noalias() = t_base * g.topRightCorner(b, 1);
-  out(p, p) = g(b, b);
-  if (corner.filtered() && t_filtered.cols() > 0) {
-    // F = sum_j w_j F_j: its products with [B y] and with itself from the nodes' products.
-    const Index f = t_filtered.cols();
-    Eigen::MatrixXd fby = Eigen::MatrixXd::Zero(f, b + 1);
-    Eigen::MatrixXd ff = Eigen::MatrixXd::Zero(f, f);
-    for (const auto& [j, wj] : corner.nodes) {
-      fby += wj * cross_[static_cast<std::size_t>(j)];
-      for (const auto& [l, wl] : corner.nodes) ff += wj * wl * pair(j, l);
-    }
-    const Eigen::MatrixXd mixed = t_filtered * fby.leftCols(b) * t_base.transpose();
-    out.topLeftCorner(p, p) += mixed + mixed.transpose();
-    out.topLeftCorner(p, p).noalias() += t_filtered * ff * t_filtered.transpose();
-    out.topRightCorner(p, 1).noalias() += t_filtered * fby.col(b);
-  }
-  out.bottomLeftCorner(1, p) = out.topRightCorner(p, 1).transpose();
-  return out;
+  difference_weight_ = 0.0;
 }
 
 Eigen::VectorXd Information::constant_products(const Eigen::VectorXd& base_sums,
@@ -184,9 +225,9 @@ Eigen::VectorXd Information::constant_products(const Eigen::VectorXd& base_sums,
 Eigen::VectorXd Information::model_constant_products(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
                                                      const CornerWeights& corner) const {
   std::vector<Eigen::VectorXd> filtered;
-  filtered.reserve(cross_.size());
-  for (const Eigen::MatrixXd& c : cross_) filtered.emplace_back(c.col(0));
-  return constant_products(gram_.matrix().col(0), filtered, t_base, t_filtered, corner);
+  filtered.reserve(rows_.nodes());
+  for (std::size_t k = 0; k < rows_.nodes(); ++k) filtered.emplace_back(rows_.cross(k).col(0));
+  return constant_products(rows_.base_gram().col(0), filtered, t_base, t_filtered, corner);
 }
 
 Eigen::VectorXd Information::run_constant_products(std::size_t r, const Eigen::MatrixXd& t_base,
@@ -235,7 +276,7 @@ SegmentPipeline::SegmentPipeline(Eigen::VectorXd ar, std::vector<Index> filtered
                                  double sample_period_s)
     : ar_(std::move(ar)), sources_(std::move(filtered_sources)), corners_(std::move(corners)), period_(sample_period_s),
       highpass_(corners_.size(), std::vector<procedure::HighpassState>(sources_.size())),
-      filtered_(corners_.size()) {}
+      last_filtered_(corners_.size()), filtered_(corners_.size()), filtered_differences_(corners_.size()) {}
 
 void SegmentPipeline::push(const Eigen::Ref<const Eigen::MatrixXd>& base, const Eigen::Ref<const Eigen::VectorXd>& y,
                            Information& info) {
@@ -269,6 +310,21 @@ void SegmentPipeline::push(const Eigen::Ref<const Eigen::MatrixXd>& base, const 
     }
   }
   info.add(white_.leftCols(b), filtered_, white_.col(b));
+  // Each row less the one before it, the segment's first row excepted.
+  const Index pairs = has_last_ ? out : out - 1;
+  if (pairs > 0) {
+    const auto difference = [&](const Eigen::MatrixXd& rows, const Eigen::RowVectorXd& last, Eigen::MatrixXd& into) {
+      into.resize(pairs, rows.cols());
+      if (has_last_) into.row(0) = rows.row(0) - last;
+      into.bottomRows(out - 1) = rows.bottomRows(out - 1) - rows.topRows(out - 1);
+    };
+    difference(white_, last_white_, white_differences_);
+    for (std::size_t k = 0; k < corners_.size(); ++k) difference(filtered_[k], last_filtered_[k], filtered_differences_[k]);
+    info.add_differences(white_differences_.leftCols(b), filtered_differences_, white_differences_.col(b));
+  }
+  last_white_ = white_.row(out - 1);
+  for (std::size_t k = 0; k < corners_.size(); ++k) last_filtered_[k] = filtered_[k].row(out - 1);
+  has_last_ = true;
 }
 
 }  // namespace inertia::online

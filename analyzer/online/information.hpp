@@ -26,6 +26,39 @@
 
 namespace inertia::online {
 
+/// Products of a stretch of rows' columns: [B y]'[B y], and per corner-grid node F_k'[B y] and
+/// F_k'F_{k+d} for nodes at most kStencil - 1 apart. They add over rows, so over segments and cases.
+class RowProducts {
+ public:
+  RowProducts() = default;
+  RowProducts(Eigen::Index base, Eigen::Index filtered, std::size_t nodes);
+
+  /// Adds rows: base (n x b), the filtered columns at each node (at least n rows each), the output.
+  void add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
+           const Eigen::Ref<const Eigen::VectorXd>& y);
+  void add(const RowProducts& other);
+  void subtract(const RowProducts& other);
+  void scale(double factor);
+  void clear();
+
+  [[nodiscard]] const Eigen::MatrixXd& base_gram() const { return gram_.matrix(); }   // [B y]'[B y]
+  /// F_k'[B y] of node k (f x (b + 1)).
+  [[nodiscard]] const Eigen::MatrixXd& cross(std::size_t node) const { return cross_[node]; }
+  [[nodiscard]] std::size_t nodes() const { return cross_.size(); }
+  /// [Phi y]'[Phi y] of the model whose columns are B t_base' + F(corner) t_filtered', with
+  /// F(corner) = sum_j w_j F_j over the corner's nodes (static squares: t_filtered ignored).
+  [[nodiscard]] Eigen::MatrixXd model_gram(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                           const CornerWeights& corner) const;
+
+ private:
+  /// F_a' F_b for nodes a, b at most kStencil - 1 apart.
+  [[nodiscard]] Eigen::MatrixXd pair(int a, int b) const;
+
+  ident::ErrGram gram_{0};
+  std::vector<Eigen::MatrixXd> cross_;                // per node: F_k' [B y]   (f x (b + 1))
+  std::vector<std::vector<Eigen::MatrixXd>> pairs_;   // per node k, per d: F_k' F_{k+d}
+};
+
 class Information {
  public:
   Information() = default;
@@ -35,6 +68,11 @@ class Information {
   /// Adds rows: base (n x b), the filtered columns at each node (n x f each), the output.
   void add(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
            const Eigen::Ref<const Eigen::VectorXd>& y);
+  /// Adds successive differences of rows (each row less the row before it in its segment), in the
+  /// layout of add(): what step 12's lag-1 correlation of a residual reads
+  /// (ident::NormalEquations::set_successive_differences).
+  void add_differences(const Eigen::Ref<const Eigen::MatrixXd>& base, const std::vector<Eigen::MatrixXd>& filtered,
+                       const Eigen::Ref<const Eigen::VectorXd>& y);
   /// Runs kept, oldest first: a run is a contiguous stretch of one phase of a case, the unit whose
   /// offsets the case scatter compares (LiveSolver::add_case_scatter; the batch's phase clusters).
   /// Rows added go on the last run until start_run(); add(other) appends other's (RunStatistics
@@ -63,26 +101,29 @@ class Information {
 
   [[nodiscard]] std::int64_t samples() const { return samples_; }
   [[nodiscard]] double weight() const { return weight_; }   // sum of sample weights
-  [[nodiscard]] const Eigen::MatrixXd& base_gram() const { return gram_.matrix(); }   // [B y]'[B y]
+  [[nodiscard]] const Eigen::MatrixXd& base_gram() const { return rows_.base_gram(); }   // [B y]'[B y]
   /// [a_IRA a_XRA a_YRA 1]'[a_IRA a_XRA a_YRA 1] of the inputs added (add_inputs).
   [[nodiscard]] const Eigen::Matrix4d& input_gram() const { return inputs_; }
 
-  /// [Phi y]'[Phi y] of the model whose columns are B t_base' + F(corner) t_filtered', with
-  /// F(corner) = sum_j w_j F_j over the corner's nodes (static squares: t_filtered ignored).
+  /// The rows' [Phi y]'[Phi y] (RowProducts::model_gram).
   [[nodiscard]] Eigen::MatrixXd model_gram(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
-                                           const CornerWeights& corner) const;
+                                           const CornerWeights& corner) const {
+    return rows_.model_gram(t_base, t_filtered, corner);
+  }
+  /// The successive differences' [dPhi dy]'[dPhi dy], and their weight (the differenced rows).
+  [[nodiscard]] Eigen::MatrixXd model_difference_gram(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
+                                                      const CornerWeights& corner) const {
+    return differences_.model_gram(t_base, t_filtered, corner);
+  }
+  [[nodiscard]] double difference_weight() const { return difference_weight_; }
   /// [Phi y]' c, c the (filtered) constant base column 0: with the noise model A(q), c = A(1) on
   /// every row, so this over A(1) sums the model's columns and the output over the rows.
   [[nodiscard]] Eigen::VectorXd model_constant_products(const Eigen::MatrixXd& t_base, const Eigen::MatrixXd& t_filtered,
                                                         const CornerWeights& corner) const;
 
  private:
-  /// F_a' F_b for nodes a, b at most kStencil - 1 apart.
-  [[nodiscard]] Eigen::MatrixXd pair(int a, int b) const;
-
-  ident::ErrGram gram_{0};
-  std::vector<Eigen::MatrixXd> cross_;                // per node: F_k' [B y]   (f x (b + 1))
-  std::vector<std::vector<Eigen::MatrixXd>> pairs_;   // per node k, per d: F_k' F_{k+d}
+  RowProducts rows_;
+  RowProducts differences_;
   /// A run's products of the (filtered) constant base column 0 with every column and the output.
   struct Run {
     Eigen::VectorXd base;                   // [B y]' c   (b + 1)
@@ -100,6 +141,7 @@ class Information {
   bool run_open_ = false;                   // the next rows continue runs_.back()
   std::int64_t samples_ = 0;
   double weight_ = 0.0;
+  double difference_weight_ = 0.0;
 };
 
 /// Statistics kept per run (a contiguous phase of a case) and summed. The sum is what the estimate
@@ -152,7 +194,8 @@ class SegmentPipeline {
   SegmentPipeline(Eigen::VectorXd ar, std::vector<Eigen::Index> filtered_sources, std::vector<double> corners,
                   double sample_period_s);
 
-  /// The next raw rows of the segment (base columns and output, in order) into `info`.
+  /// The next raw rows of the segment (base columns and output, in order) into `info`, with their
+  /// successive differences within the segment (Information::add_differences).
   void push(const Eigen::Ref<const Eigen::MatrixXd>& base, const Eigen::Ref<const Eigen::VectorXd>& y, Information& info);
   [[nodiscard]] std::int64_t rows_in() const { return rows_in_; }
 
@@ -164,9 +207,13 @@ class SegmentPipeline {
   std::int64_t rows_in_ = 0;
   Eigen::MatrixXd history_;   // the last order() raw rows of [B y]
   std::vector<std::vector<procedure::HighpassState>> highpass_;   // per corner, per source
+  // The last row that entered the statistics, for the next chunk's first difference.
+  bool has_last_ = false;
+  Eigen::RowVectorXd last_white_;
+  std::vector<Eigen::RowVectorXd> last_filtered_;
   // Work buffers, kept between chunks.
-  Eigen::MatrixXd raw_, white_;
-  std::vector<Eigen::MatrixXd> filtered_;
+  Eigen::MatrixXd raw_, white_, white_differences_;
+  std::vector<Eigen::MatrixXd> filtered_, filtered_differences_;
 };
 
 }  // namespace inertia::online

@@ -55,7 +55,7 @@ StatFit LiveSolver::best_corner(FitAt&& fit_at) const {
 }
 
 Eigen::MatrixXd LiveSolver::gram(const std::vector<Index>& terms, const std::vector<const Information*>& infos,
-                                 const std::vector<Eigen::Matrix3d>& m_cs, std::optional<double> corner) const {
+                                 const std::vector<Eigen::Matrix3d>& m_cs, std::optional<double> corner, bool differences) const {
   const auto p = static_cast<Index>(terms.size());
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(p + 1, p + 1);
   Eigen::MatrixXd tb, tf;
@@ -63,7 +63,7 @@ Eigen::MatrixXd LiveSolver::gram(const std::vector<Index>& terms, const std::vec
   for (std::size_t i = 0; i < infos.size(); ++i) {
     if (infos[i]->samples() == 0) continue;
     basis_.transform(terms, m_cs[i], weights.filtered(), tb, tf);
-    g += infos[i]->model_gram(tb, tf, weights);
+    g += differences ? infos[i]->model_difference_gram(tb, tf, weights) : infos[i]->model_gram(tb, tf, weights);
   }
   return g;
 }
@@ -688,8 +688,12 @@ StatFit LiveSolver::fit_batch(const std::vector<const Information*>& infos, cons
 std::vector<Index> LiveSolver::select(const StatFit& batch, const std::vector<const Information*>& infos,
                                       const std::vector<Eigen::Matrix3d>& m_cs) const {
   if (!batch.ok) return batch.terms;
-  const ident::NormalEquations equations =
+  ident::NormalEquations equations =
       this->equations(gram(batch.terms, infos, m_cs, batch.corner_rad_s), batch.weight, batch.terms, infos, m_cs);
+  double difference_weight = 0.0;
+  for (const Information* info : infos) difference_weight += info->difference_weight();
+  equations.set_successive_differences(gram(batch.terms, infos, m_cs, batch.corner_rad_s, true),
+                                       static_cast<Index>(std::llround(difference_weight)));
   ident::IdentifiableRanking ranking = ident::rank_identifiable(equations, sensor_);
   std::vector<Index> kept;
   for (const Index j : ident::sensitivities_then_bias(equations.labels(), sensor_))

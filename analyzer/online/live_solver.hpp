@@ -233,9 +233,10 @@ class LiveSolver {
   [[nodiscard]] const CornerGrid& grid() const { return grid_; }
 
  private:
-  /// [Phi y]'[Phi y] of `terms` summed over the mountings, at `corner` (none: static squares).
+  /// [Phi y]'[Phi y] of `terms` summed over the mountings, at `corner` (none: static squares);
+  /// with `differences`, the successive differences' [dPhi dy]'[dPhi dy] instead.
   Eigen::MatrixXd gram(const std::vector<Eigen::Index>& terms, const std::vector<const Information*>& infos,
-                       const std::vector<Eigen::Matrix3d>& m_cs, std::optional<double> corner) const;
+                       const std::vector<Eigen::Matrix3d>& m_cs, std::optional<double> corner, bool differences = false) const;
   /// The fit at the corner with the least residual (procedure::least_residual_corner over the
   /// grid's nodes, the static squares competing when allowed).
   template <class FitAt>

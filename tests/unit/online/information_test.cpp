@@ -300,7 +300,22 @@ TEST(SegmentPipeline, ChunksGiveTheFilteredRowsOfTheWholeSegment) {
     MatrixXd py(n - m, 4);
     py << expected.base * tb.transpose() + f * tf.transpose(), expected.y;
     EXPECT_LT(max_relative(info.model_gram(tb, tf, w), py.transpose() * py), 1e-12);
+    // Step 12's successive differences: each whitened row less the one before, across the chunks.
+    const MatrixXd dpy = py.bottomRows(n - m - 1) - py.topRows(n - m - 1);
+    EXPECT_LT(max_relative(info.model_difference_gram(tb, tf, w), dpy.transpose() * dpy), 1e-12);
   }
+  EXPECT_EQ(info.difference_weight(), static_cast<double>(n - m - 1));
+
+  // A second segment of the same rows: its first row pairs with nothing of the first segment's.
+  SegmentPipeline second(ar, sources, corners, period);
+  second.push(raw.topRows(150), y.head(150), info);
+  second.push(raw.bottomRows(n - 150), y.tail(n - 150), info);
+  EXPECT_EQ(info.difference_weight(), static_cast<double>(2 * (n - m - 1)));
+  const CornerWeights w{{{0, 0.3}, {1, 0.7}}};
+  MatrixXd py(n - m, 4);
+  py << expected.base * tb.transpose() + (0.3 * expected.filtered[0] + 0.7 * expected.filtered[1]) * tf.transpose(), expected.y;
+  const MatrixXd dpy = py.bottomRows(n - m - 1) - py.topRows(n - m - 1);
+  EXPECT_LT(max_relative(info.model_difference_gram(tb, tf, w), 2.0 * dpy.transpose() * dpy), 1e-12);
 }
 
 }  // namespace
