@@ -191,9 +191,9 @@ std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_p
   // Each block's products on their own, added to the sums in block order: the same bits on any
   // number of threads and corners. The threads form a window of blocks side by side, then one adds
   // them. A block's filter continues from the state the block before it left, so with more than
-  // one thread those states are found first by running the filter alone (cheap next to the
-  // products, and the same arithmetic, so the same values), the corners split into one share per
-  // thread, each share's chains side by side. A case's first block starts settled. The corners
+  // one thread those states are found first, a window at a time, by running the filter alone (cheap
+  // next to the products, and the same arithmetic, so the same values), the corners split into one
+  // share per thread, each share's chains side by side. Memory: the window's, whatever the record. A case's first block starts settled. The corners
   // share each block's pass: its columns are read from memory once for all of them, and every
   // corner's squares are filtered side by side.
   const std::size_t window_blocks = std::min(blocks, kWindowBlocks);
@@ -212,40 +212,51 @@ std::vector<SquareCornerSearch::FilteredProducts> SquareCornerSearch::filtered_p
     }
   };
   if (threads > 1) {
-    const auto state_at = [&](std::size_t b, std::size_t c) { return (b * m + c) * count; };
-    std::vector<HighpassState> start(blocks * m * count);
+    // Per window: the states each of its blocks starts from, one chain per share of the corners
+    // carried on from the window before; then the window's products side by side; then the sums.
+    const auto state_at = [&](std::size_t k, std::size_t c) { return (k * m + c) * count; };
+    std::vector<HighpassState> start(window_blocks * m * count);
     const auto shares = static_cast<long>(std::min<std::size_t>(static_cast<std::size_t>(threads), m));
-    parallel::for_each_index(shares, [&](long share) {
-      const std::size_t c0 = m * static_cast<std::size_t>(share) / static_cast<std::size_t>(shares);
-      const std::size_t c1 = m * static_cast<std::size_t>(share + 1) / static_cast<std::size_t>(shares);
-      const std::span<const double> corners = corners_rad_s.subspan(c0, c1 - c0);
-      BlockFilter filter = block_filter(corners.size());
-      std::vector<HighpassState> carried((c1 - c0) * count);
-      for (std::size_t b = 0; b < blocks; ++b) {
-        if (blocks_[b].starts_case) std::fill(carried.begin(), carried.end(), HighpassState{});
-        std::copy(carried.begin(), carried.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(b, c0)));
-        filter_block(blocks_[b], corners, carried, filter);
-      }
-    });
+    const auto share_first = [&](long share) { return m * static_cast<std::size_t>(share) / static_cast<std::size_t>(shares); };
+    std::vector<BlockFilter> share_filters;
+    std::vector<std::vector<HighpassState>> carried;
+    for (long share = 0; share < shares; ++share) {
+      const std::size_t corners = share_first(share + 1) - share_first(share);
+      share_filters.push_back(block_filter(corners));
+      carried.emplace_back(corners * count);
+    }
 #ifdef _OPENMP
 #pragma omp parallel num_threads(threads)
 #endif
     {
       BlockFilter filter = block_filter(m);
       for (std::size_t first = 0; first < blocks; first += window_blocks) {
-        const auto last = static_cast<long>(std::min(blocks, first + window_blocks));
+        const std::size_t last = std::min(blocks, first + window_blocks);
+#ifdef _OPENMP
+#pragma omp for schedule(static)
+#endif
+        for (long share = 0; share < shares; ++share) {
+          const std::size_t c0 = share_first(share);
+          const std::span<const double> corners = corners_rad_s.subspan(c0, share_first(share + 1) - c0);
+          std::vector<HighpassState>& chain = carried[static_cast<std::size_t>(share)];
+          for (std::size_t b = first; b < last; ++b) {
+            if (blocks_[b].starts_case) std::fill(chain.begin(), chain.end(), HighpassState{});
+            std::copy(chain.begin(), chain.end(), start.begin() + static_cast<std::ptrdiff_t>(state_at(b - first, c0)));
+            filter_block(blocks_[b], corners, chain, share_filters[static_cast<std::size_t>(share)]);
+          }
+        }
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 4)
 #endif
-        for (long b = static_cast<long>(first); b < last; ++b) {
+        for (long b = static_cast<long>(first); b < static_cast<long>(last); ++b) {
           const auto block = static_cast<std::size_t>(b);
-          block_products(block, corners_rad_s, std::span<HighpassState>(start).subspan(state_at(block, 0), m * count), filter,
+          block_products(block, corners_rad_s, std::span<HighpassState>(start).subspan(state_at(block - first, 0), m * count), filter,
                          std::span<FilteredProducts>(window).subspan((block - first) * m, m));
         }
 #ifdef _OPENMP
 #pragma omp single
 #endif
-        add_in_order(static_cast<std::size_t>(last) - first);
+        add_in_order(last - first);
       }
     }
   } else {
