@@ -16,7 +16,7 @@ using Eigen::Index;
 using ident::Variable;
 
 std::unique_ptr<SegmentPipeline> CaseAccumulator::pipeline(double period) const {
-  return std::make_unique<SegmentPipeline>(noise.ar, live.basis->filtered_sources(), live.grid.nodes(), period);
+  return std::make_unique<SegmentPipeline>(noise.ar, live.basis->filtered_sources(), live.grid.nodes(), period, live.searched);
 }
 
 void CaseAccumulator::add_rows(SegmentPipeline& pipeline, RunStatistics& stats, double period, const Eigen::MatrixXd& x,

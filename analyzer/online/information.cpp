@@ -273,8 +273,9 @@ std::int64_t RunStatistics::samples() const {
 }
 
 SegmentPipeline::SegmentPipeline(Eigen::VectorXd ar, std::vector<Index> filtered_sources, std::vector<double> corners,
-                                 double sample_period_s)
+                                 double sample_period_s, bool successive_differences)
     : ar_(std::move(ar)), sources_(std::move(filtered_sources)), corners_(std::move(corners)), period_(sample_period_s),
+      differences_(successive_differences),
       highpass_(corners_.size(), std::vector<procedure::HighpassState>(sources_.size())),
       last_filtered_(corners_.size()), filtered_(corners_.size()), filtered_differences_(corners_.size()) {}
 
@@ -310,6 +311,7 @@ void SegmentPipeline::push(const Eigen::Ref<const Eigen::MatrixXd>& base, const 
     }
   }
   info.add(white_.leftCols(b), filtered_, white_.col(b));
+  if (!differences_) return;
   // Each row less the one before it, the segment's first row excepted.
   const Index pairs = has_last_ ? out : out - 1;
   if (pairs > 0) {

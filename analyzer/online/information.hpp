@@ -190,9 +190,11 @@ class RunStatistics {
 class SegmentPipeline {
  public:
   /// `ar`: a_1..a_m of A(q) = 1 - sum a_j q^-j (empty: white noise, no filtering);
-  /// `filtered_sources`: base positions of the squares' monomials; `corners`: the grid's nodes, rad/s.
+  /// `filtered_sources`: base positions of the squares' monomials; `corners`: the grid's nodes, rad/s;
+  /// `successive_differences`: whether the rows' differences enter the statistics too (what a
+  /// model search's step 12 reads; a given model's fit does not, and they double the cost per row).
   SegmentPipeline(Eigen::VectorXd ar, std::vector<Eigen::Index> filtered_sources, std::vector<double> corners,
-                  double sample_period_s);
+                  double sample_period_s, bool successive_differences);
 
   /// The next raw rows of the segment (base columns and output, in order) into `info`, with their
   /// successive differences within the segment (Information::add_differences).
@@ -204,6 +206,7 @@ class SegmentPipeline {
   std::vector<Eigen::Index> sources_;
   std::vector<double> corners_;
   double period_;
+  bool differences_;
   std::int64_t rows_in_ = 0;
   Eigen::MatrixXd history_;   // the last order() raw rows of [B y]
   std::vector<std::vector<procedure::HighpassState>> highpass_;   // per corner, per source

@@ -27,6 +27,7 @@ using Eigen::Index;
 void BM_StatisticsUpdate(benchmark::State& state) {
   const auto p = static_cast<Index>(state.range(0));
   const auto order = static_cast<Index>(state.range(1));
+  const bool differences = state.range(2) != 0;   // a model search's step 12 reads them
   constexpr Index kChunk = 100;
   std::mt19937_64 rng(1);
   std::normal_distribution<double> normal(0.0, 1.0);
@@ -35,7 +36,7 @@ void BM_StatisticsUpdate(benchmark::State& state) {
   for (Index i = 0; i < x.size(); ++i) x.data()[i] = normal(rng);
   for (Index i = 0; i < y.size(); ++i) y(i) = normal(rng);
   Eigen::VectorXd ar = Eigen::VectorXd::Constant(order, 0.5 / static_cast<double>(std::max<Index>(order, 1)));
-  online::SegmentPipeline pipeline(ar, {}, {}, 1e-4);
+  online::SegmentPipeline pipeline(ar, {}, {}, 1e-4, differences);
   online::Information info(p, 0, 0);
   for (auto _ : state) {
     pipeline.push(x, y, info);
@@ -44,9 +45,10 @@ void BM_StatisticsUpdate(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * kChunk);
   state.counters["columns"] = static_cast<double>(p);
   state.counters["ar_order"] = static_cast<double>(order);
+  state.counters["differences"] = differences ? 1.0 : 0.0;
 }
 BENCHMARK(BM_StatisticsUpdate)
-    ->ArgsProduct({{10, 20, 40, 80}, {0, 40}})
+    ->ArgsProduct({{10, 20, 40, 80}, {0, 40}, {0, 1}})
     ->Unit(benchmark::kMicrosecond);
 
 fusion::FusedChunk shaker_chunk(Index n, std::uint64_t seed) {

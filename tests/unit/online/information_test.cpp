@@ -278,7 +278,7 @@ TEST(SegmentPipeline, ChunksGiveTheFilteredRowsOfTheWholeSegment) {
   }
   EXPECT_NEAR(white(0, 0), 1.0 - 0.5 + 0.2, 1e-15) << "the constant column becomes A(1)";
 
-  SegmentPipeline pipeline(ar, sources, corners, period);
+  SegmentPipeline pipeline(ar, sources, corners, period, true);
   Information info(kBase, 2, corners.size());
   Index at = 0;
   for (const Index len : {Index{1}, Index{1}, Index{5}, Index{93}, Index{300}}) {
@@ -307,7 +307,7 @@ TEST(SegmentPipeline, ChunksGiveTheFilteredRowsOfTheWholeSegment) {
   EXPECT_EQ(info.difference_weight(), static_cast<double>(n - m - 1));
 
   // A second segment of the same rows: its first row pairs with nothing of the first segment's.
-  SegmentPipeline second(ar, sources, corners, period);
+  SegmentPipeline second(ar, sources, corners, period, true);
   second.push(raw.topRows(150), y.head(150), info);
   second.push(raw.bottomRows(n - 150), y.tail(n - 150), info);
   EXPECT_EQ(info.difference_weight(), static_cast<double>(2 * (n - m - 1)));
@@ -316,6 +316,14 @@ TEST(SegmentPipeline, ChunksGiveTheFilteredRowsOfTheWholeSegment) {
   py << expected.base * tb.transpose() + (0.3 * expected.filtered[0] + 0.7 * expected.filtered[1]) * tf.transpose(), expected.y;
   const MatrixXd dpy = py.bottomRows(n - m - 1) - py.topRows(n - m - 1);
   EXPECT_LT(max_relative(info.model_difference_gram(tb, tf, w), 2.0 * dpy.transpose() * dpy), 1e-12);
+
+  // A given model's fit reads no differences: a pipeline told so adds none.
+  Information rows_only(kBase, 2, corners.size());
+  SegmentPipeline without(ar, sources, corners, period, false);
+  without.push(raw, y, rows_only);
+  EXPECT_EQ(rows_only.samples(), n - m);
+  EXPECT_EQ(rows_only.difference_weight(), 0.0);
+  EXPECT_LT(max_relative(rows_only.base_gram(), by.transpose() * by), 1e-12);
 }
 
 }  // namespace
