@@ -191,7 +191,7 @@ class SumsContext final : public FitContext {
 //  - Step 12 reads the residual's sum through the bias candidate's column (constant: "1", or "1"
 //    through the noise model's A(q), whose gain is A(1)), whether the model holds it or not, and
 //    its successive differences' energy from the differenced rows' Gram matrix
-//    (NormalEquations::successive_differences), so N_eff is the rows' (statistics.hpp). With no
+//    (NormalEquations::difference_augmented), so N_eff is the rows' (statistics.hpp). With no
 //    bias among the candidates the mean is not known: not tested (p_res = 1, mean NaN).
 class EquationsContext final : public FitContext {
  public:
