@@ -27,12 +27,46 @@ Eigen::Index padded_length(Eigen::Index rows) {
   return length;
 }
 
+/// The least even length >= `needed` of the form 2^j, 9 2^j, 5 2^j or 3 2^j: at most a third
+/// above it (a power of two alone: up to twice). FFTW's estimated plans for these factors run
+/// about as fast per point as a power of two's; other small factors (7, 11, 15) gave plans several
+/// times slower per point beyond the cache (docs/validation.md).
+Eigen::Index fast_length(Eigen::Index needed) {
+  needed = std::max<Eigen::Index>(needed, 2);
+  Eigen::Index best = 2;
+  while (best < needed) best *= 2;
+  for (const Eigen::Index factor : {9, 5, 3})
+    for (Eigen::Index length = 2 * factor; length < best; length *= 2)
+      if (length >= needed) {
+        best = length;
+        break;
+      }
+  return best;
+}
+
 /// `out`'s autocovariance, lags 0 .. rows-1, from its density on the bins, by one inverse
 /// transform on `fourier` (of out.length).
 void set_autocovariance(SegmentSpectrum& out, RealFourier& fourier) {
   fourier.spectrum() = out.density.cast<std::complex<double>>();
   fourier.inverse();   // (1/L) sum_k S_k e^{2 pi i k tau / L}
   out.autocovariance = fourier.samples().head(out.rows);
+}
+
+/// The circulant that R x is taken through, from `out`'s autocovariance.
+void set_circulant(SegmentSpectrum& out) {
+  // R is the Toeplitz matrix of these lags. A circulant of any length M >= 2n - 1 whose first
+  // column is r(0 .. n-1), zeros, r(n-1 .. 1) holds R as its leading n x n block, so R x is the
+  // first n samples of that circulant times the zero-padded x, whatever M: the products take the
+  // shortest fast M rather than the density's power of two L, which sets the lags' aliasing.
+  const Eigen::Index n = out.rows;
+  out.circulant_length = fast_length(2 * n - 1);
+  RealFourier embedding(out.circulant_length);
+  auto c = embedding.samples();
+  c.setZero();
+  c.head(n) = out.autocovariance;
+  for (Eigen::Index tau = 1; tau < n; ++tau) c(out.circulant_length - tau) = out.autocovariance(tau);
+  embedding.forward();
+  out.circulant = embedding.spectrum().real();
 }
 
 }  // namespace
@@ -48,8 +82,11 @@ SegmentSpectrum spectrum_of(Eigen::Index rows, const std::function<double(double
   // A flicker or random-walk spectrum is infinite at DC: there it is taken at half a bin, and what
   // lies below the record's lowest frequency is the offsets between cases (cluster_offsets).
   if (!std::isfinite(out.density(0))) out.density(0) = density(0.5 / static_cast<double>(out.length));
-  RealFourier fourier(out.length);
-  set_autocovariance(out, fourier);
+  {
+    RealFourier fourier(out.length);
+    set_autocovariance(out, fourier);
+  }
+  set_circulant(out);
   return out;
 }
 
@@ -116,24 +153,27 @@ SegmentSpectrum fitted_spectrum_through_ar(const Eigen::Ref<const Eigen::VectorX
   out.rows = std::max<Eigen::Index>(rows, 1);
   out.length = padded_length(out.rows);
   const auto length = static_cast<double>(out.length);
-  // A(e^{2 pi i f}) = 1 - sum a_j e^{-2 pi i f j} on every bin f = k / L at once: the DFT of A's
-  // coefficients (folded modulo L, which the bins cannot tell apart), one transform instead of
-  // an order's worth of sines per bin.
-  RealFourier fourier(out.length);
-  fourier.samples().setZero();
-  fourier.samples()(0) = 1.0;
-  for (Eigen::Index j = 1; j <= ar.size(); ++j) fourier.samples()(j % out.length) -= ar(j - 1);
-  fourier.forward();
-  const Eigen::Index half = out.length / 2;
-  out.density.resize(half + 1);
-  for (Eigen::Index k = 0; k <= half; ++k) out.density(k) = fitted.density(static_cast<double>(k) / length) / std::norm(fourier.spectrum()(k));
-  if (!std::isfinite(out.density(0))) {   // as spectrum_of: half a bin
-    const double f = 0.5 / length;
-    std::complex<double> a = 1.0;
-    for (Eigen::Index j = 1; j <= ar.size(); ++j) a -= ar(j - 1) * std::polar(1.0, -2.0 * std::numbers::pi * f * static_cast<double>(j));
-    out.density(0) = fitted.density(f) / std::norm(a);
+  {
+    // A(e^{2 pi i f}) = 1 - sum a_j e^{-2 pi i f j} on every bin f = k / L at once: the DFT of A's
+    // coefficients (folded modulo L, which the bins cannot tell apart), one transform instead of
+    // an order's worth of sines per bin.
+    RealFourier fourier(out.length);
+    fourier.samples().setZero();
+    fourier.samples()(0) = 1.0;
+    for (Eigen::Index j = 1; j <= ar.size(); ++j) fourier.samples()(j % out.length) -= ar(j - 1);
+    fourier.forward();
+    const Eigen::Index half = out.length / 2;
+    out.density.resize(half + 1);
+    for (Eigen::Index k = 0; k <= half; ++k) out.density(k) = fitted.density(static_cast<double>(k) / length) / std::norm(fourier.spectrum()(k));
+    if (!std::isfinite(out.density(0))) {   // as spectrum_of: half a bin
+      const double f = 0.5 / length;
+      std::complex<double> a = 1.0;
+      for (Eigen::Index j = 1; j <= ar.size(); ++j) a -= ar(j - 1) * std::polar(1.0, -2.0 * std::numbers::pi * f * static_cast<double>(j));
+      out.density(0) = fitted.density(f) / std::norm(a);
+    }
+    set_autocovariance(out, fourier);
   }
-  set_autocovariance(out, fourier);
+  set_circulant(out);
   out.fit = std::move(fitted.fit);
   out.model = fmt::format("{} through AR({})", fitted.model, ar.size());
   return out;
@@ -141,17 +181,17 @@ SegmentSpectrum fitted_spectrum_through_ar(const Eigen::Ref<const Eigen::VectorX
 
 namespace {
 
-/// R x of one column through `fourier` (its length the spectrum's): the circulant of length
-/// L >= 2n restricted to the first n rows and columns is the Toeplitz R, so the first n samples
-/// of the circular convolution of the zero-padded column are R x.
+/// R x of one column through `fourier` (of the spectrum's circulant_length): the circulant's
+/// leading n x n block is the Toeplitz R, so the first n samples of the circular convolution of
+/// the zero-padded column are R x.
 /// R x is left in fourier.samples().head(n).
 template <class Column>
 void covariance_column(RealFourier& fourier, const SegmentSpectrum& spectrum, const Column& column) {
   const Eigen::Index n = column.size();
   fourier.samples().head(n) = column;
-  fourier.samples().tail(spectrum.length - n).setZero();   // the inverse of the column before filled them
+  fourier.samples().tail(spectrum.circulant_length - n).setZero();   // the inverse of the column before filled them
   fourier.forward();
-  fourier.spectrum().array() *= spectrum.density.array();
+  fourier.spectrum().array() *= spectrum.circulant.array();
   fourier.inverse();
 }
 
@@ -181,7 +221,7 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
 #pragma omp parallel num_threads(parallel::threads_for(p))
 #endif
   {
-    RealFourier fourier(spectrum.length);
+    RealFourier fourier(spectrum.circulant_length);
     Eigen::VectorXd products(x.cols());
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
@@ -203,7 +243,7 @@ Eigen::MatrixXd covariance_times(const SegmentSpectrum& spectrum, const Eigen::R
 #pragma omp parallel num_threads(parallel::threads_for(x.cols()))
 #endif
   {
-    RealFourier fourier(spectrum.length);
+    RealFourier fourier(spectrum.circulant_length);
 #ifdef _OPENMP
 #pragma omp for schedule(static)
 #endif

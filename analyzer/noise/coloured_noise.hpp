@@ -13,9 +13,10 @@
 // Here the whitened residual of each case gets a noise model of its own, the sensor-noise terms
 // of noise_fit.hpp (Q, N, B, K, R: white, flicker, random walk ..) fitted to its Allan variance,
 // whose spectrum S(f) gives the covariance R of the residual; the estimate's covariance is then
-// the sandwich (X'X)^-1 X'RX (X'X)^-1 (ident::ColouredNoise). X'RX is computed in the frequency
-// domain: sum over the bins f_k of a zero-padded DFT of length L >= 2n of S(f_k) X_k^H X_k / L,
-// the circulant that equals the Toeplitz R wherever R's correlation has decayed within n lags.
+// the sandwich (X'X)^-1 X'RX (X'X)^-1 (ident::ColouredNoise). R's lags r(0 .. n-1) are the inverse
+// DFT of S on the bins of a power of two L >= 2n (the lags of the periodic noise of period L, which
+// equal the stationary noise's wherever its correlation has decayed within L - n lags), and R x is
+// taken through a circulant of the shortest fast length M >= 2n - 1 that embeds that Toeplitz R.
 // Below the record's lowest frequency (one cycle per record), where a flicker or random-walk
 // spectrum rises without bound, a fitted spectrum keeps its white part, or what the caller knows
 // of the noise there from elsewhere (the plan's static stretches: StaticNoiseLaw in
@@ -39,6 +40,8 @@ struct SegmentSpectrum {
   Eigen::Index length = 0;            // L: a power of two >= 2n
   Eigen::VectorXd density;            // two-sided S(f_k), k = 0 .. L/2 (the rest by symmetry), per sample
   Eigen::VectorXd autocovariance;     // r(tau), tau = 0 .. n-1, of the same spectrum
+  Eigen::Index circulant_length = 0;  // M >= 2n - 1: the length R x is transformed at
+  Eigen::VectorXd circulant;          // the eigenvalues, bins 0 .. M/2, of the circulant embedding R
   std::optional<NoiseFit> fit;        // the terms fitted (tau0 = one sample); none: white (too short to fit)
   std::string model;                  // one line: which terms, for the report
 };

@@ -73,6 +73,27 @@ TEST(ColouredNoise, CovarianceTimesEqualsTheToeplitzProduct) {
   EXPECT_LT((x.transpose() * covariance_times(spectrum, x) - quadratic_form(spectrum, x)).norm(), 1e-10 * direct.norm());
 }
 
+// R x is taken through a circulant shorter than the density's transform that embeds R, the
+// Toeplitz matrix of the lags the spectrum states, exactly: under a long memory (r falls by e in
+// 1000 lags, longer than the record) a circulant of the density sampled on the shorter length
+// would differ from R by r's wrap-around, of R's own size.
+TEST(ColouredNoise, ProductsThroughTheShortCirculantAreTheToeplitzOfTheStatedLags) {
+  const double phi = 0.999, s2 = 0.4;
+  const Eigen::Index n = 300;
+  const SegmentSpectrum spectrum = spectrum_of(n, [&](double f) { return ar1_density(f, phi, s2); });
+  ASSERT_GE(spectrum.circulant_length, 2 * n - 1);
+  ASSERT_LT(spectrum.circulant_length, spectrum.length);
+  ASSERT_EQ(spectrum.circulant.size(), spectrum.circulant_length / 2 + 1);
+  Eigen::MatrixXd r(n, n);
+  for (Eigen::Index a = 0; a < n; ++a)
+    for (Eigen::Index b = 0; b < n; ++b) r(a, b) = spectrum.autocovariance(std::abs(a - b));
+  const Eigen::MatrixXd x = Eigen::MatrixXd::Random(n, 4);
+  const Eigen::MatrixXd direct = r * x;
+  EXPECT_LT((covariance_times(spectrum, x) - direct).norm(), 1e-12 * direct.norm());
+  const Eigen::MatrixXd form = x.transpose() * direct;
+  EXPECT_LT((quadratic_form(spectrum, x) - form).norm(), 1e-12 * form.norm());
+}
+
 // Some columns of x, in any order, without a copy: the rows and columns of the whole form.
 TEST(ColouredNoise, QuadraticFormOfSomeColumnsIsThatPartOfTheWholeForm) {
   const Eigen::Index n = 500;
