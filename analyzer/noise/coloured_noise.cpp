@@ -208,11 +208,10 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
   if (x.rows() != spectrum.rows) throw std::invalid_argument("quadratic_form: rows differ from the spectrum's");
   for (const Eigen::Index c : columns)
     if (c < 0 || c >= x.cols()) throw std::invalid_argument("quadratic_form: a column beyond x's");
-  // x_S'(R x_S) a column of S at a time: R x_j in the transform's own buffer, then x'(R x_j) for
-  // every column of x (x in place) and the rows of S kept. A thread holds its transform's buffers
-  // and nothing of the rows' size besides.
+  // x_S'(R x_S) a column of S at a time: R x_j in the transform's own buffer, then x_i'(R x_j)
+  // for the columns i of S alone (x in place). A thread holds its transform's buffers and nothing
+  // of the rows' size besides.
   const auto p = static_cast<Eigen::Index>(columns.size());
-  const std::vector<Eigen::Index> rows_kept(columns.begin(), columns.end());
   const Eigen::Index n = x.rows();
   Eigen::MatrixXd out(p, p);
   // The columns split over parallel::jobs() threads, each with its own transform (its plan cache);
@@ -222,14 +221,13 @@ Eigen::MatrixXd quadratic_form(const SegmentSpectrum& spectrum, const Eigen::Ref
 #endif
   {
     RealFourier fourier(spectrum.circulant_length);
-    Eigen::VectorXd products(x.cols());
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
 #endif
     for (Eigen::Index j = 0; j < p; ++j) {
       covariance_column(fourier, spectrum, x.col(columns[std::size_t(j)]));
-      products.noalias() = x.transpose() * fourier.samples().head(n);
-      out.col(j) = products(rows_kept);
+      const auto r_xj = fourier.samples().head(n);
+      for (Eigen::Index i = 0; i < p; ++i) out(i, j) = x.col(columns[std::size_t(i)]).dot(r_xj);
     }
   }
   return 0.5 * (out + out.transpose());
