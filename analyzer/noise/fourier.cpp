@@ -60,13 +60,15 @@ RealFourier::RealFourier(Eigen::Index length) : length_(length) {
   check_length(length);
   samples_.reset(aligned_zeros<double>(length));
   spectrum_.reset(aligned_zeros<std::complex<double>>(bins()));
-  plans_ = {plan_for(Kind::RealForward, length, samples_.get(), as_fftw(spectrum_.get())),
-            plan_for(Kind::RealInverse, length, samples_.get(), as_fftw(spectrum_.get()))};
 }
 
-void RealFourier::forward() { fftw_execute_dft_r2c(static_cast<fftw_plan>(plans_.forward), samples_.get(), as_fftw(spectrum_.get())); }
+void RealFourier::forward() {
+  if (plans_.forward == nullptr) plans_.forward = plan_for(Kind::RealForward, length_, samples_.get(), as_fftw(spectrum_.get()));
+  fftw_execute_dft_r2c(static_cast<fftw_plan>(plans_.forward), samples_.get(), as_fftw(spectrum_.get()));
+}
 
 void RealFourier::inverse() {
+  if (plans_.inverse == nullptr) plans_.inverse = plan_for(Kind::RealInverse, length_, samples_.get(), as_fftw(spectrum_.get()));
   spectrum_[0].imag(0.0);
   if (length_ % 2 == 0) spectrum_[static_cast<std::size_t>(length_ / 2)].imag(0.0);
   fftw_execute_dft_c2r(static_cast<fftw_plan>(plans_.inverse), as_fftw(spectrum_.get()), samples_.get());
@@ -76,15 +78,15 @@ void RealFourier::inverse() {
 ComplexFourier::ComplexFourier(Eigen::Index length) : length_(length) {
   check_length(length);
   values_.reset(aligned_zeros<std::complex<double>>(length));
-  plans_ = {plan_for(Kind::ComplexForward, length, nullptr, as_fftw(values_.get())),
-            plan_for(Kind::ComplexInverse, length, nullptr, as_fftw(values_.get()))};
 }
 
 void ComplexFourier::forward() {
+  if (plans_.forward == nullptr) plans_.forward = plan_for(Kind::ComplexForward, length_, nullptr, as_fftw(values_.get()));
   fftw_execute_dft(static_cast<fftw_plan>(plans_.forward), as_fftw(values_.get()), as_fftw(values_.get()));
 }
 
 void ComplexFourier::inverse() {
+  if (plans_.inverse == nullptr) plans_.inverse = plan_for(Kind::ComplexInverse, length_, nullptr, as_fftw(values_.get()));
   fftw_execute_dft(static_cast<fftw_plan>(plans_.inverse), as_fftw(values_.get()), as_fftw(values_.get()));
   values() *= 1.0 / static_cast<double>(length_);
 }

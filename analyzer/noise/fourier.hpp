@@ -8,8 +8,9 @@
 //
 // Each object owns its buffers (FFTW-aligned, so that every object of one length runs the same
 // plan and gives the same bits) and serves one thread at a time; objects on several threads share
-// one plan per length and kind, made once under a lock (FFTW's planner is not thread-safe, its
-// execution is). Plans are made with FFTW_ESTIMATE: a measured plan could differ from run to run
+// one plan per length and kind, made once under a lock when a direction is first run (FFTW's
+// planner is not thread-safe, its execution is; an estimated plan of a long transform takes
+// about as long as running it, and many objects run one direction alone). Plans are made with FFTW_ESTIMATE: a measured plan could differ from run to run
 // and move the answer in its last bits.
 //
 // Conventions (those of Eigen's FFT, which they replace): forward X_k = sum_t x_t e^{-2 pi i k t / L},
