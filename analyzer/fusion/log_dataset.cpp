@@ -9,6 +9,7 @@
 #include <ostream>
 
 #include "analyzer/fusion/log_segmenter.hpp"
+#include "common/dataset/bench_dataset.hpp"
 #include "common/input_error.hpp"
 #include "common/lcm/channels.hpp"
 #include "common/lcm/event_log_reader.hpp"
@@ -148,17 +149,7 @@ dataset::Dataset log_dataset(const std::filesystem::path& file, const std::strin
   feed_log(file, assembler, messages);
   const config::BenchConfig& bench = assembler.bench();
   const config::SensorUnderTest& sut = bench.sensors[assembler.sensor_index()];
-
-  dataset::Dataset ds;
-  ds.sensor = sut.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
-                                                            : dataset::SensorKind::Gyroscope;
-  ds.sensor_name = sut.name;
-  ds.serial = sut.serial;
-  ds.part = sut.part;
-  ds.unit = sut.unit;
-  ds.unit_axis = sut.unit_axis;
-  ds.output_unit = sut.output_unit;
-  ds.t_ref = bench.t_ref_c;
+  dataset::Dataset ds = dataset::bench_sensor_dataset(bench, assembler.sensor_index());
   std::stable_sort(segments.begin(), segments.end(),
                    [](const FusedSegment& a, const FusedSegment& b) { return a.case_index < b.case_index; });
   std::map<std::size_t, int> pieces;

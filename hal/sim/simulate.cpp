@@ -15,6 +15,7 @@
 #include <string>
 
 #include "common/config/phase_label.hpp"
+#include "common/dataset/bench_dataset.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/disk_space.hpp"
 #include "common/input_error.hpp"
@@ -189,16 +190,7 @@ void write_references(const config::BenchConfig& bench, const SimulatedCase& sc,
 
 dataset::Dataset sensor_dataset(const config::BenchConfig& bench, const BenchSimulation& sim, std::size_t s) {
   const config::SensorUnderTest& sensor = bench.sensors.at(s);
-  dataset::Dataset ds;
-  ds.sensor = sensor.type == config::SensorType::Accelerometer ? dataset::SensorKind::Accelerometer
-                                                               : dataset::SensorKind::Gyroscope;
-  ds.sensor_name = sensor.name;
-  ds.serial = sensor.serial;
-  ds.part = sensor.part;
-  ds.unit = sensor.unit;
-  ds.unit_axis = sensor.unit_axis;
-  ds.output_unit = sensor.output_unit;
-  ds.t_ref = bench.t_ref_c;
+  dataset::Dataset ds = dataset::bench_sensor_dataset(bench, s);
   for (std::size_t c = 0; c < bench.cases.size(); ++c) {
     const config::TestCase& tc = bench.cases[c];
     const SimulatedCase& sc = sim.cases[c];

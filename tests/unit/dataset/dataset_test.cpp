@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "common/config/bench_config.hpp"
+#include "common/dataset/bench_dataset.hpp"
 #include "common/dataset/dataset.hpp"
 #include "common/disk_space.hpp"
 #include "common/input_error.hpp"
@@ -634,6 +636,26 @@ TEST(Dataset, WriteRejectsLabelsThatWouldBreakTheCsv) {
   Dataset d = sample_dataset();
   d.cases[0].phase_names[1] = "sine, 80 Hz";
   EXPECT_THROW(write_dataset(fresh_dir("bad_label"), d), InputError);
+}
+
+TEST(BenchSensorDataset, CarriesTheUnitsMemberAsTheBenchStatesIt) {
+  // The simulator's datasets and an event log's fused ones both start here.
+  const config::BenchConfig bench = config::load_bench_config(fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-imu.toml");
+  const auto gy = static_cast<std::size_t>(
+      std::find_if(bench.sensors.begin(), bench.sensors.end(), [](const config::SensorUnderTest& s) { return s.name == "gy"; }) -
+      bench.sensors.begin());
+  ASSERT_LT(gy, bench.sensors.size());
+  const Dataset ds = bench_sensor_dataset(bench, gy);
+  EXPECT_EQ(ds.sensor, SensorKind::Gyroscope);
+  EXPECT_EQ(ds.sensor_name, "gy");
+  EXPECT_EQ(ds.serial, "IMU-1001");
+  EXPECT_EQ(ds.part, "MEMS-IMU-6");
+  EXPECT_EQ(ds.unit, "imu");
+  EXPECT_EQ(ds.unit_axis, 1);
+  EXPECT_EQ(ds.output_unit, "rad/s");
+  EXPECT_EQ(ds.t_ref, 25.0);
+  EXPECT_TRUE(ds.cases.empty());
+  EXPECT_THROW((void)bench_sensor_dataset(bench, bench.sensors.size()), std::out_of_range);
 }
 
 }  // namespace
