@@ -219,34 +219,47 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
 
   fmt::format_to(ci, "void {0}_init({0}_state* s) {{\n  *s = ({0}_state){{0}};\n}}\n\n", P);
 
-  // solve(): a x = b by Gaussian elimination with partial pivoting, in place; 0 where singular.
-  fmt::format_to(ci,
-                 "static int solve(R a[{0}][{0}], R* b) {{\n"
-                 "  int i, j, k;\n"
-                 "  for (k = 0; k < {0}; ++k) {{\n"
-                 "    int p = k;\n    R best = fabs(a[k][k]);\n"
-                 "    for (i = k + 1; i < {0}; ++i)\n      if (fabs(a[i][k]) > best) {{\n        best = fabs(a[i][k]);\n        p = i;\n      }}\n"
-                 "    if (!(best > (R)0) || !isfinite(best)) return 0;\n"
-                 "    if (p != k) {{\n      R t;\n      for (j = 0; j < {0}; ++j) {{\n        t = a[k][j];\n        a[k][j] = a[p][j];\n"
-                 "        a[p][j] = t;\n      }}\n      t = b[k];\n      b[k] = b[p];\n      b[p] = t;\n    }}\n"
-                 "    for (i = k + 1; i < {0}; ++i) {{\n      R f = a[i][k] / a[k][k];\n"
-                 "      for (j = k; j < {0}; ++j) a[i][j] -= f * a[k][j];\n      b[i] -= f * b[k];\n    }}\n"
-                 "  }}\n"
-                 "  for (k = {0} - 1; k >= 0; --k) {{\n    R sum = b[k];\n    for (j = k + 1; j < {0}; ++j) sum -= a[k][j] * b[j];\n"
-                 "    b[k] = sum / a[k][k];\n  }}\n"
-                 "  for (k = 0; k < {0}; ++k)\n    if (!isfinite(b[k])) return 0;\n"
-                 "  return 1;\n}}\n\n",
-                 D);
-  // invert(): the inverse by solves against the unit vectors.
-  fmt::format_to(ci,
-                 "static int invert(R a[{0}][{0}], R inverse[{0}][{0}]) {{\n"
-                 "  int i, j, k;\n"
-                 "  for (j = 0; j < {0}; ++j) {{\n    R m[{0}][{0}], e[{0}];\n"
-                 "    for (i = 0; i < {0}; ++i) {{\n      for (k = 0; k < {0}; ++k) m[i][k] = a[i][k];\n      e[i] = i == j ? (R)1 : (R)0;\n    }}\n"
-                 "    if (!solve(m, e)) return 0;\n"
-                 "    for (i = 0; i < {0}; ++i) inverse[i][j] = e[i];\n"
-                 "  }}\n  return 1;\n}}\n\n",
-                 D);
+  // invert(): the Jacobian's inverse, 0 where it is singular or not finite. It serves Newton's
+  // step (inverse g) and the uncertainty, as in the analyzer (joint_inverse.cpp): up to 3
+  // unknowns by its cofactors, 6 by Gauss-Jordan elimination with partial pivoting.
+  if (D == 1) {
+    fmt::format_to(ci,
+                   "static int invert(R a[1][1], R inverse[1][1]) {{\n"
+                   "  if (!(a[0][0] != (R)0) || !isfinite(a[0][0])) return 0;\n"
+                   "  inverse[0][0] = (R)1 / a[0][0];\n"
+                   "  return isfinite(inverse[0][0]);\n}}\n\n");
+  } else if (D == 3) {
+    fmt::format_to(ci,
+                   "static int invert(R a[3][3], R inverse[3][3]) {{\n"
+                   "  R c[3][3], determinant, scale;\n  int i, j;\n"
+                   "  for (i = 0; i < 3; ++i)\n    for (j = 0; j < 3; ++j)\n"
+                   "      c[i][j] = a[(j + 1) % 3][(i + 1) % 3] * a[(j + 2) % 3][(i + 2) % 3] - a[(j + 1) % 3][(i + 2) % 3] * a[(j + 2) % 3][(i + 1) % 3];\n"
+                   "  determinant = a[0][0] * c[0][0] + a[0][1] * c[1][0] + a[0][2] * c[2][0];\n"
+                   "  if (!(determinant != (R)0) || !isfinite(determinant)) return 0;\n"
+                   "  scale = (R)1 / determinant;\n"
+                   "  for (i = 0; i < 3; ++i)\n    for (j = 0; j < 3; ++j) inverse[i][j] = c[i][j] * scale;\n"
+                   "  return 1;\n}}\n\n");
+  } else {
+    fmt::format_to(ci,
+                   "static int invert(R a[{0}][{0}], R inverse[{0}][{0}]) {{\n"
+                   "  R m[{0}][{0}];\n  int i, j, k;\n"
+                   "  for (i = 0; i < {0}; ++i)\n    for (j = 0; j < {0}; ++j) {{\n      m[i][j] = a[i][j];\n"
+                   "      inverse[i][j] = i == j ? (R)1 : (R)0;\n    }}\n"
+                   "  for (k = 0; k < {0}; ++k) {{\n"
+                   "    int p = k;\n    R best = fabs(m[k][k]), pivot;\n"
+                   "    for (i = k + 1; i < {0}; ++i)\n      if (fabs(m[i][k]) > best) {{\n        best = fabs(m[i][k]);\n        p = i;\n      }}\n"
+                   "    if (!(best > (R)0) || !isfinite(best)) return 0;\n"
+                   "    if (p != k)\n      for (j = 0; j < {0}; ++j) {{\n        R t = m[k][j];\n        m[k][j] = m[p][j];\n        m[p][j] = t;\n"
+                   "        t = inverse[k][j];\n        inverse[k][j] = inverse[p][j];\n        inverse[p][j] = t;\n      }}\n"
+                   "    pivot = (R)1 / m[k][k];\n"
+                   "    for (j = 0; j < {0}; ++j) {{\n      m[k][j] *= pivot;\n      inverse[k][j] *= pivot;\n    }}\n"
+                   "    for (i = 0; i < {0}; ++i) {{\n      R f = m[i][k];\n      if (i == k || f == (R)0) continue;\n"
+                   "      for (j = 0; j < {0}; ++j) {{\n        m[i][j] -= f * m[k][j];\n        inverse[i][j] -= f * inverse[k][j];\n      }}\n    }}\n"
+                   "  }}\n"
+                   "  for (i = 0; i < {0}; ++i)\n    for (j = 0; j < {0}; ++j)\n      if (!isfinite(inverse[i][j])) return 0;\n"
+                   "  return 1;\n}}\n\n",
+                   D);
+  }
 
   // A moving factor's update of (v, d) at x, as C.
   const auto move_code = [&](const ident::Factor& f, int r, const std::string& indent) {
@@ -308,7 +321,7 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
 
   // compensate()
   fmt::format_to(ci, "{}({}_state* s, const R* inputs, const R* y) {{\n", solve_function, P);
-  fmt::format_to(ci, "  {0} r;\n  R known[{1}], value[{1}], slope[{1}][{2}], x[{2}], g[{2}], jacobian[{2}][{2}], a[{2}][{2}], step[{2}];\n",
+  fmt::format_to(ci, "  {0} r;\n  R known[{1}], value[{1}], slope[{1}][{2}], x[{2}], g[{2}], jacobian[{2}][{2}], inverse[{2}][{2}], step[{2}];\n",
                  result_type, std::max(G, 1), D);
   fmt::format_to(ci, "  R denominator[{}];\n  int converged = 0, start, i, j, k;\n  (void)inputs;\n", M);
   fmt::format_to(ci, "  for (j = 0; j < {}; ++j) r.value[j] = r.u_coefficients[j] = r.u_noise[j] = (R)NAN;\n  r.flag = 3;\n", D);
@@ -343,8 +356,10 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
                  "        R largest_step = (R)0, largest_x = (R)0, bound;\n"
                  "        evaluate(s, known, x, value, slope);\n"
                  "        residual(value, slope, y, g, jacobian, denominator);\n"
-                 "        for (j = 0; j < {1}; ++j) {{\n          step[j] = g[j];\n          for (k = 0; k < {1}; ++k) a[j][k] = jacobian[j][k];\n        }}\n"
-                 "        if (!solve(a, step)) break;\n"
+                 "        if (!invert(jacobian, inverse)) break;\n"
+                 "        for (j = 0; j < {1}; ++j) {{\n          step[j] = (R)0;\n          for (k = 0; k < {1}; ++k) step[j] += inverse[j][k] * g[k];\n        }}\n"
+                 "        for (j = 0; j < {1}; ++j)\n          if (!isfinite(step[j])) break;\n"
+                 "        if (j < {1}) break;\n"
                  "        for (j = 0; j < {1}; ++j) {{\n          x[j] -= step[j];\n"
                  "          if (fabs(step[j]) > largest_step) largest_step = fabs(step[j]);\n"
                  "          if (fabs(x[j]) > largest_x) largest_x = fabs(x[j]);\n        }}\n"
@@ -359,12 +374,12 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
                  // A linear system's step from 0 is its root, -A^-1 b, as the analyzer solves it.
                  joint.linear() ? "(R)0" : "s->last[j]");
   // The values at the root: the last evaluation's moved the last step along their slopes; the
-  // Jacobian stays the last one's (joint_inverse.cpp).
+  // Jacobian and its inverse stay the last one's (joint_inverse.cpp).
   fmt::format_to(ci, "    if (converged)\n      for (j = 0; j < {}; ++j)\n        for (k = 0; k < {}; ++k) value[j] -= slope[j][k] * step[k];\n", G, D);
   fmt::format_to(ci, "    residual(value, slope, y, g, jacobian, denominator);\n");
-  fmt::format_to(ci, "    {{\n      R inverse[{0}][{0}];\n      int regular = invert(jacobian, inverse), finite = 1;\n", D);
+  fmt::format_to(ci, "    {{\n      int finite = 1;\n");
   fmt::format_to(ci, "      for (j = 0; j < {}; ++j) finite = finite && isfinite(x[j]);\n", D);
-  fmt::format_to(ci, "      if (!converged || !finite || !regular) {{\n        r.flag = 2;\n        for (j = 0; j < {}; ++j) x[j] = s->last[j];\n      }} else {{\n", D);
+  fmt::format_to(ci, "      if (!converged || !finite) {{\n        r.flag = 2;\n        for (j = 0; j < {}; ++j) x[j] = s->last[j];\n      }} else {{\n", D);
   fmt::format_to(ci, "        R variance_c[{0}], variance_n[{0}];\n        for (j = 0; j < {0}; ++j) variance_c[j] = variance_n[j] = (R)0;\n", D);
   for (std::size_t m = 0; m < M; ++m) {
     const auto& terms = eqs[m].model->terms();

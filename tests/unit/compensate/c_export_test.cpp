@@ -139,13 +139,14 @@ TEST(CExport, VectorsFlagWhatTheAnalyzerFlags) {
 
 /// A unit of six members, each through its own turned frame: accelerometers with second-order,
 /// cross-coupling, temperature, lagged and filtered-square terms, gyroscopes with eq. 5's rational
-/// form and g-sensitivity; their outputs on a shaken, turning, warming unit.
+/// form and g-sensitivity; their outputs on a shaken, turning, warming unit. With `members` 3, its
+/// accelerometer triad alone; `linear`: accelerometers of bias, scale, the cross axes and T.
 struct UnitVectors {
   unit::UnitModel unit;
   std::vector<SignalSet> records;
 };
 
-UnitVectors unit_vectors(Eigen::Index n) {
+UnitVectors unit_vectors(Eigen::Index n, int members = 6, bool linear = false) {
   UnitVectors u;
   u.unit.unit = "imu";
   std::mt19937_64 rng(31);
@@ -159,7 +160,7 @@ UnitVectors unit_vectors(Eigen::Index n) {
     w.row(k) << 1.5 * std::sin(2.0 * M_PI * 1.0 * time), 0.4 * std::cos(2.0 * M_PI * 3.0 * time), 0.2 + 0.05 * g(rng);
     t(k) = -5.0 + 20.0 * time;
   }
-  for (int member = 0; member < 6; ++member) {
+  for (int member = 0; member < members; ++member) {
     const bool gyro = member >= 3;
     model::ModelFile m;
     m.sensor = gyro ? dataset::SensorKind::Gyroscope : dataset::SensorKind::Accelerometer;
@@ -169,12 +170,12 @@ UnitVectors unit_vectors(Eigen::Index n) {
     m.t_ref = 25.0;
     m.sample_period_s = 1e-3;
     m.output_sd = 2e-4;
-    const std::vector<std::pair<const char*, double>> terms =
-        gyro ? std::vector<std::pair<const char*, double>>{{"1", 0.01}, {"w_i", 1.2}, {"w_p", 0.003}, {"a_i", 2e-4}, {"a_p", -1e-4},
-                                                           {"y*T", 1e-4}, {"T", 3e-5}}
-             : std::vector<std::pair<const char*, double>>{{"1", 3.4e-3}, {"a_i", 0.0877}, {"a_i^2", 4e-5}, {"a_i*a_p", 9e-6},
-                                                           {"a_p^2", 3e-5}, {"T", 2e-5}, {"a_i[k-1]", 0.004}, {"y[k-1]", 0.3}};
-    if (!gyro) m.square_highpass_rad_s = 60.0;
+    using Terms = std::vector<std::pair<const char*, double>>;
+    const Terms terms = gyro     ? Terms{{"1", 0.01}, {"w_i", 1.2}, {"w_p", 0.003}, {"a_i", 2e-4}, {"a_p", -1e-4}, {"y*T", 1e-4}, {"T", 3e-5}}
+                        : linear ? Terms{{"1", 3.4e-3}, {"a_i", 0.0877}, {"a_p", 1e-4}, {"a_o", -2e-4}, {"T", 2e-5}}
+                                 : Terms{{"1", 3.4e-3}, {"a_i", 0.0877}, {"a_i^2", 4e-5}, {"a_i*a_p", 9e-6},
+                                         {"a_p^2", 3e-5}, {"T", 2e-5}, {"a_i[k-1]", 0.004}, {"y[k-1]", 0.3}};
+    if (!gyro && !linear) m.square_highpass_rad_s = 60.0;
     for (const auto& [name, c] : terms) m.terms.push_back({ident::parse_term(name), c, std::nullopt});
     const auto p = static_cast<Eigen::Index>(m.terms.size());
     const Eigen::MatrixXd root = Eigen::MatrixXd::Random(p, p) * 1e-7;
@@ -213,8 +214,11 @@ UnitVectors unit_vectors(Eigen::Index n) {
 int compile_and_run_joint(const UnitVectors& u, CPrecision precision, double tolerance, std::string& output) {
   const inertia::testing::TempDir dir("inertia-c-joint");
   const unit::UnitInverse inverse(u.unit);
-  const std::vector<std::string> outputs = {"ax", "ay", "az", "gx", "gy", "gz"};
-  const std::vector<std::string> unknowns = {"a_x", "a_y", "a_z", "w_x", "w_y", "w_z"};
+  const std::size_t members = u.unit.members.size();
+  const std::vector<std::string> outputs = members == 6 ? std::vector<std::string>{"ax", "ay", "az", "gx", "gy", "gz"}
+                                                        : std::vector<std::string>{"ax", "ay", "az"};
+  const std::vector<std::string> unknowns = members == 6 ? std::vector<std::string>{"a_x", "a_y", "a_z", "w_x", "w_y", "w_z"}
+                                                         : std::vector<std::string>{"a_x", "a_y", "a_z"};
   const JointCSource c = generate_joint_c(inverse.joint(), outputs, unknowns, "model", precision, 1e-3);
   std::ofstream(dir.path / "model.h") << c.header;
   std::ofstream(dir.path / "model.c") << c.source;
@@ -237,6 +241,23 @@ TEST(CExport, AUnitsJointCodeInFloatAgreesWithTheAnalyzerTo1e6) {
   std::string output;
   EXPECT_EQ(compile_and_run_joint(unit_vectors(3000), CPrecision::Float, 1e-6, output), 0) << output;
   std::cout << "[ figures ] joint, float: " << output;
+}
+
+TEST(CExport, ATriadsJointCodeInDoubleAgreesWithTheAnalyzerTo1e12) {
+  // Three unknowns: the inverse by cofactors, for a nonlinear and for a linear triad.
+  for (const bool linear : {false, true}) {
+    std::string output;
+    EXPECT_EQ(compile_and_run_joint(unit_vectors(3000, 3, linear), CPrecision::Double, 1e-12, output), 0) << output;
+    std::cout << "[ figures ] triad (" << (linear ? "linear" : "nonlinear") << "), double: " << output;
+  }
+}
+
+TEST(CExport, ATriadsJointCodeInFloatAgreesWithTheAnalyzerTo1e6) {
+  for (const bool linear : {false, true}) {
+    std::string output;
+    EXPECT_EQ(compile_and_run_joint(unit_vectors(3000, 3, linear), CPrecision::Float, 1e-6, output), 0) << output;
+    std::cout << "[ figures ] triad (" << (linear ? "linear" : "nonlinear") << "), float: " << output;
+  }
 }
 
 }  // namespace
