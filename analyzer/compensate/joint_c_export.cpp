@@ -135,6 +135,8 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
   for (std::size_t i = 0; i < n_inputs; ++i)
     if (input_depth[i] > 0) fmt::format_to(hi, "  {}_real history_in{}[{}];\n", P, i, input_depth[i]);
   if (any_filtered) fmt::format_to(hi, "  {0}_real square_output[{1}], square_input[{1}];\n", P, G);
+  fmt::format_to(hi, "  {0}_real inverted[{1}][{1}], inverse[{1}][{1}];   /* the last Jacobian inverted, and its inverse */\n  int has_inverse;\n",
+                 P, D);
   fmt::format_to(hi, "}} {}_state;\n\n", P);
   if (one_output != nullptr) {
     fmt::format_to(hi,
@@ -321,7 +323,7 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
 
   // compensate()
   fmt::format_to(ci, "{}({}_state* s, const R* inputs, const R* y) {{\n", solve_function, P);
-  fmt::format_to(ci, "  {0} r;\n  R known[{1}], value[{1}], slope[{1}][{2}], x[{2}], g[{2}], jacobian[{2}][{2}], inverse[{2}][{2}], step[{2}];\n",
+  fmt::format_to(ci, "  {0} r;\n  R known[{1}], value[{1}], slope[{1}][{2}], x[{2}], g[{2}], jacobian[{2}][{2}], step[{2}];\n  R (*inverse)[{2}] = s->inverse;\n",
                  result_type, std::max(G, 1), D);
   fmt::format_to(ci, "  R denominator[{}];\n  int converged = 0, start, i, j, k;\n  (void)inputs;\n", M);
   fmt::format_to(ci, "  for (j = 0; j < {}; ++j) r.value[j] = r.u_coefficients[j] = r.u_noise[j] = (R)NAN;\n  r.flag = 3;\n", D);
@@ -356,7 +358,12 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
                  "        R largest_step = (R)0, largest_x = (R)0, bound;\n"
                  "        evaluate(s, known, x, value, slope);\n"
                  "        residual(value, slope, y, g, jacobian, denominator);\n"
-                 "        if (!invert(jacobian, inverse)) break;\n"
+                 // The inverse is kept while the Jacobian repeats exactly (a linear unit's does on
+                 // every sample), as JointInverse keeps it.
+                 "        {{\n          int same = s->has_inverse;\n"
+                 "          for (j = 0; j < {1} && same; ++j)\n            for (k = 0; k < {1}; ++k) same = same && jacobian[j][k] == s->inverted[j][k];\n"
+                 "          if (!same) {{\n            s->has_inverse = invert(jacobian, inverse);\n            if (!s->has_inverse) break;\n"
+                 "            for (j = 0; j < {1}; ++j)\n              for (k = 0; k < {1}; ++k) s->inverted[j][k] = jacobian[j][k];\n          }}\n        }}\n"
                  "        for (j = 0; j < {1}; ++j) {{\n          step[j] = (R)0;\n          for (k = 0; k < {1}; ++k) step[j] += inverse[j][k] * g[k];\n        }}\n"
                  "        for (j = 0; j < {1}; ++j)\n          if (!isfinite(step[j])) break;\n"
                  "        if (j < {1}) break;\n"
