@@ -4,10 +4,13 @@
 //    odd-quadratic and temperature terms, input and output lags, and the squares' high pass;
 //  - BM_CompensateTriad/linear|nonlinear: three such models along a unit's axes, solved together
 //    (unit/unit_inverse.hpp); items are unit samples of three outputs;
+//  - BM_CompensateUnit/linear|nonlinear: that triad and three gyroscopes (bias, scale, cross axes,
+//    g-sensitivity and T; nonlinear adds w_i^2 and eq. 5's y*T), six unknowns solved together;
 //  - BM_GeneratedC/...: the same models' generated C (double), compiled here with cc -O2 and
 //    loaded, one call per sample: its ns per sample, and the ratio against InverseModel on the
 //    same samples in the same run (ratio_to_analyzer < 1: the C is faster);
-//  - BM_GeneratedTriadC/...: the triad as generated joint C, likewise against JointInverse.
+//  - BM_GeneratedTriadC/..., BM_GeneratedUnitC/...: the triad and the unit as generated joint C,
+//    likewise against JointInverse.
 // Items = samples. Run: build/bench/bench_compensate
 #include <benchmark/benchmark.h>
 #include <dlfcn.h>
@@ -31,13 +34,16 @@ using ident::Variable;
 
 constexpr Eigen::Index kSamples = 1 << 18;
 
-model::ModelFile model_of(bool nonlinear) {
+model::ModelFile model_of(bool nonlinear, bool gyro = false) {
   model::ModelFile m;
-  m.sensor = dataset::SensorKind::Accelerometer;
+  m.sensor = gyro ? dataset::SensorKind::Gyroscope : dataset::SensorKind::Accelerometer;
   m.sample_period_s = 1e-3;
   m.output_sd = 2e-4;
   std::vector<std::pair<const char*, double>> terms = {{"1", 3.4e-3}, {"a_i", 0.0877}, {"a_p", 1e-4}, {"a_o", -2e-4}, {"T", 2e-5}};
-  if (nonlinear) {
+  if (gyro) {
+    terms = {{"1", 0.01}, {"w_i", 1.2}, {"w_p", 0.003}, {"w_o", -0.002}, {"a_i", 2e-4}, {"T", 3e-5}};
+    if (nonlinear) terms.insert(terms.end(), {{"w_i^2", 1e-4}, {"y*T", 1e-4}});
+  } else if (nonlinear) {
     terms = {{"1", 3.4e-3},     {"a_i", 0.0877},  {"a_i^2", 4e-5},     {"a_p^2", 3e-5},   {"a_i*a_p", 9e-6},
              {"a_i*a_o", 9e-6}, {"a_p*a_o", 7e-6}, {"a_i*abs(a_i)", -2e-5}, {"T", 2e-5},   {"a_i*T", 3e-6},
              {"a_i[k-1]", 4e-3}, {"y[k-1]", 0.3}};
@@ -46,7 +52,7 @@ model::ModelFile model_of(bool nonlinear) {
   for (const auto& [name, c] : terms) m.terms.push_back({ident::parse_term(name), c, std::nullopt});
   const auto n = static_cast<Eigen::Index>(m.terms.size());
   m.covariance = Eigen::MatrixXd::Identity(n, n) * 1e-12;
-  m.range[Variable::Ai] = {-30.0, 30.0};
+  m.range[gyro ? Variable::Wi : Variable::Ai] = {-30.0, 30.0};
   return m;
 }
 
@@ -54,7 +60,7 @@ ident::SignalSet record_of(const model::ModelFile& m) {
   std::mt19937_64 rng(3);
   std::normal_distribution<double> g(0.0, 1.0);
   ident::SignalSet s(kSamples, "bench");
-  for (Variable v : {Variable::Ai, Variable::Ap, Variable::Ao, Variable::T}) {
+  for (Variable v : {Variable::Ai, Variable::Ap, Variable::Ao, Variable::T, Variable::Wi, Variable::Wp, Variable::Wo}) {
     Eigen::VectorXd x(kSamples);
     double state = 0.0;
     for (Eigen::Index k = 0; k < kSamples; ++k) x(k) = state = 0.99 * state + g(rng);
@@ -88,19 +94,21 @@ void BM_Compensate(benchmark::State& state) {
 }
 BENCHMARK(BM_Compensate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
-/// Three models of model_of along a unit's axes, each with its own record.
+/// Models of model_of along a unit's axes, each with its own record: three accelerometers, and
+/// with `members` 6 three gyroscopes.
 struct Triad {
   unit::UnitModel unit;
   std::vector<ident::SignalSet> records;
 };
-Triad triad_of(bool nonlinear) {
+Triad triad_of(bool nonlinear, int members = 3) {
   Triad t;
   t.unit.unit = "imu";
-  for (int axis = 0; axis < 3; ++axis) {
-    model::ModelFile m = model_of(nonlinear);
+  for (int member = 0; member < members; ++member) {
+    const bool gyro = member >= 3;
+    model::ModelFile m = model_of(nonlinear, gyro);
     m.unit = "imu";
-    m.unit_axis = axis;
-    m.name = std::string("a") + static_cast<char>('x' + axis);
+    m.unit_axis = member % 3;
+    m.name = std::string(gyro ? "g" : "a") + static_cast<char>('x' + member % 3);
     t.records.push_back(record_of(m));
     t.unit.members.push_back(std::move(m));
   }
@@ -109,16 +117,19 @@ Triad triad_of(bool nonlinear) {
 
 /// A triad's three outputs solved together (unit/unit_inverse.hpp): items are samples of the
 /// unit, three outputs each. Each member's record is its own, so the cost is the joint Newton's.
-void BM_CompensateTriad(benchmark::State& state) {
-  const Triad triad = triad_of(state.range(0) != 0);
+void compensate_unit(benchmark::State& state, int members) {
+  const Triad triad = triad_of(state.range(0) != 0, members);
   const unit::UnitInverse inverse(triad.unit);
-  const std::vector<ident::SignalSet>& records = triad.records;
-  const std::vector<const ident::SignalSet*> pointers{&records[0], &records[1], &records[2]};
+  std::vector<const ident::SignalSet*> pointers;
+  for (const ident::SignalSet& r : triad.records) pointers.push_back(&r);
   for (auto _ : state) benchmark::DoNotOptimize(inverse.joint().compensate(pointers, 1e-3).value.data());
   state.SetItemsProcessed(state.iterations() * kSamples);
   state.SetLabel(state.range(0) ? "nonlinear" : "linear");
 }
+void BM_CompensateTriad(benchmark::State& state) { compensate_unit(state, 3); }
 BENCHMARK(BM_CompensateTriad)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+void BM_CompensateUnit(benchmark::State& state) { compensate_unit(state, 6); }
+BENCHMARK(BM_CompensateUnit)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 struct Loaded {
   void* library = nullptr;
@@ -187,29 +198,38 @@ void BM_GeneratedC(benchmark::State& state) {
 }
 BENCHMARK(BM_GeneratedC)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
-/// The triad of BM_CompensateTriad as generated joint C (double), one call per unit sample: its
-/// ns per sample and the ratio against JointInverse on the same samples in the same run.
-void BM_GeneratedTriadC(benchmark::State& state) {
-  const Triad triad = triad_of(state.range(0) != 0);
+/// The triad of BM_CompensateTriad (or the unit of BM_CompensateUnit) as generated joint C
+/// (double), one call per unit sample: its ns per sample and the ratio against JointInverse on the
+/// same samples in the same run.
+void generated_unit_c(benchmark::State& state, int members) {
+  const Triad triad = triad_of(state.range(0) != 0, members);
   const unit::UnitInverse inverse(triad.unit);
   const std::vector<ident::SignalSet>& records = triad.records;
-  const std::vector<const ident::SignalSet*> pointers{&records[0], &records[1], &records[2]};
-  const compensate::JointCSource c = compensate::generate_joint_c(inverse.joint(), {"ax", "ay", "az"}, {"a_x", "a_y", "a_z"}, "model",
-                                                                  compensate::CPrecision::Double, 1e-3);
-  const Loaded l = compile_and_load(c.header, c.source, "model_compensate(s, inputs + k * MODEL_INPUTS, y + 3 * k).value[0]",
-                                    std::filesystem::temp_directory_path() / ("inertia-bench-joint-" + std::to_string(state.range(0))));
+  std::vector<const ident::SignalSet*> pointers;
+  for (const ident::SignalSet& r : records) pointers.push_back(&r);
+  const std::vector<std::string> outputs{"ax", "ay", "az", "gx", "gy", "gz"}, unknowns{"a_x", "a_y", "a_z", "w_x", "w_y", "w_z"};
+  const auto count = static_cast<std::ptrdiff_t>(members);
+  const compensate::JointCSource c =
+      compensate::generate_joint_c(inverse.joint(), std::vector<std::string>(outputs.begin(), outputs.begin() + count),
+                                   std::vector<std::string>(unknowns.begin(), unknowns.begin() + count), "model",
+                                   compensate::CPrecision::Double, 1e-3);
+  const Loaded l = compile_and_load(c.header, c.source,
+                                    "model_compensate(s, inputs + k * MODEL_INPUTS, y + " + std::to_string(members) + " * k).value[0]",
+                                    std::filesystem::temp_directory_path() /
+                                        ("inertia-bench-joint-" + std::to_string(members) + "-" + std::to_string(state.range(0))));
   if (l.run == nullptr || l.init == nullptr) {
     state.SkipWithError("cc or dlopen failed");
     return;
   }
   const auto init = l.init;
   const auto run = l.run;
-  std::vector<double> in(static_cast<std::size_t>(kSamples) * c.inputs.size()), y(static_cast<std::size_t>(kSamples) * 3),
+  const auto outputs_per_sample = static_cast<std::size_t>(members);
+  std::vector<double> in(static_cast<std::size_t>(kSamples) * c.inputs.size()), y(static_cast<std::size_t>(kSamples) * outputs_per_sample),
       out(static_cast<std::size_t>(kSamples));
   for (Eigen::Index k = 0; k < kSamples; ++k) {
     for (std::size_t i = 0; i < c.inputs.size(); ++i)
       in[std::size_t(k) * c.inputs.size() + i] = records[c.inputs[i].first].get(c.inputs[i].second)(k);
-    for (std::size_t m = 0; m < 3; ++m) y[std::size_t(k) * 3 + m] = records[m].get(Variable::Y)(k);
+    for (std::size_t m = 0; m < outputs_per_sample; ++m) y[std::size_t(k) * outputs_per_sample + m] = records[m].get(Variable::Y)(k);
   }
   alignas(64) unsigned char memory[16384];
   for (auto _ : state) {
@@ -229,6 +249,9 @@ void BM_GeneratedTriadC(benchmark::State& state) {
   state.counters["ratio_to_analyzer"] = generated / analyzer;
   state.SetLabel(state.range(0) ? "nonlinear" : "linear");
 }
+void BM_GeneratedTriadC(benchmark::State& state) { generated_unit_c(state, 3); }
 BENCHMARK(BM_GeneratedTriadC)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+void BM_GeneratedUnitC(benchmark::State& state) { generated_unit_c(state, 6); }
+BENCHMARK(BM_GeneratedUnitC)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
