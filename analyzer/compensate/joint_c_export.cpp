@@ -269,13 +269,28 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
                        "{0}  v *= fv;\n{0}}}\n",
                        indent, r, factor_code(f, "u", false), factor_code(f, "u", true), D);
   };
-  // evaluate(): every term's value and gradient at x.
+  // A term none of whose factors is solved for never moves with x: its slope is 0, and the code
+  // below neither computes nor reads it.
+  const auto moves_with_x = [&](std::size_t m, const InverseModel::CompiledTerm& term) {
+    return std::any_of(term.factors.begin(), term.factors.end(), [&](const ident::Factor& f) { return solved_index_of(eqs[m], f.variable) >= 0; });
+  };
+  // evaluate(): every term's value, and the gradient of those that move with x.
   fmt::format_to(ci, "static void evaluate(const {}_state* s, const R* known, const R* x, R* value, R slope[{}][{}]) {{\n", P, std::max(G, 1), D);
-  fmt::format_to(ci, "  R v, d[{}];\n  int j;\n  (void)s;\n  (void)x;\n", D);
+  fmt::format_to(ci, "  R v, d[{}];\n  int j;\n  (void)s;\n  (void)x;\n  (void)d;\n  (void)j;\n  (void)slope;\n", D);
   for (std::size_t m = 0; m < M; ++m) {
     const auto& terms = eqs[m].model->terms();
     for (std::size_t t = 0; t < terms.size(); ++t) {
       const int g = term_offset[m] + static_cast<int>(t);
+      if (!moves_with_x(m, terms[t])) {
+        fmt::format_to(ci, "  v = known[{}];\n", g);
+        if (terms[t].square_filtered) {
+          const procedure::HighpassCoefficients& hp = highpass[m];
+          fmt::format_to(ci, "  v = s->estimates == 0 ? (R)0 : {0} * s->square_output[{1}] + {2} * (v - s->square_input[{1}]);\n", literal(hp.p),
+                         g, literal(hp.g));
+        }
+        fmt::format_to(ci, "  value[{}] = v;\n", g);
+        continue;
+      }
       fmt::format_to(ci, "  v = known[{}];\n  for (j = 0; j < {}; ++j) d[j] = (R)0;\n", g, D);
       for (const ident::Factor& f : terms[t].factors) {
         const int s = solved_index_of(eqs[m], f.variable);
@@ -308,6 +323,13 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
     const auto& terms = eqs[m].model->terms();
     for (std::size_t t = 0; t < terms.size(); ++t) {
       const int g = term_offset[m] + static_cast<int>(t);
+      if (!moves_with_x(m, terms[t])) {
+        if (terms[t].denominator)
+          fmt::format_to(ci, "  denominator[{0}] += coefficient[{1}] * value[{1}];\n  g[{0}] -= y[{0}] * coefficient[{1}] * value[{1}];\n", m, g);
+        else
+          fmt::format_to(ci, "  g[{0}] += coefficient[{1}] * value[{1}];\n", m, g);
+        continue;
+      }
       if (terms[t].denominator) {
         fmt::format_to(ci,
                        "  denominator[{0}] += coefficient[{1}] * value[{1}];\n  g[{0}] -= y[{0}] * coefficient[{1}] * value[{1}];\n"
@@ -382,7 +404,16 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
                  joint.linear() ? "(R)0" : "s->last[j]");
   // The values at the root: the last evaluation's moved the last step along their slopes; the
   // Jacobian and its inverse stay the last one's (joint_inverse.cpp).
-  fmt::format_to(ci, "    if (converged)\n      for (j = 0; j < {}; ++j)\n        for (k = 0; k < {}; ++k) value[j] -= slope[j][k] * step[k];\n", G, D);
+  fmt::format_to(ci, "    if (converged) {{\n");
+  for (std::size_t m = 0; m < M; ++m) {
+    const auto& terms = eqs[m].model->terms();
+    for (std::size_t t = 0; t < terms.size(); ++t) {
+      if (moves_with_x(m, terms[t]))
+        fmt::format_to(ci, "      for (k = 0; k < {}; ++k) value[{}] -= slope[{}][k] * step[k];\n", D, term_offset[m] + static_cast<int>(t),
+                       term_offset[m] + static_cast<int>(t));
+    }
+  }
+  fmt::format_to(ci, "    }}\n");
   fmt::format_to(ci, "    residual(value, slope, y, g, jacobian, denominator);\n");
   fmt::format_to(ci, "    {{\n      int finite = 1;\n");
   fmt::format_to(ci, "      for (j = 0; j < {}; ++j) finite = finite && isfinite(x[j]);\n", D);
