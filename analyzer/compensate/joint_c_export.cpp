@@ -274,6 +274,15 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
   const auto moves_with_x = [&](std::size_t m, const InverseModel::CompiledTerm& term) {
     return std::any_of(term.factors.begin(), term.factors.end(), [&](const ident::Factor& f) { return solved_index_of(eqs[m], f.variable) >= 0; });
   };
+  // A filtered square's value is its high pass's output, h(k) = p h(k-1) + g (s(k) - s(k-1)),
+  // settled (0) at the first estimate; a moving one's slope passes the filter's gain too.
+  const auto highpass_code = [&](std::size_t m, int g, bool moves) {
+    const procedure::HighpassCoefficients& hp = highpass[m];
+    return fmt::format("  if (s->estimates == 0) {{\n    v = (R)0;\n{3}  }} else {{\n"
+                       "    v = {0} * s->square_output[{1}] + {2} * (v - s->square_input[{1}]);\n{4}  }}\n",
+                       literal(hp.p), g, literal(hp.g), moves ? fmt::format("    for (j = 0; j < {}; ++j) d[j] = (R)0;\n", D) : "",
+                       moves ? fmt::format("    for (j = 0; j < {}; ++j) d[j] *= {};\n", D, literal(hp.g)) : "");
+  };
   // evaluate(): every term's value, and the gradient of those that move with x.
   fmt::format_to(ci, "static void evaluate(const {}_state* s, const R* known, const R* x, R* value, R slope[{}][{}]) {{\n", P, std::max(G, 1), D);
   fmt::format_to(ci, "  R v, d[{}];\n  int j;\n  (void)s;\n  (void)x;\n  (void)d;\n  (void)j;\n  (void)slope;\n", D);
@@ -283,11 +292,7 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
       const int g = term_offset[m] + static_cast<int>(t);
       if (!moves_with_x(m, terms[t])) {
         fmt::format_to(ci, "  v = known[{}];\n", g);
-        if (terms[t].square_filtered) {
-          const procedure::HighpassCoefficients& hp = highpass[m];
-          fmt::format_to(ci, "  v = s->estimates == 0 ? (R)0 : {0} * s->square_output[{1}] + {2} * (v - s->square_input[{1}]);\n", literal(hp.p),
-                         g, literal(hp.g));
-        }
+        if (terms[t].square_filtered) fmt::format_to(ci, "{}", highpass_code(m, g, false));
         fmt::format_to(ci, "  value[{}] = v;\n", g);
         continue;
       }
@@ -301,14 +306,7 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
           fmt::format_to(ci, "  if ({} > s->estimates)\n{}", f.lag, move_code(f, row_offset[m] + s, "  "));
         }
       }
-      if (terms[t].square_filtered) {
-        const procedure::HighpassCoefficients& hp = highpass[m];
-        fmt::format_to(ci,
-                       "  if (s->estimates == 0) {{\n    v = (R)0;\n    for (j = 0; j < {3}; ++j) d[j] = (R)0;\n  }} else {{\n"
-                       "    v = {0} * s->square_output[{1}] + {2} * (v - s->square_input[{1}]);\n"
-                       "    for (j = 0; j < {3}; ++j) d[j] *= {2};\n  }}\n",
-                       literal(hp.p), g, literal(hp.g), D);
-      }
+      if (terms[t].square_filtered) fmt::format_to(ci, "{}", highpass_code(m, g, true));
       fmt::format_to(ci, "  value[{0}] = v;\n  for (j = 0; j < {1}; ++j) slope[{0}][j] = d[j];\n", g, D);
     }
   }
@@ -323,21 +321,13 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
     const auto& terms = eqs[m].model->terms();
     for (std::size_t t = 0; t < terms.size(); ++t) {
       const int g = term_offset[m] + static_cast<int>(t);
-      if (!moves_with_x(m, terms[t])) {
-        if (terms[t].denominator)
-          fmt::format_to(ci, "  denominator[{0}] += coefficient[{1}] * value[{1}];\n  g[{0}] -= y[{0}] * coefficient[{1}] * value[{1}];\n", m, g);
-        else
-          fmt::format_to(ci, "  g[{0}] += coefficient[{1}] * value[{1}];\n", m, g);
-        continue;
-      }
+      const bool moves = moves_with_x(m, terms[t]);
       if (terms[t].denominator) {
-        fmt::format_to(ci,
-                       "  denominator[{0}] += coefficient[{1}] * value[{1}];\n  g[{0}] -= y[{0}] * coefficient[{1}] * value[{1}];\n"
-                       "  for (j = 0; j < {2}; ++j) jacobian[{0}][j] -= y[{0}] * coefficient[{1}] * slope[{1}][j];\n",
-                       m, g, D);
+        fmt::format_to(ci, "  denominator[{0}] += coefficient[{1}] * value[{1}];\n  g[{0}] -= y[{0}] * coefficient[{1}] * value[{1}];\n", m, g);
+        if (moves) fmt::format_to(ci, "  for (j = 0; j < {2}; ++j) jacobian[{0}][j] -= y[{0}] * coefficient[{1}] * slope[{1}][j];\n", m, g, D);
       } else {
-        fmt::format_to(ci, "  g[{0}] += coefficient[{1}] * value[{1}];\n  for (j = 0; j < {2}; ++j) jacobian[{0}][j] += coefficient[{1}] * slope[{1}][j];\n",
-                       m, g, D);
+        fmt::format_to(ci, "  g[{0}] += coefficient[{1}] * value[{1}];\n", m, g);
+        if (moves) fmt::format_to(ci, "  for (j = 0; j < {2}; ++j) jacobian[{0}][j] += coefficient[{1}] * slope[{1}][j];\n", m, g, D);
       }
     }
   }

@@ -96,12 +96,12 @@ BENCHMARK(BM_Compensate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 /// Models of model_of along a unit's axes, each with its own record: three accelerometers, and
 /// with `members` 6 three gyroscopes.
-struct Triad {
+struct UnitRecords {
   unit::UnitModel unit;
   std::vector<ident::SignalSet> records;
 };
-Triad triad_of(bool nonlinear, int members = 3) {
-  Triad t;
+UnitRecords unit_of(bool nonlinear, int members) {
+  UnitRecords t;
   t.unit.unit = "imu";
   for (int member = 0; member < members; ++member) {
     const bool gyro = member >= 3;
@@ -115,13 +115,13 @@ Triad triad_of(bool nonlinear, int members = 3) {
   return t;
 }
 
-/// A triad's three outputs solved together (unit/unit_inverse.hpp): items are samples of the
-/// unit, three outputs each. Each member's record is its own, so the cost is the joint Newton's.
+/// A unit's outputs solved together (unit/unit_inverse.hpp): items are samples of the unit, one
+/// per output each. Each member's record is its own, so the cost is the joint Newton's.
 void compensate_unit(benchmark::State& state, int members) {
-  const Triad triad = triad_of(state.range(0) != 0, members);
-  const unit::UnitInverse inverse(triad.unit);
+  const UnitRecords unit = unit_of(state.range(0) != 0, members);
+  const unit::UnitInverse inverse(unit.unit);
   std::vector<const ident::SignalSet*> pointers;
-  for (const ident::SignalSet& r : triad.records) pointers.push_back(&r);
+  for (const ident::SignalSet& r : unit.records) pointers.push_back(&r);
   for (auto _ : state) benchmark::DoNotOptimize(inverse.joint().compensate(pointers, 1e-3).value.data());
   state.SetItemsProcessed(state.iterations() * kSamples);
   state.SetLabel(state.range(0) ? "nonlinear" : "linear");
@@ -202,9 +202,9 @@ BENCHMARK(BM_GeneratedC)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 /// (double), one call per unit sample: its ns per sample and the ratio against JointInverse on the
 /// same samples in the same run.
 void generated_unit_c(benchmark::State& state, int members) {
-  const Triad triad = triad_of(state.range(0) != 0, members);
-  const unit::UnitInverse inverse(triad.unit);
-  const std::vector<ident::SignalSet>& records = triad.records;
+  const UnitRecords unit = unit_of(state.range(0) != 0, members);
+  const unit::UnitInverse inverse(unit.unit);
+  const std::vector<ident::SignalSet>& records = unit.records;
   std::vector<const ident::SignalSet*> pointers;
   for (const ident::SignalSet& r : records) pointers.push_back(&r);
   const std::vector<std::string> outputs{"ax", "ay", "az", "gx", "gy", "gz"}, unknowns{"a_x", "a_y", "a_z", "w_x", "w_y", "w_z"};
