@@ -41,16 +41,19 @@ void SegmentBuilder::open_case(const CaseMarks& c) {
   }
   if (tc.kind == CaseKind::RotationTable && !f.encoder_need)
     throw InputError("case " + c.name + " (rotation_table): the bench has no [table_encoder] to fuse it with");
+  // A static or thermal case is a pose: its specific force is the pose's gravity by definition
+  // (a placement error is the fixture's, which the inference carries). Monitors there would add
+  // their noise to every row's regressors, where a nonlinear candidate of an axis that sees
+  // nothing (sign, abs, squares of a_i near 0) fits that noise; they are the vibration's reference.
   const bool pose = tc.kind == CaseKind::Static || tc.kind == CaseKind::Thermal;
-  if (pose && f.monitor_needs.size() < 3) {
+  if (pose) {
     f.pose_specific_force = kStandardGravity * tc.start_attitude.dcm().col(2);
     f.monitor_needs.clear();
     std::erase_if(f.used, [&](std::size_t k) { return buffers_.needs[k].role == ChannelRole::Monitor; });
   } else if (tc.kind != CaseKind::RotationTable) {
     if (f.monitor_needs.size() < 3)
       throw InputError("case " + c.name + " (" + to_string(tc.kind) +
-                       "): fusion needs at least three [[monitor]] accelerometers (or, in a static or thermal case, "
-                       "none: the pose's gravity), the bench has " +
+                       "): fusion needs at least three [[monitor]] accelerometers, the bench has " +
                        std::to_string(f.monitor_needs.size()));
     // Monitors: calibrated (bias, scale, misalignment from the bench file), then WLS.
     MonitorLayout layout;

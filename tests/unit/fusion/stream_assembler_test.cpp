@@ -291,6 +291,28 @@ TEST(StreamAssembler, InterleavedDevicesGiveTheTruthPerCase) {
   EXPECT_EQ(r.assembler->fused_rows(), 4000);
 }
 
+// A static case is a pose: its specific force is the pose's gravity, whatever the bench's
+// monitors read there (their noise in every row's regressors is what a nonlinear candidate of an
+// axis at rest fits). The shaker case still reads them.
+TEST(StreamAssembler, AStaticCaseTakesThePosesGravityNotTheMonitors) {
+  const PlanRun r = run_plan("acc1", [](sample_block_t& b) {
+    if (b.t0_mono_ns >= kT0 + 1000 * kPeriodNs) return true;
+    for (std::size_t c = 2; c < 6; ++c)
+      for (std::size_t s = 0; s < b.values[c].size(); ++s) b.values[c][s] += (s % 2 == 0 ? 0.05 : -0.03) * static_cast<double>(c);
+    return true;
+  });
+  ASSERT_EQ(r.segments.size(), 3u);
+  const FusedSegment& still = r.segments[0];
+  ASSERT_EQ(still.case_name, "still");
+  ASSERT_EQ(still.a_e.rows(), 1000);
+  for (Eigen::Index k = 0; k < still.a_e.rows(); ++k)
+    ASSERT_EQ(still.a_e.row(k), Eigen::RowVector3d(0.0, 0.0, kStandardGravity)) << "row " << k;
+  const FusedSegment& shake = r.segments[1];
+  double worst = 0.0;
+  for (Eigen::Index k = 300; k < shake.a_e.rows() - 1; ++k) worst = std::max(worst, (shake.a_e.row(k).transpose() - truth_at(1000 + k).a).norm());
+  EXPECT_LT(worst, 1e-3 * kAmp);
+}
+
 TEST(StreamAssembler, LostBlockSplitsTheCaseAndIsCounted) {
   // Accel block 25 (samples 1250..1299 of the shaker case) never arrives.
   const PlanRun r = run_plan("acc2", [](sample_block_t& b) { return b.t0_mono_ns != kT0 + 1250 * kPeriodNs; });
@@ -320,18 +342,18 @@ TEST(StreamAssembler, LostBlockSplitsTheCaseAndIsCounted) {
 }
 
 TEST(StreamAssembler, InvalidSamplesAreExcludedNeverFilled) {
-  // mon2 invalid for samples 300..309 of the static case; the sensor output invalid at 3500.
+  // mon2 invalid for samples 300..309 of the shaker case; the sensor output invalid at 3500.
   const PlanRun r = run_plan("acc1", [](sample_block_t& b) {
     const std::int64_t first = (b.t0_mono_ns - kT0) / kPeriodNs;
     for (std::int32_t s = 0; s < b.num_samples; ++s) {
-      if (first + s >= 300 && first + s < 310) set_sample_valid(b, 3, s, false);
+      if (first + s >= 1300 && first + s < 1310) set_sample_valid(b, 3, s, false);
       if (first + s == 3500) set_sample_valid(b, 0, s, false);
     }
     return true;
   });
   std::vector<std::size_t> sizes;
   for (const auto& s : r.segments) sizes.push_back(static_cast<std::size_t>(s.t.size()));
-  EXPECT_EQ(sizes, (std::vector<std::size_t>{300, 690, 1000, 1500, 499}));
+  EXPECT_EQ(sizes, (std::vector<std::size_t>{1000, 300, 690, 1500, 499}));
   std::int64_t mon2 = 0, acc1 = 0;
   for (const Exclusion& x : r.assembler->exclusions()) {
     if (x.reason == "accel.mon2 invalid") mon2 += x.samples;
@@ -340,8 +362,8 @@ TEST(StreamAssembler, InvalidSamplesAreExcludedNeverFilled) {
   EXPECT_EQ(mon2, 10);
   EXPECT_EQ(acc1, 1);
   // The segment after the invalid run starts where the samples come back, on the same timeline.
-  EXPECT_NEAR(r.segments[1].t(0), 0.310, 1e-12);
-  EXPECT_NEAR(r.segments[1].a_e(0, 2), kStandardGravity, 1e-9);
+  EXPECT_NEAR(r.segments[2].t(0), 0.310, 1e-12);
+  EXPECT_NEAR(r.segments[2].a_e(0, 2), kStandardGravity, 1e-9);
   // The table segment after sample 3500: still the attitude of the second phase.
   const FusedSegment& last = r.segments.back();
   EXPECT_NEAR(last.t(0), 1.501, 1e-12);
