@@ -99,26 +99,25 @@ void ComplementaryFilter::coast(double encoder_accel) {
   (void)step(encoder_accel + (low_accel_ - low_encoder_), encoder_accel);
 }
 
-CentralDifferences::Value CentralDifferences::newest_central() const {
-  // At the middle one of the last three samples pushed.
-  return {(last_[2] - last_[0]) / (2.0 * dt_), (last_[2] - 2.0 * last_[1] + last_[0]) / (dt_ * dt_)};
+CentralDifferences::Value CentralDifferences::three_point(int back) const {
+  const std::size_t m = last_.size() - 1 - static_cast<std::size_t>(back);   // the sample's slot
+  return {(last_[m + 1] - last_[m - 1]) / (2.0 * dt_), (last_[m + 1] - 2.0 * last_[m] + last_[m - 1]) / (dt_ * dt_)};
 }
 
 void CentralDifferences::push(double x) {
-  last_ = {last_[1], last_[2], x};
+  last_ = {last_[1], last_[2], last_[3], last_[4], x};
   const std::int64_t n = count_++;
-  if (n < 2) return;
-  const Value c = newest_central();   // the central difference at n - 1
-  if (n - 1 == 1) c1_ = c;
-  if (n - 1 == 2) c2_ = c;
-  recent_ = {recent_[1], c};
-  if (n == 3) {
-    out_.push_back({2.0 * c1_.first - c2_.first, 2.0 * c1_.second - c2_.second});   // sample 0
-    out_.push_back(c1_);
-    out_.push_back(c2_);
-  } else if (n > 3) {
-    out_.push_back(c);
+  if (n == 2) at1_ = three_point(1);
+  if (n < 4) return;
+  // The sample two behind x: three-point first difference, five-point second.
+  Value v = three_point(2);
+  v.second = (-last_[4] + 16.0 * last_[3] - 30.0 * last_[2] + 16.0 * last_[1] - last_[0]) / (12.0 * dt_ * dt_);
+  if (n == 4) {
+    out_.push_back({2.0 * at1_.first - v.first, 2.0 * at1_.second - v.second});   // sample 0
+    out_.push_back(at1_);
   }
+  out_.push_back(v);
+  newest_ = v;
 }
 
 void CentralDifferences::finish() {
@@ -126,10 +125,17 @@ void CentralDifferences::finish() {
   if (n < 3) {
     for (std::int64_t k = 0; k < n; ++k) out_.push_back({});
   } else if (n == 3) {
-    for (int k = 0; k < 3; ++k) out_.push_back(c1_);
+    for (int k = 0; k < 3; ++k) out_.push_back(at1_);
   } else {
-    // The last sample: 2 d(n-2) - d(n-3).
-    out_.push_back({2.0 * recent_[1].first - recent_[0].first, 2.0 * recent_[1].second - recent_[0].second});
+    // Samples n-2 (three-point) and n-1 (2 d(n-2) - d(n-3)); with n = 4, all four samples.
+    const Value before = n == 4 ? at1_ : newest_;
+    const Value next_to_end = three_point(1);
+    if (n == 4) {
+      out_.push_back({2.0 * at1_.first - next_to_end.first, 2.0 * at1_.second - next_to_end.second});
+      out_.push_back(at1_);
+    }
+    out_.push_back(next_to_end);
+    out_.push_back({2.0 * next_to_end.first - before.first, 2.0 * next_to_end.second - before.second});
   }
   count_ = 0;
 }

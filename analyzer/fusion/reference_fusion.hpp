@@ -86,11 +86,16 @@ class ComplementaryFilter {
   bool started_ = false;
 };
 
-/// First and second central differences of a sampled signal, one sample behind it: a sample's
-/// differences become final once the next sample is pushed (or the signal ends). The end samples
-/// are extrapolated linearly from their neighbours (d(0) = 2 d(1) - d(2)), so a smooth trace has
-/// no step at its ends for a filter to ring on; with fewer than 3 samples both are zero. A
-/// sequence pushed through gives exactly the batch differences of the whole sequence.
+/// First and second central differences of a sampled signal, two samples behind it: a sample's
+/// differences become final once two more samples are pushed (or the signal ends). The first
+/// difference is the three-point one, exact for a constant rate; the second is the five-point
+/// stencil (-1, 16, -30, 16, -1) / 12 dt^2, whose gain on a sine is 1 - (w dt)^4 / 90 where the
+/// three-point one's is 1 - (w dt)^2 / 12: 0.004 % against 0.5 % at 25 samples a cycle, the
+/// shaker's low path at a slow output rate. The samples next to the ends take the three-point
+/// second difference, and the end samples are extrapolated linearly from their neighbours
+/// (d(0) = 2 d(1) - d(2)), so a smooth trace has no step at its ends for a filter to ring on; with
+/// fewer than 3 samples both are zero. A sequence pushed through gives exactly the batch
+/// differences of the whole sequence.
 class CentralDifferences {
  public:
   struct Value {
@@ -106,12 +111,13 @@ class CentralDifferences {
   [[nodiscard]] std::int64_t pushed() const { return count_; }
 
  private:
-  [[nodiscard]] Value newest_central() const;
+  /// The three-point differences at the sample `back` samples before the newest (1 or 2).
+  [[nodiscard]] Value three_point(int back) const;
   double dt_;
   std::int64_t count_ = 0;
-  std::array<double, 3> last_{};                   // x(count-3 .. count-1)
-  std::array<Value, 2> recent_{};                  // central values at count-3, count-2
-  Value c1_{}, c2_{};                              // central values at 1 and 2 (the start's extrapolation)
+  std::array<double, 5> last_{};   // x(count-5 .. count-1)
+  Value at1_{};                    // the value at sample 1 (sample 0 is extrapolated from it)
+  Value newest_{};                 // the newest value made final (the end's extrapolation)
   std::deque<Value> out_;
 };
 

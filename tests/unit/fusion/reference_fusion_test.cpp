@@ -82,6 +82,53 @@ TEST(ComplementaryVibration, PassesConsistentSignalUnchanged) {
   EXPECT_LT((fused - a).segment(100, n - 200).cwiseAbs().maxCoeff(), 1e-4 * peak);
 }
 
+// The second difference is exact for a cubic on every sample (five points inside, three next to
+// the ends, the ends' linear extrapolation of a linear second derivative), pushed in pieces of any
+// length from 1 to 9 samples; the first difference is the three-point one.
+TEST(CentralDifferences, SecondDifferenceExactForACubicOnEverySampleOfAnyLength) {
+  const double dt = 0.01;
+  const auto x = [](double t) { return 0.3 - 1.2 * t + 2.5 * t * t - 4.0 * t * t * t; };
+  const auto second = [](double t) { return 5.0 - 24.0 * t; };
+  for (int n = 1; n <= 9; ++n) {
+    SCOPED_TRACE(n);
+    CentralDifferences d(dt);
+    for (int k = 0; k < n; ++k) d.push(x(0.7 + k * dt));
+    d.finish();
+    int k = 0;
+    for (; d.ready(); ++k) {
+      const CentralDifferences::Value v = d.pop();
+      if (n < 3) {
+        EXPECT_EQ(v.second, 0.0);
+      } else if (n == 3) {
+        EXPECT_NEAR(v.second, second(0.7 + dt), 1e-9) << "sample " << k;   // one value for all three
+      } else {
+        EXPECT_NEAR(v.second, second(0.7 + k * dt), 1e-9) << "sample " << k;
+      }
+      if (n >= 4 && k > 0 && k < n - 1)
+        EXPECT_NEAR(v.first, (x(0.7 + (k + 1) * dt) - x(0.7 + (k - 1) * dt)) / (2 * dt), 1e-12) << "sample " << k;
+    }
+    EXPECT_EQ(k, n);
+  }
+}
+
+// The shaker's low path at a slow output rate: a 4 Hz sine at 100 Hz (25 samples a cycle). The
+// three-point second difference's gain 1 - (w dt)^2 / 12 read its amplitude 0.5 % low, and
+// through the 5 Hz low-pass the fused sine came out 0.3 % high; the five-point stencil's
+// 1 - (w dt)^4 / 90 is 4e-5.
+TEST(ComplementaryVibration, ASlowSineAt25SamplesACycleKeepsItsAmplitude) {
+  const double dt = 0.01, f = 4.0, amp = 0.03;   // 3 cm at 4 Hz: about 1.9 g
+  const int n = 3000;
+  const double w = 2 * kPi * f;
+  Eigen::VectorXd x(n), a(n);
+  for (int k = 0; k < n; ++k) {
+    x(k) = amp * std::sin(w * k * dt);
+    a(k) = -amp * w * w * std::sin(w * k * dt);
+  }
+  const Eigen::VectorXd fused = complementary_vibration(a, x, dt, 5.0);
+  const double peak = amp * w * w;
+  EXPECT_LT((fused - a).segment(500, n - 1000).cwiseAbs().maxCoeff(), 2.0 * std::pow(w * dt, 4) / 90.0 * peak);
+}
+
 TEST(ComplementaryVibration, EncoderRemovesAccelerometerDriftAtLowFrequency) {
   const double dt = 1e-4;
   const int n = 100000;   // 10 s
