@@ -11,8 +11,9 @@
 //   sim-thermal acc1 (two static poses through thermal steps), sim-tumble mems1 (six poses with a
 //   random placement error each), sim-gyro-thermal fog1 (a gyroscope on a rate table in the
 //   thermal fixture: eq. 5's temperature terms c_T and epsilon_T), sim-imu ax and gx (a unit's
-//   accelerometer and gyroscope on a tumble and a rate table in one dividing head: the gyroscope's
-//   tilts each rest on one spin case, whose placement its sd carries, procedure/placement.hpp).
+//   accelerometer and gyroscope on a tumble and a rate table in one dividing head, then in a cube
+//   on a shaker that takes the dividing head's bias: the gyroscope's tilts each rest on one spin
+//   case, whose placement its sd carries, procedure/placement.hpp).
 // A term the truth does not have counts against 0. Misalignment: each aligned mounting's angles
 // about p and o against the true M_C^S relative to its nominal case frame.
 // The seeds here are what CI time allows (INERTIA_SCENARIO_SEEDS raises them, e.g. to 20).

@@ -252,8 +252,8 @@ TEST(UnitScenario, HeldOutTumbleCompensatedWithinTheTrueModelsError) {
 TEST(UnitScenario, HeldOutImuSpecificForceAndRateSolvedTogetherWithinTheTrueModelsError) {
   // config/sim-imu.toml: three accelerometers and three gyroscopes of MEMS grade (biases of 20 to
   // 35 mg and 3 to 6 mrad/s, scale errors near 1 %, gyroscopes sensitive to specific force), on a
-  // tumble and a rate table. The six outputs are solved together (D = 6): the gyroscopes'
-  // g-sensitivity reads the solved specific force.
+  // tumble, a rate table and a shaker. The six outputs are solved together (D = 6): the
+  // gyroscopes' g-sensitivity reads the solved specific force.
   const int runs = seeds_from_environment(2);
   const config::BenchConfig bench = config::load_bench_config(fs::path(INERTIA_SOURCE_DIR) / "config" / "sim-imu.toml");
   for (int run = 0; run < runs; ++run) {
