@@ -114,7 +114,9 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     Eigen::Matrix3d c = fits[m].angles_covariance;   // a held angle: the tolerance
     std::array<bool, 3> held = fits[m].held;
     if (turns[m].estimated) {
-      c = turns[m].covariance;
+      // The turn's information is the noise's; the cases' placements move its tilts as they moved
+      // the mounting's.
+      c = turns[m].covariance + fits[m].placement_angles_covariance;
       // The tilts as algorithm 1 reads them (of n_i alone); about i the twist found.
       MountingFit& f = fits[m];
       f.m_cs = m_cs[m];

@@ -302,17 +302,24 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
     for (std::size_t b = 0; b < 3; ++b)
       if (pos[b] >= 0) c(static_cast<Index>(a), static_cast<Index>(b)) = f.covariance(pos[a], pos[b]);
   }
-  c += procedure::placement_covariance(theta, m.placements, !known_bias.has_value());
-  const procedure::MisalignmentAngles angles = procedure::misalignment_angles(theta, c);
+  const Eigen::Matrix3d placed = procedure::placement_covariance(theta, m.placements, !known_bias.has_value());
+  const procedure::MisalignmentAngles angles = procedure::misalignment_angles(theta, c + placed);
   out.angles = rotation_vector(out.m_cs);
   out.angles(0) = kNaN;
   out.angles_covariance = angles.covariance;
   out.angles_sd = angles.sd;
+  // The delta method is linear in the sensitivities' covariance: the placements' share apart, of
+  // the tilts (about i algorithm 1 reads nothing).
+  out.placement_angles_covariance = procedure::misalignment_angles(theta, placed).covariance;
+  out.placement_angles_covariance.row(0).setZero();
+  out.placement_angles_covariance.col(0).setZero();
   for (std::size_t a = 1; a < 3; ++a) {
     if (excitation.determined[a]) continue;
     const auto k = kAngleOfAxis[a];
-    out.angles_covariance.row(k).setZero();
-    out.angles_covariance.col(k).setZero();
+    for (Eigen::Matrix3d* cov : {&out.angles_covariance, &out.placement_angles_covariance}) {
+      cov->row(k).setZero();
+      cov->col(k).setZero();
+    }
     out.angles_covariance(k, k) = tolerance2;
     out.angles_sd(k) = options_.mounting_tolerance_rad;
     out.held[static_cast<std::size_t>(k)] = true;

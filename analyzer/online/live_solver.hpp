@@ -74,6 +74,10 @@ struct MountingFit {
   Eigen::Vector3d angles = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   Eigen::Vector3d angles_sd = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   Eigen::Matrix3d angles_covariance = Eigen::Matrix3d::Zero();   // of the rotation vector (rank 2: no twist)
+  /// The part of angles_covariance the cases' placements give (procedure::placement_covariance
+  /// through algorithm 1): a turn found later (RelativeTurn) re-estimates the tilts from the noise
+  /// alone and adds it back.
+  Eigen::Matrix3d placement_angles_covariance = Eigen::Matrix3d::Zero();
   /// The rotation vector's components (i, p, o) held at the nominal frame: not determined by the
   /// mounting's inputs, assumed within the mounting tolerance (angles_covariance carries its square).
   std::array<bool, 3> held{};
