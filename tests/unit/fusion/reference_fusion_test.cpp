@@ -104,8 +104,9 @@ TEST(CentralDifferences, SecondDifferenceExactForACubicOnEverySampleOfAnyLength)
       } else {
         EXPECT_NEAR(v.second, second(0.7 + k * dt), 1e-9) << "sample " << k;
       }
-      if (n >= 4 && k > 0 && k < n - 1)
+      if (n >= 4 && k > 0 && k < n - 1) {
         EXPECT_NEAR(v.first, (x(0.7 + (k + 1) * dt) - x(0.7 + (k - 1) * dt)) / (2 * dt), 1e-12) << "sample " << k;
+      }
     }
     EXPECT_EQ(k, n);
   }
