@@ -99,6 +99,11 @@ void ComplementaryFilter::coast(double encoder_accel) {
   (void)step(encoder_accel + (low_accel_ - low_encoder_), encoder_accel);
 }
 
+/// The value beyond `near`, on the line through `far` and `near`: 2 near - far.
+CentralDifferences::Value CentralDifferences::beyond(const Value& near, const Value& far) {
+  return {2.0 * near.first - far.first, 2.0 * near.second - far.second};
+}
+
 CentralDifferences::Value CentralDifferences::three_point(int back) const {
   const std::size_t m = last_.size() - 1 - static_cast<std::size_t>(back);   // the sample's slot
   return {(last_[m + 1] - last_[m - 1]) / (2.0 * dt_), (last_[m + 1] - 2.0 * last_[m] + last_[m - 1]) / (dt_ * dt_)};
@@ -113,7 +118,7 @@ void CentralDifferences::push(double x) {
   Value v = three_point(2);
   v.second = (-last_[4] + 16.0 * last_[3] - 30.0 * last_[2] + 16.0 * last_[1] - last_[0]) / (12.0 * dt_ * dt_);
   if (n == 4) {
-    out_.push_back({2.0 * at1_.first - v.first, 2.0 * at1_.second - v.second});   // sample 0
+    out_.push_back(beyond(at1_, v));   // sample 0
     out_.push_back(at1_);
   }
   out_.push_back(v);
@@ -131,11 +136,11 @@ void CentralDifferences::finish() {
     const Value before = n == 4 ? at1_ : newest_;
     const Value next_to_end = three_point(1);
     if (n == 4) {
-      out_.push_back({2.0 * at1_.first - next_to_end.first, 2.0 * at1_.second - next_to_end.second});
+      out_.push_back(beyond(at1_, next_to_end));
       out_.push_back(at1_);
     }
     out_.push_back(next_to_end);
-    out_.push_back({2.0 * next_to_end.first - before.first, 2.0 * next_to_end.second - before.second});
+    out_.push_back(beyond(next_to_end, before));
   }
   count_ = 0;
 }

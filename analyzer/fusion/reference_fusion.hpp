@@ -111,6 +111,7 @@ class CentralDifferences {
   [[nodiscard]] std::int64_t pushed() const { return count_; }
 
  private:
+  static Value beyond(const Value& near, const Value& far);
   /// The three-point differences at the sample `back` samples before the newest (1 or 2).
   [[nodiscard]] Value three_point(int back) const;
   double dt_;

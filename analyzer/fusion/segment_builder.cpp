@@ -29,9 +29,14 @@ void SegmentBuilder::open_case(const CaseMarks& c) {
   f.case_index = c.case_index;
   f.name = c.name;
   f.kind = tc.kind;
+  // A static or thermal case is a pose: its specific force is the pose's gravity by definition
+  // (a placement error is the fixture's, which the inference carries). Monitors there would add
+  // their noise to every row's regressors, where a nonlinear candidate of an axis that sees
+  // nothing (sign, abs, squares of a_i near 0) fits that noise; they are the vibration's reference.
+  const bool pose = tc.kind == CaseKind::Static || tc.kind == CaseKind::Thermal;
   for (std::size_t k = 0; k < buffers_.needs.size(); ++k) {
     const ChannelRole r = buffers_.needs[k].role;
-    const bool use = r == ChannelRole::Output || (r == ChannelRole::Monitor && tc.kind != CaseKind::RotationTable) ||
+    const bool use = r == ChannelRole::Output || (r == ChannelRole::Monitor && tc.kind != CaseKind::RotationTable && !pose) ||
                      (r == ChannelRole::LinearEncoder && tc.kind == CaseKind::Shaker) ||
                      (r == ChannelRole::TableEncoder && tc.kind == CaseKind::RotationTable);
     if (!use) continue;
@@ -41,15 +46,8 @@ void SegmentBuilder::open_case(const CaseMarks& c) {
   }
   if (tc.kind == CaseKind::RotationTable && !f.encoder_need)
     throw InputError("case " + c.name + " (rotation_table): the bench has no [table_encoder] to fuse it with");
-  // A static or thermal case is a pose: its specific force is the pose's gravity by definition
-  // (a placement error is the fixture's, which the inference carries). Monitors there would add
-  // their noise to every row's regressors, where a nonlinear candidate of an axis that sees
-  // nothing (sign, abs, squares of a_i near 0) fits that noise; they are the vibration's reference.
-  const bool pose = tc.kind == CaseKind::Static || tc.kind == CaseKind::Thermal;
   if (pose) {
     f.pose_specific_force = kStandardGravity * tc.start_attitude.dcm().col(2);
-    f.monitor_needs.clear();
-    std::erase_if(f.used, [&](std::size_t k) { return buffers_.needs[k].role == ChannelRole::Monitor; });
   } else if (tc.kind != CaseKind::RotationTable) {
     if (f.monitor_needs.size() < 3)
       throw InputError("case " + c.name + " (" + to_string(tc.kind) +

@@ -310,7 +310,7 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
   out.angles_sd = angles.sd;
   // The delta method is linear in the sensitivities' covariance: the placements' share apart, of
   // the tilts (about i algorithm 1 reads nothing).
-  out.placement_angles_covariance = procedure::misalignment_angles(theta, placed).covariance;
+  out.placement_angles_covariance = angles.jacobian * placed * angles.jacobian.transpose();
   out.placement_angles_covariance.row(0).setZero();
   out.placement_angles_covariance.col(0).setZero();
   for (std::size_t a = 1; a < 3; ++a) {

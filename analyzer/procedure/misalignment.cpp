@@ -48,7 +48,7 @@ MisalignmentAngles misalignment_angles(const Eigen::Vector3d& theta, const Eigen
   MisalignmentAngles out;
   const frames::Dcm identity = frames::Dcm::Identity();
   out.angles = rotation_vector(misalignment_from_sensitivities(theta, identity));
-  Eigen::Matrix3d jacobian;
+  Eigen::Matrix3d& jacobian = out.jacobian;
   for (int a = 0; a < 3; ++a) {
     const double h = 1e-6 * theta.norm();
     Eigen::Vector3d up = theta, down = theta;

@@ -67,6 +67,7 @@ Eigen::Vector3d rotation_vector(const frames::Dcm& m_cs);
 /// single-axis output's linear part (algorithm 1 fixes it by convention): it is NaN.
 struct MisalignmentAngles {
   Eigen::Vector3d angles = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d jacobian = Eigen::Matrix3d::Zero();   // d angles / d theta: another covariance's share
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
   Eigen::Vector3d sd = Eigen::Vector3d::Zero();
 };
