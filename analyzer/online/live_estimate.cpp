@@ -104,7 +104,15 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
       for (int axis = 0; axis < 2; ++axis)
         tilts_determined[m][static_cast<std::size_t>(axis)] = !fits[m].held[static_cast<std::size_t>(procedure::angle_of_turn(axis))];
     }
-    turns = active.relative_turns(infos, m_cs, *reference, aligned, tilts_determined, s.batch.corner_rad_s);
+    // The turns' covariance by the clusters' rule the coefficients get (add_case_scatter).
+    const CaseStatistics cases = case_statistics(m_cs, left_out);
+    CaseClusters clusters;
+    clusters.infos = cases.infos;
+    for (const std::size_t c : cases.state) clusters.mountings.push_back(statistics.cases[c].mounting);
+    clusters.run_noise = run_noise(cases);
+    clusters.noise_gain = 1.0 - noise.ar.sum();
+    clusters.angles_from_means = angles_from_means(&fits);
+    turns = active.relative_turns(infos, m_cs, *reference, aligned, tilts_determined, s.batch.corner_rad_s, &clusters);
     if (std::any_of(turns.begin(), turns.end(), [](const RelativeTurn& t) { return t.estimated; }))
       s.batch = active.fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
   }

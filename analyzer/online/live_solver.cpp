@@ -345,9 +345,9 @@ class StatisticsTurns final : public procedure::TurnedBatch {
  public:
   StatisticsTurns(const LiveSolver& solver, const std::vector<const Information*>& infos, std::vector<Eigen::Matrix3d>& m_cs,
                   std::optional<double> corner, double long_run_variance_factor, double tolerance_rad,
-                  std::vector<RelativeTurn>& out)
+                  const CaseClusters* cases, std::vector<RelativeTurn>& out)
       : solver_(solver), infos_(infos), m_cs_(m_cs), start_m_cs_(m_cs), corner_(corner),
-        long_run_variance_factor_(long_run_variance_factor), tolerance_rad_(tolerance_rad), out_(out) {}
+        long_run_variance_factor_(long_run_variance_factor), tolerance_rad_(tolerance_rad), cases_(cases), out_(out) {}
 
   std::optional<procedure::TurnStep> step(std::span<const procedure::TurnParameter> parameters) override {
     const StatFit at = solver_.fit_batch_at(infos_, m_cs_, corner_);
@@ -367,6 +367,10 @@ class StatisticsTurns final : public procedure::TurnedBatch {
     procedure::TurnStep out;
     out.information = jj / (long_run_variance_factor_ * at.s2);
     out.delta = jj.ldlt().solve(jr);
+    if (cases_ != nullptr) {
+      const std::optional<Eigen::MatrixXd> c = solver_.turn_covariance(at, parameters, *cases_, m_cs_, procedure::kTurnDerivativeStepRad);
+      if (c && c->allFinite()) out.information = c->ldlt().solve(Eigen::MatrixXd::Identity(q, q));
+    }
     return out;
   }
 
@@ -433,35 +437,45 @@ class StatisticsTurns final : public procedure::TurnedBatch {
   std::optional<double> corner_;
   double long_run_variance_factor_;
   double tolerance_rad_;
+  const CaseClusters* cases_;
   std::vector<RelativeTurn>& out_;
 };
 
 }  // namespace
 
+void LiveSolver::turn_derivative_transforms(const StatFit& at, std::span<const procedure::TurnParameter> parameters, std::size_t m,
+                                            const Eigen::Matrix3d& m_cs, const CornerWeights& weights, double step,
+                                            Eigen::MatrixXd& with_b, Eigen::MatrixXd& with_f) const {
+  const auto p = static_cast<Index>(at.terms.size()), q = static_cast<Index>(parameters.size());
+  const Eigen::VectorXd coefficients = signed_theta(at);
+  Eigen::MatrixXd tb, tf, up_b, up_f, down_b, down_f;
+  basis_.transform(at.terms, m_cs, weights.filtered(), tb, tf);
+  with_b = Eigen::MatrixXd::Zero(p + q, tb.cols());
+  with_f = Eigen::MatrixXd::Zero(p + q, tf.cols());
+  with_b.topRows(p) = tb;
+  with_f.topRows(p) = tf;
+  for (Index i = 0; i < q; ++i) {
+    const procedure::TurnParameter& parameter = parameters[static_cast<std::size_t>(i)];
+    if (parameter.mounting != m) continue;
+    Eigen::Vector3d turn = Eigen::Vector3d::Zero();
+    turn(parameter.axis) = step;
+    basis_.transform(at.terms, procedure::turned(m_cs, turn), weights.filtered(), up_b, up_f);
+    basis_.transform(at.terms, procedure::turned(m_cs, -turn), weights.filtered(), down_b, down_f);
+    with_b.row(p + i) = coefficients.transpose() * (up_b - down_b) / (2.0 * step);
+    if (tf.cols() > 0) with_f.row(p + i) = coefficients.transpose() * (up_f - down_f) / (2.0 * step);
+  }
+}
+
 Eigen::MatrixXd LiveSolver::turn_derivative_gram(const StatFit& at, std::span<const procedure::TurnParameter> parameters,
                                                   const std::vector<const Information*>& infos,
                                                   const std::vector<Eigen::Matrix3d>& m_cs, double step) const {
   const auto p = static_cast<Index>(at.terms.size()), q = static_cast<Index>(parameters.size());
-  const Eigen::VectorXd coefficients = signed_theta(at);
   const CornerWeights weights = at.corner_rad_s ? grid_.at(*at.corner_rad_s) : CornerWeights{};
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(p + q + 1, p + q + 1);
-  Eigen::MatrixXd tb, tf, up_b, up_f, down_b, down_f;
+  Eigen::MatrixXd with_b, with_f;
   for (std::size_t m = 0; m < infos.size(); ++m) {
     if (infos[m]->samples() == 0) continue;
-    basis_.transform(at.terms, m_cs[m], weights.filtered(), tb, tf);
-    Eigen::MatrixXd with_b = Eigen::MatrixXd::Zero(p + q, tb.cols()), with_f = Eigen::MatrixXd::Zero(p + q, tf.cols());
-    with_b.topRows(p) = tb;
-    with_f.topRows(p) = tf;
-    for (Index i = 0; i < q; ++i) {
-      const procedure::TurnParameter& parameter = parameters[static_cast<std::size_t>(i)];
-      if (parameter.mounting != m) continue;
-      Eigen::Vector3d turn = Eigen::Vector3d::Zero();
-      turn(parameter.axis) = step;
-      basis_.transform(at.terms, procedure::turned(m_cs[m], turn), weights.filtered(), up_b, up_f);
-      basis_.transform(at.terms, procedure::turned(m_cs[m], -turn), weights.filtered(), down_b, down_f);
-      with_b.row(p + i) = coefficients.transpose() * (up_b - down_b) / (2.0 * step);
-      if (tf.cols() > 0) with_f.row(p + i) = coefficients.transpose() * (up_f - down_f) / (2.0 * step);
-    }
+    turn_derivative_transforms(at, parameters, m, m_cs[m], weights, step, with_b, with_f);
     g += infos[m]->model_gram(with_b, with_f, weights);
   }
   return g;
@@ -471,7 +485,7 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
                                                      std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
                                                      const std::vector<bool>& aligned,
                                                      const std::vector<std::array<bool, 2>>& tilts_determined,
-                                                     std::optional<double> corner) const {
+                                                     std::optional<double> corner, const CaseClusters* cases) const {
   std::vector<RelativeTurn> out(m_cs.size());
   const bool cross = std::any_of(model_.begin(), model_.end(), [&](Index t) {
     const Term& term = basis_.terms()[static_cast<std::size_t>(t)];
@@ -481,7 +495,7 @@ std::vector<RelativeTurn> LiveSolver::relative_turns(const std::vector<const Inf
   std::vector<std::size_t> turning;
   for (std::size_t k = 0; k < m_cs.size(); ++k)
     if (k != reference && aligned[k] && infos[k]->samples() > 0) turning.push_back(k);
-  StatisticsTurns statistics(*this, infos, m_cs, corner, options_.long_run_variance_factor, options_.mounting_tolerance_rad, out);
+  StatisticsTurns statistics(*this, infos, m_cs, corner, options_.long_run_variance_factor, options_.mounting_tolerance_rad, cases, out);
   procedure::search_turns(statistics, std::move(turning), tilts_determined, options_.mounting_tolerance_rad);
   return out;
 }
@@ -579,26 +593,20 @@ std::optional<ident::ColouredNoise> coloured_noise(const ident::ClusterSums& sum
 
 }  // namespace
 
-CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
-                                         const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain,
-                                         int angles_from_means, const std::vector<Eigen::MatrixXd>* run_noise) const {
-  CaseScatter out;
-  if (!batch.ok || !(noise_gain > 0.0)) return out;
-  const auto p = static_cast<Index>(batch.terms.size());
-  const CornerWeights weights = batch.corner_rad_s ? grid_.at(*batch.corner_rad_s) : CornerWeights{};
-  // The columns in the linear form of the fit, as batch.theta and batch.covariance take them.
-  const Eigen::VectorXd sign = prediction_signs(batch.terms);
+LiveSolver::RunSums LiveSolver::run_sums(const std::vector<const Information*>& cases, const std::vector<Eigen::Matrix3d>& m_cs,
+                                         double noise_gain, const Eigen::VectorXd& sign, const Eigen::VectorXd& theta,
+                                         const CornerWeights& weights, const CaseTransform& transform) const {
+  const auto p = sign.size();
   std::vector<Eigen::VectorXd> column_sums;
   std::vector<double> output_sums, residual_sums, rows, loading;
-  std::vector<std::pair<std::size_t, std::size_t>> origin;   // per cluster: its case and run
-  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p + 1, p + 1);   // [X y]'[X y]
-  double weight = 0.0;
+  RunSums out;
+  out.gram = Eigen::MatrixXd::Zero(p + 1, p + 1);
   Eigen::MatrixXd tb, tf;
   for (std::size_t c = 0; c < cases.size(); ++c) {
     if (cases[c]->samples() == 0) continue;
-    basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
-    gram += cases[c]->model_gram(tb, tf, weights);
-    weight += cases[c]->weight();
+    transform(c, tb, tf);
+    out.gram += cases[c]->model_gram(tb, tf, weights);
+    out.weight += cases[c]->weight();
     const Eigen::Vector3d input_axis = m_cs[c].row(0).transpose();
     for (std::size_t r = 0; r < cases[c]->runs(); ++r) {
       const double n = static_cast<double>(cases[c]->run_samples(r));
@@ -608,39 +616,93 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
       v.head(p).array() *= sign.array();
       column_sums.push_back(v.head(p));
       output_sums.push_back(v(p));
-      residual_sums.push_back(v(p) - batch.theta.dot(v.head(p)));
+      residual_sums.push_back(v(p) - theta.dot(v.head(p)));
       rows.push_back(n);
-      origin.emplace_back(c, r);
+      out.origin.emplace_back(c, r);
       // The input across the sensitive axis, squared, on the run's mean: |u|^2 - (n_i . u)^2.
       const Eigen::Matrix4d& u = cases[c]->run_input_gram(r);
       loading.push_back(u(3, 3) > 0.0 ? (u.topLeftCorner<3, 3>().trace() - input_axis.dot(u.topLeftCorner<3, 3>() * input_axis)) / u(3, 3)
                                       : 0.0);
     }
   }
-  ident::ClusterSums sums;
   const auto g_count = static_cast<Index>(rows.size());
-  sums.columns.resize(p, g_count);
-  sums.residuals.resize(g_count);
-  sums.rows.resize(g_count);
-  sums.loading.resize(g_count);
+  out.sums.columns.resize(p, g_count);
+  out.sums.residuals.resize(g_count);
+  out.sums.rows.resize(g_count);
+  out.sums.loading.resize(g_count);
+  out.output_sums.resize(g_count);
   for (Index g = 0; g < g_count; ++g) {
-    sums.ids.push_back(static_cast<int>(g));
-    sums.columns.col(g) = column_sums[static_cast<std::size_t>(g)];
-    sums.residuals(g) = residual_sums[static_cast<std::size_t>(g)];
-    sums.rows(g) = rows[static_cast<std::size_t>(g)];
-    sums.loading(g) = loading[static_cast<std::size_t>(g)];
+    out.sums.ids.push_back(static_cast<int>(g));
+    out.sums.columns.col(g) = column_sums[static_cast<std::size_t>(g)];
+    out.sums.residuals(g) = residual_sums[static_cast<std::size_t>(g)];
+    out.sums.rows(g) = rows[static_cast<std::size_t>(g)];
+    out.sums.loading(g) = loading[static_cast<std::size_t>(g)];
+    out.output_sums(g) = output_sums[static_cast<std::size_t>(g)];
   }
+  Eigen::VectorXd signs = Eigen::VectorXd::Ones(p + 1);
+  signs.head(p) = sign;
+  out.gram = signs.asDiagonal() * out.gram * signs.asDiagonal();
+  return out;
+}
+
+std::optional<Eigen::MatrixXd> LiveSolver::turn_covariance(const StatFit& at, std::span<const procedure::TurnParameter> parameters,
+                                                           const CaseClusters& cases, const std::vector<Eigen::Matrix3d>& m_cs,
+                                                           double step) const {
+  if (!(cases.noise_gain > 0.0)) return std::nullopt;
+  const auto p = static_cast<Index>(at.terms.size()), q = static_cast<Index>(parameters.size());
+  const CornerWeights weights = at.corner_rad_s ? grid_.at(*at.corner_rad_s) : CornerWeights{};
+  // The derivatives are the mountings': each mounting's transforms once, read by each of its cases.
+  std::vector<Eigen::MatrixXd> with_b(m_cs.size()), with_f(m_cs.size());
+  std::vector<bool> made(m_cs.size(), false);
+  std::vector<Eigen::Matrix3d> case_m_cs;
+  for (const std::size_t m : cases.mountings) case_m_cs.push_back(m_cs[m]);
+  // The derivatives join the columns with coefficient 0: their sign is the prediction's.
+  Eigen::VectorXd sign = Eigen::VectorXd::Ones(p + q), theta = Eigen::VectorXd::Zero(p + q);
+  sign.head(p) = prediction_signs(at.terms);
+  theta.head(p) = at.theta;
+  const RunSums sums = run_sums(cases.infos, case_m_cs, cases.noise_gain, sign, theta, weights,
+                                [&](std::size_t c, Eigen::MatrixXd& tb, Eigen::MatrixXd& tf) {
+                                  const std::size_t m = cases.mountings[c];
+                                  if (!made[m]) turn_derivative_transforms(at, parameters, m, m_cs[m], weights, step, with_b[m], with_f[m]);
+                                  made[m] = true;
+                                  tb = with_b[m];
+                                  tf = with_f[m];
+                                });
+  if (sums.sums.rows.size() < 2) return std::nullopt;
+  const double sigma2 = options_.long_run_variance_factor * at.s2;
+  const std::optional<ident::ColouredNoise> coloured =
+      cases.run_noise.empty() ? std::nullopt : coloured_noise(sums.sums, sums.origin, cases.run_noise, sums.gram.topLeftCorner(p + q, p + q), sigma2);
+  const ident::ClusterOffsets offsets =
+      ident::cluster_offsets(sums.sums, ident::GramFactor::from_gram(sums.gram.topLeftCorner(p + q, p + q), sums.weight), sigma2,
+                             cases.angles_from_means, coloured ? &*coloured : nullptr);
+  return Eigen::MatrixXd(offsets.covariance.bottomRightCorner(q, q));
+}
+
+CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const Information*>& cases,
+                                         const std::vector<Eigen::Matrix3d>& m_cs, double noise_gain,
+                                         int angles_from_means, const std::vector<Eigen::MatrixXd>* run_noise) const {
+  CaseScatter out;
+  if (!batch.ok || !(noise_gain > 0.0)) return out;
+  const auto p = static_cast<Index>(batch.terms.size());
+  const CornerWeights weights = batch.corner_rad_s ? grid_.at(*batch.corner_rad_s) : CornerWeights{};
+  // The columns in the linear form of the fit, as batch.theta and batch.covariance take them.
+  const Eigen::VectorXd sign = prediction_signs(batch.terms);
+  const RunSums run = run_sums(cases, m_cs, noise_gain, sign, batch.theta, weights,
+                               [&](std::size_t c, Eigen::MatrixXd& tb, Eigen::MatrixXd& tf) {
+                                 basis_.transform(batch.terms, m_cs[c], weights.filtered(), tb, tf);
+                               });
+  const ident::ClusterSums& sums = run.sums;
+  const Eigen::MatrixXd& gram = run.gram;
+  const double weight = run.weight;
+  const auto g_count = sums.rows.size();
   out.clusters = static_cast<int>(g_count);
   const std::vector<bool> phase_level = ident::phase_level_columns(sums, gram.diagonal().head(p));
   for (Index j = 0; j < p; ++j)
     if (phase_level[static_cast<std::size_t>(j)]) out.phase_level.push_back(batch.terms[static_cast<std::size_t>(j)]);
   if (g_count < 2) return out;
-  Eigen::VectorXd signs = Eigen::VectorXd::Ones(p + 1);
-  signs.head(p) = sign;
-  gram = signs.asDiagonal() * gram * signs.asDiagonal();
   const double sigma2 = options_.long_run_variance_factor * batch.s2;
   const std::optional<ident::ColouredNoise> coloured =
-      run_noise != nullptr ? coloured_noise(sums, origin, *run_noise, gram.topLeftCorner(p, p), sigma2) : std::nullopt;
+      run_noise != nullptr ? coloured_noise(sums, run.origin, *run_noise, gram.topLeftCorner(p, p), sigma2) : std::nullopt;
   const ident::ClusterOffsets offsets = ident::cluster_offsets(sums, ident::GramFactor::from_gram(gram.topLeftCorner(p, p), weight),
                                                                sigma2, angles_from_means, coloured ? &*coloured : nullptr);
   out.offsets = offsets;
@@ -654,8 +716,7 @@ CaseScatter LiveSolver::add_case_scatter(StatFit& batch, const std::vector<const
       (sign.array() > 0.0).all() && std::all_of(phase_level.begin(), phase_level.end(), [](bool b) { return b; });
   std::optional<ident::RandomEffectsFit> weighed;
   if (offsets_found && means_only) {
-    Eigen::VectorXd y_sums(g_count);
-    for (Index g = 0; g < g_count; ++g) y_sums(g) = output_sums[static_cast<std::size_t>(g)];
+    const Eigen::VectorXd& y_sums = run.output_sums;
     const Eigen::VectorXd noise_sums = coloured ? Eigen::VectorXd(coloured->sums_covariance.diagonal()) : Eigen::VectorXd(sigma2 * sums.rows);
     weighed = ident::weighed_by_offsets(offsets, sums.loading, noise_sums, [&](const Eigen::VectorXd& tau2) {
       return ident::random_effects_fit(gram, sums, y_sums, p, tau2, sigma2, coloured ? &coloured->sums_covariance : nullptr);

@@ -17,9 +17,11 @@
 #include <Eigen/Dense>
 
 #include <array>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "analyzer/ident/normal_equations.hpp"
@@ -146,6 +148,18 @@ struct RelativeTurn {
   procedure::TwistHeld why;   // of a held twist
 };
 
+/// The cases as the clusters' inference reads them (LiveSolver::add_case_scatter's arguments, for
+/// LiveSolver::relative_turns): each case's statistics and its mounting, per case the covariance of
+/// the whitened noise's sums over its runs (empty: white), A(1) of the noise model, and the
+/// mounting angles estimated from the clusters' means.
+struct CaseClusters {
+  std::vector<const Information*> infos;
+  std::vector<std::size_t> mountings;
+  std::vector<Eigen::MatrixXd> run_noise;
+  double noise_gain = 1.0;
+  int angles_from_means = 0;
+};
+
 class LiveSolver {
  public:
   /// `model`: basis term indices of the model (F_S); `sensitivities`: of a_x a_y a_z (w_x w_y
@@ -168,11 +182,22 @@ class LiveSolver {
   /// least residual of the batch model at `corner`, by the batch's Gauss-Newton steps from the
   /// statistics (turn_derivative_gram). A twist whose sd with the tilts free exceeds the tolerance
   /// is held. Turns `m_cs` by what it finds.
+  /// The turns' covariance is the batch's sandwich (relative_twists.cpp): with `cases`, the one the
+  /// coefficients get (turn_covariance); without, the white noise's.
   [[nodiscard]] std::vector<RelativeTurn> relative_turns(const std::vector<const Information*>& infos,
                                                          std::vector<Eigen::Matrix3d>& m_cs, std::size_t reference,
                                                          const std::vector<bool>& aligned,
                                                          const std::vector<std::array<bool, 2>>& tilts_determined,
-                                                         std::optional<double> corner) const;
+                                                         std::optional<double> corner, const CaseClusters* cases = nullptr) const;
+  /// The covariance of the turn parameters' Gauss-Newton step at `at` as add_case_scatter takes the
+  /// coefficients': the prediction's derivatives by the turns join the fitted columns, and their
+  /// block of the cluster sandwich (the noise's colour over the runs, the offsets between them that
+  /// it does not explain) is the turns'. A turn read from the cases' means (a twist moving gravity
+  /// from p to o in static stretches) is then as uncertain as the flicker and the remounts make
+  /// those means, as the batch's residual spectrum per run says. None with fewer than two clusters.
+  [[nodiscard]] std::optional<Eigen::MatrixXd> turn_covariance(const StatFit& at, std::span<const procedure::TurnParameter> parameters,
+                                                               const CaseClusters& cases, const std::vector<Eigen::Matrix3d>& m_cs,
+                                                               double step) const;
   /// What the mountings' misalignment uncertainty adds to the batch's covariance (the batch's own
   /// covariance treats M_C^S as known), by the batch's rules:
   ///  - estimated angles: the batch refitted with each M_C^S turned by +-1 sd along each principal
@@ -254,6 +279,25 @@ class LiveSolver {
   /// ident/normal_equations.hpp (the sensor's sensitivities ranked first and never left out).
   [[nodiscard]] StatFit fit(const Eigen::MatrixXd& gram, double weight, const std::vector<Eigen::Index>& terms,
                             const std::vector<const Information*>& infos, const std::vector<Eigen::Matrix3d>& m_cs) const;
+  /// What ident::cluster_offsets reads of the cases' runs (add_case_scatter): the columns
+  /// `transform(c, t_base, t_filtered)` gives case c, in the linear form of `sign`, with the
+  /// residual of the coefficients `theta` (`sign.size()` columns).
+  struct RunSums {
+    Eigen::MatrixXd gram;   // [X y]'[X y], X in the linear form
+    double weight = 0.0;
+    ident::ClusterSums sums;
+    Eigen::VectorXd output_sums;
+    std::vector<std::pair<std::size_t, std::size_t>> origin;   // per cluster: its case and run
+  };
+  using CaseTransform = std::function<void(std::size_t, Eigen::MatrixXd&, Eigen::MatrixXd&)>;
+  [[nodiscard]] RunSums run_sums(const std::vector<const Information*>& cases, const std::vector<Eigen::Matrix3d>& m_cs,
+                                 double noise_gain, const Eigen::VectorXd& sign, const Eigen::VectorXd& theta,
+                                 const CornerWeights& weights, const CaseTransform& transform) const;
+  /// The fitted terms of `at` and, per turn parameter of mounting `m`, the fitted prediction's
+  /// derivative by it (turn_derivative_gram), as rows of the transforms.
+  void turn_derivative_transforms(const StatFit& at, std::span<const procedure::TurnParameter> parameters, std::size_t m,
+                                  const Eigen::Matrix3d& m_cs, const CornerWeights& weights, double step,
+                                  Eigen::MatrixXd& with_b, Eigen::MatrixXd& with_f) const;
   /// Factor statistics of output-multiplied terms among `terms` (p_b sums, unwhitened).
   void factor_statistics(const std::vector<Eigen::Index>& terms, const std::vector<const Information*>& infos,
                          const std::vector<Eigen::Matrix3d>& m_cs, std::vector<Eigen::Index>& positions,

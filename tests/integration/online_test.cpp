@@ -7,7 +7,9 @@
 #include <fstream>
 
 #include <cmath>
+#include <iterator>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "analyzer/model/model_file.hpp"
@@ -220,6 +222,29 @@ struct EveryBenchCase {
 
 class OnlineReplay : public ::testing::TestWithParam<EveryBenchCase> {};
 
+/// The mountings whose twist `text` says is held (procedure::held_twist_note, which live and the
+/// batch both write).
+std::set<std::string> held_twists(const std::string& text) {
+  std::set<std::string> out;
+  constexpr std::string_view kMounting = "twist about n_i of mounting '";
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.find("held at the nominal frame, and what the tolerance moves is in the sd") == std::string::npos) continue;
+    for (std::size_t at = line.find(kMounting); at != std::string::npos; at = line.find(kMounting, at + 1)) {
+      const std::size_t begin = at + kMounting.size();
+      out.insert(line.substr(begin, line.find('\'', begin) - begin));
+    }
+  }
+  return out;
+}
+
+/// What `online --replay` printed of `sensor` at the end: from its history's heading to the next sensor's.
+std::string sensor_block(const std::string& output, const std::string& sensor) {
+  const std::size_t begin = output.find("online: " + sensor + ": live estimate history");
+  if (begin == std::string::npos) return {};
+  return output.substr(begin, output.find("\nonline: ", begin + 1) - begin);
+}
+
 TEST_P(OnlineReplay, TheLiveAnswerOnTheDaemonsLogEqualsCharacterizeOfIt) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
@@ -271,6 +296,11 @@ TEST_P(OnlineReplay, TheLiveAnswerOnTheDaemonsLogEqualsCharacterizeOfIt) {
       EXPECT_NEAR(value, it->coefficient, 3.0 * std::hypot(sd, *it->std)) << header[c] << "\n" << replay.output();
     }
     EXPECT_GE(common, 1) << "the scale factor at least\n" << replay.output() << characterize.output();
+    // Both hold the same twists: one search (procedure::search_turns), and the live turns' sd by the
+    // sandwich the batch's is (LiveSolver::turn_covariance).
+    std::ifstream report_file(out / "report.md");
+    const std::string report((std::istreambuf_iterator<char>(report_file)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(held_twists(sensor_block(replay.output(), sensor)), held_twists(report)) << replay.output() << report;
   }
   // Every live term, kept by the batch or not, within 4 of its sd of the simulator's truth (0 for
   // a term the truth lacks): the live model may carry more than the batch's, never what the plan

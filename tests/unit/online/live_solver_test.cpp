@@ -300,6 +300,94 @@ TEST(LiveSolver, TheCaseScattersColouredNoiseIsTheSandwichOnTheRows) {
   EXPECT_GT(coloured.sd(0), 3.0 * std::sqrt(classical(0, 0))) << "the common noise dominates the bias's sd";
 }
 
+// The turn parameters' covariance (turn_covariance) against the variable-projection sandwich on
+// the rows: with A = [X J], J the fitted prediction's derivatives by the shaker mounting's twist and
+// tilts, its block of (A'A)^-1 A'RA (A'A)^-1 under R = s^2 I + c 1 1' per case (a noise common to
+// a case's runs). The noise is made orthogonal to the columns and to the runs' indicators, so the
+// residual's run sums are zero (no offsets to find) and the fit is the truth: the same covariance
+// to rounding. The common noise is what a turn read from the cases' means meets (here the tilt
+// about p), and the white information (J~'J~ / s^2) does not count it.
+TEST(LiveSolver, ATurnsCovarianceIsTheSandwichTheCoefficientsGetOnTheRows) {
+  const Fixture fx({"1", "a_i", "a_p", "a_o", "a_i*a_p"});
+  const VectorXd k = (VectorXd(5) << 3.44e-3, 0.0877, 2.0e-3, -1.5e-3, 5.0e-4).finished();
+  const std::vector<Eigen::Matrix3d> m_cs = {frames::frame_rotation(Eigen::Vector3d(0.0, 0.3, 1.0).normalized(), 0.02),
+                                             frames::frame_rotation(Eigen::Vector3d(1.0, 0.1, 0.2).normalized(), -0.4)};
+  constexpr Index kRuns = 3, kRows = 400;
+  constexpr double kSigma = 1e-3, kCommon = 4e-8, kStep = 1e-4;
+  const std::vector<procedure::TurnParameter> parameters = {{1, 0}, {1, 1}, {1, 2}};
+  const auto q = static_cast<Index>(parameters.size());
+  const auto p = k.size();
+  std::vector<Information> infos;
+  std::vector<MatrixXd> x(2), j(2);
+  std::vector<VectorXd> e(2);
+  for (std::size_t c = 0; c < 2; ++c) {
+    const Index n = kRuns * kRows;
+    Inputs a(n, 3);
+    for (Index r = 0; r < kRuns; ++r) a.middleRows(r * kRows, kRows) = random_inputs(kRows, 20 + 10 * c + static_cast<std::uint64_t>(r));
+    x[c] = sensor_frame_columns(fx.model_terms, a, m_cs[c]);
+    // The prediction's derivatives by the turns, as turned() moves the frame.
+    j[c] = MatrixXd::Zero(n, q);
+    for (Index i = 0; i < q; ++i) {
+      if (parameters[static_cast<std::size_t>(i)].mounting != c) continue;
+      Eigen::Vector3d turn = Eigen::Vector3d::Zero();
+      turn(parameters[static_cast<std::size_t>(i)].axis) = kStep;
+      j[c].col(i) = (sensor_frame_columns(fx.model_terms, a, procedure::turned(m_cs[c], turn)) -
+                     sensor_frame_columns(fx.model_terms, a, procedure::turned(m_cs[c], -turn))) * k / (2.0 * kStep);
+    }
+    // Noise orthogonal to the columns (so X'e = 0 and the fit is the truth) and to each run's
+    // constant (so the residual's run sums are zero).
+    MatrixXd span(n, p + kRuns);
+    span.leftCols(p) = x[c];
+    span.rightCols(kRuns).setZero();
+    for (Index r = 0; r < kRuns; ++r) span.block(r * kRows, p + r, kRows, 1).setOnes();
+    std::mt19937_64 rng(7 + c);
+    std::normal_distribution<double> g(0.0, kSigma);
+    VectorXd noise(n);
+    for (Index i = 0; i < n; ++i) noise(i) = g(rng);
+    e[c] = noise - span * span.colPivHouseholderQr().solve(noise);
+    const VectorXd y = x[c] * k + e[c];
+    Information info(fx.basis->base_size(), 0, 0);
+    for (Index r = 0; r < kRuns; ++r) {
+      dataset::CaseData rows = case_of(a.middleRows(r * kRows, kRows));
+      rows.y = y.segment(r * kRows, kRows);
+      MatrixXd b(kRows, fx.basis->base_size());
+      fx.basis->evaluate(ident::signals_from_case(rows, Eigen::Matrix3d::Identity(), kTRef), 0, b);
+      info.start_run();
+      info.add(b, {}, rows.y);
+      info.add_inputs(a.middleRows(r * kRows, kRows));
+    }
+    infos.push_back(std::move(info));
+  }
+  const LiveSolver solver = fx.solver();
+  const StatFit at = solver.fit_batch_at({&infos[0], &infos[1]}, m_cs, std::nullopt);
+  ASSERT_TRUE(at.ok) << at.why;
+  ASSERT_LT((at.theta - k).cwiseAbs().maxCoeff(), 1e-9) << "the noise is orthogonal to the columns";
+  const double s2 = at.s2;
+  const VectorXd n = VectorXd::Constant(kRuns, static_cast<double>(kRows));
+  CaseClusters clusters;
+  clusters.infos = {&infos[0], &infos[1]};
+  clusters.mountings = {0, 1};
+  clusters.run_noise.assign(2, MatrixXd(MatrixXd(n.asDiagonal()) + kCommon / s2 * n * n.transpose()));
+  const std::optional<MatrixXd> covariance = solver.turn_covariance(at, parameters, clusters, m_cs, kStep);
+  ASSERT_TRUE(covariance.has_value());
+
+  const Index rows = 2 * kRuns * kRows;
+  MatrixXd design(rows, p + q);
+  design << x[0], j[0], x[1], j[1];
+  const MatrixXd inverse = (design.transpose() * design).inverse();
+  MatrixXd meat = s2 * design.transpose() * design;
+  for (std::size_t c = 0; c < 2; ++c) {
+    const VectorXd sums = design.middleRows(static_cast<Index>(c) * kRuns * kRows, kRuns * kRows).colwise().sum().transpose();
+    meat += kCommon * sums * sums.transpose();
+  }
+  const MatrixXd sandwich = (inverse * meat * inverse).bottomRightCorner(q, q);
+  for (Index a = 0; a < q; ++a)
+    for (Index b = 0; b < q; ++b)
+      EXPECT_NEAR((*covariance)(a, b), sandwich(a, b), 1e-7 * std::sqrt(sandwich(a, a) * sandwich(b, b))) << a << "," << b;
+  const MatrixXd white = s2 * inverse.bottomRightCorner(q, q);
+  EXPECT_GT(sandwich(1, 1), 4.0 * white(1, 1)) << "the common noise dominates a tilt's variance";
+}
+
 /// A table mounting of y = b + k a_i + k2 a_i^2, a_i = n_i . a, with n_i tilted 0.035 rad from
 /// (0, 0.3, 1): its model, inputs, true frame and coefficients, and its statistics.
 struct TableMounting {
