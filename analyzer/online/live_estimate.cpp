@@ -60,6 +60,7 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
   }
   const LiveSolver active = active_solver(live.model);
   std::optional<double> bias;
+  double bias_sd = 0.0;
   std::vector<MountingFit> fits(statistics.mountings.size());
   for (std::size_t m : s.order) {
     MountingStatistics d;
@@ -71,8 +72,12 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     d.m_cs = live.model_m_cs;
     d.hold_unexcited = hold_unexcited;
     d.placements = placements[m];
-    fits[m] = active.fit_mounting(d, procedure::takes_bias(d.kind, live.options.solver.ieee_1293) ? bias : std::nullopt);
-    if (!bias && procedure::hands_on_bias(d.kind) && fits[m].bias) bias = fits[m].bias;
+    const bool takes = procedure::takes_bias(d.kind, live.options.solver.ieee_1293);
+    fits[m] = active.fit_mounting(d, takes ? bias : std::nullopt, takes ? bias_sd : 0.0);
+    if (!bias && procedure::hands_on_bias(d.kind) && fits[m].bias) {
+      bias = fits[m].bias;
+      bias_sd = fits[m].bias_sd;
+    }
   }
   // A mounting whose data does not fix its misalignment keeps the nominal frame (the batch's
   // rule: another mounting's M_C^S is another fixture's), within the mounting tolerance.

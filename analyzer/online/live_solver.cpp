@@ -167,7 +167,7 @@ StatFit LiveSolver::fit(const Eigen::MatrixXd& g, double weight, const std::vect
   return out;
 }
 
-MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<double> known_bias) const {
+MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<double> known_bias, double known_bias_sd) const {
   MountingFit out;
   out.m_cs = m.m_cs;
   if (m.info.samples() == 0) {
@@ -288,6 +288,8 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
       if (!contains(sensitivities_, t)) s_terms.push_back(t);
     const StatFit sf = fit(gram(s_terms, infos, {out.m_cs}, corner), weight, s_terms, infos, {out.m_cs});
     out.bias = sf.value(bias_);
+    for (std::size_t j = 0; j < sf.terms.size(); ++j)
+      if (sf.terms[j] == bias_ && sf.sd.size() > static_cast<Index>(j)) out.bias_sd = sf.sd(static_cast<Index>(j));
   }
   // Angles and their sd by the delta method through algorithm 1, with the cases' placements.
   Eigen::Vector3d theta = Eigen::Vector3d::Zero();
@@ -301,6 +303,19 @@ MountingFit LiveSolver::fit_mounting(const MountingStatistics& m, std::optional<
     theta(static_cast<Index>(a)) = f.theta(pos[a]);
     for (std::size_t b = 0; b < 3; ++b)
       if (pos[b] >= 0) c(static_cast<Index>(a), static_cast<Index>(b)) = f.covariance(pos[a], pos[b]);
+  }
+  if (fold_bias && known_bias_sd > 0.0) {
+    // The bias handed over moves the fit as the output less b + delta does: every coefficient by
+    // -delta (X'X)^-1 X'w, w the whitened constant (procedure::estimate_mounting's rule).
+    std::vector<Index> with_one = f.terms;
+    with_one.push_back(bias_);
+    const Eigen::MatrixXd g = gram(with_one, infos, {out.m_cs}, corner);
+    const auto p = static_cast<Index>(f.terms.size());
+    const Eigen::VectorXd d = g.topLeftCorner(p, p).ldlt().solve(g.col(p).head(p));
+    Eigen::Vector3d d_sensitivities = Eigen::Vector3d::Zero();
+    for (std::size_t a = 0; a < 3; ++a)
+      if (pos[a] >= 0) d_sensitivities(static_cast<Index>(a)) = d(pos[a]);
+    c += known_bias_sd * known_bias_sd * d_sensitivities * d_sensitivities.transpose();
   }
   const Eigen::Matrix3d placed = procedure::placement_covariance(theta, m.placements, !known_bias.has_value());
   const procedure::MisalignmentAngles angles = procedure::misalignment_angles(theta, c + placed);

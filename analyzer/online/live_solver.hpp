@@ -84,6 +84,7 @@ struct MountingFit {
   /// mounting's inputs, assumed within the mounting tolerance (angles_covariance carries its square).
   std::array<bool, 3> held{};
   std::optional<double> bias;               // the external-frame fit's bias, when it has one
+  double bias_sd = 0.0;                     // ... and its sd
   int refinements = 0;
   StatFit fit;
   std::string note;
@@ -168,8 +169,10 @@ class LiveSolver {
   LiveSolver(const LiveBasis& basis, std::vector<Eigen::Index> model, std::vector<Eigen::Index> sensitivities,
              dataset::SensorKind sensor, CornerGrid grid, bool static_option, SolverOptions options);
 
-  /// Blocks 5-6 on one mounting; `known_bias` is subtracted first (shaker-only mountings).
-  [[nodiscard]] MountingFit fit_mounting(const MountingStatistics& m, std::optional<double> known_bias) const;
+  /// Blocks 5-6 on one mounting; `known_bias` is subtracted first (shaker-only mountings), and its sd
+  /// `known_bias_sd` is in the angles' (procedure::estimate_mounting's rule).
+  [[nodiscard]] MountingFit fit_mounting(const MountingStatistics& m, std::optional<double> known_bias,
+                                         double known_bias_sd = 0.0) const;
   /// Blocks 10-11: the model over the mountings, each with its M_C^S.
   [[nodiscard]] StatFit fit_batch(const std::vector<const Information*>& infos,
                                   const std::vector<Eigen::Matrix3d>& m_cs) const;

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <span>
@@ -13,6 +14,7 @@
 #include <utility>
 
 #include "analyzer/ident/normal_equations.hpp"
+#include "analyzer/ident/row_products.hpp"
 #include "analyzer/ident/selection.hpp"
 #include "analyzer/procedure/corner_search.hpp"
 #include "analyzer/procedure/identifiable_fit.hpp"
@@ -113,6 +115,16 @@ std::vector<Term> tilt_terms(const std::vector<Term>& s_terms, dataset::SensorKi
 
 /// The mounting's angles from its M_C^S, with `sd` (about i, p, o); an angle held at the nominal
 /// frame has sd 0 (XRA without excitation holds the angle about o, YRA the one about p).
+/// The bias of the mounting's selected model and its sd (its honest inference), which a mounting
+/// taking the bias receives (pipeline.cpp).
+void record_bias(MountingResult& result, const ident::UlsResult& fit) {
+  for (std::size_t j = 0; j < fit.labels.size(); ++j) {
+    if (fit.labels[j] != "1") continue;
+    result.bias = fit.theta(static_cast<Eigen::Index>(j));
+    if (fit.std_dev.size() > static_cast<Eigen::Index>(j)) result.bias_sd = fit.std_dev(static_cast<Eigen::Index>(j));
+  }
+}
+
 void set_angles(MountingResult& result, const Eigen::Vector3d& sd) {
   result.angles = rotation_vector(result.m_cs);
   result.angles_sd = sd;
@@ -207,6 +219,25 @@ Eigen::Vector3d sensor_frame_sensitivities(const ident::UlsResult& fit, dataset:
   return theta;
 }
 
+/// What the bias another mounting handed over (sd `sd`, output unit) adds to the covariance of the
+/// sensitivities the angles are read from, of a fit on `terms` at `m_cs`: the output less b + delta
+/// moves the coefficients by -delta (X'X)^-1 X'w, w the whitened constant (exact for least
+/// squares: the fit is linear in the output). `sensitivities` picks the three from labels and
+/// values: (theta_x, theta_y, theta_z) of the F_E fit, or (theta_i, theta_p, theta_o) of the F_S one.
+/// Where the mounting reads a tilt from gravity at rest, the bias it was given is part of what it reads.
+Eigen::Matrix3d handed_bias_covariance(const MountingRegressions& regressions, std::vector<Term> terms, const frames::Dcm& m_cs,
+                                       double sd,
+                                       const std::function<Eigen::Vector3d(const std::vector<std::string>&, const Eigen::VectorXd&)>& sensitivities) {
+  if (!(sd > 0.0) || terms.empty()) return Eigen::Matrix3d::Zero();
+  const auto p = static_cast<Eigen::Index>(terms.size());
+  terms.emplace_back();
+  const StackedRegression with_one = regressions.whitened(terms, m_cs);
+  const Eigen::MatrixXd g = ident::gram(with_one.phi);
+  const Eigen::VectorXd d = g.topLeftCorner(p, p).ldlt().solve(g.col(p).head(p));
+  const Eigen::Vector3d moved = sensitivities(std::vector<std::string>(with_one.labels.begin(), with_one.labels.begin() + p), d);
+  return sd * sd * moved * moved.transpose();
+}
+
 /// Algorithm 2's F_E problem at the fixed point of step 1: the nonlinear F_S terms of eq. 2 need
 /// M_C^S, which the fit of the full candidate set gives, so the problem is rebuilt with each new
 /// M_C^S until it stops moving. With PipelineOptions::estimate_twist, each pass also takes one
@@ -296,12 +327,14 @@ MisalignmentFixedPoint misalignment_fixed_point(const MountingCases& m, const st
 
 MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector<std::size_t>& cases,
                                  const std::string& mounting, const PipelineOptions& options,
-                                 std::string_view dataset_label, std::optional<double> known_bias) {
+                                 std::string_view dataset_label, std::optional<double> known_bias, double known_bias_sd) {
   MountingResult result;
   result.mounting = mounting;
   result.cases = cases;
   const MountingCases m = mounting_cases(data, cases, options, known_bias);
   result.known_bias = known_bias;
+  if (known_bias) result.known_bias_sd = known_bias_sd;
+  const bool handed = known_bias && known_bias_sd > 0.0;
   const bool gyro = data.sensor == dataset::SensorKind::Gyroscope;
 
   // What this mounting's inputs can determine; an axis without its own excitation keeps the
@@ -373,7 +406,12 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     result.s_terms = s.labels;
     result.candidates_tried = 1;
     const Eigen::Matrix3d placed = placement_covariance(f.sensitivities, placements_of(m, data.sensor), !known_bias.has_value());
-    set_angles(result, misalignment_angles(f.sensitivities, f.sensitivity_covariance + placed).sd);
+    const Eigen::Matrix3d bias_part =
+        handed_bias_covariance(regressions, es_terms, m_cs, handed ? known_bias_sd : 0.0, [&](const std::vector<std::string>& labels, const Eigen::VectorXd& d) {
+          return external_sensitivities(labels, d, data.sensor).value_or(Eigen::Vector3d::Zero());
+        });
+    set_angles(result, misalignment_angles(f.sensitivities, f.sensitivity_covariance + placed + bias_part).sd);
+    record_bias(result, result.s_fit);
     return result;
   }
 
@@ -456,12 +494,21 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     }
   }
   const ident::UlsResult selected_fit = result.s_fit;
+  record_bias(result, selected_fit);
   {
     // The angles' sd: the kept tilts' in the selected model (the tilt of n_i toward p and o, over
-    // theta_i), whose covariance holds the cases' placements, by the delta method through
-    // algorithm 1.
+    // theta_i), whose covariance holds the cases' placements and a bias handed over, by the delta
+    // method through algorithm 1.
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
     const Eigen::Vector3d theta = sensor_frame_sensitivities(selected_fit, data.sensor, &covariance);
+    if (handed)
+      covariance += handed_bias_covariance(regressions, ident::parse_terms(selected_fit.process_labels()), *best_misalignment, known_bias_sd,
+                                           [&](const std::vector<std::string>& labels, const Eigen::VectorXd& d) {
+                                             ident::UlsResult moved;
+                                             moved.labels = labels;
+                                             moved.theta = d;
+                                             return sensor_frame_sensitivities(moved, data.sensor);
+                                           });
     if (theta(0) != 0.0) set_angles(result, misalignment_angles(theta, covariance).sd);
   }
   if (!tilts.empty()) {

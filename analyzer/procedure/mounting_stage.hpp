@@ -16,9 +16,11 @@ namespace inertia::procedure {
 
 /// Blocks 5-6 for the mounting `mounting` of the cases `cases` (dataset indices).
 /// `known_bias`: a bias (output unit) estimated by another mounting (mounting_rules.hpp,
-/// takes_bias), subtracted from the output first.
+/// takes_bias), subtracted from the output first; `known_bias_sd` its sd, which the angles' sd
+/// carry (handed_bias_covariance).
 MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector<std::size_t>& cases,
                                  const std::string& mounting, const PipelineOptions& options,
-                                 std::string_view dataset_label, std::optional<double> known_bias = std::nullopt);
+                                 std::string_view dataset_label, std::optional<double> known_bias = std::nullopt,
+                                 double known_bias_sd = 0.0);
 
 }  // namespace inertia::procedure

@@ -25,14 +25,17 @@ PipelineResult run_mounting_stages(const dataset::Dataset& data, const PipelineO
   const MountingGroups groups = mountings_of(data, &result.notes);
   const std::vector<MountingKind> kinds = mounting_kinds(data, groups);
   std::optional<double> bias;
+  double bias_sd = 0.0;
   for (const std::size_t g : mounting_order(kinds)) {
     const auto& [mounting, cases] = groups[g];
-    MountingResult m = estimate_mounting(data, cases, mounting, options, dataset_label,
-                                         takes_bias(kinds[g], options.ieee_1293) ? bias : std::nullopt);
+    const bool takes = takes_bias(kinds[g], options.ieee_1293);
+    MountingResult m = estimate_mounting(data, cases, mounting, options, dataset_label, takes ? bias : std::nullopt,
+                                         takes ? bias_sd : 0.0);
     if (!bias && hands_on_bias(kinds[g])) {
       for (std::size_t j = 0; j < m.s_fit.labels.size(); ++j) {
         if (m.s_fit.labels[j] == "1") bias = m.s_fit.theta(static_cast<Eigen::Index>(j));
       }
+      if (bias) bias_sd = m.bias_sd.value_or(0.0);
     }
     for (std::size_t index : cases) {
       result.cases[index].case_index = index;

@@ -452,6 +452,31 @@ TEST(LiveSolver, AMountingsAnglesCarryItsCasesPlacementsAsTheBatchDoes) {
       << with.angles_covariance << "\n" << without.angles_covariance + added;
 }
 
+TEST(LiveSolver, AMountingsAnglesCarryTheBiasItWasHandedAsMovingTheBiasMovesThem) {
+  // The mounting of MountingFindsTheInputAxisItWasMadeWith as a shaker mounting that takes its
+  // bias from another (noiseless rows: the angles' own variance is rounding). The bias it was
+  // handed, with sd s, adds to the angles' covariance what moving the bias by s moves them by
+  // (central difference; the fit is linear in the output, algorithm 1's fixed point nearly so).
+  const TableMounting table;
+  const Fixture& fx = table.fx;
+  MountingStatistics m = table.m;
+  m.kind.shaker_only = true;
+  const double bias = table.k(0), sd = 2e-3;
+  const LiveSolver solver = fx.solver();
+  const MountingFit without = solver.fit_mounting(m, bias, 0.0);
+  const MountingFit with = solver.fit_mounting(m, bias, sd);
+  const MountingFit up = solver.fit_mounting(m, bias + sd, 0.0);
+  const MountingFit down = solver.fit_mounting(m, bias - sd, 0.0);
+  for (const MountingFit* f : {&without, &with, &up, &down}) ASSERT_TRUE(f->determined) << f->note;
+  ASSERT_NE(without.note.find("left out (IEEE 1293 12.3.5.7): 1"), std::string::npos) << "the bias is taken: " << without.note;
+  const Eigen::Vector2d moved = 0.5 * (up.angles.tail<2>() - down.angles.tail<2>());
+  const Eigen::Matrix2d added = with.angles_covariance.bottomRightCorner<2, 2>() - without.angles_covariance.bottomRightCorner<2, 2>();
+  const Eigen::Matrix2d want = moved * moved.transpose();
+  const double own = without.angles_covariance.bottomRightCorner<2, 2>().trace();
+  ASSERT_GT(want.trace(), 100.0 * own) << "the bias dominates";
+  EXPECT_LT((added - want).norm(), 1e-2 * want.norm()) << added << "\n" << want;
+}
+
 TEST(LiveSolver, AMountingWithoutExcitationIsHeldAtTheNominalFrame) {
   // One static pose: gravity along IRA and the references' noise (1e-4 g). With the bias estimated
   // nothing varies on its own (procedure::axis_excitation): M_C^S stays the warm start and both
