@@ -98,6 +98,8 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     }
   }
   s.batch = batch_solver.fit_batch(infos, m_cs);
+  // Each case's statistics, which the turns' and the terms' inference read by clusters.
+  CaseStatistics cs = case_statistics(m_cs, left_out);
   // The twists about n_i against the reference, as the batch pipeline finds them (at the corner
   // found first, which the pipeline keeps).
   std::vector<RelativeTurn> turns(statistics.mountings.size());
@@ -110,11 +112,10 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
         tilts_determined[m][static_cast<std::size_t>(axis)] = !fits[m].held[static_cast<std::size_t>(procedure::angle_of_turn(axis))];
     }
     // The turns' covariance by the clusters' rule the coefficients get (add_case_scatter).
-    const CaseStatistics cases = case_statistics(m_cs, left_out);
     CaseClusters clusters;
-    clusters.infos = cases.infos;
-    for (const std::size_t c : cases.state) clusters.mountings.push_back(statistics.cases[c].mounting);
-    clusters.run_noise = run_noise(cases);
+    clusters.infos = cs.infos;
+    for (const std::size_t c : cs.state) clusters.mountings.push_back(statistics.cases[c].mounting);
+    clusters.run_noise = run_noise(cs);
     clusters.noise_gain = 1.0 - noise.ar.sum();
     clusters.angles_from_means = angles_from_means(&fits);
     turns = active.relative_turns(infos, m_cs, *reference, aligned, tilts_determined, s.batch.corner_rad_s, &clusters);
@@ -173,7 +174,7 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
       s.batch = selected->fit_batch_at(infos, m_cs, s.batch.corner_rad_s);
     }
   }
-  const CaseStatistics cs = case_statistics(m_cs, left_out);
+  for (std::size_t k = 0; k < cs.state.size(); ++k) cs.m_cs[k] = m_cs[statistics.cases[cs.state[k]].mounting];   // as turned
   const LiveSolver fitted = infer_and_prune(s, *selected, search_space, infos, m_cs, cs, fits, angle_covariances, held_angles);
   s.model = fitted.model();
   s.aligned = reference.has_value();

@@ -113,18 +113,15 @@ std::vector<Term> tilt_terms(const std::vector<Term>& s_terms, dataset::SensorKi
   return out;
 }
 
-/// The mounting's angles from its M_C^S, with `sd` (about i, p, o); an angle held at the nominal
-/// frame has sd 0 (XRA without excitation holds the angle about o, YRA the one about p).
-/// The bias of the mounting's selected model and its sd (its honest inference), which a mounting
-/// taking the bias receives (pipeline.cpp).
-void record_bias(MountingResult& result, const ident::UlsResult& fit) {
-  for (std::size_t j = 0; j < fit.labels.size(); ++j) {
-    if (fit.labels[j] != "1") continue;
-    result.bias = fit.theta(static_cast<Eigen::Index>(j));
-    if (fit.std_dev.size() > static_cast<Eigen::Index>(j)) result.bias_sd = fit.std_dev(static_cast<Eigen::Index>(j));
-  }
+/// The sd of the bias of the mounting's selected model (its honest inference), which a mounting
+/// taking the bias receives with it (pipeline.cpp).
+void record_bias_sd(MountingResult& result, const ident::UlsResult& fit) {
+  for (std::size_t j = 0; j < fit.labels.size(); ++j)
+    if (fit.labels[j] == "1" && fit.std_dev.size() > static_cast<Eigen::Index>(j)) result.bias_sd = fit.std_dev(static_cast<Eigen::Index>(j));
 }
 
+/// The mounting's angles from its M_C^S, with `sd` (about i, p, o); an angle held at the nominal
+/// frame has sd 0 (XRA without excitation holds the angle about o, YRA the one about p).
 void set_angles(MountingResult& result, const Eigen::Vector3d& sd) {
   result.angles = rotation_vector(result.m_cs);
   result.angles_sd = sd;
@@ -411,7 +408,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
           return external_sensitivities(labels, d, data.sensor).value_or(Eigen::Vector3d::Zero());
         });
     set_angles(result, misalignment_angles(f.sensitivities, f.sensitivity_covariance + placed + bias_part).sd);
-    record_bias(result, result.s_fit);
+    record_bias_sd(result, result.s_fit);
     return result;
   }
 
@@ -494,7 +491,7 @@ MountingResult estimate_mounting(const dataset::Dataset& data, const std::vector
     }
   }
   const ident::UlsResult selected_fit = result.s_fit;
-  record_bias(result, selected_fit);
+  record_bias_sd(result, selected_fit);
   {
     // The angles' sd: the kept tilts' in the selected model (the tilt of n_i toward p and o, over
     // theta_i), whose covariance holds the cases' placements and a bias handed over, by the delta

@@ -35,9 +35,9 @@ struct MountingResult {
   int whitening_order = 0;                  // AR order of the noise model (0: white)
   std::optional<double> known_bias;         // removed from the output before the fit
   double known_bias_sd = 0.0;               // its sd (in the angles' sd)
-  /// The bias of this mounting's selected model and its sd (its honest inference): what a mounting
-  /// that takes the bias (mounting_rules.hpp) receives. None: the model has no bias.
-  std::optional<double> bias, bias_sd;
+  /// The sd of this mounting's bias (its selected model's honest inference), which a mounting that
+  /// takes the bias (mounting_rules.hpp) receives with it. None: the model has no bias.
+  std::optional<double> bias_sd;
   std::optional<double> square_corner_rad_s;   // b of the squares' high pass (none: static squares)
   double twist_rad = 0.0;                   // estimated twist about n_i added to algorithm 1's M_C^S
   /// What the mounting's inputs determine (excitation.hpp): an axis without its own excitation
