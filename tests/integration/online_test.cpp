@@ -446,8 +446,8 @@ TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) 
     sent_malformed += 2;
     // Longer than any sample block. Its 2 MB arrive as a burst of UDP fragments: the pause lets the
     // receiver drain them, so that a loaded machine does not drop the data blocks behind them in
-    // the kernel (which would change the estimate, not mix into it). With the other tests of
-    // `ctest -j2` beside it, 20 ms once let a reference block behind the burst be dropped.
+    // the kernel (which would change the estimate, not mix into it), also with other tests
+    // running beside it.
     const std::vector<std::uint8_t> huge(1u << 21, 1);
     out.publish("INERTIA_RAW_ACCEL", huge.data(), static_cast<unsigned>(huge.size()));
     ++sent_oversized;

@@ -159,9 +159,9 @@ namespace {
 // by s moves them by (central difference; the fixed model's fit is linear in the output). The
 // unit's y accelerometer, its fixed model's angles by algorithm 1, white noise: with an AR noise
 // model each pass refits the whitener to a residual the moved bias leaves a constant in, which
-// takes part of it out (the fixed point then moves the angles by a twelfth of what the whitener
-// held gives), and the bias's share is taken at the whitener held, as every other share of the
-// sd. s is large enough to dominate the placements' share.
+// takes part of it out (the fixed point then moves the angles less than with the whitener held),
+// and the bias's share is taken at the whitener held, as every other share of the sd. s is large
+// enough to dominate the placements' share.
 TEST(PaperMisalignment, AShakerMountingsAnglesCarryTheBiasItWasHandedAsMovingTheBiasMovesThem) {
   const inertia::config::BenchConfig bench =
       inertia::config::load_bench_config(std::filesystem::path(INERTIA_SOURCE_DIR) / "config" / "sim-imu.toml");
