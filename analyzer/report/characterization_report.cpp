@@ -272,8 +272,9 @@ WrittenReport write_characterization_report(const ReportInputs& in, const std::f
       indep = ident::residual_input_correlation(tr.innovation, tr.a_i, lags);
     }
     const ident::ResidualMeanTest mean = ident::residual_mean_test(tr.verification);
-    md << fmt::format("| {} | all | {} | {:.4g} | {:+.3g} | {:.2g} | {:.4g} | {} ({}/{} lags out) | {} ({}/{}) |\n", cd.name,
-                      tr.verification.size(), rms(tr.verification), tr.verification.mean(), mean.p_value, rms(tr.innovation),
+    const std::string innovation_rms = tr.innovation.size() > 0 ? fmt::format("{:.4g}", rms(tr.innovation)) : "-";
+    md << fmt::format("| {} | all | {} | {:.4g} | {:+.3g} | {:.2g} | {} | {} ({}/{} lags out) | {} ({}/{}) |\n", cd.name,
+                      tr.verification.size(), rms(tr.verification), tr.verification.mean(), mean.p_value, innovation_rms,
                       verdict(white), white.outside, white.lags.size(), verdict(indep),
                       indep.outside, indep.lags.size());
     for (std::size_t p = 0; p < cd.phase_names.size() && !tr.phase.empty(); ++p) {

@@ -572,6 +572,37 @@ TEST(LogCharacterize, OptionsForALogAloneAreRefusedWithADataset) {
   }
 }
 
+// A case with fewer rows than the report's whiteness checks have lags (a lossy log cuts a case
+// into pieces; an operator aborts a case) is reported, not a reason to fail: its row in the
+// verification table names it too short, and the rest of the report stands.
+TEST(Characterize, ACaseTooShortForTheWhitenessChecksIsNamedSoInTheReport) {
+  TempDir tmp;
+  const fs::path data = tmp.path / "data", out = tmp.path / "out";
+  ASSERT_EQ(run_command(analyze_binary() + " simulate --bench " + std::string(INERTIA_SOURCE_DIR) +
+                            "/config/sim-rotation-table.toml --out " + data.string(),
+                        tmp.path / "simulate.txt"),
+            0)
+      << read_text(tmp.path / "simulate.txt");
+  const fs::path dataset = data / "acc1";
+  {
+    std::ifstream full(dataset / "rate-series.csv");
+    std::ofstream cut(dataset / "cut-short.csv");
+    std::string line;
+    for (int k = 0; k < 16 && std::getline(full, line); ++k) cut << line << "\n";   // the header and 15 rows
+    std::ofstream(dataset / "dataset.toml", std::ios::app)
+        << "\n[[case]]\nname = \"cut-short\"\nkind = \"rotation_table\"\nfile = \"cut-short.csv\"\n"
+           "m_ec = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n";
+  }
+  ASSERT_EQ(run_command(analyze_binary() + " characterize --dataset " + dataset.string() + " --out " + out.string(),
+                        tmp.path / "characterize.txt"),
+            0)
+      << read_text(tmp.path / "characterize.txt");
+  const std::string report = read_text(out / "report.md");
+  EXPECT_NE(report.find("| cut-short | all | 15 |"), std::string::npos) << report;
+  EXPECT_NE(report.find("| - | too short (0/0 lags out) | too short (0/0) |"), std::string::npos) << report;
+  EXPECT_NE(report.find("| rate-series | all | 48000 |"), std::string::npos) << report;
+}
+
 // A characterize stopped by SIGINT stops at once and leaves the folder as the last complete run
 // left it: its model.toml and report.md, byte for byte, and no temporary file. --order 2 keeps
 // the run in its computation well past the half second the signal waits.
