@@ -211,6 +211,14 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
     }
   }
 
+  // A linear system none of whose varying terms reads a solved input has the same A at every
+  // sample (a linear unit's bias, scale, cross-axis and g-sensitivity, with T in b): A and its
+  // inverse are made once, and each sample only sums b.
+  bool constant_jacobian = linear_;
+  for (const Equation& e : eqs)
+    for (const std::size_t t : e.varying_terms)
+      for (const Factor& f : e.terms[t].factors) constant_jacobian = constant_jacobian && f.solved < 0;
+
   // From this row on no lagged solved input moves with the sample's x.
   Index settling_rows = 0;
   for (const Equation& e : eqs) {
@@ -242,6 +250,9 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
   Vector residuals;
   Matrix jacobian, inverse, inverse_squared;
   Matrix inverted = Matrix::Constant(std::numeric_limits<double>::quiet_NaN());   // the Jacobian `inverse` inverts
+  bool inverse_holds = false;   // a constant Jacobian's inverse, made: no comparison needed
+  if (constant_jacobian)
+    for (std::size_t m = 0; m < eqs.size(); ++m) jacobian.row(static_cast<Index>(m)) = eqs[m].constant_a.transpose();
 
   for (Index k = first_row_; k < n; ++k) {
     const Index r = k - first_row_;
@@ -350,14 +361,14 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
             b += weighted;
         }
         residuals(static_cast<Index>(m)) = b;
-        jacobian.row(static_cast<Index>(m)) = a.transpose();
+        if (!constant_jacobian) jacobian.row(static_cast<Index>(m)) = a.transpose();
       }
     };
     // Newton's step and the Jacobian's inverse, or false where the Jacobian is singular or a
     // value not finite. Up to 3 unknowns the inverse is the cofactors'; 6 take an LU.
     const auto newton_step = [&](Vector& step) {
       if (!residuals.allFinite()) return false;
-      if (jacobian == inverted) {   // the Jacobian of the last inverse: often every sample's (a linear unit)
+      if (inverse_holds || jacobian == inverted) {   // the Jacobian of the last inverse: often every sample's (a linear unit)
         step.noalias() = inverse * residuals;
         return step.allFinite();
       }
@@ -380,6 +391,7 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
         step.noalias() = inverse * residuals;
       }
       inverted = jacobian;
+      inverse_holds = constant_jacobian;
       inverse_squared = inverse.array().square().matrix();
       return step.allFinite();
     };
