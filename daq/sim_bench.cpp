@@ -20,6 +20,7 @@
 #include <random>
 #include <string>
 
+#include "common/config/link_capacity.hpp"
 #include "hal/sim/bench_motion.hpp"
 #include "hal/sim/random_streams.hpp"
 
@@ -168,6 +169,20 @@ std::unique_ptr<SimBench> SimBench::create(const config::BenchConfig& bench, con
   // --- encoders: quadrature + sample-clock trigger through pipes, or counts on a CAN bus ---
   auto add_encoder = [&](const config::Encoder& enc, bool table, const char* name) -> bool {
     if (!enc.present) return true;
+    if (enc.wire == config::EncoderWire::Gpio) {
+      // The simulator's GPIO wire is a pipe and carries any edge rate; a real GPIO line does not
+      // (config/link_capacity.hpp, which refuses such a real bench). Said, so that a bench file
+      // copied from this one is not taken for a wiring that works.
+      const config::GpiodEncoder real_line;
+      const double edges = config::quadrature_edges_per_line(config::motion_peak_speed(s->bench_, table), enc.resolution);
+      const double capacity = config::gpio_line_edge_capacity(real_line);
+      if (edges > capacity)
+        std::cerr << "inertia-daqd: note: simulated bench: the " << name << "'s fastest motion makes " << std::llround(edges)
+                  << " edges/s on each GPIO line, above the " << std::llround(capacity)
+                  << " a real line carries (gpiolib's " << config::kGpioLineEventQueue << "-event queue, edge_latency_ns = "
+                  << real_line.edge_latency_ns << "); the simulator's wire carries them all, a real bench would read this "
+                  << "encoder through a counter (wire = \"can\" here; config/bench-template.toml)\n";
+    }
     EncoderSim e;
     e.resolution = enc.resolution;
     e.table = table;

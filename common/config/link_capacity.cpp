@@ -99,8 +99,13 @@ std::vector<CanBusLoad> can_bus_loads(const BenchConfig& bench) {
 }
 
 double encoder_peak_speed(const BenchConfig& bench, const GpiodEncoder& e) {
-  const bool table = bench.table_encoder.present && device_of(bench.table_encoder.channel) == e.name;
-  const bool armature = bench.linear_encoder.present && device_of(bench.linear_encoder.channel) == e.name;
+  if (bench.table_encoder.present && device_of(bench.table_encoder.channel) == e.name) return motion_peak_speed(bench, true);
+  if (bench.linear_encoder.present && device_of(bench.linear_encoder.channel) == e.name) return motion_peak_speed(bench, false);
+  return 0.0;
+}
+
+double motion_peak_speed(const BenchConfig& bench, bool table) {
+  const bool armature = !table;
   double peak = 0.0;
   for (const TestCase& c : bench.cases) {
     for (const Phase& p : c.phases) {
@@ -141,8 +146,7 @@ void check_link_capacity(const BenchConfig& bench) {
                          "carries them, pack more signals per frame, or split the devices over more interfaces");
   }
   for (const GpiodEncoder& e : bench.gpiod_encoders) {
-    const double counts_per_s = encoder_peak_speed(bench, e) / e.resolution;
-    const double edges_per_line = counts_per_s / 2.0;   // x4 counts: every edge of A and of B
+    const double edges_per_line = quadrature_edges_per_line(encoder_peak_speed(bench, e), e.resolution);
     const double capacity = gpio_line_edge_capacity(e);
     if (edges_per_line <= capacity) continue;
     throw InputError(e.availability.where,

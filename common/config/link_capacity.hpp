@@ -50,6 +50,12 @@ std::vector<CanBusLoad> can_bus_loads(const BenchConfig& bench);
 /// sine (A / 2 pi f), random (4 sd of the velocity of a flat acceleration PSD: a_rms / (2 pi
 /// sqrt(f1 f2))) and shock (the pulse's whole velocity change, 2 peak pulse / pi) phases.
 double encoder_peak_speed(const BenchConfig& bench, const GpiodEncoder& e);
+/// The same for the table's motion (`table`) or the shaker armature's, whichever device reads it.
+double motion_peak_speed(const BenchConfig& bench, bool table);
+
+/// Edges per second on each line of an x4 quadrature encoder of `resolution` (SI per count) at
+/// `speed`: every edge of A and of B is a count.
+inline double quadrature_edges_per_line(double speed, double resolution) { return speed / resolution / 2.0; }
 
 /// Edges per second one line of the encoder can carry: kGpioLineEventQueue edges in the time the
 /// reader may be away (the encoder's edge_latency_ns).

@@ -15,6 +15,7 @@
 #include <regex>
 #include <sstream>
 
+#include "common/config/link_capacity.hpp"
 #include "tests/integration/daqd_harness.hpp"
 
 namespace inertia::daq::testing {
@@ -44,6 +45,22 @@ TEST_P(DaqdTimeBase, DriftFittedLostFramesAccountedNoChannelShifted) {
   ASSERT_TRUE(std::regex_search(out, m, std::regex(R"((\d+) CAN frame\(s\) lost on purpose)"))) << out;
   const long frames_lost = std::stol(m[1]);
   EXPECT_GT(frames_lost, 0) << "0.5 % of a few thousand frames";
+
+  // An encoder on the simulated GPIO wire faster than a real GPIO line carries is said at the
+  // start (the simulator's pipe carries it; config/link_capacity.hpp refuses it on a real bench).
+  const config::BenchConfig bench = config::load_bench_config(config);
+  const struct {
+    const config::Encoder& encoder;
+    bool table;
+    const char* name;
+  } encoders[] = {{bench.table_encoder, true, "table_encoder"}, {bench.linear_encoder, false, "linear_encoder"}};
+  for (const auto& e : encoders) {
+    if (!e.encoder.present || e.encoder.wire != config::EncoderWire::Gpio) continue;
+    const double edges = config::quadrature_edges_per_line(config::motion_peak_speed(bench, e.table), e.encoder.resolution);
+    const bool beyond = edges > config::gpio_line_edge_capacity(config::GpiodEncoder{});
+    std::cout << "[ figures ] " << GetParam() << " " << e.name << ": " << edges << " edges/s per GPIO line\n";
+    EXPECT_EQ(out.find(std::string("the ") + e.name + "'s fastest motion makes") != std::string::npos, beyond) << out;
+  }
 
   const auto events = read_log_dir(tmp.path / "log");
   const auto statuses = decode_all<daq_status_t>(events, "INERTIA_STATUS");

@@ -178,6 +178,10 @@ TEST(GpioEdgeRate, PeakSpeedsOfEveryMotionKind) {
   shock.pulse_s = 0.011;
   s.cases[0].phases = {shock};
   EXPECT_NEAR(encoder_peak_speed(s, arm), 2.0 * 500.0 * 0.011 / std::numbers::pi, 1e-12);
+  // The motion whatever reads it (the simulator's encoders are no GPIO devices), and its edges.
+  EXPECT_EQ(motion_peak_speed(s, false), encoder_peak_speed(s, arm));
+  EXPECT_EQ(motion_peak_speed(s, true), 0.0);
+  EXPECT_NEAR(quadrature_edges_per_line(1.0, 1e-3), 500.0, 1e-12);   // 1000 counts/s: 500 edges on each of A and B
   // An encoder that is neither reference: no motion is known for it.
   GpiodEncoder other;
   other.name = "spare";
