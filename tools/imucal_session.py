@@ -131,19 +131,19 @@ def mean_sd(xs):
 # ------------------------------------------------------------------------------------------------
 # the session
 
-def read_session(path: str) -> dict[str, list[tuple[int, list[float]]]]:
-    """part -> [(sample index, [acc_x, acc_y, acc_z])], in file order."""
+def read_session(path: str, kind: str = "acc") -> dict[str, list[tuple[int, list[float]]]]:
+    """part -> [(sample index, [KIND_x, KIND_y, KIND_z])], in file order; KIND acc or gyr."""
     parts: dict[str, list[tuple[int, list[float]]]] = {}
     with open(path, newline="") as f:
         reader = csv.DictReader(f)
-        need = {"part", "samples", "acc_x", "acc_y", "acc_z"}
+        need = {"part", "samples", f"{kind}_x", f"{kind}_y", f"{kind}_z"}
         missing = need - set(reader.fieldnames or [])
         if missing:
             sys.exit(f"{path}: missing column(s) {sorted(missing)}")
         for line, row in enumerate(reader, start=2):
             try:
                 k = int(float(row["samples"]))
-                acc = [float(row["acc_x"]), float(row["acc_y"]), float(row["acc_z"])]
+                acc = [float(row[f"{kind}_x"]), float(row[f"{kind}_y"]), float(row[f"{kind}_z"])]
             except ValueError as e:
                 sys.exit(f"{path}:{line}: {e}")
             parts.setdefault(row["part"], []).append((k, acc))
@@ -358,6 +358,37 @@ def compare(args) -> None:
             f.write(text)
 
 
+def gyro_poses(args) -> None:
+    """imucal's gyroscope bias and g-sensitivity (K_ga, its eq. 9: the difference of the up and
+    down poses' means over 2g) recomputed from the CSV, each K_ga element with the standard error
+    the poses' white noise gives it (within-pose sd / sqrt(samples), the two poses combined). The
+    gyroscopes' bias drifts between poses as well, so that sd is a floor and |K_ga| / sd an upper
+    bound on how many sd an element stands from zero."""
+    parts = read_session(args.csv, "gyr")
+    with open(args.published) as f:
+        pub = json.load(f)
+    g = args.published_g
+    out = []
+    say = out.append
+    all_static = [v for p in POSES for _, v in parts[p]]
+    b = [sum(v[i] for v in all_static) / len(all_static) for i in range(3)]
+    say(f"b_g recomputed (mean of the six poses' samples): {', '.join(f'{x:+.4f}' for x in b)} counts; "
+        f"published {', '.join(f'{x:+.4f}' for x in pub['b_g'])}")
+    say("")
+    say(f"| gyro | along | K_ga recomputed | white-noise sd | K_ga / sd | published K_ga |")
+    say("|---|---|---|---|---|---|")
+    for i in range(3):
+        for j in range(3):
+            up, down = parts[f"{AXES[j]}_p"], parts[f"{AXES[j]}_a"]
+            mu, su = mean_sd([v[i] for _, v in up])
+            md, sdn = mean_sd([v[i] for _, v in down])
+            k = (mu - md) / (2 * g)
+            sd = math.sqrt(su * su / len(up) + sdn * sdn / len(down)) / (2 * g)
+            say(f"| {AXES[i]} | {AXES[j]} | {k:+.5f} | {sd:.5f} | {k / sd:+.1f} | {pub['K_ga'][i][j]:+.5f} |")
+    text = "\n".join(out) + "\n"
+    print(text, end="")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="command", required=True)
@@ -381,6 +412,11 @@ def main() -> None:
                    help="g imucal used for the published file (for the recomputation check)")
     c.add_argument("--out", help="also write the tables to this file")
     c.set_defaults(run=compare)
+    gp = sub.add_parser("gyro-poses", help="imucal's gyroscope b_g and K_ga from the poses, with K_ga's white-noise sd")
+    gp.add_argument("--csv", required=True, help="imucal's example_data/annotated_session.csv")
+    gp.add_argument("--published", required=True, help="imucal's tests/snapshots/example_cal.json")
+    gp.add_argument("--published-g", type=float, default=IMUCAL_G, help="g imucal used for the published file")
+    gp.set_defaults(run=gyro_poses)
     args = ap.parse_args()
     args.run(args)
 
