@@ -572,18 +572,25 @@ TEST(LogCharacterize, OptionsForALogAloneAreRefusedWithADataset) {
   }
 }
 
+/// sim-rotation-table simulated into tmp/data: its accelerometer's dataset folder (empty when
+/// `simulate` failed; its output is tmp/simulate.txt).
+fs::path simulated_rotation_table_acc1(const TempDir& tmp) {
+  const fs::path data = tmp.path / "data";
+  if (run_command(analyze_binary() + " simulate --bench " + std::string(INERTIA_SOURCE_DIR) + "/config/sim-rotation-table.toml --out " +
+                      data.string(),
+                  tmp.path / "simulate.txt") != 0)
+    return {};
+  return data / "acc1";
+}
+
 // A case with fewer rows than the report's whiteness checks have lags (a lossy log cuts a case
 // into pieces; an operator aborts a case) is reported, not a reason to fail: its row in the
 // verification table names it too short, and the rest of the report stands.
 TEST(Characterize, ACaseTooShortForTheWhitenessChecksIsNamedSoInTheReport) {
   TempDir tmp;
-  const fs::path data = tmp.path / "data", out = tmp.path / "out";
-  ASSERT_EQ(run_command(analyze_binary() + " simulate --bench " + std::string(INERTIA_SOURCE_DIR) +
-                            "/config/sim-rotation-table.toml --out " + data.string(),
-                        tmp.path / "simulate.txt"),
-            0)
-      << read_text(tmp.path / "simulate.txt");
-  const fs::path dataset = data / "acc1";
+  const fs::path out = tmp.path / "out";
+  const fs::path dataset = simulated_rotation_table_acc1(tmp);
+  ASSERT_FALSE(dataset.empty()) << read_text(tmp.path / "simulate.txt");
   {
     std::ifstream full(dataset / "rate-series.csv");
     std::ofstream cut(dataset / "cut-short.csv");
@@ -608,13 +615,9 @@ TEST(Characterize, ACaseTooShortForTheWhitenessChecksIsNamedSoInTheReport) {
 // the run in its computation well past the half second the signal waits.
 TEST(Characterize, AnInterruptedRunLeavesTheLastCompleteOutputAsItWas) {
   TempDir tmp;
-  const fs::path data = tmp.path / "data", out = tmp.path / "out";
-  ASSERT_EQ(run_command(analyze_binary() + " simulate --bench " + std::string(INERTIA_SOURCE_DIR) +
-                            "/config/sim-rotation-table.toml --out " + data.string(),
-                        tmp.path / "simulate.txt"),
-            0)
-      << read_text(tmp.path / "simulate.txt");
-  const fs::path dataset = data / "acc1";
+  const fs::path out = tmp.path / "out";
+  const fs::path dataset = simulated_rotation_table_acc1(tmp);
+  ASSERT_FALSE(dataset.empty()) << read_text(tmp.path / "simulate.txt");
   ASSERT_EQ(run_command(analyze_binary() + " characterize --dataset " + dataset.string() + " --out " + out.string(),
                         tmp.path / "first.txt"),
             0)
