@@ -166,11 +166,11 @@ struct ResetRun {
   std::string clock_report;
 };
 
-ResetRun run_reset(bool mark_segments, double stall_s = 0.0) {
+ResetRun run_reset(bool mark_segments, double stall_s = 0.0, std::int64_t samples_after = 200'000) {
   constexpr double kRate = 10000.0, kPpm = 40.0, kFloorNs = 150e3;
   constexpr std::int64_t kResetAt = 200'000 + 38'000;   // counter 238000 % 65536 = 41392
   constexpr std::int64_t kBack = kResetAt + 3000;        // 0.3 s later, counting from 0
-  constexpr std::int64_t kEnd = kBack + 200'000;
+  const std::int64_t kEnd = kBack + samples_after;
   const double period_ns = 1e9 / kRate * (1.0 + kPpm * 1e-6);
   const double t0 = 5e12;
   lcm::LCM lcm("memq://");
@@ -280,6 +280,16 @@ TEST(Publisher, ACounterResetSeenByAStalledHostIsPlacedAtItsTrueNumbers) {
   EXPECT_NE(stalled.clock_report.find("moved -" + std::to_string(stalled.counter_off) + " sample(s)"), std::string::npos)
       << stalled.clock_report;
   EXPECT_LT(p99_between(stalled, 0.0, 20.0), 20.0);
+}
+
+TEST(Publisher, ACounterResetNearTheEndOfTheRunIsPlacedWithTheFramesThatCame) {
+  // The run stops 15 ms after the adapter came back (150 samples, fewer than the publisher's
+  // 400-sample window): the held segment is placed when the run's last blocks go out.
+  const ResetRun stalled = run_reset(true, 0.007, 150);
+  EXPECT_EQ(stalled.resets, 1);
+  EXPECT_EQ(stalled.wrong_numbers, 0) << stalled.clock_report;
+  EXPECT_EQ(stalled.overlaps, 0);
+  EXPECT_EQ(static_cast<std::int64_t>(stalled.after_s.size()), 150) << "every sample after the restart went out";
 }
 
 TEST(Publisher, ADevicesFixedLatencyIsTakenOffItsStampsBeforeItsClockFit) {
