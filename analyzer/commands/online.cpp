@@ -815,8 +815,16 @@ int run_online(const OnlineCommandOptions& options, std::ostream& out) {
   if (!worker.all_latencies_.empty()) {
     std::vector<double> l = worker.all_latencies_;
     std::sort(l.begin(), l.end());
-    fmt::print(out, "online: sample-to-estimate latency p50 {:.1f} ms, p99 {:.1f} ms, max {:.1f} ms over {} estimate(s)\n",
-               l[l.size() / 2], l[static_cast<std::size_t>(0.99 * static_cast<double>(l.size() - 1))], l.back(), l.size());
+    if (l.front() < 0.0) {
+      // A sample time ahead of this host's clock is no arrival time: the daemon ran a simulated
+      // bench faster than real time (--fast), whose samples carry the simulated clock.
+      fmt::print(out, "online: sample-to-estimate latency not measured: samples' times ran up to {:.1f} s ahead of this host's "
+                      "clock (a simulated bench run with --fast carries the simulated clock)\n",
+                 -1e-3 * l.front());
+    } else {
+      fmt::print(out, "online: sample-to-estimate latency p50 {:.1f} ms, p99 {:.1f} ms, max {:.1f} ms over {} estimate(s)\n",
+                 l[l.size() / 2], l[static_cast<std::size_t>(0.99 * static_cast<double>(l.size() - 1))], l.back(), l.size());
+    }
   }
   for (const auto& p : pipelines) {
     print_stream_summary(*p, out);

@@ -370,6 +370,27 @@ TEST(OnlineLive, ShakerOnlyBenchMatchesTheSimulatorsTruth) {
   EXPECT_GT(std::sqrt(last.residual_variance), 0.9 * 0.86 * 1e-4);
 }
 
+// Beside a daemon that runs a simulated bench faster than real time, the samples carry the
+// simulated clock, ahead of the host's: the closing summary says the latency was not measured
+// instead of printing negative milliseconds.
+TEST(OnlineLive, BesideAFastSimulatedRunTheLatencyIsNamedNotMeasured) {
+  if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
+  TempDir tmp;
+  const std::string config = source_path("config/sim-tumble.toml");
+  const std::string url = private_lcm_url();
+  DaqdProcess online({"online", "--config", config, "--lcm-url", url, "--publish-hz", "10"}, {}, tmp.path / "online.txt",
+                     analyze_binary());
+  ASSERT_TRUE(listening(online)) << online.output();
+  DaqdProcess daqd({"--config", config, "--fast", "--lcm-url", url}, {}, tmp.path / "daqd.txt");
+  ASSERT_EQ(daqd.wait(120), 0) << daqd.output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  online.signal(SIGTERM);
+  ASSERT_EQ(online.wait(30), 0) << online.output();
+  const std::string text = online.output();
+  EXPECT_NE(text.find("sample-to-estimate latency not measured: samples' times ran up to"), std::string::npos) << text;
+  EXPECT_EQ(text.find("latency p50 -"), std::string::npos) << text;
+}
+
 TEST(OnlineLive, BadInputExitsTwoNamingIt) {
   TempDir tmp;
   DaqdProcess missing({"online", "--config", (tmp.path / "nope.toml").string()}, {}, tmp.path / "a.txt", analyze_binary());
