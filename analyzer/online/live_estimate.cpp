@@ -32,7 +32,7 @@ LiveEstimate EstimateSolver::solve(bool update_states, const std::optional<LeftO
     if (!info) continue;
     const std::size_t m = statistics.cases[c].mounting;
     s.infos[m].add(*info);
-    placements[m].push_back({info->input_gram(), statistics.cases[c].placement_sd_rad, info->runs()});
+    placements[m].push_back({info->input_gram(), statistics.cases[c].placement_sd_rad});
   }
   // The mounting rules' order (procedure/mounting_rules.hpp), as the batch takes them.
   {

@@ -82,11 +82,7 @@ Eigen::Matrix4d input_gram(const MountingCases& m, dataset::SensorKind sensor) {
 /// clusters in the inference (its contiguous phases).
 std::vector<CasePlacement> placements_of(const MountingCases& m, dataset::SensorKind sensor) {
   std::vector<CasePlacement> out;
-  for (const dataset::CaseData* c : m.cases) {
-    std::size_t clusters = 1;
-    for (std::size_t k = 1; k < c->phase.size(); ++k) clusters += c->phase[k] != c->phase[k - 1] ? 1 : 0;
-    out.push_back({case_input_gram(*c, sensor), c->placement_sd_rad, clusters});
-  }
+  for (const dataset::CaseData* c : m.cases) out.push_back({case_input_gram(*c, sensor), c->placement_sd_rad});
   return out;
 }
 

@@ -21,8 +21,10 @@
 // least-squares fit on the regressors r = [a, 1] (the bias with it where the mounting estimates
 // one) moves by d_theta = (G^-1 H_c [theta]x delta_c) in its first three rows, G the mounting's
 // Gram of r, H_c = sum over the case's samples of r a'; theta's covariance gains
-// sum_c sigma_c^2 J_c J_c'. There only the cases of several clusters (its runs) count: a case of
-// one shows its placement as that cluster's offset, which the estimated offsets hold.
+// sum_c sigma_c^2 J_c J_c'. Every placed case counts, a case of one cluster (a tumble's pose) as
+// well as a spin case: a pose's tilt moves the fit's sensitivities, which absorb most of it, and
+// the offsets estimated between the clusters see only what the fit leaves (on a six-position
+// tumble, 2 of the 6 pose means), so they cannot stand for the stated placements.
 #include <Eigen/Dense>
 
 #include <cstddef>
@@ -41,12 +43,10 @@ namespace inertia::procedure {
 struct CasePlacement {
   Eigen::Matrix4d gram = Eigen::Matrix4d::Zero();   // [input 1]'[input 1] over the case's samples, case frame
   double sd_rad = 0.0;                              // the fixture's stated accuracy, per axis
-  std::size_t clusters = 1;                         // the case's clusters in the inference
 };
 
 /// theta's covariance from the placements of `cases` (a mounting's, all of them: G sums every
-/// case's gram); `with_bias` where the mounting's fit estimates a bias. Zero without a case of
-/// several clusters and a placement sd.
+/// case's gram); `with_bias` where the mounting's fit estimates a bias. Zero without a placement sd.
 Eigen::Matrix3d placement_covariance(const Eigen::Vector3d& theta, std::span<const CasePlacement> cases, bool with_bias);
 
 /// A plan case's stated placement (dataset::CaseData::placement_sd_rad) and the dataset cases

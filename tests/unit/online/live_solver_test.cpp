@@ -439,7 +439,7 @@ TEST(LiveSolver, AMountingsAnglesCarryItsCasesPlacementsAsTheBatchDoes) {
     Eigen::MatrixXd r(1500, 4);
     r.leftCols(3) = a.middleRows(half, 1500);
     r.col(3).setOnes();
-    m.placements.push_back({r.transpose() * r, 2e-4, 3});
+    m.placements.push_back({r.transpose() * r, 2e-4});
   }
   const MountingFit with = fx.solver().fit_mounting(m, std::nullopt);
   ASSERT_TRUE(with.determined) << with.note;
