@@ -425,6 +425,25 @@ std::vector<std::uint8_t> encode_message(const auto& msg) {
   return out;
 }
 
+/// Whether an INERTIA_ANALYZER_STATUS counting `oversized` skipped oversized messages arrives
+/// within 5 s (the analyzer publishes its status once a second).
+bool status_counts_oversized(LcmCollector& live, std::int64_t oversized) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  std::size_t seen = 0;
+  while (std::chrono::steady_clock::now() < until) {
+    const auto received = live.take();
+    for (; seen < received.size(); ++seen) {
+      if (received[seen].channel != "INERTIA_ANALYZER_STATUS") continue;
+      analyzer_status_t st;
+      if (st.decode(received[seen].data.data(), 0, static_cast<int>(received[seen].data.size())) >= 0 &&
+          st.skipped_oversized >= oversized)
+        return true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return false;
+}
+
 TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) {
   if (lcm_route_missing()) INERTIA_SKIP_OR_FAIL_IN_CI(kNoRouteMessage);
   TempDir tmp;
@@ -455,7 +474,7 @@ TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) 
   for (const LogEvent& e : events) {
     out.publish(e.channel, e.data.data(), static_cast<unsigned>(e.data.size()));
     std::this_thread::sleep_for(std::chrono::microseconds(700));
-    if (e.channel != "INERTIA_RAW_ACCEL" || ++accel_blocks % 20 != 0) continue;
+    if (e.channel != "INERTIA_RAW_ACCEL" || ++accel_blocks % 40 != 0) continue;
     sample_block_t b;
     ASSERT_GE(b.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
     // Garbage, and a message of another type (wrong fingerprint), on a RAW channel.
@@ -465,14 +484,16 @@ TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) 
     const auto wrong = encode_message(other);
     out.publish("INERTIA_RAW_ACCEL", wrong.data(), static_cast<unsigned>(wrong.size()));
     sent_malformed += 2;
-    // Longer than any sample block. Its 2 MB arrive as a burst of UDP fragments: the pause lets the
-    // receiver drain them, so that a loaded machine does not drop the data blocks behind them in
-    // the kernel (which would change the estimate, not mix into it), also with other tests
-    // running beside it.
-    const std::vector<std::uint8_t> huge(1u << 21, 1);
+    // One byte longer than the analyzer takes on a RAW channel (1 MiB, far beyond any sample
+    // block). It arrives as a burst of UDP fragments that can fill the receiver's socket buffer:
+    // nothing more is sent until the analyzer's status has counted it, so that a loaded machine
+    // does not drop the data blocks behind it in the kernel (which would change the estimate, not
+    // mix into it), whatever runs beside the test.
+    const std::vector<std::uint8_t> huge((1u << 20) + 1, 1);
     out.publish("INERTIA_RAW_ACCEL", huge.data(), static_cast<unsigned>(huge.size()));
     ++sent_oversized;
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    ASSERT_TRUE(status_counts_oversized(live, sent_oversized)) << "the analyzer never counted the oversized message\n"
+                                                               << online.output();
     // A bitmap that does not match num_samples, and a NaN period.
     sample_block_t bad = b;
     bad.valid_bytes += 3;
@@ -514,7 +535,7 @@ TEST(OnlineLive, HostileMessagesAreCountedAndSkippedAndTheEstimateStaysUnmixed) 
   const auto status = decoded<analyzer_status_t>(received, "INERTIA_ANALYZER_STATUS");
   ASSERT_FALSE(status.empty()) << online.output();
   const analyzer_status_t& s = status.back().second;
-  ASSERT_GE(sent_malformed, 20);
+  ASSERT_GE(sent_malformed, 20);   // 13 rounds of hostile messages
   EXPECT_EQ(s.skipped_malformed, sent_malformed) << online.output();
   EXPECT_EQ(s.skipped_oversized, sent_oversized);
   EXPECT_EQ(s.skipped_invalid, sent_invalid);
