@@ -17,9 +17,6 @@
 #include "hal/device.hpp"
 
 namespace inertia::daq {
-namespace {
-constexpr std::int64_t kNoStamp = std::numeric_limits<std::int64_t>::min();
-}  // namespace
 
 Publisher::Publisher(lcm::LCM& lcm, LogWriter* log, std::vector<std::shared_ptr<DeviceSlot>> slots,
                      PublisherOptions options)
@@ -136,7 +133,6 @@ void Publisher::emit(Packer& p, std::int32_t n) noexcept {
 }
 
 void Publisher::emit_numbered(Packer& p, std::int32_t n) noexcept {
-  if (p.placing) place_segment(p);   // a block leaves only with its numbers and its clock settled
   DeviceSlot& slot = *p.slot;
   const auto nch = static_cast<std::int32_t>(slot.channels.size());
   const auto len = static_cast<std::size_t>(p.block_len);
@@ -216,51 +212,17 @@ void Publisher::mark_stuck(Packer& p, std::size_t c, std::size_t f) noexcept {
 void Publisher::start_segment(Packer& p, std::int64_t first) noexcept {
   if (!p.clock) return;
   if (p.numbered) {
-    if (p.placing) place_segment(p);   // two restarts within a window: the first one's place
     // What the old segment holds goes out now, timed by the old clock, as at the end of a run.
-    const std::int64_t old_newest = p.newest;
     while (p.base >= 0 && p.newest >= p.base)
       emit_numbered(p, static_cast<std::int32_t>(std::min<std::int64_t>(p.block_len, p.newest - p.base + 1)));
-    // The new segment's blocks start at its first number (its numbers go on from the old ones'),
-    // held until placed against the old clock, which timed the samples up to there.
-    if (p.base >= 0) {
-      p.base = first + p.index_shift;
-      if (old_newest >= 0) {
-        p.placing = true;
-        p.segment_first = p.base;
-        p.segment_lowest = old_newest + 1;
-        p.segment_expected_ns = p.clock->time_ns(p.base);
-        std::fill(p.t_first.begin(), p.t_first.end(), kNoStamp);
-      }
-    }
+    // The new segment's blocks start at its first number (its numbers go on from the old ones').
+    if (p.base >= 0) p.base = first;
     p.newest = -1;
   }
   p.clock.emplace(1.0 / p.slot->nominal_rate_hz);
   p.timebase = SlewedTimeBase{};
-  p.clock_fed = first + p.index_shift - 1;
+  p.clock_fed = first - 1;
   ++p.segments;
-}
-
-void Publisher::place_segment(Packer& p) noexcept {
-  p.placing = false;
-  const double period_ns = 1e9 / p.slot->nominal_rate_hz;
-  // The floor: the held stamp least behind its nominal time since the segment's first number
-  // (slot 0: nothing goes out while placing), the one that waited least, as the clock's fit takes it.
-  double floor_ns = std::numeric_limits<double>::infinity();
-  for (std::size_t k = 0; k < p.capacity; ++k)
-    if (p.t_first[k] != kNoStamp)
-      floor_ns = std::min(floor_ns, static_cast<double>(p.t_first[k]) - static_cast<double>(k) * period_ns);
-  if (std::isfinite(floor_ns)) {
-    const std::int64_t shift = std::max<std::int64_t>(std::llround((floor_ns - p.segment_expected_ns) / period_ns),
-                                        static_cast<std::int64_t>(p.segment_lowest - p.segment_first));
-    p.index_shift += shift;
-    p.base += shift;
-    if (p.newest >= 0) p.newest += shift;
-    p.clock_fed += shift;
-    if (std::abs(shift) > std::abs(p.largest_placement)) p.largest_placement = shift;
-  }
-  for (std::size_t k = 0; k < p.capacity; ++k)
-    if (p.t_first[k] != kNoStamp) p.clock->add(p.base + static_cast<std::int64_t>(k), p.t_first[k]);
 }
 
 void Publisher::take(Packer& p, const RingSample& s) noexcept {
@@ -301,35 +263,29 @@ void Publisher::take_numbered(Packer& p, const RingSample& s) noexcept {
   if (c >= p.present.size()) return;
   const std::int64_t len = p.block_len;
   p.numbered = true;
+  if (p.base < 0) p.base = s.index - s.index % len;
   const auto window = static_cast<std::int64_t>(p.capacity);
-  // A placing segment is placed once its window is full (or a number falls outside it).
-  if (p.placing && (s.index + p.index_shift >= p.base + window || s.index + p.index_shift < p.base - window)) place_segment(p);
-  std::int64_t index = s.index + p.index_shift;
-  if (p.base < 0) p.base = index - index % len;
-  if (index < p.base - window) {
-    // Numbers from the start again: the device restarted. What is held goes out; a new clock,
-    // and the device's numbers as they come.
+  if (s.index < p.base - window) {
+    // Numbers from the start again: the device restarted. What is held goes out; a new clock.
     for (std::size_t b = 0; b < p.block_present.size(); ++b) emit_numbered(p, p.block_len);
-    p.index_shift = 0;
-    index = s.index;
-    p.base = index - index % len;
+    p.base = s.index - s.index % len;
     p.newest = -1;
     p.clock.emplace(1.0 / slot.nominal_rate_hz);
     p.timebase = SlewedTimeBase{};
     p.clock_fed = -1;
   }
-  if (index < p.base) {
+  if (s.index < p.base) {
     ++p.late;   // its block has gone out (with it invalid)
     return;
   }
-  if (index >= p.base + 2 * window) {
+  if (s.index >= p.base + 2 * window) {
     // A jump of more than the window (bus-off, a silent device): what is held goes out, and the
     // window starts at the new number (the gap shows as a jump of numbers and time).
     for (std::size_t b = 0; b < p.block_present.size(); ++b) emit_numbered(p, p.block_len);
-    p.base = index - index % len;
+    p.base = s.index - s.index % len;
   }
-  while (index >= p.base + window) emit_numbered(p, p.block_len);
-  const auto pos = static_cast<std::size_t>(index - p.base);
+  while (s.index >= p.base + window) emit_numbered(p, p.block_len);
+  const auto pos = static_cast<std::size_t>(s.index - p.base);
   if (p.present[c][pos] == 0) {
     p.present[c][pos] = 1;
     ++p.block_present[pos / static_cast<std::size_t>(len)];
@@ -337,17 +293,11 @@ void Publisher::take_numbered(Packer& p, const RingSample& s) noexcept {
   p.values[c][pos] = s.value;
   p.valid[c][pos] = static_cast<std::uint8_t>(s.valid);
   mark_stuck(p, c, pos);
-  if (index > p.clock_fed) {
-    const std::int64_t stamp = s.t_ns - slot.latency_floor_ns;
-    if (p.placing) {
-      p.t_first[pos] = stamp;
-    } else {
-      p.clock->add(index, stamp);
-    }
-    p.clock_fed = index;
+  if (s.index > p.clock_fed) {
+    p.clock->add(s.index, s.t_ns - slot.latency_floor_ns);
+    p.clock_fed = s.index;
   }
-  p.newest = std::max(p.newest, index);
-  if (p.placing) return;
+  p.newest = std::max(p.newest, s.index);
   // A block is complete when every channel has every sample, or lost what it lacks once a whole
   // block of later samples has arrived (frames of one sample arrive together, never a block apart).
   const std::uint32_t whole = static_cast<std::uint32_t>(p.present.size()) * static_cast<std::uint32_t>(len);
@@ -358,12 +308,10 @@ std::vector<std::string> Publisher::clock_report() const {
   std::vector<std::string> lines;
   for (const Packer& p : packers_) {
     if (!p.clock || p.clock->points() == 0) continue;
-    std::string line = fmt::format("{}: clock drift {:+.2f} +- {:.2f} ppm, floor residual {:.1f} us, largest correction slewed in "
-                                   "{:.1f} us, samples lost {}, late {}, clock segments {}",
-                                   p.slot->name, p.clock->drift_ppm(), p.clock->drift_sd_ppm(), p.clock->residual_us(),
-                                   p.timebase.largest_correction_us(), p.lost, p.late, p.segments + 1);
-    if (p.segments > 0) line += fmt::format(" (a segment's start placed by its floor: moved {:+d} sample(s) at most)", p.largest_placement);
-    lines.push_back(std::move(line));
+    lines.push_back(fmt::format("{}: clock drift {:+.2f} +- {:.2f} ppm, floor residual {:.1f} us, largest correction slewed in "
+                                "{:.1f} us, samples lost {}, late {}, clock segments {}",
+                                p.slot->name, p.clock->drift_ppm(), p.clock->drift_sd_ppm(), p.clock->residual_us(),
+                                p.timebase.largest_correction_us(), p.lost, p.late, p.segments + 1));
   }
   return lines;
 }

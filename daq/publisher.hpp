@@ -110,7 +110,7 @@ class Publisher {
     std::size_t capacity = 0;
     std::vector<std::vector<double>> values;
     std::vector<std::vector<std::uint8_t>> valid;
-    std::vector<std::int64_t> t_first;   // channel 0's timestamps (numbered: a placing segment's, by slot)
+    std::vector<std::int64_t> t_first;   // channel 0's timestamps
     std::vector<std::size_t> fill;
     sample_block_t block;
     std::int64_t seq = 0;
@@ -134,17 +134,6 @@ class Publisher {
     std::vector<std::uint32_t> block_present;   // present samples (all channels) per block of the window
     std::uint64_t lost = 0, late = 0;
     std::uint64_t segments = 0;          // clock segments started after the first (hal::kSegmentStart)
-    // A new segment's numbers go on from one frame's receive stamp (hal FrameCounter), so they
-    // carry that frame's latency: a host stalled for 7 ms at the reset numbers the segment 7
-    // samples late. Its samples are held (the window, not yet emitted nor fitted) until the window
-    // is full, then placed: the floor of their stamps against the old clock's line says where its
-    // first number truly lies, and every number of the segment moves by the difference.
-    bool placing = false;
-    std::int64_t index_shift = 0;        // published number = the device's number + index_shift
-    std::int64_t segment_first = 0;      // the new segment's first number (published) ...
-    std::int64_t segment_lowest = 0;     // ... the least it may become (after the old segment's last) ...
-    double segment_expected_ns = 0.0;    // ... and the old clock's time of it
-    std::int64_t largest_placement = 0;  // the largest move a placement made (samples)
     std::uint64_t status_range_faults = 0, status_overflows = 0;   // counts at the previous status
   };
   void run(RealtimeOptions rt) noexcept;
@@ -155,8 +144,6 @@ class Publisher {
   /// restarted): the old segment's samples go out on the old clock, and the fit starts again, so
   /// a restart neither tilts the line nor is slewed into it.
   void start_segment(Packer& p, std::int64_t first) noexcept;
-  /// Places the held new segment (see Packer::placing) and feeds its stamps to its clock.
-  void place_segment(Packer& p) noexcept;
   /// Raises `bit` on the slot while `count` moved since the previous status, clears it once not.
   static void raise_while_counting(DeviceSlot& slot, std::uint32_t bit, std::uint64_t count, std::uint64_t& seen) noexcept;
   void emit(Packer& p, std::int32_t n) noexcept;
