@@ -95,6 +95,33 @@ WhiteningOptions whitening_options(const PipelineOptions& options, bool search_s
   return w;
 }
 
+namespace {
+
+/// `residuals` with each case that states its placement (dataset::CaseData::placement_sd_rad)
+/// taken about its own level, where every case is a static pose. There a case's level is all it
+/// says about the terms, and the inference weighs the levels by what the noise and the stated
+/// placements leave of them (random effects, post_selection_inference.hpp); read as noise, the
+/// levels a placement tilt leaves are a near unit root of the AR model, which all but removes the
+/// poses' means from the whitened rows before they are weighed: a tumble fitted with the selected
+/// model's terms (--fixed-model, plan-check's runs) read its bias many times less precisely than
+/// the selection did, whose larger candidate set happened to absorb the levels. Where cases move,
+/// the levels stay: one AR model serves every case, and the slow part it then carries (flicker
+/// within the moving cases) is what the moving cases' terms are weighed by (docs/validation.md,
+/// 'plan-check').
+Eigen::VectorXd about_stated_placements(Eigen::VectorXd residuals, const std::vector<CaseRows>& cases, const dataset::Dataset& data) {
+  const bool poses_only = std::all_of(cases.begin(), cases.end(),
+                                      [&](const CaseRows& c) { return data.cases[c.case_index].kind == CaseKind::Static; });
+  if (!poses_only) return residuals;
+  for (const CaseRows& c : cases) {
+    if (!(data.cases[c.case_index].placement_sd_rad > 0.0) || c.rows == 0) continue;
+    auto e = residuals.segment(c.begin, c.rows);
+    e.array() -= e.mean();
+  }
+  return residuals;
+}
+
+}  // namespace
+
 WhitenedProblem whiten_problem(StackedRegression stacked, const dataset::Dataset& data, const WhiteningOptions& options) {
   WhitenedProblem out;
   out.square_corner_rad_s = options.square_corner;
@@ -113,13 +140,14 @@ WhitenedProblem whiten_problem(StackedRegression stacked, const dataset::Dataset
     out.square_corner_rad_s = search_corner(stacked);
   }
   apply_square_model(stacked, data, out.square_corner_rad_s);
-  // The noise model from the residuals of the full candidate set (dependent columns left out).
+  // The noise model from the residuals of the full candidate set (dependent columns left out),
+  // those of a case that states its placement about the case's own level.
   out.identifiable = identifiable_ranking(stacked, data.sensor, options.err);
   ident::UlsOptions uls = options.uls;
   uls.noise_lags = 0;
   std::vector<std::string> dropped;
   const ident::UlsResult ols = fit_identifiable(stacked, data.sensor, out.identifiable, uls, dropped);
-  out.whitener = ArWhitener::fit(ols.residuals, stacked.cases, options.max_order);
+  out.whitener = ArWhitener::fit(about_stated_placements(ols.residuals, stacked.cases, data), stacked.cases, options.max_order);
   out.noise_law = static_noise_law(ols.residuals, stacked.cases, data);
   if (search_after_whitening) {
     // Only the squares depend on the corner: the other columns are whitened once, for the
