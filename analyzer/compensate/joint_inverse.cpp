@@ -131,6 +131,8 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
     Vector constant_a = Vector::Zero();
     double constant_b = 0.0;
     std::vector<std::size_t> varying_terms;
+    // A constant Jacobian's terms of one solved factor: (term, row), dg/dc at the root row . x.
+    std::vector<std::pair<std::size_t, std::size_t>> row_terms;
     Eigen::VectorXd dg_dc;
     double g = 0.0, denominator = 1.0;
   };
@@ -207,6 +209,7 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
         e.constant_b += term.coefficient;
       } else {
         e.constant_a += term.coefficient * e.rows[static_cast<std::size_t>(term.factors.front().solved)];
+        e.row_terms.emplace_back(t, static_cast<std::size_t>(term.factors.front().solved));
       }
     }
   }
@@ -218,6 +221,11 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
   for (const Equation& e : eqs)
     for (const std::size_t t : e.varying_terms)
       for (const Factor& f : e.terms[t].factors) constant_jacobian = constant_jacobian && f.solved < 0;
+  // Then, without squares through the high pass (whose filter state moves with x), the samples
+  // are independent: b, x = -A^-1 b and the uncertainty's sums, a block of samples at a time
+  // (solve_affine_blocks).
+  const bool affine_only =
+      constant_jacobian && std::all_of(eqs.begin(), eqs.end(), [](const Equation& e) { return e.filtered.empty(); });
 
   // From this row on no lagged solved input moves with the sample's x.
   Index settling_rows = 0;
@@ -253,6 +261,156 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
   bool inverse_holds = false;   // a constant Jacobian's inverse, made: no comparison needed
   if (constant_jacobian)
     for (std::size_t m = 0; m < eqs.size(); ++m) jacobian.row(static_cast<Index>(m)) = eqs[m].constant_a.transpose();
+  // The Jacobian's inverse and its entries squared (the uncertainty's), or false where it is
+  // singular or a value not finite. Up to 3 unknowns the inverse is the cofactors'; 6 take an LU.
+  const auto invert = [&]() {
+    if (!jacobian.allFinite()) return false;
+    if constexpr (D == 1) {
+      if (jacobian(0, 0) == 0.0) return false;
+      inverse(0, 0) = 1.0 / jacobian(0, 0);
+    } else if constexpr (D <= 4) {
+      double determinant = 0.0;
+      bool invertible = false;
+      jacobian.computeInverseAndDetWithCheck(inverse, determinant, invertible, 0.0);
+      if (!invertible || !std::isfinite(determinant)) return false;
+    } else {
+      const Eigen::PartialPivLU<Matrix> lu(jacobian);
+      const double determinant = lu.determinant();
+      if (determinant == 0.0 || !std::isfinite(determinant)) return false;
+      inverse = lu.inverse();
+    }
+    inverted = jacobian;
+    inverse_holds = constant_jacobian;
+    inverse_squared = inverse.array().square().matrix();
+    return true;
+  };
+  if (affine_only) {
+    // A block of samples at a time, each quantity a row of the block's samples (contiguous: the
+    // sums below are multiply-adds along the samples). Per equation the row of b,
+    // b = constant_b - y + the varying terms' weighted known parts; then x = -A^-1 b, each solved
+    // row's values, and the coefficients' derivatives dg (a constant term's 1, a row term's
+    // row . x, a varying term's known part, times -y over the denominator); a' C a of every
+    // sample is sum_i dg_i (sum_j C_ij dg_j).
+    constexpr Index kBlock = 64;
+    using Rows = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const bool invertible = invert();
+    Rows b_block(D, kBlock), x_block(D, kBlock), variance_c(D, kBlock), variance_n(D, kBlock);
+    struct BlockRows {
+      Eigen::MatrixXd covariance;                       // C
+      Eigen::Matrix<double, Eigen::Dynamic, D> rows;    // the solved rows, stacked
+      Rows solved, dg;                                  // a row per solved row, per term
+      Eigen::RowVectorXd denominator, known, c_dg, quadratic;
+    };
+    std::vector<BlockRows> sums(eqs.size());
+    for (std::size_t m = 0; m < eqs.size(); ++m) {
+      const Equation& e = eqs[m];
+      BlockRows& bs = sums[m];
+      const auto terms = static_cast<Index>(e.terms.size());
+      bs.covariance = equations_[m].model->covariance();
+      bs.rows.resize(static_cast<Index>(e.rows.size()), D);
+      for (std::size_t r = 0; r < e.rows.size(); ++r) bs.rows.row(static_cast<Index>(r)) = e.rows[r].transpose();
+      bs.solved.resize(bs.rows.rows(), kBlock);
+      bs.dg = Rows::Zero(terms, kBlock);
+      for (Index t = 0; t < terms; ++t) {
+        const Term& term = e.terms[static_cast<std::size_t>(t)];
+        if (term.factors.empty() && !term.denominator) bs.dg.row(t).setOnes();
+      }
+      for (Eigen::RowVectorXd* v : {&bs.denominator, &bs.known, &bs.c_dg, &bs.quadratic}) v->resize(kBlock);
+    }
+    Eigen::Array<bool, 1, Eigen::Dynamic> inside(kBlock);
+    out.most_iterations = 1;
+    for (Index k0 = first_row_; k0 < n; k0 += kBlock) {
+      const Index nb = std::min(kBlock, n - k0), r0 = k0 - first_row_;
+      for (std::size_t m = 0; m < eqs.size(); ++m) {
+        const Equation& e = eqs[m];
+        BlockRows& bs = sums[m];
+        const auto y = e.y->segment(k0, nb).transpose().array();
+        auto b = b_block.row(static_cast<Index>(m)).head(nb).array();
+        b = e.constant_b - y;
+        auto denominator = bs.denominator.head(nb).array();
+        denominator.setOnes();
+        for (const std::size_t t : e.varying_terms) {
+          const Term& term = e.terms[t];
+          auto v = bs.known.head(nb).array();
+          v.setOnes();
+          for (const Factor& f : term.factors)
+            for (Index i = 0; i < nb; ++i) v(i) *= factor_value(f.factor, f.known[k0 + i - f.factor.lag]);
+          auto dg = bs.dg.row(static_cast<Index>(t)).head(nb).array();
+          if (term.denominator) {
+            b += (-y * term.coefficient) * v;
+            denominator += term.coefficient * v;
+            dg = v * -y;
+          } else {
+            b += term.coefficient * v;
+            dg = v;
+          }
+        }
+      }
+      for (Index d = 0; d < D; ++d) {
+        auto x = x_block.row(d).head(nb);
+        x = -inverse(d, 0) * b_block.row(0).head(nb);
+        for (Index j = 1; j < D; ++j) x -= inverse(d, j) * b_block.row(j).head(nb);
+      }
+      variance_c.leftCols(nb).setZero();
+      variance_n.leftCols(nb).setZero();
+      inside.head(nb).setConstant(true);
+      for (std::size_t m = 0; m < eqs.size(); ++m) {
+        const Equation& e = eqs[m];
+        BlockRows& bs = sums[m];
+        for (Index r = 0; r < bs.rows.rows(); ++r) {
+          auto v = bs.solved.row(r).head(nb);
+          v = bs.rows(r, 0) * x_block.row(0).head(nb);
+          for (Index d = 1; d < D; ++d) v += bs.rows(r, d) * x_block.row(d).head(nb);
+        }
+        for (const auto& [t, row] : e.row_terms) bs.dg.row(static_cast<Index>(t)).head(nb) = bs.solved.row(static_cast<Index>(row)).head(nb);
+        auto quadratic = bs.quadratic.head(nb);
+        quadratic.setZero();
+        const Index terms = bs.dg.rows();
+        for (Index i = 0; i < terms; ++i) {
+          auto c_dg = bs.c_dg.head(nb);
+          c_dg = bs.covariance(i, 0) * bs.dg.row(0).head(nb);
+          for (Index j = 1; j < terms; ++j) c_dg += bs.covariance(i, j) * bs.dg.row(j).head(nb);
+          quadratic += c_dg.cwiseProduct(bs.dg.row(i).head(nb));
+        }
+        const auto noise = (e.noise_sd * bs.denominator.head(nb)).array().square().matrix();
+        for (Index d = 0; d < D; ++d) {
+          const double weight = inverse_squared(d, static_cast<Index>(m));
+          variance_c.row(d).head(nb) += weight * quadratic.cwiseMax(0.0);
+          variance_n.row(d).head(nb) += weight * noise;
+        }
+        // Inside the characterized range: every solved input and every known one at the sample.
+        const auto within = [&](const auto& v, const Bound& bound) {
+          inside.head(nb) = inside.head(nb) && (v >= bound.lowest) && (v <= bound.highest);
+        };
+        for (const Bound& bound : e.bounds) {
+          if (bound.solved >= 0)
+            within(bs.solved.row(bound.solved).head(nb).array(), bound);
+          else
+            within(bound.column->segment(k0, nb).transpose().array(), bound);
+        }
+      }
+      out.value.middleRows(r0, nb) = x_block.leftCols(nb).transpose();
+      out.u_coefficients.middleRows(r0, nb) = variance_c.leftCols(nb).cwiseSqrt().transpose();
+      out.u_noise.middleRows(r0, nb) = variance_n.leftCols(nb).cwiseSqrt().transpose();
+      // A value not finite in b is one in every x (NaN or infinity times any inverse's column,
+      // zero included, is not finite), and one in any x is one in their sum.
+      const Eigen::RowVectorXd x_sum = x_block.leftCols(nb).colwise().sum();
+      for (Index i = 0; i < nb; ++i) {
+        const auto r = static_cast<std::size_t>(r0 + i);
+        if (!invertible || !std::isfinite(x_sum(i))) {
+          out.value.row(r0 + i).setConstant(std::numeric_limits<double>::quiet_NaN());
+          out.u_coefficients.row(r0 + i).setConstant(std::numeric_limits<double>::quiet_NaN());
+          out.u_noise.row(r0 + i).setConstant(std::numeric_limits<double>::quiet_NaN());
+          out.flag[r] = SampleFlag::NotConverged;
+          ++out.not_converged;
+        } else if (!inside(i)) {
+          out.flag[r] = SampleFlag::OutsideRange;
+          ++out.outside_range;
+        }
+      }
+    }
+    return;
+  }
 
   for (Index k = first_row_; k < n; ++k) {
     const Index r = k - first_row_;
@@ -364,35 +522,19 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
         if (!constant_jacobian) jacobian.row(static_cast<Index>(m)) = a.transpose();
       }
     };
-    // Newton's step and the Jacobian's inverse, or false where the Jacobian is singular or a
-    // value not finite. Up to 3 unknowns the inverse is the cofactors'; 6 take an LU.
+    // Newton's step, or false where the Jacobian is singular or a value not finite.
     const auto newton_step = [&](Vector& step) {
       if (!residuals.allFinite()) return false;
       if (inverse_holds || jacobian == inverted) {   // the Jacobian of the last inverse: often every sample's (a linear unit)
         step.noalias() = inverse * residuals;
         return step.allFinite();
       }
-      if (!jacobian.allFinite()) return false;
+      if (!invert()) return false;
       if constexpr (D == 1) {
-        if (jacobian(0, 0) == 0.0) return false;
-        inverse(0, 0) = 1.0 / jacobian(0, 0);
         step(0) = residuals(0) / jacobian(0, 0);
-      } else if constexpr (D <= 4) {
-        double determinant = 0.0;
-        bool invertible = false;
-        jacobian.computeInverseAndDetWithCheck(inverse, determinant, invertible, 0.0);
-        if (!invertible || !std::isfinite(determinant)) return false;
-        step.noalias() = inverse * residuals;
       } else {
-        const Eigen::PartialPivLU<Matrix> lu(jacobian);
-        const double determinant = lu.determinant();
-        if (determinant == 0.0 || !std::isfinite(determinant)) return false;
-        inverse = lu.inverse();
         step.noalias() = inverse * residuals;
       }
-      inverted = jacobian;
-      inverse_holds = constant_jacobian;
-      inverse_squared = inverse.array().square().matrix();
       return step.allFinite();
     };
 
