@@ -15,7 +15,9 @@
 // with each solved input read through its row: lagged solved inputs are the estimates already
 // made, and before the first estimate the current x. Where every term is linear in the unknowns
 // (each has at most one solved factor, plain and of power 1), g(x) = A x + b: one evaluation of
-// A and b, and the root is x = -A^-1 b. Otherwise Newton stops by newton_converged
+// A and b, and the root is x = -A^-1 b; where A is also the same at every sample (no term that
+// varies from sample to sample reads a solved input, no square through the high pass), the
+// samples are independent and solved a block at a time. Otherwise Newton stops by newton_converged
 // (inverse_model.hpp): a step within the tolerance, or a next step predicted within it. At the
 // root the terms' values are the last evaluation's moved along their slopes by the last step, and
 // the Jacobian is the last one's: no evaluation after the step that converged.
