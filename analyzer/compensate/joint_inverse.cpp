@@ -223,7 +223,7 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
       for (const Factor& f : e.terms[t].factors) constant_jacobian = constant_jacobian && f.solved < 0;
   // Then, without squares through the high pass (whose filter state moves with x), the samples
   // are independent: b, x = -A^-1 b and the uncertainty's sums, a block of samples at a time
-  // (solve_affine_blocks).
+  // (below, where the inverse is made).
   const bool affine_only =
       constant_jacobian && std::all_of(eqs.begin(), eqs.end(), [](const Equation& e) { return e.filtered.empty(); });
 
