@@ -585,6 +585,17 @@ int run_daemon(const DaemonOptions& command_line) {
     sim->stop();
     if (sim->real_timing())
       std::cerr << "inertia-daqd: simulated bench: " << sim->frames_lost() << " CAN frame(s) lost on purpose ([bench.sim_timing] frame_loss)\n";
+    if (!command_line.fast) {
+      const double behind_ms = sim->behind_schedule_s() * 1e3;
+      std::cerr << fmt::format("inertia-daqd: simulated bench: at most {:.1f} ms behind its schedule\n", behind_ms);
+      if (sim->real_timing() && sim->behind_schedule_s() > SimBench::kScheduleToleranceS)
+        std::cerr << fmt::format(
+            "inertia-daqd: warning: this host could not run the simulated devices on time (late by {:.1f} ms through a "
+            "whole 0.1 s, more than {:.0f} ms): their receive stamps carry that delay as a slow sample clock's would, so "
+            "this log's timing is the host's load, not [bench.sim_timing] (compare the clock drift below with clock_ppm); "
+            "run it on a less loaded host\n",
+            behind_ms, SimBench::kScheduleToleranceS * 1e3);
+    }
   }
   for (auto& s : samplers) s->stop();
   if (sim) sim->stop_servers();

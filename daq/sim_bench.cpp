@@ -362,16 +362,42 @@ void SimBench::CanWire::queue(std::uint32_t can_id, const std::uint8_t* data, st
   pending.push_back(PendingFrame{f, fd_frame ? sizeof(canfd_frame) : sizeof(can_frame)});
 }
 
-void SimBench::CanWire::flush() {
+void SimBench::CanWire::flush() { send(pending); }
+
+void SimBench::CanWire::hold_until(std::int64_t release_ns) {
+  if (pending.empty()) return;
+  if (!held_.empty()) release_ns = std::max(release_ns, held_.back().release_ns);
+  std::vector<PendingFrame> frames;
+  if (!spare_.empty()) {
+    frames = std::move(spare_.back());
+    spare_.pop_back();
+  }
+  frames.swap(pending);   // pending takes the spare's (empty) storage
+  held_.push_back(HeldBatch{release_ns, std::move(frames)});
+}
+
+void SimBench::CanWire::send_due(std::int64_t now_ns) {
+  while (!held_.empty() && held_.front().release_ns <= now_ns) {
+    send(held_.front().frames);
+    spare_.push_back(std::move(held_.front().frames));
+    held_.pop_front();
+  }
+}
+
+std::int64_t SimBench::CanWire::next_release_ns() const noexcept {
+  return held_.empty() ? std::numeric_limits<std::int64_t>::max() : held_.front().release_ns;
+}
+
+void SimBench::CanWire::send(std::vector<PendingFrame>& frames) {
   // A classic frame is the first CAN_MTU bytes of the canfd_frame (same id/len/data layout).
   constexpr std::size_t kChunk = 256;
   std::array<mmsghdr, kChunk> msgs{};
   std::array<iovec, kChunk> iov{};
   std::size_t done = 0;
-  while (done < pending.size()) {
-    const std::size_t n = std::min(kChunk, pending.size() - done);
+  while (done < frames.size()) {
+    const std::size_t n = std::min(kChunk, frames.size() - done);
     for (std::size_t i = 0; i < n; ++i) {
-      iov[i] = iovec{&pending[done + i].frame, pending[done + i].size};
+      iov[i] = iovec{&frames[done + i].frame, frames[done + i].size};
       msgs[i] = mmsghdr{};
       msgs[i].msg_hdr.msg_iov = &iov[i];
       msgs[i].msg_hdr.msg_iovlen = 1;
@@ -384,7 +410,7 @@ void SimBench::CanWire::flush() {
       break;  // the reader is gone (daemon stopping): nothing left to deliver to
     }
   }
-  pending.clear();
+  frames.clear();
 }
 
 void SimBench::update_controllers(std::size_t c, std::size_t k) {
@@ -474,6 +500,9 @@ void SimBench::run() noexcept {
     if (marks_) (void)marks_->try_push(PlanMark{t, b, e, static_cast<std::int32_t>(c), phase, what});
   };
 
+  // Paced: the least lateness of a batch in the current ClockFit-sized window (behind_schedule_s).
+  constexpr std::int64_t kWindowNs = 100'000'000;
+  std::int64_t window_start = t0_ns_, window_least_late = std::numeric_limits<std::int64_t>::max();
   for (std::size_t n = 0; n < run_samples_ && !stop_.load(std::memory_order_relaxed); ++n) {
     const std::size_t pn = n % plan;
     std::size_t c = 0;
@@ -483,7 +512,21 @@ void SimBench::run() noexcept {
     const std::int64_t t_n = time_of(n);
     // Paced: a batch goes out when its newest sample is due, as an ADC delivers samples only
     // after taking them (never early, at most one batch late).
-    if (!options_.fast && n % batch == 0) sleep_until_ns(time_of(std::min(n + batch, run_samples_) - 1));
+    if (!options_.fast && n % batch == 0) {
+      const std::int64_t due = time_of(std::min(n + batch, run_samples_) - 1);
+      // Meanwhile the frames the receive chain held back go out when they are due.
+      for (std::int64_t next = std::min(due, can_bus_.next_release_ns());; next = std::min(due, can_bus_.next_release_ns())) {
+        sleep_until_ns(next);
+        can_bus_.send_due(hal::monotonic_now_ns());
+        if (next == due) break;
+      }
+      window_least_late = std::min(window_least_late, hal::monotonic_now_ns() - due);
+      if (t_n - window_start >= kWindowNs) {
+        behind_schedule_ns_ = std::max(behind_schedule_ns_, window_least_late);
+        window_least_late = std::numeric_limits<std::int64_t>::max();
+        window_start = t_n;
+      }
+    }
 
     // Plan markers at the sample they refer to.
     const auto& spans = sim_.cases[c].motion.spans;
@@ -594,10 +637,11 @@ void SimBench::run() noexcept {
     // together, in one call.
     if ((n + 1) % batch == 0 || n + 1 == run_samples_) {
       if (real_timing_ && bench_.sim_timing.jitter_s > 0.0 && !can_bus_.pending.empty()) {
-        // The batch waits a while longer (an ADC's transfer, a driver, a busy host): its software
-        // receive stamps carry that, as real ones do. Exponential: one-sided, a long tail.
+        // The batch arrives a while after it was due (an ADC's transfer, a driver, a busy host):
+        // its software receive stamps carry that, as real ones do. Exponential: one-sided, a long
+        // tail.
         const double u = std::max(timing_draws.uniform(), 1e-12);
-        sleep_until_ns(hal::monotonic_now_ns() + static_cast<std::int64_t>(-std::log(u) * bench_.sim_timing.jitter_s * 1e9));
+        can_bus_.hold_until(t_n + static_cast<std::int64_t>(-std::log(u) * bench_.sim_timing.jitter_s * 1e9));
       }
       can_bus_.flush();
     }
@@ -666,7 +710,14 @@ void SimBench::run() noexcept {
     if (k == case_len - 1) mark(t_n, c, -1, plan_event_t::MARK_CASE_END, time_of(case_first), t_n);
     written_.store(n + 1, std::memory_order_relaxed);
   }
-  can_bus_.flush();  // stopped early: what was simulated still goes out
+  // What was simulated still goes out: the held frames when they are due, then (stopped early)
+  // the batch in hand.
+  for (std::int64_t next = can_bus_.next_release_ns(); next != std::numeric_limits<std::int64_t>::max();
+       next = can_bus_.next_release_ns()) {
+    sleep_until_ns(next);
+    can_bus_.send_due(hal::monotonic_now_ns());
+  }
+  can_bus_.flush();
   for (auto& e : encoders_) e.bus.flush();
   finished_.store(true, std::memory_order_release);
 }

@@ -24,6 +24,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <string>
 #include <thread>
@@ -110,6 +111,17 @@ class SimBench {
   /// CAN frames the simulated bus lost on purpose ([bench.sim_timing] frame_loss), after stop().
   [[nodiscard]] std::uint64_t frames_lost() const noexcept { return frames_lost_; }
   [[nodiscard]] bool real_timing() const noexcept { return real_timing_; }
+  /// Paced runs, after stop(): how far behind its schedule the simulator stayed for a whole
+  /// ClockFit window (0.1 s) at worst (s): per window, the least lateness of its batches (a
+  /// batch's send against the time its newest sample was due); the largest of those. A simulated
+  /// device is this process's thread, so a host too loaded to run it on time makes the device
+  /// itself late. A late moment lifts a few stamps, which the clock fit's floor ignores; a
+  /// lateness held through a window lifts its floor point, as a sample clock running slow would,
+  /// which a real device (stamped by the kernel on arrival) never does.
+  [[nodiscard]] double behind_schedule_s() const noexcept { return static_cast<double>(behind_schedule_ns_) * 1e-9; }
+  /// Beyond this, behind_schedule_s() says the run did not simulate its devices' timing: the
+  /// clock fit's times move by up to as much, several sample periods at a bench's rates.
+  static constexpr double kScheduleToleranceS = 0.005;
 
  private:
   SimBench(const config::BenchConfig& bench, SimOptions options);
@@ -131,6 +143,24 @@ class SimBench {
     std::vector<PendingFrame> pending;
     void queue(std::uint32_t can_id, const std::uint8_t* data, std::size_t len, bool fd_frame);
     void flush();
+    /// The receive chain's latency ([bench.sim_timing] jitter): the pending frames go out at
+    /// `release_ns` (never before an earlier batch: the chain keeps their order), sent by
+    /// send_due() while the simulator goes on computing the next samples. A simulator that slept
+    /// the latency itself would make the device late, as a sample clock running slow.
+    void hold_until(std::int64_t release_ns);
+    /// Sends the held batches due by `now_ns`; next_release_ns(): the earliest one's time, or
+    /// INT64_MAX when none is held.
+    void send_due(std::int64_t now_ns);
+    [[nodiscard]] std::int64_t next_release_ns() const noexcept;
+
+   private:
+    struct HeldBatch {
+      std::int64_t release_ns;
+      std::vector<PendingFrame> frames;
+    };
+    void send(std::vector<PendingFrame>& frames);
+    std::deque<HeldBatch> held_;
+    std::vector<std::vector<PendingFrame>> spare_;   // emptied batches' storage, reused
   };
   struct EncoderSim {
     std::unique_ptr<hal::wire_sim::EncoderWire> wire;   // gpio: the edge pipes
@@ -170,6 +200,7 @@ class SimBench {
   // clock fits); otherwise the simulator's exact clock.
   bool real_timing_ = false;
   std::uint64_t frames_lost_ = 0;         // CAN frames dropped on purpose (frame_loss)
+  std::int64_t behind_schedule_ns_ = 0;   // paced: the largest lateness of a batch (behind_schedule_s)
   std::shared_ptr<DeviceSlot> can_slot_;
   std::vector<EncoderSim> encoders_;
   std::unique_ptr<hal::wire_sim::BenchControllerServer> controllers_;

@@ -37,7 +37,7 @@ namespace inertia::daq::testing {
 
 namespace fs = std::filesystem;
 
-inline std::string daqd_binary() { return std::string(INERTIA_BINARY_DIR) + "/bin/inertia-daqd"; }
+inline std::string daqd_binary() { return (fs::path(INERTIA_BINARY_DIR) / "bin" / "inertia-daqd").string(); }
 inline std::string source_path(const std::string& rel) { return std::string(INERTIA_SOURCE_DIR) + "/" + rel; }
 /// A test name from a bench file's name: "sim-paper-daq.toml" -> "sim_paper_daq".
 inline std::string bench_test_name(std::string file) {

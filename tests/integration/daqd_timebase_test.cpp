@@ -16,10 +16,14 @@
 #include <sstream>
 
 #include "common/config/link_capacity.hpp"
+#include "daq/sim_bench.hpp"
 #include "tests/integration/daqd_harness.hpp"
+#include "tests/support/files.hpp"
 
 namespace inertia::daq::testing {
 namespace {
+
+using inertia::testing::text_of;
 
 constexpr double kClockPpm = 40.0;
 
@@ -107,6 +111,28 @@ TEST_P(DaqdTimeBase, DriftFittedLostFramesAccountedNoChannelShifted) {
   EXPECT_EQ(nan_in_log + in_jumps, lost_on_status);
   // A frame lost before the first that arrived or after the last cannot be known lost.
   EXPECT_GE(lost_on_status, frames_lost - 2);
+}
+
+// A receive latency longer than the time between batches (3 ms mean against 1 ms batches) holds
+// the frames back, not the simulated device: the simulator keeps its schedule, as a real device
+// keeps its sample clock however late the host reads it, and the fitted drift is the simulated
+// one. A simulator that waited out each batch's latency itself would fall seconds behind here.
+TEST(DaqdSimulatedTiming, ALatencyLongerThanABatchDelaysTheFramesNotTheDevice) {
+  INERTIA_REQUIRE_LCM_ROUTE();
+  TempDir tmp;
+  const fs::path config = tmp.path / "bench.toml";
+  std::ofstream(config) << text_of(source_path("tests/integration/configs/daq-small.toml"))
+                        << "\n[bench.sim_timing]\njitter_us = 3000.0\nclock_ppm = " << kClockPpm << "\n";
+  DaqdProcess daqd({"--config", config.string(), "--duration", "4", "--lcm-url", private_lcm_url()}, {}, tmp.path / "daqd.txt");
+  ASSERT_EQ(daqd.wait(60.0), 0) << daqd.output();
+  const std::string out = daqd.output();
+  std::smatch behind, fit;
+  ASSERT_TRUE(std::regex_search(out, behind, std::regex(R"(simulated bench: at most ([0-9.]+) ms behind its schedule)"))) << out;
+  ASSERT_TRUE(std::regex_search(out, fit, std::regex(R"(accel: clock drift ([-+]?[\d.]+) \+- ([\d.]+) ppm)"))) << out;
+  std::cout << "[ figures ] behind its schedule " << behind[1] << " ms; drift " << fit[1] << " +- " << fit[2] << " ppm\n";
+  EXPECT_LE(std::stod(behind[1]) * 1e-3, SimBench::kScheduleToleranceS) << out;
+  EXPECT_EQ(out.find("could not run the simulated devices on time"), std::string::npos) << out;
+  EXPECT_NEAR(std::stod(fit[1]), kClockPpm, 3.0 * std::stod(fit[2])) << out;
 }
 
 INSTANTIATE_TEST_SUITE_P(EveryShippedBench, DaqdTimeBase,
