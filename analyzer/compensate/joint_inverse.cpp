@@ -295,6 +295,8 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
     using Rows = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const bool invertible = invert();
     Rows b_block(D, kBlock), x_block(D, kBlock), variance_c(D, kBlock), variance_n(D, kBlock);
+    // Per equation, a' C a and its noise's variance (noise sd times the denominator, squared).
+    Rows quadratic_block(D, kBlock), noise_block(D, kBlock);
     struct BlockRows {
       Eigen::MatrixXd covariance;                       // C
       Eigen::Matrix<double, Eigen::Dynamic, D> rows;    // the solved rows, stacked
@@ -333,8 +335,13 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
           const Term& term = e.terms[t];
           auto v = bs.known.head(nb).array();
           v.setOnes();
-          for (const Factor& f : term.factors)
-            for (Index i = 0; i < nb; ++i) v(i) *= factor_value(f.factor, f.known[k0 + i - f.factor.lag]);
+          for (const Factor& f : term.factors) {
+            const double* at = f.known + k0 - f.factor.lag;
+            if (f.factor.function == ident::FactorFunction::Plain && f.factor.power == 1)
+              v *= Eigen::Map<const Eigen::ArrayXd>(at, nb).transpose();
+            else
+              for (Index i = 0; i < nb; ++i) v(i) *= factor_value(f.factor, at[i]);
+          }
           auto dg = bs.dg.row(static_cast<Index>(t)).head(nb).array();
           if (term.denominator) {
             b += (-y * term.coefficient) * v;
@@ -346,38 +353,39 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
           }
         }
       }
+      // The sums below skip exact zeros of the inverse and of the solved rows: a unit's triads
+      // couple one way (a gyro's g-sensitivity reads the accelerometers' inputs), and a row
+      // reads the three axes of its own triad.
       for (Index d = 0; d < D; ++d) {
         auto x = x_block.row(d).head(nb);
-        x = -inverse(d, 0) * b_block.row(0).head(nb);
-        for (Index j = 1; j < D; ++j) x -= inverse(d, j) * b_block.row(j).head(nb);
+        x.setZero();
+        for (Index j = 0; j < D; ++j)
+          if (inverse(d, j) != 0.0) x -= inverse(d, j) * b_block.row(j).head(nb);
       }
-      variance_c.leftCols(nb).setZero();
-      variance_n.leftCols(nb).setZero();
       inside.head(nb).setConstant(true);
       for (std::size_t m = 0; m < eqs.size(); ++m) {
         const Equation& e = eqs[m];
         BlockRows& bs = sums[m];
         for (Index r = 0; r < bs.rows.rows(); ++r) {
           auto v = bs.solved.row(r).head(nb);
-          v = bs.rows(r, 0) * x_block.row(0).head(nb);
-          for (Index d = 1; d < D; ++d) v += bs.rows(r, d) * x_block.row(d).head(nb);
+          v.setZero();
+          for (Index d = 0; d < D; ++d)
+            if (bs.rows(r, d) != 0.0) v += bs.rows(r, d) * x_block.row(d).head(nb);
         }
         for (const auto& [t, row] : e.row_terms) bs.dg.row(static_cast<Index>(t)).head(nb) = bs.solved.row(static_cast<Index>(row)).head(nb);
+        // C is symmetric: a' C a = 2 sum_i a_i (C_ii a_i / 2 + sum_{j>i} C_ij a_j).
         auto quadratic = bs.quadratic.head(nb);
         quadratic.setZero();
         const Index terms = bs.dg.rows();
         for (Index i = 0; i < terms; ++i) {
           auto c_dg = bs.c_dg.head(nb);
-          c_dg = bs.covariance(i, 0) * bs.dg.row(0).head(nb);
-          for (Index j = 1; j < terms; ++j) c_dg += bs.covariance(i, j) * bs.dg.row(j).head(nb);
+          c_dg = (0.5 * bs.covariance(i, i)) * bs.dg.row(i).head(nb);
+          for (Index j = i + 1; j < terms; ++j) c_dg += bs.covariance(i, j) * bs.dg.row(j).head(nb);
           quadratic += c_dg.cwiseProduct(bs.dg.row(i).head(nb));
         }
-        const auto noise = (e.noise_sd * bs.denominator.head(nb)).array().square().matrix();
-        for (Index d = 0; d < D; ++d) {
-          const double weight = inverse_squared(d, static_cast<Index>(m));
-          variance_c.row(d).head(nb) += weight * quadratic.cwiseMax(0.0);
-          variance_n.row(d).head(nb) += weight * noise;
-        }
+        const auto mi = static_cast<Index>(m);
+        quadratic_block.row(mi).head(nb) = (2.0 * quadratic).cwiseMax(0.0);
+        noise_block.row(mi).head(nb) = (e.noise_sd * bs.denominator.head(nb)).array().square().matrix();
         // Inside the characterized range: every solved input and every known one at the sample.
         const auto within = [&](const auto& v, const Bound& bound) {
           inside.head(nb) = inside.head(nb) && (v >= bound.lowest) && (v <= bound.highest);
@@ -389,11 +397,23 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
             within(bound.column->segment(k0, nb).transpose().array(), bound);
         }
       }
+      // Each solved input's variances: the equations' through the inverse's entries squared.
+      for (Index d = 0; d < D; ++d) {
+        auto c = variance_c.row(d).head(nb);
+        auto v = variance_n.row(d).head(nb);
+        c.setZero();
+        v.setZero();
+        for (Index m = 0; m < D; ++m) {
+          if (inverse_squared(d, m) == 0.0) continue;
+          c += inverse_squared(d, m) * quadratic_block.row(m).head(nb);
+          v += inverse_squared(d, m) * noise_block.row(m).head(nb);
+        }
+      }
       out.value.middleRows(r0, nb) = x_block.leftCols(nb).transpose();
       out.u_coefficients.middleRows(r0, nb) = variance_c.leftCols(nb).cwiseSqrt().transpose();
       out.u_noise.middleRows(r0, nb) = variance_n.leftCols(nb).cwiseSqrt().transpose();
-      // A value not finite in b is one in every x (NaN or infinity times any inverse's column,
-      // zero included, is not finite), and one in any x is one in their sum.
+      // A value not finite in b is one in some x (a column of an inverse has an entry that is not
+      // zero, and NaN or infinity times it is not finite), and one in any x is one in their sum.
       const Eigen::RowVectorXd x_sum = x_block.leftCols(nb).colwise().sum();
       for (Index i = 0; i < nb; ++i) {
         const auto r = static_cast<std::size_t>(r0 + i);
