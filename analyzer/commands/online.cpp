@@ -588,7 +588,16 @@ void print_stream_summary(const SensorPipeline& p, std::ostream& out) {
   fmt::print(out, "online: {}: {} fused rows, {} gap(s), {} exclusion(s), {} block(s) before the bench\n", p.name, p.rows_fused,
              p.assembler->gaps().size(), p.assembler->exclusions().size(), p.assembler->skipped_blocks());
   for (const fusion::StreamGap& g : p.assembler->gaps()) fmt::print(out, "online: {}: gap: {}\n", p.name, describe(g));
-  if (!p.assembler->has_bench()) fmt::print(out, "online: {}: no INERTIA_BENCH received (is inertia-daqd running on this LCM URL?)\n", p.name);
+  if (!p.assembler->has_bench()) {
+    fmt::print(out, "online: {}: no INERTIA_BENCH received (is inertia-daqd running on this LCM URL?)\n", p.name);
+  } else if (p.assembler->skipped_blocks() > 0) {
+    // The daemon sends its bench file at start and every 10 s, and a marker at each case's start:
+    // an analyzer that joins a running daemon waits for both.
+    fmt::print(out,
+               "online: {}: joined a running inertia-daqd: its samples are estimated from the first case that started after "
+               "its bench file arrived (INERTIA_BENCH, sent every 10 s)\n",
+               p.name);
+  }
 }
 
 void print_settling(const SensorPipeline& p, const online::OnlineSnapshot& last, std::ostream& out) {

@@ -146,9 +146,9 @@ WhitenedProblem whiten_problem(StackedRegression stacked, const dataset::Dataset
   ident::UlsOptions uls = options.uls;
   uls.noise_lags = 0;
   std::vector<std::string> dropped;
-  const ident::UlsResult ols = fit_identifiable(stacked, data.sensor, out.identifiable, uls, dropped);
-  out.whitener = ArWhitener::fit(about_stated_placements(ols.residuals, stacked.cases, data), stacked.cases, options.max_order);
+  ident::UlsResult ols = fit_identifiable(stacked, data.sensor, out.identifiable, uls, dropped);
   out.noise_law = static_noise_law(ols.residuals, stacked.cases, data);
+  out.whitener = ArWhitener::fit(about_stated_placements(std::move(ols.residuals), stacked.cases, data), stacked.cases, options.max_order);
   if (search_after_whitening) {
     // Only the squares depend on the corner: the other columns are whitened once, for the
     // corner's search and as the result, and the squares pass the corner's high pass and the

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <iterator>
 #include <map>
+#include <optional>
+#include <regex>
 #include <set>
 #include <sstream>
 
@@ -389,6 +391,66 @@ TEST(OnlineLive, BesideAFastSimulatedRunTheLatencyIsNamedNotMeasured) {
   const std::string text = online.output();
   EXPECT_NE(text.find("sample-to-estimate latency not measured: samples' times ran up to"), std::string::npos) << text;
   EXPECT_EQ(text.find("latency p50 -"), std::string::npos) << text;
+}
+
+// An engineer starts the live analyzer beside a daemon that is already running: the first blocks
+// come before the daemon's bench file (sent at start and every 10 s) and are counted, the case
+// under way when the bench came is not estimated (its start marker went by), and the estimate
+// begins at the next case's start. The joined stream is the daemon's log of sim-tumble from the
+// middle of its first case, with its bench message moved to just before the second case starts.
+TEST(OnlineReplay, AnAnalyzerThatJoinsARunningDaemonEstimatesFromTheNextCase) {
+  INERTIA_REQUIRE_LCM_ROUTE();
+  TempDir tmp;
+  const std::string config = source_path("config/sim-tumble.toml");
+  DaqdProcess record({"--config", config, "--fast", "--lcm-url", private_lcm_url(), "--log", (tmp.path / "log").string()}, {},
+                     tmp.path / "record.txt");
+  ASSERT_EQ(record.wait(120), 0) << record.output();
+  const std::vector<LogEvent> events = read_log_dir(tmp.path / "log");
+  std::vector<std::size_t> case_starts;
+  std::optional<std::size_t> bench;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    if (events[i].channel == "INERTIA_BENCH" && !bench) bench = i;
+    if (events[i].channel != "INERTIA_EVENT") continue;
+    plan_event_t ev;
+    ASSERT_GE(ev.decode(events[i].data.data(), 0, static_cast<int>(events[i].data.size())), 0);
+    if (ev.mark == plan_event_t::MARK_CASE_START) case_starts.push_back(i);
+  }
+  const config::BenchConfig bench_config = config::load_bench_config(config);
+  ASSERT_TRUE(bench);
+  ASSERT_EQ(case_starts.size(), bench_config.cases.size());
+  ASSERT_GE(case_starts.size(), 3u);
+  const fs::path joined = tmp.path / "joined.lcmlog";
+  {
+    lcm::LogFile out(joined.string(), "w");
+    ASSERT_TRUE(out.good());
+    const auto write = [&](const LogEvent& e) {
+      lcm::LogEvent le{};
+      le.timestamp = e.utime;
+      le.channel = e.channel;
+      le.datalen = static_cast<int32_t>(e.data.size());
+      le.data = const_cast<std::uint8_t*>(e.data.data());
+      out.writeEvent(&le);
+    };
+    const std::size_t from = (case_starts[0] + case_starts[1]) / 2;
+    for (std::size_t i = from; i < events.size(); ++i) {
+      if (i == case_starts[1]) write(events[*bench]);
+      if (i != *bench) write(events[i]);
+    }
+  }
+  DaqdProcess online({"online", "--config", config, "--replay", joined.string()}, {}, tmp.path / "online.txt", analyze_binary());
+  ASSERT_EQ(online.wait(120), 0) << online.output();
+  const std::string text = online.output();
+  std::cout << "[ figures ] online --replay of the joined stream:\n" << text;
+  EXPECT_NE(text.find("joined a running inertia-daqd"), std::string::npos) << text;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(text, m, std::regex(R"((\d+) fused rows, \d+ gap\(s\), \d+ exclusion\(s\), (\d+) block\(s\) before the bench)")))
+      << text;
+  // Every sample of the cases from the second on, and none of the first's.
+  double after_first_s = 0.0;
+  for (std::size_t c = 1; c < bench_config.cases.size(); ++c)
+    for (const config::Phase& phase : bench_config.cases[c].phases) after_first_s += phase.duration_s;
+  EXPECT_EQ(std::stol(m[1]), std::lround(after_first_s * bench_config.sample_rate_hz)) << text;
+  EXPECT_GT(std::stol(m[2]), 0) << text;
 }
 
 TEST(OnlineLive, BadInputExitsTwoNamingIt) {
