@@ -327,6 +327,12 @@ int run(int argc, char** argv) {
 /// glibc.malloc tunable gets exactly those. Where the program is not run again (the kernel has no
 /// huge pages; valgrind, whose tools follow a new image only when asked; an exec that fails),
 /// mallopt keeps freed blocks up to 1 GB in the heap and the pages stay 4 KiB.
+///
+/// The run again also sets OpenMP's wait policy to passive where the caller set none: libgomp's
+/// default spins a thread that finished its share of a parallel region for a while before it
+/// sleeps, and the analysis runs many short regions beside its own thread pool
+/// (common/parallel.hpp), whose threads then wait for a core the spinning one holds. libgomp
+/// also reads it at process start only (docs/validation.md, 'Evidence behind choices in the code').
 void configure_malloc(char** argv) {
   constexpr const char* kConfigured = "INERTIA_ANALYZE_MALLOC_TUNED";
   constexpr std::string_view kMallocTunables =
@@ -348,9 +354,12 @@ void configure_malloc(char** argv) {
   const bool under_valgrind = preload != nullptr && std::strstr(preload, "vgpreload") != nullptr;
   if (!under_valgrind && huge_pages_available()) {
     const std::string with_ours = std::string(kMallocTunables) + (tunables.empty() ? "" : ":" + tunables);
-    if (::setenv("GLIBC_TUNABLES", with_ours.c_str(), 1) == 0 && ::setenv(kConfigured, "1", 1) == 0)
+    const bool wait_policy_given = std::getenv("OMP_WAIT_POLICY") != nullptr;
+    if (::setenv("GLIBC_TUNABLES", with_ours.c_str(), 1) == 0 && ::setenv(kConfigured, "1", 1) == 0 &&
+        (wait_policy_given || ::setenv("OMP_WAIT_POLICY", "passive", 1) == 0))
       ::execv("/proc/self/exe", argv);
     ::unsetenv(kConfigured);
+    if (!wait_policy_given) ::unsetenv("OMP_WAIT_POLICY");
     if (given != nullptr) {
       ::setenv("GLIBC_TUNABLES", tunables.c_str(), 1);
     } else {

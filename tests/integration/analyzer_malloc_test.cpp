@@ -1,6 +1,7 @@
 // inertia-analyze sets glibc's malloc tunables for its analysis (analyzer/main.cpp,
 // configure_malloc): it runs itself again with them in GLIBC_TUNABLES where the kernel has
-// transparent huge pages, and leaves a caller's own malloc tunables as they are. Observed from
+// transparent huge pages, and leaves a caller's own malloc tunables as they are; that run sets
+// OpenMP's wait policy to passive unless the caller set one. Observed from
 // the kernel: the running analyzer's environment (/proc/PID/environ), the real binary, the PID the
 // test started.
 #include <gtest/gtest.h>
@@ -33,8 +34,9 @@ bool huge_pages_available() {
 }
 
 struct AnalyzerRun {
-  std::optional<std::string> tunables;   // GLIBC_TUNABLES as the running analyzer's environment shows it
-  int status = -1;                       // exit status; -1: still running after 60 s (killed)
+  std::optional<std::string> tunables;      // GLIBC_TUNABLES as the running analyzer's environment shows it
+  std::optional<std::string> wait_policy;   // OMP_WAIT_POLICY likewise
+  int status = -1;                          // exit status; -1: still running after 60 s (killed)
 };
 
 /// Runs a simulation of the paper plan (about a second) with GLIBC_TUNABLES = `given` (none:
@@ -63,7 +65,11 @@ AnalyzerRun run_analyzer(const std::optional<std::string>& given, const fs::path
     std::ifstream in("/proc/" + std::to_string(pid) + "/environ", std::ios::binary);
     std::string entry;
     while (std::getline(in, entry, '\0'))
-      if (entry.rfind("GLIBC_TUNABLES=", 0) == 0) run.tunables = entry.substr(15);
+      if (entry.rfind("GLIBC_TUNABLES=", 0) == 0) {
+        run.tunables = entry.substr(15);
+      } else if (entry.rfind("OMP_WAIT_POLICY=", 0) == 0) {
+        run.wait_policy = entry.substr(16);
+      }
   }
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
   int status = 0;
@@ -89,6 +95,24 @@ TEST(AnalyzerMalloc, RunsWithHugePageTunablesWhereTheKernelHasThem) {
   }
   ASSERT_TRUE(run.tunables.has_value()) << "no GLIBC_TUNABLES in the running analyzer's environment";
   EXPECT_EQ(run.tunables->rfind("glibc.malloc.hugetlb=1", 0), 0U) << *run.tunables;
+  EXPECT_EQ(run.wait_policy.value_or("(none)"), "passive");
+}
+
+TEST(AnalyzerMalloc, KeepsACallersOwnOpenMPWaitPolicy) {
+  if (!huge_pages_available()) GTEST_SKIP() << "the kernel has no transparent huge pages: the analyzer runs as started";
+  const testing::TempDir dir("inertia-analyzer-malloc");
+  const char* before = std::getenv("OMP_WAIT_POLICY");
+  const std::optional<std::string> restore = before != nullptr ? std::optional<std::string>(before) : std::nullopt;
+  ::setenv("OMP_WAIT_POLICY", "active", 1);
+  const AnalyzerRun run = run_analyzer(std::nullopt, dir.path);
+  if (restore) {
+    ::setenv("OMP_WAIT_POLICY", restore->c_str(), 1);
+  } else {
+    ::unsetenv("OMP_WAIT_POLICY");
+  }
+  EXPECT_EQ(run.status, 0) << testing::text_of(dir.path / "simulate.txt");
+  ASSERT_TRUE(run.tunables.has_value());
+  EXPECT_EQ(run.wait_policy.value_or("(none)"), "active");
 }
 
 TEST(AnalyzerMalloc, KeepsACallersOwnMallocTunables) {
