@@ -27,9 +27,12 @@
 
 namespace inertia::daq {
 
+/// The fit's default window: per this many seconds of samples, the one that waited least is kept.
+inline constexpr double kClockFitWindowS = 0.1;
+
 class ClockFit {
  public:
-  ClockFit(double nominal_period_s, double window_s = 0.1, double span_s = 20.0);
+  ClockFit(double nominal_period_s, double window_s = kClockFitWindowS, double span_s = 20.0);
 
   /// One sample: its index on the device's clock (increasing; gaps allowed) and its host stamp.
   void add(std::int64_t index, std::int64_t host_ns) noexcept;

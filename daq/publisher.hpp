@@ -50,7 +50,7 @@ struct PublisherOptions {
   /// An encoded bench_config_t, sent on INERTIA_BENCH at start and every bench_period_s (so a
   /// late subscriber or lcm-logger gets the bench); empty: none.
   std::vector<std::uint8_t> bench_message;
-  double bench_period_s = 10.0;
+  double bench_period_s = channels::kBenchResendPeriodS;
   /// Fast simulated runs: wait for room in the log queue instead of losing messages (the
   /// samplers then wait for ring room, and the simulator for them), so "as fast as possible"
   /// means as fast as the disk, with nothing lost. Never for real devices.

@@ -21,6 +21,7 @@
 #include <string>
 
 #include "common/config/link_capacity.hpp"
+#include "daq/clock_fit.hpp"
 #include "hal/sim/bench_motion.hpp"
 #include "hal/sim/random_streams.hpp"
 
@@ -388,6 +389,19 @@ std::int64_t SimBench::CanWire::next_release_ns() const noexcept {
   return held_.empty() ? std::numeric_limits<std::int64_t>::max() : held_.front().release_ns;
 }
 
+void SimBench::CanWire::send_held_until(std::int64_t deadline_ns) {
+  for (;;) {
+    const std::int64_t next = std::min(deadline_ns, next_release_ns());
+    sleep_until_ns(next);
+    send_due(hal::monotonic_now_ns());
+    if (next == deadline_ns) return;
+  }
+}
+
+void SimBench::CanWire::send_all_held() {
+  if (!held_.empty()) send_held_until(held_.back().release_ns);
+}
+
 void SimBench::CanWire::send(std::vector<PendingFrame>& frames) {
   // A classic frame is the first CAN_MTU bytes of the canfd_frame (same id/len/data layout).
   constexpr std::size_t kChunk = 256;
@@ -501,7 +515,7 @@ void SimBench::run() noexcept {
   };
 
   // Paced: the least lateness of a batch in the current ClockFit-sized window (behind_schedule_s).
-  constexpr std::int64_t kWindowNs = 100'000'000;
+  constexpr auto kWindowNs = static_cast<std::int64_t>(kClockFitWindowS * 1e9);
   std::int64_t window_start = t0_ns_, window_least_late = std::numeric_limits<std::int64_t>::max();
   for (std::size_t n = 0; n < run_samples_ && !stop_.load(std::memory_order_relaxed); ++n) {
     const std::size_t pn = n % plan;
@@ -515,11 +529,7 @@ void SimBench::run() noexcept {
     if (!options_.fast && n % batch == 0) {
       const std::int64_t due = time_of(std::min(n + batch, run_samples_) - 1);
       // Meanwhile the frames the receive chain held back go out when they are due.
-      for (std::int64_t next = std::min(due, can_bus_.next_release_ns());; next = std::min(due, can_bus_.next_release_ns())) {
-        sleep_until_ns(next);
-        can_bus_.send_due(hal::monotonic_now_ns());
-        if (next == due) break;
-      }
+      can_bus_.send_held_until(due);
       window_least_late = std::min(window_least_late, hal::monotonic_now_ns() - due);
       if (t_n - window_start >= kWindowNs) {
         behind_schedule_ns_ = std::max(behind_schedule_ns_, window_least_late);
@@ -712,11 +722,7 @@ void SimBench::run() noexcept {
   }
   // What was simulated still goes out: the held frames when they are due, then (stopped early)
   // the batch in hand.
-  for (std::int64_t next = can_bus_.next_release_ns(); next != std::numeric_limits<std::int64_t>::max();
-       next = can_bus_.next_release_ns()) {
-    sleep_until_ns(next);
-    can_bus_.send_due(hal::monotonic_now_ns());
-  }
+  can_bus_.send_all_held();
   can_bus_.flush();
   for (auto& e : encoders_) e.bus.flush();
   finished_.store(true, std::memory_order_release);

@@ -152,6 +152,10 @@ class SimBench {
     /// INT64_MAX when none is held.
     void send_due(std::int64_t now_ns);
     [[nodiscard]] std::int64_t next_release_ns() const noexcept;
+    /// Sleeps until `deadline_ns`, sending each held batch on the way when it is due.
+    void send_held_until(std::int64_t deadline_ns);
+    /// Sleeps until every held batch has gone out.
+    void send_all_held();
 
    private:
     struct HeldBatch {

@@ -591,12 +591,12 @@ void print_stream_summary(const SensorPipeline& p, std::ostream& out) {
   if (!p.assembler->has_bench()) {
     fmt::print(out, "online: {}: no INERTIA_BENCH received (is inertia-daqd running on this LCM URL?)\n", p.name);
   } else if (p.assembler->skipped_blocks() > 0) {
-    // The daemon sends its bench file at start and every 10 s, and a marker at each case's start:
-    // an analyzer that joins a running daemon waits for both.
+    // The daemon sends its bench file at start and periodically, and a marker at each case's
+    // start: an analyzer that joins a running daemon waits for both.
     fmt::print(out,
                "online: {}: joined a running inertia-daqd: its samples are estimated from the first case that started after "
-               "its bench file arrived (INERTIA_BENCH, sent every 10 s)\n",
-               p.name);
+               "its bench file arrived ({}, sent every {:g} s)\n",
+               p.name, channels::kBench, channels::kBenchResendPeriodS);
   }
 }
 

@@ -9,6 +9,9 @@ namespace inertia::channels {
 inline constexpr std::string_view kEvent = "INERTIA_EVENT";     // plan_event_t
 inline constexpr std::string_view kStatus = "INERTIA_STATUS";   // daq_status_t, 1 Hz
 inline constexpr std::string_view kBench = "INERTIA_BENCH";     // bench_config_t (extension, docs/design.md)
+/// The daemon sends kBench at start and again every this many seconds, so that a late subscriber
+/// (lcm-logger, an analyzer joining a running daemon) gets the bench.
+inline constexpr double kBenchResendPeriodS = 10.0;
 // Operator requests to the daemon (`inertia-daqd mark`) and its answers: plan_command_t (extension, docs/design.md).
 // A request on kCommand carries no identity: refused and counted. From another machine a request
 // is signed (signed_command_t on kCommandSigned); on this one it goes through the daemon's command

@@ -21,6 +21,8 @@
 #include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <mutex>
+#include <optional>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -157,25 +159,36 @@ class DaqdProcess {
   fs::path stderr_file_;
 };
 
-/// The number after `key` on the summary line of `device` ("  accel: samples 123, ...").
-inline double summary_number(const std::string& out, const std::string& line_prefix, const std::string& key) {
+/// The text after `key` on the summary line of `device` ("  accel: samples 123, ..."); empty
+/// when the line or the key is missing.
+inline std::string summary_field(const std::string& out, const std::string& line_prefix, const std::string& key) {
   const auto at = out.find(line_prefix);
-  if (at == std::string::npos) return -1;
+  if (at == std::string::npos) return {};
   const auto eol = out.find('\n', at);
   const std::string line = out.substr(at, eol - at);
   const auto k = line.find(key + " ");
-  if (k == std::string::npos) return -1;
-  return std::stod(line.substr(k + key.size() + 1));
+  if (k == std::string::npos) return {};
+  return line.substr(k + key.size() + 1);
+}
+
+/// The number after `key` on the summary line of `device`; -1 when missing.
+inline double summary_number(const std::string& out, const std::string& line_prefix, const std::string& key) {
+  const std::string field = summary_field(out, line_prefix, key);
+  return field.empty() ? -1 : std::stod(field);
 }
 
 inline long long summary_value(const std::string& out, const std::string& line_prefix, const std::string& key) {
-  const auto at = out.find(line_prefix);
-  if (at == std::string::npos) return -1;
-  const auto eol = out.find('\n', at);
-  const std::string line = out.substr(at, eol - at);
-  const auto k = line.find(key + " ");
-  if (k == std::string::npos) return -1;
-  return std::stoll(line.substr(k + key.size() + 1));
+  const std::string field = summary_field(out, line_prefix, key);
+  return field.empty() ? -1 : std::stoll(field);
+}
+
+/// How far the simulator fell behind its own schedule (ms), from the daemon's closing line
+/// "simulated bench: at most X ms behind its schedule"; nullopt when the line is missing.
+inline std::optional<double> sim_schedule_lag_ms(const std::string& daqd_out) {
+  std::smatch m;
+  if (!std::regex_search(daqd_out, m, std::regex(R"(simulated bench: at most ([0-9.]+) ms behind its schedule)")))
+    return std::nullopt;
+  return std::stod(m[1]);
 }
 
 struct LogEvent {

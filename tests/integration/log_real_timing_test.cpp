@@ -81,10 +81,9 @@ TEST_P(RealStyleTiming, LogAgainstTheSimulatorsOwnDataset) {
     ASSERT_EQ(online.wait(30.0), 0) << online.output();
     live = online.output();
     daqd_out = daqd.output();
-    std::smatch behind;
-    ASSERT_TRUE(std::regex_search(daqd_out, behind, std::regex(R"(simulated bench: at most ([0-9.]+) ms behind its schedule)")))
-        << daqd_out;
-    std::cout << "[ figures ] attempt " << attempt << ": the simulator at most " << behind[1] << " ms behind its schedule\n";
+    const std::optional<double> behind_ms = sim_schedule_lag_ms(daqd_out);
+    ASSERT_TRUE(behind_ms) << daqd_out;
+    std::cout << "[ figures ] attempt " << attempt << ": the simulator at most " << *behind_ms << " ms behind its schedule\n";
     if (daqd_out.find("could not run the simulated devices on time") == std::string::npos) break;
     ASSERT_LT(attempt, kAttempts) << "this host could not pace the simulated bench on " << kAttempts
                                   << " attempts: the run would test the host's load, not the daemon\n"
