@@ -8,6 +8,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "analyzer/compensate/affine_samples.hpp"
 #include "analyzer/procedure/square_highpass.hpp"
 #include "common/input_error.hpp"
 
@@ -222,8 +223,8 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
     for (const std::size_t t : e.varying_terms)
       for (const Factor& f : e.terms[t].factors) constant_jacobian = constant_jacobian && f.solved < 0;
   // Then, without squares through the high pass (whose filter state moves with x), the samples
-  // are independent: b, x = -A^-1 b and the uncertainty's sums, a block of samples at a time
-  // (below, where the inverse is made).
+  // are independent: b, x = -A^-1 b and the uncertainty's sums, a few samples side by side
+  // (affine_samples.hpp; below, where the inverse is made).
   const bool affine_only =
       constant_jacobian && std::all_of(eqs.begin(), eqs.end(), [](const Equation& e) { return e.filtered.empty(); });
 
@@ -285,153 +286,32 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
     return true;
   };
   if (affine_only) {
-    // A block of samples at a time, each quantity a row of the block's samples (contiguous: the
-    // sums below are multiply-adds along the samples). Per equation the row of b,
-    // b = constant_b - y + the varying terms' weighted known parts; then x = -A^-1 b, each solved
-    // row's values, and the coefficients' derivatives dg (a constant term's 1, a row term's
-    // row . x, a varying term's known part, times -y over the denominator); a' C a of every
-    // sample is sum_i dg_i (sum_j C_ij dg_j).
-    constexpr Index kBlock = 64;
-    using Rows = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const bool invertible = invert();
-    Rows b_block(D, kBlock), x_block(D, kBlock), variance_c(D, kBlock), variance_n(D, kBlock);
-    // Per equation, a' C a and its noise's variance (noise sd times the denominator, squared).
-    Rows quadratic_block(D, kBlock), noise_block(D, kBlock);
-    struct BlockRows {
-      Eigen::MatrixXd covariance;                       // C
-      Eigen::Matrix<double, Eigen::Dynamic, D> rows;    // the solved rows, stacked
-      Rows solved, dg;                                  // a row per solved row, per term
-      Eigen::RowVectorXd denominator, known, c_dg, quadratic;
-    };
-    std::vector<BlockRows> sums(eqs.size());
+    std::vector<AffineEquation> affine(eqs.size());
     for (std::size_t m = 0; m < eqs.size(); ++m) {
       const Equation& e = eqs[m];
-      BlockRows& bs = sums[m];
-      const auto terms = static_cast<Index>(e.terms.size());
-      bs.covariance = equations_[m].model->covariance();
-      bs.rows.resize(static_cast<Index>(e.rows.size()), D);
-      for (std::size_t r = 0; r < e.rows.size(); ++r) bs.rows.row(static_cast<Index>(r)) = e.rows[r].transpose();
-      bs.solved.resize(bs.rows.rows(), kBlock);
-      bs.dg = Rows::Zero(terms, kBlock);
-      for (Index t = 0; t < terms; ++t) {
-        const Term& term = e.terms[static_cast<std::size_t>(t)];
-        if (term.factors.empty() && !term.denominator) bs.dg.row(t).setOnes();
+      AffineEquation& a = affine[m];
+      a.y = e.y->data();
+      a.constant_b = e.constant_b;
+      for (const std::size_t t : e.varying_terms) {
+        const Term& term = e.terms[t];
+        AffineEquation::VaryingTerm& v =
+            a.varying.emplace_back(AffineEquation::VaryingTerm{static_cast<Index>(t), term.coefficient, term.denominator, {}});
+        for (const Factor& f : term.factors) v.factors.push_back({f.factor, f.known});
       }
-      for (Eigen::RowVectorXd* v : {&bs.denominator, &bs.known, &bs.c_dg, &bs.quadratic}) v->resize(kBlock);
+      for (const auto& [t, row] : e.row_terms) a.row_terms.emplace_back(static_cast<Index>(t), static_cast<Index>(row));
+      for (std::size_t t = 0; t < e.terms.size(); ++t)
+        if (e.terms[t].factors.empty() && !e.terms[t].denominator) a.unit_terms.push_back(static_cast<Index>(t));
+      a.rows.resize(static_cast<Index>(e.rows.size()), D);
+      for (std::size_t r = 0; r < e.rows.size(); ++r) a.rows.row(static_cast<Index>(r)) = e.rows[r].transpose();
+      a.covariance = equations_[m].model->covariance();
+      a.noise_sd = e.noise_sd;
+      for (const Bound& b : e.bounds) a.bounds.push_back({b.solved, b.column != nullptr ? b.column->data() : nullptr, b.lowest, b.highest});
     }
-    Eigen::Array<bool, 1, Eigen::Dynamic> inside(kBlock);
     out.most_iterations = 1;
-    for (Index k0 = first_row_; k0 < n; k0 += kBlock) {
-      const Index nb = std::min(kBlock, n - k0), r0 = k0 - first_row_;
-      for (std::size_t m = 0; m < eqs.size(); ++m) {
-        const Equation& e = eqs[m];
-        BlockRows& bs = sums[m];
-        const auto y = e.y->segment(k0, nb).transpose().array();
-        auto b = b_block.row(static_cast<Index>(m)).head(nb).array();
-        b = e.constant_b - y;
-        auto denominator = bs.denominator.head(nb).array();
-        denominator.setOnes();
-        for (const std::size_t t : e.varying_terms) {
-          const Term& term = e.terms[t];
-          auto v = bs.known.head(nb).array();
-          v.setOnes();
-          for (const Factor& f : term.factors) {
-            const double* at = f.known + k0 - f.factor.lag;
-            if (f.factor.function == ident::FactorFunction::Plain && f.factor.power == 1)
-              v *= Eigen::Map<const Eigen::ArrayXd>(at, nb).transpose();
-            else
-              for (Index i = 0; i < nb; ++i) v(i) *= factor_value(f.factor, at[i]);
-          }
-          auto dg = bs.dg.row(static_cast<Index>(t)).head(nb).array();
-          if (term.denominator) {
-            b += (-y * term.coefficient) * v;
-            denominator += term.coefficient * v;
-            dg = v * -y;
-          } else {
-            b += term.coefficient * v;
-            dg = v;
-          }
-        }
-      }
-      // The sums below skip exact zeros of the inverse and of the solved rows: a unit's triads
-      // couple one way (a gyro's g-sensitivity reads the accelerometers' inputs), and a row
-      // reads the three axes of its own triad.
-      for (Index d = 0; d < D; ++d) {
-        auto x = x_block.row(d).head(nb);
-        x.setZero();
-        for (Index j = 0; j < D; ++j)
-          if (inverse(d, j) != 0.0) x -= inverse(d, j) * b_block.row(j).head(nb);
-      }
-      inside.head(nb).setConstant(true);
-      for (std::size_t m = 0; m < eqs.size(); ++m) {
-        const Equation& e = eqs[m];
-        BlockRows& bs = sums[m];
-        for (Index r = 0; r < bs.rows.rows(); ++r) {
-          auto v = bs.solved.row(r).head(nb);
-          v.setZero();
-          for (Index d = 0; d < D; ++d)
-            if (bs.rows(r, d) != 0.0) v += bs.rows(r, d) * x_block.row(d).head(nb);
-        }
-        for (const auto& [t, row] : e.row_terms) bs.dg.row(static_cast<Index>(t)).head(nb) = bs.solved.row(static_cast<Index>(row)).head(nb);
-        // C is symmetric: a' C a = 2 sum_i a_i (C_ii a_i / 2 + sum_{j>i} C_ij a_j).
-        auto quadratic = bs.quadratic.head(nb);
-        quadratic.setZero();
-        const Index terms = bs.dg.rows();
-        for (Index i = 0; i < terms; ++i) {
-          auto c_dg = bs.c_dg.head(nb);
-          c_dg = (0.5 * bs.covariance(i, i)) * bs.dg.row(i).head(nb);
-          for (Index j = i + 1; j < terms; ++j) c_dg += bs.covariance(i, j) * bs.dg.row(j).head(nb);
-          quadratic += c_dg.cwiseProduct(bs.dg.row(i).head(nb));
-        }
-        const auto mi = static_cast<Index>(m);
-        quadratic_block.row(mi).head(nb) = (2.0 * quadratic).cwiseMax(0.0);
-        noise_block.row(mi).head(nb) = (e.noise_sd * bs.denominator.head(nb)).array().square().matrix();
-        // Inside the characterized range: every solved input and every known one at the sample.
-        const auto within = [&](const auto& v, const Bound& bound) {
-          inside.head(nb) = inside.head(nb) && (v >= bound.lowest) && (v <= bound.highest);
-        };
-        for (const Bound& bound : e.bounds) {
-          if (bound.solved >= 0)
-            within(bs.solved.row(bound.solved).head(nb).array(), bound);
-          else
-            within(bound.column->segment(k0, nb).transpose().array(), bound);
-        }
-      }
-      // Each solved input's variances: the equations' through the inverse's entries squared.
-      for (Index d = 0; d < D; ++d) {
-        auto c = variance_c.row(d).head(nb);
-        auto v = variance_n.row(d).head(nb);
-        c.setZero();
-        v.setZero();
-        for (Index m = 0; m < D; ++m) {
-          if (inverse_squared(d, m) == 0.0) continue;
-          c += inverse_squared(d, m) * quadratic_block.row(m).head(nb);
-          v += inverse_squared(d, m) * noise_block.row(m).head(nb);
-        }
-      }
-      out.value.middleRows(r0, nb) = x_block.leftCols(nb).transpose();
-      out.u_coefficients.middleRows(r0, nb) = variance_c.leftCols(nb).cwiseSqrt().transpose();
-      out.u_noise.middleRows(r0, nb) = variance_n.leftCols(nb).cwiseSqrt().transpose();
-      // A value not finite in b is one in some x (a column of an inverse has an entry that is not
-      // zero, and NaN or infinity times it is not finite), and one in any x is one in their sum.
-      const Eigen::RowVectorXd x_sum = x_block.leftCols(nb).colwise().sum();
-      for (Index i = 0; i < nb; ++i) {
-        const auto r = static_cast<std::size_t>(r0 + i);
-        if (!invertible || !std::isfinite(x_sum(i))) {
-          out.value.row(r0 + i).setConstant(std::numeric_limits<double>::quiet_NaN());
-          out.u_coefficients.row(r0 + i).setConstant(std::numeric_limits<double>::quiet_NaN());
-          out.u_noise.row(r0 + i).setConstant(std::numeric_limits<double>::quiet_NaN());
-          out.flag[r] = SampleFlag::NotConverged;
-          ++out.not_converged;
-        } else if (!inside(i)) {
-          out.flag[r] = SampleFlag::OutsideRange;
-          ++out.outside_range;
-        }
-      }
-    }
+    solve_affine_samples<D>(affine, inverse, invertible, first_row_, n, out);
     return;
   }
-
   for (Index k = first_row_; k < n; ++k) {
     const Index r = k - first_row_;
     const auto moves = [&](const Factor& f) { return r < f.moving_until; };

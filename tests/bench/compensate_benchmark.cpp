@@ -11,15 +11,19 @@
 //    same samples in the same run (ratio_to_analyzer < 1: the C is faster);
 //  - BM_GeneratedTriadC/..., BM_GeneratedUnitC/...: the triad and the unit as generated joint C,
 //    likewise against JointInverse.
-// Items = samples. Run: build/bench/bench_compensate
+// Items = samples. The heap runs with inertia-analyze's malloc tunables (analyzer/main.cpp:
+// freed blocks reused, not returned and faulted in again), so the figures are the compensation's,
+// not the kernel's page faults for each call's fresh output. Run: build/bench/bench_compensate
 #include <benchmark/benchmark.h>
 #include <dlfcn.h>
+#include <malloc.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 
 #include "analyzer/compensate/c_export.hpp"
@@ -33,6 +37,12 @@ using namespace inertia;
 using ident::Variable;
 
 constexpr Eigen::Index kSamples = 1 << 18;
+
+// The heap as inertia-analyze sets it up: large blocks from the heap (glibc's largest mmap
+// threshold, above one call's output), and nothing returned to the kernel.
+[[maybe_unused]] const bool kHeapAsTheAnalyzers = [] {
+  return mallopt(M_MMAP_THRESHOLD, 32 << 20) == 1 && mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max()) == 1;
+}();
 
 model::ModelFile model_of(bool nonlinear, bool gyro = false) {
   model::ModelFile m;

@@ -384,6 +384,41 @@ TEST(JointInverse, NoiseUncertaintyIsTheSpreadOfTheJointSolution) {
   }
 }
 
+TEST(JointInverse, ALinearUnitsSampleIsTheSameWhicheverSamplesItIsSolvedBeside) {
+  // The affine path solves a few samples side by side (affine_samples.hpp): each record's first
+  // few samples alone (fewer than a register holds, and a partial last group) give the same
+  // bits as the same samples in the whole record. Members with a lagged temperature term and a
+  // y*T denominator, so that b varies and reads a lag.
+  const UnitRecord r = unit_record(1001, {{"1", 1e-3}, {"a_i", 0.09}, {"a_p", 0.02}, {"a_o", -0.03}, {"T[k-1]", 2e-5}},
+                                   {{"1", 0.01}, {"w_i", 1.2}, {"w_p", 0.3}, {"a_i", 0.05}, {"y*T", 1e-3}}, 1e-3, 41, false);
+  const unit::UnitInverse inverse(r.unit);
+  ASSERT_TRUE(inverse.joint().linear());
+  std::vector<const SignalSet*> whole;
+  for (const SignalSet& s : r.records) whole.push_back(&s);
+  const JointCompensation all = inverse.joint().compensate(whole, 1e-3);
+  ASSERT_EQ(all.first_row, 1);
+  for (const Eigen::Index samples : {2, 3, 4, 6, 7}) {
+    std::vector<SignalSet> heads;
+    for (const SignalSet& s : r.records) {
+      SignalSet head(samples, s.origin());
+      for (const Variable v : {Variable::Y, Variable::Ai, Variable::Ap, Variable::Ao, Variable::Wi, Variable::Wp, Variable::Wo, Variable::T})
+        head.set(v, s.get(v).head(samples));
+      heads.push_back(std::move(head));
+    }
+    std::vector<const SignalSet*> pointers;
+    for (const SignalSet& s : heads) pointers.push_back(&s);
+    const JointCompensation part = inverse.joint().compensate(pointers, 1e-3);
+    ASSERT_EQ(part.value.rows(), samples - 1);
+    for (Eigen::Index row = 0; row < part.value.rows(); ++row) {
+      for (Eigen::Index j = 0; j < 6; ++j) {
+        EXPECT_EQ(part.value(row, j), all.value(row, j)) << samples << " samples, row " << row << ", unknown " << j;
+        EXPECT_EQ(part.u_coefficients(row, j), all.u_coefficients(row, j)) << samples << " samples, row " << row;
+        EXPECT_EQ(part.u_noise(row, j), all.u_noise(row, j)) << samples << " samples, row " << row;
+      }
+    }
+  }
+}
+
 TEST(JointInverse, RefusesASystemThatIsNotSquareAndRecordsOfDifferentLengths) {
   const model::ModelFile m = model_of(dataset::SensorKind::Accelerometer, {{"1", 1e-3}, {"a_i", 0.09}});
   const InverseModel inverse(m);
