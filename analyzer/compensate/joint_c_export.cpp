@@ -223,7 +223,8 @@ JointCSource generate_joint_c(const JointInverse& joint, const std::vector<std::
 
   // invert(): the Jacobian's inverse, 0 where it is singular or not finite. It serves Newton's
   // step (inverse g) and the uncertainty, as in the analyzer (joint_inverse.cpp): up to 3
-  // unknowns by its cofactors, 6 by Gauss-Jordan elimination with partial pivoting.
+  // unknowns by its cofactors, 6 by Gauss-Jordan elimination with partial pivoting. (The analyzer
+  // inverts a block triangular unit's Jacobian per triad: the same inverse to rounding.)
   if (D == 1) {
     fmt::format_to(ci,
                    "static int invert(R a[1][1], R inverse[1][1]) {{\n"

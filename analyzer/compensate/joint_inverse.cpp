@@ -32,6 +32,75 @@ int solved_index(const JointEquation& e, Variable variable) {
   return -1;
 }
 
+template <int D>
+bool gauss_jordan_inverse(const Eigen::Matrix<double, D, D>& a, Eigen::Matrix<double, D, D>& inverse) {
+  // Row-major working copies: elimination works on rows. Of m only the columns right of the
+  // pivot are read again, so only those are updated.
+  std::array<std::array<double, D>, D> m{}, v{};
+  for (int i = 0; i < D; ++i) {
+    for (int j = 0; j < D; ++j) m[i][j] = a(i, j);
+    v[i][i] = 1.0;
+  }
+#pragma GCC unroll 6
+  for (int k = 0; k < D; ++k) {
+    int p = k;
+    double best = std::abs(m[k][k]);
+    for (int i = k + 1; i < D; ++i) {
+      if (std::abs(m[i][k]) > best) {
+        best = std::abs(m[i][k]);
+        p = i;
+      }
+    }
+    if (!(best > 0.0) || !std::isfinite(best)) return false;
+    if (p != k) {
+      std::swap(m[k], m[p]);
+      std::swap(v[k], v[p]);
+    }
+    const double pivot = 1.0 / m[k][k];
+#pragma GCC unroll 6
+    for (int j = k + 1; j < D; ++j) m[k][j] *= pivot;
+#pragma GCC unroll 6
+    for (int j = 0; j < D; ++j) v[k][j] *= pivot;
+    for (int i = 0; i < D; ++i) {
+      const double f = m[i][k];
+      if (i == k || f == 0.0) continue;
+#pragma GCC unroll 6
+      for (int j = k + 1; j < D; ++j) m[i][j] -= f * m[k][j];
+#pragma GCC unroll 6
+      for (int j = 0; j < D; ++j) v[i][j] -= f * v[k][j];
+    }
+  }
+  for (int i = 0; i < D; ++i)
+    for (int j = 0; j < D; ++j) {
+      if (!std::isfinite(v[i][j])) return false;
+      inverse(i, j) = v[i][j];
+    }
+  return true;
+}
+
+/// The inverse of a 3 x 3 matrix by its cofactors; false where it is singular or the determinant
+/// is not finite.
+bool cofactor_inverse(const Eigen::Matrix3d& a, Eigen::Matrix3d& inverse) {
+  double determinant = 0.0;
+  bool invertible = false;
+  a.computeInverseAndDetWithCheck(inverse, determinant, invertible, 0.0);
+  return invertible && std::isfinite(determinant);
+}
+
+/// The inverse of a 6 x 6 matrix [A 0; G B] (its first three equations read none of the last
+/// three unknowns: a unit's accelerometers, beside gyroscopes whose g-sensitivity reads the
+/// specific force) from its diagonal blocks': [A^-1 0; -B^-1 G A^-1 B^-1].
+bool block_triangular_inverse(const Eigen::Matrix<double, 6, 6>& j, Eigen::Matrix<double, 6, 6>& inverse) {
+  Eigen::Matrix3d a_inverse, b_inverse;
+  if (!cofactor_inverse(j.topLeftCorner<3, 3>(), a_inverse) || !cofactor_inverse(j.bottomRightCorner<3, 3>(), b_inverse))
+    return false;
+  inverse.topLeftCorner<3, 3>() = a_inverse;
+  inverse.topRightCorner<3, 3>().setZero();
+  inverse.bottomRightCorner<3, 3>() = b_inverse;
+  inverse.bottomLeftCorner<3, 3>().noalias() = -(b_inverse * j.bottomLeftCorner<3, 3>()) * a_inverse;
+  return inverse.allFinite();
+}
+
 }  // namespace
 
 JointInverse::JointInverse(std::vector<JointEquation> equations, std::vector<Eigen::VectorXd> fallback_starts)
@@ -263,22 +332,19 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
   if (constant_jacobian)
     for (std::size_t m = 0; m < eqs.size(); ++m) jacobian.row(static_cast<Index>(m)) = eqs[m].constant_a.transpose();
   // The Jacobian's inverse and its entries squared (the uncertainty's), or false where it is
-  // singular or a value not finite. Up to 3 unknowns the inverse is the cofactors'; 6 take an LU.
+  // singular or a value not finite. Up to 3 unknowns the inverse is the cofactors'; 6 take
+  // them per triad where the system is block triangular (a unit's), else Gauss-Jordan elimination.
   const auto invert = [&]() {
     if (!jacobian.allFinite()) return false;
     if constexpr (D == 1) {
       if (jacobian(0, 0) == 0.0) return false;
       inverse(0, 0) = 1.0 / jacobian(0, 0);
-    } else if constexpr (D <= 4) {
-      double determinant = 0.0;
-      bool invertible = false;
-      jacobian.computeInverseAndDetWithCheck(inverse, determinant, invertible, 0.0);
-      if (!invertible || !std::isfinite(determinant)) return false;
-    } else {
-      const Eigen::PartialPivLU<Matrix> lu(jacobian);
-      const double determinant = lu.determinant();
-      if (determinant == 0.0 || !std::isfinite(determinant)) return false;
-      inverse = lu.inverse();
+    } else if constexpr (D == 3) {
+      if (!cofactor_inverse(jacobian, inverse)) return false;
+    } else if (jacobian.template topRightCorner<3, 3>().isZero(0.0)) {
+      if (!block_triangular_inverse(jacobian, inverse)) return false;
+    } else if (!gauss_jordan_inverse<D>(jacobian, inverse)) {
+      return false;
     }
     inverted = jacobian;
     inverse_holds = constant_jacobian;
