@@ -32,6 +32,10 @@ int solved_index(const JointEquation& e, Variable variable) {
   return -1;
 }
 
+/// The inverse of `a` by Gauss-Jordan elimination with partial pivoting, the generated C's
+/// invert() (joint_c_export.cpp) step for step; false where a pivot is zero or a value is not
+/// finite. Fixed loops the compiler unrolls (D is at most 6), where an LU's inverse takes Eigen's
+/// general blocked path.
 template <int D>
 bool gauss_jordan_inverse(const Eigen::Matrix<double, D, D>& a, Eigen::Matrix<double, D, D>& inverse) {
   // Row-major working copies: elimination works on rows. Of m only the columns right of the
@@ -167,11 +171,7 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
     bool denominator = false, square_filtered = false;
   };
   // The range checks as flat bounds: a solved input (through its row) or a known one.
-  struct Bound {
-    int solved = -1;
-    const Eigen::VectorXd* column = nullptr;
-    double lowest = 0.0, highest = 0.0;
-  };
+  using Bound = AffineEquation::Bound;
   struct Equation {
     std::vector<Term> terms;
     std::vector<Vector> rows;
@@ -253,7 +253,7 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
       const double margin = options.range_margin * (span.highest - span.lowest);
       const int s = solved_index(source, variable);
       if (s < 0 && e.column[static_cast<std::size_t>(variable)] == nullptr) continue;
-      e.bounds.push_back({s, s < 0 ? e.column[static_cast<std::size_t>(variable)] : nullptr, span.lowest - margin, span.highest + margin});
+      e.bounds.push_back({s, s < 0 ? e.column[static_cast<std::size_t>(variable)]->data() : nullptr, span.lowest - margin, span.highest + margin});
     }
     const std::size_t t_count = e.terms.size();
     e.known.assign(t_count, 0.0);
@@ -372,7 +372,7 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
       for (std::size_t r = 0; r < e.rows.size(); ++r) a.rows.row(static_cast<Index>(r)) = e.rows[r].transpose();
       a.covariance = equations_[m].model->covariance();
       a.noise_sd = e.noise_sd;
-      for (const Bound& b : e.bounds) a.bounds.push_back({b.solved, b.column != nullptr ? b.column->data() : nullptr, b.lowest, b.highest});
+      a.bounds = e.bounds;
     }
     out.most_iterations = 1;
     solve_affine_samples<D>(affine, inverse, invertible, first_row_, n, out);
@@ -612,7 +612,7 @@ void JointInverse::solve(const std::vector<const ident::SignalSet*>& records, do
       }
       // Inside the characterized range: every solved input and every known one at this sample.
       for (const Bound& b : e.bounds) {
-        const double v = b.solved >= 0 ? e.solved_value[static_cast<std::size_t>(b.solved)] : (*b.column)(k);
+        const double v = b.solved >= 0 ? e.solved_value[static_cast<std::size_t>(b.solved)] : b.column[k];
         inside = inside && v >= b.lowest && v <= b.highest;
       }
     }
